@@ -1,0 +1,74 @@
+/// @file Sequence.h
+/// @brief Frame-sequence names: patterns (####, @, %04d, $F4), frame lists (1001-1100x2,1200),
+///        auto-detection from one real file name, and scanning a directory for the frames present.
+///
+/// @code
+/// auto seq = turbio::FramePattern::parse("cache/pyro.$F4.vdb");
+/// seq.format(1001);                          // "cache/pyro.1001.vdb"
+/// auto frames = turbio::parseFrameList("1001-1010x3,1200"); // {1001,1004,1007,1010,1200}
+/// @endcode
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace turbio {
+
+/// A file-name pattern with at most one frame-number token.
+class FramePattern
+{
+public:
+    /// Parses a pattern. Recognised tokens: runs of '#' (width = run length), '@' (one '@' means
+    /// unpadded, a run of n means width n), printf '%d' / '%0Nd', Houdini '$F' / '$FN'. A name with
+    /// no token is a single file (numbered() is false). Throws turb::ValueError on two tokens.
+    static FramePattern parse(const std::string& text);
+
+    /// Treats the last run of digits in the file name (not the directory) of a real file as the frame
+    /// number: "fluid_data_0001.vdb" -> "fluid_data_####.vdb", frame 1. nullopt if there are none.
+    static std::optional<std::pair<FramePattern, int>> fromFileName(const std::string& path);
+
+    /// The file name of frame `frame`. For an unnumbered pattern, the pattern itself.
+    std::string format(int frame) const;
+    /// The frame number encoded by `path`, when it matches this pattern.
+    std::optional<int> match(const std::string& path) const;
+
+    bool numbered() const { return mNumbered; }
+    int width() const { return mWidth; }
+    /// The pattern written with '#' padding, for messages.
+    std::string str() const;
+    const std::string& prefix() const { return mPrefix; }
+    const std::string& suffix() const { return mSuffix; }
+
+private:
+    std::string mPrefix, mSuffix;
+    int mWidth = 0;        // zero-padding width; 0 or 1 = unpadded
+    bool mNumbered = false;
+};
+
+/// Parses "1001-1100x2,1200,1300-1302": ranges with an optional step, comma-separated. Sorted,
+/// duplicates removed. Throws turb::ValueError naming the bad piece.
+std::vector<int> parseFrameList(const std::string& spec);
+
+/// Formats frames compactly ("1-10,12,14-20x2") for messages and reports.
+std::string formatFrameList(const std::vector<int>& frames);
+
+/// The frames of `pattern` that exist on disk, sorted. Lists the pattern's directory once.
+std::vector<int> scanFrames(const FramePattern& pattern);
+
+/// A sequence resolved against the disk: what the user asked for, what exists, what is missing.
+struct Sequence
+{
+    FramePattern pattern;
+    std::vector<int> frames;  ///< requested frames that exist
+    std::vector<int> missing; ///< requested frames that do not exist
+
+    std::string path(int frame) const { return pattern.format(frame); }
+};
+
+/// Resolves user input to a sequence. `text` may be a pattern or one real file name (auto-detected,
+/// siblings found by scanning). `frameSpec` (parseFrameList syntax) restricts/extends the request;
+/// empty means "every frame on disk". Throws turb::IoError when no file matches at all.
+Sequence resolveSequence(const std::string& text, const std::string& frameSpec = "");
+
+} // namespace turbio

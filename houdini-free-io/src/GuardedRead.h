@@ -1,0 +1,37 @@
+// Private to turb_io: runs OpenVDB's file reader in a child process.
+//
+// OpenVDB 10's reader trusts the bytes it reads: a corrupt Blosc/zip chunk or a damaged node mask can
+// corrupt the heap (abort, segfault) or loop forever. A render-farm tool must turn that into an error
+// naming the file, not a crash. The child opens the file, runs the caller's read body, and streams the
+// resulting grids back uncompressed over a pipe; the parent only ever parses that trusted stream.
+//
+// The body runs in a forked child of a possibly multi-threaded process, so it must not start TBB work:
+// OpenVDB's readGrid/readAllGridMetadata and serial iteration are fine; tools:: algorithms, voxel
+// counts and bounding-box evaluation (which use TBB in OpenVDB 10) are not.
+#pragma once
+
+#include <openvdb/openvdb.h>
+#include <openvdb/io/File.h>
+
+#include <functional>
+#include <string>
+
+namespace turbio::detail {
+
+struct GuardedResult
+{
+    openvdb::GridPtrVec grids;
+    openvdb::MetaMap::Ptr meta;
+};
+
+using ReadBody = std::function<void(openvdb::io::File& file, openvdb::GridPtrVec& grids, openvdb::MetaMap& meta)>;
+
+/// OpenVDB messages may quote bytes of a damaged file: keep them printable and short.
+std::string cleanMessage(const std::string& message);
+
+/// Opens `path` in a child process and runs `body` there. turb::Error thrown by the body is rethrown
+/// here with its message; a crash, a hang longer than `timeoutSeconds` or a memory blow-up becomes a
+/// turb::IoError naming the file.
+GuardedResult guardedRead(const std::string& path, const ReadBody& body, double timeoutSeconds);
+
+} // namespace turbio::detail

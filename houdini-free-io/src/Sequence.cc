@@ -1,0 +1,295 @@
+#include <turbio/Sequence.h>
+
+#include <turb/Error.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cstdio>
+#include <filesystem>
+#include <numeric>
+#include <set>
+#include <sstream>
+
+namespace fs = std::filesystem;
+
+namespace turbio {
+
+namespace {
+
+struct Token
+{
+    size_t pos = std::string::npos;
+    size_t len = 0;
+    int width = 0;
+};
+
+// Finds every frame token in `s` (used to reject patterns with two).
+std::vector<Token> findTokens(const std::string& s)
+{
+    std::vector<Token> out;
+    for (size_t i = 0; i < s.size();) {
+        const char c = s[i];
+        if (c == '#' || c == '@') {
+            size_t j = i;
+            while (j < s.size() && s[j] == c) ++j;
+            const int run = int(j - i);
+            out.push_back({i, j - i, (c == '@' && run == 1) ? 0 : run});
+            i = j;
+        } else if (c == '%') {
+            // %d, %4d, %04d
+            size_t j = i + 1;
+            while (j < s.size() && std::isdigit(static_cast<unsigned char>(s[j]))) ++j;
+            if (j < s.size() && s[j] == 'd') {
+                const std::string digits = s.substr(i + 1, j - i - 1);
+                out.push_back({i, j + 1 - i, digits.empty() ? 0 : std::stoi(digits)});
+                i = j + 1;
+            } else {
+                ++i;
+            }
+        } else if (c == '$' && i + 1 < s.size() && s[i + 1] == 'F') {
+            size_t j = i + 2;
+            while (j < s.size() && std::isdigit(static_cast<unsigned char>(s[j]))) ++j;
+            const std::string digits = s.substr(i + 2, j - i - 2);
+            out.push_back({i, j - i, digits.empty() ? 0 : std::stoi(digits)});
+            i = j;
+        } else {
+            ++i;
+        }
+    }
+    return out;
+}
+
+std::string trim(const std::string& s)
+{
+    size_t a = 0, b = s.size();
+    while (a < b && std::isspace(static_cast<unsigned char>(s[a]))) ++a;
+    while (b > a && std::isspace(static_cast<unsigned char>(s[b - 1]))) --b;
+    return s.substr(a, b - a);
+}
+
+bool parseInt(const std::string& s, int& out)
+{
+    if (s.empty()) return false;
+    size_t i = (s[0] == '-' || s[0] == '+') ? 1 : 0;
+    if (i == s.size()) return false;
+    for (size_t k = i; k < s.size(); ++k)
+        if (!std::isdigit(static_cast<unsigned char>(s[k]))) return false;
+    try {
+        out = std::stoi(s);
+    } catch (...) {
+        return false;
+    }
+    return true;
+}
+
+} // namespace
+
+FramePattern FramePattern::parse(const std::string& text)
+{
+    FramePattern p;
+    const std::vector<Token> tokens = findTokens(text);
+    if (tokens.size() > 1)
+        throw turb::ValueError("pattern '" + text + "' has more than one frame token");
+    if (tokens.empty()) {
+        p.mPrefix = text;
+        return p;
+    }
+    p.mPrefix = text.substr(0, tokens[0].pos);
+    p.mSuffix = text.substr(tokens[0].pos + tokens[0].len);
+    p.mWidth = tokens[0].width;
+    p.mNumbered = true;
+    return p;
+}
+
+std::optional<std::pair<FramePattern, int>> FramePattern::fromFileName(const std::string& path)
+{
+    const size_t slash = path.find_last_of('/');
+    const size_t nameStart = (slash == std::string::npos) ? 0 : slash + 1;
+    // Last run of digits in the file name.
+    size_t end = std::string::npos;
+    for (size_t i = path.size(); i > nameStart; --i) {
+        if (std::isdigit(static_cast<unsigned char>(path[i - 1]))) {
+            end = i;
+            break;
+        }
+    }
+    if (end == std::string::npos) return std::nullopt;
+    size_t begin = end;
+    while (begin > nameStart && std::isdigit(static_cast<unsigned char>(path[begin - 1]))) --begin;
+    const std::string digits = path.substr(begin, end - begin);
+    FramePattern p;
+    p.mPrefix = path.substr(0, begin);
+    p.mSuffix = path.substr(end);
+    // "0001" is padded to 4; "1001" may or may not be padded, and padding 4 formats it the same.
+    p.mWidth = int(digits.size());
+    p.mNumbered = true;
+    int frame = 0;
+    if (!parseInt(digits, frame)) return std::nullopt;
+    return std::make_pair(p, frame);
+}
+
+std::string FramePattern::format(int frame) const
+{
+    if (!mNumbered) return mPrefix;
+    char buf[32];
+    if (frame < 0)
+        std::snprintf(buf, sizeof(buf), "-%0*d", mWidth, -frame);
+    else
+        std::snprintf(buf, sizeof(buf), "%0*d", mWidth, frame);
+    return mPrefix + buf + mSuffix;
+}
+
+std::optional<int> FramePattern::match(const std::string& path) const
+{
+    if (!mNumbered) return path == mPrefix ? std::optional<int>(0) : std::nullopt;
+    if (path.size() <= mPrefix.size() + mSuffix.size()) return std::nullopt;
+    if (path.compare(0, mPrefix.size(), mPrefix) != 0) return std::nullopt;
+    if (path.compare(path.size() - mSuffix.size(), mSuffix.size(), mSuffix) != 0) return std::nullopt;
+    const std::string mid = path.substr(mPrefix.size(), path.size() - mPrefix.size() - mSuffix.size());
+    int frame = 0;
+    if (!parseInt(mid, frame)) return std::nullopt;
+    // Padded patterns only match names formatted exactly as format() would write them.
+    if (format(frame) != path) return std::nullopt;
+    return frame;
+}
+
+std::string FramePattern::str() const
+{
+    if (!mNumbered) return mPrefix;
+    return mPrefix + std::string(size_t(std::max(mWidth, 1)), mWidth == 0 ? '@' : '#') + mSuffix;
+}
+
+std::vector<int> parseFrameList(const std::string& spec)
+{
+    std::set<int> frames;
+    std::stringstream ss(spec);
+    std::string piece;
+    while (std::getline(ss, piece, ',')) {
+        piece = trim(piece);
+        if (piece.empty()) continue;
+        const auto bad = [&](const std::string& why) {
+            return turb::ValueError("frame list '" + spec + "': bad piece '" + piece + "' (" + why + ")");
+        };
+        int step = 1;
+        std::string range = piece;
+        const size_t x = piece.find_first_of("xX");
+        if (x != std::string::npos) {
+            if (!parseInt(piece.substr(x + 1), step) || step <= 0) throw bad("step must be a positive integer");
+            range = piece.substr(0, x);
+        }
+        // A '-' after the first character separates a range; a leading '-' is a sign.
+        const size_t dash = range.find('-', 1);
+        int a = 0, b = 0;
+        if (dash == std::string::npos) {
+            if (!parseInt(range, a)) throw bad("not a number");
+            b = a;
+        } else {
+            if (!parseInt(range.substr(0, dash), a) || !parseInt(range.substr(dash + 1), b))
+                throw bad("expected FIRST-LAST");
+            if (b < a) throw bad("range runs backwards");
+        }
+        if (double(b - a) / step > 1e6) throw bad("more than a million frames");
+        for (int f = a; f <= b; f += step) frames.insert(f);
+    }
+    if (frames.empty()) throw turb::ValueError("frame list '" + spec + "' names no frames");
+    return {frames.begin(), frames.end()};
+}
+
+std::string formatFrameList(const std::vector<int>& in)
+{
+    std::vector<int> f(in);
+    std::sort(f.begin(), f.end());
+    f.erase(std::unique(f.begin(), f.end()), f.end());
+    std::ostringstream os;
+    size_t i = 0;
+    bool first = true;
+    while (i < f.size()) {
+        // Longest arithmetic run starting at i.
+        size_t j = i + 1;
+        int step = (j < f.size()) ? f[j] - f[i] : 1;
+        while (j < f.size() && f[j] - f[j - 1] == step) ++j;
+        if (!first) os << ',';
+        first = false;
+        if (j - i >= 3) {
+            os << f[i] << '-' << f[j - 1];
+            if (step != 1) os << 'x' << step;
+            i = j;
+        } else {
+            os << f[i];
+            ++i;
+        }
+    }
+    return os.str();
+}
+
+std::vector<int> scanFrames(const FramePattern& pattern)
+{
+    std::vector<int> frames;
+    if (!pattern.numbered()) {
+        std::error_code ec;
+        if (fs::is_regular_file(pattern.prefix(), ec)) frames.push_back(0);
+        return frames;
+    }
+    const std::string prefix = pattern.prefix();
+    const size_t slash = prefix.find_last_of('/');
+    const std::string dir = (slash == std::string::npos) ? std::string(".") : prefix.substr(0, slash + 1);
+    std::error_code ec;
+    fs::directory_iterator it(dir, ec);
+    if (ec) return frames;
+    for (const auto& entry : it) {
+        std::string name = entry.path().filename().string();
+        const std::string full = (slash == std::string::npos) ? name : dir + name;
+        if (auto f = pattern.match(full)) frames.push_back(*f);
+    }
+    std::sort(frames.begin(), frames.end());
+    return frames;
+}
+
+Sequence resolveSequence(const std::string& text, const std::string& frameSpec)
+{
+    Sequence seq;
+    FramePattern pattern = FramePattern::parse(text);
+    if (!pattern.numbered()) {
+        // One real file name: a single file, or a member of a numbered sequence.
+        std::error_code ec;
+        const bool exists = fs::is_regular_file(text, ec);
+        auto detected = FramePattern::fromFileName(text);
+        if (detected && (exists || !frameSpec.empty())) {
+            FramePattern p = detected->first;
+            std::vector<int> siblings = scanFrames(p);
+            if (siblings.size() > 1 || !frameSpec.empty()) pattern = p;
+            else if (exists) {
+                seq.pattern = pattern;
+                seq.frames = {0};
+                return seq;
+            }
+        } else if (exists) {
+            seq.pattern = pattern;
+            seq.frames = {0};
+            return seq;
+        } else {
+            throw turb::IoError(text + ": no such file");
+        }
+    }
+    seq.pattern = pattern;
+    const std::vector<int> onDisk = scanFrames(pattern);
+    if (frameSpec.empty()) {
+        if (onDisk.empty()) throw turb::IoError(pattern.str() + ": no file matches this pattern");
+        seq.frames = onDisk;
+        // Gaps inside the range on disk are missing frames. A sequence cached on every n-th frame
+        // (all gaps multiples of n) only misses multiples of n.
+        int step = 0;
+        for (size_t i = 1; i < onDisk.size(); ++i) step = std::gcd(step, onDisk[i] - onDisk[i - 1]);
+        if (step <= 0) step = 1;
+        for (int f = onDisk.front(); f <= onDisk.back(); f += step)
+            if (!std::binary_search(onDisk.begin(), onDisk.end(), f)) seq.missing.push_back(f);
+        return seq;
+    }
+    for (int f : parseFrameList(frameSpec)) {
+        if (std::binary_search(onDisk.begin(), onDisk.end(), f)) seq.frames.push_back(f);
+        else seq.missing.push_back(f);
+    }
+    return seq;
+}
+
+} // namespace turbio

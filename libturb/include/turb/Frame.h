@@ -1,0 +1,38 @@
+/// @file Frame.h
+/// @brief The one in-memory frame type every stage reads and writes.
+///
+/// Conventions, enforced by the IO layer when it loads a cache:
+/// - velocity is cell-centred (staggered MAC grids are converted) and in world units per time unit;
+/// - all fields share one Lattice and cover the frame's domain box;
+/// - `dt` is the time between consecutive frames in the velocity's time unit, so a voxel moves
+///   `velocity * dt / voxelSize` voxels per frame. 0 means "unknown" and a stage needing it must ask.
+#pragma once
+
+#include <turb/Field.h>
+
+#include <map>
+#include <optional>
+#include <string>
+
+namespace turb {
+
+struct Frame
+{
+    int number = 0;                 ///< frame number as in the file name (1001, ...)
+    VectorField velocity;           ///< cell-centred, world units per time unit; empty if absent
+    ScalarField density;            ///< smoke density (fog volume); empty if absent
+    std::optional<ScalarField> temperature; ///< optional, carried along and upsampled by stages
+    std::optional<ScalarField> flame;       ///< optional, carried along and upsampled by stages
+    double dt = 0.0;                ///< time per frame in the velocity's time unit; 0 = unknown
+    std::map<std::string, std::string> metadata; ///< written to / read from the output file
+
+    bool hasVelocity() const { return !velocity.empty(); }
+    bool hasDensity() const { return !density.empty(); }
+
+    /// The lattice of the frame's fields (velocity's if present, else density's).
+    const Lattice& lattice() const { return hasVelocity() ? velocity.lattice() : density.lattice(); }
+    /// The index box the frame's fields cover.
+    const CoordBBox& bbox() const { return hasVelocity() ? velocity.bbox() : density.bbox(); }
+};
+
+} // namespace turb

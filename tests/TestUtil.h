@@ -1,0 +1,47 @@
+// Shared helpers for the test suites: temporary directories, the shared data folder, small VDB writers.
+#pragma once
+
+#include <turb/Field.h>
+
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <string>
+
+namespace testutil {
+
+/// ../shared/data, as configured by CMake.
+inline std::string dataDir() { return VDBTURB_SHARED_DATA; }
+inline std::string dataPath(const std::string& rel) { return dataDir() + "/" + rel; }
+inline bool haveData() { return std::filesystem::exists(dataDir() + "/README.md"); }
+
+/// A fresh empty directory under the build tree, removed at destruction.
+class TempDir
+{
+public:
+    TempDir()
+    {
+        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+        std::string name = info ? std::string(info->test_suite_name()) + "_" + info->name() : "tmp";
+        mPath = std::filesystem::absolute("test_tmp/" + name).string();
+        std::filesystem::remove_all(mPath);
+        std::filesystem::create_directories(mPath);
+    }
+    ~TempDir() { std::filesystem::remove_all(mPath); }
+    const std::string& path() const { return mPath; }
+    std::string operator/(const std::string& f) const { return mPath + "/" + f; }
+
+private:
+    std::string mPath;
+};
+
+/// Number of entries in a directory (to check that no temporary or partial files were left).
+inline size_t countEntries(const std::string& dir)
+{
+    size_t n = 0;
+    for ([[maybe_unused]] const auto& e : std::filesystem::directory_iterator(dir)) ++n;
+    return n;
+}
+
+} // namespace testutil

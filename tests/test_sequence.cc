@@ -1,0 +1,126 @@
+// Frame patterns, frame lists, auto-detection and directory scanning.
+#include "TestUtil.h"
+
+#include <turb/Error.h>
+#include <turbio/Sequence.h>
+
+#include <fstream>
+
+using turbio::FramePattern;
+
+TEST(FramePattern, HashRunSetsPaddingWidth)
+{
+    const auto p = FramePattern::parse("cache/pyro.####.vdb");
+    EXPECT_TRUE(p.numbered());
+    EXPECT_EQ(p.width(), 4);
+    EXPECT_EQ(p.format(7), "cache/pyro.0007.vdb");
+    EXPECT_EQ(p.format(1001), "cache/pyro.1001.vdb");
+    EXPECT_EQ(p.format(12345), "cache/pyro.12345.vdb");
+    EXPECT_EQ(p.format(-3), "cache/pyro.-0003.vdb");
+}
+
+TEST(FramePattern, PrintfHoudiniAndAtTokens)
+{
+    EXPECT_EQ(FramePattern::parse("a_%04d.vdb").format(12), "a_0012.vdb");
+    EXPECT_EQ(FramePattern::parse("a_%d.vdb").format(12), "a_12.vdb");
+    EXPECT_EQ(FramePattern::parse("a.$F4.vdb").format(12), "a.0012.vdb");
+    EXPECT_EQ(FramePattern::parse("a.$F.vdb").format(12), "a.12.vdb");
+    EXPECT_EQ(FramePattern::parse("a.@.vdb").format(12), "a.12.vdb");
+    EXPECT_EQ(FramePattern::parse("a.@@@.vdb").format(12), "a.012.vdb");
+}
+
+TEST(FramePattern, NoTokenIsASingleFileAndTwoTokensAreRejected)
+{
+    const auto p = FramePattern::parse("smoke.vdb");
+    EXPECT_FALSE(p.numbered());
+    EXPECT_EQ(p.format(5), "smoke.vdb");
+    EXPECT_THROW(FramePattern::parse("a.####.$F4.vdb"), turb::ValueError);
+}
+
+TEST(FramePattern, MatchInvertsFormat)
+{
+    const auto p = FramePattern::parse("dir/f_####.vdb");
+    EXPECT_EQ(p.match("dir/f_0042.vdb"), 42);
+    EXPECT_EQ(p.match("dir/f_12345.vdb"), 12345);
+    EXPECT_FALSE(p.match("dir/f_42.vdb"));  // not padded as the pattern says
+    EXPECT_FALSE(p.match("dir/g_0042.vdb"));
+    EXPECT_FALSE(p.match("dir/f_00a2.vdb"));
+}
+
+TEST(FramePattern, DetectsFrameNumberFromRealNames)
+{
+    auto a = FramePattern::fromFileName("/x/blender-c42/fluid_data_0001.vdb");
+    ASSERT_TRUE(a);
+    EXPECT_EQ(a->second, 1);
+    EXPECT_EQ(a->first.str(), "/x/blender-c42/fluid_data_####.vdb");
+    auto b = FramePattern::fromFileName("pyro.1001.vdb");
+    ASSERT_TRUE(b);
+    EXPECT_EQ(b->second, 1001);
+    EXPECT_EQ(b->first.format(1002), "pyro.1002.vdb");
+    // Digits in the directory are not the frame number.
+    EXPECT_FALSE(FramePattern::fromFileName("/cache42/smoke.vdb"));
+}
+
+TEST(FrameList, RangesStepsAndSingles)
+{
+    EXPECT_EQ(turbio::parseFrameList("1001-1010x3,1200"), (std::vector<int>{1001, 1004, 1007, 1010, 1200}));
+    EXPECT_EQ(turbio::parseFrameList("5"), (std::vector<int>{5}));
+    EXPECT_EQ(turbio::parseFrameList("3-5, 4-6"), (std::vector<int>{3, 4, 5, 6}));
+    EXPECT_EQ(turbio::parseFrameList("-2-1"), (std::vector<int>{-2, -1, 0, 1}));
+    EXPECT_EQ(turbio::parseFrameList("1001-1100x2").size(), 50u);
+}
+
+TEST(FrameList, BadPiecesAreNamed)
+{
+    try {
+        turbio::parseFrameList("1-10,abc");
+        FAIL() << "expected ValueError";
+    } catch (const turb::ValueError& e) {
+        EXPECT_NE(std::string(e.what()).find("abc"), std::string::npos);
+    }
+    EXPECT_THROW(turbio::parseFrameList("10-1"), turb::ValueError);
+    EXPECT_THROW(turbio::parseFrameList("1-10x0"), turb::ValueError);
+    EXPECT_THROW(turbio::parseFrameList(""), turb::ValueError);
+}
+
+TEST(FrameList, FormatIsCompactAndRoundTrips)
+{
+    const std::vector<int> f{1, 2, 3, 4, 7, 10, 12, 14, 16};
+    const std::string s = turbio::formatFrameList(f);
+    EXPECT_EQ(s, "1-4,7,10-16x2");
+    EXPECT_EQ(turbio::parseFrameList(s), f);
+}
+
+TEST(Sequence, ScanFindsFramesAndReportsMissingOnes)
+{
+    testutil::TempDir dir;
+    for (int f : {1001, 1002, 1004, 1005}) std::ofstream(dir / ("pyro." + std::to_string(f) + ".vdb")) << "x";
+    std::ofstream(dir / "pyro.notes.txt") << "x";
+    const auto seq = turbio::resolveSequence(dir / "pyro.####.vdb");
+    EXPECT_EQ(seq.frames, (std::vector<int>{1001, 1002, 1004, 1005}));
+    EXPECT_EQ(seq.missing, (std::vector<int>{1003}));
+
+    // From one real file name, siblings are found.
+    const auto fromFile = turbio::resolveSequence(dir / "pyro.1002.vdb");
+    EXPECT_EQ(fromFile.frames.size(), 4u);
+
+    // An explicit list reports the frames it names that are absent.
+    const auto listed = turbio::resolveSequence(dir / "pyro.$F4.vdb", "1001-1007x2");
+    EXPECT_EQ(listed.frames, (std::vector<int>{1001, 1005}));
+    EXPECT_EQ(listed.missing, (std::vector<int>{1003, 1007}));
+}
+
+TEST(Sequence, EveryNthFrameCacheIsNotMissingFrames)
+{
+    testutil::TempDir dir;
+    for (int f : {10, 12, 14, 18}) std::ofstream(dir / ("s_" + std::to_string(f) + ".vdb")) << "x";
+    const auto seq = turbio::resolveSequence(dir / "s_%d.vdb");
+    EXPECT_EQ(seq.missing, (std::vector<int>{16}));
+}
+
+TEST(Sequence, NothingOnDiskIsAnIoError)
+{
+    testutil::TempDir dir;
+    EXPECT_THROW(turbio::resolveSequence(dir / "none.####.vdb"), turb::IoError);
+    EXPECT_THROW(turbio::resolveSequence(dir / "none.vdb"), turb::IoError);
+}

@@ -1,0 +1,365 @@
+// houdini-free-io on synthetic files: conventions, round trips, and every kind of bad input.
+#include "TestUtil.h"
+
+#include <turb/Error.h>
+#include <turbio/Vdb.h>
+
+#include <openvdb/openvdb.h>
+#include <openvdb/io/File.h>
+
+#include <cmath>
+#include <fstream>
+
+using namespace turbio;
+
+namespace {
+
+void writeGrids(const std::string& path, openvdb::GridPtrVec grids, const openvdb::MetaMap& meta = {})
+{
+    openvdb::initialize();
+    openvdb::io::File f(path);
+    f.write(grids, meta);
+    f.close();
+}
+
+openvdb::math::Transform::Ptr xform(double vs, openvdb::Vec3d t = openvdb::Vec3d(0.0))
+{
+    auto x = openvdb::math::Transform::createLinearTransform(vs);
+    x->postTranslate(t);
+    return x;
+}
+
+openvdb::FloatGrid::Ptr densityBox(const openvdb::CoordBBox& b, float v, double vs = 0.1)
+{
+    auto g = openvdb::FloatGrid::create(0.0f);
+    g->fill(b, v, true);
+    g->tree().voxelizeActiveTiles();
+    g->setName("density");
+    g->setGridClass(openvdb::GRID_FOG_VOLUME);
+    g->setTransform(xform(vs));
+    return g;
+}
+
+// A MAC grid holding the linear field u(x) = A x + c, sampled where each component lives: the x
+// component of voxel (i,j,k) at the face (i-1/2, j, k), and so on.
+const openvdb::Vec3d kA[3] = {{0.5, -1.0, 2.0}, {1.5, 0.25, -0.5}, {-2.0, 0.75, 1.0}};
+const openvdb::Vec3d kC{0.3, -0.7, 1.1};
+double linear(int comp, const openvdb::Vec3d& x) { return kA[comp].dot(x) + kC[comp]; }
+
+openvdb::Vec3SGrid::Ptr linearMac(const openvdb::CoordBBox& b, const std::string& name, double vs)
+{
+    auto g = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.0f));
+    auto acc = g->getAccessor();
+    for (auto c = b.begin(); c; ++c) {
+        openvdb::Vec3s v;
+        for (int a = 0; a < 3; ++a) {
+            openvdb::Vec3d x((*c).x(), (*c).y(), (*c).z());
+            x[a] -= 0.5;
+            v[a] = float(linear(a, x));
+        }
+        acc.setValue(*c, v);
+    }
+    g->setName(name);
+    g->setGridClass(openvdb::GRID_STAGGERED);
+    g->setTransform(xform(vs));
+    return g;
+}
+
+ReadOptions anyGrids()
+{
+    ReadOptions o;
+    o.requireDensity = false;
+    o.requireVelocity = false;
+    return o;
+}
+
+std::string errorOf(const std::function<void()>& fn)
+{
+    try {
+        fn();
+    } catch (const turb::IoError& e) {
+        return e.what();
+    }
+    return "";
+}
+
+} // namespace
+
+TEST(GridAliases, ResolvesEveryConventionAndOverrides)
+{
+    EXPECT_EQ(resolveGrid({"flags", "density", "velocity"}, GridRole::Density), (std::vector<std::string>{"density"}));
+    EXPECT_EQ(resolveGrid({"density_noise", "vel"}, GridRole::Density), (std::vector<std::string>{"density_noise"}));
+    EXPECT_EQ(resolveGrid({"velocity", "vel"}, GridRole::Velocity), (std::vector<std::string>{"vel"}));
+    EXPECT_EQ(resolveGrid({"v"}, GridRole::Velocity), (std::vector<std::string>{"v"}));
+    EXPECT_EQ(resolveGrid({"vel.x", "vel.y", "vel.z"}, GridRole::Velocity),
+        (std::vector<std::string>{"vel.x", "vel.y", "vel.z"}));
+    EXPECT_TRUE(resolveGrid({"vel.x", "vel.y"}, GridRole::Velocity).empty());
+    EXPECT_EQ(resolveGrid({"heat"}, GridRole::Temperature), (std::vector<std::string>{"heat"}));
+    EXPECT_EQ(resolveGrid({"flames"}, GridRole::Flame), (std::vector<std::string>{"flames"}));
+    EXPECT_EQ(resolveGrid({"smoke", "density"}, GridRole::Density, "smoke"), (std::vector<std::string>{"smoke"}));
+    EXPECT_TRUE(resolveGrid({"density"}, GridRole::Density, "smoke").empty());
+    EXPECT_EQ(resolveGrid({"u.x", "u.y", "u.z"}, GridRole::Velocity, "u"),
+        (std::vector<std::string>{"u.x", "u.y", "u.z"}));
+}
+
+TEST(StaggeredVelocity, CentredValuesAreExactForALinearField)
+{
+    testutil::TempDir dir;
+    const openvdb::CoordBBox box({0, 0, 0}, {7, 6, 5});
+    writeGrids(dir / "mac.vdb", {linearMac(box, "vel", 0.5)});
+    const turb::Frame f = readFrame(dir / "mac.vdb", 1, anyGrids());
+    ASSERT_TRUE(f.hasVelocity());
+    EXPECT_EQ(f.velocity.bbox(), box);
+    for (auto c = box.begin(); c; ++c) {
+        const openvdb::Vec3d x((*c).x(), (*c).y(), (*c).z());
+        for (int a = 0; a < 3; ++a) {
+            // The upper face of a voxel on the box's upper side is not stored: one-sided there.
+            const bool upperEdge = (*c)[a] == box.max()[a];
+            openvdb::Vec3d xf = x;
+            xf[a] -= upperEdge ? 0.5 : 0.0;
+            EXPECT_NEAR(f.velocity[*c][a], linear(a, xf), 1e-5) << *c << " component " << a;
+        }
+    }
+    // "vel" without Blender metadata is world units.
+    EXPECT_EQ(f.metadata.at("vdbturb_input_velocity_units"), "world");
+}
+
+TEST(StaggeredVelocity, BlenderCellsBecomeWorldUnitsAndOverridesWin)
+{
+    testutil::TempDir dir;
+    const openvdb::CoordBBox box({0, 0, 0}, {3, 3, 3});
+    auto v = linearMac(box, "velocity", 0.25);
+    v->insertMeta("file_base_resolution", openvdb::Vec3IMetadata(openvdb::Vec3i(4, 4, 4)));
+    auto d = densityBox(box, 1.0f, 0.25);
+    d->insertMeta("file_base_resolution", openvdb::Vec3IMetadata(openvdb::Vec3i(4, 4, 4)));
+    writeGrids(dir / "blender.vdb", {d, v});
+
+    const turb::Frame cells = readFrame(dir / "blender.vdb", 1, ReadOptions{});
+    ReadOptions worldOpt;
+    worldOpt.velocityUnits = VelocityUnits::World;
+    const turb::Frame raw = readFrame(dir / "blender.vdb", 1, worldOpt);
+    EXPECT_EQ(cells.metadata.at("vdbturb_input_velocity_units"), "cells");
+    for (size_t n = 0; n < cells.velocity.size(); ++n)
+        for (int a = 0; a < 3; ++a) EXPECT_FLOAT_EQ(cells.velocity.data()[n][a], 0.25f * raw.velocity.data()[n][a]);
+    // Blender convention for the time per frame: 0.1 * 25 / fps.
+    EXPECT_NEAR(cells.dt, 0.1 * 25.0 / 24.0, 1e-12);
+
+    // And --vel-units cells on a Houdini-style grid scales too.
+    writeGrids(dir / "houdini.vdb", {linearMac(box, "vel", 0.25)});
+    ReadOptions cellOpt = anyGrids();
+    cellOpt.velocityUnits = VelocityUnits::Cells;
+    const turb::Frame h = readFrame(dir / "houdini.vdb", 1, cellOpt);
+    const turb::Frame hw = readFrame(dir / "houdini.vdb", 1, anyGrids());
+    EXPECT_FLOAT_EQ(h.velocity(1, 2, 1)[2], 0.25f * hw.velocity(1, 2, 1)[2]);
+    EXPECT_NEAR(hw.dt, 1.0 / 24.0, 1e-12);
+}
+
+TEST(RoundTrip, ValuesTransformMetadataAndGridConventionsSurvive)
+{
+    testutil::TempDir dir;
+    const turb::Lattice lat{0.1, {1.0, 2.0, -3.0}};
+    const turb::CoordBBox box({-2, 0, 5}, {5, 6, 9});
+    turb::Frame f;
+    f.number = 1001;
+    f.velocity = turb::VectorField(box, lat);
+    f.density = turb::ScalarField(box, lat);
+    f.temperature = turb::ScalarField(box, lat);
+    for (size_t n = 0; n < f.velocity.size(); ++n) {
+        const turb::Coord c = f.velocity.coordOf(n);
+        f.velocity.data()[n] = turb::Vec3f(std::sin(0.3f * c.x()), 0.1f * c.y() - 1.0f, 1e-3f * c.z());
+        f.density.data()[n] = (c.x() + c.y()) % 3 == 0 ? 0.0f : 0.01f * float(n % 97);
+        f.temperature->data()[n] = 300.0f + float(c.z());
+    }
+    f.dt = 1.0 / 30.0;
+    f.metadata["vdbturb_patch_size"] = "8";
+    writeFrame(dir / "rt.1001.vdb", f, WriteOptions{});
+    EXPECT_EQ(testutil::countEntries(dir.path()), 1u) << "no temporary files may remain";
+
+    const turb::Frame g = readFrame(dir / "rt.1001.vdb", 1001, ReadOptions{});
+    EXPECT_NEAR(g.lattice().voxelSize, 0.1, 1e-12);
+    EXPECT_NEAR((g.lattice().origin - lat.origin).length(), 0.0, 1e-12);
+    EXPECT_NEAR(g.dt, 1.0 / 30.0, 1e-15);
+    EXPECT_EQ(g.metadata.at("vdbturb_patch_size"), "8");
+    ASSERT_TRUE(g.temperature.has_value());
+    // Zero values are written inactive, so the read box may be smaller; compare over the written box.
+    for (auto c = box.begin(); c; ++c) {
+        EXPECT_EQ(g.velocity.valueOr((*c).x(), (*c).y(), (*c).z(), turb::Vec3f(0.0f)), f.velocity[*c]);
+        EXPECT_EQ(g.density.valueOr((*c).x(), (*c).y(), (*c).z(), 0.0f), f.density[*c]);
+        EXPECT_EQ(g.temperature->valueOr((*c).x(), (*c).y(), (*c).z(), 0.0f), (*f.temperature)[*c]);
+    }
+
+    const FileInfo info = inspectFile(dir / "rt.1001.vdb", false);
+    ASSERT_EQ(info.grids.size(), 3u);
+    for (const auto& gi : info.grids) {
+        EXPECT_FALSE(gi.halfFloat);
+        if (gi.name == "vel") {
+            EXPECT_EQ(gi.valueType, "vec3s");
+            EXPECT_EQ(gi.vectorType, "contravariant relative");
+            EXPECT_EQ(gi.units, "world");
+        } else {
+            EXPECT_EQ(gi.gridClass, "fog volume");
+        }
+    }
+}
+
+TEST(RoundTrip, BlenderStyleWritesStaggeredCellsAndReadsBack)
+{
+    testutil::TempDir dir;
+    const turb::Lattice lat{0.2, {0.0, 0.0, 0.0}};
+    const turb::CoordBBox box({0, 0, 0}, {5, 5, 5});
+    turb::Frame f;
+    f.velocity = turb::VectorField(box, lat);
+    f.density = turb::ScalarField(box, lat, 1.0f);
+    for (size_t n = 0; n < f.velocity.size(); ++n) {
+        const turb::Coord c = f.velocity.coordOf(n);
+        f.velocity.data()[n] = turb::Vec3f(0.5f * c.x() + 1.0f, -0.25f * c.y(), 0.1f * c.z() + 0.2f * c.x());
+    }
+    WriteOptions w;
+    w.style = WriteStyle::Blender;
+    writeFrame(dir / "b.vdb", f, w);
+    const FileInfo info = inspectFile(dir / "b.vdb", false);
+    bool sawVelocity = false;
+    for (const auto& gi : info.grids)
+        if (gi.name == "velocity") {
+            sawVelocity = true;
+            EXPECT_EQ(gi.gridClass, "staggered");
+            EXPECT_EQ(gi.units, "cells");
+        }
+    EXPECT_TRUE(sawVelocity);
+    ASSERT_TRUE(info.baseResolution.has_value());
+    EXPECT_EQ(*info.baseResolution, turb::Coord(6, 6, 6));
+
+    const turb::Frame g = readFrame(dir / "b.vdb", 1, ReadOptions{});
+    // Interior voxels of a linear field survive centred -> staggered -> centred exactly.
+    for (int i = 1; i < 5; ++i)
+        for (int j = 1; j < 5; ++j)
+            for (int k = 1; k < 5; ++k)
+                for (int a = 0; a < 3; ++a) EXPECT_NEAR(g.velocity(i, j, k)[a], f.velocity(i, j, k)[a], 1e-5);
+}
+
+TEST(RoundTrip, HalfFloatAndDoubleInputsAreRead)
+{
+    testutil::TempDir dir;
+    auto d = openvdb::DoubleGrid::create(0.0);
+    d->fill(openvdb::CoordBBox({0, 0, 0}, {3, 3, 3}), 0.123456789, true);
+    d->setName("density");
+    d->setTransform(xform(0.1));
+    auto v = openvdb::Vec3DGrid::create(openvdb::Vec3d(0.0));
+    v->fill(openvdb::CoordBBox({0, 0, 0}, {3, 3, 3}), openvdb::Vec3d(1.0, 2.0, 3.0), true);
+    v->setName("vel");
+    v->setTransform(xform(0.1));
+    writeGrids(dir / "double.vdb", {d, v});
+    const turb::Frame f = readFrame(dir / "double.vdb", 1, ReadOptions{});
+    EXPECT_FLOAT_EQ(f.density(1, 1, 1), 0.123456789f);
+    EXPECT_EQ(f.velocity(2, 2, 2), turb::Vec3f(1.0f, 2.0f, 3.0f));
+
+    auto h = densityBox(openvdb::CoordBBox({0, 0, 0}, {3, 3, 3}), 0.123456789f);
+    h->setSaveFloatAsHalf(true);
+    writeGrids(dir / "half.vdb", {h});
+    const turb::Frame fh = readFrame(dir / "half.vdb", 1, anyGrids());
+    EXPECT_NEAR(fh.density(1, 1, 1), 0.123456789f, 1e-4f);
+    EXPECT_NE(fh.density(1, 1, 1), 0.123456789f) << "half precision should have rounded the value";
+}
+
+TEST(RoundTrip, ThreeComponentGridsFormOneVelocity)
+{
+    testutil::TempDir dir;
+    openvdb::GridPtrVec grids;
+    const char* names[3] = {"vel.x", "vel.y", "vel.z"};
+    for (int a = 0; a < 3; ++a) {
+        auto g = openvdb::FloatGrid::create(0.0f);
+        g->fill(openvdb::CoordBBox({0, 0, 0}, {2, 2, 2}), float(a + 1), true);
+        g->setName(names[a]);
+        g->setTransform(xform(0.1));
+        grids.push_back(g);
+    }
+    writeGrids(dir / "comp.vdb", grids);
+    const turb::Frame f = readFrame(dir / "comp.vdb", 1, anyGrids());
+    EXPECT_EQ(f.velocity(1, 1, 1), turb::Vec3f(1.0f, 2.0f, 3.0f));
+}
+
+TEST(Writing, IsAtomicAndHonoursNoClobber)
+{
+    testutil::TempDir dir;
+    turb::Frame f;
+    f.density = turb::ScalarField(turb::CoordBBox({0, 0, 0}, {3, 3, 3}), turb::Lattice{}, 0.5f);
+    writeFrame(dir / "a.vdb", f, WriteOptions{});
+
+    WriteOptions keep;
+    keep.noClobber = true;
+    f.density.fill(0.25f);
+    EXPECT_THROW(writeFrame(dir / "a.vdb", f, keep), turb::IoError);
+    EXPECT_EQ(readFrame(dir / "a.vdb", 1, anyGrids()).density(1, 1, 1), 0.5f) << "no-clobber must keep the old file";
+
+    writeFrame(dir / "a.vdb", f, WriteOptions{});
+    EXPECT_EQ(readFrame(dir / "a.vdb", 1, anyGrids()).density(1, 1, 1), 0.25f);
+    EXPECT_EQ(testutil::countEntries(dir.path()), 1u);
+
+    EXPECT_THROW(writeFrame(dir / "no/such/dir/a.vdb", f, WriteOptions{}), turb::IoError);
+    EXPECT_THROW(writeFileAtomic(dir / "no/such/dir/x.txt", "x"), turb::IoError);
+    EXPECT_EQ(testutil::countEntries(dir.path()), 1u);
+}
+
+TEST(BadInput, EveryErrorNamesTheFileAndTheProblem)
+{
+    testutil::TempDir dir;
+    const std::string missing = dir / "missing.vdb";
+    EXPECT_NE(errorOf([&] { readFrame(missing, 1, ReadOptions{}); }).find(missing), std::string::npos);
+
+    std::ofstream(dir / "text.vdb") << "this is not a vdb file at all";
+    EXPECT_NE(errorOf([&] { readFrame(dir / "text.vdb", 1, ReadOptions{}); }).find("not an OpenVDB file"),
+        std::string::npos);
+
+    // Missing grid: the message lists what the file has and the option to use.
+    writeGrids(dir / "d.vdb", {densityBox(openvdb::CoordBBox({0, 0, 0}, {2, 2, 2}), 1.0f)});
+    const std::string noVel = errorOf([&] { readFrame(dir / "d.vdb", 1, ReadOptions{}); });
+    EXPECT_NE(noVel.find("no velocity"), std::string::npos) << noVel;
+    EXPECT_NE(noVel.find("the file has: density"), std::string::npos) << noVel;
+    EXPECT_NE(noVel.find("--vel-grid"), std::string::npos) << noVel;
+
+    // A newer file format (OpenVDB 13 writes 225).
+    {
+        std::ifstream in(dir / "d.vdb", std::ios::binary);
+        std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+        const uint32_t v = 225;
+        std::memcpy(&bytes[8], &v, 4);
+        std::ofstream(dir / "new.vdb", std::ios::binary) << bytes;
+    }
+    const std::string newer = errorOf([&] { readFrame(dir / "new.vdb", 1, anyGrids()); });
+    EXPECT_NE(newer.find("file format 225"), std::string::npos) << newer;
+    EXPECT_NE(newer.find("newer OpenVDB"), std::string::npos) << newer;
+
+    // NaN voxels name the grid.
+    auto nan = densityBox(openvdb::CoordBBox({0, 0, 0}, {2, 2, 2}), 1.0f);
+    nan->tree().setValue(openvdb::Coord(1, 2, 0), std::numeric_limits<float>::quiet_NaN());
+    writeGrids(dir / "nan.vdb", {nan});
+    const std::string nanMsg = errorOf([&] { readFrame(dir / "nan.vdb", 1, anyGrids()); });
+    EXPECT_NE(nanMsg.find("'density'"), std::string::npos) << nanMsg;
+    EXPECT_NE(nanMsg.find("NaN"), std::string::npos) << nanMsg;
+
+    // Mismatched transforms between the grids of one frame.
+    auto d2 = densityBox(openvdb::CoordBBox({0, 0, 0}, {2, 2, 2}), 1.0f, 0.1);
+    auto v2 = linearMac(openvdb::CoordBBox({0, 0, 0}, {2, 2, 2}), "vel", 0.2);
+    writeGrids(dir / "mismatch.vdb", {d2, v2});
+    const std::string mm = errorOf([&] { readFrame(dir / "mismatch.vdb", 1, ReadOptions{}); });
+    EXPECT_NE(mm.find("does not share the transform"), std::string::npos) << mm;
+
+    // Rotated transforms are refused.
+    auto rot = densityBox(openvdb::CoordBBox({0, 0, 0}, {2, 2, 2}), 1.0f);
+    auto rx = openvdb::math::Transform::createLinearTransform(0.1);
+    rx->postRotate(0.3, openvdb::math::Z_AXIS);
+    rot->setTransform(rx);
+    writeGrids(dir / "rot.vdb", {rot});
+    EXPECT_NE(errorOf([&] { readFrame(dir / "rot.vdb", 1, anyGrids()); }).find("uniform voxels"), std::string::npos);
+
+    // An Int32 grid named as density is a type error; otherwise Int32 grids are ignored.
+    auto flags = openvdb::Int32Grid::create(0);
+    flags->fill(openvdb::CoordBBox({0, 0, 0}, {2, 2, 2}), 3, true);
+    flags->setName("flags");
+    flags->setTransform(xform(0.1));
+    writeGrids(dir / "flags.vdb", {flags, densityBox(openvdb::CoordBBox({0, 0, 0}, {2, 2, 2}), 1.0f)});
+    EXPECT_NO_THROW(readFrame(dir / "flags.vdb", 1, anyGrids()));
+    ReadOptions asDensity = anyGrids();
+    asDensity.densityGrid = "flags";
+    EXPECT_NE(errorOf([&] { readFrame(dir / "flags.vdb", 1, asDensity); }).find("int32"), std::string::npos);
+}

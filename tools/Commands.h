@@ -1,0 +1,35 @@
+/// @file Commands.h
+/// @brief The table of subcommands. Each command fills a Settings struct from its options and calls one
+///        library entry point; no algorithm code lives in tools/.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <turbio/Vdb.h>
+
+namespace vdbturb {
+
+struct Command
+{
+    std::string name;
+    std::string help;
+    std::function<void(CLI::App*)> setup; ///< declares the options
+    std::function<int()> run;             ///< returns an exit code
+};
+
+Command infoCommand();
+
+/// All commands, in the order `vdbturb --help` lists them.
+std::vector<Command> allCommands();
+
+/// Adds --density-grid, --vel-grid, --vel-units, --dt, --fps for reading caches.
+void addReadOptions(CLI::App* app, turbio::ReadOptions& opt, const std::string& prefix = "");
+
+/// Adds --style and --no-clobber for writing caches.
+void addWriteOptions(CLI::App* app, turbio::WriteOptions& opt);
+
+} // namespace vdbturb

@@ -1,0 +1,69 @@
+/// @file Console.h
+/// @brief What every vdbturb command shares: verbosity, threads, Ctrl-C, the progress display, and
+///        the per-frame log line. Data (JSON) goes to stdout; everything for people goes to stderr.
+#pragma once
+
+#include <turb/Progress.h>
+
+#include <CLI/CLI.hpp>
+
+#include <atomic>
+#include <chrono>
+#include <string>
+
+namespace vdbturb {
+
+/// Exit codes (design.md): 0 success, 1 some frame failed, 2 usage error, 130 interrupted.
+enum ExitCode { kOk = 0, kFailed = 1, kUsage = 2, kInterrupted = 130 };
+
+struct Globals
+{
+    int verbosity = 1;   ///< 0 = -q (errors only), 1 = normal, 2 = -v
+    int threads = 0;     ///< 0 = all cores
+    bool dryRun = false; ///< resolve inputs and print the plan, write nothing
+};
+
+Globals& globals();
+
+/// Adds -v/-q/--threads/--dry-run to a subcommand.
+void addGlobalOptions(CLI::App* app);
+
+/// Installs the SIGINT/SIGTERM handler that turns Ctrl-C into a cancellation request.
+void installSignalHandlers();
+bool interruptRequested();
+
+void logError(const std::string& msg);   ///< always printed: "vdbturb: error: msg"
+void logWarning(const std::string& msg); ///< printed unless -q
+void logInfo(const std::string& msg);    ///< printed unless -q
+void logVerbose(const std::string& msg); ///< printed with -v
+
+/// True when stderr is a terminal (progress bar) rather than a farm log (one line per frame).
+bool stderrIsTty();
+
+/// turb::Progress for the console: a redrawn bar on a TTY, silence otherwise (the per-frame line is
+/// the farm log's unit). Cancellation follows Ctrl-C.
+class ConsoleProgress : public turb::Progress
+{
+public:
+    ConsoleProgress(int frameIndex, int frameCount, int frameNumber);
+    ~ConsoleProgress() override;
+    void begin(const std::string& step) override;
+    void update(double fraction) override;
+    void note(const std::string& text) override;
+    bool cancelled() const override;
+    void clear();
+
+private:
+    void draw();
+    int mIndex, mCount, mFrame;
+    std::string mStep;
+    double mFraction = 0.0;
+    bool mTty;
+    bool mDrawn = false;
+    std::chrono::steady_clock::time_point mLastDraw;
+};
+
+/// Seconds since `t0`.
+double secondsSince(std::chrono::steady_clock::time_point t0);
+
+} // namespace vdbturb
