@@ -1,0 +1,31 @@
+/// @file Advect.h
+/// @brief Moving a field along a velocity field for one time step (density, detail velocity).
+///
+/// Backed by OpenVDB's tools/VolumeAdvect.h (semi-Lagrangian or BFECC/MacCormack with a clamping
+/// limiter). The velocity may live on a different (coarser) lattice than the advected field; both are
+/// in world units. Deterministic at any thread count.
+///
+/// @code
+/// turb::AdvectSettings s;              // BFECC + clamp
+/// turb::ScalarField rho1 = turb::advect(rho0, velocity, dt, s);
+/// @endcode
+#pragma once
+
+#include <turb/Field.h>
+
+namespace turb {
+
+struct AdvectSettings
+{
+    enum class Scheme { SemiLagrangian, MacCormack, BFECC };
+    Scheme scheme = Scheme::BFECC; ///< integration scheme (BFECC: 2nd order, 3 backtraces)
+    bool clamp = true;             ///< clamp to the range of the sampled neighbourhood (no new extrema)
+    int substeps = 0;              ///< 0 = from the CFL number: at most 3 voxels of travel per substep
+};
+
+/// q advected by `velocity` over `dt` (velocity * dt is a world-space displacement). The result lives
+/// on q's lattice and box; values arriving from outside the box are zero.
+ScalarField advect(const ScalarField& q, const VectorField& velocity, double dt, const AdvectSettings& s = {});
+VectorField advect(const VectorField& q, const VectorField& velocity, double dt, const AdvectSettings& s = {});
+
+} // namespace turb

@@ -1,0 +1,46 @@
+/// @file Resample.h
+/// @brief Moving fields between a coarse lattice and its f-times finer refinement, and the frequency
+///        split of seed 002 (section 3.1) built on them.
+///
+/// Both operators are the ones quality.md defines its metrics with:
+/// - upsample: cell-centred trilinear. Fine voxel I sits at coarse coordinate (I + 1/2)/f - 1/2; values
+///   beyond the coarse box are extended constantly from the edge.
+/// - boxDownsample: the mean over each coarse voxel's f^3 fine voxels; fine voxels outside the fine box
+///   count as zero (sparse-grid background).
+///
+/// @code
+/// turb::VectorField low = turb::upsample(turb::boxDownsample(u, 4), 4); // U_sl
+/// turb::FrequencySplit s = turb::splitFrequencies(u, 4);                // s.low + s.high == u
+/// @endcode
+#pragma once
+
+#include <turb/Field.h>
+
+namespace turb {
+
+/// Cell-centred trilinear upsampling by an integer factor >= 1; the result covers refineBox(bbox).
+template<typename T>
+Field<T> upsample(const Field<T>& coarse, int factor);
+
+/// Mean over factor^3 blocks; the result covers coarsenBox(fine.bbox()).
+template<typename T>
+Field<T> boxDownsample(const Field<T>& fine, int factor);
+
+/// U = low + high with low = upsample(boxDownsample(U)), restricted to U's box.
+struct FrequencySplit
+{
+    VectorField coarse; ///< u_s: boxDownsample(U), on the coarse lattice
+    VectorField low;    ///< U_sl: upsample(coarse), on U's box
+    VectorField high;   ///< U_sh = U - U_sl
+};
+FrequencySplit splitFrequencies(const VectorField& fine, int factor);
+
+/// A copy of `f` restricted (or zero-extended) to `box`.
+template<typename T>
+Field<T> cropped(const Field<T>& f, const CoordBBox& box);
+
+/// The integer ratio coarse/fine of two voxel sizes; throws ValueError naming both when the ratio is
+/// below 1 or not within `tol` of an integer.
+int integerRatio(double coarseVoxel, double fineVoxel, double tol = 1e-3);
+
+} // namespace turb

@@ -1,0 +1,172 @@
+// Shared building blocks: resampling, finite differences, advection, images.
+#include "TestUtil.h"
+
+#include <turb/Advect.h>
+#include <turb/Error.h>
+#include <turb/Image.h>
+#include <turb/Operators.h>
+#include <turb/Parallel.h>
+#include <turb/Resample.h>
+#include <turbio/Png.h>
+
+#include <cmath>
+
+using namespace turb;
+
+namespace {
+
+VectorField linearField(const CoordBBox& box, const Lattice& lat)
+{
+    VectorField u(box, lat);
+    for (size_t n = 0; n < u.size(); ++n) {
+        const Vec3d x = lat.indexToWorld(Vec3d(u.coordOf(n).asVec3d()));
+        u.data()[n] = Vec3f(float(2 * x.x() - x.y() + 1), float(0.5 * x.z()), float(x.x() + 3 * x.y() - x.z()));
+    }
+    return u;
+}
+
+} // namespace
+
+TEST(Resample, UpsampleIsExactOnLinearFieldsAwayFromTheEdge)
+{
+    const Lattice coarseLat{0.5, {1.0, -2.0, 0.25}};
+    const CoordBBox cb({0, 0, 0}, {5, 4, 6});
+    const VectorField c = linearField(cb, coarseLat);
+    const int f = 4;
+    const VectorField fine = upsample(c, f);
+    EXPECT_EQ(fine.bbox(), refineBox(cb, f));
+    const Lattice fl = fine.lattice();
+    EXPECT_NEAR(fl.voxelSize, 0.125, 1e-12);
+    // Fine voxels whose sample position lies inside the coarse voxel-centre hull are exact.
+    for (size_t n = 0; n < fine.size(); ++n) {
+        const Coord I = fine.coordOf(n);
+        const Vec3d xc = coarseLat.worldToIndex(fl.indexToWorld(I.asVec3d()));
+        bool inside = true;
+        for (int a = 0; a < 3; ++a) inside &= xc[a] >= cb.min()[a] && xc[a] <= cb.max()[a];
+        if (!inside) continue;
+        const Vec3d x = fl.indexToWorld(I.asVec3d());
+        const Vec3f expect(float(2 * x.x() - x.y() + 1), float(0.5 * x.z()), float(x.x() + 3 * x.y() - x.z()));
+        ASSERT_NEAR((fine.data()[n] - expect).length(), 0.0f, 1e-4f) << I;
+    }
+}
+
+TEST(Resample, BoxDownsampleAveragesBlocksAndLatticesNest)
+{
+    const Lattice fineLat{0.25, {0.0, 0.0, 0.0}};
+    ScalarField f(CoordBBox({0, 0, 0}, {7, 7, 7}), fineLat);
+    for (size_t n = 0; n < f.size(); ++n) f.data()[n] = float(f.coordOf(n).x());
+    const ScalarField c = boxDownsample(f, 4);
+    EXPECT_EQ(c.bbox(), CoordBBox({0, 0, 0}, {1, 1, 1}));
+    EXPECT_FLOAT_EQ(c(0, 1, 1), 1.5f); // mean of x = 0..3
+    EXPECT_FLOAT_EQ(c(1, 0, 0), 5.5f); // mean of x = 4..7
+    // The coarse voxel's centre is the centre of its 4^3 fine voxels.
+    const Vec3d centre = c.lattice().indexToWorld(Vec3d(0.0));
+    EXPECT_NEAR((centre - fineLat.indexToWorld(Vec3d(1.5))).length(), 0.0, 1e-12);
+    EXPECT_TRUE(c.lattice().refined(4).approxEqual(fineLat));
+}
+
+TEST(Resample, SplitSumsBackExactlyAndLowPartHasNoBlockDetail)
+{
+    const Lattice lat{0.1, {0.0, 0.0, 0.0}};
+    VectorField u(CoordBBox({0, 0, 0}, {15, 15, 15}), lat);
+    for (size_t n = 0; n < u.size(); ++n) {
+        const Coord c = u.coordOf(n);
+        u.data()[n] = Vec3f(std::sin(2.3f * c.x()) + 0.1f * c.y(), std::cos(1.7f * c.z()), float((c.x() * 7 + c.y() * 3) % 5));
+    }
+    const FrequencySplit s = splitFrequencies(u, 4);
+    // Exact up to one float rounding of the subtraction.
+    for (size_t n = 0; n < u.size(); ++n)
+        for (int a = 0; a < 3; ++a)
+            ASSERT_NEAR(s.low.data()[n][a] + s.high.data()[n][a], u.data()[n][a],
+                4e-7f * (std::abs(u.data()[n][a]) + std::abs(s.low.data()[n][a])));
+    // Low part is the trilinear interpolant of 4x4x4 means: re-splitting it moves little energy.
+    const FrequencySplit again = splitFrequencies(s.low, 4);
+    double eHigh = 0, eLowHigh = 0;
+    for (size_t n = 0; n < u.size(); ++n) {
+        eHigh += s.high.data()[n].lengthSqr();
+        eLowHigh += again.high.data()[n].lengthSqr();
+    }
+    EXPECT_LT(eLowHigh, 0.1 * eHigh);
+}
+
+TEST(Resample, IntegerRatioRejectsBadRatios)
+{
+    EXPECT_EQ(integerRatio(0.125, 0.03125), 4);
+    EXPECT_EQ(integerRatio(0.8, 0.1), 8);
+    EXPECT_THROW(integerRatio(0.1, 0.03), ValueError);
+    EXPECT_THROW(integerRatio(0.03125, 0.125), ValueError);
+}
+
+TEST(Operators, AnalyticDivergenceAndCurl)
+{
+    const Lattice lat{0.2, {0.0, 0.0, 0.0}};
+    VectorField u(CoordBBox({0, 0, 0}, {9, 9, 9}), lat);
+    VectorField w(u.bbox(), lat);
+    for (size_t n = 0; n < u.size(); ++n) {
+        const Vec3d x = lat.indexToWorld(u.coordOf(n).asVec3d());
+        u.data()[n] = Vec3f(float(x.x()), float(x.y()), float(-2 * x.z())); // div 0
+        w.data()[n] = Vec3f(float(-x.y()), float(x.x()), 0.0f);            // curl (0,0,2)
+    }
+    const ScalarField d = divergence(u);
+    const VectorField c = curl(w);
+    for (size_t n = 0; n < d.size(); ++n) {
+        ASSERT_NEAR(d.data()[n], 0.0f, 1e-4f);
+        ASSERT_NEAR((c.data()[n] - Vec3f(0, 0, 2)).length(), 0.0f, 1e-4f);
+    }
+}
+
+TEST(Advect, ConstantVelocityTranslatesABlob)
+{
+    const Lattice lat{0.1, {0.0, 0.0, 0.0}};
+    const CoordBBox box({0, 0, 0}, {31, 31, 31});
+    ScalarField rho(box, lat);
+    for (size_t n = 0; n < rho.size(); ++n) {
+        const Vec3d x = rho.coordOf(n).asVec3d() - Vec3d(10.0, 12.0, 14.0);
+        rho.data()[n] = float(std::exp(-x.lengthSqr() / 8.0));
+    }
+    // Velocity on a coarser lattice, as the target velocity is when advecting high-res detail.
+    VectorField vel(CoordBBox({-1, -1, -1}, {9, 9, 9}), Lattice{0.4, {0.15, 0.15, 0.15}}, Vec3f(1.0f, 0.5f, 0.0f));
+    const double dt = 0.5; // 5 voxels in x, 2.5 in y
+    const auto centroid = [](const ScalarField& f) {
+        Vec3d c(0.0);
+        double m = 0;
+        for (size_t n = 0; n < f.size(); ++n) {
+            c += f.coordOf(n).asVec3d() * double(f.data()[n]);
+            m += f.data()[n];
+        }
+        return std::make_pair(c / m, m);
+    };
+    const auto [c0, m0] = centroid(rho);
+    ScalarField out1, out2;
+    withThreads(1, [&] { out1 = advect(rho, vel, dt); });
+    withThreads(2, [&] { out2 = advect(rho, vel, dt); });
+    const auto [c1, m1] = centroid(out1);
+    EXPECT_NEAR(c1.x() - c0.x(), 5.0, 0.1);
+    EXPECT_NEAR(c1.y() - c0.y(), 2.5, 0.1);
+    EXPECT_NEAR(c1.z() - c0.z(), 0.0, 0.05);
+    EXPECT_NEAR(m1 / m0, 1.0, 0.02);
+    EXPECT_EQ(out1.values(), out2.values()) << "advection must not depend on the thread count";
+}
+
+TEST(Image, TextSheetsAndPngRoundTrip)
+{
+    Image a(40, 30, Rgb(0.2f)), b(20, 30, Rgb(0.8f));
+    EXPECT_EQ(a.drawText(2, 2, "Ab1", Rgb(1.0f)), Image::textWidth("Ab1"));
+    EXPECT_EQ(a.at(2, 2), Rgb(0.2f)); // 'A' row 0 is ".###.": column 0 blank, 1 inked
+    EXPECT_EQ(a.at(3, 2), Rgb(1.0f));
+    const Image sheet = contactSheet({{{&a, "target"}, {&b, "source"}}}, {"f1"}, "title", 1);
+    EXPECT_GT(sheet.width(), 60);
+    EXPECT_GT(sheet.height(), 30);
+
+    testutil::TempDir dir;
+    Image grad(17, 9);
+    for (int y = 0; y < 9; ++y)
+        for (int x = 0; x < 17; ++x) grad.at(x, y) = Rgb(x / 16.0f, y / 8.0f, 0.5f);
+    turbio::writePng(dir / "g.png", grad);
+    const Image back = turbio::readPng(dir / "g.png");
+    ASSERT_EQ(back.width(), 17);
+    ASSERT_EQ(back.height(), 9);
+    for (size_t i = 0; i < grad.pixels().size(); ++i)
+        ASSERT_NEAR((back.pixels()[i] - grad.pixels()[i]).length(), 0.0f, 1.0f / 255.0f);
+    EXPECT_THROW(turbio::readPng(dir / "missing.png"), turb::IoError);
+}
