@@ -1,0 +1,20 @@
+#!/bin/sh
+# Installs everything vdbturb needs to build, test and run its demo on Debian 12, as root.
+# Idempotent: packages already present are left alone.
+set -eu
+PACKAGES="g++ cmake ninja-build ccache pkg-config make git
+  libopenvdb-dev libboost-iostreams-dev libtbb-dev libeigen3-dev libflann-dev liblz4-dev libblosc-dev
+  libgtest-dev libgmock-dev libcli11-dev nlohmann-json3-dev libpng-dev libfftw3-dev"
+missing=""
+for p in $PACKAGES; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing="$missing $p"
+done
+if [ -n "$missing" ]; then
+  echo "setup: installing$missing"
+  export DEBIAN_FRONTEND=noninteractive
+  apt-get update -q
+  # shellcheck disable=SC2086
+  apt-get install -y -q --no-install-recommends $missing
+else
+  echo "setup: all packages present"
+fi
