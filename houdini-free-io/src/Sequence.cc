@@ -292,4 +292,42 @@ Sequence resolveSequence(const std::string& text, const std::string& frameSpec)
     return seq;
 }
 
+int mapSourceFrame(int targetFrame, const std::vector<int>& sourceFrames, int offset, SourceWrap wrap)
+{
+    if (sourceFrames.empty()) throw turb::ValueError("the source sequence has no frames");
+    const int first = sourceFrames.front(), last = sourceFrames.back();
+    const int len = last - first + 1;
+    int s = targetFrame + offset;
+    if (s < first || s > last) {
+        switch (wrap) {
+        case SourceWrap::Loop: s = first + ((s - first) % len + len) % len; break;
+        case SourceWrap::PingPong: {
+            const int period = std::max(1, 2 * (len - 1));
+            int k = ((s - first) % period + period) % period;
+            if (k >= len) k = period - k;
+            s = first + k;
+            break;
+        }
+        case SourceWrap::Clamp: s = std::min(std::max(s, first), last); break;
+        case SourceWrap::Error:
+            throw turb::ValueError("target frame " + std::to_string(targetFrame) + " needs source frame " +
+                                   std::to_string(s) + ", outside the source's frames " + std::to_string(first) +
+                                   "-" + std::to_string(last) + " (use --source-offset or --source-wrap)");
+        }
+    }
+    if (!std::binary_search(sourceFrames.begin(), sourceFrames.end(), s))
+        throw turb::ValueError("source frame " + std::to_string(s) + " (for target frame " +
+                               std::to_string(targetFrame) + ") is missing from the source sequence");
+    return s;
+}
+
+void ensureParentDirectory(const std::string& path)
+{
+    const fs::path parent = fs::path(path).parent_path();
+    if (parent.empty()) return;
+    std::error_code ec;
+    fs::create_directories(parent, ec);
+    if (ec) throw turb::IoError(parent.string() + ": cannot create directory (" + ec.message() + ")");
+}
+
 } // namespace turbio

@@ -71,4 +71,21 @@ struct Sequence
 /// empty means "every frame on disk". Throws turb::IoError when no file matches at all.
 Sequence resolveSequence(const std::string& text, const std::string& frameSpec = "");
 
+/// How a target frame picks its source frame when the sequences differ in length.
+enum class SourceWrap
+{
+    Loop,     ///< run through the source again from its first frame
+    PingPong, ///< run back and forth through the source
+    Clamp,    ///< hold the first/last source frame
+    Error     ///< a target frame without its source frame is an error
+};
+
+/// The source frame for target frame `targetFrame`: the same number plus `offset`, wrapped into
+/// [first, last] of `sourceFrames` (sorted) as `wrap` says. Throws turb::ValueError when the frame is
+/// missing inside the range (a gap) or out of range with SourceWrap::Error.
+int mapSourceFrame(int targetFrame, const std::vector<int>& sourceFrames, int offset, SourceWrap wrap);
+
+/// Creates the directory that will hold `path` (and its parents). Throws turb::IoError on failure.
+void ensureParentDirectory(const std::string& path);
+
 } // namespace turbio

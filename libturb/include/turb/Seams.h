@@ -1,0 +1,108 @@
+/// @file Seams.h
+/// @brief Seam smoothing between pasted patches (seed 002, section 3.3).
+///
+/// Ω is a band of `bandWidth` voxels on each side of every border between local patches where at
+/// least one side carries detail. An EM loop alternates:
+/// - E-step: minimise  sum_edges |X(q) - X(p) - g(p,q)|^2 + gamma * sum_v (div X)(v)^2  over X in Ω,
+///   X fixed (the pasted field) outside Ω, by conjugate gradients on the normal equations (CGNR).
+///   g is the average, over the boundary patches covering an edge, of the chosen patch Z's difference;
+///   div is the central difference the quality metric `div_rel` uses.
+/// - M-step: for each C^3 boundary patch straddling a border, pick Z among the continuations of the
+///   neighbouring local patches' source matches on U_sh, minimising |grad X - grad Z|^2.
+/// It stops when the energy changes by less than `emTolerance` (relative).
+///
+/// Differences are taken in grid units; gamma is therefore resolution independent.
+#pragma once
+
+#include <turb/Field.h>
+#include <turb/Progress.h>
+
+#include <cstdint>
+#include <vector>
+
+namespace turb {
+
+struct SeamSettings
+{
+    bool enabled = true;         ///< false pastes patches without smoothing (ablation)
+    int bandWidth = 2;           ///< Ω half-width: voxels on each side of a patch border, >= 1
+    int boundaryPatch = 0;       ///< C: boundary patch edge (even); 0 = the local patch size B
+    float gamma = 10.0f;         ///< weight of the divergence term, >= 0 (paper: 10)
+    int maxEmIterations = 3;     ///< EM iterations (M-step + E-step), >= 1
+    double emTolerance = 0.02;   ///< stop when |E_b(k) - E_b(k-1)| / E_b(k-1) is below this
+    int maxCgIterations = 100;   ///< CG iterations per E-step
+    double cgTolerance = 1e-3;   ///< CG stops at this relative residual of the normal equations
+};
+
+/// One EM iteration, for the per-frame log.
+struct SeamIteration
+{
+    int cgIterations = 0;
+    double cgResidual = 0.0;  ///< relative residual |A^T r| / |A^T r0| when CG stopped
+    double energy = 0.0;      ///< E_b after the E-step
+};
+
+struct SeamStats
+{
+    size_t bandVoxels = 0;    ///< |Ω|
+    size_t boundaryPatches = 0;
+    double initialEnergy = 0.0; ///< E_b of the pasted field against the first M-step's Z
+    std::vector<SeamIteration> iterations;
+    bool converged = false;   ///< EM stopped on emTolerance rather than maxEmIterations
+};
+
+/// The lattice of local patches over the fine output box: patch P covers
+/// origin + P*size + [0, size-1]^3, clipped to the box.
+struct PatchLayout
+{
+    Coord origin{0};
+    int size = 8;
+    Coord count{0};
+
+    size_t patchCount() const { return size_t(count.x()) * size_t(count.y()) * size_t(count.z()); }
+    size_t patchIndex(const Coord& P) const
+    {
+        return (size_t(P.x()) * size_t(count.y()) + size_t(P.y())) * size_t(count.z()) + size_t(P.z());
+    }
+    Coord patchOf(const Coord& voxel) const
+    {
+        return Coord(floorDiv(voxel.x() - origin.x(), size), floorDiv(voxel.y() - origin.y(), size),
+            floorDiv(voxel.z() - origin.z(), size));
+    }
+    CoordBBox patchBox(const Coord& P) const
+    {
+        const Coord lo(origin.x() + P.x() * size, origin.y() + P.y() * size, origin.z() + P.z() * size);
+        return CoordBBox(lo, lo + Coord(size - 1));
+    }
+    static PatchLayout covering(const CoordBBox& box, int size);
+};
+
+/// What the seam stage needs to know about the pasted patches.
+struct SeamProblem
+{
+    const VectorField* sourceHigh = nullptr; ///< U_sh on the source lattice
+    float sourceScale = 1.0f;                ///< multiplies U_sh into the output's units
+    PatchLayout layout;                      ///< local patches over the detail field's box
+    std::vector<uint8_t> active;             ///< per patch: 1 if it carries pasted detail
+    std::vector<Coord> offset;               ///< per active patch: source voxel = output voxel + offset
+};
+
+/// Ω as a per-voxel mask over `box` (1 = in the band).
+std::vector<uint8_t> seamBand(const CoordBBox& box, const PatchLayout& layout, const std::vector<uint8_t>& active,
+    int bandWidth);
+
+/// Smooths the seams of `detail` (the pasted U_h) in place. Returns the EM/CG log.
+SeamStats smoothSeams(VectorField& detail, const SeamProblem& problem, const SeamSettings& settings,
+    Progress* progress = nullptr);
+
+/// The E-step alone, for tests and diagnostics: minimises the energy above over the voxels with
+/// omega = 1, for given edge targets g (per voxel p and axis a: the target of X(p + e_a) - X(p)),
+/// starting from and writing into X. Returns {iterations, relative residual, final energy}.
+SeamIteration solveSeamEStep(VectorField& X, const std::vector<uint8_t>& omega, const std::vector<Vec3f>& edgeTargets,
+    float gamma, int maxIterations, double tolerance);
+
+/// The energy the E-step minimises, evaluated over the rows touching Ω (for tests).
+double seamEnergy(const VectorField& X, const std::vector<uint8_t>& omega, const std::vector<Vec3f>& edgeTargets,
+    float gamma);
+
+} // namespace turb

@@ -1,0 +1,133 @@
+/// @file Transfer.h
+/// @brief Turbulence style transfer (seed 002, Sato et al. 2018, section 3): moves the high-frequency
+///        velocity of a high-resolution *source* simulation onto the motion of a low-resolution
+///        *target* simulation.
+///
+/// Per frame:
+/// 1. frequency split of the source: U_sl = up(boxdown(U_s)), U_sh = U_s - U_sl;
+/// 2. density masks with threshold D_th;
+/// 3. global search (eq. 1) over b^3 coarse patches (PCA + FLANN), only when smoke first enters a
+///    local patch; afterwards the global patch follows the previous frame's best local patch;
+/// 4. local search (eq. 2) for B^3 fine patches inside the global region, with the beta term on the
+///    previous detail advected through the target velocity;
+/// 5. paste U_h, then smooth seams (section 3.3) by EM: a conjugate-gradient E-step on
+///    sum |grad X - grad Z|^2 + gamma (div X)^2 over a band around patch borders and an M-step that
+///    re-picks the boundary patches Z on U_sh;
+/// 6. output U = up(u_t) + U_h at source resolution, density advected through U.
+///
+/// Velocities are compared in "coarse cells per frame" (u * dt / dx of each sequence), the grid units
+/// the paper's alpha/beta/gamma were tuned in, so world-unit conventions of the caches do not matter.
+///
+/// @code
+/// turb::TransferSettings s;                  // paper defaults: alpha 0.004, beta 0.5, gamma 10
+/// turb::TurbulenceTransfer transfer(s);
+/// for (...) {
+///     turb::TransferResult r = transfer.process(targetFrame, sourceFrame, &progress);
+///     write(r.frame);
+/// }
+/// @endcode
+#pragma once
+
+#include <turb/Frame.h>
+#include <turb/Progress.h>
+#include <turb/Seams.h>
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace turb {
+
+/// How the source is aligned to the target before matching (beyond the paper, whose stated
+/// limitation is sources whose flow differs in direction or speed).
+enum class FlowAlignment
+{
+    None,      ///< compare velocities as they are (the paper)
+    Normalize, ///< divide each sequence's velocities by its RMS speed in the smoke region
+    Rotate,    ///< rotate the source by the axis rotation that best maps its mean flow onto the target's
+    Both       ///< rotate, then normalize
+};
+
+/// How the first frame's high-resolution density is advanced.
+enum class DensityMode
+{
+    Advect,  ///< carry the previous output density through U, plus the target's own emission
+    LookBack ///< seed 003 supplement: re-start from the target density m frames back and advect m times
+};
+
+struct TransferSettings
+{
+    // Matching (eqs. 1 and 2)
+    float alpha = 0.004f;         ///< weight of the density-mask term, >= 0 (paper: 0.004)
+    float beta = 0.5f;            ///< weight of the temporal term on the advected previous detail, >= 0 (paper: 0.5)
+    float densityThreshold = 0.01f; ///< D_th: smoke where density > this (mask for patches and matching)
+    int localPatch = 8;           ///< B: local patch edge in fine voxels, >= 2
+    int globalPatch = 0;          ///< b: global patch edge in coarse voxels, odd; 0 = 2*ceil(B/f)+1 (> B/f as required)
+    int pcaComponents = 16;       ///< PCA dimensions of global and local descriptors, >= 1
+    int localStride = 2;          ///< spacing of candidate local-patch centres in the source, >= 1
+    int refineCandidates = 24;    ///< local candidates re-scored with the full-resolution energy E_h, >= 1
+    bool trackGlobalPatches = true; ///< the paper's temporal rule; false = global search every frame
+    FlowAlignment alignment = FlowAlignment::None; ///< see FlowAlignment
+
+    // Seam smoothing (section 3.3)
+    SeamSettings seams;           ///< band width, boundary patch size, gamma, EM and CG tolerances
+
+    // Output
+    bool removeCoarseDetail = true; ///< subtract the smooth part of U_h whose box means are not zero (keeps lf_err ~ 0)
+    bool preserveEnergy = true;   ///< rescale U_h (one scalar per frame) to the energy of the pasted patches, which
+                                  ///< seam smoothing and the coarse-part removal otherwise lower
+    DensityMode densityMode = DensityMode::Advect; ///< how the output density is produced
+    int lookBackFrames = 12;      ///< m for DensityMode::LookBack (seed 003 suggests 10-20)
+    int threads = 0;              ///< worker threads, 0 = all; results do not depend on it
+};
+
+/// Numbers a TD or a log wants per frame.
+struct TransferStats
+{
+    int ratio = 0;                 ///< resolution ratio f
+    int localPatches = 0;          ///< local patches holding smoke
+    int globalSearches = 0;        ///< patches that ran the global search this frame
+    int trackedPatches = 0;        ///< patches whose global patch followed the previous frame
+    double meanLocalEnergy = 0.0;  ///< mean E_h of the chosen local patches
+    double energyScale = 1.0;      ///< factor applied to U_h by preserveEnergy
+    SeamStats seams;               ///< EM/CG log of the seam smoothing
+    double seconds[8] = {0};       ///< split, global, local, paste, seams, output, density, total
+    static const char* stepName(int i);
+};
+
+struct TransferResult
+{
+    Frame frame;          ///< velocity (world units, source resolution), density, upsampled temperature/flame
+    TransferStats stats;
+    bool empty = false;   ///< the target frame had no smoke: the frame is the upsampled target (defined no-op)
+};
+
+/// Streaming transfer over a sequence: call process() once per frame, in order. Holds only what the
+/// method needs between frames (previous detail, previous output velocity/density, patch tracks).
+class TurbulenceTransfer
+{
+public:
+    explicit TurbulenceTransfer(const TransferSettings& settings);
+    ~TurbulenceTransfer();
+    TurbulenceTransfer(TurbulenceTransfer&&) noexcept;
+    TurbulenceTransfer& operator=(TurbulenceTransfer&&) noexcept;
+
+    /// Processes the next frame. `target` needs velocity and density; `source` needs velocity and
+    /// density on a lattice whose voxel size divides the target's by an integer >= 1.
+    TransferResult process(const Frame& target, const Frame& source, Progress* progress = nullptr);
+
+    /// The state needed to continue after the last processed frame (patch tracks), as a compact string
+    /// to store in the output file's metadata. The previous detail and density come from that file.
+    std::string saveState() const;
+    /// Restores a sequence: `state` from saveState(), `previousOutput` the frame written last and
+    /// `previousTarget` the target frame it was made from.
+    void restore(const std::string& state, const Frame& previousOutput, const Frame& previousTarget);
+
+    const TransferSettings& settings() const;
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> mImpl;
+};
+
+} // namespace turb

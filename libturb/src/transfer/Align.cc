@@ -1,0 +1,177 @@
+#include "Align.h"
+
+#include <turb/Parallel.h>
+#include <turb/Resample.h>
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+namespace turb::detail {
+
+namespace {
+
+// All 24 proper axis rotations, identity first (so ties keep the source as it is).
+const std::vector<AxisRotation>& allRotations()
+{
+    static const std::vector<AxisRotation> rots = [] {
+        std::vector<AxisRotation> out;
+        std::array<int, 3> perm{0, 1, 2};
+        do {
+            // Parity of the permutation decides which sign patterns are proper (det = +1).
+            int inversions = 0;
+            for (int i = 0; i < 3; ++i)
+                for (int j = i + 1; j < 3; ++j) inversions += perm[size_t(i)] > perm[size_t(j)];
+            for (int s = 0; s < 8; ++s) {
+                const std::array<int, 3> sign{(s & 1) ? -1 : 1, (s & 2) ? -1 : 1, (s & 4) ? -1 : 1};
+                const int det = sign[0] * sign[1] * sign[2] * ((inversions % 2) ? -1 : 1);
+                if (det == 1) out.push_back(AxisRotation{perm, sign});
+            }
+        } while (std::next_permutation(perm.begin(), perm.end()));
+        return out;
+    }();
+    return rots;
+}
+
+template<typename T, typename Fn>
+Field<T> rotateField(const Field<T>& f, const AxisRotation& r, Fn valueMap)
+{
+    const CoordBBox b = f.bbox();
+    Coord lo, hi;
+    for (int i = 0; i < 3; ++i) {
+        const int a = r.perm[size_t(i)];
+        if (r.sign[size_t(i)] > 0) {
+            lo[i] = b.min()[a];
+            hi[i] = b.max()[a];
+        } else {
+            lo[i] = -b.max()[a];
+            hi[i] = -b.min()[a];
+        }
+    }
+    Field<T> out(CoordBBox(lo, hi), f.lattice());
+    parallelFor(out.size(), 8192, [&](size_t s, size_t e) {
+        for (size_t n = s; n < e; ++n) {
+            const Coord c = out.coordOf(n);
+            Coord o;
+            for (int i = 0; i < 3; ++i) o[r.perm[size_t(i)]] = r.sign[size_t(i)] * c[i];
+            out.data()[n] = valueMap(f[o]);
+        }
+    });
+    return out;
+}
+
+} // namespace
+
+int AxisRotation::id() const
+{
+    const auto& all = allRotations();
+    for (size_t i = 0; i < all.size(); ++i)
+        if (all[i].perm == perm && all[i].sign == sign) return int(i);
+    return 0;
+}
+
+AxisRotation AxisRotation::fromId(int id)
+{
+    const auto& all = allRotations();
+    return all[size_t(std::clamp(id, 0, int(all.size()) - 1))];
+}
+
+AxisRotation bestRotation(const Vec3d& from, const Vec3d& to)
+{
+    const auto& all = allRotations();
+    AxisRotation best = all[0];
+    double bestDot = -1e300;
+    const double scale = from.length() * to.length();
+    for (const auto& r : all) {
+        const Vec3f v = r.apply(Vec3f(float(from.x()), float(from.y()), float(from.z())));
+        const double d = double(v.x()) * to.x() + double(v.y()) * to.y() + double(v.z()) * to.z();
+        // Prefer earlier (simpler) rotations unless clearly better.
+        if (d > bestDot + 1e-6 * scale) {
+            bestDot = d;
+            best = r;
+        }
+    }
+    return best;
+}
+
+VectorField rotated(const VectorField& f, const AxisRotation& r)
+{
+    return rotateField(f, r, [&](const Vec3f& v) { return r.apply(v); });
+}
+
+ScalarField rotated(const ScalarField& f, const AxisRotation& r)
+{
+    return rotateField(f, r, [](float v) { return v; });
+}
+
+void smokeFlowStats(const VectorField& u, const ScalarField& density, float threshold, Vec3d& mean, double& rms)
+{
+    Vec3d sum(0.0);
+    double sq = 0.0;
+    size_t n = 0;
+    for (size_t i = 0; i < u.size(); ++i) {
+        if (!(density.data()[i] > threshold)) continue;
+        const Vec3f& v = u.data()[i];
+        sum += Vec3d(v.x(), v.y(), v.z());
+        sq += double(v.lengthSqr());
+        ++n;
+    }
+    mean = n ? sum / double(n) : Vec3d(0.0);
+    rms = n ? std::sqrt(sq / double(n)) : 0.0;
+}
+
+namespace {
+
+// BU = boxDownsample o upsample on the coarse lattice. Both are separable, so BU is a 3-tap filter per
+// axis: fine samples of coarse cell i sit at x = (k + 1/2)/f - 1/2 in (-1/2, 1/2); their linear
+// interpolation weights, averaged over k, give the taps. Clamped ends fold the missing tap onto i.
+VectorField applyBU(const VectorField& c, int f)
+{
+    double wm = 0.0, wp = 0.0;
+    for (int k = 0; k < f; ++k) {
+        const double x = (k + 0.5) / f - 0.5;
+        if (x < 0) wm += -x;
+        else wp += x;
+    }
+    wm /= f;
+    wp /= f;
+    VectorField a = c, b(c.bbox(), c.lattice());
+    const CoordBBox box = c.bbox();
+    for (int axis = 0; axis < 3; ++axis) {
+        for (size_t n = 0; n < a.size(); ++n) {
+            const Coord p = a.coordOf(n);
+            Coord lo = p, hi = p;
+            lo[axis] = std::max(p[axis] - 1, box.min()[axis]);
+            hi[axis] = std::min(p[axis] + 1, box.max()[axis]);
+            b.data()[n] = a[lo] * float(wm) + a.data()[n] * float(1.0 - wm - wp) + a[hi] * float(wp);
+        }
+        std::swap(a, b);
+    }
+    return a;
+}
+
+} // namespace
+
+VectorField coarsePart(const VectorField& detail, int factor, int iterations, double tolerance)
+{
+    const VectorField target = boxDownsample(detail, factor);
+    VectorField c(target.bbox(), target.lattice());
+    double norm0 = 0.0;
+    for (const auto& v : target.values()) norm0 += double(v.lengthSqr());
+    if (norm0 == 0.0) return c;
+    // Richardson iteration c += b - BU(c): BU is close to the identity (its taps sum to 1 and the centre
+    // tap dominates), so the error contracts every iteration; all of it runs on the coarse lattice.
+    for (int it = 0; it < iterations; ++it) {
+        const VectorField bu = applyBU(c, factor);
+        double res = 0.0;
+        for (size_t i = 0; i < c.size(); ++i) {
+            const Vec3f r = target.data()[i] - bu.data()[i];
+            c.data()[i] += r;
+            res += double(r.lengthSqr());
+        }
+        if (res <= tolerance * tolerance * norm0) break;
+    }
+    return c;
+}
+
+} // namespace turb::detail

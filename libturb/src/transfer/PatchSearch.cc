@@ -1,0 +1,167 @@
+#include "PatchSearch.h"
+
+#include <turb/Error.h>
+#include <turb/Parallel.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace turb::detail {
+
+void globalDescriptor(const VectorField& u, const ScalarField& d, const Coord& centre, int b, float k,
+    const MatchWeights& w, float* out)
+{
+    const int r = b / 2;
+    const float sa = std::sqrt(w.alpha);
+    size_t n = 0;
+    for (int x = -r; x <= r; ++x)
+        for (int y = -r; y <= r; ++y)
+            for (int z = -r; z <= r; ++z) {
+                const Coord c = centre + Coord(x, y, z);
+                const Vec3f v = u.clamped(c.x(), c.y(), c.z()) * k;
+                out[n++] = v.x();
+                out[n++] = v.y();
+                out[n++] = v.z();
+                out[n++] = d.clamped(c.x(), c.y(), c.z()) > w.threshold ? sa : 0.0f;
+            }
+}
+
+void GlobalIndex::build(const VectorField& us, const ScalarField& ds, int b, float k, const MatchWeights& w,
+    int pcaComponents)
+{
+    mCells.clear();
+    const CoordBBox box = us.bbox();
+    const int r = b / 2;
+    // Candidate centres: cells with smoke within the patch radius.
+    for (size_t n = 0; n < ds.size(); ++n) {
+        const Coord c = ds.coordOf(n);
+        bool smoke = false;
+        for (int x = -r; x <= r && !smoke; ++x)
+            for (int y = -r; y <= r && !smoke; ++y)
+                for (int z = -r; z <= r && !smoke; ++z) {
+                    const Coord q = c + Coord(x, y, z);
+                    smoke = box.isInside(q) && ds[q] > w.threshold;
+                }
+        if (smoke) mCells.push_back(c);
+    }
+    if (mCells.empty()) return;
+    const size_t dim = globalDescriptorSize(b);
+    std::vector<float> rows(mCells.size() * dim);
+    parallelFor(mCells.size(), 64, [&](size_t s, size_t e) {
+        for (size_t i = s; i < e; ++i) globalDescriptor(us, ds, mCells[i], b, k, w, &rows[i * dim]);
+    });
+    mIndex.build(std::move(rows), dim, PcaSettings{pcaComponents});
+}
+
+Coord GlobalIndex::nearest(const float* descriptor) const
+{
+    int idx = -1;
+    float d2 = 0.0f;
+    mIndex.query(descriptor, 1, &idx, &d2);
+    return idx >= 0 ? mCells[size_t(idx)] : Coord(0);
+}
+
+void localDescriptor(const VectorField& U, const ScalarField& D, const Coord& corner, int B, float k,
+    const MatchWeights& w, float* out)
+{
+    const float sa = std::sqrt(w.alpha);
+    size_t n = 0;
+    // Samples at odd offsets 1, 3, 5, ... sit symmetrically inside an even-sized patch.
+    for (int x = 1 % B; x < B; x += 2)
+        for (int y = 1 % B; y < B; y += 2)
+            for (int z = 1 % B; z < B; z += 2) {
+                const Coord c = corner + Coord(x, y, z);
+                const Vec3f v = U.clamped(c.x(), c.y(), c.z()) * k;
+                out[n++] = v.x();
+                out[n++] = v.y();
+                out[n++] = v.z();
+                out[n++] = D.clamped(c.x(), c.y(), c.z()) > w.threshold ? sa : 0.0f;
+            }
+}
+
+void LocalCandidates::build(const VectorField& Usl, const ScalarField& Ds, int B, int stride, float k,
+    const MatchWeights& w, int pcaComponents)
+{
+    mB = B;
+    mStride = std::max(1, stride);
+    const CoordBBox box = Usl.bbox();
+    mCorners = CoordBBox(box.min(), box.max() - Coord(B - 1));
+    mReduced.clear();
+    mSlot.clear();
+    mCount = 0;
+    if (mCorners.empty()) throw ValueError("the source is smaller than one local patch");
+    const Coord extent = mCorners.dim();
+    mLattice = Coord((extent.x() + mStride - 1) / mStride, (extent.y() + mStride - 1) / mStride,
+        (extent.z() + mStride - 1) / mStride);
+    const size_t cells = size_t(mLattice.x()) * size_t(mLattice.y()) * size_t(mLattice.z());
+
+    // Which candidate patches hold smoke: a prefix-sum over the mask answers each box in O(1).
+    const Coord d = box.dim();
+    const auto at = [&](int x, int y, int z) {
+        return (size_t(x) * size_t(d.y() + 1) + size_t(y)) * size_t(d.z() + 1) + size_t(z);
+    };
+    std::vector<int> sum(size_t(d.x() + 1) * size_t(d.y() + 1) * size_t(d.z() + 1), 0);
+    for (int x = 1; x <= d.x(); ++x)
+        for (int y = 1; y <= d.y(); ++y)
+            for (int z = 1; z <= d.z(); ++z) {
+                const int m = Ds(box.min().x() + x - 1, box.min().y() + y - 1, box.min().z() + z - 1) > w.threshold;
+                sum[at(x, y, z)] = m + sum[at(x - 1, y, z)] + sum[at(x, y - 1, z)] + sum[at(x, y, z - 1)] -
+                                   sum[at(x - 1, y - 1, z)] - sum[at(x - 1, y, z - 1)] - sum[at(x, y - 1, z - 1)] +
+                                   sum[at(x - 1, y - 1, z - 1)];
+            }
+    const auto smokeIn = [&](const Coord& lo) {
+        const int x0 = lo.x() - box.min().x(), y0 = lo.y() - box.min().y(), z0 = lo.z() - box.min().z();
+        const int x1 = x0 + B, y1 = y0 + B, z1 = z0 + B;
+        return sum[at(x1, y1, z1)] - sum[at(x0, y1, z1)] - sum[at(x1, y0, z1)] - sum[at(x1, y1, z0)] +
+                   sum[at(x0, y0, z1)] + sum[at(x0, y1, z0)] + sum[at(x1, y0, z0)] - sum[at(x0, y0, z0)] > 0;
+    };
+    mSlot.assign(cells, -1);
+    std::vector<Coord> corners;
+    for (int x = 0; x < mLattice.x(); ++x)
+        for (int y = 0; y < mLattice.y(); ++y)
+            for (int z = 0; z < mLattice.z(); ++z) {
+                const Coord c = mCorners.min() + Coord(x * mStride, y * mStride, z * mStride);
+                if (!smokeIn(c)) continue;
+                mSlot[(size_t(x) * size_t(mLattice.y()) + size_t(y)) * size_t(mLattice.z()) + size_t(z)] = int(corners.size());
+                corners.push_back(c);
+            }
+    mCount = corners.size();
+    if (mCount == 0) return;
+
+    const size_t dim = localDescriptorSize(B);
+    // Fit the PCA on an even subset; then project everything in fixed chunks (memory stays bounded).
+    {
+        const size_t sample = std::min<size_t>(mCount, 12000);
+        std::vector<float> rows(sample * dim);
+        const double step = double(mCount) / double(sample);
+        parallelFor(sample, 256, [&](size_t s, size_t e) {
+            for (size_t i = s; i < e; ++i) localDescriptor(Usl, Ds, corners[size_t(i * step)], B, k, w, &rows[i * dim]);
+        });
+        mPca.fit(rows.data(), sample, dim, PcaSettings{pcaComponents, sample});
+    }
+    const size_t rk = mPca.outputDim();
+    mReduced.assign(mCount * rk, 0.0f);
+    const size_t chunk = 4096;
+    std::vector<float> rows;
+    for (size_t b = 0; b < mCount; b += chunk) {
+        const size_t e = std::min(mCount, b + chunk);
+        rows.resize((e - b) * dim);
+        parallelFor(e - b, 256, [&](size_t s, size_t t) {
+            for (size_t i = s; i < t; ++i) localDescriptor(Usl, Ds, corners[b + i], B, k, w, &rows[i * dim]);
+        });
+        mPca.projectRows(rows.data(), e - b, &mReduced[b * rk]);
+    }
+}
+
+const float* LocalCandidates::reduced(const Coord& c) const
+{
+    const Coord rel = c - mCorners.min();
+    if (rel.x() < 0 || rel.y() < 0 || rel.z() < 0) return nullptr;
+    if (rel.x() % mStride || rel.y() % mStride || rel.z() % mStride) return nullptr;
+    const Coord l(rel.x() / mStride, rel.y() / mStride, rel.z() / mStride);
+    if (l.x() >= mLattice.x() || l.y() >= mLattice.y() || l.z() >= mLattice.z()) return nullptr;
+    const int slot = mSlot[(size_t(l.x()) * size_t(mLattice.y()) + size_t(l.y())) * size_t(mLattice.z()) + size_t(l.z())];
+    return slot < 0 ? nullptr : &mReduced[size_t(slot) * mPca.outputDim()];
+}
+
+} // namespace turb::detail

@@ -1,0 +1,525 @@
+// Seam smoothing (seed 002, section 3.3): band geometry, CGNR E-step, boundary-patch M-step.
+#include <turb/Seams.h>
+
+#include <turb/Error.h>
+#include <turb/Parallel.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace turb {
+
+PatchLayout PatchLayout::covering(const CoordBBox& box, int size)
+{
+    if (size < 1) throw ValueError("local patch size must be >= 1");
+    PatchLayout l;
+    l.origin = box.min();
+    l.size = size;
+    const Coord d = box.dim();
+    l.count = Coord((d.x() + size - 1) / size, (d.y() + size - 1) / size, (d.z() + size - 1) / size);
+    return l;
+}
+
+std::vector<uint8_t> seamBand(const CoordBBox& box, const PatchLayout& layout, const std::vector<uint8_t>& active,
+    int bandWidth)
+{
+    if (bandWidth < 1) throw ValueError("seam band width must be >= 1");
+    const Coord d = box.dim();
+    std::vector<uint8_t> band(size_t(d.x()) * size_t(d.y()) * size_t(d.z()), 0);
+    const int B = layout.size;
+    parallelFor(size_t(d.x()), 1, [&](size_t x0, size_t x1) {
+        for (size_t xi = x0; xi < x1; ++xi)
+            for (int y = 0; y < d.y(); ++y)
+                for (int z = 0; z < d.z(); ++z) {
+                    const Coord v = box.min() + Coord(int(xi), y, z);
+                    const Coord P = layout.patchOf(v);
+                    const bool here = active[layout.patchIndex(P)] != 0;
+                    bool in = false;
+                    for (int a = 0; a < 3 && !in; ++a) {
+                        const int w = v[a] - layout.origin[a] - P[a] * B; // position inside the patch
+                        // Near the lower border (with patch P - e_a) or the upper one (with P + e_a).
+                        for (int side : {-1, 1}) {
+                            const bool near = side < 0 ? (w < bandWidth) : (w >= B - bandWidth);
+                            Coord Q = P;
+                            Q[a] += side;
+                            if (!near || Q[a] < 0 || Q[a] >= layout.count[a]) continue;
+                            if (here || active[layout.patchIndex(Q)]) in = true;
+                        }
+                    }
+                    band[(size_t(xi) * size_t(d.y()) + size_t(y)) * size_t(d.z()) + size_t(z)] = in;
+                }
+    });
+    return band;
+}
+
+namespace {
+
+// The least-squares system over R = Ω dilated by one voxel (every row touching Ω lives there).
+class SeamSystem
+{
+public:
+    SeamSystem(const VectorField& X, const std::vector<uint8_t>& omega, float gamma)
+        : mBox(X.bbox()), mDim(X.bbox().dim()), mSqrtGamma(std::sqrt(std::max(0.0f, gamma)))
+    {
+        const size_t n = X.size();
+        mCompact.assign(n, -1);
+        std::vector<uint8_t> inR(n, 0);
+        for (size_t i = 0; i < n; ++i) {
+            if (!omega[i]) continue;
+            inR[i] = 1;
+            const Coord c = X.coordOf(i);
+            for (int f = 0; f < 6; ++f) {
+                const Coord q = c + step(f);
+                if (mBox.isInside(q)) inR[X.offset(q.x(), q.y(), q.z())] = 1;
+            }
+        }
+        for (size_t i = 0; i < n; ++i)
+            if (inR[i]) {
+                mCompact[i] = int(mLinear.size());
+                mLinear.push_back(i);
+            }
+        const size_t m = mLinear.size();
+        mOmega.assign(m, 0);
+        for (int f = 0; f < 6; ++f) mNb[f].assign(m, -1);
+        mInBox.assign(m * 6, 0);
+        parallelFor(m, 4096, [&](size_t b, size_t e) {
+            for (size_t r = b; r < e; ++r) {
+                const size_t i = mLinear[r];
+                mOmega[r] = omega[i];
+                const Coord c = X.coordOf(i);
+                for (int f = 0; f < 6; ++f) {
+                    const Coord q = c + step(f);
+                    if (!mBox.isInside(q)) continue;
+                    mInBox[r * 6 + size_t(f)] = 1;
+                    mNb[f][r] = mCompact[X.offset(q.x(), q.y(), q.z())];
+                }
+            }
+        });
+        for (size_t r = 0; r < m; ++r)
+            if (mOmega[r]) mUnknowns.push_back(int(r));
+        mTargets.assign(m * 3, Vec3f(0.0f));
+    }
+
+    static Coord step(int f)
+    {
+        static const Coord s[6] = {Coord(-1, 0, 0), Coord(1, 0, 0), Coord(0, -1, 0), Coord(0, 1, 0), Coord(0, 0, -1),
+            Coord(0, 0, 1)};
+        return s[f];
+    }
+
+    size_t rows() const { return mLinear.size(); }
+    size_t unknowns() const { return mUnknowns.size(); }
+    size_t linear(size_t r) const { return mLinear[r]; }
+    bool inOmega(size_t r) const { return mOmega[r] != 0; }
+    int compactOf(size_t lin) const { return mCompact[lin]; }
+    std::vector<Vec3f>& targets() { return mTargets; }
+
+    // Edge row (r, a) exists when r + e_a is in the box and an endpoint is unknown.
+    bool edgeRow(size_t r, int a) const
+    {
+        const int q = mNb[2 * a + 1][r];
+        return mInBox[r * 6 + size_t(2 * a + 1)] && q >= 0 && (mOmega[r] || mOmega[size_t(q)]);
+    }
+    // Div row r exists when its central stencil touches an unknown.
+    bool divRow(size_t r) const
+    {
+        for (int f = 0; f < 6; ++f) {
+            const int q = mNb[f][r];
+            if (q >= 0 && mOmega[size_t(q)]) return true;
+        }
+        return false;
+    }
+    // Central difference along a, one-sided at the box faces: (x[hi] - x[lo]) / span.
+    void stencil(size_t r, int a, int& lo, int& hi, float& inv) const
+    {
+        const bool hasLo = mInBox[r * 6 + size_t(2 * a)], hasHi = mInBox[r * 6 + size_t(2 * a + 1)];
+        lo = hasLo ? mNb[2 * a][r] : int(r);
+        hi = hasHi ? mNb[2 * a + 1][r] : int(r);
+        const int span = int(hasLo) + int(hasHi);
+        inv = span ? 1.0f / float(span) : 0.0f;
+    }
+
+    // Residual rows of the full field: targets - grad X on edges, -sqrt(gamma) div X on div rows.
+    // Values outside R are read from the dense field directly.
+    void residual(const VectorField& X, std::vector<Vec3f>& se, std::vector<float>& sd) const
+    {
+        const size_t m = rows();
+        se.assign(m * 3, Vec3f(0.0f));
+        sd.assign(m, 0.0f);
+        const Vec3f* x = X.data();
+        parallelFor(m, 4096, [&](size_t b, size_t e) {
+            for (size_t r = b; r < e; ++r) {
+                const size_t i = mLinear[r];
+                const Coord c = X.coordOf(i);
+                for (int a = 0; a < 3; ++a) {
+                    if (!edgeRow(r, a)) continue;
+                    const Coord q = c + step(2 * a + 1);
+                    se[r * 3 + size_t(a)] = mTargets[r * 3 + size_t(a)] - (x[X.offset(q.x(), q.y(), q.z())] - x[i]);
+                }
+                if (!divRow(r)) continue;
+                float div = 0.0f;
+                for (int a = 0; a < 3; ++a) {
+                    const bool hasLo = mInBox[r * 6 + size_t(2 * a)], hasHi = mInBox[r * 6 + size_t(2 * a + 1)];
+                    const Coord lo = hasLo ? c + step(2 * a) : c, hi = hasHi ? c + step(2 * a + 1) : c;
+                    const int span = int(hasLo) + int(hasHi);
+                    if (span)
+                        div += (x[X.offset(hi.x(), hi.y(), hi.z())][a] - x[X.offset(lo.x(), lo.y(), lo.z())][a]) / float(span);
+                }
+                sd[r] = -mSqrtGamma * div;
+            }
+        });
+    }
+
+    // q = A p for p over R (zero outside Ω).
+    void applyA(const std::vector<Vec3f>& p, std::vector<Vec3f>& qe, std::vector<float>& qd) const
+    {
+        const size_t m = rows();
+        qe.assign(m * 3, Vec3f(0.0f));
+        qd.assign(m, 0.0f);
+        parallelFor(m, 4096, [&](size_t b, size_t e) {
+            for (size_t r = b; r < e; ++r) {
+                for (int a = 0; a < 3; ++a)
+                    if (edgeRow(r, a)) qe[r * 3 + size_t(a)] = p[size_t(mNb[2 * a + 1][r])] - p[r];
+                if (!divRow(r)) continue;
+                float div = 0.0f;
+                for (int a = 0; a < 3; ++a) {
+                    int lo, hi;
+                    float inv;
+                    stencil(r, a, lo, hi, inv);
+                    const float vh = hi >= 0 ? p[size_t(hi)][a] : 0.0f, vl = lo >= 0 ? p[size_t(lo)][a] : 0.0f;
+                    div += (vh - vl) * inv;
+                }
+                qd[r] = mSqrtGamma * div;
+            }
+        });
+    }
+
+    // g = A^T (se, sd), gathered at the unknowns (zero elsewhere).
+    void applyAt(const std::vector<Vec3f>& se, const std::vector<float>& sd, std::vector<Vec3f>& g) const
+    {
+        g.assign(rows(), Vec3f(0.0f));
+        parallelFor(mUnknowns.size(), 2048, [&](size_t b, size_t e) {
+            for (size_t u = b; u < e; ++u) {
+                const size_t r = size_t(mUnknowns[u]);
+                Vec3f acc(0.0f);
+                for (int a = 0; a < 3; ++a) {
+                    // Edge (r - e_a, r) has +1 on x[r]; edge (r, r + e_a) has -1.
+                    const int lo = mNb[2 * a][r];
+                    if (lo >= 0 && edgeRow(size_t(lo), a)) acc += se[size_t(lo) * 3 + size_t(a)];
+                    if (edgeRow(r, a)) acc -= se[r * 3 + size_t(a)];
+                }
+                // Divergence rows whose stencil uses x[r][a]: the rows at r - e_a, r + e_a, and r itself
+                // when r sits on a box face (one-sided stencil).
+                for (int a = 0; a < 3; ++a) {
+                    float coef = 0.0f;
+                    for (int f : {2 * a, 2 * a + 1}) {
+                        const int v = mNb[f][r];
+                        if (v < 0) continue;
+                        int lo, hi;
+                        float inv;
+                        stencil(size_t(v), a, lo, hi, inv);
+                        if (hi == int(r)) coef += inv * sd[size_t(v)];
+                        if (lo == int(r)) coef -= inv * sd[size_t(v)];
+                    }
+                    int lo, hi;
+                    float inv;
+                    stencil(r, a, lo, hi, inv);
+                    if (hi == int(r)) coef += inv * sd[r];
+                    if (lo == int(r)) coef -= inv * sd[r];
+                    acc[a] += mSqrtGamma * coef;
+                }
+                g[r] = acc;
+            }
+        });
+    }
+
+    double dotUnknowns(const std::vector<Vec3f>& a, const std::vector<Vec3f>& b) const
+    {
+        return parallelSum(mUnknowns.size(), 4096, [&](size_t s, size_t e) {
+            double acc = 0.0;
+            for (size_t u = s; u < e; ++u) {
+                const size_t r = size_t(mUnknowns[u]);
+                acc += double(a[r].dot(b[r]));
+            }
+            return acc;
+        });
+    }
+
+    double rowNormSq(const std::vector<Vec3f>& se, const std::vector<float>& sd) const
+    {
+        return parallelSum(rows(), 4096, [&](size_t s, size_t e) {
+            double acc = 0.0;
+            for (size_t r = s; r < e; ++r)
+                acc += double(se[r * 3].lengthSqr() + se[r * 3 + 1].lengthSqr() + se[r * 3 + 2].lengthSqr()) +
+                       double(sd[r]) * double(sd[r]);
+            return acc;
+        });
+    }
+
+    SeamIteration solve(VectorField& X, int maxIterations, double tolerance) const
+    {
+        SeamIteration out;
+        std::vector<Vec3f> se, qe, r, p, delta(rows(), Vec3f(0.0f));
+        std::vector<float> sd, qd;
+        residual(X, se, sd);
+        applyAt(se, sd, r);
+        p = r;
+        double rr = dotUnknowns(r, r);
+        const double rr0 = rr;
+        int it = 0;
+        if (rr0 > 0.0) {
+            for (; it < maxIterations; ++it) {
+                if (std::sqrt(rr / rr0) <= tolerance) break;
+                applyA(p, qe, qd);
+                const double qq = rowNormSq(qe, qd);
+                if (!(qq > 0.0)) break;
+                const float alpha = float(rr / qq);
+                parallelFor(rows(), 4096, [&](size_t b, size_t e) {
+                    for (size_t k = b; k < e; ++k) {
+                        delta[k] += p[k] * alpha;
+                        sd[k] -= qd[k] * alpha;
+                        for (int a = 0; a < 3; ++a) se[k * 3 + size_t(a)] -= qe[k * 3 + size_t(a)] * alpha;
+                    }
+                });
+                applyAt(se, sd, r);
+                const double rrNew = dotUnknowns(r, r);
+                const float beta = float(rrNew / rr);
+                rr = rrNew;
+                parallelFor(rows(), 4096, [&](size_t b, size_t e) {
+                    for (size_t k = b; k < e; ++k) p[k] = r[k] + p[k] * beta;
+                });
+            }
+        }
+        for (int u : mUnknowns) X.data()[mLinear[size_t(u)]] += delta[size_t(u)];
+        out.cgIterations = it;
+        out.cgResidual = rr0 > 0.0 ? std::sqrt(rr / rr0) : 0.0;
+        out.energy = energy(X);
+        return out;
+    }
+
+    double energy(const VectorField& X) const
+    {
+        std::vector<Vec3f> se;
+        std::vector<float> sd;
+        residual(X, se, sd);
+        return rowNormSq(se, sd);
+    }
+
+private:
+    CoordBBox mBox;
+    Coord mDim;
+    float mSqrtGamma;
+    std::vector<int> mCompact;
+    std::vector<size_t> mLinear;
+    std::vector<uint8_t> mOmega, mInBox;
+    std::vector<int> mNb[6];
+    std::vector<int> mUnknowns;
+    std::vector<Vec3f> mTargets;
+};
+
+void loadDenseTargets(SeamSystem& sys, const std::vector<Vec3f>& dense)
+{
+    auto& t = sys.targets();
+    for (size_t r = 0; r < sys.rows(); ++r)
+        for (int a = 0; a < 3; ++a) t[r * 3 + size_t(a)] = dense[sys.linear(r) * 3 + size_t(a)];
+}
+
+} // namespace
+
+SeamIteration solveSeamEStep(VectorField& X, const std::vector<uint8_t>& omega, const std::vector<Vec3f>& edgeTargets,
+    float gamma, int maxIterations, double tolerance)
+{
+    if (omega.size() != X.size() || edgeTargets.size() != 3 * X.size())
+        throw ValueError("solveSeamEStep: omega / targets do not match the field");
+    SeamSystem sys(X, omega, gamma);
+    loadDenseTargets(sys, edgeTargets);
+    return sys.solve(X, maxIterations, tolerance);
+}
+
+double seamEnergy(const VectorField& X, const std::vector<uint8_t>& omega, const std::vector<Vec3f>& edgeTargets,
+    float gamma)
+{
+    SeamSystem sys(X, omega, gamma);
+    loadDenseTargets(sys, edgeTargets);
+    return sys.energy(X);
+}
+
+namespace {
+
+// A C^3 boundary patch centred on a patch border, and the Z it currently uses.
+struct BoundaryPatch
+{
+    Coord centre;
+    bool zero = false;  // Z is the zero field (the neighbour carries no detail)
+    Coord offset{0};    // else Z(v) = U_sh(v + offset)
+};
+
+const Vec3f& sourceAt(const VectorField& s, const Coord& c) { return s.clamped(c.x(), c.y(), c.z()); }
+
+} // namespace
+
+SeamStats smoothSeams(VectorField& detail, const SeamProblem& problem, const SeamSettings& settings, Progress* progress)
+{
+    SeamStats stats;
+    if (!settings.enabled) return stats;
+    if (!problem.sourceHigh) throw ValueError("smoothSeams: no source detail field");
+    const PatchLayout& L = problem.layout;
+    const int B = L.size;
+    const int C = settings.boundaryPatch > 0 ? settings.boundaryPatch : B;
+    const int h = C / 2;
+    if (C % 2 != 0 || C < 2 || (2 * B) % C != 0)
+        throw ValueError("boundary patch size C must be even and divide 2*B (B = " + std::to_string(B) + ")");
+
+    const CoordBBox box = detail.bbox();
+    const std::vector<uint8_t> omega = seamBand(box, L, problem.active, settings.bandWidth);
+    SeamSystem sys(detail, omega, settings.gamma);
+    stats.bandVoxels = sys.unknowns();
+    if (stats.bandVoxels == 0) {
+        stats.converged = true;
+        return stats;
+    }
+
+    // Boundary patches: centres on the lattice origin + k*(C/2), on at least one patch border, that
+    // overlap an active patch.
+    const Coord kCount(L.count.x() * B / h + 1, L.count.y() * B / h + 1, L.count.z() * B / h + 1);
+    std::vector<int> patchId(size_t(kCount.x()) * size_t(kCount.y()) * size_t(kCount.z()), -1);
+    const auto kIndex = [&](const Coord& k) {
+        return (size_t(k.x()) * size_t(kCount.y()) + size_t(k.y())) * size_t(kCount.z()) + size_t(k.z());
+    };
+    std::vector<BoundaryPatch> patches;
+    for (int kx = 0; kx < kCount.x(); ++kx)
+        for (int ky = 0; ky < kCount.y(); ++ky)
+            for (int kz = 0; kz < kCount.z(); ++kz) {
+                const Coord k(kx, ky, kz);
+                const Coord c = L.origin + Coord(kx * h, ky * h, kz * h);
+                bool onBorder = false;
+                for (int a = 0; a < 3; ++a) {
+                    const int rel = c[a] - L.origin[a];
+                    onBorder |= rel % B == 0 && rel > 0 && rel < L.count[a] * B;
+                }
+                if (!onBorder) continue;
+                bool anyActive = false;
+                const CoordBBox region(c - Coord(h), c + Coord(h - 1));
+                const Coord P0 = L.patchOf(region.min()), P1 = L.patchOf(region.max());
+                for (int px = std::max(0, P0.x()); px <= std::min(L.count.x() - 1, P1.x()); ++px)
+                    for (int py = std::max(0, P0.y()); py <= std::min(L.count.y() - 1, P1.y()); ++py)
+                        for (int pz = std::max(0, P0.z()); pz <= std::min(L.count.z() - 1, P1.z()); ++pz)
+                            anyActive |= problem.active[L.patchIndex(Coord(px, py, pz))] != 0;
+                if (!anyActive) continue;
+                patchId[kIndex(k)] = int(patches.size());
+                patches.push_back(BoundaryPatch{c, false, Coord(0)});
+            }
+    stats.boundaryPatches = patches.size();
+    const VectorField& Ush = *problem.sourceHigh;
+    const float scale = problem.sourceScale;
+
+    // M-step: each boundary patch picks, among the continuations of the local patches it overlaps
+    // (and the zero field next to patches without detail), the Z whose gradient best matches X.
+    // Distances use every other voxel of the patch: the choice is among a handful of candidates.
+    const auto mStep = [&]() {
+        parallelFor(patches.size(), 64, [&](size_t b, size_t e) {
+            std::vector<std::pair<int, Coord>> cands; // (isZero, offset)
+            for (size_t i = b; i < e; ++i) {
+                BoundaryPatch& bp = patches[i];
+                const CoordBBox region(bp.centre - Coord(h), bp.centre + Coord(h - 1));
+                cands.clear();
+                const Coord P0 = L.patchOf(region.min()), P1 = L.patchOf(region.max());
+                for (int px = std::max(0, P0.x()); px <= std::min(L.count.x() - 1, P1.x()); ++px)
+                    for (int py = std::max(0, P0.y()); py <= std::min(L.count.y() - 1, P1.y()); ++py)
+                        for (int pz = std::max(0, P0.z()); pz <= std::min(L.count.z() - 1, P1.z()); ++pz) {
+                            const size_t pi = L.patchIndex(Coord(px, py, pz));
+                            if (problem.active[pi]) cands.emplace_back(0, problem.offset[pi]);
+                            else cands.emplace_back(1, Coord(0));
+                        }
+                std::sort(cands.begin(), cands.end(), [](const auto& x, const auto& y) {
+                    if (x.first != y.first) return x.first < y.first;
+                    return x.second < y.second;
+                });
+                cands.erase(std::unique(cands.begin(), cands.end()), cands.end());
+                double best = -1.0;
+                for (const auto& cand : cands) {
+                    double d = 0.0;
+                    for (int x = region.min().x(); x <= region.max().x(); x += 2)
+                        for (int y = region.min().y(); y <= region.max().y(); y += 2)
+                            for (int z = region.min().z(); z <= region.max().z(); z += 2) {
+                                const Coord v(x, y, z);
+                                if (!box.isInside(v)) continue;
+                                const Vec3f xv = detail[v];
+                                const Vec3f zv = cand.first ? Vec3f(0.0f) : sourceAt(Ush, v + cand.second) * scale;
+                                for (int a = 0; a < 3; ++a) {
+                                    Coord q = v;
+                                    q[a] += 1;
+                                    if (q[a] > region.max()[a] || !box.isInside(q)) continue;
+                                    const Vec3f zq = cand.first ? Vec3f(0.0f) : sourceAt(Ush, q + cand.second) * scale;
+                                    d += double(((detail[q] - xv) - (zq - zv)).lengthSqr());
+                                }
+                            }
+                    if (best < 0.0 || d < best) {
+                        best = d;
+                        bp.zero = cand.first != 0;
+                        bp.offset = cand.second;
+                    }
+                }
+            }
+        });
+        // Edge targets: the mean, over the boundary patches containing both ends of an edge, of Z's
+        // difference; edges no boundary patch covers keep the current field's difference.
+        auto& targets = sys.targets();
+        parallelFor(sys.rows(), 2048, [&](size_t b, size_t e) {
+            for (size_t r = b; r < e; ++r) {
+                const Coord p = detail.coordOf(sys.linear(r));
+                for (int a = 0; a < 3; ++a) {
+                    Coord q = p;
+                    q[a] += 1;
+                    if (!box.isInside(q)) continue;
+                    // Centres c with p and q in [c - h, c + h - 1]: per axis k*h in [max(p,q) - h + 1, min(p,q) + h].
+                    int kLo[3], kHi[3];
+                    for (int s = 0; s < 3; ++s) {
+                        const int lo = std::max(p[s], q[s]) - h + 1 - L.origin[s];
+                        const int hi = std::min(p[s], q[s]) + h - L.origin[s];
+                        kLo[s] = std::max(0, -floorDiv(-lo, h)); // ceil(lo / h)
+                        kHi[s] = std::min(kCount[s] - 1, floorDiv(hi, h));
+                    }
+                    // Tent weights centred on each boundary patch: a cross-fade between overlapping
+                    // patches instead of a flat average, which would halve the energy where two
+                    // different textures meet.
+                    Vec3f sum(0.0f);
+                    float wsum = 0.0f;
+                    const Vec3d mid = (p.asVec3d() + q.asVec3d()) * 0.5;
+                    for (int kx = kLo[0]; kx <= kHi[0]; ++kx)
+                        for (int ky = kLo[1]; ky <= kHi[1]; ++ky)
+                            for (int kz = kLo[2]; kz <= kHi[2]; ++kz) {
+                                const int id = patchId[kIndex(Coord(kx, ky, kz))];
+                                if (id < 0) continue;
+                                const BoundaryPatch& bp = patches[size_t(id)];
+                                float wgt = 1.0f;
+                                for (int t = 0; t < 3; ++t)
+                                    wgt *= std::max(0.0f, 1.0f - float(std::abs(mid[t] - (bp.centre[t] - 0.5))) / (0.6f * float(h)));
+                                if (wgt <= 0.0f) continue;
+                                if (!bp.zero) sum += (sourceAt(Ush, q + bp.offset) - sourceAt(Ush, p + bp.offset)) * (scale * wgt);
+                                wsum += wgt;
+                            }
+                    targets[r * 3 + size_t(a)] = wsum > 0.0f ? sum / wsum : detail[q] - detail[p];
+                }
+            }
+        });
+    };
+
+    double previous = -1.0;
+    for (int it = 0; it < std::max(1, settings.maxEmIterations); ++it) {
+        checkCancelled(progress);
+        mStep();
+        if (it == 0) stats.initialEnergy = sys.energy(detail);
+        SeamIteration s = sys.solve(detail, settings.maxCgIterations, settings.cgTolerance);
+        stats.iterations.push_back(s);
+        if (progress) progress->update(double(it + 1) / std::max(1, settings.maxEmIterations));
+        if (previous > 0.0 && std::abs(previous - s.energy) <= settings.emTolerance * previous) {
+            stats.converged = true;
+            break;
+        }
+        previous = s.energy;
+    }
+    return stats;
+}
+
+} // namespace turb

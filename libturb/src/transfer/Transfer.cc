@@ -1,0 +1,561 @@
+// The transfer pipeline (seed 002, section 3) and its state between frames.
+#include <turb/Transfer.h>
+
+#include "Align.h"
+#include "PatchSearch.h"
+
+#include <turb/Advect.h>
+#include <turb/Error.h>
+#include <turb/Parallel.h>
+#include <turb/Resample.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <deque>
+#include <sstream>
+
+namespace turb {
+
+const char* TransferStats::stepName(int i)
+{
+    static const char* names[8] = {"split", "global", "local", "paste", "seams", "output", "density", "total"};
+    return (i >= 0 && i < 8) ? names[i] : "?";
+}
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+void requireFrame(const Frame& f, const char* role)
+{
+    if (!f.hasVelocity()) throw ValueError(std::string("the ") + role + " frame has no velocity");
+    if (!f.hasDensity()) throw ValueError(std::string("the ") + role + " frame has no density");
+    if (f.velocity.bbox() != f.density.bbox())
+        throw ValueError(std::string("the ") + role + " frame's velocity and density cover different boxes");
+    if (!(f.dt > 0.0))
+        throw ValueError(std::string("the ") + role + " frame has no time per frame (dt); give it explicitly");
+}
+
+// Energy of the detail inside the smoke, where the turbulence is seen (and measured).
+double smokeEnergy(const VectorField& u, const ScalarField& density, float threshold)
+{
+    return parallelSum(u.size(), 1 << 16, [&](size_t b, size_t e) {
+        double acc = 0.0;
+        for (size_t n = b; n < e; ++n)
+            if (density.data()[n] > threshold) acc += double(u.data()[n].lengthSqr());
+        return acc;
+    });
+}
+
+bool anySmoke(const ScalarField& d, float threshold)
+{
+    for (float v : d.values())
+        if (v > threshold) return true;
+    return false;
+}
+
+} // namespace
+
+struct TurbulenceTransfer::Impl
+{
+    TransferSettings s;
+    detail::MatchWeights w;
+
+    // Fixed once the first frame arrives.
+    bool started = false;
+    int ratio = 0;
+    Lattice targetLattice;
+    CoordBBox targetBox, fineBox;
+    PatchLayout layout;
+    int globalPatch = 3;
+    bool rotationChosen = false;
+    detail::AxisRotation rotation;
+
+    // Carried between frames.
+    std::vector<uint8_t> tracked;   // per patch: smoke was there last frame and the track is valid
+    std::vector<Coord> match;       // per patch: source corner of the best local patch last frame
+    bool havePrevious = false;
+    VectorField prevDetail;         // U_h(i-1), output lattice
+    VectorField prevTargetVelocity; // u_t(i-1), target lattice
+    ScalarField prevTargetDensity;  // d_t(i-1)
+    ScalarField prevDensity;        // D(i-1), output lattice
+    VectorField prevVelocity;       // U(i-1), output lattice
+    double prevDt = 0.0;
+    struct History
+    {
+        VectorField velocity;       // U(j)
+        ScalarField emission;       // coarse emission estimate injected at step j
+        ScalarField targetDensity;  // up-sampled later when a look-back starts here
+    };
+    std::deque<History> history;    // LookBack mode: the last m frames
+
+    void start(const Frame& target, int f)
+    {
+        ratio = f;
+        targetLattice = target.velocity.lattice();
+        targetBox = target.velocity.bbox();
+        fineBox = refineBox(targetBox, f);
+        layout = PatchLayout::covering(fineBox, s.localPatch);
+        globalPatch = s.globalPatch > 0 ? s.globalPatch : 2 * ((s.localPatch + f - 1) / f) + 1;
+        if (globalPatch % 2 == 0) ++globalPatch;
+        if (double(globalPatch) * f <= double(s.localPatch))
+            throw ValueError("global patch b = " + std::to_string(globalPatch) + " coarse voxels does not exceed the local patch (b must be > B*dX/dx = " +
+                             std::to_string(double(s.localPatch) / f) + ")");
+        tracked.assign(layout.patchCount(), 0);
+        match.assign(layout.patchCount(), Coord(0));
+        started = true;
+    }
+
+    TransferResult process(const Frame& target, const Frame& sourceIn, Progress* progress);
+};
+
+TurbulenceTransfer::TurbulenceTransfer(const TransferSettings& settings) : mImpl(std::make_unique<Impl>())
+{
+    const TransferSettings& s = settings;
+    if (s.localPatch < 2) throw ValueError("local patch size must be >= 2");
+    if (s.alpha < 0 || s.beta < 0 || s.seams.gamma < 0) throw ValueError("alpha, beta and gamma must be >= 0");
+    if (s.localStride < 1 || s.refineCandidates < 1 || s.pcaComponents < 1)
+        throw ValueError("stride, candidates and PCA components must be >= 1");
+    if (s.densityMode == DensityMode::LookBack && s.lookBackFrames < 1)
+        throw ValueError("look-back needs at least one frame");
+    mImpl->s = settings;
+    mImpl->w = detail::MatchWeights{s.alpha, s.beta, s.densityThreshold};
+}
+
+TurbulenceTransfer::~TurbulenceTransfer() = default;
+TurbulenceTransfer::TurbulenceTransfer(TurbulenceTransfer&&) noexcept = default;
+TurbulenceTransfer& TurbulenceTransfer::operator=(TurbulenceTransfer&&) noexcept = default;
+
+const TransferSettings& TurbulenceTransfer::settings() const { return mImpl->s; }
+
+TransferResult TurbulenceTransfer::process(const Frame& target, const Frame& source, Progress* progress)
+{
+    TransferResult r;
+    withThreads(mImpl->s.threads, [&] { r = mImpl->process(target, source, progress); });
+    return r;
+}
+
+TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Frame& sourceIn, Progress* progress)
+{
+    const auto tTotal = Clock::now();
+    requireFrame(target, "target");
+    requireFrame(sourceIn, "source");
+    const int f = integerRatio(target.velocity.lattice().voxelSize, sourceIn.velocity.lattice().voxelSize);
+    if (!started) start(target, f);
+    if (f != ratio || target.velocity.bbox() != targetBox ||
+        !target.velocity.lattice().approxEqual(targetLattice))
+        throw ValueError("target frame " + std::to_string(target.number) +
+                         " changed resolution, domain or transform within the sequence");
+
+    TransferResult result;
+    TransferStats& st = result.stats;
+    st.ratio = f;
+    const int B = s.localPatch;
+    const Lattice fineLattice = targetLattice.refined(f);
+
+    // --- Target at output resolution -----------------------------------------------------------
+    if (progress) progress->begin("split");
+    auto t0 = Clock::now();
+    const VectorField Ut = upsample(target.velocity, f);
+    const ScalarField Dt = upsample(target.density, f);
+
+    // Per-patch smoke test on the up-sampled density: the patches eq. 2 runs for.
+    std::vector<uint8_t> active(layout.patchCount(), 0);
+    for (size_t n = 0; n < Dt.size(); ++n)
+        if (Dt.data()[n] > s.densityThreshold) active[layout.patchIndex(layout.patchOf(Dt.coordOf(n)))] = 1;
+    st.localPatches = int(std::count(active.begin(), active.end(), uint8_t(1)));
+
+    // Emission estimate for density: what the target gained that advection does not explain.
+    ScalarField emission(target.density.bbox(), targetLattice);
+    if (havePrevious) {
+        const ScalarField carried = advect(prevTargetDensity, prevTargetVelocity, prevDt);
+        for (size_t n = 0; n < emission.size(); ++n)
+            emission.data()[n] = std::max(0.0f, target.density.data()[n] - carried.data()[n]);
+    }
+
+    VectorField detail(fineBox, fineLattice);
+    double pastedEnergy = 0.0;
+    detail::MatchWeights w = this->w;
+    if (st.localPatches == 0) {
+        // Defined no-op: no smoke in the target, nothing to match. Tracks restart when smoke appears.
+        result.empty = true;
+        std::fill(tracked.begin(), tracked.end(), 0);
+    } else {
+        // --- Source: alignment, frequency split, masks --------------------------------------------
+        VectorField Us = sourceIn.velocity;
+        ScalarField Ds = sourceIn.density;
+        if (!anySmoke(Ds, s.densityThreshold))
+            throw ValueError("the source frame " + std::to_string(sourceIn.number) + " holds no smoke above the density threshold");
+        const bool rotate = s.alignment == FlowAlignment::Rotate || s.alignment == FlowAlignment::Both;
+        const bool normalize = s.alignment == FlowAlignment::Normalize || s.alignment == FlowAlignment::Both;
+        Vec3d meanT, meanS;
+        double rmsT = 0, rmsS = 0;
+        detail::smokeFlowStats(target.velocity, target.density, s.densityThreshold, meanT, rmsT);
+        if (rotate && !rotationChosen) {
+            detail::smokeFlowStats(Us, Ds, s.densityThreshold, meanS, rmsS);
+            // Chosen once per sequence, so the source does not flip between frames.
+            rotation = detail::bestRotation(meanS, meanT);
+            rotationChosen = true;
+        }
+        if (rotate && !rotation.isIdentity()) {
+            Us = detail::rotated(Us, rotation);
+            Ds = detail::rotated(Ds, rotation);
+        }
+        const detail::MatchWeights wm = w;
+        FrequencySplit split = splitFrequencies(Us, f);
+        const ScalarField ds = boxDownsample(Ds, f);
+        // Velocity scale into matching units. Grid units (coarse cells per frame) by default; with
+        // normalisation, units of each sequence's RMS speed.
+        const double dxS = sourceIn.velocity.lattice().voxelSize * f;
+        float kt = float(target.dt / targetLattice.voxelSize);
+        float ks = float(sourceIn.dt / dxS);
+        if (normalize) {
+            detail::smokeFlowStats(split.coarse, ds, s.densityThreshold, meanS, rmsS);
+            if (rmsT > 0 && rmsS > 0) {
+                kt = float(1.0 / rmsT);
+                ks = float(1.0 / rmsS);
+            }
+        }
+        const float detailScale = ks / kt; // U_sh (source world units) -> output world units
+        st.seconds[0] = since(t0);
+
+        // --- Previous detail advected through the target velocity (the beta term) ---------------
+        VectorField advectedDetail;
+        if (havePrevious && s.beta > 0.0f) {
+            AdvectSettings a;
+            a.scheme = AdvectSettings::Scheme::SemiLagrangian; // a matching guide: first order suffices
+            advectedDetail = advect(prevDetail, prevTargetVelocity, prevDt, a);
+        }
+
+        // --- Global search (eq. 1), only where smoke newly entered a patch -------------------------
+        if (progress) progress->begin("global search");
+        t0 = Clock::now();
+        std::vector<Coord> regionCentre(layout.patchCount(), Coord(0)); // fine source voxel
+        std::vector<size_t> needGlobal;
+        for (size_t p = 0; p < active.size(); ++p) {
+            if (!active[p]) continue;
+            if (s.trackGlobalPatches && tracked[p]) {
+                regionCentre[p] = match[p] + Coord(B / 2);
+                ++st.trackedPatches;
+            } else {
+                needGlobal.push_back(p);
+            }
+        }
+        st.globalSearches = int(needGlobal.size());
+        if (!needGlobal.empty()) {
+            detail::GlobalIndex gindex;
+            gindex.build(split.coarse, ds, globalPatch, ks, wm, s.pcaComponents);
+            if (gindex.empty()) throw ValueError("the source has no smoke to match against");
+            const size_t dim = detail::globalDescriptorSize(globalPatch);
+            parallelFor(needGlobal.size(), 16, [&](size_t b, size_t e) {
+                std::vector<float> desc(dim);
+                for (size_t i = b; i < e; ++i) {
+                    const size_t p = needGlobal[i];
+                    const Coord P = Coord(int(p / (size_t(layout.count.y()) * size_t(layout.count.z()))),
+                        int((p / size_t(layout.count.z())) % size_t(layout.count.y())), int(p % size_t(layout.count.z())));
+                    const Coord centreFine = layout.patchBox(P).min() + Coord(B / 2);
+                    const Coord c(floorDiv(centreFine.x(), f), floorDiv(centreFine.y(), f), floorDiv(centreFine.z(), f));
+                    detail::globalDescriptor(target.velocity, target.density, c, globalPatch, kt, wm, desc.data());
+                    const Coord q = gindex.nearest(desc.data());
+                    regionCentre[p] = Coord(q.x() * f + f / 2, q.y() * f + f / 2, q.z() * f + f / 2);
+                }
+            });
+        }
+        st.seconds[1] = since(t0);
+
+        // --- Local search (eq. 2) inside the global region -----------------------------------------
+        if (progress) progress->begin("local search");
+        t0 = Clock::now();
+        detail::LocalCandidates cands;
+        cands.build(split.low, Ds, B, s.localStride, ks, wm, s.pcaComponents);
+        if (cands.count() == 0) throw ValueError("the source has no local patch holding smoke");
+        const int radius = std::max(0, (globalPatch * f - B) / 2);
+        const size_t rk = cands.pca().outputDim();
+        const size_t ldim = detail::localDescriptorSize(B);
+        const CoordBBox corners = cands.cornerBox();
+        const int stride = cands.stride();
+        std::vector<Coord> chosen(layout.patchCount(), Coord(0));
+        std::vector<double> chosenEnergy(layout.patchCount(), 0.0);
+        std::vector<size_t> activeList;
+        for (size_t p = 0; p < active.size(); ++p)
+            if (active[p]) activeList.push_back(p);
+        const float sqrtAlphaUnused = 0.0f;
+        (void)sqrtAlphaUnused;
+
+        // Full-resolution E_h of a target patch against a source corner (eq. 2).
+        const auto energy = [&](const Coord& tCorner, const Coord& sCorner, bool temporal) {
+            double e = 0.0;
+            for (int x = 0; x < B; ++x)
+                for (int y = 0; y < B; ++y)
+                    for (int z = 0; z < B; ++z) {
+                        const Coord tv = tCorner + Coord(x, y, z);
+                        if (!fineBox.isInside(tv)) continue;
+                        const Coord sv = sCorner + Coord(x, y, z);
+                        const Vec3f du = Ut[tv] * kt - split.low[sv] * ks;
+                        const float dm = float(Dt[tv] > s.densityThreshold) - float(Ds[sv] > s.densityThreshold);
+                        e += double(du.lengthSqr()) + double(s.alpha) * double(dm * dm);
+                        if (temporal) {
+                            const Vec3f dh = advectedDetail[tv] * kt - split.high[sv] * ks;
+                            e += double(s.beta) * double(dh.lengthSqr());
+                        }
+                    }
+            return e;
+        };
+
+        parallelFor(activeList.size(), 8, [&](size_t b, size_t e) {
+            std::vector<float> desc(ldim), red(rk);
+            std::vector<std::pair<float, Coord>> best;
+            for (size_t i = b; i < e; ++i) {
+                const size_t p = activeList[i];
+                const Coord P = Coord(int(p / (size_t(layout.count.y()) * size_t(layout.count.z()))),
+                    int((p / size_t(layout.count.z())) % size_t(layout.count.y())), int(p % size_t(layout.count.z())));
+                const Coord tCorner = layout.patchBox(P).min();
+                detail::localDescriptor(Ut, Dt, tCorner, B, kt, wm, desc.data());
+                cands.pca().project(desc.data(), red.data());
+                best.clear();
+                // Candidate corners on the stride lattice within the global region; widen the region
+                // if it holds no smoke-bearing candidate (e.g. at the edge of the source's smoke).
+                for (int grow = 0; grow < 4 && best.empty(); ++grow) {
+                    const int rad = radius + grow * (globalPatch * f);
+                    const Coord lo = regionCentre[p] - Coord(B / 2) - Coord(rad);
+                    const Coord hi = regionCentre[p] - Coord(B / 2) + Coord(rad);
+                    Coord c0, c1;
+                    for (int a = 0; a < 3; ++a) {
+                        const int base = corners.min()[a];
+                        const int l = std::max(lo[a], base), h = std::min(hi[a], corners.max()[a]);
+                        c0[a] = base + ((l - base + stride - 1) / stride) * stride;
+                        c1[a] = h;
+                    }
+                    for (int x = c0.x(); x <= c1.x(); x += stride)
+                        for (int y = c0.y(); y <= c1.y(); y += stride)
+                            for (int z = c0.z(); z <= c1.z(); z += stride) {
+                                const float* r = cands.reduced(Coord(x, y, z));
+                                if (!r) continue;
+                                float d2 = 0.0f;
+                                for (size_t k = 0; k < rk; ++k) {
+                                    const float t = r[k] - red[k];
+                                    d2 += t * t;
+                                }
+                                best.emplace_back(d2, Coord(x, y, z));
+                            }
+                }
+                if (best.empty()) {
+                    // The whole source lattice as a last resort (tiny sources).
+                    for (int x = corners.min().x(); x <= corners.max().x(); x += stride)
+                        for (int y = corners.min().y(); y <= corners.max().y(); y += stride)
+                            for (int z = corners.min().z(); z <= corners.max().z(); z += stride)
+                                if (const float* r = cands.reduced(Coord(x, y, z))) {
+                                    float d2 = 0.0f;
+                                    for (size_t k = 0; k < rk; ++k) d2 += (r[k] - red[k]) * (r[k] - red[k]);
+                                    best.emplace_back(d2, Coord(x, y, z));
+                                }
+                }
+                const size_t m = std::min(best.size(), size_t(s.refineCandidates));
+                std::partial_sort(best.begin(), best.begin() + long(m), best.end(), [](const auto& a, const auto& c) {
+                    if (a.first != c.first) return a.first < c.first;
+                    return a.second < c.second;
+                });
+                best.resize(m);
+                // Keep last frame's match in the running: the cheapest way to stay coherent.
+                if (tracked[p] && corners.isInside(match[p])) best.emplace_back(0.0f, match[p]);
+                const bool temporal = !advectedDetail.empty() && tracked[p];
+                double bestE = -1.0;
+                Coord bestC = best.empty() ? corners.min() : best.front().second;
+                for (const auto& cand : best) {
+                    const double en = energy(tCorner, cand.second, temporal);
+                    if (bestE < 0.0 || en < bestE || (en == bestE && cand.second < bestC)) {
+                        bestE = en;
+                        bestC = cand.second;
+                    }
+                }
+                chosen[p] = bestC;
+                chosenEnergy[p] = std::max(0.0, bestE);
+            }
+        });
+        double esum = 0.0;
+        for (size_t p : activeList) esum += chosenEnergy[p];
+        st.meanLocalEnergy = activeList.empty() ? 0.0 : esum / double(activeList.size());
+        st.seconds[2] = since(t0);
+
+        // --- Paste U_h ---------------------------------------------------------------------------
+        t0 = Clock::now();
+        std::vector<Coord> offsets(layout.patchCount(), Coord(0));
+        parallelFor(activeList.size(), 16, [&](size_t b, size_t e) {
+            for (size_t i = b; i < e; ++i) {
+                const size_t p = activeList[i];
+                const Coord P = Coord(int(p / (size_t(layout.count.y()) * size_t(layout.count.z()))),
+                    int((p / size_t(layout.count.z())) % size_t(layout.count.y())), int(p % size_t(layout.count.z())));
+                CoordBBox pb = layout.patchBox(P);
+                pb.intersect(fineBox);
+                const Coord off = chosen[p] - layout.patchBox(P).min();
+                offsets[p] = off;
+                for (int x = pb.min().x(); x <= pb.max().x(); ++x)
+                    for (int y = pb.min().y(); y <= pb.max().y(); ++y)
+                        for (int z = pb.min().z(); z <= pb.max().z(); ++z)
+                            detail(x, y, z) = split.high(x + off.x(), y + off.y(), z + off.z()) * detailScale;
+            }
+        });
+        st.seconds[3] = since(t0);
+        pastedEnergy = smokeEnergy(detail, Dt, s.densityThreshold);
+
+        // --- Seam smoothing (section 3.3) ---------------------------------------------------------
+        if (progress) progress->begin("seams");
+        t0 = Clock::now();
+        SeamProblem problem;
+        problem.sourceHigh = &split.high;
+        problem.sourceScale = detailScale;
+        problem.layout = layout;
+        problem.active = active;
+        problem.offset = offsets;
+        SeamSettings seamSettings = s.seams;
+        if (seamSettings.boundaryPatch <= 0) seamSettings.boundaryPatch = B % 2 == 0 ? B : B + 1;
+        st.seams = smoothSeams(detail, problem, seamSettings, progress);
+        st.seconds[4] = since(t0);
+
+        // Update tracks.
+        for (size_t p = 0; p < active.size(); ++p) {
+            tracked[p] = active[p];
+            if (active[p]) match[p] = chosen[p];
+        }
+    }
+
+    // --- Output velocity: U = up(u_t) + U_h ---------------------------------------------------------
+    t0 = Clock::now();
+    if (s.removeCoarseDetail && !result.empty) {
+        const VectorField c = detail::coarsePart(detail, f);
+        const VectorField cu = upsample(c, f);
+        for (size_t n = 0; n < detail.size(); ++n) detail.data()[n] -= cu.data()[n];
+    }
+    if (s.preserveEnergy && pastedEnergy > 0.0) {
+        const double now = smokeEnergy(detail, Dt, s.densityThreshold);
+        // Bounded: a large factor would mean the detail was mostly coarse, not something to amplify.
+        st.energyScale = now > 0.0 ? std::min(2.0, std::sqrt(pastedEnergy / now)) : 1.0;
+        for (auto& v : detail.values()) v *= float(st.energyScale);
+    }
+    Frame out;
+    out.number = target.number;
+    out.dt = target.dt;
+    out.velocity = VectorField(fineBox, fineLattice);
+    for (size_t n = 0; n < out.velocity.size(); ++n) out.velocity.data()[n] = Ut.data()[n] + detail.data()[n];
+    if (target.temperature) out.temperature = upsample(*target.temperature, f);
+    if (target.flame) out.flame = upsample(*target.flame, f);
+    st.seconds[5] = since(t0);
+
+    // --- Output density ------------------------------------------------------------------------------
+    if (progress) progress->begin("density");
+    t0 = Clock::now();
+    if (s.densityMode == DensityMode::Advect) {
+        if (!havePrevious) {
+            out.density = Dt;
+        } else {
+            out.density = advect(prevDensity, prevVelocity, prevDt);
+            const ScalarField e = upsample(emission, f);
+            for (size_t n = 0; n < out.density.size(); ++n) out.density.data()[n] += e.data()[n];
+        }
+    } else {
+        // Seed 003, pseudocode 4: start from the target's density m frames back and advect it through
+        // the m most recent output velocities, injecting the target's emission on the way.
+        history.push_back(History{out.velocity, emission, target.density});
+        while (int(history.size()) > s.lookBackFrames + 1) history.pop_front();
+        ScalarField d = upsample(history.front().targetDensity, f);
+        for (size_t j = 1; j < history.size(); ++j) {
+            d = advect(d, history[j - 1].velocity, target.dt);
+            const ScalarField e = upsample(history[j].emission, f);
+            for (size_t n = 0; n < d.size(); ++n) d.data()[n] += e.data()[n];
+        }
+        out.density = std::move(d);
+    }
+    st.seconds[6] = since(t0);
+
+    // --- Carry state -------------------------------------------------------------------------------
+    prevDetail = std::move(detail);
+    prevTargetVelocity = target.velocity;
+    prevTargetDensity = target.density;
+    prevDensity = out.density;
+    prevVelocity = out.velocity;
+    prevDt = target.dt;
+    havePrevious = true;
+
+    std::ostringstream meta;
+    out.metadata["vdbturb_patch_size"] = std::to_string(B);
+    out.metadata["vdbturb_ratio"] = std::to_string(f);
+    out.metadata["vdbturb_global_patch"] = std::to_string(globalPatch);
+    meta << s.alpha;
+    out.metadata["vdbturb_alpha"] = meta.str();
+    meta.str("");
+    meta << s.beta;
+    out.metadata["vdbturb_beta"] = meta.str();
+    meta.str("");
+    meta << s.seams.gamma;
+    out.metadata["vdbturb_gamma"] = meta.str();
+    st.seconds[7] = since(tTotal);
+    result.frame = std::move(out);
+    return result;
+}
+
+std::string TurbulenceTransfer::saveState() const
+{
+    const Impl& m = *mImpl;
+    std::ostringstream os;
+    os << "v1 f=" << m.ratio << " B=" << m.s.localPatch << " n=" << m.tracked.size()
+       << " rot=" << (m.rotationChosen ? m.rotation.id() : -1) << " tracks=";
+    bool first = true;
+    for (size_t p = 0; p < m.tracked.size(); ++p) {
+        if (!m.tracked[p]) continue;
+        os << (first ? "" : ";") << p << ',' << m.match[p].x() << ',' << m.match[p].y() << ',' << m.match[p].z();
+        first = false;
+    }
+    return os.str();
+}
+
+void TurbulenceTransfer::restore(const std::string& state, const Frame& previousOutput, const Frame& previousTarget)
+{
+    Impl& m = *mImpl;
+    requireFrame(previousTarget, "previous target");
+    if (!previousOutput.hasVelocity() || !previousOutput.hasDensity())
+        throw ValueError("the previous output frame has no velocity or density to resume from");
+    std::istringstream is(state);
+    std::string version, fField, bField, nField, rotField, tracks;
+    is >> version >> fField >> bField >> nField >> rotField >> tracks;
+    if (version != "v1" || fField.rfind("f=", 0) != 0 || tracks.rfind("tracks=", 0) != 0)
+        throw ValueError("unrecognised transfer state in the previous output: '" + state.substr(0, 60) + "'");
+    const int f = std::stoi(fField.substr(2));
+    const int B = std::stoi(bField.substr(2));
+    if (B != m.s.localPatch)
+        throw ValueError("the previous output used local patch " + std::to_string(B) + ", not " + std::to_string(m.s.localPatch));
+    m.start(previousTarget, f);
+    const size_t n = size_t(std::stoul(nField.substr(2)));
+    if (n != m.tracked.size()) throw ValueError("the previous output's patch layout does not match this target");
+    const int rot = std::stoi(rotField.substr(4));
+    if (rot >= 0) {
+        m.rotation = detail::AxisRotation::fromId(rot);
+        m.rotationChosen = true;
+    }
+    std::stringstream ts(tracks.substr(7));
+    std::string item;
+    while (std::getline(ts, item, ';')) {
+        if (item.empty()) continue;
+        size_t p;
+        int x, y, z;
+        char c1, c2, c3;
+        std::istringstream one(item);
+        if (!(one >> p >> c1 >> x >> c2 >> y >> c3 >> z) || p >= n) throw ValueError("damaged transfer state entry '" + item + "'");
+        m.tracked[p] = 1;
+        m.match[p] = Coord(x, y, z);
+    }
+    const VectorField velocity = cropped(previousOutput.velocity, m.fineBox);
+    const VectorField Ut = upsample(previousTarget.velocity, f);
+    m.prevDetail = VectorField(m.fineBox, m.targetLattice.refined(f));
+    for (size_t i = 0; i < velocity.size(); ++i) m.prevDetail.data()[i] = velocity.data()[i] - Ut.data()[i];
+    m.prevTargetVelocity = previousTarget.velocity;
+    m.prevTargetDensity = previousTarget.density;
+    m.prevVelocity = velocity;
+    m.prevDensity = cropped(previousOutput.density, m.fineBox);
+    m.prevDt = previousTarget.dt;
+    m.havePrevious = true;
+    m.history.clear();
+}
+
+} // namespace turb

@@ -1,0 +1,309 @@
+// Turbulence transfer (seed 002): per-stage analytic tests, an end-to-end pair, determinism, bad input.
+#include "TestUtil.h"
+
+#include <turb/Error.h>
+#include <turb/Operators.h>
+#include <turb/Parallel.h>
+#include <turb/Resample.h>
+#include <turb/Seams.h>
+#include <turb/Transfer.h>
+
+#include <cmath>
+#include <random>
+
+using namespace turb;
+
+namespace {
+
+// A divergence-free "turbulent" field: the curl of a vector potential built from random Fourier modes
+// with wavelengths between `minWave` and `maxWave` voxels (of the lattice it is sampled on).
+struct Modes
+{
+    struct Mode
+    {
+        Vec3d k, a;
+        double phase;
+    };
+    std::vector<Mode> modes;
+    Modes(int count, double minWave, double maxWave, unsigned seed, double voxel)
+    {
+        std::mt19937 rng(seed);
+        std::uniform_real_distribution<double> u(-1.0, 1.0), len(minWave, maxWave), ph(0.0, 6.283185307);
+        for (int i = 0; i < count; ++i) {
+            Vec3d dir(u(rng), u(rng), u(rng));
+            dir.normalize();
+            const double wave = len(rng) * voxel;
+            Mode m{dir * (6.283185307 / wave), Vec3d(u(rng), u(rng), u(rng)) * (wave / 6.283185307), ph(rng)};
+            modes.push_back(m);
+        }
+    }
+    // curl of sum a sin(k.x + phase) = sum (k x a) cos(k.x + phase)
+    Vec3f at(const Vec3d& x) const
+    {
+        Vec3d v(0.0);
+        for (const auto& m : modes) v += m.k.cross(m.a) * std::cos(m.k.dot(x) + m.phase);
+        return Vec3f(float(v.x()), float(v.y()), float(v.z()));
+    }
+};
+
+Frame makeFrame(const CoordBBox& box, const Lattice& lat, const std::function<Vec3f(const Vec3d&)>& vel,
+    const std::function<float(const Vec3d&)>& dens, int number, double dt)
+{
+    Frame f;
+    f.number = number;
+    f.dt = dt;
+    f.velocity = VectorField(box, lat);
+    f.density = ScalarField(box, lat);
+    for (size_t n = 0; n < f.velocity.size(); ++n) {
+        const Vec3d x = lat.indexToWorld(f.velocity.coordOf(n).asVec3d());
+        f.velocity.data()[n] = vel(x);
+        f.density.data()[n] = dens(x);
+    }
+    return f;
+}
+
+double hfEnergy(const VectorField& u, const ScalarField& smoke, int f)
+{
+    const VectorField low = cropped(upsample(boxDownsample(u, f), f), u.bbox());
+    double e = 0;
+    size_t n = 0;
+    for (size_t i = 0; i < u.size(); ++i)
+        if (smoke.data()[i] > 0.01f) {
+            e += (u.data()[i] - low.data()[i]).lengthSqr();
+            ++n;
+        }
+    return n ? e / double(n) : 0.0;
+}
+
+// lf_err as quality.md defines it, on coarse cells with smoke.
+double lfErr(const VectorField& out, const VectorField& target, const ScalarField& targetDensity, int f)
+{
+    const VectorField up = upsample(target, f);
+    VectorField diff(out.bbox(), out.lattice());
+    for (size_t i = 0; i < out.size(); ++i) diff.data()[i] = out.data()[i] - up.data()[i];
+    const VectorField bd = boxDownsample(diff, f), bu = boxDownsample(up, f);
+    double num = 0, den = 0;
+    for (size_t i = 0; i < bd.size(); ++i)
+        if (targetDensity.data()[i] > 0.01f) {
+            num += bd.data()[i].lengthSqr();
+            den += bu.data()[i].lengthSqr();
+        }
+    return std::sqrt(num / den);
+}
+
+} // namespace
+
+TEST(SeamBand, GeometryMatchesTheAnalyticCount)
+{
+    const CoordBBox box({0, 0, 0}, {31, 31, 31});
+    const PatchLayout layout = PatchLayout::covering(box, 8);
+    ASSERT_EQ(layout.count, Coord(4, 4, 4));
+    // Every patch active: per axis 12 of 32 positions lie within 2 of an inner border.
+    std::vector<uint8_t> all(layout.patchCount(), 1);
+    auto band = seamBand(box, layout, all, 2);
+    EXPECT_EQ(std::count(band.begin(), band.end(), uint8_t(1)), 32 * 32 * 32 - 20 * 20 * 20);
+    // One interior active patch: its own shell (8^3 - 4^3) plus a 2-voxel slab in each face neighbour.
+    std::vector<uint8_t> one(layout.patchCount(), 0);
+    one[layout.patchIndex(Coord(1, 1, 1))] = 1;
+    band = seamBand(box, layout, one, 2);
+    EXPECT_EQ(std::count(band.begin(), band.end(), uint8_t(1)), (512 - 64) + 6 * 2 * 8 * 8);
+    // No active patch, no band.
+    std::vector<uint8_t> none(layout.patchCount(), 0);
+    band = seamBand(box, layout, none, 2);
+    EXPECT_EQ(std::count(band.begin(), band.end(), uint8_t(1)), 0);
+}
+
+class SeamSolve : public ::testing::Test
+{
+protected:
+    // A 24^3 field with a random discontinuous pasted pattern and targets from a smooth random field.
+    void SetUp() override
+    {
+        box = CoordBBox({0, 0, 0}, {23, 23, 23});
+        X = VectorField(box, Lattice{});
+        std::mt19937 rng(5);
+        std::normal_distribution<float> g;
+        for (auto& v : X.values()) v = Vec3f(g(rng), g(rng), g(rng));
+        const Modes smooth(12, 6.0, 20.0, 9, 1.0);
+        targets.assign(3 * X.size(), Vec3f(0.0f));
+        for (size_t n = 0; n < X.size(); ++n) {
+            const Vec3d x = X.coordOf(n).asVec3d();
+            for (int a = 0; a < 3; ++a) {
+                Vec3d y = x;
+                y[a] += 1.0;
+                // A target with divergence: gradient of the smooth field plus a compressive part.
+                targets[n * 3 + size_t(a)] = smooth.at(y) - smooth.at(x) + Vec3f(a == 0 ? 0.3f : 0.0f, a == 1 ? 0.3f : 0.0f, a == 2 ? 0.3f : 0.0f);
+            }
+        }
+        const PatchLayout layout = PatchLayout::covering(box, 8);
+        omega = seamBand(box, layout, std::vector<uint8_t>(layout.patchCount(), 1), 2);
+    }
+    CoordBBox box;
+    VectorField X;
+    std::vector<Vec3f> targets;
+    std::vector<uint8_t> omega;
+};
+
+TEST_F(SeamSolve, CgSolutionSatisfiesTheNormalEquations)
+{
+    VectorField x = X;
+    const double before = seamEnergy(x, omega, targets, 10.0f);
+    const SeamIteration it = solveSeamEStep(x, omega, targets, 10.0f, 2000, 1e-7);
+    EXPECT_LT(it.cgResidual, 1e-6);
+    EXPECT_LT(it.energy, before);
+    EXPECT_NEAR(it.energy, seamEnergy(x, omega, targets, 10.0f), 1e-6 * before);
+    // Values outside Ω are untouched.
+    for (size_t n = 0; n < x.size(); ++n)
+        if (!omega[n]) ASSERT_EQ(x.data()[n], X.data()[n]);
+    // At the minimum the directional derivative along any perturbation of Ω vanishes:
+    // (E(x + e d) - E(x - e d)) / 2e = 2 d.(A^T A x - A^T b) ~ 0, compared with the energy's scale.
+    std::mt19937 rng(1);
+    std::normal_distribution<float> g;
+    for (int trial = 0; trial < 3; ++trial) {
+        VectorField d(box, Lattice{});
+        for (size_t n = 0; n < d.size(); ++n)
+            if (omega[n]) d.data()[n] = Vec3f(g(rng), g(rng), g(rng));
+        const float eps = 1e-2f;
+        VectorField p = x, m = x;
+        for (size_t n = 0; n < x.size(); ++n) {
+            p.data()[n] += d.data()[n] * eps;
+            m.data()[n] -= d.data()[n] * eps;
+        }
+        const double ep = seamEnergy(p, omega, targets, 10.0f), em = seamEnergy(m, omega, targets, 10.0f);
+        const double slope = (ep - em) / (2 * eps), curvature = (ep + em - 2 * it.energy) / (eps * eps);
+        // A non-minimum would have |slope| comparable to sqrt(curvature * E).
+        EXPECT_LT(std::abs(slope), 1e-3 * std::sqrt(curvature * before)) << "trial " << trial;
+        EXPECT_GT(curvature, 0.0);
+    }
+}
+
+TEST_F(SeamSolve, RaisingGammaLowersDivergence)
+{
+    double previous = 1e300;
+    for (float gamma : {0.0f, 1.0f, 10.0f, 100.0f}) {
+        VectorField x = X;
+        solveSeamEStep(x, omega, targets, gamma, 2000, 1e-6);
+        const ScalarField div = divergence(x);
+        double s = 0;
+        for (size_t n = 0; n < div.size(); ++n)
+            if (omega[n]) s += double(div.data()[n]) * div.data()[n];
+        EXPECT_LT(s, previous) << "gamma " << gamma;
+        previous = s;
+    }
+}
+
+class TransferPair : public ::testing::Test
+{
+protected:
+    // Pair (c) of issue 5 in miniature: the target is the box-downsampled source, so the method must
+    // recover the source's detail statistics. Source 48^3 at voxel 1/48, target 12^3 (ratio 4).
+    static constexpr int kF = 4;
+    void SetUp() override
+    {
+        const Modes coarse(10, 24.0, 60.0, 3, 1.0 / 48.0), fine(40, 3.0, 8.0, 4, 1.0 / 48.0);
+        srcLat = Lattice{1.0 / 48.0, {0.0, 0.0, 0.0}};
+        const auto vel = [&](const Vec3d& x) { return coarse.at(x) * 2.0f + fine.at(x) * 0.6f; };
+        const auto dens = [](const Vec3d& x) { return (x - Vec3d(0.5)).length() < 0.38 ? 1.0f : 0.0f; };
+        for (int i = 0; i < 3; ++i) {
+            const auto shifted = [&, i](const Vec3d& x) { return vel(x + Vec3d(0.01 * i, 0.0, 0.02 * i)); };
+            sources.push_back(makeFrame(CoordBBox({0, 0, 0}, {47, 47, 47}), srcLat, shifted, dens, i + 1, 1.0 / 24));
+            Frame t;
+            t.number = i + 1;
+            t.dt = 1.0 / 24;
+            t.velocity = boxDownsample(sources.back().velocity, kF);
+            t.density = boxDownsample(sources.back().density, kF);
+            targets.push_back(t);
+        }
+    }
+    Lattice srcLat;
+    std::vector<Frame> sources, targets;
+};
+
+TEST_F(TransferPair, RecoversSourceDetailStatistics)
+{
+    TransferSettings s;
+    TurbulenceTransfer transfer(s);
+    for (size_t i = 0; i < targets.size(); ++i) {
+        const TransferResult r = transfer.process(targets[i], sources[i]);
+        ASSERT_FALSE(r.empty);
+        const Frame& out = r.frame;
+        EXPECT_EQ(out.velocity.bbox(), CoordBBox({0, 0, 0}, {47, 47, 47}));
+        EXPECT_TRUE(out.velocity.lattice().approxEqual(srcLat));
+        EXPECT_GT(r.stats.localPatches, 100);
+        EXPECT_EQ(r.stats.globalSearches + r.stats.trackedPatches, r.stats.localPatches);
+        if (i > 0) EXPECT_GT(r.stats.trackedPatches, r.stats.localPatches / 2) << "global patches should follow";
+        ASSERT_FALSE(r.stats.seams.iterations.empty());
+        EXPECT_LT(r.stats.seams.iterations.back().energy, r.stats.seams.initialEnergy);
+        const double hf = hfEnergy(out.velocity, sources[i].density, kF) / hfEnergy(sources[i].velocity, sources[i].density, kF);
+        // quality.md's targets for an up-res: as much turbulence as the source, coarse motion kept.
+        EXPECT_GT(hf, 0.8) << "frame " << i;
+        EXPECT_LT(hf, 1.25) << "frame " << i;
+        EXPECT_LT(lfErr(out.velocity, targets[i].velocity, targets[i].density, kF), 0.05) << "frame " << i;
+        EXPECT_EQ(out.metadata.at("vdbturb_patch_size"), "8");
+    }
+}
+
+TEST_F(TransferPair, IdenticalAtOneAndTwoThreads)
+{
+    std::vector<Frame> a, b;
+    for (int threads : {1, 2}) {
+        TransferSettings s;
+        s.threads = threads;
+        TurbulenceTransfer transfer(s);
+        for (size_t i = 0; i < 2; ++i) (threads == 1 ? a : b).push_back(transfer.process(targets[i], sources[i]).frame);
+    }
+    for (size_t i = 0; i < a.size(); ++i) {
+        EXPECT_EQ(a[i].velocity.values(), b[i].velocity.values()) << "frame " << i;
+        EXPECT_EQ(a[i].density.values(), b[i].density.values()) << "frame " << i;
+    }
+}
+
+TEST_F(TransferPair, SavedStateResumesBitIdentically)
+{
+    TransferSettings s;
+    TurbulenceTransfer whole(s);
+    std::vector<Frame> ref;
+    for (size_t i = 0; i < 3; ++i) ref.push_back(whole.process(targets[i], sources[i]).frame);
+
+    TurbulenceTransfer first(s);
+    first.process(targets[0], sources[0]);
+    Frame out1 = first.process(targets[1], sources[1]).frame;
+    const std::string state = first.saveState();
+    TurbulenceTransfer second(s);
+    second.restore(state, out1, targets[1]);
+    const Frame out2 = second.process(targets[2], sources[2]).frame;
+    EXPECT_EQ(out2.velocity.values(), ref[2].velocity.values());
+    EXPECT_EQ(out2.density.values(), ref[2].density.values());
+}
+
+TEST_F(TransferPair, BadInputGetsClearErrorsOrADefinedNoOp)
+{
+    TransferSettings s;
+    // Ratio below 1: the "source" is coarser than the target.
+    EXPECT_THROW(TurbulenceTransfer(s).process(sources[0], targets[0]), ValueError);
+    // Non-integer ratio.
+    Frame odd = sources[0];
+    odd.velocity.setLattice(Lattice{1.0 / 30.0, {0, 0, 0}});
+    odd.density.setLattice(Lattice{1.0 / 30.0, {0, 0, 0}});
+    EXPECT_THROW(TurbulenceTransfer(s).process(targets[0], odd), ValueError);
+    // A source with no smoke.
+    Frame dry = sources[0];
+    dry.density.fill(0.0f);
+    EXPECT_THROW(TurbulenceTransfer(s).process(targets[0], dry), ValueError);
+    // A target with no smoke: the up-sampled target, flagged empty.
+    Frame clear = targets[0];
+    clear.density.fill(0.0f);
+    const TransferResult r = TurbulenceTransfer(s).process(clear, sources[0]);
+    EXPECT_TRUE(r.empty);
+    const VectorField up = upsample(clear.velocity, kF);
+    EXPECT_EQ(r.frame.velocity.values(), up.values());
+    // Source and target domains need not overlap: the source is an exemplar library.
+    Frame far = sources[0];
+    far.velocity.setLattice(Lattice{srcLat.voxelSize, {100.0, 0.0, 0.0}});
+    far.density.setLattice(far.velocity.lattice());
+    EXPECT_FALSE(TurbulenceTransfer(s).process(targets[0], far).empty);
+    // Missing dt.
+    Frame noDt = targets[0];
+    noDt.dt = 0.0;
+    EXPECT_THROW(TurbulenceTransfer(s).process(noDt, sources[0]), ValueError);
+}

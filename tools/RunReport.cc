@@ -1,0 +1,60 @@
+#include "RunReport.h"
+
+#include "Console.h"
+
+#include <turbio/System.h>
+
+#include <tbb/info.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <iostream>
+
+namespace vdbturb {
+
+RunReport::RunReport(std::string command, bool json)
+    : mCommand(std::move(command)), mJson(json), mStart(std::chrono::steady_clock::now())
+{
+}
+
+void RunReport::frameDone(int frame, int index, int count, double seconds, const std::string& human,
+    const nlohmann::json& extra)
+{
+    mSeconds.push_back(seconds);
+    char head[96];
+    std::snprintf(head, sizeof(head), "frame %d (%d/%d) %.2f s", frame, index + 1, count, seconds);
+    logInfo(std::string(head) + (human.empty() ? "" : "  " + human));
+    if (mJson) {
+        nlohmann::json j = extra;
+        j["frame"] = frame;
+        j["seconds"] = seconds;
+        std::cout << j.dump() << std::endl;
+    }
+}
+
+nlohmann::json RunReport::finish(int failed)
+{
+    std::vector<double> s = mSeconds;
+    std::sort(s.begin(), s.end());
+    const double median = s.empty() ? 0.0 : (s.size() % 2 ? s[s.size() / 2] : 0.5 * (s[s.size() / 2 - 1] + s[s.size() / 2]));
+    const int threads = globals().threads > 0 ? globals().threads : tbb::info::default_concurrency();
+    nlohmann::json j;
+    j["summary"] = true;
+    j["command"] = mCommand;
+    j["frames"] = mSeconds.size();
+    j["failed"] = failed;
+    j["median_s_per_frame"] = median;
+    j["total_s"] = secondsSince(mStart);
+    j["peak_rss_mb"] = double(turbio::peakRssBytes()) / (1024.0 * 1024.0);
+    j["threads"] = threads;
+    j["machine"] = turbio::machineDescription();
+    char line[256];
+    std::snprintf(line, sizeof(line), "%s: %zu frame%s, median %.2f s/frame, total %.1f s, peak RSS %.0f MB, %d threads",
+        mCommand.c_str(), mSeconds.size(), mSeconds.size() == 1 ? "" : "s", median, j["total_s"].get<double>(),
+        j["peak_rss_mb"].get<double>(), threads);
+    logInfo(line);
+    if (mJson) std::cout << j.dump() << std::endl;
+    return j;
+}
+
+} // namespace vdbturb

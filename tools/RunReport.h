@@ -1,0 +1,36 @@
+/// @file RunReport.h
+/// @brief The per-frame log and summary every frame-producing command prints.
+///
+/// stderr gets one human line per frame (the farm-log unit); with --json, stdout gets one JSON object
+/// per frame and a final summary line that the bench/ harness parses:
+///   {"summary":true,"frames":N,"median_s_per_frame":..,"total_s":..,"peak_rss_mb":..,"threads":..,"machine":".."}
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include <chrono>
+#include <string>
+#include <vector>
+
+namespace vdbturb {
+
+class RunReport
+{
+public:
+    RunReport(std::string command, bool json);
+
+    /// Records a finished frame: `human` is appended to the "frame N (i/n) s" prefix on stderr and
+    /// `extra` is merged into the frame's JSON line.
+    void frameDone(int frame, int index, int count, double seconds, const std::string& human,
+        const nlohmann::json& extra = nlohmann::json::object());
+    /// Prints the summary (JSON on stdout when enabled, a human line on stderr). Returns it.
+    nlohmann::json finish(int failed = 0);
+
+private:
+    std::string mCommand;
+    bool mJson;
+    std::vector<double> mSeconds;
+    std::chrono::steady_clock::time_point mStart;
+};
+
+} // namespace vdbturb

@@ -1,0 +1,241 @@
+// vdbturb transfer: turbulence style transfer (seed 002) from a high-res source onto a low-res target.
+#include "Commands.h"
+#include "Console.h"
+#include "RunReport.h"
+
+#include <turb/Error.h>
+#include <turb/Transfer.h>
+#include <turbio/Sequence.h>
+#include <turbio/Vdb.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <sstream>
+
+namespace vdbturb {
+
+namespace {
+
+struct TransferArgs
+{
+    std::string target, source, out;
+    std::string frames, sourceFrames;
+    int sourceOffset = 0;
+    std::string wrap = "loop";
+    std::string align = "none";
+    std::string density = "advect";
+    bool noSeams = false, noTracking = false, keepCoarse = false, resume = false, json = false;
+    turbio::ReadOptions targetRead, sourceRead;
+    turbio::WriteOptions write;
+    turb::TransferSettings settings;
+};
+
+turbio::SourceWrap parseWrap(const std::string& s)
+{
+    if (s == "pingpong") return turbio::SourceWrap::PingPong;
+    if (s == "clamp") return turbio::SourceWrap::Clamp;
+    if (s == "error") return turbio::SourceWrap::Error;
+    return turbio::SourceWrap::Loop;
+}
+
+turb::FlowAlignment parseAlign(const std::string& s)
+{
+    if (s == "normalize") return turb::FlowAlignment::Normalize;
+    if (s == "rotate") return turb::FlowAlignment::Rotate;
+    if (s == "both") return turb::FlowAlignment::Both;
+    return turb::FlowAlignment::None;
+}
+
+std::string fmt(const char* f, double v)
+{
+    char b[64];
+    std::snprintf(b, sizeof(b), f, v);
+    return b;
+}
+
+int runTransfer(TransferArgs& a)
+{
+    turb::TransferSettings& s = a.settings;
+    s.threads = globals().threads;
+    s.seams.enabled = !a.noSeams;
+    s.trackGlobalPatches = !a.noTracking;
+    s.removeCoarseDetail = !a.keepCoarse;
+    s.alignment = parseAlign(a.align);
+    s.densityMode = a.density == "lookback" ? turb::DensityMode::LookBack : turb::DensityMode::Advect;
+
+    const turbio::Sequence target = turbio::resolveSequence(a.target, a.frames);
+    const turbio::Sequence source = turbio::resolveSequence(a.source, a.sourceFrames);
+    const turbio::FramePattern outPattern = turbio::FramePattern::parse(a.out);
+    if (!target.missing.empty())
+        throw turb::IoError(target.pattern.str() + ": missing target frames " + turbio::formatFrameList(target.missing));
+    if (target.frames.size() > 1 && !outPattern.numbered())
+        throw turb::ValueError("--out '" + a.out + "' has no frame token (####, %04d, $F4) but " +
+                               std::to_string(target.frames.size()) + " frames are requested");
+    const turbio::SourceWrap wrap = parseWrap(a.wrap);
+    std::vector<int> sourceFor;
+    for (int t : target.frames) sourceFor.push_back(turbio::mapSourceFrame(t, source.frames, a.sourceOffset, wrap));
+    // Never write over an input.
+    for (int t : target.frames) {
+        const std::string o = outPattern.format(t);
+        for (const std::string& in : {target.path(t), source.path(sourceFor[0])})
+            if (std::filesystem::exists(o) && std::filesystem::exists(in) && std::filesystem::equivalent(o, in))
+                throw turb::ValueError("--out " + o + " is an input file");
+    }
+
+    logInfo("transfer: target " + target.pattern.str() + " frames " + turbio::formatFrameList(target.frames) +
+            ", source " + source.pattern.str() + " frames " + turbio::formatFrameList(source.frames) +
+            (source.frames.size() < target.frames.size() ? " (" + a.wrap + ")" : ""));
+
+    turb::TurbulenceTransfer transfer(s);
+    size_t first = 0;
+    if (a.resume) {
+        // Continue after the last frame already written, from the state saved with it.
+        while (first < target.frames.size() && std::filesystem::exists(outPattern.format(target.frames[first]))) ++first;
+        if (first == target.frames.size()) {
+            logInfo("resume: every requested frame already exists; nothing to do");
+            return kOk;
+        }
+        if (first > 0) {
+            const int prev = target.frames[first - 1];
+            turbio::ReadOptions ro;
+            const turb::Frame prevOut = turbio::readFrame(outPattern.format(prev), prev, ro);
+            const auto it = prevOut.metadata.find("vdbturb_state");
+            if (it == prevOut.metadata.end())
+                throw turb::IoError(outPattern.format(prev) + ": no vdbturb_state metadata to resume from");
+            const turb::Frame prevTarget = turbio::readFrame(target.path(prev), prev, a.targetRead);
+            transfer.restore(it->second, prevOut, prevTarget);
+            logInfo("resume: continuing after frame " + std::to_string(prev));
+        }
+    }
+
+    if (globals().dryRun) {
+        for (size_t i = first; i < target.frames.size(); ++i)
+            logInfo("would write " + outPattern.format(target.frames[i]) + " from target " + target.path(target.frames[i]) +
+                    " and source " + source.path(sourceFor[i]));
+        // Read the first pair's headers so ratio problems show up now.
+        const turbio::FileInfo ti = turbio::inspectFile(target.path(target.frames[first]), false);
+        const turbio::FileInfo si = turbio::inspectFile(source.path(sourceFor[first]), false);
+        for (const auto& g : ti.grids)
+            if (g.role == turbio::GridRole::Velocity)
+                for (const auto& h : si.grids)
+                    if (h.role == turbio::GridRole::Velocity)
+                        logInfo("resolution ratio " + fmt("%.4g", g.voxelSize / h.voxelSize) + " (target voxel " +
+                                fmt("%g", g.voxelSize) + ", source voxel " + fmt("%g", h.voxelSize) + ")");
+        return kOk;
+    }
+
+    RunReport report("transfer", a.json);
+    const int count = int(target.frames.size());
+    for (size_t i = first; i < target.frames.size(); ++i) {
+        const int t = target.frames[i];
+        const auto t0 = std::chrono::steady_clock::now();
+        ConsoleProgress progress(int(i), count, t);
+        progress.begin("reading");
+        const turb::Frame tf = turbio::readFrame(target.path(t), t, a.targetRead);
+        const turb::Frame sf = turbio::readFrame(source.path(sourceFor[i]), sourceFor[i], a.sourceRead);
+        turb::TransferResult r = transfer.process(tf, sf, &progress);
+        r.frame.metadata["vdbturb_state"] = transfer.saveState();
+        r.frame.metadata["vdbturb_source_frame"] = std::to_string(sourceFor[i]);
+        r.frame.metadata["vdbturb_command"] = "transfer";
+        progress.begin("writing");
+        const std::string outPath = outPattern.format(t);
+        turbio::ensureParentDirectory(outPath);
+        turbio::writeFrame(outPath, r.frame, a.write);
+        progress.clear();
+
+        const turb::TransferStats& st = r.stats;
+        nlohmann::json extra;
+        extra["out"] = outPath;
+        extra["source_frame"] = sourceFor[i];
+        extra["empty"] = r.empty;
+        extra["ratio"] = st.ratio;
+        extra["patches"] = st.localPatches;
+        extra["global_searches"] = st.globalSearches;
+        extra["tracked"] = st.trackedPatches;
+        extra["mean_local_energy"] = st.meanLocalEnergy;
+        extra["band_voxels"] = st.seams.bandVoxels;
+        extra["seam_initial_energy"] = st.seams.initialEnergy;
+        nlohmann::json em = nlohmann::json::array();
+        for (const auto& it : st.seams.iterations)
+            em.push_back({{"cg_iterations", it.cgIterations}, {"cg_residual", it.cgResidual}, {"energy", it.energy}});
+        extra["seam_em"] = em;
+        nlohmann::json steps;
+        for (int k = 0; k < 8; ++k) steps[turb::TransferStats::stepName(k)] = st.seconds[k];
+        extra["steps_s"] = steps;
+        std::string human = r.empty ? "no smoke in target: wrote the up-sampled target"
+                                    : std::to_string(st.localPatches) + " patches (" + std::to_string(st.globalSearches) +
+                                          " global searches), seams " + std::to_string(st.seams.iterations.size()) + " EM";
+        if (!st.seams.iterations.empty()) {
+            const auto& last = st.seams.iterations.back();
+            human += fmt(" E_b %.4g", last.energy) + " (CG " + std::to_string(last.cgIterations) + fmt(" it, res %.1e)", last.cgResidual);
+        }
+        human += " -> " + outPath;
+        for (size_t k = 0; k < st.seams.iterations.size(); ++k) {
+            const auto& it = st.seams.iterations[k];
+            logVerbose("frame " + std::to_string(t) + ": seam EM " + std::to_string(k + 1) + ": CG " +
+                       std::to_string(it.cgIterations) + " iterations, residual " + fmt("%.2e", it.cgResidual) +
+                       ", E_b " + fmt("%.6g", it.energy));
+        }
+        std::string timing = "frame " + std::to_string(t) + ": time";
+        for (int k = 0; k < 7; ++k) timing += std::string(" ") + turb::TransferStats::stepName(k) + fmt(" %.2f", st.seconds[k]);
+        logVerbose(timing);
+        report.frameDone(t, int(i), count, secondsSince(t0), human, extra);
+    }
+    report.finish();
+    return kOk;
+}
+
+} // namespace
+
+Command transferCommand()
+{
+    auto args = std::make_shared<TransferArgs>();
+    Command c;
+    c.name = "transfer";
+    c.help = "Turbulence style transfer: add a high-res source's detail to a low-res target's motion";
+    c.setup = [args](CLI::App* app) {
+        TransferArgs& a = *args;
+        turb::TransferSettings& s = a.settings;
+        app->add_option("--target", a.target, "Low-res target cache (velocity + density): pattern or one file")->required();
+        app->add_option("--source", a.source, "High-res source cache whose turbulence is transferred")->required();
+        app->add_option("--out", a.out, "Output pattern, e.g. up/turb.####.vdb (directories are created)")->required();
+        app->add_option("--frames", a.frames, "Target frames, e.g. 1001-1100x2 (default: all on disk)");
+        app->add_option("--source-frames", a.sourceFrames, "Restrict the source to these frames");
+        app->add_option("--source-offset", a.sourceOffset, "Source frame = target frame + offset (default 0)");
+        app->add_option("--source-wrap", a.wrap, "When the source runs out: loop (default), pingpong, clamp, error")
+            ->check(CLI::IsMember({"loop", "pingpong", "clamp", "error"}));
+        app->add_option("--alpha", s.alpha, "Weight of the density-mask term in matching (paper 0.004)")->check(CLI::NonNegativeNumber);
+        app->add_option("--beta", s.beta, "Weight of the temporal term: previous detail advected (paper 0.5)")->check(CLI::NonNegativeNumber);
+        app->add_option("--gamma", s.seams.gamma, "Weight of divergence in seam smoothing (paper 10)")->check(CLI::NonNegativeNumber);
+        app->add_option("--density-threshold", s.densityThreshold, "D_th: smoke where density > this (default 0.01)");
+        app->add_option("--patch", s.localPatch, "B: local patch edge in output voxels (default 8)")->check(CLI::Range(2, 64));
+        app->add_option("--global-patch", s.globalPatch, "b: global patch edge in target voxels, odd (default 2*ceil(B/f)+1)");
+        app->add_option("--pca", s.pcaComponents, "PCA dimensions of patch descriptors (default 16)")->check(CLI::Range(1, 256));
+        app->add_option("--stride", s.localStride, "Spacing of candidate source patches in the local search (default 2)")->check(CLI::Range(1, 16));
+        app->add_option("--candidates", s.refineCandidates, "Local candidates re-scored at full resolution (default 24)")->check(CLI::Range(1, 4096));
+        app->add_option("--band", s.seams.bandWidth, "Seam band: voxels on each side of a patch border (default 2)")->check(CLI::Range(1, 32));
+        app->add_option("--boundary-patch", s.seams.boundaryPatch, "C: boundary patch edge, even (default B)");
+        app->add_option("--em-iterations", s.seams.maxEmIterations, "Seam EM iterations at most (default 3)")->check(CLI::Range(1, 50));
+        app->add_option("--em-tolerance", s.seams.emTolerance, "Stop EM when E_b changes by less than this fraction (default 0.02)");
+        app->add_option("--cg-iterations", s.seams.maxCgIterations, "CG iterations per E-step at most (default 100)")->check(CLI::Range(1, 100000));
+        app->add_option("--cg-tolerance", s.seams.cgTolerance, "CG relative residual (default 1e-3)");
+        app->add_flag("--no-seams", a.noSeams, "Paste patches without seam smoothing (ablation)");
+        app->add_flag("--no-tracking", a.noTracking, "Run the global search every frame instead of following last frame's patch (ablation)");
+        app->add_flag("--keep-coarse-detail", a.keepCoarse, "Do not remove U_h's coarse part (lets lf_err grow)");
+        app->add_option("--align", a.align, "Match after aligning flows: none (paper), normalize, rotate, both")
+            ->check(CLI::IsMember({"none", "normalize", "rotate", "both"}));
+        app->add_option("--density", a.density, "Output density: advect (default) or lookback (seed 003 supplement)")
+            ->check(CLI::IsMember({"advect", "lookback"}));
+        app->add_option("--lookback", s.lookBackFrames, "m for --density lookback (default 12)")->check(CLI::Range(1, 100));
+        app->add_flag("--resume", a.resume, "Skip frames already written and continue from the state saved in the last one");
+        app->add_flag("--json", a.json, "One JSON line per frame and a summary on stdout");
+        addReadOptions(app, a.targetRead, "target");
+        addReadOptions(app, a.sourceRead, "source");
+        addWriteOptions(app, a.write);
+    };
+    c.run = [args] { return runTransfer(*args); };
+    return c;
+}
+
+} // namespace vdbturb
