@@ -177,6 +177,9 @@ int runTransfer(TransferArgs& a)
                        std::to_string(it.cgIterations) + " iterations, residual " + fmt("%.2e", it.cgResidual) +
                        ", E_b " + fmt("%.6g", it.energy));
         }
+        logVerbose("frame " + std::to_string(t) + ": seams: setup " + fmt("%.2f s", st.seams.setupSeconds) + ", M-steps " +
+                   fmt("%.2f s", st.seams.mStepSeconds) + ", E-steps " + fmt("%.2f s", st.seams.eStepSeconds) + ", band " +
+                   std::to_string(st.seams.bandVoxels) + " voxels, " + std::to_string(st.seams.boundaryPatches) + " boundary patches");
         std::string timing = "frame " + std::to_string(t) + ": time";
         for (int k = 0; k < 7; ++k) timing += std::string(" ") + turb::TransferStats::stepName(k) + fmt(" %.2f", st.seconds[k]);
         logVerbose(timing);

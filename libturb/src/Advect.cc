@@ -27,18 +27,15 @@ Field<T> advectImpl(const Field<T>& q, const VectorField& velocity, double dt, c
     if (q.empty()) return q;
     if (velocity.empty()) throw ValueError("advect: empty velocity field");
     openvdb::initialize();
-    // Build the grid: activate the box, then write the values (background-valued voxels stay active).
+    // Sparse: only non-zero voxels become active; VolumeAdvection dilates them by the travel distance,
+    // so the cost follows the smoke, not the box.
     auto grid = GridT::create(Field<T>::zeroValue());
-    grid->tree().denseFill(q.bbox(), Field<T>::zeroValue(), true);
     {
-        auto acc = grid->getAccessor();
-        const CoordBBox b = q.bbox();
-        for (int i = b.min().x(); i <= b.max().x(); ++i)
-            for (int j = b.min().y(); j <= b.max().y(); ++j)
-                for (int k = b.min().z(); k <= b.max().z(); ++k) acc.setValue(Coord(i, j, k), q(i, j, k));
+        openvdb::tools::Dense<T, openvdb::tools::LayoutZYX> dense(q.bbox(), const_cast<T*>(q.data()));
+        openvdb::tools::copyFromDense(dense, *grid, Field<T>::zeroValue());
     }
     grid->setTransform(transformOf(q.lattice()));
-
+    if (grid->empty()) return Field<T>(q.bbox(), q.lattice());
     auto vel = openvdb::Vec3SGrid::create(Vec3f(0.0f));
     {
         openvdb::tools::Dense<Vec3f, openvdb::tools::LayoutZYX> dense(velocity.bbox(), const_cast<Vec3f*>(velocity.data()));
@@ -60,12 +57,7 @@ Field<T> advectImpl(const Field<T>& q, const VectorField& velocity, double dt, c
         substeps = std::max(1, int(std::ceil(travel / 3.0)));
     }
     adv.setSubSteps(substeps);
-    // Only voxels inside the box are wanted back: a mask grid stops dilation from growing the work.
-    auto mask = openvdb::MaskGrid::create();
-    mask->tree().denseFill(q.bbox(), true, true);
-    mask->setTransform(grid->transform().copy());
-    auto out = adv.template advect<GridT, openvdb::MaskGrid, openvdb::tools::Sampler<1, false>>(*grid, *mask, dt);
-
+    auto out = adv.template advect<GridT, openvdb::tools::Sampler<1, false>>(*grid, dt);
     Field<T> result(q.bbox(), q.lattice());
     openvdb::tools::Dense<T, openvdb::tools::LayoutZYX> dense(result.bbox(), result.data());
     openvdb::tools::copyToDense(*out, dense);

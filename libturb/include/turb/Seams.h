@@ -49,6 +49,7 @@ struct SeamStats
     double initialEnergy = 0.0; ///< E_b of the pasted field against the first M-step's Z
     std::vector<SeamIteration> iterations;
     bool converged = false;   ///< EM stopped on emTolerance rather than maxEmIterations
+    double setupSeconds = 0.0, mStepSeconds = 0.0, eStepSeconds = 0.0; ///< where the time went
 };
 
 /// The lattice of local patches over the fine output box: patch P covers

@@ -5,6 +5,7 @@
 #include <turb/Parallel.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 
 namespace turb {
@@ -370,6 +371,9 @@ SeamStats smoothSeams(VectorField& detail, const SeamProblem& problem, const Sea
     if (C % 2 != 0 || C < 2 || (2 * B) % C != 0)
         throw ValueError("boundary patch size C must be even and divide 2*B (B = " + std::to_string(B) + ")");
 
+    using Clock = std::chrono::steady_clock;
+    const auto seconds = [](Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); };
+    auto t0 = Clock::now();
     const CoordBBox box = detail.bbox();
     const std::vector<uint8_t> omega = seamBand(box, L, problem.active, settings.bandWidth);
     SeamSystem sys(detail, omega, settings.gamma);
@@ -506,11 +510,16 @@ SeamStats smoothSeams(VectorField& detail, const SeamProblem& problem, const Sea
     };
 
     double previous = -1.0;
+    stats.setupSeconds = seconds(t0);
     for (int it = 0; it < std::max(1, settings.maxEmIterations); ++it) {
         checkCancelled(progress);
+        t0 = Clock::now();
         mStep();
         if (it == 0) stats.initialEnergy = sys.energy(detail);
+        stats.mStepSeconds += seconds(t0);
+        t0 = Clock::now();
         SeamIteration s = sys.solve(detail, settings.maxCgIterations, settings.cgTolerance);
+        stats.eStepSeconds += seconds(t0);
         stats.iterations.push_back(s);
         if (progress) progress->update(double(it + 1) / std::max(1, settings.maxEmIterations));
         if (previous > 0.0 && std::abs(previous - s.energy) <= settings.emTolerance * previous) {

@@ -1,0 +1,114 @@
+// The vdbturb executable end to end: exit codes, atomic outputs, --resume, --dry-run, --no-clobber.
+#include "TestUtil.h"
+
+#include <turbio/Vdb.h>
+
+#include <array>
+#include <cstdio>
+#include <fstream>
+#include <sys/wait.h>
+
+namespace {
+
+struct CmdResult
+{
+    int code = -1;
+    std::string out; // stdout + stderr
+};
+
+CmdResult run(const std::string& args)
+{
+    CmdResult r;
+    const std::string cmd = std::string(VDBTURB_EXE) + " " + args + " 2>&1";
+    FILE* p = ::popen(cmd.c_str(), "r");
+    if (!p) return r;
+    std::array<char, 4096> buf;
+    size_t n;
+    while ((n = std::fread(buf.data(), 1, buf.size(), p)) > 0) r.out.append(buf.data(), n);
+    const int status = ::pclose(p);
+    r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    return r;
+}
+
+std::string lo() { return testutil::dataPath("blender-plume-32/fluid_data_####.vdb"); }
+std::string hi() { return testutil::dataPath("blender-plume-128/fluid_data_####.vdb"); }
+
+} // namespace
+
+TEST(Cli, UsageErrorsExitTwoAndMissingInputsExitOne)
+{
+    EXPECT_EQ(run("").code, 2);
+    EXPECT_EQ(run("transfer --target x").code, 2);
+    EXPECT_EQ(run("info --frames 1-3 --no-such-flag x").code, 2);
+    const CmdResult missing = run("info /nonexistent/cache.vdb");
+    EXPECT_EQ(missing.code, 1);
+    EXPECT_NE(missing.out.find("/nonexistent/cache.vdb"), std::string::npos) << missing.out;
+}
+
+TEST(Cli, InfoJsonGoesToStdoutAndReportsMissingFrames)
+{
+    testutil::TempDir dir;
+    for (int f : {1, 2, 4}) std::filesystem::copy_file(testutil::dataPath("blender-plume-32/fluid_data_000" + std::to_string(f) + ".vdb"), dir / ("p." + std::to_string(f) + ".vdb"));
+    const std::string cmd = std::string(VDBTURB_EXE) + " info '" + dir.path() + "/p.@.vdb' --json -q 2>/dev/null";
+    FILE* p = ::popen(cmd.c_str(), "r");
+    std::string json;
+    std::array<char, 4096> buf;
+    size_t n;
+    while ((n = std::fread(buf.data(), 1, buf.size(), p)) > 0) json.append(buf.data(), n);
+    EXPECT_EQ(WEXITSTATUS(::pclose(p)), 0);
+    EXPECT_NE(json.find("\"missing\": [\n  3\n ]"), std::string::npos) << json.substr(0, 400);
+    EXPECT_NE(json.find("\"units\": \"cells\""), std::string::npos);
+}
+
+TEST(Cli, TransferWritesResumesAndNeverClobbers)
+{
+    testutil::TempDir dir;
+    const std::string out = dir / "up/turb.####.vdb";
+    // Dry run: resolves, prints the plan, writes nothing.
+    const CmdResult dry = run("transfer --target " + lo() + " --source " + hi() + " --out " + out + " --frames 1-3 --dry-run");
+    EXPECT_EQ(dry.code, 0) << dry.out;
+    EXPECT_NE(dry.out.find("resolution ratio 4"), std::string::npos) << dry.out;
+    EXPECT_FALSE(std::filesystem::exists(dir / "up"));
+
+    // Frames 1-2, then --resume to 3; compare with an uninterrupted 1-3 run.
+    const CmdResult a = run("transfer --target " + lo() + " --source " + hi() + " --out " + out + " --frames 1-2 -q");
+    ASSERT_EQ(a.code, 0) << a.out;
+    const CmdResult b = run("transfer --target " + lo() + " --source " + hi() + " --out " + out + " --frames 1-3 --resume");
+    ASSERT_EQ(b.code, 0) << b.out;
+    EXPECT_NE(b.out.find("continuing after frame 2"), std::string::npos) << b.out;
+    const std::string ref = dir / "ref/turb.####.vdb";
+    ASSERT_EQ(run("transfer --target " + lo() + " --source " + hi() + " --out " + ref + " --frames 1-3 -q").code, 0);
+    const turb::Frame resumed = turbio::readFrame(dir / "up/turb.0003.vdb", 3, turbio::ReadOptions{});
+    const turb::Frame whole = turbio::readFrame(dir / "ref/turb.0003.vdb", 3, turbio::ReadOptions{});
+    EXPECT_EQ(resumed.velocity.values(), whole.velocity.values());
+    EXPECT_EQ(resumed.density.values(), whole.density.values());
+    EXPECT_EQ(resumed.metadata.at("vdbturb_patch_size"), "8");
+    EXPECT_NEAR(resumed.lattice().voxelSize, 0.03125, 1e-9);
+
+    // --no-clobber refuses and keeps the file.
+    const auto before = std::filesystem::last_write_time(dir / "up/turb.0001.vdb");
+    const CmdResult c = run("transfer --target " + lo() + " --source " + hi() + " --out " + out + " --frames 1 --no-clobber");
+    EXPECT_EQ(c.code, 1);
+    EXPECT_NE(c.out.find("no-clobber"), std::string::npos) << c.out;
+    EXPECT_EQ(std::filesystem::last_write_time(dir / "up/turb.0001.vdb"), before);
+    EXPECT_EQ(testutil::countEntries(dir / "up"), 3u) << "no temporary files may remain";
+}
+
+TEST(Cli, ACorruptFrameStopsTheRunWithoutDamagingEarlierOutput)
+{
+    testutil::TempDir dir;
+    std::filesystem::create_directories(dir / "lo");
+    for (int f = 1; f <= 3; ++f)
+        std::filesystem::copy_file(testutil::dataPath("blender-plume-32/fluid_data_000" + std::to_string(f) + ".vdb"),
+            dir / ("lo/t_000" + std::to_string(f) + ".vdb"));
+    // Cut frame 2 in half.
+    std::filesystem::resize_file(dir / "lo/t_0002.vdb", std::filesystem::file_size(dir / "lo/t_0002.vdb") / 2);
+    const CmdResult r = run("transfer --target " + dir / "lo/t_####.vdb" + " --source " + hi() + " --out " + dir / "out/o.####.vdb");
+    EXPECT_EQ(r.code, 1) << r.out;
+    EXPECT_NE(r.out.find("t_0002.vdb"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("truncated"), std::string::npos) << r.out;
+    EXPECT_TRUE(std::filesystem::exists(dir / "out/o.0001.vdb"));
+    EXPECT_FALSE(std::filesystem::exists(dir / "out/o.0002.vdb"));
+    EXPECT_EQ(testutil::countEntries(dir / "out"), 1u) << "no partial or temporary file";
+    EXPECT_NO_THROW(turbio::readFrame(dir / "out/o.0001.vdb", 1, turbio::ReadOptions{}));
+}
