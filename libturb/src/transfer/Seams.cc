@@ -99,6 +99,54 @@ public:
         for (size_t r = 0; r < m; ++r)
             if (mOmega[r]) mUnknowns.push_back(int(r));
         mTargets.assign(m * 3, Vec3f(0.0f));
+        precompute();
+    }
+
+    // Row flags, stencils and the A^T gather coefficients are fixed for the band: compute them once
+    // so the CG loop is plain array arithmetic.
+    void precompute()
+    {
+        const size_t m = rows();
+        mFlags.assign(m, 0);
+        mLo.assign(m * 3, -1);
+        mHi.assign(m * 3, -1);
+        mInv.assign(m * 3, 0.0f);
+        parallelFor(m, 4096, [&](size_t b, size_t e) {
+            for (size_t r = b; r < e; ++r) {
+                uint8_t fl = 0;
+                for (int a = 0; a < 3; ++a) {
+                    if (edgeRow(r, a)) fl |= uint8_t(1u << a);
+                    int lo, hi;
+                    float inv;
+                    stencil(r, a, lo, hi, inv);
+                    mLo[r * 3 + size_t(a)] = lo;
+                    mHi[r * 3 + size_t(a)] = hi;
+                    mInv[r * 3 + size_t(a)] = inv;
+                }
+                if (divRow(r)) fl |= 8u;
+                mFlags[r] = fl;
+            }
+        });
+        const size_t nu = mUnknowns.size();
+        mGatherRow.assign(nu * 9, -1);
+        mGatherCoef.assign(nu * 9, 0.0f);
+        parallelFor(nu, 2048, [&](size_t b, size_t e) {
+            for (size_t u = b; u < e; ++u) {
+                const int r = mUnknowns[u];
+                for (int a = 0; a < 3; ++a) {
+                    const int cands[3] = {mNb[2 * a][size_t(r)], mNb[2 * a + 1][size_t(r)], r};
+                    for (int k = 0; k < 3; ++k) {
+                        const int v = cands[k];
+                        if (v < 0 || !(mFlags[size_t(v)] & 8u)) continue;
+                        float coef = 0.0f;
+                        if (mHi[size_t(v) * 3 + size_t(a)] == r) coef += mInv[size_t(v) * 3 + size_t(a)];
+                        if (mLo[size_t(v) * 3 + size_t(a)] == r) coef -= mInv[size_t(v) * 3 + size_t(a)];
+                        mGatherRow[u * 9 + size_t(a * 3 + k)] = v;
+                        mGatherCoef[u * 9 + size_t(a * 3 + k)] = coef;
+                    }
+                }
+            }
+        });
     }
 
     static Coord step(int f)
@@ -179,16 +227,16 @@ public:
         qd.assign(m, 0.0f);
         parallelFor(m, 4096, [&](size_t b, size_t e) {
             for (size_t r = b; r < e; ++r) {
+                const uint8_t fl = mFlags[r];
+                if (!fl) continue;
                 for (int a = 0; a < 3; ++a)
-                    if (edgeRow(r, a)) qe[r * 3 + size_t(a)] = p[size_t(mNb[2 * a + 1][r])] - p[r];
-                if (!divRow(r)) continue;
+                    if (fl & (1u << a)) qe[r * 3 + size_t(a)] = p[size_t(mNb[2 * a + 1][r])] - p[r];
+                if (!(fl & 8u)) continue;
                 float div = 0.0f;
                 for (int a = 0; a < 3; ++a) {
-                    int lo, hi;
-                    float inv;
-                    stencil(r, a, lo, hi, inv);
+                    const int lo = mLo[r * 3 + size_t(a)], hi = mHi[r * 3 + size_t(a)];
                     const float vh = hi >= 0 ? p[size_t(hi)][a] : 0.0f, vl = lo >= 0 ? p[size_t(lo)][a] : 0.0f;
-                    div += (vh - vl) * inv;
+                    div += (vh - vl) * mInv[r * 3 + size_t(a)];
                 }
                 qd[r] = mSqrtGamma * div;
             }
@@ -206,28 +254,15 @@ public:
                 for (int a = 0; a < 3; ++a) {
                     // Edge (r - e_a, r) has +1 on x[r]; edge (r, r + e_a) has -1.
                     const int lo = mNb[2 * a][r];
-                    if (lo >= 0 && edgeRow(size_t(lo), a)) acc += se[size_t(lo) * 3 + size_t(a)];
-                    if (edgeRow(r, a)) acc -= se[r * 3 + size_t(a)];
-                }
-                // Divergence rows whose stencil uses x[r][a]: the rows at r - e_a, r + e_a, and r itself
-                // when r sits on a box face (one-sided stencil).
-                for (int a = 0; a < 3; ++a) {
-                    float coef = 0.0f;
-                    for (int f : {2 * a, 2 * a + 1}) {
-                        const int v = mNb[f][r];
-                        if (v < 0) continue;
-                        int lo, hi;
-                        float inv;
-                        stencil(size_t(v), a, lo, hi, inv);
-                        if (hi == int(r)) coef += inv * sd[size_t(v)];
-                        if (lo == int(r)) coef -= inv * sd[size_t(v)];
+                    if (lo >= 0 && (mFlags[size_t(lo)] & (1u << a))) acc += se[size_t(lo) * 3 + size_t(a)];
+                    if (mFlags[r] & (1u << a)) acc -= se[r * 3 + size_t(a)];
+                    // Divergence rows whose stencil uses x[r][a].
+                    float d = 0.0f;
+                    for (int k = 0; k < 3; ++k) {
+                        const int v = mGatherRow[u * 9 + size_t(a * 3 + k)];
+                        if (v >= 0) d += mGatherCoef[u * 9 + size_t(a * 3 + k)] * sd[size_t(v)];
                     }
-                    int lo, hi;
-                    float inv;
-                    stencil(r, a, lo, hi, inv);
-                    if (hi == int(r)) coef += inv * sd[r];
-                    if (lo == int(r)) coef -= inv * sd[r];
-                    acc[a] += mSqrtGamma * coef;
+                    acc[a] += mSqrtGamma * d;
                 }
                 g[r] = acc;
             }
@@ -316,6 +351,11 @@ private:
     std::vector<int> mNb[6];
     std::vector<int> mUnknowns;
     std::vector<Vec3f> mTargets;
+    std::vector<uint8_t> mFlags;      // per row voxel: bits 0-2 edge rows, bit 3 div row
+    std::vector<int> mLo, mHi;        // per row voxel and axis: central-difference stencil (compact, -1 outside R)
+    std::vector<float> mInv;          // 1 / span of that stencil
+    std::vector<int> mGatherRow;      // per unknown, axis, k: div rows using x[r][a]
+    std::vector<float> mGatherCoef;   // and their coefficients
 };
 
 void loadDenseTargets(SeamSystem& sys, const std::vector<Vec3f>& dense)
