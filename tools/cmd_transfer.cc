@@ -26,6 +26,8 @@ struct TransferArgs
     std::string align = "none";
     std::string density = "advect";
     bool noSeams = false, noTracking = false, keepCoarse = false, resume = false, json = false;
+    bool keepTargetDivergence = false;
+    std::string energy = "source";
     turbio::ReadOptions targetRead, sourceRead;
     turbio::WriteOptions write;
     turb::TransferSettings settings;
@@ -61,6 +63,9 @@ int runTransfer(TransferArgs& a)
     s.seams.enabled = !a.noSeams;
     s.trackGlobalPatches = !a.noTracking;
     s.removeCoarseDetail = !a.keepCoarse;
+    s.detailEnergy = a.energy == "none" ? turb::DetailEnergy::None
+                     : a.energy == "pasted" ? turb::DetailEnergy::Pasted : turb::DetailEnergy::Source;
+    s.compensateTargetDivergence = !a.keepTargetDivergence;
     s.alignment = parseAlign(a.align);
     s.densityMode = a.density == "lookback" ? turb::DensityMode::LookBack : turb::DensityMode::Advect;
 
@@ -154,6 +159,7 @@ int runTransfer(TransferArgs& a)
         extra["global_searches"] = st.globalSearches;
         extra["tracked"] = st.trackedPatches;
         extra["mean_local_energy"] = st.meanLocalEnergy;
+        extra["energy_scale"] = st.energyScale;
         extra["band_voxels"] = st.seams.bandVoxels;
         extra["seam_initial_energy"] = st.seams.initialEnergy;
         nlohmann::json em = nlohmann::json::array();
@@ -226,6 +232,15 @@ Command transferCommand()
         app->add_flag("--no-seams", a.noSeams, "Paste patches without seam smoothing (ablation)");
         app->add_flag("--no-tracking", a.noTracking, "Run the global search every frame instead of following last frame's patch (ablation)");
         app->add_flag("--keep-coarse-detail", a.keepCoarse, "Do not remove U_h's coarse part (lets lf_err grow)");
+        app->add_option("--detail-energy", a.energy,
+               "Calibrate U_h's energy per smoke voxel to: source (the source's high-frequency energy; default), "
+               "pasted (the chosen patches'), none")
+            ->check(CLI::IsMember({"source", "pasted", "none"}));
+        app->add_flag("--no-target-divergence", a.keepTargetDivergence,
+            "Seam gamma term penalises div(U_h) only, as in the paper, not div(up(u_t) + U_h)");
+        app->add_option("--temporal-blend", s.temporalBlend,
+            "Weight of last frame's detail advected through the target, mixed into tracked patches (default 0.9; 0 = paper)")
+            ->check(CLI::Range(0.0, 0.95));
         app->add_option("--align", a.align, "Match after aligning flows: none (paper), normalize, rotate, both")
             ->check(CLI::IsMember({"none", "normalize", "rotate", "both"}));
         app->add_option("--density", a.density, "Output density: advect (default) or lookback (seed 003 supplement)")

@@ -32,6 +32,7 @@ struct SeamSettings
     double emTolerance = 0.02;   ///< stop when |E_b(k) - E_b(k-1)| / E_b(k-1) is below this
     int maxCgIterations = 100;   ///< CG iterations per E-step
     double cgTolerance = 1e-3;   ///< CG stops at this relative residual of the normal equations
+    float boxWeight = 10.0f;     ///< nu/f^3: weight of the rows pulling U_h's box means (coarse cells) to zero, >= 0
 };
 
 /// One EM iteration, for the per-frame log.
@@ -86,6 +87,12 @@ struct SeamProblem
     PatchLayout layout;                      ///< local patches over the detail field's box
     std::vector<uint8_t> active;             ///< per patch: 1 if it carries pasted detail
     std::vector<Coord> offset;               ///< per active patch: source voxel = output voxel + offset
+    int boxFactor = 0;                       ///< coarse cell size f for the box-mean rows (0 = none)
+    const VectorField* temporal = nullptr;   ///< optional previous detail (advected): edge targets become
+    float temporalWeight = 0.0f;             ///< (1 - w) * boundary patches' + w * its differences, in the
+    std::vector<uint8_t> temporalPatches;    ///< local patches flagged here (same box as the detail)
+    const VectorField* base = nullptr;       ///< optional field added to X in the divergence term: the
+                                             ///< gamma term then penalises div(base + X) (same box as X)
 };
 
 /// Ω as a per-voxel mask over `box` (1 = in the band).

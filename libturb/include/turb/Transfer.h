@@ -48,6 +48,15 @@ enum class FlowAlignment
     Both       ///< rotate, then normalize
 };
 
+/// What the detail's energy is calibrated to, after seam smoothing and the coarse-part removal (both
+/// remove some of it). One scalar per frame, bounded to [0.5, 2].
+enum class DetailEnergy
+{
+    None,   ///< leave U_h as the pipeline made it
+    Pasted, ///< the energy of the pasted patches inside the smoke (undo the post-processing's losses)
+    Source  ///< the source's mean high-frequency energy per smoke voxel: as much turbulence as the source
+};
+
 /// How the first frame's high-resolution density is advanced.
 enum class DensityMode
 {
@@ -67,15 +76,18 @@ struct TransferSettings
     int localStride = 2;          ///< spacing of candidate local-patch centres in the source, >= 1
     int refineCandidates = 24;    ///< local candidates re-scored with the full-resolution energy E_h, >= 1
     bool trackGlobalPatches = true; ///< the paper's temporal rule; false = global search every frame
+    float temporalBlend = 0.9f;   ///< beyond the paper: weight of last frame's detail (advected through the target)
+                                  ///< mixed into patches that had detail, in [0, 0.95]; 0 = the paper
     FlowAlignment alignment = FlowAlignment::None; ///< see FlowAlignment
 
     // Seam smoothing (section 3.3)
     SeamSettings seams;           ///< band width, boundary patch size, gamma, EM and CG tolerances
 
     // Output
+    bool compensateTargetDivergence = true; ///< the seam solve's gamma term penalises div(up(u_t) + U_h), not
+                                            ///< div(U_h) alone, so the band also cancels the up-sampled target's divergence
     bool removeCoarseDetail = true; ///< subtract the smooth part of U_h whose box means are not zero (keeps lf_err ~ 0)
-    bool preserveEnergy = true;   ///< rescale U_h (one scalar per frame) to the energy of the pasted patches, which
-                                  ///< seam smoothing and the coarse-part removal otherwise lower
+    DetailEnergy detailEnergy = DetailEnergy::Source; ///< what U_h's energy is scaled to (one scalar per frame)
     DensityMode densityMode = DensityMode::Advect; ///< how the output density is produced
     int lookBackFrames = 12;      ///< m for DensityMode::LookBack (seed 003 suggests 10-20)
     int threads = 0;              ///< worker threads, 0 = all; results do not depend on it

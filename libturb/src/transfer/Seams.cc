@@ -59,8 +59,8 @@ namespace {
 class SeamSystem
 {
 public:
-    SeamSystem(const VectorField& X, const std::vector<uint8_t>& omega, float gamma)
-        : mBox(X.bbox()), mDim(X.bbox().dim()), mSqrtGamma(std::sqrt(std::max(0.0f, gamma)))
+    SeamSystem(const VectorField& X, const std::vector<uint8_t>& omega, float gamma, const VectorField* base = nullptr)
+        : mBox(X.bbox()), mDim(X.bbox().dim()), mSqrtGamma(std::sqrt(std::max(0.0f, gamma))), mBase(base)
     {
         const size_t n = X.size();
         mCompact.assign(n, -1);
@@ -190,12 +190,25 @@ public:
 
     // Residual rows of the full field: targets - grad X on edges, -sqrt(gamma) div X on div rows.
     // Values outside R are read from the dense field directly.
-    void residual(const VectorField& X, std::vector<Vec3f>& se, std::vector<float>& sd) const
+    void residual(const VectorField& X, std::vector<Vec3f>& se, std::vector<float>& sd, std::vector<Vec3f>& sb) const
     {
         const size_t m = rows();
         se.assign(m * 3, Vec3f(0.0f));
         sd.assign(m, 0.0f);
+        sb.assign(mCells.size(), Vec3f(0.0f));
         const Vec3f* x = X.data();
+        // Box rows: -sqrt(nu) * (mean of X over the coarse cell, fixed voxels included).
+        parallelFor(mCells.size(), 256, [&](size_t b, size_t e) {
+            for (size_t c = b; c < e; ++c) {
+                CoordBBox cb = refineBox(CoordBBox(mCells[c], mCells[c]), mBoxF);
+                cb.intersect(mBox);
+                Vec3f sum(0.0f);
+                for (int i = cb.min().x(); i <= cb.max().x(); ++i)
+                    for (int j = cb.min().y(); j <= cb.max().y(); ++j)
+                        for (int k = cb.min().z(); k <= cb.max().z(); ++k) sum += x[X.offset(i, j, k)];
+                sb[c] = sum * (-mBoxCoef);
+            }
+        });
         parallelFor(m, 4096, [&](size_t b, size_t e) {
             for (size_t r = b; r < e; ++r) {
                 const size_t i = mLinear[r];
@@ -211,8 +224,12 @@ public:
                     const bool hasLo = mInBox[r * 6 + size_t(2 * a)], hasHi = mInBox[r * 6 + size_t(2 * a + 1)];
                     const Coord lo = hasLo ? c + step(2 * a) : c, hi = hasHi ? c + step(2 * a + 1) : c;
                     const int span = int(hasLo) + int(hasHi);
-                    if (span)
-                        div += (x[X.offset(hi.x(), hi.y(), hi.z())][a] - x[X.offset(lo.x(), lo.y(), lo.z())][a]) / float(span);
+                    if (span) {
+                        const size_t ih = X.offset(hi.x(), hi.y(), hi.z()), il = X.offset(lo.x(), lo.y(), lo.z());
+                        float dv = x[ih][a] - x[il][a];
+                        if (mBase) dv += mBase->data()[ih][a] - mBase->data()[il][a];
+                        div += dv / float(span);
+                    }
                 }
                 sd[r] = -mSqrtGamma * div;
             }
@@ -220,11 +237,19 @@ public:
     }
 
     // q = A p for p over R (zero outside Ω).
-    void applyA(const std::vector<Vec3f>& p, std::vector<Vec3f>& qe, std::vector<float>& qd) const
+    void applyA(const std::vector<Vec3f>& p, std::vector<Vec3f>& qe, std::vector<float>& qd, std::vector<Vec3f>& qb) const
     {
         const size_t m = rows();
         qe.assign(m * 3, Vec3f(0.0f));
         qd.assign(m, 0.0f);
+        qb.assign(mCells.size(), Vec3f(0.0f));
+        parallelFor(mCells.size(), 256, [&](size_t b, size_t e) {
+            for (size_t c = b; c < e; ++c) {
+                Vec3f sum(0.0f);
+                for (int k = mCellStart[c]; k < mCellStart[c + 1]; ++k) sum += p[size_t(mCellMembers[size_t(k)])];
+                qb[c] = sum * mBoxCoef;
+            }
+        });
         parallelFor(m, 4096, [&](size_t b, size_t e) {
             for (size_t r = b; r < e; ++r) {
                 const uint8_t fl = mFlags[r];
@@ -244,7 +269,8 @@ public:
     }
 
     // g = A^T (se, sd), gathered at the unknowns (zero elsewhere).
-    void applyAt(const std::vector<Vec3f>& se, const std::vector<float>& sd, std::vector<Vec3f>& g) const
+    void applyAt(const std::vector<Vec3f>& se, const std::vector<float>& sd, const std::vector<Vec3f>& sb,
+        std::vector<Vec3f>& g) const
     {
         g.assign(rows(), Vec3f(0.0f));
         parallelFor(mUnknowns.size(), 2048, [&](size_t b, size_t e) {
@@ -264,6 +290,7 @@ public:
                     }
                     acc[a] += mSqrtGamma * d;
                 }
+                if (!mCells.empty()) acc += sb[size_t(mCellOf[u])] * mBoxCoef;
                 g[r] = acc;
             }
         });
@@ -281,9 +308,11 @@ public:
         });
     }
 
-    double rowNormSq(const std::vector<Vec3f>& se, const std::vector<float>& sd) const
+    double rowNormSq(const std::vector<Vec3f>& se, const std::vector<float>& sd, const std::vector<Vec3f>& sb) const
     {
-        return parallelSum(rows(), 4096, [&](size_t s, size_t e) {
+        double boxes = 0.0;
+        for (const auto& v : sb) boxes += double(v.lengthSqr());
+        return boxes + parallelSum(rows(), 4096, [&](size_t s, size_t e) {
             double acc = 0.0;
             for (size_t r = s; r < e; ++r)
                 acc += double(se[r * 3].lengthSqr() + se[r * 3 + 1].lengthSqr() + se[r * 3 + 2].lengthSqr()) +
@@ -292,13 +321,52 @@ public:
         });
     }
 
+    // Adds one row per coarse cell (factor^3 fine voxels, cells at multiples of factor) that holds an
+    // unknown: sqrt(nu) * mean(X) over the cell, pulling the detail's box means to zero so the target's
+    // coarse motion is left alone (lf_err) without a separate, divergence-adding correction.
+    void enableBoxRows(int factor, float weight)
+    {
+        mBoxF = factor;
+        mBoxCoef = std::sqrt(std::max(0.0f, weight) * float(factor * factor * factor)) / float(factor * factor * factor);
+        std::vector<std::pair<Coord, int>> keyed;
+        keyed.reserve(mUnknowns.size());
+        for (size_t u = 0; u < mUnknowns.size(); ++u) {
+            const Coord c = coordOfLinear(mLinear[size_t(mUnknowns[u])]);
+            keyed.emplace_back(Coord(floorDiv(c.x(), factor), floorDiv(c.y(), factor), floorDiv(c.z(), factor)), int(u));
+        }
+        std::sort(keyed.begin(), keyed.end(), [](const auto& a, const auto& b) {
+            if (a.first != b.first) return a.first < b.first;
+            return a.second < b.second;
+        });
+        mCells.clear();
+        mCellStart.clear();
+        mCellMembers.clear();
+        mCellOf.assign(mUnknowns.size(), 0);
+        for (size_t i = 0; i < keyed.size(); ++i) {
+            if (i == 0 || keyed[i].first != keyed[i - 1].first) {
+                mCells.push_back(keyed[i].first);
+                mCellStart.push_back(int(mCellMembers.size()));
+            }
+            mCellOf[size_t(keyed[i].second)] = int(mCells.size()) - 1;
+            mCellMembers.push_back(mUnknowns[size_t(keyed[i].second)]);
+        }
+        mCellStart.push_back(int(mCellMembers.size()));
+    }
+
+    Coord coordOfLinear(size_t n) const
+    {
+        const int k = int(n % size_t(mDim.z()));
+        const size_t r = n / size_t(mDim.z());
+        return mBox.min() + Coord(int(r / size_t(mDim.y())), int(r % size_t(mDim.y())), k);
+    }
+
     SeamIteration solve(VectorField& X, int maxIterations, double tolerance) const
     {
         SeamIteration out;
-        std::vector<Vec3f> se, qe, r, p, delta(rows(), Vec3f(0.0f));
+        std::vector<Vec3f> se, qe, r, p, sb, qb, delta(rows(), Vec3f(0.0f));
         std::vector<float> sd, qd;
-        residual(X, se, sd);
-        applyAt(se, sd, r);
+        residual(X, se, sd, sb);
+        applyAt(se, sd, sb, r);
         p = r;
         double rr = dotUnknowns(r, r);
         const double rr0 = rr;
@@ -306,8 +374,8 @@ public:
         if (rr0 > 0.0) {
             for (; it < maxIterations; ++it) {
                 if (std::sqrt(rr / rr0) <= tolerance) break;
-                applyA(p, qe, qd);
-                const double qq = rowNormSq(qe, qd);
+                applyA(p, qe, qd, qb);
+                const double qq = rowNormSq(qe, qd, qb);
                 if (!(qq > 0.0)) break;
                 const float alpha = float(rr / qq);
                 parallelFor(rows(), 4096, [&](size_t b, size_t e) {
@@ -317,7 +385,8 @@ public:
                         for (int a = 0; a < 3; ++a) se[k * 3 + size_t(a)] -= qe[k * 3 + size_t(a)] * alpha;
                     }
                 });
-                applyAt(se, sd, r);
+                for (size_t c = 0; c < sb.size(); ++c) sb[c] -= qb[c] * alpha;
+                applyAt(se, sd, sb, r);
                 const double rrNew = dotUnknowns(r, r);
                 const float beta = float(rrNew / rr);
                 rr = rrNew;
@@ -335,16 +404,17 @@ public:
 
     double energy(const VectorField& X) const
     {
-        std::vector<Vec3f> se;
+        std::vector<Vec3f> se, sb;
         std::vector<float> sd;
-        residual(X, se, sd);
-        return rowNormSq(se, sd);
+        residual(X, se, sd, sb);
+        return rowNormSq(se, sd, sb);
     }
 
 private:
     CoordBBox mBox;
     Coord mDim;
     float mSqrtGamma;
+    const VectorField* mBase;
     std::vector<int> mCompact;
     std::vector<size_t> mLinear;
     std::vector<uint8_t> mOmega, mInBox;
@@ -354,6 +424,10 @@ private:
     std::vector<uint8_t> mFlags;      // per row voxel: bits 0-2 edge rows, bit 3 div row
     std::vector<int> mLo, mHi;        // per row voxel and axis: central-difference stencil (compact, -1 outside R)
     std::vector<float> mInv;          // 1 / span of that stencil
+    int mBoxF = 1;
+    float mBoxCoef = 0.0f;            // sqrt(nu) / factor^3
+    std::vector<Coord> mCells;        // coarse cells with box rows
+    std::vector<int> mCellStart, mCellMembers, mCellOf;
     std::vector<int> mGatherRow;      // per unknown, axis, k: div rows using x[r][a]
     std::vector<float> mGatherCoef;   // and their coefficients
 };
@@ -416,7 +490,10 @@ SeamStats smoothSeams(VectorField& detail, const SeamProblem& problem, const Sea
     auto t0 = Clock::now();
     const CoordBBox box = detail.bbox();
     const std::vector<uint8_t> omega = seamBand(box, L, problem.active, settings.bandWidth);
-    SeamSystem sys(detail, omega, settings.gamma);
+    if (problem.base && problem.base->bbox() != detail.bbox())
+        throw ValueError("smoothSeams: the base field must cover the detail field's box");
+    SeamSystem sys(detail, omega, settings.gamma, problem.base);
+    if (problem.boxFactor > 1 && settings.boxWeight > 0.0f) sys.enableBoxRows(problem.boxFactor, settings.boxWeight);
     stats.bandVoxels = sys.unknowns();
     if (stats.bandVoxels == 0) {
         stats.converged = true;
@@ -543,7 +620,13 @@ SeamStats smoothSeams(VectorField& detail, const SeamProblem& problem, const Sea
                                 if (!bp.zero) sum += (sourceAt(Ush, q + bp.offset) - sourceAt(Ush, p + bp.offset)) * (scale * wgt);
                                 wsum += wgt;
                             }
-                    targets[r * 3 + size_t(a)] = wsum > 0.0f ? sum / wsum : detail[q] - detail[p];
+                    Vec3f t = wsum > 0.0f ? sum / wsum : detail[q] - detail[p];
+                    if (problem.temporal && problem.temporalPatches[L.patchIndex(L.patchOf(p))] &&
+                        problem.temporalPatches[L.patchIndex(L.patchOf(q))]) {
+                        const VectorField& T = *problem.temporal;
+                        t = t * (1.0f - problem.temporalWeight) + (T[q] - T[p]) * problem.temporalWeight;
+                    }
+                    targets[r * 3 + size_t(a)] = t;
                 }
             }
         });

@@ -49,6 +49,13 @@ double smokeEnergy(const VectorField& u, const ScalarField& density, float thres
     });
 }
 
+size_t smokeCount(const ScalarField& density, float threshold)
+{
+    size_t n = 0;
+    for (float v : density.values()) n += v > threshold;
+    return n;
+}
+
 bool anySmoke(const ScalarField& d, float threshold)
 {
     for (float v : d.values())
@@ -161,12 +168,6 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
     const VectorField Ut = upsample(target.velocity, f);
     const ScalarField Dt = upsample(target.density, f);
 
-    // Per-patch smoke test on the up-sampled density: the patches eq. 2 runs for.
-    std::vector<uint8_t> active(layout.patchCount(), 0);
-    for (size_t n = 0; n < Dt.size(); ++n)
-        if (Dt.data()[n] > s.densityThreshold) active[layout.patchIndex(layout.patchOf(Dt.coordOf(n)))] = 1;
-    st.localPatches = int(std::count(active.begin(), active.end(), uint8_t(1)));
-
     // Emission estimate for density: what the target gained that advection does not explain.
     ScalarField emission(target.density.bbox(), targetLattice);
     if (havePrevious) {
@@ -174,9 +175,49 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
         for (size_t n = 0; n < emission.size(); ++n)
             emission.data()[n] = std::max(0.0f, target.density.data()[n] - carried.data()[n]);
     }
+    st.seconds[0] = since(t0);
+
+    // --- Output density. It needs only past velocities, so it is known before this frame's detail, and
+    // the detail can cover all the smoke the output will show (high-res advection carries smoke
+    // beyond the target's own).
+    if (progress) progress->begin("density");
+    t0 = Clock::now();
+    ScalarField outDensity;
+    if (s.densityMode == DensityMode::Advect) {
+        if (!havePrevious) {
+            outDensity = Dt;
+        } else {
+            outDensity = advect(prevDensity, prevVelocity, prevDt);
+            const ScalarField e = upsample(emission, f);
+            for (size_t n = 0; n < outDensity.size(); ++n) outDensity.data()[n] += e.data()[n];
+        }
+    } else {
+        // Seed 003, pseudocode 4: start from the target's density m frames back and advect it through
+        // the output velocities since, injecting the target's emission on the way.
+        if (history.empty()) {
+            outDensity = Dt;
+        } else {
+            outDensity = upsample(history.front().targetDensity, f);
+            for (size_t j = 0; j < history.size(); ++j) {
+                outDensity = advect(outDensity, history[j].velocity, target.dt);
+                const ScalarField& em = j + 1 < history.size() ? history[j + 1].emission : emission;
+                const ScalarField e = upsample(em, f);
+                for (size_t n = 0; n < outDensity.size(); ++n) outDensity.data()[n] += e.data()[n];
+            }
+        }
+    }
+    st.seconds[6] = since(t0);
+    t0 = Clock::now();
+
+    // Per-patch smoke test: the patches eq. 2 runs for.
+    std::vector<uint8_t> active(layout.patchCount(), 0);
+    for (size_t n = 0; n < Dt.size(); ++n)
+        if (Dt.data()[n] > s.densityThreshold || outDensity.data()[n] > s.densityThreshold)
+            active[layout.patchIndex(layout.patchOf(Dt.coordOf(n)))] = 1;
+    st.localPatches = int(std::count(active.begin(), active.end(), uint8_t(1)));
 
     VectorField detail(fineBox, fineLattice);
-    double pastedEnergy = 0.0;
+    double referenceEnergy = 0.0; // mean |U_h|^2 per smoke voxel the detail is calibrated to
     detail::MatchWeights w = this->w;
     if (st.localPatches == 0) {
         // Defined no-op: no smoke in the target, nothing to match. Tracks restart when smoke appears.
@@ -219,13 +260,15 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
             }
         }
         const float detailScale = ks / kt; // U_sh (source world units) -> output world units
-        st.seconds[0] = since(t0);
+        st.seconds[0] += since(t0);
 
         // --- Previous detail advected through the target velocity (the beta term) ---------------
         VectorField advectedDetail;
-        if (havePrevious && s.beta > 0.0f) {
+        if (havePrevious && (s.beta > 0.0f || s.temporalBlend > 0.0f)) {
             AdvectSettings a;
-            a.scheme = AdvectSettings::Scheme::SemiLagrangian; // a matching guide: first order suffices
+            // BFECC: with temporal blending this detail is most of the next frame's, and first-order
+            // advection would blur it a little more every frame.
+            a.scheme = s.temporalBlend > 0.0f ? AdvectSettings::Scheme::BFECC : AdvectSettings::Scheme::SemiLagrangian;
             advectedDetail = advect(prevDetail, prevTargetVelocity, prevDt, a);
         }
 
@@ -398,7 +441,43 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
             }
         });
         st.seconds[3] = since(t0);
-        pastedEnergy = smokeEnergy(detail, Dt, s.densityThreshold);
+        if (s.detailEnergy == DetailEnergy::Source) {
+            // Mean |U_sh|^2 over the source's smoke, in output units.
+            size_t n = 0;
+            double e = 0.0;
+            for (size_t i = 0; i < split.high.size(); ++i)
+                if (Ds.data()[i] > s.densityThreshold) {
+                    e += double(split.high.data()[i].lengthSqr());
+                    ++n;
+                }
+            referenceEnergy = n ? e / double(n) * double(detailScale) * double(detailScale) : 0.0;
+        } else if (s.detailEnergy == DetailEnergy::Pasted) {
+            referenceEnergy = smokeEnergy(detail, outDensity, s.densityThreshold) / std::max<size_t>(1, smokeCount(outDensity, s.densityThreshold));
+        }
+
+        // Temporal coherence beyond eq. 2's beta term: where a patch already carried detail last frame,
+        // mix in that detail advected through the target, so the turbulence moves with the flow instead
+        // of being re-pasted every frame. Done before the seam solve, whose gradient targets blend the
+        // same way, so its divergence term also cleans up what the advection distorted.
+        const auto meanSmokeEnergy = [&](const VectorField& u) {
+            const size_t cnt = smokeCount(outDensity, s.densityThreshold);
+            return cnt ? smokeEnergy(u, outDensity, s.densityThreshold) / double(cnt) : 0.0;
+        };
+        std::ostringstream energyLog;
+        energyLog << "detail energy per smoke voxel: pasted " << meanSmokeEnergy(detail);
+        if (!advectedDetail.empty()) energyLog << ", advected previous " << meanSmokeEnergy(advectedDetail);
+        std::vector<uint8_t> blendMask;
+        const float lambda = (!advectedDetail.empty()) ? std::clamp(s.temporalBlend, 0.0f, 0.95f) : 0.0f;
+        if (lambda > 0.0f) {
+            blendMask = tracked;
+            parallelFor(detail.size(), 1 << 14, [&](size_t b, size_t e) {
+                for (size_t n = b; n < e; ++n) {
+                    const Coord c = detail.coordOf(n);
+                    if (!blendMask[layout.patchIndex(layout.patchOf(c))]) continue;
+                    detail.data()[n] = detail.data()[n] * (1.0f - lambda) + advectedDetail.data()[n] * lambda;
+                }
+            });
+        }
 
         // --- Seam smoothing (section 3.3) ---------------------------------------------------------
         if (progress) progress->begin("seams");
@@ -409,9 +488,19 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
         problem.layout = layout;
         problem.active = active;
         problem.offset = offsets;
+        if (s.compensateTargetDivergence) problem.base = &Ut;
+        if (s.removeCoarseDetail) problem.boxFactor = f;
+        if (lambda > 0.0f) {
+            problem.temporal = &advectedDetail;
+            problem.temporalWeight = lambda;
+            problem.temporalPatches = blendMask;
+        }
         SeamSettings seamSettings = s.seams;
         if (seamSettings.boundaryPatch <= 0) seamSettings.boundaryPatch = B % 2 == 0 ? B : B + 1;
+        energyLog << ", blended " << meanSmokeEnergy(detail);
         st.seams = smoothSeams(detail, problem, seamSettings, progress);
+        energyLog << ", after seams " << meanSmokeEnergy(detail);
+        if (progress) progress->note(energyLog.str());
         st.seconds[4] = since(t0);
 
         // Update tracks.
@@ -428,10 +517,11 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
         const VectorField cu = upsample(c, f);
         for (size_t n = 0; n < detail.size(); ++n) detail.data()[n] -= cu.data()[n];
     }
-    if (s.preserveEnergy && pastedEnergy > 0.0) {
-        const double now = smokeEnergy(detail, Dt, s.densityThreshold);
-        // Bounded: a large factor would mean the detail was mostly coarse, not something to amplify.
-        st.energyScale = now > 0.0 ? std::min(2.0, std::sqrt(pastedEnergy / now)) : 1.0;
+    if (s.detailEnergy != DetailEnergy::None && referenceEnergy > 0.0 && !result.empty) {
+        const size_t n = smokeCount(outDensity, s.densityThreshold);
+        const double now = n ? smokeEnergy(detail, outDensity, s.densityThreshold) / double(n) : 0.0;
+        // Bounded: a large factor would mean the pipeline lost the detail, not something to amplify.
+        st.energyScale = now > 0.0 ? std::clamp(std::sqrt(referenceEnergy / now), 0.5, 2.0) : 1.0;
         for (auto& v : detail.values()) v *= float(st.energyScale);
     }
     Frame out;
@@ -443,34 +533,17 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
     if (target.flame) out.flame = upsample(*target.flame, f);
     st.seconds[5] = since(t0);
 
-    // --- Output density ------------------------------------------------------------------------------
-    if (progress) progress->begin("density");
-    t0 = Clock::now();
-    if (s.densityMode == DensityMode::Advect) {
-        if (!havePrevious) {
-            out.density = Dt;
-        } else {
-            out.density = advect(prevDensity, prevVelocity, prevDt);
-            const ScalarField e = upsample(emission, f);
-            for (size_t n = 0; n < out.density.size(); ++n) out.density.data()[n] += e.data()[n];
-        }
-    } else {
-        // Seed 003, pseudocode 4: start from the target's density m frames back and advect it through
-        // the m most recent output velocities, injecting the target's emission on the way.
+    out.density = std::move(outDensity);
+    if (s.densityMode == DensityMode::LookBack) {
         history.push_back(History{out.velocity, emission, target.density});
-        while (int(history.size()) > s.lookBackFrames + 1) history.pop_front();
-        ScalarField d = upsample(history.front().targetDensity, f);
-        for (size_t j = 1; j < history.size(); ++j) {
-            d = advect(d, history[j - 1].velocity, target.dt);
-            const ScalarField e = upsample(history[j].emission, f);
-            for (size_t n = 0; n < d.size(); ++n) d.data()[n] += e.data()[n];
-        }
-        out.density = std::move(d);
+        while (int(history.size()) > s.lookBackFrames) history.pop_front();
     }
-    st.seconds[6] = since(t0);
 
     // --- Carry state -------------------------------------------------------------------------------
-    prevDetail = std::move(detail);
+    // The carried detail is recomputed from the output velocity, exactly as restore() must do from the
+    // written file, so a --resume continues bit-identically.
+    prevDetail = VectorField(fineBox, fineLattice);
+    for (size_t n = 0; n < prevDetail.size(); ++n) prevDetail.data()[n] = out.velocity.data()[n] - Ut.data()[n];
     prevTargetVelocity = target.velocity;
     prevTargetDensity = target.density;
     prevDensity = out.density;
@@ -482,6 +555,8 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
     out.metadata["vdbturb_patch_size"] = std::to_string(B);
     out.metadata["vdbturb_ratio"] = std::to_string(f);
     out.metadata["vdbturb_global_patch"] = std::to_string(globalPatch);
+    out.metadata["vdbturb_patch_origin"] = std::to_string(layout.origin.x()) + "," + std::to_string(layout.origin.y()) + "," +
+                                           std::to_string(layout.origin.z());
     meta << s.alpha;
     out.metadata["vdbturb_alpha"] = meta.str();
     meta.str("");
