@@ -22,6 +22,11 @@ struct Command
 };
 
 Command infoCommand();
+Command simCommand();
+Command previewCommand();
+Command transferCommand();
+Command measureCommand();
+Command synthCommand();
 
 /// All commands, in the order `vdbturb --help` lists them.
 std::vector<Command> allCommands();

@@ -246,6 +246,17 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
         }
         const detail::MatchWeights wm = w;
         FrequencySplit split = splitFrequencies(Us, f);
+        if (s.removeCoarseDetail) {
+            // U_sh still has box means where the coarse flow is sharp (trilinear up-sampling is not the
+            // inverse of box averaging). Those belong to the coarse motion, which is the target's to give:
+            // transfer only the part of the source's detail that is invisible at the target's resolution.
+            const VectorField c = detail::coarsePart(split.high, f);
+            const VectorField cu = cropped(upsample(c, f), split.high.bbox());
+            for (size_t n = 0; n < split.high.size(); ++n) {
+                split.high.data()[n] -= cu.data()[n];
+                split.low.data()[n] += cu.data()[n];
+            }
+        }
         const ScalarField ds = boxDownsample(Ds, f);
         // Velocity scale into matching units. Grid units (coarse cells per frame) by default; with
         // normalisation, units of each sequence's RMS speed.

@@ -1,0 +1,266 @@
+#!/bin/sh
+# Configurations and helpers are called through variables, which shellcheck cannot see:
+# shellcheck disable=SC2317
+#
+# vdbturb benchmark harness: runs named configurations and reports, per configuration, the median seconds
+# per frame, the total time, the peak RSS, the thread count and the machine, all taken from the summary
+# line the timed command prints with --json. Each run appends a row to docs/performance.md.
+#
+# A benchmark, not a test: nothing here fails because the machine is busy. A configuration whose command
+# or data is missing is reported as "not available yet" and skipped; only a command that runs and fails
+# makes the harness exit 1.
+#
+#   bench/run.sh --list
+#   bench/run.sh [--vdbturb PATH] [--work DIR] [--threads N] [--frames N] [--no-record] CONFIG...
+#
+# POSIX sh and coreutils only (no python, no jq), so it runs on a fresh Debian 12 after
+# tools/setup-debian12.sh.
+set -eu
+
+ROOT=$(cd "$(dirname "$0")/.." && pwd)
+DATA="$(cd "$ROOT/.." && pwd)/shared/data"
+VDBTURB=""
+WORK="${VDBTURB_BENCH_WORK:-${TMPDIR:-/tmp}/vdbturb-bench}"
+THREADS=""
+FRAMES_OVERRIDE=""
+RECORD=1
+PERF="$ROOT/docs/performance.md"
+
+CONFIGS="tiny measure-plume sim128 paper3d plume4x synth2d synth3d"
+
+describe() {
+    case "$1" in
+    tiny) echo "CI smoke test of the harness: measure on 2 frames of the Blender plume pair, no spectra" ;;
+    measure-plume) echo "measure: blender-plume-128 (output and source) against blender-plume-32 (target), frames 1-10, with spectra" ;;
+    sim128) echo "sim: built-in scene plume at 128x128x192, 30 frames (the paper's same-size simulation: 50 s/frame)" ;;
+    paper3d) echo "transfer: plume 16x16x24 (target) -> swirl 128x128x192 (source), 30 frames (paper: 270 s/frame)" ;;
+    plume4x) echo "transfer: blender-plume-32 (target) -> blender-plume-128 (source), the 10 frames both hold" ;;
+    synth2d) echo "synth: 2D, analytic vortex 64x64x1 -> 256x256 (factor 4), 30 frames (paper: about 1 min)" ;;
+    synth3d) echo "synth: 3D, coarse plume 64x64x16 -> 256x256x64 (factor 4), 30 frames (paper: about 1 h single-threaded)" ;;
+    *) return 1 ;;
+    esac
+}
+
+usage() {
+    sed -n "5,17p" "$0" | sed "s/^# \{0,1\}//"
+    echo "configurations:"
+    for c in $CONFIGS; do printf '  %-14s %s\n' "$c" "$(describe "$c")"; done
+}
+
+log() { printf 'bench: %s\n' "$*" >&2; }
+
+while [ $# -gt 0 ]; do
+    case "$1" in
+    --list|-h|--help) usage; exit 0 ;;
+    --vdbturb) VDBTURB=$2; shift 2 ;;
+    --work) WORK=$2; shift 2 ;;
+    --threads) THREADS=$2; shift 2 ;;
+    --frames) FRAMES_OVERRIDE=$2; shift 2 ;;
+    --no-record) RECORD=0; shift ;;
+    --*) echo "bench: unknown option $1" >&2; usage >&2; exit 2 ;;
+    *) break ;;
+    esac
+done
+[ $# -gt 0 ] || { usage >&2; exit 2; }
+for c in "$@"; do describe "$c" >/dev/null || { echo "bench: unknown configuration '$c' (see --list)" >&2; exit 2; }; done
+
+if [ -z "$VDBTURB" ]; then
+    for cand in "$ROOT/build/tools/vdbturb" "$ROOT"/build-*/tools/vdbturb; do
+        if [ -x "$cand" ]; then VDBTURB=$cand; break; fi
+    done
+    [ -n "$VDBTURB" ] || VDBTURB=$(command -v vdbturb || true)
+fi
+if [ -z "$VDBTURB" ] || [ ! -x "$VDBTURB" ]; then
+    echo "bench: no vdbturb binary: build it (tools/build.sh) or pass --vdbturb" >&2
+    exit 2
+fi
+mkdir -p "$WORK"
+THREAD_ARGS=""
+[ -z "$THREADS" ] || THREAD_ARGS="--threads $THREADS"
+
+now() { date +%s.%N 2>/dev/null || date +%s; }
+elapsed() { awk -v a="$1" -v b="$2" 'BEGIN { printf "%.1f", b - a }'; }
+
+# --- availability -----------------------------------------------------------------------------------
+
+REASON=""
+# need_command SUB [OPTION...]: the subcommand exists and its --help mentions every option.
+need_command() {
+    sub=$1; shift
+    if ! "$VDBTURB" --help 2>/dev/null | grep -Eq "^ +$sub( |$)"; then
+        REASON="vdbturb has no '$sub' command yet"; return 1
+    fi
+    help=$("$VDBTURB" "$sub" --help 2>&1 || true)
+    for o in "$@"; do
+        case "$help" in
+        *"$o"*) ;;
+        *) REASON="vdbturb $sub has no $o option yet (adapt bench/run.sh)"; return 1 ;;
+        esac
+    done
+}
+need_data() {
+    for d in "$@"; do
+        [ -d "$DATA/$d" ] || { REASON="missing data $DATA/$d"; return 1; }
+    done
+}
+
+# --- running ----------------------------------------------------------------------------------------
+
+# prepare NAME LASTFILE COMMAND...: runs an untimed preparation step unless LASTFILE already exists.
+prepare() {
+    pname=$1; plast=$2; shift 2
+    if [ -f "$plast" ]; then log "$pname: reusing $(dirname "$plast")"; return 0; fi
+    log "$pname (preparation, not timed): $*"
+    "$@" >/dev/null || { REASON="preparation '$pname' failed"; return 1; }
+}
+
+# timed CONFIG COMMAND...: runs the measured command with --json; its summary line gives the numbers.
+RESULTS="$WORK/results.$$"
+: > "$RESULTS"
+FAILED=0
+timed() {
+    cfg=$1; shift
+    out="$WORK/$cfg.jsonl"
+    log "$cfg: $*"
+    t0=$(now)
+    set +e
+    "$@" > "$out"
+    rc=$?
+    set -e
+    t1=$(now)
+    wall=$(elapsed "$t0" "$t1")
+    summary=$(grep '"summary":true' "$out" | tail -n 1 || true)
+    if [ "$rc" -ne 0 ] || [ -z "$summary" ]; then
+        log "$cfg: FAILED (exit $rc, ${wall} s); per-frame lines in $out"
+        printf '%s\tFAILED (exit %s)\n' "$cfg" "$rc" >> "$RESULTS"
+        FAILED=1
+        return 0
+    fi
+    field() { printf '%s\n' "$summary" | sed -n "s/.*\"$1\":\([^,}]*\).*/\1/p"; }
+    frames=$(field frames)
+    median=$(field median_s_per_frame)
+    total=$(field total_s)
+    rss=$(field peak_rss_mb)
+    threads=$(field threads)
+    machine=$(printf '%s\n' "$summary" | sed -n 's/.*"machine":"\([^"]*\)".*/\1/p')
+    [ -n "$machine" ] || machine="$(grep -m1 'model name' /proc/cpuinfo | sed 's/.*: //') ($(nproc) threads)"
+    line=$(awk -v c="$cfg" -v f="$frames" -v m="$median" -v t="$total" -v w="$wall" -v r="$rss" -v th="$threads" -v mc="$machine" \
+        'BEGIN { printf "%s\t%s\t%.3f\t%.1f\t%.1f\t%.0f\t%s\t%s", c, f, m, t, w, r, th, mc }')
+    printf '%s\n' "$line" >> "$RESULTS"
+    if [ "$RECORD" = 1 ]; then record "$line" "$*"; fi
+}
+
+record() {
+    if [ ! -f "$PERF" ]; then
+        log "no $PERF: not recording"
+        return 0
+    fi
+    rev=$(git -C "$ROOT" rev-parse --short HEAD 2>/dev/null || echo unknown)
+    if [ -n "$(git -C "$ROOT" status --porcelain --untracked-files=no 2>/dev/null || true)" ]; then rev="$rev+dirty"; fi
+    # Paths in the table are relative to the repository, so rows compare across machines.
+    cmd=$(printf '%s' "$2" | sed -e "s#$DATA#../shared/data#g" -e "s#$ROOT/##g" -e "s#$WORK#WORK#g")
+    printf '%s\n' "$1" | awk -F '\t' -v d="$(date -u +%Y-%m-%d)" -v rev="$rev" -v cmd="$cmd" \
+        '{ printf "| %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | `%s` |\n", d, $1, $2, $3, $4, $5, $6, $7, $8, rev, cmd }' >> "$PERF"
+}
+
+frames_or() { if [ -n "$FRAMES_OVERRIDE" ]; then echo "$FRAMES_OVERRIDE"; else echo "$1"; fi; }
+
+# --- configurations ---------------------------------------------------------------------------------
+# Each returns non-zero with REASON set when it cannot run here yet.
+
+cfg_tiny() {
+    need_command measure --output --target --no-spectra && need_data blender-plume-32 blender-plume-128 || return 1
+    # shellcheck disable=SC2086
+    timed tiny "$VDBTURB" measure $THREAD_ARGS --output "$DATA/blender-plume-128/fluid_data_####.vdb" \
+        --target "$DATA/blender-plume-32/fluid_data_####.vdb" --frames 9-10 --no-spectra -q
+}
+
+cfg_measure_plume() {
+    need_command measure --output --target --source && need_data blender-plume-32 blender-plume-128 || return 1
+    n=$(frames_or 10)
+    # shellcheck disable=SC2086
+    timed measure-plume "$VDBTURB" measure $THREAD_ARGS --output "$DATA/blender-plume-128/fluid_data_####.vdb" \
+        --target "$DATA/blender-plume-32/fluid_data_####.vdb" --source "$DATA/blender-plume-128/fluid_data_####.vdb" \
+        --frames "1-$n"
+}
+
+cfg_sim128() {
+    need_command sim --res --frames --seed --out --json || return 1
+    n=$(frames_or 30)
+    d="$WORK/sim128_f$n"
+    # shellcheck disable=SC2086
+    timed sim128 "$VDBTURB" sim plume $THREAD_ARGS --res 128x128x192 --frames "$n" --seed 1 --out "$d/plume.####.vdb" --json
+}
+
+cfg_paper3d() {
+    need_command sim --res --frames --seed --out && need_command transfer --target --source --out --json || return 1
+    n=$(frames_or 30)
+    t="$WORK/plume_16x16x24_s1_f$n"
+    s="$WORK/swirl_128x128x192_s1_f$n"
+    last=$(printf '%04d' "$n")
+    # shellcheck disable=SC2086
+    prepare "target: sim plume 16x16x24" "$t/plume.$last.vdb" \
+        "$VDBTURB" sim plume $THREAD_ARGS --res 16x16x24 --frames "$n" --seed 1 --out "$t/plume.####.vdb" -q || return 1
+    # shellcheck disable=SC2086
+    prepare "source: sim swirl 128x128x192" "$s/swirl.$last.vdb" \
+        "$VDBTURB" sim swirl $THREAD_ARGS --res 128x128x192 --frames "$n" --seed 1 --out "$s/swirl.####.vdb" -q || return 1
+    rm -rf "$WORK/paper3d_out"
+    # shellcheck disable=SC2086
+    timed paper3d "$VDBTURB" transfer $THREAD_ARGS --target "$t/plume.####.vdb" --source "$s/swirl.####.vdb" \
+        --out "$WORK/paper3d_out/up.####.vdb" --json
+}
+
+cfg_plume4x() {
+    need_command transfer --target --source --out --frames --json && need_data blender-plume-32 blender-plume-128 || return 1
+    n=$(frames_or 10)
+    rm -rf "$WORK/plume4x_out"
+    # shellcheck disable=SC2086
+    timed plume4x "$VDBTURB" transfer $THREAD_ARGS --target "$DATA/blender-plume-32/fluid_data_####.vdb" \
+        --source "$DATA/blender-plume-128/fluid_data_####.vdb" --out "$WORK/plume4x_out/up.####.vdb" --frames "1-$n" --json
+}
+
+# synth2d: an analytic vortex as the coarse flow (no preparation); synth3d: the plume scene simulated once.
+cfg_synth2d() {
+    need_command synth --flow --flow-res --frames --factor --out --json || return 1
+    n=$(frames_or 30)
+    rm -rf "$WORK/synth2d_out"
+    # shellcheck disable=SC2086
+    timed synth2d "$VDBTURB" synth $THREAD_ARGS --flow vortex --flow-res 64x64x1 --frames "$n" --factor 4 \
+        --out "$WORK/synth2d_out/up.####.vdb" --json
+}
+
+cfg_synth3d() {
+    need_command sim --res --frames --seed --out && need_command synth --target --factor --out --json || return 1
+    n=$(frames_or 30)
+    c="$WORK/plume_64x64x16_s1_f$n"
+    last=$(printf '%04d' "$n")
+    # shellcheck disable=SC2086
+    prepare "coarse flow: sim plume 64x64x16" "$c/plume.$last.vdb" \
+        "$VDBTURB" sim plume $THREAD_ARGS --res 64x64x16 --frames "$n" --seed 1 --out "$c/plume.####.vdb" -q || return 1
+    rm -rf "$WORK/synth3d_out"
+    # shellcheck disable=SC2086
+    timed synth3d "$VDBTURB" synth $THREAD_ARGS --target "$c/plume.####.vdb" --factor 4 --out "$WORK/synth3d_out/up.####.vdb" --json
+}
+
+# --- main -------------------------------------------------------------------------------------------
+
+log "vdbturb: $VDBTURB; work: $WORK; machine: $(grep -m1 'model name' /proc/cpuinfo 2>/dev/null | sed 's/.*: //') ($(nproc) threads)"
+for c in "$@"; do
+    fn="cfg_$(printf '%s' "$c" | tr '-' '_')"
+    REASON=""
+    if ! "$fn"; then
+        log "$c: not available yet: $REASON"
+        printf '%s\tnot available yet: %s\n' "$c" "$REASON" >> "$RESULTS"
+    fi
+done
+
+printf '%-14s %7s %15s %9s %8s %12s %8s  %s\n' config frames "median s/frame" "total s" "wall s" "peak RSS MB" threads machine
+while IFS="$(printf '\t')" read -r c f m t w r th mc; do
+    case "$f" in
+    FAILED*|not\ available*) printf '%-14s %s\n' "$c" "$f" ;;
+    *) printf '%-14s %7s %15s %9s %8s %12s %8s  %s\n' "$c" "$f" "$m" "$t" "$w" "$r" "$th" "$mc" ;;
+    esac
+done < "$RESULTS"
+rm -f "$RESULTS"
+[ "$RECORD" = 0 ] || [ ! -f "$PERF" ] || log "rows appended to $PERF"
+exit $FAILED

@@ -1,0 +1,163 @@
+/// @file Measure.h
+/// @brief The quality numbers of an up-res (docs/measure.md, ../shared/docs/quality.md): lf_err,
+///        hf_ratio, div_rel, block, tcoh and the energy spectra, per frame.
+///
+/// Terms used throughout:
+/// - f: the resolution ratio target voxel / output voxel (an integer; integerRatio throws otherwise).
+/// - the refined target lattice: Lattice::refined(f) of the target over refineBox(target box, f). The
+///   output is brought onto it first (see Alignment), so fine voxel I lies in coarse voxel floor(I / f).
+/// - up_f: cell-centred trilinear upsample; boxdown_f: mean over f^3 blocks (Resample.h).
+/// - U_h = U_out - up_f(U_target) on the refined target lattice: the detail an up-res added.
+/// - smoke region: density > threshold. On the output lattice from the output's density (or, when the
+///   output has none, from up_f of the target's); on the coarse lattice from the target's density.
+///
+/// @code
+/// turb::MeasureInput in;
+/// in.output = &out; in.target = &tgt; in.source = &src;     // source optional
+/// in.previousOutput = &out0; in.previousTarget = &tgt0;     // frame - 1, optional (tcoh)
+/// turb::FrameMeasures m = turb::measureFrame(in, turb::MeasureSettings{});
+/// if (m.lfErr) std::cout << *m.lfErr;
+/// @endcode
+#pragma once
+
+#include <turb/Advect.h>
+#include <turb/Field.h>
+#include <turb/Frame.h>
+#include <turb/Image.h>
+#include <turb/Progress.h>
+#include <turb/Spectrum.h>
+
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace turb {
+
+/// How output voxels are matched to the refined target lattice.
+enum class Alignment
+{
+    /// Index when the output's box is exactly refineBox(target box, f) but the world transforms do not
+    /// nest (Blender/Mantaflow put voxel 0's centre at the origin at every resolution, so its 32^3 and
+    /// 128^3 caches of one domain disagree by (f-1)/2 fine voxels in world space); World otherwise.
+    Auto,
+    /// Trust the transforms: sample the output at the refined target voxels' world positions
+    /// (a copy when the lattices nest up to a whole-voxel shift, else trilinear; zero outside the output).
+    World,
+    /// Trust the indices: output voxel I is refined target voxel I; translations are ignored.
+    Index
+};
+
+const char* alignmentName(Alignment a);
+
+struct MeasureSettings
+{
+    float densityThreshold = 0.01f; ///< smoke region is density > this (quality.md: 0.01); >= 0
+    int patchSize = 0;       ///< seam spacing for `block`, in output voxels; 0 = metadata "vdbturb_patch_size"
+                             ///< of the output frame; block is not computed when neither gives >= 2
+    std::optional<Coord> patchOrigin; ///< an output voxel where a patch starts (seam planes at origin[a] + n *
+                             ///< patchSize); unset = metadata "vdbturb_patch_origin" ("x,y,z"), else (0,0,0)
+    double dt = 0.0;         ///< time per frame for tcoh's advection; 0 = the previous target frame's dt
+    Alignment alignment = Alignment::Auto; ///< how output voxels meet the refined target lattice
+    bool spectra = true;     ///< compute E(k) of output, target and source
+    SpectrumSettings spectrum;             ///< window and mean removal of the spectra
+    AdvectSettings advect;   ///< scheme advecting U_h(f-1) for tcoh (default BFECC + clamp)
+    int threads = 0;         ///< worker threads, 0 = all; results are identical at any count
+};
+
+/// What measureFrame needs. Frames are not copied; all pointers must outlive the call.
+struct MeasureInput
+{
+    const Frame* output = nullptr;         ///< required: the up-res (velocity; density optional)
+    const Frame* target = nullptr;         ///< required: the low-res frame it was made from (velocity, density)
+    const Frame* source = nullptr;         ///< optional: the high-res source (velocity, density): hf_ratio, div_rel_source
+    const Frame* previousOutput = nullptr; ///< optional: the output one frame earlier, for tcoh
+    const Frame* previousTarget = nullptr; ///< optional: the target one frame earlier, for tcoh
+    const Frame* previousSource = nullptr; ///< optional: the source one frame earlier, for tcoh_source
+};
+
+/// One frame's numbers. A metric that cannot be computed for this frame (no source, no smoke, no patch
+/// size, no previous frame) is empty, and `notes` says why.
+struct FrameMeasures
+{
+    int frame = 0;
+    int ratio = 0;                  ///< f = target voxel / output voxel
+    int sourceRatio = 0;            ///< target voxel / source voxel (0 without a source)
+    Alignment alignment = Alignment::World; ///< the alignment used (World or Index, never Auto)
+    Vec3d alignmentOffset{0.0};     ///< output lattice origin minus refined target origin, in output voxels
+    bool resampled = false;         ///< the output was trilinearly resampled (World, not nesting)
+    size_t smokeVoxels = 0;         ///< output voxels in the smoke region
+    size_t smokeCells = 0;          ///< coarse (target) cells in the smoke region
+
+    std::optional<double> lfErr;        ///< |boxdown(U_out - up(U_t))| / |boxdown(up(U_t))| over smoke cells
+    std::optional<double> hfEnergy;     ///< E_hf(U_out) = mean |U - up(boxdown(U))|^2, world units^2
+    std::optional<double> hfEnergySource; ///< E_hf(U_src) with the source's ratio to the target
+    std::optional<double> hfRatio;      ///< hfEnergy / hfEnergySource
+    std::optional<double> divRel;       ///< rms(div U_out) / rms(|grad U_out|), central differences
+    std::optional<double> divRelSource; ///< the same of the source, for reference
+    std::optional<double> block;        ///< mean |dU_h| across seam planes / mean elsewhere
+    int patchSize = 0;                  ///< the seam spacing block used (0 = none)
+    Coord patchOrigin{0};               ///< the patch origin block used, in output voxels
+    std::optional<double> tcoh;         ///< rms(U_h(f) - advect(U_h(f-1), U_t(f-1), dt)) / rms(U_h(f))
+    double dt = 0.0;                    ///< the time step tcoh advected over (0 = no tcoh)
+    std::optional<double> tcohSource;   ///< the source's own: its detail U_s - up(boxdown(U_s)) carried by
+                                        ///< its boxdown velocity, for reference
+
+    double targetNyquist = 0.0;         ///< pi / target voxel size, radians per world unit
+    Spectrum spectrumOutput, spectrumTarget, spectrumSource; ///< empty when not computed
+    std::vector<std::string> notes;     ///< why a metric is missing, or what was assumed
+
+    /// The scalar metrics by their report names (lf_err, hf_ratio, ...), in report order.
+    std::vector<std::pair<std::string, std::optional<double>>> scalars() const;
+};
+
+/// All metrics of one frame. Throws ValueError on broken preconditions: missing velocity, a target or
+/// source without density, a non-integer resolution ratio.
+FrameMeasures measureFrame(const MeasureInput& in, const MeasureSettings& s = {}, Progress* progress = nullptr);
+
+/// Statistics of one metric over frames (only the frames where it exists).
+struct MetricStats
+{
+    int count = 0;
+    double mean = 0.0, median = 0.0, min = 0.0, max = 0.0;
+};
+/// Per metric name (as in FrameMeasures::scalars), over the frames. Metrics present in no frame are absent.
+std::map<std::string, MetricStats> summarize(const std::vector<FrameMeasures>& frames);
+
+// ---------------------------------------------------------------------------------------------
+// Building blocks, public for tests and for stages that want the same definitions.
+
+/// The output lattice factor over the target: integerRatio(target voxel, output voxel).
+int resolutionRatio(const Frame& target, const Frame& output);
+
+/// `field` brought onto `lattice` over `box` under an explicit World or Index alignment.
+template<typename T>
+Field<T> realign(const Field<T>& field, const Lattice& lattice, const CoordBBox& box, Alignment a);
+
+/// Resolves Auto for an output over the refined target lattice/box.
+Alignment resolveAlignment(Alignment requested, const Field<Vec3f>& output, const Lattice& refined,
+    const CoordBBox& refinedBox);
+
+/// density > threshold as a 0/1 mask on density's box.
+std::vector<unsigned char> smokeMask(const ScalarField& density, float threshold);
+/// The bounding box of density > threshold (empty when there is none).
+CoordBBox smokeBBox(const ScalarField& density, float threshold);
+
+/// mean over the mask of |U - up_f(boxdown_f(U))|^2 (nullopt if the mask is empty).
+std::optional<double> highFrequencyEnergy(const VectorField& u, const std::vector<unsigned char>& mask, int f);
+/// rms(div U) / rms(|grad U|) over the mask, central differences (nullopt if the gradient is zero).
+std::optional<double> relativeDivergence(const VectorField& u, const std::vector<unsigned char>& mask);
+/// Mean |U(I+e_a) - U(I)| over voxel pairs inside the mask whose shared face lies on a seam plane
+/// (I+e_a)[a] = origin[a] + n * patch, over the same mean elsewhere (nullopt when either set is empty or zero).
+std::optional<double> blockRatio(const VectorField& u, const std::vector<unsigned char>& mask, int patch,
+    const Coord& origin = Coord(0));
+
+// ---------------------------------------------------------------------------------------------
+// Figures for reviewers (drawn with Plot.h).
+
+/// Log-log E(k) of output, target and source of one frame, with the target's Nyquist wavenumber marked.
+Image spectrumFigure(const FrameMeasures& m, const std::string& title);
+/// One panel per metric over frames, with the quality.md targets drawn as reference lines.
+Image metricsFigure(const std::vector<FrameMeasures>& frames, const std::string& title);
+
+} // namespace turb

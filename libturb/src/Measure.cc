@@ -1,0 +1,637 @@
+#include <turb/Measure.h>
+
+#include <turb/Error.h>
+#include <turb/Operators.h>
+#include <turb/Parallel.h>
+#include <turb/Plot.h>
+#include <turb/Resample.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdlib>
+#include <sstream>
+
+namespace turb {
+
+namespace {
+
+using Mask = std::vector<unsigned char>;
+
+// Sums of K quantities over x-slabs of `box`, combined in slab order (deterministic at any thread count).
+template<size_t K, typename Fn>
+std::array<double, K> slabSums(const CoordBBox& box, Fn fn)
+{
+    const size_t nx = size_t(box.dim().x());
+    std::vector<std::array<double, K>> part(nx);
+    parallelFor(nx, 1, [&](size_t x0, size_t x1) {
+        for (size_t x = x0; x < x1; ++x) {
+            part[x].fill(0.0);
+            fn(box.min().x() + int(x), part[x]);
+        }
+    });
+    std::array<double, K> total{};
+    for (const auto& p : part)
+        for (size_t k = 0; k < K; ++k) total[k] += p[k];
+    return total;
+}
+
+// Trilinear sample at a continuous index position with VDB background semantics: taps outside the box
+// are zero (so values fade to zero within one voxel outside the data instead of being extended).
+template<typename T>
+T sampleZeroOutside(const Field<T>& f, const Vec3d& p)
+{
+    int i0[3];
+    double w[3];
+    for (int a = 0; a < 3; ++a) {
+        i0[a] = int(std::floor(p[a]));
+        w[a] = p[a] - i0[a];
+    }
+    T sum = Field<T>::zeroValue();
+    for (int c = 0; c < 8; ++c) {
+        const int i = i0[0] + (c & 1), j = i0[1] + ((c >> 1) & 1), k = i0[2] + ((c >> 2) & 1);
+        if (!f.contains(i, j, k)) continue;
+        const double wt = ((c & 1) ? w[0] : 1 - w[0]) * (((c >> 1) & 1) ? w[1] : 1 - w[1]) *
+                          (((c >> 2) & 1) ? w[2] : 1 - w[2]);
+        if (wt != 0.0) sum += f(i, j, k) * float(wt);
+    }
+    return sum;
+}
+
+bool nearInteger(double v, double tol = 1e-3) { return std::abs(v - std::round(v)) <= tol; }
+
+// True when `to` voxels coincide with `from` voxels up to a whole-voxel shift, so that World alignment is
+// a copy (a scale error of 1e-4 drifts by a hundredth of a voxel over a 128-voxel box).
+bool nestsExactly(const Lattice& from, const Lattice& to)
+{
+    const Vec3d d = from.worldToIndex(to.indexToWorld(Vec3d(0.0)));
+    return std::abs(to.voxelSize / from.voxelSize - 1.0) < 1e-4 && nearInteger(d.x()) && nearInteger(d.y()) &&
+           nearInteger(d.z());
+}
+
+Mask thresholdMask(const ScalarField& density, const CoordBBox& box, float threshold)
+{
+    const ScalarField d = density.bbox() == box ? density : cropped(density, box);
+    Mask m(d.size());
+    for (size_t n = 0; n < d.size(); ++n) m[n] = d.data()[n] > threshold ? 1 : 0;
+    return m;
+}
+
+size_t countMask(const Mask& m)
+{
+    size_t n = 0;
+    for (unsigned char c : m) n += c;
+    return n;
+}
+
+CoordBBox maskBBox(const CoordBBox& box, const Mask& m)
+{
+    CoordBBox b; // empty
+    const Coord d = box.dim();
+    for (size_t n = 0; n < m.size(); ++n)
+        if (m[n]) {
+            const int k = int(n % size_t(d.z()));
+            const size_t r = n / size_t(d.z());
+            b.expand(box.min() + Coord(int(r / size_t(d.y())), int(r % size_t(d.y())), k));
+        }
+    return b;
+}
+
+VectorField difference(const VectorField& a, const VectorField& b)
+{
+    VectorField out(a.bbox(), a.lattice());
+    for (size_t n = 0; n < a.size(); ++n) out.data()[n] = a.data()[n] - b.data()[n];
+    return out;
+}
+
+void requireVelocity(const Frame* f, const char* role)
+{
+    if (!f) throw ValueError(std::string("measure: no ") + role + " frame given");
+    if (!f->hasVelocity())
+        throw ValueError(std::string("measure: the ") + role + " frame " + std::to_string(f->number) +
+                         " has no velocity grid");
+}
+
+void requireDensity(const Frame& f, const char* role)
+{
+    if (!f.hasDensity())
+        throw ValueError(std::string("measure: the ") + role + " frame " + std::to_string(f.number) +
+                         " has no density grid; the smoke region (density > threshold) needs it");
+}
+
+int metadataInt(const Frame& f, const std::string& key, int fallback)
+{
+    auto it = f.metadata.find(key);
+    if (it == f.metadata.end()) return fallback;
+    char* end = nullptr;
+    const long v = std::strtol(it->second.c_str(), &end, 10);
+    return (end && end != it->second.c_str()) ? int(v) : fallback;
+}
+
+// "x,y,z" (or one number for all three axes).
+Coord metadataCoord(const Frame& f, const std::string& key, const Coord& fallback)
+{
+    auto it = f.metadata.find(key);
+    if (it == f.metadata.end()) return fallback;
+    std::string t = it->second;
+    for (char& ch : t)
+        if (ch == ',') ch = ' ';
+    std::istringstream is(t);
+    int v[3];
+    if (!(is >> v[0])) return fallback;
+    if (!(is >> v[1] >> v[2])) v[1] = v[2] = v[0];
+    return Coord(v[0], v[1], v[2]);
+}
+
+std::string fmt(double v)
+{
+    std::ostringstream os;
+    os << v;
+    return os.str();
+}
+
+// `q` advected through `velocity` over dt, wanted only on `region` and returned over `box`. Only the
+// part of q that can reach `region` is advected: BFECC traces back, forward and back again (three
+// travel distances) with one-voxel stencils, so a margin of 3 * travel + 4 voxels leaves the values in
+// `region` as they would be from the whole box, at a fraction of the cost (smoke fills little of a domain).
+VectorField advectOnto(const VectorField& q, const VectorField& velocity, double dt, const CoordBBox& region,
+    const CoordBBox& box, const AdvectSettings& settings)
+{
+    if (region.empty()) return VectorField(box, q.lattice());
+    double vmax = 0.0;
+    for (const Vec3f& v : velocity.values()) vmax = std::max(vmax, double(v.length()));
+    const int margin = 3 * int(std::ceil(vmax * std::abs(dt) / q.lattice().voxelSize)) + 4;
+    CoordBBox work = region;
+    work.expand(margin);
+    work.intersect(q.bbox());
+    return cropped(advect(cropped(q, work), velocity, dt, settings), box);
+}
+
+// Everything the metrics need of one (output, target) pair on the refined target lattice.
+struct Aligned
+{
+    int f = 0;
+    Lattice refined;
+    CoordBBox box;
+    Alignment alignment = Alignment::World;
+    Vec3d offset{0.0};
+    bool resampled = false;
+    VectorField output; ///< U_out on the refined target lattice
+    VectorField up;     ///< up_f(U_t)
+    Mask mask;          ///< smoke region on the refined target lattice
+};
+
+Aligned alignPair(const Frame& out, const Frame& tgt, const MeasureSettings& s)
+{
+    Aligned a;
+    a.f = resolutionRatio(tgt, out);
+    a.refined = tgt.velocity.lattice().refined(a.f);
+    a.box = refineBox(tgt.velocity.bbox(), a.f);
+    a.alignment = resolveAlignment(s.alignment, out.velocity, a.refined, a.box);
+    a.offset = (out.velocity.lattice().origin - a.refined.origin) / out.velocity.lattice().voxelSize;
+    a.resampled = a.alignment == Alignment::World && !nestsExactly(out.velocity.lattice(), a.refined);
+    a.output = realign(out.velocity, a.refined, a.box, a.alignment);
+    a.up = upsample(tgt.velocity, a.f);
+    if (out.hasDensity()) {
+        a.mask = thresholdMask(realign(out.density, a.refined, a.box, a.alignment), a.box, s.densityThreshold);
+    } else {
+        a.mask = thresholdMask(upsample(tgt.density, a.f), a.box, s.densityThreshold);
+    }
+    return a;
+}
+
+} // namespace
+
+const char* alignmentName(Alignment a)
+{
+    switch (a) {
+    case Alignment::Auto: return "auto";
+    case Alignment::World: return "world";
+    case Alignment::Index: return "index";
+    }
+    return "?";
+}
+
+int resolutionRatio(const Frame& target, const Frame& output)
+{
+    return integerRatio(target.lattice().voxelSize, output.lattice().voxelSize);
+}
+
+template<typename T>
+Field<T> realign(const Field<T>& field, const Lattice& lattice, const CoordBBox& box, Alignment a)
+{
+    if (a == Alignment::Auto) throw ValueError("realign: resolve Alignment::Auto first (resolveAlignment)");
+    Field<T> out(box, lattice);
+    if (field.empty() || box.empty()) return out;
+    const Lattice& from = field.lattice();
+    const Vec3d d = from.worldToIndex(lattice.indexToWorld(Vec3d(0.0))); // our voxel 0 in field's index space
+    const double scale = lattice.voxelSize / from.voxelSize;
+    const bool copy = a == Alignment::Index || nestsExactly(from, lattice);
+    const Coord shift = a == Alignment::Index ? Coord(0)
+                                              : Coord(int(std::lround(d.x())), int(std::lround(d.y())), int(std::lround(d.z())));
+    parallelFor(size_t(box.dim().x()), 1, [&](size_t x0, size_t x1) {
+        for (size_t x = x0; x < x1; ++x) {
+            const int i = box.min().x() + int(x);
+            for (int j = box.min().y(); j <= box.max().y(); ++j)
+                for (int k = box.min().z(); k <= box.max().z(); ++k) {
+                    if (copy) {
+                        out(i, j, k) = field.valueOr(i + shift.x(), j + shift.y(), k + shift.z(), Field<T>::zeroValue());
+                    } else {
+                        out(i, j, k) = sampleZeroOutside(field, d + Vec3d(i, j, k) * scale);
+                    }
+                }
+        }
+    });
+    return out;
+}
+
+template Field<float> realign(const Field<float>&, const Lattice&, const CoordBBox&, Alignment);
+template Field<Vec3f> realign(const Field<Vec3f>&, const Lattice&, const CoordBBox&, Alignment);
+
+Alignment resolveAlignment(Alignment requested, const Field<Vec3f>& output, const Lattice& refined,
+    const CoordBBox& refinedBox)
+{
+    if (requested != Alignment::Auto) return requested;
+    const Vec3d off = (output.lattice().origin - refined.origin) / refined.voxelSize;
+    const bool nests = off.length() < 1e-3;
+    if (!nests && output.bbox() == refinedBox) return Alignment::Index;
+    return Alignment::World;
+}
+
+std::vector<unsigned char> smokeMask(const ScalarField& density, float threshold)
+{
+    return thresholdMask(density, density.bbox(), threshold);
+}
+
+CoordBBox smokeBBox(const ScalarField& density, float threshold)
+{
+    return maskBBox(density.bbox(), smokeMask(density, threshold));
+}
+
+std::optional<double> highFrequencyEnergy(const VectorField& u, const Mask& mask, int f)
+{
+    if (mask.size() != u.size()) throw ValueError("highFrequencyEnergy: mask and field sizes differ");
+    const FrequencySplit split = splitFrequencies(u, f);
+    const auto s = slabSums<2>(u.bbox(), [&](int i, std::array<double, 2>& acc) {
+        for (int j = u.bbox().min().y(); j <= u.bbox().max().y(); ++j) {
+            const size_t n0 = u.offset(i, j, u.bbox().min().z());
+            for (int k = 0; k < u.dim().z(); ++k)
+                if (mask[n0 + size_t(k)]) {
+                    acc[0] += double(split.high.data()[n0 + size_t(k)].lengthSqr());
+                    acc[1] += 1.0;
+                }
+        }
+    });
+    if (s[1] == 0.0) return std::nullopt;
+    return s[0] / s[1];
+}
+
+std::optional<double> relativeDivergence(const VectorField& u, const Mask& mask)
+{
+    if (mask.size() != u.size()) throw ValueError("relativeDivergence: mask and field sizes differ");
+    const auto s = slabSums<2>(u.bbox(), [&](int i, std::array<double, 2>& acc) {
+        for (int j = u.bbox().min().y(); j <= u.bbox().max().y(); ++j)
+            for (int k = u.bbox().min().z(); k <= u.bbox().max().z(); ++k)
+                if (mask[u.offset(i, j, k)]) {
+                    const Jacobian J = jacobianAt(u, i, j, k);
+                    const double dv = J.divergence();
+                    acc[0] += dv * dv;
+                    acc[1] += J.frobeniusSq();
+                }
+    });
+    if (!(s[1] > 0.0)) return std::nullopt;
+    return std::sqrt(s[0] / s[1]); // the voxel counts of the two rms cancel
+}
+
+std::optional<double> blockRatio(const VectorField& u, const Mask& mask, int patch, const Coord& origin)
+{
+    if (mask.size() != u.size()) throw ValueError("blockRatio: mask and field sizes differ");
+    if (patch < 2) throw ValueError("blockRatio: patch size must be >= 2, got " + std::to_string(patch));
+    const CoordBBox b = u.bbox();
+    const auto onSeam = [&](int plane, int axis) { return ((plane - origin[axis]) % patch + patch) % patch == 0; };
+    // acc: seam sum, seam count, other sum, other count
+    const auto s = slabSums<4>(b, [&](int i, std::array<double, 4>& acc) {
+        for (int j = b.min().y(); j <= b.max().y(); ++j)
+            for (int k = b.min().z(); k <= b.max().z(); ++k) {
+                if (!mask[u.offset(i, j, k)]) continue;
+                const Coord I(i, j, k);
+                for (int a = 0; a < 3; ++a) {
+                    Coord J = I;
+                    J[a] += 1;
+                    if (J[a] > b.max()[a] || !mask[u.offset(J.x(), J.y(), J.z())]) continue;
+                    const double d = (u[J] - u[I]).length();
+                    const int slot = onSeam(J[a], a) ? 0 : 2;
+                    acc[size_t(slot)] += d;
+                    acc[size_t(slot) + 1] += 1.0;
+                }
+            }
+    });
+    if (s[1] == 0.0 || s[3] == 0.0 || s[2] == 0.0) return std::nullopt;
+    return (s[0] / s[1]) / (s[2] / s[3]);
+}
+
+std::vector<std::pair<std::string, std::optional<double>>> FrameMeasures::scalars() const
+{
+    return {{"lf_err", lfErr}, {"hf_ratio", hfRatio}, {"hf_energy", hfEnergy}, {"hf_energy_source", hfEnergySource},
+        {"div_rel", divRel}, {"div_rel_source", divRelSource}, {"block", block}, {"tcoh", tcoh},
+        {"tcoh_source", tcohSource}};
+}
+
+FrameMeasures measureFrame(const MeasureInput& in, const MeasureSettings& s, Progress* progress)
+{
+    requireVelocity(in.output, "output");
+    requireVelocity(in.target, "target");
+    requireDensity(*in.target, "target");
+    if (in.source) {
+        requireVelocity(in.source, "source");
+        requireDensity(*in.source, "source");
+    }
+    if (!(s.densityThreshold >= 0.0f)) throw ValueError("measure: density threshold must be >= 0");
+    const Frame& O = *in.output;
+    const Frame& T = *in.target;
+
+    FrameMeasures m;
+    m.frame = O.number;
+    withThreads(s.threads, [&] {
+        if (progress) progress->begin("align");
+        const Aligned a = alignPair(O, T, s);
+        m.ratio = a.f;
+        m.alignment = a.alignment;
+        m.alignmentOffset = a.offset;
+        m.resampled = a.resampled;
+        m.targetNyquist = M_PI / T.lattice().voxelSize;
+        if (a.resampled)
+            m.notes.push_back("output resampled trilinearly onto the refined target lattice (offset " +
+                              fmt(a.offset.x()) + "," + fmt(a.offset.y()) + "," + fmt(a.offset.z()) + " voxels)");
+        checkCancelled(progress);
+
+        // lf_err on the coarse cells with smoke.
+        if (progress) progress->begin("lf_err");
+        const VectorField uh = difference(a.output, a.up);
+        const Mask coarseMask = thresholdMask(T.density, T.velocity.bbox(), s.densityThreshold);
+        m.smokeCells = countMask(coarseMask);
+        {
+            const VectorField dn = boxDownsample(uh, a.f);
+            const VectorField nn = boxDownsample(a.up, a.f);
+            const CoordBBox cb = T.velocity.bbox();
+            const auto sums = slabSums<2>(cb, [&](int i, std::array<double, 2>& acc) {
+                for (int j = cb.min().y(); j <= cb.max().y(); ++j)
+                    for (int k = cb.min().z(); k <= cb.max().z(); ++k)
+                        if (coarseMask[T.velocity.offset(i, j, k)]) {
+                            acc[0] += double(dn(i, j, k).lengthSqr());
+                            acc[1] += double(nn(i, j, k).lengthSqr());
+                        }
+            });
+            if (m.smokeCells == 0) m.notes.push_back("lf_err: the target has no smoke");
+            else if (!(sums[1] > 0.0)) m.notes.push_back("lf_err: the target does not move");
+            else m.lfErr = std::sqrt(sums[0] / sums[1]);
+        }
+        checkCancelled(progress);
+
+        // Intrinsic numbers of the output on its own lattice: no alignment can blur them.
+        if (progress) progress->begin("hf energy, divergence");
+        Mask ownMask;
+        if (O.hasDensity()) ownMask = thresholdMask(O.density, O.velocity.bbox(), s.densityThreshold);
+        else {
+            ownMask = thresholdMask(realign(upsample(T.density, a.f), O.velocity.lattice(), O.velocity.bbox(), a.alignment),
+                O.velocity.bbox(), s.densityThreshold);
+            m.notes.push_back("the output has no density: its smoke region is the upsampled target's");
+        }
+        m.smokeVoxels = countMask(ownMask);
+        m.hfEnergy = highFrequencyEnergy(O.velocity, ownMask, a.f);
+        m.divRel = relativeDivergence(O.velocity, ownMask);
+        if (m.smokeVoxels == 0) m.notes.push_back("the output has no smoke");
+        checkCancelled(progress);
+
+        Mask srcMask;
+        if (in.source) {
+            const Frame& S = *in.source;
+            m.sourceRatio = integerRatio(T.lattice().voxelSize, S.lattice().voxelSize);
+            srcMask = thresholdMask(S.density, S.velocity.bbox(), s.densityThreshold);
+            m.hfEnergySource = highFrequencyEnergy(S.velocity, srcMask, m.sourceRatio);
+            m.divRelSource = relativeDivergence(S.velocity, srcMask);
+            if (m.hfEnergy && m.hfEnergySource && *m.hfEnergySource > 0.0) m.hfRatio = *m.hfEnergy / *m.hfEnergySource;
+            else m.notes.push_back("hf_ratio: the source has no smoke or no high-frequency energy");
+        } else {
+            m.notes.push_back("hf_ratio, div_rel_source: no source given");
+        }
+        checkCancelled(progress);
+
+        // block: seams at the patch grid of the output's maker.
+        m.patchSize = s.patchSize > 0 ? s.patchSize : metadataInt(O, "vdbturb_patch_size", 0);
+        m.patchOrigin = s.patchOrigin ? *s.patchOrigin : metadataCoord(O, "vdbturb_patch_origin", Coord(0));
+        if (m.patchSize >= 2) {
+            // U_h lives on the refined target lattice: move the origin there when whole voxels apart.
+            Coord origin = m.patchOrigin;
+            if (a.alignment == Alignment::World && !a.resampled)
+                for (int ax = 0; ax < 3; ++ax) origin[ax] += int(std::lround(a.offset[ax]));
+            m.block = blockRatio(uh, a.mask, m.patchSize, origin);
+            if (!m.block) m.notes.push_back("block: no detail differences inside the smoke region");
+        } else {
+            m.patchSize = 0;
+            m.notes.push_back("block: no patch size (option, or metadata vdbturb_patch_size)");
+        }
+
+        // tcoh: the previous frame's detail carried by the previous target velocity.
+        if (in.previousOutput && in.previousTarget) {
+            if (progress) progress->begin("tcoh");
+            requireVelocity(in.previousOutput, "previous output");
+            requireVelocity(in.previousTarget, "previous target");
+            const Frame& Op = *in.previousOutput;
+            const Frame& Tp = *in.previousTarget;
+            const double dt = s.dt > 0.0 ? s.dt : Tp.dt;
+            if (!(dt > 0.0)) m.notes.push_back("tcoh: unknown time step (give --dt)");
+            else if (!Tp.lattice().approxEqual(T.lattice()) || resolutionRatio(Tp, Op) != a.f)
+                m.notes.push_back("tcoh: the previous frame is on another lattice");
+            else {
+                const Aligned ap = [&] {
+                    MeasureSettings sp = s;
+                    sp.alignment = a.alignment; // one alignment for both frames
+                    return alignPair(Op, Tp, sp);
+                }();
+                const VectorField uhPrev = difference(ap.output, ap.up);
+                const VectorField moved = advectOnto(uhPrev, Tp.velocity, dt, maskBBox(a.box, a.mask), a.box, s.advect);
+                const auto sums = slabSums<2>(a.box, [&](int i, std::array<double, 2>& acc) {
+                    for (int j = a.box.min().y(); j <= a.box.max().y(); ++j)
+                        for (int k = a.box.min().z(); k <= a.box.max().z(); ++k) {
+                            const size_t n = uh.offset(i, j, k);
+                            if (!a.mask[n]) continue;
+                            acc[0] += double((uh.data()[n] - moved.data()[n]).lengthSqr());
+                            acc[1] += double(uh.data()[n].lengthSqr());
+                        }
+                });
+                m.dt = dt;
+                if (sums[1] > 0.0) m.tcoh = std::sqrt(sums[0] / sums[1]);
+                else m.notes.push_back("tcoh: no detail in the smoke region");
+            }
+        } else {
+            m.notes.push_back("tcoh: no previous frame");
+        }
+        checkCancelled(progress);
+
+        // The source's own coherence: its detail above the target's Nyquist, carried by its own low band.
+        if (in.source && in.previousSource && !srcMask.empty()) {
+            const Frame& S = *in.source;
+            const Frame& Sp = *in.previousSource;
+            requireVelocity(&Sp, "previous source");
+            const double dt = s.dt > 0.0 ? s.dt : Sp.dt;
+            if (dt > 0.0 && Sp.lattice().approxEqual(S.lattice())) {
+                const FrequencySplit now = splitFrequencies(S.velocity, m.sourceRatio);
+                const FrequencySplit before = splitFrequencies(Sp.velocity, m.sourceRatio);
+                const VectorField moved = advectOnto(before.high, before.coarse, dt, maskBBox(S.velocity.bbox(), srcMask),
+                    S.velocity.bbox(), s.advect);
+                const CoordBBox sb = S.velocity.bbox();
+                const auto sums = slabSums<2>(sb, [&](int i, std::array<double, 2>& acc) {
+                    for (int j = sb.min().y(); j <= sb.max().y(); ++j)
+                        for (int k = sb.min().z(); k <= sb.max().z(); ++k) {
+                            const size_t n = S.velocity.offset(i, j, k);
+                            if (!srcMask[n]) continue;
+                            acc[0] += double((now.high.data()[n] - moved.data()[n]).lengthSqr());
+                            acc[1] += double(now.high.data()[n].lengthSqr());
+                        }
+                });
+                if (sums[1] > 0.0) m.tcohSource = std::sqrt(sums[0] / sums[1]);
+            } else {
+                m.notes.push_back("tcoh_source: unknown time step or the previous source is on another lattice");
+            }
+        }
+        checkCancelled(progress);
+
+        if (s.spectra) {
+            if (progress) progress->begin("spectra");
+            // The velocity over the smoke's bounding box as stored: no mask inside the box (a mask would add
+            // the step at the smoke's edge to every spectrum; Blender already clips velocity to the smoke).
+            const auto spectrumOf = [&](const VectorField& u, const Mask& mask) {
+                return energySpectrum(u, maskBBox(u.bbox(), mask), s.spectrum);
+            };
+            m.spectrumOutput = spectrumOf(O.velocity, ownMask);
+            m.spectrumTarget = spectrumOf(T.velocity, coarseMask);
+            if (in.source) m.spectrumSource = spectrumOf(in.source->velocity, srcMask);
+        }
+    });
+    return m;
+}
+
+std::map<std::string, MetricStats> summarize(const std::vector<FrameMeasures>& frames)
+{
+    std::map<std::string, std::vector<double>> values;
+    for (const auto& f : frames)
+        for (const auto& [name, v] : f.scalars())
+            if (v) values[name].push_back(*v);
+    std::map<std::string, MetricStats> out;
+    for (auto& [name, v] : values) {
+        MetricStats st;
+        st.count = int(v.size());
+        std::sort(v.begin(), v.end());
+        double sum = 0.0;
+        for (double x : v) sum += x;
+        st.mean = sum / double(v.size());
+        st.min = v.front();
+        st.max = v.back();
+        const size_t h = v.size() / 2;
+        st.median = v.size() % 2 ? v[h] : 0.5 * (v[h - 1] + v[h]);
+        out[name] = st;
+    }
+    return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Figures
+
+namespace {
+
+const Rgb kOutputColor(0.10f, 0.35f, 0.80f), kTargetColor(0.10f, 0.10f, 0.10f), kSourceColor(0.15f, 0.60f, 0.25f),
+    kRuleColor(0.80f, 0.20f, 0.15f);
+
+} // namespace
+
+Image spectrumFigure(const FrameMeasures& m, const std::string& title)
+{
+    std::vector<PlotSeries> series;
+    double emax = 0.0;
+    const auto add = [&](const Spectrum& sp, const std::string& label, const Rgb& c, bool dashed) {
+        if (sp.empty()) return;
+        PlotSeries s;
+        s.label = label;
+        s.x = sp.k;
+        s.y = sp.energy;
+        s.color = c;
+        s.dashed = dashed;
+        for (double e : sp.energy) emax = std::max(emax, e);
+        series.push_back(std::move(s));
+    };
+    // The dashed source goes last so that it stays visible where it coincides with the output.
+    add(m.spectrumTarget, "target", kTargetColor, false);
+    add(m.spectrumOutput, "output", kOutputColor, false);
+    add(m.spectrumSource, "source", kSourceColor, true);
+    PlotSettings ps;
+    ps.width = 1000;
+    ps.height = 700;
+    ps.title = title;
+    ps.xLabel = "k (radians per world unit)";
+    ps.yLabel = "E(k)";
+    ps.logX = ps.logY = true;
+    // At most eight decades below the peak: deeper values are round-off and would flatten the rest.
+    double emin = emax;
+    for (const auto& s : series)
+        for (double e : s.y)
+            if (e > 0.0) emin = std::min(emin, e);
+    if (emax > 0.0 && emin < emax * 1e-8) ps.yMin = emax * 1e-8;
+    std::vector<PlotRule> rules;
+    if (m.targetNyquist > 0.0) rules.push_back(PlotRule{true, m.targetNyquist, "target Nyquist", kRuleColor});
+    return linePlot(series, ps, rules);
+}
+
+Image metricsFigure(const std::vector<FrameMeasures>& frames, const std::string& title)
+{
+    std::vector<double> x;
+    for (const auto& f : frames) x.push_back(f.frame);
+    const auto column = [&](std::optional<double> FrameMeasures::*member) {
+        std::vector<double> y;
+        for (const auto& f : frames) y.push_back((f.*member) ? *(f.*member) : std::nan(""));
+        return y;
+    };
+    const auto panel = [&](const std::string& name, std::vector<PlotSeries> series, std::vector<PlotRule> rules) {
+        PlotSettings ps;
+        ps.width = 640;
+        ps.height = 400;
+        ps.title = name;
+        ps.xLabel = "frame";
+        ps.yMin = 0.0;
+        for (auto& s : series) {
+            s.x = x;
+            s.markers = true;
+        }
+        return linePlot(series, ps, rules);
+    };
+    std::vector<Image> panels;
+    panels.push_back(panel("lf_err (good <= 0.05)", {PlotSeries{"output", {}, column(&FrameMeasures::lfErr), kOutputColor}},
+        {PlotRule{false, 0.05, "0.05", kRuleColor}}));
+    panels.push_back(panel("hf_ratio (good 0.8 - 1.25)", {PlotSeries{"output / source", {}, column(&FrameMeasures::hfRatio), kOutputColor}},
+        {PlotRule{false, 0.8, "0.8", kRuleColor}, PlotRule{false, 1.25, "1.25", kRuleColor}}));
+    panels.push_back(panel("div_rel (good <= source)",
+        {PlotSeries{"output", {}, column(&FrameMeasures::divRel), kOutputColor},
+            PlotSeries{"source", {}, column(&FrameMeasures::divRelSource), kSourceColor, false, true}},
+        {}));
+    bool anyBlock = false;
+    for (const auto& f : frames) anyBlock = anyBlock || f.block.has_value();
+    panels.push_back(panel(anyBlock ? "block (good <= 1.05)" : "block: no patch size given", {PlotSeries{"output", {}, column(&FrameMeasures::block), kOutputColor}},
+        {PlotRule{false, 1.05, "1.05", kRuleColor}}));
+    panels.push_back(panel("tcoh (good <= source)",
+        {PlotSeries{"output", {}, column(&FrameMeasures::tcoh), kOutputColor},
+            PlotSeries{"source", {}, column(&FrameMeasures::tcohSource), kSourceColor, false, true}},
+        {}));
+    panels.push_back(panel("E_hf (world units^2)",
+        {PlotSeries{"output", {}, column(&FrameMeasures::hfEnergy), kOutputColor},
+            PlotSeries{"source", {}, column(&FrameMeasures::hfEnergySource), kSourceColor, false, true}},
+        {}));
+    const Image grid = tileImages(panels, 3);
+    const int ts = 3, bar = Image::textHeight(ts) * 2 + 8;
+    Image out(grid.width(), grid.height() + bar, Rgb(1.0f));
+    out.drawText((out.width() - Image::textWidth(title, ts)) / 2, bar / 2 - Image::textHeight(ts) / 2 + 4, title,
+        Rgb(0.1f), ts);
+    out.blit(grid, 0, bar);
+    return out;
+}
+
+} // namespace turb

@@ -1,0 +1,571 @@
+// Motion-field texture synthesis (seed 003): exemplars, 2D and 2D-to-3D synthesis, orientation, walls,
+// determinism, temporal continuation, combination and look-back density. Small sizes: the whole suite
+// runs in seconds.
+#include "TestUtil.h"
+
+#include <turb/Advect.h>
+#include <turb/Error.h>
+#include <turb/Exemplar.h>
+#include <turb/Parallel.h>
+#include <turb/Synth.h>
+
+#include <cmath>
+#include <cstring>
+#include <random>
+
+using namespace turb;
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+Exemplar procedural(ProceduralPattern p, int size, int period)
+{
+    ProceduralExemplarSettings s;
+    s.pattern = p;
+    s.size = size;
+    s.period = period;
+    return proceduralExemplar(s);
+}
+
+VectorField uniformFlow(int n, int nz, double angleDeg, double speed = 1.0)
+{
+    AnalyticFlowSettings a;
+    a.res = Coord(n, n, nz);
+    a.angleDegrees = angleDeg;
+    a.speed = speed;
+    return analyticFlow(a);
+}
+
+DetailField synth2D(const Exemplar& ex, const VectorField& L, SynthSettings s, int factor = 4)
+{
+    SynthExemplars prepared({SynthView{ex, 2, 1.0f}}, s, false);
+    SynthInput in;
+    in.coarse = &L;
+    in.factor = factor;
+    return synthesizeDetail(prepared, in, s);
+}
+
+/// Discrete divergence of a planar exemplar with periodic central differences, relative to the rms
+/// of its velocity gradient.
+double relativeDivergence(const Exemplar& e)
+{
+    double d2 = 0.0, g2 = 0.0;
+    for (int x = 0; x < e.nx; ++x)
+        for (int y = 0; y < e.ny; ++y) {
+            const float* xp = e.at((x + 1) % e.nx, y);
+            const float* xm = e.at((x + e.nx - 1) % e.nx, y);
+            const float* yp = e.at(x, (y + 1) % e.ny);
+            const float* ym = e.at(x, (y + e.ny - 1) % e.ny);
+            const double dudx = 0.5 * (xp[0] - xm[0]), dvdy = 0.5 * (yp[1] - ym[1]);
+            const double dudy = 0.5 * (yp[0] - ym[0]), dvdx = 0.5 * (xp[1] - xm[1]);
+            d2 += (dudx + dvdy) * (dudx + dvdy);
+            g2 += dudx * dudx + dvdy * dvdy + dudy * dudy + dvdx * dvdx;
+        }
+    return std::sqrt(d2 / std::max(g2, 1e-30));
+}
+
+/// Principal direction (degrees in [0, 180)) and anisotropy (eigenvalue ratio) of sum v v^T.
+struct Axis
+{
+    double degrees = 0.0, anisotropy = 0.0;
+};
+Axis principal(double xx, double xy, double yy)
+{
+    Axis a;
+    double phi = 0.5 * std::atan2(2 * xy, xx - yy) * 180.0 / kPi;
+    if (phi < 0) phi += 180.0;
+    a.degrees = phi;
+    const double tr = xx + yy, det = xx * yy - xy * xy;
+    const double disc = std::sqrt(std::max(0.0, tr * tr / 4 - det));
+    const double l1 = tr / 2 + disc, l2 = tr / 2 - disc;
+    a.anisotropy = l2 > 0 ? l1 / l2 : 1e9;
+    return a;
+}
+double angleDiff(double a, double b)
+{
+    double d = std::fmod(std::abs(a - b), 180.0);
+    return std::min(d, 180.0 - d);
+}
+
+/// Orientation of the vectors and of the pattern (gradient structure tensor) of a 2D world field.
+void orientation(const VectorField& f, Axis& vectors, Axis& pattern)
+{
+    const CoordBBox b = f.bbox();
+    const int k = b.min().z();
+    double vxx = 0, vxy = 0, vyy = 0, gxx = 0, gxy = 0, gyy = 0;
+    for (int i = b.min().x() + 1; i < b.max().x(); ++i)
+        for (int j = b.min().y() + 1; j < b.max().y(); ++j) {
+            const Vec3f v = f(i, j, k);
+            vxx += v[0] * v[0];
+            vxy += v[0] * v[1];
+            vyy += v[1] * v[1];
+            for (int c = 0; c < 2; ++c) {
+                const double gx = 0.5 * (f(i + 1, j, k)[c] - f(i - 1, j, k)[c]);
+                const double gy = 0.5 * (f(i, j + 1, k)[c] - f(i, j - 1, k)[c]);
+                gxx += gx * gx;
+                gxy += gx * gy;
+                gyy += gy * gy;
+            }
+        }
+    vectors = principal(vxx, vxy, vyy);
+    pattern = principal(gxx, gxy, gyy);
+}
+
+double rms(const VectorField& f)
+{
+    double s = 0.0;
+    for (const Vec3f& v : f.values()) s += v.lengthSqr();
+    return std::sqrt(s / double(std::max<size_t>(1, f.size())));
+}
+
+bool bitEqual(const VectorField& a, const VectorField& b)
+{
+    return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(Vec3f)) == 0;
+}
+
+/// A periodic, divergence-free random field of n^3 voxels (a few Fourier modes): its axis slices are
+/// mutually consistent views of one 3D field, so three-view synthesis has a solution to find.
+VectorField randomPeriodicField(int n, unsigned seed)
+{
+    VectorField f(CoordBBox(Coord(0), Coord(n - 1)), Lattice{});
+    std::mt19937 rng(seed);
+    std::normal_distribution<double> g;
+    std::uniform_real_distribution<double> phase(0, 2 * kPi);
+    struct Mode
+    {
+        Vec3d k, a;
+        double ph;
+    };
+    std::vector<Mode> modes;
+    while (modes.size() < 40) {
+        const Vec3d k(std::round(2 * g(rng)), std::round(2 * g(rng)), std::round(2 * g(rng)));
+        if (k.length() < 1.5 || k.length() > 3.5) continue;
+        Vec3d a(g(rng), g(rng), g(rng));
+        a -= k * (a.dot(k) / k.lengthSqr());
+        modes.push_back({k, a, phase(rng)});
+    }
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j)
+            for (int l = 0; l < n; ++l) {
+                Vec3d v(0.0);
+                for (const auto& m : modes) v += m.a * std::sin(2 * kPi * (m.k[0] * i + m.k[1] * j + m.k[2] * l) / n + m.ph);
+                f(i, j, l) = Vec3f(float(v[0]), float(v[1]), float(v[2]));
+            }
+    return f;
+}
+
+} // namespace
+
+// ---------------------------------------------------------------------------------------------
+// Exemplars
+
+TEST(Exemplar, ProceduralPatternsAreUnitRmsDivergenceFreeAndTile)
+{
+    for (auto p : {ProceduralPattern::Circles, ProceduralPattern::Swirls, ProceduralPattern::Squares,
+             ProceduralPattern::Hearts, ProceduralPattern::Stripes, ProceduralPattern::Sinusoids}) {
+        SCOPED_TRACE(proceduralPatternName(p));
+        const Exemplar e = procedural(p, 64, 16);
+        EXPECT_EQ(e.nx, 64);
+        EXPECT_TRUE(e.periodic);
+        EXPECT_NEAR(exemplarRms(e), 1.0, 1e-5);
+        // Derived from a stream function: the discrete divergence is a small fraction of the gradient.
+        EXPECT_LT(relativeDivergence(e), 0.1);
+        // Tiling: the jump across the wrap-around is no larger than jumps inside.
+        double wrap = 0.0, inside = 0.0;
+        for (int y = 0; y < e.ny; ++y)
+            for (int c = 0; c < 2; ++c) {
+                wrap = std::max(wrap, double(std::abs(e.at(0, y)[c] - e.at(e.nx - 1, y)[c])));
+                for (int x = 0; x + 1 < e.nx; ++x) inside = std::max(inside, double(std::abs(e.at(x + 1, y)[c] - e.at(x, y)[c])));
+            }
+        EXPECT_LE(wrap, inside + 1e-6);
+    }
+    EXPECT_THROW(procedural(ProceduralPattern::Hearts, 60, 16), ValueError); // not a multiple of the period
+    EXPECT_THROW(parseProceduralPattern("spirals"), ValueError);
+}
+
+TEST(Exemplar, GrayBitmapCurlCirclesTheBlob)
+{
+    // A Gaussian blob: the curl of its intensity turns around the centre, and the discrete divergence
+    // of the curl vanishes (the two central differences commute).
+    const int n = 32;
+    Image img(n, n);
+    for (int x = 0; x < n; ++x)
+        for (int r = 0; r < n; ++r) {
+            const double y = n - 1 - r; // exemplar y is up
+            const double d2 = (x - 15.5) * (x - 15.5) + (y - 15.5) * (y - 15.5);
+            img.at(x, r) = Rgb(float(std::exp(-d2 / 40.0)));
+        }
+    const Exemplar e = exemplarFromGrayImage(img, 10.0);
+    double radial = 0.0, tangential = 0.0, maxDiv = 0.0;
+    for (int x = 2; x < n - 2; ++x)
+        for (int y = 2; y < n - 2; ++y) {
+            const float* v = e.at(x, y);
+            const double rx = x - 15.5, ry = y - 15.5;
+            radial += std::abs(v[0] * rx + v[1] * ry);
+            tangential += std::abs(-v[0] * ry + v[1] * rx);
+            const double div = 0.5 * (e.at(x + 1, y)[0] - e.at(x - 1, y)[0]) + 0.5 * (e.at(x, y + 1)[1] - e.at(x, y - 1)[1]);
+            maxDiv = std::max(maxDiv, std::abs(div));
+        }
+    EXPECT_LT(radial, 0.02 * tangential); // central differences of a sampled Gaussian are radial to ~0.5%
+    EXPECT_LT(maxDiv, 1e-5);
+    // Intensity falls outward, so v = (dI/dy, -dI/dx) turns counter-clockwise: up at the right of the centre.
+    EXPECT_GT(e.at(20, 16)[1], 0.0f);
+}
+
+TEST(Exemplar, VectorImageChannelsAndScale)
+{
+    Image img(3, 2, Rgb(0.5f));
+    img.at(0, 0) = Rgb(1.0f, 0.5f, 0.0f); // top-left
+    img.at(2, 1) = Rgb(0.5f, 0.0f, 0.0f); // bottom-right
+    const Exemplar e = exemplarFromVectorImage(img, 3.0);
+    EXPECT_NEAR(e.at(0, 1)[0], 3.0f, 1e-6); // top row is y = 1
+    EXPECT_NEAR(e.at(0, 1)[1], 0.0f, 1e-6);
+    EXPECT_NEAR(e.at(2, 0)[1], -3.0f, 1e-6);
+    EXPECT_NEAR(e.at(1, 0)[0], 0.0f, 1e-6);
+}
+
+TEST(Exemplar, SlicesFollowTheViewConvention)
+{
+    VectorField f(CoordBBox(Coord(0), Coord(3, 4, 5)), Lattice{});
+    for (size_t n = 0; n < f.size(); ++n) {
+        const Coord c = f.coordOf(n);
+        f.data()[n] = Vec3f(float(c.x()), float(100 + c.y()), float(200 + c.z()));
+    }
+    const Exemplar ex = exemplarFromSlice(f, 0, 2); // plane (y, z)
+    EXPECT_EQ(ex.nx, 5);
+    EXPECT_EQ(ex.ny, 6);
+    EXPECT_EQ(ex.at(3, 4)[0], 103.0f);
+    EXPECT_EQ(ex.at(3, 4)[1], 204.0f);
+    const Exemplar ey = exemplarFromSlice(f, 1, 1); // plane (x, z)
+    EXPECT_EQ(ey.at(2, 5)[0], 2.0f);
+    EXPECT_EQ(ey.at(2, 5)[1], 205.0f);
+    EXPECT_THROW(exemplarFromSlice(f, 2, 9), ValueError);
+    const Exemplar big = rescaledExemplar(procedural(ProceduralPattern::Swirls, 32, 16), 2.0);
+    EXPECT_EQ(big.nx, 64);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Synthesis
+
+TEST(Synth, TwoDReproducesExemplarNeighbourhoods)
+{
+    const Exemplar ex = procedural(ProceduralPattern::Circles, 32, 16);
+    const VectorField L = uniformFlow(16, 1, 0.0);
+    SynthSettings s;
+    const DetailField H = synth2D(ex, L, s);
+    ASSERT_EQ(H.local.bbox().dim(), Coord(64, 64, 1));
+    TextureMatchSettings ts;
+    const TextureMatch m = textureMatch(ex, H.local, ts);
+    // The output's nearest-neighbour distance to the exemplar is small next to a shuffled field's.
+    EXPECT_LT(m.ratio(), 0.3) << m.distance << " vs shuffled " << m.shuffled;
+    for (int c = 0; c < 2; ++c) EXPECT_NEAR(m.fieldRms[c], m.exemplarRms[c], 0.2 * m.exemplarRms[c]);
+    // Energy falls over the iterations of the finest level.
+    const auto& e = H.levels.back().energy;
+    ASSERT_GE(e.size(), 2u);
+    EXPECT_LT(e.back(), e.front());
+
+    // k-coherence (section 3.7) also reproduces the neighbourhoods.
+    s.search = SearchMethod::KCoherence;
+    const DetailField K = synth2D(ex, L, s);
+    EXPECT_LT(textureMatch(ex, K.local, ts).ratio(), 0.4);
+}
+
+TEST(Synth, RotatingTheCoarseFlowRotatesPatternAndVectors)
+{
+    // Stripes: vectors along the exemplar's x, pattern varying along its y. With x following L, the
+    // vectors must lie along L and the pattern vary across it, whatever L's direction.
+    const Exemplar ex = procedural(ProceduralPattern::Stripes, 32, 16);
+    for (double angle : {0.0, 60.0, 135.0}) {
+        SCOPED_TRACE(angle);
+        const DetailField H = synth2D(ex, uniformFlow(16, 1, angle), SynthSettings{});
+        Axis vec, pat;
+        orientation(H.world, vec, pat);
+        EXPECT_LT(angleDiff(vec.degrees, angle), 5.0);
+        EXPECT_LT(angleDiff(pat.degrees, angle + 90.0), 5.0);
+        EXPECT_GT(vec.anisotropy, 10.0);
+        EXPECT_GT(pat.anisotropy, 3.0);
+    }
+    // Without orientation the output stays in the exemplar's axes.
+    SynthSettings fixed;
+    fixed.orientation.follow = false;
+    const DetailField H = synth2D(ex, uniformFlow(16, 1, 60.0), fixed);
+    Axis vec, pat;
+    orientation(H.world, vec, pat);
+    EXPECT_LT(angleDiff(vec.degrees, 0.0), 5.0);
+}
+
+TEST(Synth, ThreeViewsMatchEachViewsStatistics)
+{
+    // Three axis views cut from one periodic 3D field: each view of the 3D output (its slices and
+    // their two in-plane components) must resemble its exemplar.
+    const VectorField src = randomPeriodicField(32, 3);
+    std::vector<SynthView> views;
+    for (int a = 0; a < 3; ++a) {
+        Exemplar e = exemplarFromSlice(src, a, 0);
+        e.periodic = true;
+        normalizeExemplar(e);
+        views.push_back({e, a, 1.0f});
+    }
+    SynthSettings s;
+    s.orientation.follow = false; // the local frame is the world frame: views are the axis views
+    const VectorField L = uniformFlow(8, 8, 0.0);
+    SynthInput in;
+    in.coarse = &L;
+    in.factor = 4;
+    TextureMatchSettings ts;
+    ts.stride = 3;
+    double equalRatio[3];
+    {
+        SynthExemplars prepared(views, s, true);
+        const DetailField H = synthesizeDetail(prepared, in, s);
+        for (int a = 0; a < 3; ++a) {
+            SCOPED_TRACE(a);
+            ts.axis = a;
+            const TextureMatch m = textureMatch(views[size_t(a)].exemplar, H.local, ts);
+            equalRatio[a] = m.ratio();
+            EXPECT_LT(m.ratio(), 0.5) << m.distance << " vs shuffled " << m.shuffled;
+            for (int c = 0; c < 2; ++c) EXPECT_NEAR(m.fieldRms[c], m.exemplarRms[c], 0.25 * m.exemplarRms[c]);
+        }
+    }
+    // Per-view weights: a dominant view is reproduced much more closely.
+    views[2].weight = 10.0f;
+    SynthExemplars prepared(views, s, true);
+    const DetailField H = synthesizeDetail(prepared, in, s);
+    ts.axis = 2;
+    EXPECT_LT(textureMatch(views[2].exemplar, H.local, ts).ratio(), 0.5 * equalRatio[2]);
+}
+
+TEST(Synth, VolumetricExemplarGives3DOutputWithItsSpread)
+{
+    // A 3D exemplar (9^3 footprint, 5^3 taps): a periodic Taylor-Green vortex field. The output keeps
+    // the exemplar's spread and its slices resemble the exemplar's slices.
+    const int n = 16;
+    const double k = 2 * kPi / 8.0;
+    VectorField src(CoordBBox(Coord(0), Coord(n - 1)), Lattice{});
+    for (size_t q = 0; q < src.size(); ++q) {
+        const Coord c = src.coordOf(q);
+        const double x = k * (c.x() + 0.5), y = k * (c.y() + 0.5), z = k * (c.z() + 0.5);
+        src.data()[q] = Vec3f(float(std::sin(x) * std::cos(y) * std::cos(z)), float(-std::cos(x) * std::sin(y) * std::cos(z)), 0.0f);
+    }
+    Exemplar e = exemplarFromVolume(src);
+    e.periodic = true;
+    normalizeExemplar(e);
+    SynthSettings s;
+    s.orientation.follow = false;
+    const VectorField L = uniformFlow(6, 6, 0.0);
+    SynthInput in;
+    in.coarse = &L;
+    in.factor = 4;
+    const DetailField H = synthesizeDetail(SynthExemplars({SynthView{e, -1, 1.0f}}, s, true), in, s);
+    ASSERT_EQ(H.local.bbox().dim(), Coord(24, 24, 24));
+    Exemplar slice = exemplarFromSlice(src, 2, 1);
+    slice.periodic = true;
+    for (float& v : slice.values) v *= float(1.0 / exemplarRms(exemplarFromVolume(src))); // e's normalisation
+    TextureMatchSettings ts;
+    ts.stride = 3;
+    const TextureMatch m = textureMatch(slice, H.local, ts);
+    EXPECT_LT(m.ratio(), 0.4) << m.distance << " vs shuffled " << m.shuffled;
+    double ex2[3] = {0, 0, 0}, out2[3] = {0, 0, 0};
+    for (size_t q = 0; q < e.count(); ++q)
+        for (int c = 0; c < 3; ++c) ex2[c] += double(e.values[q * 3 + size_t(c)]) * e.values[q * 3 + size_t(c)];
+    for (const Vec3f& v : H.local.values())
+        for (int c = 0; c < 3; ++c) out2[c] += double(v[c]) * v[c];
+    for (int c = 0; c < 2; ++c) {
+        const double want = std::sqrt(ex2[c] / double(e.count()));
+        EXPECT_NEAR(std::sqrt(out2[c] / double(H.local.size())), want, 0.25 * want);
+    }
+}
+
+TEST(Synth, NormalComponentVanishesAtWallsAndObstacles)
+{
+    const Exemplar ex = procedural(ProceduralPattern::Circles, 32, 16);
+    const VectorField L = uniformFlow(16, 1, 45.0);
+    SynthSettings s;
+    s.boundary.walls = (1u << 0) | (1u << 3); // x-min and y-max
+    const DetailField H = synth2D(ex, L, s);
+    const CoordBBox b = H.world.bbox();
+    const int k = b.min().z();
+    double xn = 0.0, yn = 0.0, tangential = 0.0;
+    for (int j = b.min().y(); j <= b.max().y(); ++j) {
+        xn += H.world(b.min().x(), j, k)[0] * H.world(b.min().x(), j, k)[0];
+        tangential += H.world(b.min().x(), j, k)[1] * H.world(b.min().x(), j, k)[1];
+    }
+    for (int i = b.min().x(); i <= b.max().x(); ++i) yn += H.world(i, b.max().y(), k)[1] * H.world(i, b.max().y(), k)[1];
+    const double n = b.dim().y();
+    const double overall = rms(H.world);
+    EXPECT_LT(std::sqrt(xn / n), 0.05 * overall);
+    EXPECT_LT(std::sqrt(yn / n), 0.05 * overall);
+    EXPECT_GT(std::sqrt(tangential / n), 0.2 * overall); // only the normal component is constrained
+
+    // Without walls the same column carries normal motion (so the check above can fail).
+    const DetailField free = synth2D(ex, L, SynthSettings{});
+    double xf = 0.0;
+    for (int j = b.min().y(); j <= b.max().y(); ++j) xf += free.world(b.min().x(), j, k)[0] * free.world(b.min().x(), j, k)[0];
+    EXPECT_GT(std::sqrt(xf / n), 0.3 * rms(free.world));
+
+    // An obstacle: a disk given by its signed distance, in world units.
+    ScalarField sdf(L.bbox(), L.lattice());
+    for (size_t q = 0; q < sdf.size(); ++q) {
+        const Coord c = sdf.coordOf(q);
+        sdf.data()[q] = float(std::hypot(c.x() - 7.5, c.y() - 7.5) - 3.0);
+    }
+    SynthExemplars prepared({SynthView{ex, 2, 1.0f}}, SynthSettings{}, false);
+    SynthInput in;
+    in.coarse = &L;
+    in.factor = 4;
+    in.obstacle = &sdf;
+    const DetailField O = synthesizeDetail(prepared, in, SynthSettings{});
+    double normal2 = 0.0, all2 = 0.0;
+    int count = 0;
+    for (int i = b.min().x(); i <= b.max().x(); ++i)
+        for (int j = b.min().y(); j <= b.max().y(); ++j) {
+            const Vec3d w = O.world.lattice().indexToWorld(Vec3d(i, j, k));
+            const Vec3d r(w.x() - 7.5, w.y() - 7.5, 0.0);
+            const double dist = r.length() - 3.0;
+            if (std::abs(dist) > 0.125) continue; // within half a fine voxel of the surface
+            const Vec3f v = O.world(i, j, k);
+            const double vn = (v[0] * r.x() + v[1] * r.y()) / r.length();
+            normal2 += vn * vn;
+            all2 += v.lengthSqr();
+            ++count;
+        }
+    ASSERT_GT(count, 10);
+    EXPECT_LT(std::sqrt(normal2 / count), 0.1 * rms(O.world));
+}
+
+TEST(Synth, SameSeedSameOutputAtAnyThreadCount)
+{
+    const Exemplar ex = procedural(ProceduralPattern::Hearts, 32, 16);
+    const VectorField L2 = analyticFlow(AnalyticFlowSettings{AnalyticFlowSettings::Kind::Vortex, Coord(12, 12, 1), 1.0, 1.0, 0.0});
+    for (auto method : {SearchMethod::Tree, SearchMethod::KCoherence}) {
+        SynthSettings s;
+        s.search = method;
+        s.boundary.walls = 1u;
+        s.threads = 1;
+        const DetailField a = synth2D(ex, L2, s);
+        s.threads = 2;
+        const DetailField b = synth2D(ex, L2, s);
+        EXPECT_TRUE(bitEqual(a.world, b.world));
+        s.seed = 2;
+        const DetailField c = synth2D(ex, L2, s);
+        EXPECT_FALSE(bitEqual(a.world, c.world));
+    }
+    // 3D, three views, density-gradient secondary axis.
+    const VectorField L3 = analyticFlow(AnalyticFlowSettings{AnalyticFlowSettings::Kind::Vortex, Coord(6, 6, 6), 1.0, 1.0, 0.0});
+    ScalarField rho(L3.bbox(), L3.lattice());
+    for (size_t q = 0; q < rho.size(); ++q) rho.data()[q] = float(rho.coordOf(q).y()) * 0.1f;
+    std::vector<SynthView> views;
+    for (int a = 0; a < 3; ++a) views.push_back({ex, a, 1.0f});
+    SynthInput in;
+    in.coarse = &L3;
+    in.coarseDensity = &rho;
+    in.factor = 4;
+    SynthSettings s;
+    s.threads = 1;
+    const DetailField a = synthesizeDetail(SynthExemplars(views, s, true), in, s);
+    s.threads = 2;
+    const DetailField b = synthesizeDetail(SynthExemplars(views, s, true), in, s);
+    EXPECT_TRUE(bitEqual(a.world, b.world));
+    EXPECT_GT(rms(a.world), 0.3);
+}
+
+TEST(Synth, LaterFramesFollowTheAdvectedDetail)
+{
+    const Exemplar ex = procedural(ProceduralPattern::Swirls, 32, 16);
+    const VectorField L = uniformFlow(16, 1, 30.0, 1.0);
+    SynthSettings s;
+    SynthExemplars prepared({SynthView{ex, 2, 1.0f}}, s, false);
+    SynthInput in;
+    in.coarse = &L;
+    in.factor = 4;
+    const DetailField h1 = synthesizeDetail(prepared, in, s);
+    in.previous = &h1;
+    in.dt = 1.5; // 6 fine voxels
+    const DetailField h2 = synthesizeDetail(prepared, in, s);
+    EXPECT_TRUE(h2.fromPrevious);
+    const VectorField moved = advect(h1.world, L, 1.5);
+    const auto relDiff = [&](const VectorField& h) {
+        double d = 0.0, n = 0.0;
+        const CoordBBox b = h.bbox();
+        // Skip the inflow border, where advection brings in nothing.
+        for (int i = b.min().x() + 12; i <= b.max().x() - 2; ++i)
+            for (int j = b.min().y() + 12; j <= b.max().y() - 2; ++j) {
+                d += (h(i, j, 0) - moved(i, j, 0)).lengthSqr();
+                n += h(i, j, 0).lengthSqr();
+            }
+        return std::sqrt(d / n);
+    };
+    SynthSettings other = s;
+    other.seed = 9;
+    SynthInput fresh = in;
+    fresh.previous = nullptr;
+    const DetailField h3 = synthesizeDetail(prepared, fresh, other);
+    EXPECT_LT(relDiff(h2.world), 0.6);
+    EXPECT_GT(relDiff(h3.world), 1.0);
+    // And it still looks like the exemplar.
+    EXPECT_LT(textureMatch(ex, h2.local, TextureMatchSettings{}).ratio(), 0.4);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Combination and density
+
+TEST(Combine, OmegaConstantRelativeAndEnergyWeighted)
+{
+    const VectorField L = analyticFlow(AnalyticFlowSettings{AnalyticFlowSettings::Kind::Shear, Coord(8, 8, 1), 1.0, 2.0, 0.0});
+    const VectorField up = upsampleCoarse(L, 4);
+    VectorField H(up.bbox(), up.lattice(), Vec3f(0.0f, 1.0f, 0.0f));
+    double rmsL = 0.0;
+    size_t moving = 0;
+    for (const Vec3f& v : L.values())
+        if (v.length() > 0.05 * 2.0) { // moving: above 5% of the top speed
+            rmsL += v.lengthSqr();
+            ++moving;
+        }
+    rmsL = std::sqrt(rmsL / double(moving));
+
+    CombineSettings c;
+    c.omega = 0.5;
+    const VectorField F = combineMotion(L, H, c);
+    for (size_t n = 0; n < F.size(); n += 7) {
+        EXPECT_NEAR(F.data()[n][0], up.data()[n][0], 1e-6);
+        EXPECT_NEAR(F.data()[n][1], 0.5 * rmsL, 1e-5);
+    }
+    c.relative = false;
+    EXPECT_NEAR(combineMotion(L, H, c).data()[5][1], 0.5f, 1e-6);
+
+    // Energy weighting: omega follows |L|^2, so it is 0 where the shear flow is still (the middle)
+    // and largest at the edges.
+    c.weighting = CombineSettings::Weighting::KineticEnergy;
+    const VectorField E = combineMotion(L, H, c);
+    const CoordBBox b = E.bbox();
+    EXPECT_GT(E(10, b.max().y(), 0)[1], 1.5 * 0.5);
+    EXPECT_LT(std::abs(E(10, 16, 0)[1]), 0.1);
+}
+
+TEST(Lookback, OnlyTheLastMFramesOfSourcesRemain)
+{
+    // With no motion, each frame adds its sources: naive integration keeps all of them, look-back
+    // over m frames keeps m frames' worth on top of the coarse-only density O_{i-m}.
+    const CoordBBox box(Coord(0), Coord(7, 7, 3));
+    const VectorField still(box, Lattice{});
+    const ScalarField src(box, Lattice{}, 0.25f);
+    const ScalarField coarseOnly(box, Lattice{}, 0.0f);
+    LookbackDensity naive(LookbackSettings{0, {}});
+    LookbackDensity windowed(LookbackSettings{3, {}});
+    for (int i = 1; i <= 6; ++i) {
+        const ScalarField dn = naive.step(still, src, coarseOnly, 1.0);
+        const ScalarField dw = windowed.step(still, src, coarseOnly, 1.0);
+        EXPECT_NEAR(dn(3, 3, 1), 0.25 * i, 1e-5);
+        EXPECT_NEAR(dw(3, 3, 1), 0.25 * std::min(i, 3), 1e-5);
+    }
+    // Sources: what advection does not explain.
+    const VectorField right(box, Lattice{}, Vec3f(1.0f, 0.0f, 0.0f));
+    ScalarField a(box, Lattice{}), b(box, Lattice{});
+    a(2, 3, 1) = 1.0f;
+    b(3, 3, 1) = 1.0f; // moved one voxel
+    b(6, 6, 2) = 0.5f; // appeared
+    const ScalarField s = estimateSources(&a, b, right, 1.0);
+    EXPECT_NEAR(s(3, 3, 1), 0.0f, 1e-4);
+    EXPECT_NEAR(s(6, 6, 2), 0.5f, 1e-4);
+}

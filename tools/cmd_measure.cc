@@ -1,0 +1,277 @@
+// vdbturb measure --output OUT --target TGT [--source SRC]: quality numbers of an up-res, per frame.
+// stdout: one JSON line per frame and a summary line (always: the numbers are this command's product).
+#include "Commands.h"
+#include "Console.h"
+
+#include <turb/Error.h>
+#include <turb/Measure.h>
+#include <turbio/Png.h>
+#include <turbio/Sequence.h>
+#include <turbio/System.h>
+#include <turbio/Vdb.h>
+
+#include <nlohmann/json.hpp>
+#include <tbb/info.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <optional>
+#include <set>
+
+namespace vdbturb {
+
+namespace {
+
+struct MeasureArgs
+{
+    std::string output, target, source, frames, plotDir, align = "auto", patchOrigin;
+    bool json = false;        // accepted for symmetry with the other commands; JSON is always written
+    bool spectraJson = false; // include the E(k) arrays in the JSON lines
+    bool noSpectra = false;
+    turb::MeasureSettings settings;
+    turbio::ReadOptions read;
+};
+
+nlohmann::json opt(const std::optional<double>& v) { return v ? nlohmann::json(*v) : nlohmann::json(nullptr); }
+
+nlohmann::json spectrumJson(const turb::Spectrum& s)
+{
+    if (s.empty()) return nullptr;
+    return {{"k", s.k}, {"E", s.energy}, {"dk", s.dk}, {"mean_energy", s.meanEnergy}, {"fft_side", s.fftSide}};
+}
+
+nlohmann::json frameJson(const turb::FrameMeasures& m, bool spectra)
+{
+    nlohmann::json j;
+    for (const auto& [name, v] : m.scalars()) j[name] = opt(v);
+    j["ratio"] = m.ratio;
+    j["source_ratio"] = m.sourceRatio;
+    j["alignment"] = turb::alignmentName(m.alignment);
+    j["alignment_offset_voxels"] = {m.alignmentOffset.x(), m.alignmentOffset.y(), m.alignmentOffset.z()};
+    j["resampled"] = m.resampled;
+    j["smoke_voxels"] = m.smokeVoxels;
+    j["smoke_cells"] = m.smokeCells;
+    j["patch_size"] = m.patchSize;
+    j["patch_origin"] = {m.patchOrigin.x(), m.patchOrigin.y(), m.patchOrigin.z()};
+    j["dt"] = m.dt > 0.0 ? nlohmann::json(m.dt) : nlohmann::json(nullptr);
+    j["k_nyquist_target"] = m.targetNyquist;
+    const auto energy = [](const turb::Spectrum& s) { return s.empty() ? nlohmann::json(nullptr) : nlohmann::json(s.meanEnergy); };
+    j["spectrum_mean_energy"] = {{"output", energy(m.spectrumOutput)}, {"target", energy(m.spectrumTarget)},
+        {"source", energy(m.spectrumSource)}};
+    if (spectra)
+        j["spectra"] = {{"output", spectrumJson(m.spectrumOutput)}, {"target", spectrumJson(m.spectrumTarget)},
+            {"source", spectrumJson(m.spectrumSource)}};
+    j["notes"] = m.notes;
+    return j;
+}
+
+std::string humanLine(const turb::FrameMeasures& m)
+{
+    const auto f = [](const std::optional<double>& v) {
+        if (!v) return std::string("-");
+        char b[32];
+        std::snprintf(b, sizeof(b), "%.4g", *v);
+        return std::string(b);
+    };
+    return "lf_err " + f(m.lfErr) + "  hf_ratio " + f(m.hfRatio) + "  div_rel " + f(m.divRel) + " (source " +
+           f(m.divRelSource) + ")  block " + f(m.block) + "  tcoh " + f(m.tcoh) + " (source " + f(m.tcohSource) + ")";
+}
+
+std::optional<turb::Coord> parseCoord(const std::string& text)
+{
+    if (text.empty()) return std::nullopt;
+    int v[3];
+    if (std::sscanf(text.c_str(), "%d,%d,%d", &v[0], &v[1], &v[2]) == 3) return turb::Coord(v[0], v[1], v[2]);
+    if (std::sscanf(text.c_str(), "%d", &v[0]) == 1) return turb::Coord(v[0]);
+    throw turb::ValueError("--patch-origin: expected X,Y,Z or one number, got '" + text + "'");
+}
+
+double median(std::vector<double> v)
+{
+    if (v.empty()) return 0.0;
+    std::sort(v.begin(), v.end());
+    const size_t h = v.size() / 2;
+    return v.size() % 2 ? v[h] : 0.5 * (v[h - 1] + v[h]);
+}
+
+int runMeasure(MeasureArgs& a)
+{
+    const auto t0 = std::chrono::steady_clock::now();
+    turb::MeasureSettings s = a.settings;
+    s.alignment = a.align == "world" ? turb::Alignment::World
+                  : a.align == "index" ? turb::Alignment::Index
+                                       : turb::Alignment::Auto;
+    s.patchOrigin = parseCoord(a.patchOrigin);
+    s.spectra = !a.noSpectra || !a.plotDir.empty() || a.spectraJson;
+    s.threads = globals().threads;
+
+    const turbio::Sequence out = turbio::resolveSequence(a.output, a.frames);
+    const turbio::Sequence tgt = turbio::resolveSequence(a.target, a.frames);
+    std::optional<turbio::Sequence> src;
+    if (!a.source.empty()) src = turbio::resolveSequence(a.source);
+
+    // Explicit --frames: every requested frame counts, and a missing file fails that frame. Otherwise the
+    // frames both sequences hold (a 10-frame target against a 30-frame output measures 10 frames).
+    std::vector<int> frames;
+    if (!a.frames.empty()) {
+        std::set<int> all(out.frames.begin(), out.frames.end());
+        all.insert(out.missing.begin(), out.missing.end());
+        frames.assign(all.begin(), all.end());
+    } else {
+        std::set_intersection(out.frames.begin(), out.frames.end(), tgt.frames.begin(), tgt.frames.end(),
+            std::back_inserter(frames));
+        if (frames.size() < out.frames.size())
+            logInfo("measuring the " + std::to_string(frames.size()) + " frames both the output and the target hold (" +
+                    (frames.empty() ? std::string("none") : turbio::formatFrameList(frames)) + ")");
+    }
+    if (frames.empty()) {
+        logError("no frame is present in both " + out.pattern.str() + " and " + tgt.pattern.str());
+        return kFailed;
+    }
+    logInfo("measure: output " + out.pattern.str() + ", target " + tgt.pattern.str() +
+            (src ? ", source " + src->pattern.str() : std::string(", no source")) + ", frames " +
+            turbio::formatFrameList(frames));
+    if (globals().dryRun) return kOk;
+    if (!a.plotDir.empty()) std::filesystem::create_directories(a.plotDir);
+
+    turbio::ReadOptions readOut = a.read, readTgt = a.read, readSrc = a.read;
+    readOut.readExtras = readTgt.readExtras = readSrc.readExtras = false;
+    readOut.requireDensity = false; // an up-res may carry velocity only; the target then gives the region
+
+    const auto has = [](const turbio::Sequence& q, int f) {
+        return std::binary_search(q.frames.begin(), q.frames.end(), f);
+    };
+    std::vector<turb::FrameMeasures> results;
+    std::vector<double> seconds;
+    int failed = 0;
+    std::optional<turb::Frame> prevOut, prevTgt, prevSrc;
+    for (size_t i = 0; i < frames.size(); ++i) {
+        const int f = frames[i];
+        const auto t1 = std::chrono::steady_clock::now();
+        try {
+            if (!has(out, f)) throw turb::IoError(out.path(f) + ": missing");
+            if (!has(tgt, f)) throw turb::IoError(tgt.path(f) + ": missing");
+            turb::Frame o = turbio::readFrame(out.path(f), f, readOut);
+            turb::Frame t = turbio::readFrame(tgt.path(f), f, readTgt);
+            std::optional<turb::Frame> sf;
+            if (src) {
+                // A transfer output names its source frame; otherwise the same frame number.
+                int sn = f;
+                if (auto it = o.metadata.find("vdbturb_source_frame"); it != o.metadata.end())
+                    sn = std::atoi(it->second.c_str());
+                if (has(*src, sn)) sf = turbio::readFrame(src->path(sn), sn, readSrc);
+                else logWarning("frame " + std::to_string(f) + ": source frame " + std::to_string(sn) + " missing");
+            }
+            const bool consecutive = prevOut && prevTgt && prevOut->number == f - 1;
+            turb::MeasureInput in;
+            in.output = &o;
+            in.target = &t;
+            in.source = sf ? &*sf : nullptr;
+            in.previousOutput = consecutive ? &*prevOut : nullptr;
+            in.previousTarget = consecutive ? &*prevTgt : nullptr;
+            in.previousSource = (sf && prevSrc && prevSrc->number == sf->number - 1) ? &*prevSrc : nullptr;
+            ConsoleProgress progress(int(i), int(frames.size()), f);
+            turb::FrameMeasures m = turb::measureFrame(in, s, &progress);
+            progress.clear();
+            if (!a.plotDir.empty()) {
+                char name[64];
+                std::snprintf(name, sizeof(name), "/spectrum.%04d.png", f);
+                turbio::writePng(a.plotDir + name, turb::spectrumFigure(m, "E(k) frame " + std::to_string(f)));
+            }
+            const double sec = secondsSince(t1);
+            seconds.push_back(sec);
+            char head[96];
+            std::snprintf(head, sizeof(head), "frame %d (%zu/%zu) %.2f s  ", f, i + 1, frames.size(), sec);
+            logInfo(head + humanLine(m));
+            for (const auto& n : m.notes) logVerbose("frame " + std::to_string(f) + ": " + n);
+            nlohmann::json j = frameJson(m, a.spectraJson);
+            j["frame"] = f;
+            j["seconds"] = sec;
+            std::cout << j.dump() << std::endl;
+            results.push_back(std::move(m));
+            prevOut = std::move(o);
+            prevTgt = std::move(t);
+            prevSrc = std::move(sf);
+        } catch (const turb::Cancelled&) {
+            throw;
+        } catch (const turb::Error& e) {
+            ++failed;
+            logError("frame " + std::to_string(f) + ": " + e.what());
+            prevOut.reset();
+            prevTgt.reset();
+            prevSrc.reset();
+        }
+    }
+
+    if (!a.plotDir.empty() && !results.empty()) {
+        turbio::writePng(a.plotDir + "/metrics.png", turb::metricsFigure(results, "vdbturb measure: " + out.pattern.str()));
+        logInfo("plots: " + a.plotDir + "/metrics.png, " + a.plotDir + "/spectrum.####.png");
+    }
+
+    nlohmann::json sum;
+    sum["summary"] = true;
+    sum["command"] = "measure";
+    sum["frames"] = results.size();
+    sum["failed"] = failed;
+    sum["median_s_per_frame"] = median(seconds);
+    sum["total_s"] = secondsSince(t0);
+    sum["peak_rss_mb"] = double(turbio::peakRssBytes()) / (1024.0 * 1024.0);
+    sum["threads"] = globals().threads > 0 ? globals().threads : tbb::info::default_concurrency();
+    sum["machine"] = turbio::machineDescription();
+    sum["threshold"] = s.densityThreshold;
+    std::string human = "summary over " + std::to_string(results.size()) + " frames:";
+    for (const auto& [name, st] : turb::summarize(results)) {
+        sum[name] = {{"mean", st.mean}, {"median", st.median}, {"min", st.min}, {"max", st.max}, {"n", st.count}};
+        char b[96];
+        std::snprintf(b, sizeof(b), "  %s %.4g", name.c_str(), st.mean);
+        human += b;
+    }
+    logInfo(human + " (means)");
+    std::cout << sum.dump() << std::endl;
+    return failed ? kFailed : kOk;
+}
+
+} // namespace
+
+Command measureCommand()
+{
+    auto args = std::make_shared<MeasureArgs>();
+    Command c;
+    c.name = "measure";
+    c.help = "Quality numbers of an up-res (lf_err, hf_ratio, div_rel, block, tcoh, spectra): JSON lines on stdout";
+    c.setup = [args](CLI::App* app) {
+        auto& s = args->settings;
+        app->add_option("--output", args->output, "The up-res cache (pattern or one file): velocity, density optional")
+            ->required();
+        app->add_option("--target", args->target, "The low-res cache it was made from: velocity and density")->required();
+        app->add_option("--source", args->source,
+            "The high-res source cache, for hf_ratio and div_rel_source (frame from the output's vdbturb_source_frame, "
+            "else the same number)");
+        app->add_option("--frames", args->frames, "Frames to measure, e.g. 1-30x2 (default: those output and target both hold)");
+        app->add_option("--threshold", s.densityThreshold, "Smoke region: density above this (default 0.01)")
+            ->check(CLI::NonNegativeNumber);
+        app->add_option("--patch-size", s.patchSize,
+               "Seam spacing for block, in output voxels (default: the output's vdbturb_patch_size metadata)")
+            ->check(CLI::Range(2, 4096));
+        app->add_option("--patch-origin", args->patchOrigin,
+            "An output voxel where a patch starts, X,Y,Z (default: vdbturb_patch_origin metadata, else 0,0,0)");
+        app->add_option("--align", args->align,
+               "Output vs refined target lattice: auto (index when the boxes match but the transforms do not "
+               "nest, as in Blender caches; else world), world, index")
+            ->check(CLI::IsMember({"auto", "world", "index"}));
+        app->add_flag("--no-spectra", args->noSpectra, "Skip the energy spectra (faster)");
+        app->add_flag("--spectra", args->spectraJson, "Include the E(k) arrays in the JSON lines");
+        app->add_option("--plot", args->plotDir, "Write PNG plots here: spectrum.####.png per frame and metrics.png");
+        app->add_flag("--json", args->json, "Accepted for symmetry with other commands: measure always prints JSON");
+        addReadOptions(app, args->read);
+    };
+    c.run = [args] { return runMeasure(*args); };
+    return c;
+}
+
+} // namespace vdbturb

@@ -1,0 +1,374 @@
+// vdbturb preview: pictures of caches (density render, speed/vorticity slices, LIC) and contact sheets.
+#include "Commands.h"
+#include "Console.h"
+#include "RunReport.h"
+
+#include <turb/Error.h>
+#include <turb/Image.h>
+#include <turb/Operators.h>
+#include <turb/Parallel.h>
+#include <turb/Render.h>
+#include <turbio/Png.h>
+#include <turbio/Sequence.h>
+#include <turbio/Vdb.h>
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cstdio>
+#include <map>
+#include <memory>
+#include <optional>
+#include <sstream>
+
+namespace vdbturb {
+
+namespace {
+
+enum class Mode { Density, Speed, Vorticity, Lic };
+
+struct PreviewArgs
+{
+    std::vector<std::string> inputs; ///< [LABEL=]PATTERN
+    std::string modes = "density";
+    std::string frames;
+    std::string out;
+    std::string sheet;
+    std::string title;
+    std::string view = "front";
+    double slice = 0.5;
+    int width = 320;
+    float exposure = 1.0f;
+    float extinction = 6.0f;
+    float speedMax = 0.0f;
+    float vorticityMax = 0.0f;
+    bool json = false;
+    turbio::ReadOptions read;
+};
+
+struct Input
+{
+    std::string label;
+    turbio::Sequence seq;
+    float speedMax = 0.0f, vorticityMax = 0.0f; // fixed colour ranges for the whole run
+};
+
+std::string fmt(const char* f, double v)
+{
+    char buf[64];
+    std::snprintf(buf, sizeof(buf), f, v);
+    return buf;
+}
+
+const char* modeName(Mode m)
+{
+    switch (m) {
+    case Mode::Density: return "density";
+    case Mode::Speed: return "speed";
+    case Mode::Vorticity: return "vorticity";
+    case Mode::Lic: return "LIC";
+    }
+    return "?";
+}
+
+std::vector<Mode> parseModes(const std::string& text)
+{
+    std::vector<Mode> modes;
+    std::stringstream ss(text);
+    std::string m;
+    while (std::getline(ss, m, ',')) {
+        if (m == "density") modes.push_back(Mode::Density);
+        else if (m == "speed") modes.push_back(Mode::Speed);
+        else if (m == "vorticity") modes.push_back(Mode::Vorticity);
+        else if (m == "lic") modes.push_back(Mode::Lic);
+        else if (m == "all") modes.insert(modes.end(), {Mode::Density, Mode::Speed, Mode::Vorticity, Mode::Lic});
+        else throw turb::ValueError("--mode: unknown mode '" + m + "' (density, speed, vorticity, lic, all)");
+    }
+    if (modes.empty()) throw turb::ValueError("--mode: no mode given");
+    return modes;
+}
+
+turb::View parseView(const std::string& v)
+{
+    return v == "side" ? turb::View::Side : v == "top" ? turb::View::Top : turb::View::Front;
+}
+
+bool needsVelocity(const std::vector<Mode>& modes)
+{
+    return std::any_of(modes.begin(), modes.end(), [](Mode m) { return m != Mode::Density; });
+}
+
+/// The value below which `fraction` of the smoke region's values lie (the whole field if no smoke).
+float percentile(const turb::ScalarField& f, const turb::ScalarField* density, double fraction)
+{
+    std::vector<float> v;
+    v.reserve(f.size());
+    for (size_t q = 0; q < f.size(); ++q)
+        if (!density || density->empty() || density->data()[q] > 0.01f) v.push_back(f.data()[q]);
+    if (v.empty()) return 0.0f;
+    const size_t k = std::min(v.size() - 1, size_t(fraction * double(v.size() - 1)));
+    std::nth_element(v.begin(), v.begin() + long(k), v.end());
+    return v[k];
+}
+
+/// A thin outline of the domain on a picture (where the smoke can go).
+void outline(turb::Image& img)
+{
+    img.drawRect(0, 0, img.width(), img.height(), turb::Rgb(0.35f));
+}
+
+turb::Image render(const turb::Frame& f, Mode m, const PreviewArgs& a, const Input& in)
+{
+    const turb::View view = parseView(a.view);
+    switch (m) {
+    case Mode::Density: {
+        turb::DensityRenderSettings s;
+        s.view = view;
+        s.width = a.width;
+        s.exposure = a.exposure;
+        s.extinction = a.extinction;
+        turb::Image img = turb::renderDensity(f.density, s);
+        outline(img);
+        return img;
+    }
+    case Mode::Speed: {
+        turb::SliceSettings s;
+        s.view = view;
+        s.position = a.slice;
+        s.width = a.width;
+        s.map = turb::Colormap::Viridis;
+        s.maxValue = in.speedMax > 0.0f ? in.speedMax : 1.0f;
+        return turb::renderSlice(turb::magnitude(f.velocity), s);
+    }
+    case Mode::Vorticity: {
+        turb::SliceSettings s;
+        s.view = view;
+        s.position = a.slice;
+        s.width = a.width;
+        s.map = turb::Colormap::Magma;
+        s.maxValue = in.vorticityMax > 0.0f ? in.vorticityMax : 1.0f;
+        return turb::renderSlice(turb::magnitude(turb::curl(f.velocity)), s);
+    }
+    case Mode::Lic: {
+        turb::LicSettings s;
+        s.view = view;
+        s.position = a.slice;
+        s.width = a.width;
+        s.maxSpeed = in.speedMax;
+        return turb::renderLic(f.velocity, s);
+    }
+    }
+    return {};
+}
+
+std::string cellLabel(const Input& in, Mode m, size_t inputs, size_t modes)
+{
+    std::string unit;
+    if (m == Mode::Speed) unit = " 0-" + fmt("%.3g", in.speedMax) + "/s";
+    if (m == Mode::Vorticity) unit = " 0-" + fmt("%.3g", in.vorticityMax) + "/s";
+    if (inputs > 1 && modes > 1) return in.label + " " + modeName(m) + unit;
+    if (inputs > 1) return in.label + unit;
+    return std::string(modeName(m)) + unit;
+}
+
+int runPreview(PreviewArgs& a)
+{
+    const std::vector<Mode> modes = parseModes(a.modes);
+    // Argument combinations CLI11 cannot express are usage errors too (exit 2).
+    if (a.sheet.empty() && a.out.empty()) {
+        logError("give --out PATTERN.png (one picture per frame) or --sheet FILE.png");
+        return kUsage;
+    }
+    if (a.sheet.empty() && a.inputs.size() > 1) {
+        logError("several caches go side by side into a contact sheet: add --sheet FILE.png");
+        return kUsage;
+    }
+
+    std::vector<Input> inputs;
+    for (const auto& text : a.inputs) {
+        Input in;
+        std::string pattern = text;
+        const auto eq = text.find('=');
+        if (eq != std::string::npos && eq > 0 && text.find('/') > eq) {
+            in.label = text.substr(0, eq);
+            pattern = text.substr(eq + 1);
+        }
+        // A sheet picks its rows from the frames asked for; missing frames show as empty cells.
+        in.seq = turbio::resolveSequence(pattern, a.sheet.empty() ? a.frames : "");
+        if (in.label.empty()) {
+            const std::string p = in.seq.pattern.str();
+            const auto slash = p.find_last_of('/');
+            in.label = slash == std::string::npos ? p : p.substr(slash + 1);
+        }
+        inputs.push_back(std::move(in));
+    }
+
+    // Rows: the frames asked for; for a sheet without --frames, three frames spread over the first cache.
+    std::vector<int> frames;
+    if (!a.frames.empty()) frames = turbio::parseFrameList(a.frames);
+    else if (!a.sheet.empty()) {
+        const auto& f = inputs.front().seq.frames;
+        if (f.empty()) throw turb::IoError(inputs.front().seq.pattern.str() + ": no frames on disk");
+        for (double t : {1.0 / 3.0, 2.0 / 3.0, 1.0}) {
+            const int n = f[size_t(std::lround(t * double(f.size() - 1)))];
+            if (frames.empty() || frames.back() != n) frames.push_back(n);
+        }
+    } else frames = inputs.front().seq.frames;
+    if (frames.empty()) throw turb::IoError("no frames to preview");
+
+    turbio::ReadOptions read = a.read;
+    read.requireVelocity = needsVelocity(modes);
+    read.requireDensity = std::find(modes.begin(), modes.end(), Mode::Density) != modes.end();
+    read.readExtras = false;
+
+    const auto exists = [](const Input& in, int frame) {
+        return std::find(in.seq.frames.begin(), in.seq.frames.end(), frame) != in.seq.frames.end();
+    };
+
+    if (globals().dryRun) {
+        for (int f : frames)
+            for (const auto& in : inputs)
+                logInfo("frame " + std::to_string(f) + ": " + (exists(in, f) ? in.seq.path(f) : "(missing) " + in.seq.path(f)));
+        logInfo("would write " + (a.sheet.empty() ? turbio::FramePattern::parse(a.out).str() : a.sheet));
+        return kOk;
+    }
+
+    int result = kOk;
+    turb::withThreads(globals().threads, [&] {
+        // Fixed colour ranges for the whole run, from the last row's frame, so sequences do not flicker.
+        // Speed shares one range across caches (same world units, comparable); vorticity grows with
+        // resolution, so each cache gets its own.
+        if (needsVelocity(modes)) {
+            float speedAll = a.speedMax;
+            for (auto& in : inputs) {
+                int ref = -1;
+                for (auto it = frames.rbegin(); it != frames.rend() && ref < 0; ++it)
+                    if (exists(in, *it)) ref = *it;
+                if (ref < 0) continue;
+                turbio::ReadOptions ro = read;
+                ro.requireDensity = false;
+                const turb::Frame f = turbio::readFrame(in.seq.path(ref), ref, ro);
+                const turb::ScalarField* d = f.hasDensity() ? &f.density : nullptr;
+                in.speedMax = a.speedMax > 0.0f ? a.speedMax : percentile(turb::magnitude(f.velocity), d, 0.995);
+                in.vorticityMax = a.vorticityMax > 0.0f ? a.vorticityMax
+                                                        : percentile(turb::magnitude(turb::curl(f.velocity)), d, 0.99);
+                if (a.speedMax <= 0.0f) speedAll = std::max(speedAll, in.speedMax);
+            }
+            for (auto& in : inputs) in.speedMax = speedAll > 0.0f ? speedAll : 1.0f;
+        }
+
+        RunReport report("preview", a.json);
+        std::vector<std::vector<turb::Image>> rowImages;
+        std::vector<std::vector<turb::SheetCell>> rows;
+        std::vector<std::string> rowLabels;
+        for (size_t r = 0; r < frames.size(); ++r) {
+            const int frame = frames[r];
+            const auto t0 = std::chrono::steady_clock::now();
+            ConsoleProgress progress(int(r), int(frames.size()), frame);
+            std::vector<turb::Image> images;
+            std::vector<std::string> labels;
+            for (const auto& in : inputs) {
+                std::optional<turb::Frame> f;
+                if (exists(in, frame)) {
+                    progress.begin("reading " + in.label);
+                    f = turbio::readFrame(in.seq.path(frame), frame, read);
+                } else {
+                    logWarning(in.seq.path(frame) + ": missing, left empty");
+                }
+                for (Mode m : modes) {
+                    progress.begin(std::string("rendering ") + modeName(m));
+                    images.push_back(f ? render(*f, m, a, in) : turb::Image());
+                    labels.push_back(cellLabel(in, m, inputs.size(), modes.size()));
+                }
+            }
+            progress.clear();
+            nlohmann::json extra;
+            if (a.sheet.empty()) {
+                // One picture per frame: a single image, or the modes side by side as a one-row sheet.
+                turb::Image pic;
+                if (images.size() == 1) pic = images.front();
+                else {
+                    std::vector<std::vector<turb::SheetCell>> one(1);
+                    for (size_t c = 0; c < images.size(); ++c) one[0].push_back({&images[c], labels[c]});
+                    pic = turb::contactSheet(one, {}, inputs.front().label + "  frame " + std::to_string(frame), 1);
+                }
+                const std::string path = turbio::FramePattern::parse(a.out).format(frame);
+                turbio::ensureParentDirectory(path);
+                turbio::writePng(path, pic);
+                extra["out"] = path;
+                report.frameDone(frame, int(r), int(frames.size()), secondsSince(t0), "-> " + path, extra);
+            } else {
+                rowImages.push_back(std::move(images));
+                rowLabels.push_back("frame " + std::to_string(frame));
+                std::vector<turb::SheetCell> cells;
+                for (size_t c = 0; c < rowImages.back().size(); ++c)
+                    cells.push_back({rowImages.back()[c].empty() ? nullptr : &rowImages.back()[c], labels[c]});
+                rows.push_back(std::move(cells));
+                report.frameDone(frame, int(r), int(frames.size()), secondsSince(t0), "rendered", extra);
+            }
+        }
+        if (!a.sheet.empty()) {
+            std::string title = a.title;
+            if (title.empty()) {
+                for (const auto& in : inputs) title += (title.empty() ? "" : " | ") + in.label;
+                title += "  (" + a.view + " view)";
+            }
+            const turb::Image sheet = turb::contactSheet(rows, rowLabels, title, 2);
+            turbio::ensureParentDirectory(a.sheet);
+            turbio::writePng(a.sheet, sheet);
+            logInfo("wrote " + a.sheet + " (" + std::to_string(sheet.width()) + "x" + std::to_string(sheet.height()) + ")");
+        }
+        report.finish();
+    });
+    return result;
+}
+
+} // namespace
+
+Command previewCommand()
+{
+    auto args = std::make_shared<PreviewArgs>();
+    Command c;
+    c.name = "preview";
+    c.help = "PNG pictures of caches: lit density, speed/vorticity slices, LIC, and labelled contact sheets";
+    c.setup = [args](CLI::App* app) {
+        PreviewArgs& a = *args;
+        app->add_option("caches", a.inputs,
+               "Caches as [LABEL=]PATTERN (####, %04d, $F4 or one real file); several go side by side in --sheet")
+            ->required();
+        app->add_option("--mode", a.modes,
+               "Comma list of density (lit ray march), speed, vorticity (slices), lic (flow texture), all (default density)")
+            ->check(CLI::Validator(
+                [](std::string& v) {
+                    try {
+                        parseModes(v);
+                    } catch (const turb::ValueError& e) {
+                        return std::string(e.what());
+                    }
+                    return std::string();
+                },
+                "MODES"));
+        app->add_option("--frames", a.frames, "Frames, e.g. 10,30,60 or 1-60 (default: all; a sheet: three spread frames)");
+        app->add_option("--out", a.out, "One picture per frame, e.g. pics/plume.####.png");
+        app->add_option("--sheet", a.sheet, "Write one contact sheet: rows = frames, columns = caches x modes");
+        app->add_option("--title", a.title, "Title of the contact sheet (default: the labels)");
+        app->add_option("--view", a.view, "Camera: front (along +y, default), side (along +x), top (down -z)")
+            ->check(CLI::IsMember({"front", "side", "top"}));
+        app->add_option("--slice", a.slice, "Slice position for speed/vorticity/lic, fraction along the view axis (default 0.5)")
+            ->check(CLI::Range(0.0, 1.0));
+        app->add_option("--width", a.width, "Width of each picture in pixels (default 320)")->check(CLI::Range(16, 8192));
+        app->add_option("--exposure", a.exposure, "Density render exposure, fixed for all frames (default 1)")->check(CLI::PositiveNumber);
+        app->add_option("--extinction", a.extinction, "Optical depth per unit density per world unit (default 6)")
+            ->check(CLI::PositiveNumber);
+        app->add_option("--speed-max", a.speedMax, "Speed at the top of the colour map (default: 99.5th percentile of the last frame)")
+            ->check(CLI::PositiveNumber);
+        app->add_option("--vorticity-max", a.vorticityMax, "Vorticity at the top of the colour map (default: 99th percentile)")
+            ->check(CLI::PositiveNumber);
+        app->add_flag("--json", a.json, "One JSON line per frame and a summary on stdout");
+        addReadOptions(app, a.read);
+    };
+    c.run = [args] { return runPreview(*args); };
+    return c;
+}
+
+} // namespace vdbturb

@@ -1,0 +1,745 @@
+// vdbturb synth: motion-field texture synthesis (seed 003) over a coarse flow.
+#include "Commands.h"
+#include "Console.h"
+#include "RunReport.h"
+
+#include <scenes/Smoke.h>
+#include <turb/Error.h>
+#include <turb/Operators.h>
+#include <turb/Projection.h>
+#include <turb/Render.h>
+#include <turb/Synth.h>
+#include <turbio/Png.h>
+#include <turbio/Sequence.h>
+#include <turbio/Vdb.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <limits>
+#include <memory>
+#include <optional>
+#include <sstream>
+
+namespace vdbturb {
+
+namespace {
+
+struct SynthArgs
+{
+    std::string target, scene, flow;
+    std::string sceneRes = "32x32x48", flowRes = "64x64x1";
+    double flowSpeed = 1.0, flowAngle = 0.0, flowWidth = 4.0, flowDt = 1.0 / 24.0;
+    std::string frames;
+    int sceneSeed = 1;
+    int sliceZ = -1;
+    std::vector<std::string> exemplars;
+    double exemplarScale = 1.0;
+    bool periodic = false;
+    std::string views, viewWeights, iterations, radius;
+    std::string search = "tree";
+    std::string secondary = "density";
+    bool noOrient = false, noVarianceMatch = false;
+    std::string walls, obstacle;
+    std::string omegaMode = "constant";
+    bool omegaAbsolute = false, project = false, noDensity = false, json = false, stats = false;
+    int lookback = 12;
+    std::string output = "combined";
+    std::string out = "synth/synth.####.vdb";
+    std::string preview, previewView;
+    int previewWidth = 256;
+    int volumeCrop = 32;
+    turbio::ReadOptions read;
+    turbio::WriteOptions write;
+    turb::SynthSettings settings;
+    turb::CombineSettings combine;
+    int factor = 4;
+};
+
+std::string fmt(const char* f, double v)
+{
+    char b[64];
+    std::snprintf(b, sizeof(b), f, v);
+    return b;
+}
+
+std::vector<std::string> split(const std::string& s, char sep)
+{
+    std::vector<std::string> out;
+    std::stringstream ss(s);
+    std::string item;
+    while (std::getline(ss, item, sep)) out.push_back(item);
+    return out;
+}
+
+bool parseNumber(const std::string& s, double& v)
+{
+    try {
+        size_t pos = 0;
+        v = std::stod(s, &pos);
+        return pos == s.size();
+    } catch (...) {
+        return false;
+    }
+}
+
+int toInt(const std::string& s, const std::string& what)
+{
+    double v;
+    if (!parseNumber(s, v) || v != std::floor(v)) throw turb::ValueError(what + ": '" + s + "' is not an integer");
+    return int(v);
+}
+
+turb::Coord parseRes(const std::string& s, const std::string& what)
+{
+    const auto p = split(s, 'x');
+    if (p.size() == 1) {
+        const int n = toInt(p[0], what);
+        return turb::Coord(n, n, n);
+    }
+    if (p.size() != 3) throw turb::ValueError(what + ": expected WxDxH or N, got '" + s + "'");
+    return turb::Coord(toInt(p[0], what), toInt(p[1], what), toInt(p[2], what));
+}
+
+/// Takes layer k of a 3D frame as a 2D frame (one voxel thick, in-plane velocity only).
+turb::Frame sliceFrame(const turb::Frame& f, int k)
+{
+    const turb::CoordBBox b = f.bbox();
+    if (k < b.min().z() || k > b.max().z())
+        throw turb::ValueError("--slice-z " + std::to_string(k) + " is outside the cache's z range " +
+                               std::to_string(b.min().z()) + ".." + std::to_string(b.max().z()));
+    const turb::CoordBBox s(turb::Coord(b.min().x(), b.min().y(), k), turb::Coord(b.max().x(), b.max().y(), k));
+    turb::Frame out;
+    out.number = f.number;
+    out.dt = f.dt;
+    out.metadata = f.metadata;
+    if (f.hasVelocity()) {
+        out.velocity = turb::VectorField(s, f.velocity.lattice());
+        for (int i = s.min().x(); i <= s.max().x(); ++i)
+            for (int j = s.min().y(); j <= s.max().y(); ++j) {
+                turb::Vec3f v = f.velocity(i, j, k);
+                v[2] = 0.0f;
+                out.velocity(i, j, k) = v;
+            }
+    }
+    if (f.hasDensity()) {
+        out.density = turb::ScalarField(s, f.density.lattice());
+        for (int i = s.min().x(); i <= s.max().x(); ++i)
+            for (int j = s.min().y(); j <= s.max().y(); ++j) out.density(i, j, k) = f.density(i, j, k);
+    }
+    return out;
+}
+
+/// One exemplar from its command-line description (see the --exemplar help).
+turb::Exemplar loadExemplar(const std::string& spec, const SynthArgs& a)
+{
+    const size_t colon = spec.find(':');
+    const std::string kind = spec.substr(0, colon);
+    const std::string rest = colon == std::string::npos ? "" : spec.substr(colon + 1);
+    turb::Exemplar e;
+    // A trailing ":number" is a scale for picture exemplars.
+    const auto pathAndScale = [&](double& scale) {
+        const size_t c = rest.rfind(':');
+        double v;
+        if (c != std::string::npos && parseNumber(rest.substr(c + 1), v)) {
+            scale = v;
+            return rest.substr(0, c);
+        }
+        return rest;
+    };
+    if (kind == "rg" || kind == "gray") {
+        double scale = 1.0;
+        const std::string path = pathAndScale(scale);
+        const turb::Image img = turbio::readPng(path);
+        e = kind == "rg" ? turb::exemplarFromVectorImage(img, scale) : turb::exemplarFromGrayImage(img, scale, a.periodic);
+        e.periodic = a.periodic;
+        e.name = spec;
+    } else if (kind == "vdb" || kind == "vdb3") {
+        std::string path = rest;
+        int axis = 2, index = std::numeric_limits<int>::min();
+        if (kind == "vdb") {
+            const auto parts = split(rest, ':');
+            if (parts.size() >= 3 && (parts[parts.size() - 2] == "x" || parts[parts.size() - 2] == "y" || parts[parts.size() - 2] == "z")) {
+                axis = parts[parts.size() - 2][0] - 'x';
+                index = toInt(parts.back(), "--exemplar " + spec);
+                path = rest.substr(0, rest.size() - parts.back().size() - 3);
+            }
+        }
+        turbio::ReadOptions ro = a.read;
+        ro.requireDensity = false;
+        const turb::Frame f = turbio::readFrame(path, 0, ro);
+        if (kind == "vdb3") {
+            // A volume exemplar costs (voxels x 375) floats of descriptors: keep the central N^3 only.
+            const turb::CoordBBox b = f.velocity.bbox();
+            turb::Coord lo, hi;
+            for (int ax = 0; ax < 3; ++ax) {
+                const int n = std::min(b.dim()[ax], a.volumeCrop);
+                lo[ax] = b.min()[ax] + (b.dim()[ax] - n) / 2;
+                hi[ax] = lo[ax] + n - 1;
+            }
+            turb::VectorField crop(turb::CoordBBox(lo, hi), f.velocity.lattice());
+            for (size_t n = 0; n < crop.size(); ++n) crop.data()[n] = f.velocity[crop.coordOf(n)];
+            e = turb::exemplarFromVolume(crop);
+        } else {
+            if (index == std::numeric_limits<int>::min()) index = (f.bbox().min()[axis] + f.bbox().max()[axis]) / 2;
+            e = turb::exemplarFromSlice(f.velocity, axis, index);
+        }
+        e.periodic = a.periodic;
+        e.name = spec;
+    } else {
+        // NAME[:PERIOD[:SIZE]]
+        turb::ProceduralExemplarSettings p;
+        p.pattern = turb::parseProceduralPattern(kind);
+        const auto parts = rest.empty() ? std::vector<std::string>{} : split(rest, ':');
+        if (!parts.empty()) p.period = toInt(parts[0], "--exemplar " + spec + " (period)");
+        p.size = std::max(64, p.period);
+        if (p.size % p.period) p.size = (p.size / p.period + 1) * p.period;
+        if (parts.size() >= 2) p.size = toInt(parts[1], "--exemplar " + spec + " (size)");
+        e = turb::proceduralExemplar(p);
+    }
+    if (a.exemplarScale != 1.0) e = turb::rescaledExemplar(e, a.exemplarScale);
+    turb::normalizeExemplar(e);
+    return e;
+}
+
+/// Where the coarse frames come from: a cache, a built-in scene simulated on the fly, or an analytic flow.
+class CoarseSource
+{
+public:
+    explicit CoarseSource(const SynthArgs& a) : mArgs(a)
+    {
+        int kinds = int(!a.target.empty()) + int(!a.scene.empty()) + int(!a.flow.empty());
+        if (kinds != 1) throw turb::ValueError("give exactly one coarse input: --target CACHE, --scene NAME or --flow KIND");
+        if (!a.target.empty()) {
+            mSeq = turbio::resolveSequence(a.target, a.frames);
+            if (!mSeq->missing.empty())
+                throw turb::IoError(mSeq->pattern.str() + ": missing frames " + turbio::formatFrameList(mSeq->missing));
+            mFrames = mSeq->frames;
+            mLabel = "cache " + mSeq->pattern.str();
+        } else {
+            const std::vector<int> list = a.frames.empty() ? std::vector<int>{1} : turbio::parseFrameList(a.frames);
+            // A single number N means frames 1..N.
+            if (list.size() == 1 && a.frames.find('-') == std::string::npos)
+                for (int f = 1; f <= list[0]; ++f) mFrames.push_back(f);
+            else
+                mFrames = list;
+            if (mFrames.empty() || mFrames.front() < 1) throw turb::ValueError("--frames: scene and flow frames start at 1");
+            if (!a.scene.empty()) {
+                mSceneSettings = turb::scenes::sceneSettings(a.scene, parseRes(a.sceneRes, "--scene-res"), std::uint64_t(a.sceneSeed));
+                mSceneSettings->threads = globals().threads;
+                mSim = std::make_unique<turb::scenes::SmokeSim>(*mSceneSettings);
+                mLabel = "scene " + a.scene + " " + a.sceneRes;
+            } else {
+                turb::AnalyticFlowSettings f;
+                f.kind = a.flow == "vortex" ? turb::AnalyticFlowSettings::Kind::Vortex
+                         : a.flow == "shear" ? turb::AnalyticFlowSettings::Kind::Shear
+                                             : turb::AnalyticFlowSettings::Kind::Uniform;
+                f.res = parseRes(a.flowRes, "--flow-res");
+                f.voxelSize = a.flowWidth / f.res.x();
+                f.speed = a.flowSpeed;
+                f.angleDegrees = a.flowAngle;
+                mFlow = turb::analyticFlow(f);
+                mLabel = "flow " + a.flow + " " + a.flowRes;
+            }
+        }
+    }
+
+    const std::vector<int>& frames() const { return mFrames; }
+    const std::string& label() const { return mLabel; }
+
+    turb::Frame read(int frame, turb::Progress* progress)
+    {
+        turb::Frame f;
+        if (mSeq) {
+            turbio::ReadOptions ro = mArgs.read;
+            ro.requireDensity = false;
+            f = turbio::readFrame(mSeq->path(frame), frame, ro);
+        } else if (mSim) {
+            while (mSim->frameCount() < frame) mSim->advanceFrame(progress);
+            f = mSim->frame();
+            f.number = frame;
+        } else {
+            f.velocity = mFlow;
+            f.dt = mArgs.flowDt;
+            f.number = frame;
+        }
+        if (mArgs.sliceZ >= 0) f = sliceFrame(f, mArgs.sliceZ);
+        return f;
+    }
+
+    /// Walls of a built-in scene: its closed faces.
+    unsigned sceneWalls() const
+    {
+        unsigned w = 0;
+        if (mSceneSettings)
+            for (int i = 0; i < 6; ++i)
+                if (mSceneSettings->faces[size_t(i)] == turb::Boundary::Closed) w |= 1u << i;
+        return w;
+    }
+    /// Where a built-in scene's emitters are at frame `frame` (grown by one voxel); nullopt for other inputs.
+    std::optional<turb::ScalarField> sceneEmitters(const turb::ScalarField& like, int frame) const
+    {
+        if (!mSceneSettings) return std::nullopt;
+        turb::ScalarField m(like.bbox(), like.lattice(), 0.0f);
+        const double t = frame * mSceneSettings->frameDt, h = like.lattice().voxelSize;
+        for (size_t n = 0; n < m.size(); ++n) {
+            const turb::Vec3d w = like.lattice().indexToWorld(m.coordOf(n).asVec3d());
+            for (const auto& e : mSceneSettings->emitters)
+                if (t >= e.startTime && t - mSceneSettings->frameDt <= e.endTime && (w - e.shape.centre).length() <= e.shape.radius + h)
+                    m.data()[n] = 1.0f;
+        }
+        return m;
+    }
+    /// Obstacles of a built-in scene as a signed distance on the coarse lattice.
+    std::optional<turb::ScalarField> sceneObstacles(const turb::VectorField& like) const
+    {
+        if (!mSceneSettings || mSceneSettings->obstacles.empty()) return std::nullopt;
+        turb::ScalarField sdf(like.bbox(), like.lattice(), 1e9f);
+        for (size_t n = 0; n < sdf.size(); ++n) {
+            const turb::Vec3d w = like.lattice().indexToWorld(turb::Vec3d(sdf.coordOf(n).asVec3d()));
+            for (const auto& s : mSceneSettings->obstacles)
+                sdf.data()[n] = std::min(sdf.data()[n], float((w - s.centre).length() - s.radius));
+        }
+        return sdf;
+    }
+
+private:
+    const SynthArgs& mArgs;
+    std::optional<turbio::Sequence> mSeq;
+    std::vector<int> mFrames;
+    std::string mLabel;
+    std::optional<turb::scenes::SmokeSettings> mSceneSettings;
+    std::unique_ptr<turb::scenes::SmokeSim> mSim;
+    turb::VectorField mFlow;
+};
+
+unsigned parseWalls(const std::string& s)
+{
+    unsigned w = 0;
+    if (s.empty() || s == "none") return 0;
+    if (s == "all") return 63u;
+    for (const std::string& t : split(s, ',')) {
+        if (t.size() != 2 || (t[0] != 'x' && t[0] != 'y' && t[0] != 'z') || (t[1] != '-' && t[1] != '+'))
+            throw turb::ValueError("--walls: '" + t + "' is not one of x-, x+, y-, y+, z-, z+");
+        w |= 1u << (2 * (t[0] - 'x') + (t[1] == '+' ? 1 : 0));
+    }
+    return w;
+}
+
+turb::View parseView(const std::string& s, bool twoD)
+{
+    if (s == "top" || (s.empty() && twoD)) return turb::View::Top;
+    if (s == "side") return turb::View::Side;
+    return turb::View::Front;
+}
+
+turb::Image labelled(const turb::Image& img, const std::string& label)
+{
+    turb::Image out(img.width(), img.height() + turb::Image::textHeight(1) + 6, turb::Rgb(0.07f));
+    out.blit(img, 0, 0);
+    out.drawText(3, img.height() + 3, label, turb::Rgb(0.9f), 1);
+    return out;
+}
+
+int runSynth(SynthArgs& a)
+{
+    turb::SynthSettings& s = a.settings;
+    s.threads = globals().threads;
+    s.search = a.search == "kcoherence" ? turb::SearchMethod::KCoherence : turb::SearchMethod::Tree;
+    s.orientation.follow = !a.noOrient;
+    s.matchVariance = !a.noVarianceMatch;
+    if (a.secondary != "density") {
+        const auto p = split(a.secondary, ',');
+        double v[3];
+        if (p.size() != 3 || !parseNumber(p[0], v[0]) || !parseNumber(p[1], v[1]) || !parseNumber(p[2], v[2]))
+            throw turb::ValueError("--secondary: 'density' or a vector X,Y,Z");
+        s.orientation.densitySecondary = false;
+        s.orientation.secondary = turb::Vec3d(v[0], v[1], v[2]);
+    }
+    if (!a.iterations.empty()) {
+        const auto p = split(a.iterations, ',');
+        if (p.size() == 1) s.smallIterations = toInt(p[0], "--iterations");
+        else {
+            s.largeIterations = toInt(p[0], "--iterations");
+            s.smallIterations = toInt(p[1], "--iterations");
+        }
+    }
+    if (!a.radius.empty()) {
+        const auto p = split(a.radius, ',');
+        if (p.size() == 1) s.smallRadius = toInt(p[0], "--radius");
+        else {
+            s.largeRadius = toInt(p[0], "--radius");
+            s.smallRadius = toInt(p[1], "--radius");
+        }
+    }
+    a.combine.relative = !a.omegaAbsolute;
+    a.combine.weighting = a.omegaMode == "energy"      ? turb::CombineSettings::Weighting::KineticEnergy
+                          : a.omegaMode == "vorticity" ? turb::CombineSettings::Weighting::Vorticity
+                                                       : turb::CombineSettings::Weighting::Constant;
+
+    CoarseSource source(a);
+    const std::vector<int>& frames = source.frames();
+    const turbio::FramePattern outPattern = turbio::FramePattern::parse(a.out);
+    if (frames.size() > 1 && !outPattern.numbered())
+        throw turb::ValueError("--out '" + a.out + "' has no frame token (####, %04d, $F4) but " + std::to_string(frames.size()) +
+                               " frames are requested");
+
+    // Exemplars and views.
+    if (a.exemplars.empty()) a.exemplars.push_back("circles:16");
+    std::vector<turb::Exemplar> ex;
+    for (const auto& spec : a.exemplars) ex.push_back(loadExemplar(spec, a));
+
+    ConsoleProgress first(0, int(frames.size()), frames.front());
+    first.begin("reading");
+    turb::Frame f0 = source.read(frames.front(), &first);
+    first.clear();
+    if (!f0.hasVelocity()) throw turb::ValueError(source.label() + ": frame " + std::to_string(frames.front()) + " has no velocity");
+    const bool volume = f0.bbox().dim().z() > 1;
+    std::vector<turb::SynthView> views;
+    std::vector<int> normals;
+    if (!a.views.empty())
+        for (const auto& t : split(a.views, ',')) normals.push_back(toInt(t, "--views"));
+    std::vector<float> weights;
+    if (!a.viewWeights.empty())
+        for (const auto& t : split(a.viewWeights, ',')) {
+            double v;
+            if (!parseNumber(t, v) || !(v > 0)) throw turb::ValueError("--view-weights: '" + t + "' is not a positive number");
+            weights.push_back(float(v));
+        }
+    if (!volume) {
+        if (ex.size() != 1) throw turb::ValueError("a 2D synthesis takes exactly one --exemplar");
+        views.push_back({ex[0], 2, 1.0f});
+    } else if (ex.size() == 1 && !ex[0].planar()) {
+        views.push_back({ex[0], -1, 1.0f});
+    } else {
+        // One planar exemplar serves all three axis views; otherwise one exemplar per view.
+        const size_t n = normals.empty() ? (ex.size() == 1 ? 3 : ex.size()) : normals.size();
+        if (normals.empty()) {
+            if (n > 3) throw turb::ValueError("more than three exemplars: say which local axis each looks along with --views");
+            for (size_t i = 0; i < n; ++i) normals.push_back(int(i));
+        }
+        if (ex.size() != 1 && ex.size() != n) throw turb::ValueError("--views names " + std::to_string(n) + " views but " +
+                                                                     std::to_string(ex.size()) + " exemplars are given");
+        for (size_t i = 0; i < n; ++i) views.push_back({ex[ex.size() == 1 ? 0 : i], normals[i], 1.0f});
+    }
+    if (!weights.empty()) {
+        if (weights.size() != views.size())
+            throw turb::ValueError("--view-weights has " + std::to_string(weights.size()) + " values for " +
+                                   std::to_string(views.size()) + " views");
+        for (size_t i = 0; i < views.size(); ++i) views[i].weight = weights[i];
+    }
+
+    // Boundaries.
+    s.boundary.walls = a.walls.empty() ? source.sceneWalls() : parseWalls(a.walls);
+    std::optional<turb::ScalarField> obstacle = source.sceneObstacles(f0.velocity);
+    if (!a.obstacle.empty()) {
+        const size_t c = a.obstacle.rfind(':');
+        turbio::ReadOptions ro;
+        ro.requireVelocity = false;
+        ro.readExtras = false;
+        ro.checkFinite = false;
+        std::string path = a.obstacle;
+        ro.densityGrid = "surface";
+        if (c != std::string::npos && a.obstacle.find(".vdb") < c) {
+            path = a.obstacle.substr(0, c);
+            ro.densityGrid = a.obstacle.substr(c + 1);
+        }
+        obstacle = turbio::readFrame(path, 0, ro).density;
+    }
+
+    logInfo("synth: " + source.label() + ", frames " + turbio::formatFrameList(frames) + ", " + (volume ? "3D" : "2D") +
+            ", factor " + std::to_string(a.factor) + ", " + std::to_string(views.size()) + " view" + (views.size() == 1 ? "" : "s") +
+            ", " + (s.search == turb::SearchMethod::Tree ? "tree search" : "k-coherence"));
+    for (const auto& v : views)
+        logInfo("  exemplar " + v.exemplar.name + " (" + std::to_string(v.exemplar.nx) + "x" + std::to_string(v.exemplar.ny) +
+                (v.exemplar.planar() ? "" : "x" + std::to_string(v.exemplar.nz)) + (v.exemplar.periodic ? ", periodic" : "") +
+                ")" + (v.exemplar.planar() && volume ? ", looks along e" + std::to_string(v.normal + 1) : "") +
+                (views.size() > 1 ? ", weight " + fmt("%g", v.weight) : ""));
+    if (globals().dryRun) {
+        const turb::FineDomain d = turb::fineDomain(f0.velocity, a.factor);
+        logInfo("output " + std::to_string(d.box.dim().x()) + "x" + std::to_string(d.box.dim().y()) + "x" +
+                std::to_string(d.box.dim().z()) + " voxels of " + fmt("%g", d.lattice.voxelSize));
+        for (int fr : frames) logInfo("would write " + outPattern.format(fr));
+        return kOk;
+    }
+
+    // The report's clock starts here, so its total includes building the exemplar indices.
+    RunReport report("synth", a.json);
+    const auto tPrep = std::chrono::steady_clock::now();
+    ConsoleProgress prepProgress(0, int(frames.size()), frames.front());
+    prepProgress.begin("exemplar indices");
+    const turb::SynthExemplars prepared(views, s, volume, &prepProgress);
+    prepProgress.clear();
+    logVerbose("exemplar pyramids and indices: " + fmt("%.2f s", secondsSince(tPrep)) + ", " + std::to_string(prepared.levels()) +
+               " levels");
+
+    turb::LookbackSettings lbs;
+    lbs.frames = a.lookback;
+    turb::LookbackDensity lookback(lbs);
+    std::optional<turb::DetailField> previous;
+    int previousFrame = std::numeric_limits<int>::min();
+    turb::ScalarField previousDensity;
+
+    const int count = int(frames.size());
+    for (size_t i = 0; i < frames.size(); ++i) {
+        const int fr = frames[i];
+        const auto t0 = std::chrono::steady_clock::now();
+        ConsoleProgress progress(int(i), count, fr);
+        progress.begin("reading");
+        turb::Frame cf = i == 0 ? std::move(f0) : source.read(fr, &progress);
+        if (!cf.hasVelocity()) throw turb::ValueError(source.label() + ": frame " + std::to_string(fr) + " has no velocity");
+        const double dt = cf.dt > 0.0 ? cf.dt : a.flowDt;
+        double seconds[5] = {0, 0, 0, 0, 0};
+        auto tk = std::chrono::steady_clock::now();
+        const auto lap = [&](int k) {
+            seconds[k] = secondsSince(tk);
+            tk = std::chrono::steady_clock::now();
+        };
+        lap(0);
+
+        turb::SynthInput in;
+        in.coarse = &cf.velocity;
+        in.coarseDensity = cf.hasDensity() ? &cf.density : nullptr;
+        in.obstacle = obstacle ? &*obstacle : nullptr;
+        in.factor = a.factor;
+        const bool continuing = previous && previousFrame == fr - 1;
+        in.previous = continuing ? &*previous : nullptr;
+        in.dt = dt;
+        turb::DetailField H = turb::synthesizeDetail(prepared, in, s, &progress);
+        lap(1);
+
+        progress.begin("combine");
+        turb::VectorField F = turb::combineMotion(cf.velocity, H.world, a.combine);
+        nlohmann::json projJson;
+        if (a.project) {
+            progress.begin("projection");
+            turb::ProjectionSettings ps;
+            for (int k = 0; k < 6; ++k)
+                if (s.boundary.walls & (1u << k)) ps.faces[size_t(k)] = turb::Boundary::Closed;
+            if (!volume) ps.faces[turb::kFaceZMin] = ps.faces[turb::kFaceZMax] = turb::Boundary::Closed; // stay 2D
+            std::optional<turb::MaskField> solid;
+            if (obstacle) {
+                solid = turb::MaskField(F.bbox(), F.lattice());
+                for (size_t n = 0; n < solid->size(); ++n) {
+                    const turb::Vec3d w = F.lattice().indexToWorld(solid->coordOf(n).asVec3d());
+                    solid->data()[n] = turb::sampleWorld(*obstacle, w) < 0.0f ? 1 : 0;
+                }
+            }
+            const turb::ProjectionResult pr = turb::project(F, ps, solid ? &*solid : nullptr, &progress);
+            projJson = {{"converged", pr.converged}, {"iterations", pr.iterations}, {"div_max_before", pr.divMaxBefore},
+                {"div_max_after", pr.divMaxAfter}};
+        }
+        lap(2);
+
+        turb::Frame outFrame;
+        outFrame.number = fr;
+        outFrame.dt = dt;
+        if (a.output == "detail") {
+            // omega * H' alone: what the synthesis added.
+            outFrame.velocity = F;
+            const turb::VectorField up = turb::upsampleCoarse(cf.velocity, a.factor);
+            for (size_t n = 0; n < F.size(); ++n) outFrame.velocity.data()[n] -= up.data()[n];
+        } else {
+            outFrame.velocity = F;
+        }
+        double densityMass = -1.0;
+        if (cf.hasDensity() && !a.noDensity) {
+            progress.begin("density");
+            if (!continuing) lookback = turb::LookbackDensity(lbs); // a gap in the frames starts a new history
+            const std::optional<turb::ScalarField> emitters = source.sceneEmitters(cf.density, fr);
+            const turb::ScalarField src = turb::estimateSources(previousDensity.empty() || !continuing ? nullptr : &previousDensity,
+                cf.density, cf.velocity, dt, turb::AdvectSettings{}, emitters ? &*emitters : nullptr);
+            const turb::ScalarField fineSrc = turb::upsampleCoarse(src, a.factor);
+            const turb::ScalarField coarseOnly = a.lookback > 0 ? turb::upsampleCoarse(cf.density, a.factor) : turb::ScalarField();
+            outFrame.density = lookback.step(F, fineSrc, coarseOnly, dt, &progress);
+            previousDensity = cf.density;
+            densityMass = 0.0;
+            for (float v : outFrame.density.values()) densityMass += v;
+            densityMass *= std::pow(outFrame.density.lattice().voxelSize, 3);
+        }
+        lap(3);
+
+        outFrame.metadata["vdbturb_command"] = "synth";
+        std::string names;
+        for (const auto& v : views) names += (names.empty() ? "" : ",") + v.exemplar.name;
+        outFrame.metadata["vdbturb_exemplars"] = names;
+        outFrame.metadata["vdbturb_omega"] = fmt("%g", a.combine.omega) + (a.combine.relative ? " x rms|L|" : "") + " " + a.omegaMode;
+        outFrame.metadata["vdbturb_seed"] = std::to_string(s.seed);
+        progress.begin("writing");
+        const std::string outPath = outPattern.format(fr);
+        turbio::ensureParentDirectory(outPath);
+        turbio::writeFrame(outPath, outFrame, a.write);
+        lap(4);
+
+        nlohmann::json extra;
+        extra["out"] = outPath;
+        extra["size"] = {F.bbox().dim().x(), F.bbox().dim().y(), F.bbox().dim().z()};
+        extra["continued"] = H.fromPrevious;
+        nlohmann::json lv = nlohmann::json::array();
+        for (const auto& l : H.levels)
+            lv.push_back({{"level", l.level}, {"size", {l.dim.x(), l.dim.y(), l.dim.z()}}, {"radius", l.radius}, {"energy", l.energy}});
+        extra["levels"] = lv;
+        extra["energy"] = H.finalEnergy();
+        double h2 = 0.0;
+        for (const auto& v : H.world.values()) h2 += v.lengthSqr();
+        extra["detail_rms"] = std::sqrt(h2 / double(std::max<size_t>(1, H.world.size())));
+        if (a.project) extra["projection"] = projJson;
+        if (densityMass >= 0.0) extra["density_mass"] = densityMass;
+        extra["steps_s"] = {{"read", seconds[0]}, {"synthesis", seconds[1]}, {"combine", seconds[2]}, {"density", seconds[3]},
+            {"write", seconds[4]}};
+        if (a.stats) {
+            progress.begin("statistics");
+            nlohmann::json m = nlohmann::json::array();
+            for (size_t v = 0; v < views.size(); ++v) {
+                if (!views[v].exemplar.planar()) continue;
+                turb::TextureMatchSettings ts;
+                ts.axis = volume ? views[v].normal : 2; // exact for axis-aligned local frames
+                ts.stride = volume ? 8 : 4;
+                const turb::TextureMatch tm = turb::textureMatch(views[v].exemplar, H.local, ts);
+                m.push_back({{"view", v}, {"nn_distance", tm.distance}, {"shuffled", tm.shuffled}, {"ratio", tm.ratio()},
+                    {"rms", {tm.fieldRms[0], tm.fieldRms[1]}}, {"exemplar_rms", {tm.exemplarRms[0], tm.exemplarRms[1]}}});
+            }
+            extra["texture_match"] = m;
+        }
+        if (!a.preview.empty()) {
+            progress.begin("preview");
+            const turb::View view = parseView(a.previewView, !volume);
+            turb::LicSettings ls;
+            ls.view = view;
+            ls.width = a.previewWidth;
+            turb::LicSettings le = ls;
+            le.view = turb::View::Top;
+            le.width = std::max(64, a.previewWidth / 2);
+            const turb::Image exImg = labelled(turb::renderLic(turb::exemplarAsField(views[0].exemplar), le), "exemplar");
+            const turb::Image hImg = labelled(turb::renderLic(H.world, ls), "detail H'");
+            const turb::Image lImg = labelled(turb::renderLic(turb::upsampleCoarse(cf.velocity, a.factor), ls), "coarse up(L)");
+            const turb::Image fImg = labelled(turb::renderLic(F, ls), "F = up(L) + w H'");
+            std::vector<turb::SheetCell> row{{&exImg, ""}, {&lImg, ""}, {&hImg, ""}, {&fImg, ""}};
+            turb::Image dImg;
+            if (!outFrame.density.empty()) {
+                turb::DensityRenderSettings dr;
+                dr.view = view;
+                dr.width = a.previewWidth;
+                dImg = labelled(volume ? turb::renderDensity(outFrame.density, dr)
+                                       : turb::renderSlice(outFrame.density, turb::SliceSettings{view, 0.5, a.previewWidth}),
+                    "density");
+                row.push_back({&dImg, ""});
+            }
+            const turb::Image sheet = turb::contactSheet({row}, {""}, "synth frame " + std::to_string(fr), 1);
+            const std::string png = a.preview + "/" + turbio::FramePattern::parse("synth.####.png").format(fr);
+            turbio::ensureParentDirectory(png);
+            turbio::writePng(png, sheet);
+            extra["preview"] = png;
+        }
+        progress.clear();
+
+        std::string human = std::string(H.fromPrevious ? "continued" : "synthesised") + fmt(", E %.4f", H.finalEnergy()) +
+                            fmt(", |H'| rms %.3f", extra["detail_rms"].get<double>()) + fmt(", synthesis %.2f s", seconds[1]) +
+                            (a.project ? " projection " + std::to_string(projJson["iterations"].get<int>()) + " it" : "") + " -> " +
+                            outPath;
+        for (const auto& l : H.levels) {
+            std::string e;
+            for (double x : l.energy) e += fmt(" %.4f", x);
+            logVerbose("frame " + std::to_string(fr) + ": level " + std::to_string(l.level) + " " + std::to_string(l.dim.x()) + "x" +
+                       std::to_string(l.dim.y()) + "x" + std::to_string(l.dim.z()) + " energy" + e);
+        }
+        report.frameDone(fr, int(i), count, secondsSince(t0), human, extra);
+        previous = std::move(H);
+        previousFrame = fr;
+    }
+    report.finish();
+    return kOk;
+}
+
+} // namespace
+
+Command synthCommand()
+{
+    auto args = std::make_shared<SynthArgs>();
+    Command c;
+    c.name = "synth";
+    c.help = "Motion-field texture synthesis: detail motion from small exemplars, oriented along a coarse flow";
+    c.setup = [args](CLI::App* app) {
+        SynthArgs& a = *args;
+        turb::SynthSettings& s = a.settings;
+        app->add_option("--target", a.target, "Coarse motion L: a VDB cache (pattern or one file); density optional");
+        app->add_option("--scene", a.scene, "Coarse motion from a built-in scene simulated on the fly (plume, swirl, obstacle, wind)");
+        app->add_option("--scene-res", a.sceneRes, "Scene resolution WxDxH (default 32x32x48)");
+        app->add_option("--scene-seed", a.sceneSeed, "Scene emitter noise seed (default 1)");
+        app->add_option("--flow", a.flow, "Coarse motion from an analytic flow: uniform, vortex, shear (no density)")
+            ->check(CLI::IsMember({"uniform", "vortex", "shear"}));
+        app->add_option("--flow-res", a.flowRes, "Analytic flow resolution WxHxD; D = 1 is 2D (default 64x64x1)");
+        app->add_option("--flow-speed", a.flowSpeed, "Analytic flow speed, world units/s (default 1; domain 4 units wide)");
+        app->add_option("--flow-angle", a.flowAngle, "Uniform flow direction in the xy plane, degrees from +x (default 0)");
+        app->add_option("--frames", a.frames, "Cache: frames to use (default all). Scene/flow: a count N or a list (default 1)");
+        app->add_option("--slice-z", a.sliceZ, "Synthesise in 2D on coarse layer K of a 3D input")->check(CLI::NonNegativeNumber);
+        app->add_option("--factor", a.factor, "Up-res factor: output voxel = coarse voxel / factor (default 4)")->check(CLI::Range(1, 32));
+        app->add_option("--exemplar", a.exemplars,
+            "Exemplar, repeatable (one per view): circles|swirls|squares|hearts|stripes|sinusoids[:PERIOD[:SIZE]] "
+            "(default circles:16, size 64); rg:FILE.png[:SCALE] (R,G = x,y; v = (2c-1)*SCALE); gray:FILE.png[:SCALE] "
+            "(curl of intensity); vdb:FILE.vdb[:AXIS:INDEX] (a slice); vdb3:FILE.vdb (a volume)");
+        app->add_option("--exemplar-scale", a.exemplarScale, "Texture scale: features this many times larger (default 1)")
+            ->check(CLI::PositiveNumber);
+        app->add_option("--volume-crop", a.volumeCrop, "vdb3 exemplars: use the central N^3 voxels (default 32)")
+            ->check(CLI::Range(8, 128));
+        app->add_flag("--periodic", a.periodic, "Picture/VDB exemplars tile seamlessly (procedurals always do)");
+        app->add_option("--views", a.views,
+            "3D: local axis each exemplar looks along, e.g. 0,1,2 (0 = along L, plane e2-e3; 1 = plane e1-e3; 2 = plane e1-e2). "
+            "Default: one exemplar for all three views, or one per view in that order");
+        app->add_option("--view-weights", a.viewWeights, "3D: relative weight per view, e.g. 1,1,4 (one view dominates)");
+        app->add_option("--search", a.search, "Neighbourhood search: tree (default, paper) or kcoherence (section 3.7)")
+            ->check(CLI::IsMember({"tree", "kcoherence"}));
+        app->add_option("--k", s.kSimilar, "k-coherence: similar neighbourhoods per exemplar pixel (default 5)")->check(CLI::Range(1, 64));
+        app->add_option("--tree-iterations", s.treeIterationsPerLevel,
+            "k-coherence: iterations per level that still search the tree (default 1; 0 = pure k-coherence)")
+            ->check(CLI::Range(0, 100));
+        app->add_option("--levels", s.levels, "Pyramid levels (default 0 = paper: 3, or 2 for exemplars <= 16^2)")->check(CLI::Range(0, 8));
+        app->add_option("--iterations", a.iterations, "Iterations per level: LARGE,SMALL in 2D, SMALL in 3D (default 4,4; paper 3-5)");
+        app->add_option("--radius", a.radius, "Neighbourhood radii LARGE,SMALL (default 8,4 = 17^2 and 9^2)");
+        app->add_option("--spacing", s.spacing, "Distance between neighbourhood centres (default 0 = auto)")->check(CLI::Range(0, 16));
+        app->add_option("--tap-step", s.volumeTapStep, "vdb3 exemplars: a tap every N voxels over the 9^3 footprint (default 2; 1 = all 729)")
+            ->check(CLI::Range(1, 4));
+        app->add_option("--pca", s.pcaComponents, "PCA dimensions for the tree search (default 16)")->check(CLI::Range(1, 256));
+        app->add_option("--robust", s.robustExponent, "Robust exponent r of Kwatra's weights (default 0.8; 2 = least squares)")
+            ->check(CLI::Range(0.01, 2.0));
+        app->add_flag("--no-variance-match", a.noVarianceMatch, "3D: plain average of the views (paper) instead of matching their spread");
+        app->add_flag("--no-orient", a.noOrient, "Do not follow L: neighbourhoods and vectors in world axes");
+        app->add_option("--secondary", a.secondary, "3D second local axis: density (gradient; default) or a vector X,Y,Z");
+        app->add_option("--seed", s.seed, "Random seed: the same seed gives the same output (default 1)");
+        app->add_option("--continue-iterations", s.continueIterations, "Later frames: iterations from the advected detail (default 3)")
+            ->check(CLI::Range(1, 100));
+        app->add_option("--temporal-weight", s.temporalWeight, "Later frames: pull toward the advected detail (default 0.5)")
+            ->check(CLI::NonNegativeNumber);
+        app->add_option("--walls", a.walls, "Walls: x-,x+,y-,y+,z-,z+, all or none (default: a scene's closed faces, else none)");
+        app->add_option("--wall-lambda", s.boundary.lambda, "Wall term weight: normal detail shrinks by 1/(1+lambda) on the wall (default 50)")
+            ->check(CLI::NonNegativeNumber);
+        app->add_option("--wall-width", s.boundary.width, "Gaussian width of the wall term in voxels of each level (default 1.5)")
+            ->check(CLI::PositiveNumber);
+        app->add_option("--obstacle", a.obstacle, "Obstacle signed distance: FILE.vdb[:GRID] in world units (default grid 'surface')");
+        app->add_option("--omega", a.combine.omega, "Detail strength: times rms|L| (default 0.5), or velocity units with --omega-absolute")
+            ->check(CLI::NonNegativeNumber);
+        app->add_flag("--omega-absolute", a.omegaAbsolute, "--omega is in velocity units (H' has unit rms)");
+        app->add_option("--omega-mode", a.omegaMode, "Shape of omega: constant (default), energy (|L|^2), vorticity (|curl L|)")
+            ->check(CLI::IsMember({"constant", "energy", "vorticity"}));
+        app->add_flag("--project", a.project, "Make F divergence-free (Helmholtz-Hodge, OpenVDB Poisson solver); walls are closed faces");
+        app->add_option("--output", a.output, "Velocity written: combined (F, default) or detail (F - up(L))")
+            ->check(CLI::IsMember({"combined", "detail"}));
+        app->add_option("--lookback", a.lookback, "Density: frames of look-back integration m (default 12, paper 10-20; 0 = naive)")
+            ->check(CLI::Range(0, 200));
+        app->add_flag("--no-density", a.noDensity, "Write velocity only");
+        app->add_option("--out", a.out, "Output pattern (default synth/synth.####.vdb; directories are created)");
+        app->add_option("--preview", a.preview, "Write a PNG per frame into DIR: LIC of exemplar, up(L), H', F, and density");
+        app->add_option("--preview-width", a.previewWidth, "Width of each preview panel in pixels (default 256)")
+            ->check(CLI::Range(32, 4096));
+        app->add_option("--preview-view", a.previewView, "Preview slice: top, front, side (default top in 2D, front in 3D)")
+            ->check(CLI::IsMember({"top", "front", "side"}));
+        app->add_flag("--stats", a.stats, "Report texture statistics per frame: nearest-neighbour distance to each exemplar vs a shuffled field");
+        app->add_flag("--json", a.json, "One JSON line per frame and a summary on stdout");
+        addReadOptions(app, a.read);
+        addWriteOptions(app, a.write);
+    };
+    c.run = [args] { return runSynth(*args); };
+    return c;
+}
+
+} // namespace vdbturb
