@@ -229,6 +229,9 @@ Command transferCommand()
         app->add_option("--em-tolerance", s.seams.emTolerance, "Stop EM when E_b changes by less than this fraction (default 0.02)");
         app->add_option("--cg-iterations", s.seams.maxCgIterations, "CG iterations per E-step at most (default 100)")->check(CLI::Range(1, 100000));
         app->add_option("--cg-tolerance", s.seams.cgTolerance, "CG relative residual (default 1e-3)");
+        app->add_option("--coherence", s.coherence,
+               "Take a neighbour's continued source patch when it matches within this fraction of the best (default 0 = off, the paper)")
+            ->check(CLI::NonNegativeNumber);
         app->add_flag("--no-seams", a.noSeams, "Paste patches without seam smoothing (ablation)");
         app->add_flag("--no-tracking", a.noTracking, "Run the global search every frame instead of following last frame's patch (ablation)");
         app->add_flag("--keep-coarse-detail", a.keepCoarse, "Do not remove U_h's coarse part (lets lf_err grow)");

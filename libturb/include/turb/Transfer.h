@@ -49,7 +49,7 @@ enum class FlowAlignment
 };
 
 /// What the detail's energy is calibrated to, after seam smoothing and the coarse-part removal (both
-/// remove some of it). One scalar per frame, bounded to [0.5, 2].
+/// remove some of it). One scalar per frame, bounded to [1/3, 3].
 enum class DetailEnergy
 {
     None,   ///< leave U_h as the pipeline made it
@@ -76,6 +76,9 @@ struct TransferSettings
     int localStride = 2;          ///< spacing of candidate local-patch centres in the source, >= 1
     int refineCandidates = 24;    ///< local candidates re-scored with the full-resolution energy E_h, >= 1
     bool trackGlobalPatches = true; ///< the paper's temporal rule; false = global search every frame
+    float coherence = 0.0f;       ///< beyond the paper: take a neighbour's continued source patch when its E_h is
+                                  ///< within this fraction of the best (fewer seams); 0 = off
+    int coherenceSweeps = 2;      ///< red-black sweeps of the coherence pass, >= 1
     float temporalBlend = 0.9f;   ///< beyond the paper: weight of last frame's detail (advected through the target)
                                   ///< mixed into patches that had detail, in [0, 0.95]; 0 = the paper
     FlowAlignment alignment = FlowAlignment::None; ///< see FlowAlignment

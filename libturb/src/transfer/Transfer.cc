@@ -246,6 +246,18 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
         }
         const detail::MatchWeights wm = w;
         FrequencySplit split = splitFrequencies(Us, f);
+        // The source's high-frequency energy per smoke voxel, as quality.md's hf_ratio defines it (before
+        // the coarse part below is taken out): the level --detail-energy source calibrates U_h to.
+        double sourceReference = 0.0;
+        {
+            size_t n = 0;
+            for (size_t i = 0; i < split.high.size(); ++i)
+                if (Ds.data()[i] > s.densityThreshold) {
+                    sourceReference += double(split.high.data()[i].lengthSqr());
+                    ++n;
+                }
+            sourceReference = n ? sourceReference / double(n) : 0.0;
+        }
         if (s.removeCoarseDetail) {
             // U_sh still has box means where the coarse flow is sharp (trilinear up-sampling is not the
             // inverse of box averaging). Those belong to the coarse motion, which is the target's to give:
@@ -271,6 +283,7 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
             }
         }
         const float detailScale = ks / kt; // U_sh (source world units) -> output world units
+        sourceReference *= double(detailScale) * double(detailScale);
         st.seconds[0] += since(t0);
 
         // --- Previous detail advected through the target velocity (the beta term) ---------------
@@ -428,6 +441,48 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
                 chosenEnergy[p] = std::max(0.0, bestE);
             }
         });
+        // Coherence (beyond the paper, as in Ashikhmin's and k-coherence texture synthesis): a patch
+        // takes a neighbour's continuation when it matches almost as well, so neighbouring patches come
+        // from neighbouring source positions and many borders have no seam at all. Red-black sweeps keep
+        // the result independent of the thread count.
+        if (s.coherence > 0.0f) {
+            const auto patchCoord = [&](size_t p) {
+                return Coord(int(p / (size_t(layout.count.y()) * size_t(layout.count.z()))),
+                    int((p / size_t(layout.count.z())) % size_t(layout.count.y())), int(p % size_t(layout.count.z())));
+            };
+            const bool temporalAll = !advectedDetail.empty();
+            for (int sweep = 0; sweep < 2 * s.coherenceSweeps; ++sweep) {
+                const int colour = sweep % 2;
+                parallelFor(activeList.size(), 8, [&](size_t b, size_t e) {
+                    for (size_t i = b; i < e; ++i) {
+                        const size_t p = activeList[i];
+                        const Coord P = patchCoord(p);
+                        if (((P.x() + P.y() + P.z()) & 1) != colour) continue;
+                        const Coord tCorner = layout.patchBox(P).min();
+                        const bool temporal = temporalAll && tracked[p];
+                        double bestE = chosenEnergy[p];
+                        Coord bestC = chosen[p];
+                        for (int nb = 0; nb < 6; ++nb) {
+                            Coord Q = P;
+                            Q[nb / 2] += (nb % 2) ? 1 : -1;
+                            if (Q[nb / 2] < 0 || Q[nb / 2] >= layout.count[nb / 2]) continue;
+                            const size_t q = layout.patchIndex(Q);
+                            if (!active[q]) continue;
+                            // The neighbour's source patch, continued across the border.
+                            const Coord c = chosen[q] + (tCorner - layout.patchBox(Q).min());
+                            if (!corners.isInside(c) || c == bestC) continue;
+                            const double en = energy(tCorner, c, temporal);
+                            if (en <= (1.0 + s.coherence) * chosenEnergy[p] && en < bestE) {
+                                bestE = en;
+                                bestC = c;
+                            }
+                        }
+                        chosen[p] = bestC;
+                        chosenEnergy[p] = bestE;
+                    }
+                });
+            }
+        }
         double esum = 0.0;
         for (size_t p : activeList) esum += chosenEnergy[p];
         st.meanLocalEnergy = activeList.empty() ? 0.0 : esum / double(activeList.size());
@@ -453,15 +508,7 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
         });
         st.seconds[3] = since(t0);
         if (s.detailEnergy == DetailEnergy::Source) {
-            // Mean |U_sh|^2 over the source's smoke, in output units.
-            size_t n = 0;
-            double e = 0.0;
-            for (size_t i = 0; i < split.high.size(); ++i)
-                if (Ds.data()[i] > s.densityThreshold) {
-                    e += double(split.high.data()[i].lengthSqr());
-                    ++n;
-                }
-            referenceEnergy = n ? e / double(n) * double(detailScale) * double(detailScale) : 0.0;
+            referenceEnergy = sourceReference;
         } else if (s.detailEnergy == DetailEnergy::Pasted) {
             referenceEnergy = smokeEnergy(detail, outDensity, s.densityThreshold) / std::max<size_t>(1, smokeCount(outDensity, s.densityThreshold));
         }
@@ -532,7 +579,7 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
         const size_t n = smokeCount(outDensity, s.densityThreshold);
         const double now = n ? smokeEnergy(detail, outDensity, s.densityThreshold) / double(n) : 0.0;
         // Bounded: a large factor would mean the pipeline lost the detail, not something to amplify.
-        st.energyScale = now > 0.0 ? std::clamp(std::sqrt(referenceEnergy / now), 0.5, 2.0) : 1.0;
+        st.energyScale = now > 0.0 ? std::clamp(std::sqrt(referenceEnergy / now), 1.0 / 3.0, 3.0) : 1.0;
         for (auto& v : detail.values()) v *= float(st.energyScale);
     }
     Frame out;
