@@ -2,7 +2,7 @@
 # vdbturb demo, run from the repository root after the build (tools/build.sh):
 #   1. simulates the built-in `plume` at 16x16x24 (the low-res target) and `swirl` at 128x128x192 (the
 #      high-res source) over the same 4 x 4 x 6 world domain;
-#   2. runs the main job on them (see the marked block below);
+#   2. transfers the swirl's turbulence onto the plume (`vdbturb transfer`) and measures it;
 #   3. renders contact sheets (target | source | output) and prints their paths.
 #
 # Environment: VDBTURB (the binary, default build/tools/vdbturb), DEMO_OUT (default demo-out),
@@ -38,12 +38,12 @@ echo "demo: simulating plume 16x16x24 and swirl 128x128x192, $FRAMES frames each
 # to about 9 voxels a frame (6.8 units/s measured), which MacCormack with its limiter takes stably.
 "$BIN" sim swirl --res 128x128x192 --frames "$FRAMES" --seed 2 --max-substeps 1 --out "$SOURCE" --threads "$THREADS"
 
-# ---------------------------------------------------------------------------------------------------
-# MAIN JOB: insert `vdbturb transfer` here (owned by the transfer stage, not written by this script).
-# It reads "$TARGET" (low-res motion) and "$SOURCE" (high-res turbulence) and writes "$OUTPUT"; the
-# contact sheets below pick the output up automatically once "$OUT/output/" holds frames, and the
-# measurement (`vdbturb measure`) belongs here too.
-# ---------------------------------------------------------------------------------------------------
+# The main job: the swirl's turbulence transferred onto the plume's motion (seed 002), then measured.
+echo "demo: transferring the swirl's turbulence onto the plume" >&2
+"$BIN" transfer --target "$TARGET" --source "$SOURCE" --out "$OUTPUT" --threads "$THREADS"
+echo "demo: measuring the result (lf_err, hf_ratio, div_rel, block, tcoh, spectra)" >&2
+"$BIN" measure --output "$OUTPUT" --target "$TARGET" --source "$SOURCE" --plot "$OUT/plots" \
+  --threads "$THREADS" > "$OUT/measure.jsonl"
 
 # Three frames spread over the run: a third, two thirds, the last.
 F1=$((FRAMES / 3)); F2=$((2 * FRAMES / 3)); F3=$FRAMES
@@ -59,5 +59,8 @@ fi
 "$BIN" preview "$@" --mode speed,lic --frames "$F3" --width 256 --threads "$THREADS" \
   --title "vdbturb demo: speed and LIC, mid slice, frame $F3" --sheet "$OUT/sheet_velocity.png"
 
+echo "demo: results" >&2
 echo "$OUT/sheet_density.png"
 echo "$OUT/sheet_velocity.png"
+echo "$OUT/plots/metrics.png"
+echo "$OUT/measure.jsonl"

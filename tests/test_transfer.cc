@@ -4,6 +4,7 @@
 #include <turb/Error.h>
 #include <turb/Operators.h>
 #include <turb/Parallel.h>
+#include <turb/Reorient.h>
 #include <turb/Resample.h>
 #include <turb/Seams.h>
 #include <turb/Transfer.h>
@@ -375,4 +376,58 @@ TEST(SeamSmoothing, LeavesAFieldWithoutSeamsAlone)
         energy += before.data()[n].lengthSqr();
     }
     EXPECT_LT(change, 1e-8 * energy);
+}
+
+TEST(Reorient, QuarterTurnsAreExactRotations)
+{
+    // +90 degrees about z takes x to y; four turns are the identity; turns compose.
+    const AxisRotation z1 = AxisRotation::quarterTurns(2, 1);
+    EXPECT_EQ(z1.apply(Vec3f(1, 0, 0)), Vec3f(0, 1, 0));
+    EXPECT_EQ(z1.apply(Vec3f(0, 1, 0)), Vec3f(-1, 0, 0));
+    EXPECT_TRUE(AxisRotation::quarterTurns(1, 4).isIdentity());
+    EXPECT_EQ(AxisRotation::quarterTurns(0, 2).apply(Vec3f(1, 2, 3)), Vec3f(1, -2, -3));
+    // A field and its vectors turn together: the rotated field at R*c is R times the field at c.
+    VectorField u(CoordBBox({0, 1, 2}, {4, 6, 5}), Lattice{});
+    for (size_t n = 0; n < u.size(); ++n) {
+        const Coord c = u.coordOf(n);
+        u.data()[n] = Vec3f(float(c.x()), float(2 * c.y()), float(-c.z()));
+    }
+    const AxisRotation y1 = AxisRotation::quarterTurns(1, 1);
+    const VectorField r = rotated(u, y1);
+    EXPECT_EQ(r.size(), u.size());
+    for (size_t n = 0; n < u.size(); ++n) {
+        const Coord c = u.coordOf(n);
+        const Vec3f rc = y1.apply(Vec3f(float(c.x()), float(c.y()), float(c.z())));
+        const Coord d(int(rc.x()), int(rc.y()), int(rc.z()));
+        ASSERT_EQ(r[d], y1.apply(u.data()[n]));
+    }
+    // Downsampling a frame averages every grid onto the coarse lattice.
+    Frame f;
+    f.velocity = u;
+    f.density = ScalarField(u.bbox(), Lattice{}, 1.0f);
+    const Frame d = downsampleFrame(f, 2);
+    EXPECT_EQ(d.density.bbox(), coarsenBox(u.bbox(), 2));
+    EXPECT_NEAR(d.lattice().voxelSize, 2.0, 1e-12);
+}
+
+TEST_F(TransferPair, TargetWhoseBoxGrowsKeepsItsTracks)
+{
+    // Houdini's resizing containers: the target's active box changes from frame to frame on a fixed
+    // lattice. Patches are keyed on the absolute patch lattice, so tracks survive the resize.
+    Frame small = targets[0];
+    const CoordBBox inner({1, 2, 1}, {10, 11, 10});
+    small.velocity = cropped(targets[0].velocity, inner);
+    small.density = cropped(targets[0].density, inner);
+    TurbulenceTransfer transfer(TransferSettings{});
+    const TransferResult a = transfer.process(small, sources[0]);
+    EXPECT_EQ(a.frame.velocity.bbox(), refineBox(inner, kF));
+    const TransferResult b = transfer.process(targets[1], sources[1]);
+    EXPECT_EQ(b.frame.velocity.bbox(), refineBox(targets[1].velocity.bbox(), kF));
+    EXPECT_GT(b.stats.trackedPatches, a.stats.localPatches / 2);
+    EXPECT_LT(lfErr(b.frame.velocity, targets[1].velocity, targets[1].density, kF), 0.05);
+    // A changed voxel size is still an error.
+    Frame other = targets[2];
+    other.velocity.setLattice(Lattice{0.1, {0, 0, 0}});
+    other.density.setLattice(Lattice{0.1, {0, 0, 0}});
+    EXPECT_THROW(transfer.process(other, sources[2]), ValueError);
 }

@@ -25,6 +25,7 @@ Command infoCommand();
 Command simCommand();
 Command previewCommand();
 Command transferCommand();
+Command resampleCommand();
 Command measureCommand();
 Command synthCommand();
 

@@ -62,20 +62,6 @@ Field<T> rotateField(const Field<T>& f, const AxisRotation& r, Fn valueMap)
 
 } // namespace
 
-int AxisRotation::id() const
-{
-    const auto& all = allRotations();
-    for (size_t i = 0; i < all.size(); ++i)
-        if (all[i].perm == perm && all[i].sign == sign) return int(i);
-    return 0;
-}
-
-AxisRotation AxisRotation::fromId(int id)
-{
-    const auto& all = allRotations();
-    return all[size_t(std::clamp(id, 0, int(all.size()) - 1))];
-}
-
 AxisRotation bestRotation(const Vec3d& from, const Vec3d& to)
 {
     const auto& all = allRotations();
@@ -94,15 +80,81 @@ AxisRotation bestRotation(const Vec3d& from, const Vec3d& to)
     return best;
 }
 
+} // namespace turb::detail
+
+namespace turb {
+
+int AxisRotation::id() const
+{
+    const auto& all = detail::allRotations();
+    for (size_t i = 0; i < all.size(); ++i)
+        if (all[i].perm == perm && all[i].sign == sign) return int(i);
+    return 0;
+}
+
+AxisRotation AxisRotation::fromId(int id)
+{
+    const auto& all = detail::allRotations();
+    return all[size_t(std::clamp(id, 0, int(all.size()) - 1))];
+}
+
+AxisRotation AxisRotation::quarterTurns(int axis, int turns)
+{
+    // One right-handed quarter turn about `axis` maps the next axis b onto the one after it, c, and c onto -b.
+    const int b = (axis + 1) % 3, c = (axis + 2) % 3;
+    AxisRotation r;
+    const int t = ((turns % 4) + 4) % 4;
+    for (int i = 0; i < t; ++i) {
+        // new component b = -old c, new c = old b (right-handed rotation of vectors by +90 degrees)
+        AxisRotation q;
+        q.perm[size_t(axis)] = axis;
+        q.perm[size_t(b)] = c;
+        q.sign[size_t(b)] = -1;
+        q.perm[size_t(c)] = b;
+        // compose q after r: (q r)(v)_i = q.sign[i] * (r v)[q.perm[i]]
+        AxisRotation n;
+        for (int k = 0; k < 3; ++k) {
+            n.perm[size_t(k)] = r.perm[size_t(q.perm[size_t(k)])];
+            n.sign[size_t(k)] = q.sign[size_t(k)] * r.sign[size_t(q.perm[size_t(k)])];
+        }
+        r = n;
+    }
+    return r;
+}
+
 VectorField rotated(const VectorField& f, const AxisRotation& r)
 {
-    return rotateField(f, r, [&](const Vec3f& v) { return r.apply(v); });
+    return detail::rotateField(f, r, [&](const Vec3f& v) { return r.apply(v); });
 }
 
 ScalarField rotated(const ScalarField& f, const AxisRotation& r)
 {
-    return rotateField(f, r, [](float v) { return v; });
+    return detail::rotateField(f, r, [](float v) { return v; });
 }
+
+Frame reorientFrame(const Frame& f, const AxisRotation& r)
+{
+    Frame out = f;
+    if (f.hasVelocity()) out.velocity = rotated(f.velocity, r);
+    if (f.hasDensity()) out.density = rotated(f.density, r);
+    if (f.temperature) out.temperature = rotated(*f.temperature, r);
+    if (f.flame) out.flame = rotated(*f.flame, r);
+    return out;
+}
+
+Frame downsampleFrame(const Frame& f, int factor)
+{
+    Frame out = f;
+    if (f.hasVelocity()) out.velocity = boxDownsample(f.velocity, factor);
+    if (f.hasDensity()) out.density = boxDownsample(f.density, factor);
+    if (f.temperature) out.temperature = boxDownsample(*f.temperature, factor);
+    if (f.flame) out.flame = boxDownsample(*f.flame, factor);
+    return out;
+}
+
+} // namespace turb
+
+namespace turb::detail {
 
 void smokeFlowStats(const VectorField& u, const ScalarField& density, float threshold, Vec3d& mean, double& rms)
 {

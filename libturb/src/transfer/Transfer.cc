@@ -13,6 +13,7 @@
 #include <chrono>
 #include <cmath>
 #include <deque>
+#include <map>
 #include <sstream>
 
 namespace turb {
@@ -80,9 +81,12 @@ struct TurbulenceTransfer::Impl
     bool rotationChosen = false;
     detail::AxisRotation rotation;
 
-    // Carried between frames.
-    std::vector<uint8_t> tracked;   // per patch: smoke was there last frame and the track is valid
-    std::vector<Coord> match;       // per patch: source corner of the best local patch last frame
+    // Carried between frames. Patches are keyed by their position on the absolute patch lattice (fine
+    // index / B), so a target whose active box grows or moves from frame to frame (Houdini's resizing
+    // containers) keeps its tracks.
+    std::map<Coord, Coord> tracks;  // patch -> source corner of its best local patch last frame
+    std::vector<uint8_t> tracked;   // this frame's layout: the patch has a track
+    std::vector<Coord> match;       // this frame's layout: that track's source corner
     bool havePrevious = false;
     VectorField prevDetail;         // U_h(i-1), output lattice
     VectorField prevTargetVelocity; // u_t(i-1), target lattice
@@ -102,17 +106,41 @@ struct TurbulenceTransfer::Impl
     {
         ratio = f;
         targetLattice = target.velocity.lattice();
-        targetBox = target.velocity.bbox();
-        fineBox = refineBox(targetBox, f);
-        layout = PatchLayout::covering(fineBox, s.localPatch);
+        setBox(target.velocity.bbox());
         globalPatch = s.globalPatch > 0 ? s.globalPatch : 2 * ((s.localPatch + f - 1) / f) + 1;
         if (globalPatch % 2 == 0) ++globalPatch;
         if (double(globalPatch) * f <= double(s.localPatch))
             throw ValueError("global patch b = " + std::to_string(globalPatch) + " coarse voxels does not exceed the local patch (b must be > B*dX/dx = " +
                              std::to_string(double(s.localPatch) / f) + ")");
+        started = true;
+    }
+
+    // The frame's boxes and patch layout; patches sit on the absolute lattice of multiples of B.
+    void setBox(const CoordBBox& box)
+    {
+        const int B = s.localPatch;
+        targetBox = box;
+        fineBox = refineBox(targetBox, ratio);
+        const Coord lo(floorDiv(fineBox.min().x(), B) * B, floorDiv(fineBox.min().y(), B) * B,
+            floorDiv(fineBox.min().z(), B) * B);
+        layout = PatchLayout::covering(CoordBBox(lo, fineBox.max()), B);
         tracked.assign(layout.patchCount(), 0);
         match.assign(layout.patchCount(), Coord(0));
-        started = true;
+        for (const auto& [P, m] : tracks) {
+            const Coord rel = P - Coord(lo.x() / B, lo.y() / B, lo.z() / B);
+            if (rel.x() < 0 || rel.y() < 0 || rel.z() < 0 || rel.x() >= layout.count.x() || rel.y() >= layout.count.y() ||
+                rel.z() >= layout.count.z())
+                continue;
+            tracked[layout.patchIndex(rel)] = 1;
+            match[layout.patchIndex(rel)] = m;
+        }
+    }
+
+    Coord absolutePatch(size_t p) const
+    {
+        const Coord P(int(p / (size_t(layout.count.y()) * size_t(layout.count.z()))),
+            int((p / size_t(layout.count.z())) % size_t(layout.count.y())), int(p % size_t(layout.count.z())));
+        return P + Coord(layout.origin.x() / s.localPatch, layout.origin.y() / s.localPatch, layout.origin.z() / s.localPatch);
     }
 
     TransferResult process(const Frame& target, const Frame& sourceIn, Progress* progress);
@@ -151,10 +179,10 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
     requireFrame(sourceIn, "source");
     const int f = integerRatio(target.velocity.lattice().voxelSize, sourceIn.velocity.lattice().voxelSize);
     if (!started) start(target, f);
-    if (f != ratio || target.velocity.bbox() != targetBox ||
-        !target.velocity.lattice().approxEqual(targetLattice))
+    if (f != ratio || !target.velocity.lattice().approxEqual(targetLattice))
         throw ValueError("target frame " + std::to_string(target.number) +
-                         " changed resolution, domain or transform within the sequence");
+                         " changed voxel size or transform within the sequence");
+    setBox(target.velocity.bbox()); // also loads this frame's view of the patch tracks
 
     TransferResult result;
     TransferStats& st = result.stats;
@@ -171,7 +199,7 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
     // Emission estimate for density: what the target gained that advection does not explain.
     ScalarField emission(target.density.bbox(), targetLattice);
     if (havePrevious) {
-        const ScalarField carried = advect(prevTargetDensity, prevTargetVelocity, prevDt);
+        const ScalarField carried = cropped(advect(prevTargetDensity, prevTargetVelocity, prevDt), target.density.bbox());
         for (size_t n = 0; n < emission.size(); ++n)
             emission.data()[n] = std::max(0.0f, target.density.data()[n] - carried.data()[n]);
     }
@@ -187,7 +215,7 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
         if (!havePrevious) {
             outDensity = Dt;
         } else {
-            outDensity = advect(prevDensity, prevVelocity, prevDt);
+            outDensity = cropped(advect(prevDensity, prevVelocity, prevDt), fineBox);
             const ScalarField e = upsample(emission, f);
             for (size_t n = 0; n < outDensity.size(); ++n) outDensity.data()[n] += e.data()[n];
         }
@@ -197,11 +225,11 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
         if (history.empty()) {
             outDensity = Dt;
         } else {
-            outDensity = upsample(history.front().targetDensity, f);
+            outDensity = cropped(upsample(history.front().targetDensity, f), fineBox);
             for (size_t j = 0; j < history.size(); ++j) {
                 outDensity = advect(outDensity, history[j].velocity, target.dt);
                 const ScalarField& em = j + 1 < history.size() ? history[j + 1].emission : emission;
-                const ScalarField e = upsample(em, f);
+                const ScalarField e = cropped(upsample(em, f), fineBox);
                 for (size_t n = 0; n < outDensity.size(); ++n) outDensity.data()[n] += e.data()[n];
             }
         }
@@ -223,6 +251,7 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
         // Defined no-op: no smoke in the target, nothing to match. Tracks restart when smoke appears.
         result.empty = true;
         std::fill(tracked.begin(), tracked.end(), 0);
+        tracks.clear();
     } else {
         // --- Source: alignment, frequency split, masks --------------------------------------------
         VectorField Us = sourceIn.velocity;
@@ -241,8 +270,8 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
             rotationChosen = true;
         }
         if (rotate && !rotation.isIdentity()) {
-            Us = detail::rotated(Us, rotation);
-            Ds = detail::rotated(Ds, rotation);
+            Us = rotated(Us, rotation);
+            Ds = rotated(Ds, rotation);
         }
         const detail::MatchWeights wm = w;
         FrequencySplit split = splitFrequencies(Us, f);
@@ -293,7 +322,7 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
             // BFECC: with temporal blending this detail is most of the next frame's, and first-order
             // advection would blur it a little more every frame.
             a.scheme = s.temporalBlend > 0.0f ? AdvectSettings::Scheme::BFECC : AdvectSettings::Scheme::SemiLagrangian;
-            advectedDetail = advect(prevDetail, prevTargetVelocity, prevDt, a);
+            advectedDetail = cropped(advect(prevDetail, prevTargetVelocity, prevDt, a), fineBox);
         }
 
         // --- Global search (eq. 1), only where smoke newly entered a patch -------------------------
@@ -562,10 +591,9 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
         st.seconds[4] = since(t0);
 
         // Update tracks.
-        for (size_t p = 0; p < active.size(); ++p) {
-            tracked[p] = active[p];
-            if (active[p]) match[p] = chosen[p];
-        }
+        tracks.clear();
+        for (size_t p = 0; p < active.size(); ++p)
+            if (active[p]) tracks[absolutePatch(p)] = chosen[p];
     }
 
     // --- Output velocity: U = up(u_t) + U_h ---------------------------------------------------------
@@ -632,12 +660,11 @@ std::string TurbulenceTransfer::saveState() const
 {
     const Impl& m = *mImpl;
     std::ostringstream os;
-    os << "v1 f=" << m.ratio << " B=" << m.s.localPatch << " n=" << m.tracked.size()
-       << " rot=" << (m.rotationChosen ? m.rotation.id() : -1) << " tracks=";
+    os << "v2 f=" << m.ratio << " B=" << m.s.localPatch << " rot=" << (m.rotationChosen ? m.rotation.id() : -1)
+       << " tracks=";
     bool first = true;
-    for (size_t p = 0; p < m.tracked.size(); ++p) {
-        if (!m.tracked[p]) continue;
-        os << (first ? "" : ";") << p << ',' << m.match[p].x() << ',' << m.match[p].y() << ',' << m.match[p].z();
+    for (const auto& [P, c] : m.tracks) {
+        os << (first ? "" : ";") << P.x() << ',' << P.y() << ',' << P.z() << ',' << c.x() << ',' << c.y() << ',' << c.z();
         first = false;
     }
     return os.str();
@@ -650,34 +677,34 @@ void TurbulenceTransfer::restore(const std::string& state, const Frame& previous
     if (!previousOutput.hasVelocity() || !previousOutput.hasDensity())
         throw ValueError("the previous output frame has no velocity or density to resume from");
     std::istringstream is(state);
-    std::string version, fField, bField, nField, rotField, tracks;
-    is >> version >> fField >> bField >> nField >> rotField >> tracks;
-    if (version != "v1" || fField.rfind("f=", 0) != 0 || tracks.rfind("tracks=", 0) != 0)
+    std::string version, fField, bField, rotField, tracks;
+    is >> version >> fField >> bField >> rotField >> tracks;
+    if (version != "v2" || fField.rfind("f=", 0) != 0 || bField.rfind("B=", 0) != 0 || rotField.rfind("rot=", 0) != 0 ||
+        tracks.rfind("tracks=", 0) != 0)
         throw ValueError("unrecognised transfer state in the previous output: '" + state.substr(0, 60) + "'");
     const int f = std::stoi(fField.substr(2));
     const int B = std::stoi(bField.substr(2));
     if (B != m.s.localPatch)
         throw ValueError("the previous output used local patch " + std::to_string(B) + ", not " + std::to_string(m.s.localPatch));
-    m.start(previousTarget, f);
-    const size_t n = size_t(std::stoul(nField.substr(2)));
-    if (n != m.tracked.size()) throw ValueError("the previous output's patch layout does not match this target");
     const int rot = std::stoi(rotField.substr(4));
     if (rot >= 0) {
         m.rotation = detail::AxisRotation::fromId(rot);
         m.rotationChosen = true;
     }
+    m.tracks.clear();
     std::stringstream ts(tracks.substr(7));
     std::string item;
     while (std::getline(ts, item, ';')) {
         if (item.empty()) continue;
-        size_t p;
-        int x, y, z;
-        char c1, c2, c3;
+        int v[6];
+        char sep;
         std::istringstream one(item);
-        if (!(one >> p >> c1 >> x >> c2 >> y >> c3 >> z) || p >= n) throw ValueError("damaged transfer state entry '" + item + "'");
-        m.tracked[p] = 1;
-        m.match[p] = Coord(x, y, z);
+        bool ok = bool(one >> v[0]);
+        for (int k = 1; k < 6 && ok; ++k) ok = bool(one >> sep >> v[k]) && sep == ',';
+        if (!ok) throw ValueError("damaged transfer state entry '" + item + "'");
+        m.tracks[Coord(v[0], v[1], v[2])] = Coord(v[3], v[4], v[5]);
     }
+    m.start(previousTarget, f);
     const VectorField velocity = cropped(previousOutput.velocity, m.fineBox);
     const VectorField Ut = upsample(previousTarget.velocity, f);
     m.prevDetail = VectorField(m.fineBox, m.targetLattice.refined(f));
