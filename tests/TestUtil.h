@@ -1,12 +1,13 @@
 // Shared helpers for the test suites: temporary directories, the shared data folder, small VDB writers.
 #pragma once
 
-#include <turb/Field.h>
+#include <turb/Frame.h>
 
 #include <gtest/gtest.h>
 
 #include <cstdlib>
 #include <filesystem>
+#include <functional>
 #include <string>
 
 namespace testutil {
@@ -42,6 +43,24 @@ inline size_t countEntries(const std::string& dir)
     size_t n = 0;
     for ([[maybe_unused]] const auto& e : std::filesystem::directory_iterator(dir)) ++n;
     return n;
+}
+
+/// A frame with velocity vel(world position) and density den(voxel) over `box`.
+inline turb::Frame makeFrame(int number, const turb::CoordBBox& box, const turb::Lattice& lat,
+    const std::function<turb::Vec3f(const turb::Vec3d&)>& vel, const std::function<float(const turb::Coord&)>& den,
+    double dt = 0.1)
+{
+    turb::Frame f;
+    f.number = number;
+    f.dt = dt;
+    f.velocity = turb::VectorField(box, lat);
+    f.density = turb::ScalarField(box, lat);
+    for (size_t n = 0; n < f.velocity.size(); ++n) {
+        const turb::Coord c = f.velocity.coordOf(n);
+        f.velocity.data()[n] = vel(lat.indexToWorld(c.asVec3d()));
+        f.density.data()[n] = den(c);
+    }
+    return f;
 }
 
 } // namespace testutil

@@ -23,20 +23,7 @@ namespace {
 using VelFn = std::function<Vec3f(const Vec3d& world)>;
 using DenFn = std::function<float(const Coord& ijk)>;
 
-Frame makeFrame(int number, const CoordBBox& box, const Lattice& lat, const VelFn& vel, const DenFn& den, double dt = 0.1)
-{
-    Frame f;
-    f.number = number;
-    f.dt = dt;
-    f.velocity = VectorField(box, lat);
-    f.density = ScalarField(box, lat);
-    for (size_t n = 0; n < f.velocity.size(); ++n) {
-        const Coord c = f.velocity.coordOf(n);
-        f.velocity.data()[n] = vel(lat.indexToWorld(c.asVec3d()));
-        f.density.data()[n] = den(c);
-    }
-    return f;
-}
+using testutil::makeFrame;
 
 // A frame on the target's refined lattice holding up_f(target) (+ optional detail per fine voxel).
 Frame upFrame(const Frame& target, int f, const std::function<Vec3f(const Coord&)>& detail = {})

@@ -47,20 +47,11 @@ struct Modes
     }
 };
 
+// Density given as a function of world position, as the analytic fields here are.
 Frame makeFrame(const CoordBBox& box, const Lattice& lat, const std::function<Vec3f(const Vec3d&)>& vel,
     const std::function<float(const Vec3d&)>& dens, int number, double dt)
 {
-    Frame f;
-    f.number = number;
-    f.dt = dt;
-    f.velocity = VectorField(box, lat);
-    f.density = ScalarField(box, lat);
-    for (size_t n = 0; n < f.velocity.size(); ++n) {
-        const Vec3d x = lat.indexToWorld(f.velocity.coordOf(n).asVec3d());
-        f.velocity.data()[n] = vel(x);
-        f.density.data()[n] = dens(x);
-    }
-    return f;
+    return testutil::makeFrame(number, box, lat, vel, [&](const Coord& c) { return dens(lat.indexToWorld(c.asVec3d())); }, dt);
 }
 
 double hfEnergy(const VectorField& u, const ScalarField& smoke, int f)

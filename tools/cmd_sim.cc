@@ -29,6 +29,7 @@ struct SimArgs
     std::uint64_t seed = 1;
     std::string out;
     std::string scheme = "maccormack";
+    std::string preconditioner = "ic";
     double tolerance = 0.0;
     double cfl = 0.0;
     int maxSubsteps = 0;
@@ -77,6 +78,7 @@ int runSim(const SimArgs& a)
     using Scheme = turb::AdvectSettings::Scheme;
     const Scheme scheme = a.scheme == "semi" ? Scheme::SemiLagrangian : a.scheme == "bfecc" ? Scheme::BFECC : Scheme::MacCormack;
     s.densityScheme = s.velocityScheme = scheme;
+    s.pressureIncompleteCholesky = a.preconditioner != "jacobi";
     if (a.tolerance > 0.0) s.pressureTolerance = a.tolerance;
     if (a.cfl > 0.0) s.cfl = a.cfl;
     if (a.maxSubsteps > 0) s.maxSubsteps = a.maxSubsteps;
@@ -185,6 +187,10 @@ Command simCommand()
             ->check(CLI::IsMember({"semi", "maccormack", "bfecc"}));
         app->add_option("--tolerance", a.tolerance, "Pressure solve: max|div| after / before (default 5e-5)")
             ->check(CLI::Range(1e-12, 0.5));
+        app->add_option("--preconditioner", a.preconditioner,
+               "Pressure solve preconditioner: ic (incomplete Cholesky, default: fewest iterations, one thread) "
+               "or jacobi (more iterations, all threads)")
+            ->check(CLI::IsMember({"ic", "jacobi"}));
         app->add_option("--cfl", a.cfl, "Voxels the fastest flow may cross per substep (default 5)")->check(CLI::PositiveNumber);
         app->add_option("--max-substeps", a.maxSubsteps, "Substeps per frame at most (default 4)")->check(CLI::Range(1, 64));
         app->add_flag("--json", a.json, "One JSON line per frame and a summary on stdout");

@@ -28,6 +28,7 @@ struct TransferArgs
     bool noSeams = false, noTracking = false, keepCoarse = false, resume = false, json = false;
     bool keepTargetDivergence = false;
     std::string energy = "source";
+    int extendVelocity = 4;
     turbio::ReadOptions targetRead, sourceRead;
     turbio::WriteOptions write;
     turb::TransferSettings settings;
@@ -69,6 +70,9 @@ int runTransfer(TransferArgs& a)
     s.alignment = parseAlign(a.align);
     s.densityMode = a.density == "lookback" ? turb::DensityMode::LookBack : turb::DensityMode::Advect;
 
+    // Only the source: its detail is what the extension cleans up. The target's velocity stays as stored,
+    // since the output must keep the target's coarse motion exactly as the file has it.
+    a.sourceRead.extendVelocity = a.extendVelocity;
     const turbio::Sequence target = turbio::resolveSequence(a.target, a.frames);
     const turbio::Sequence source = turbio::resolveSequence(a.source, a.sourceFrames);
     const turbio::FramePattern outPattern = turbio::FramePattern::parse(a.out);
@@ -249,6 +253,10 @@ Command transferCommand()
         app->add_option("--density", a.density, "Output density: advect (default) or lookback (seed 003 supplement)")
             ->check(CLI::IsMember({"advect", "lookback"}));
         app->add_option("--lookback", s.lookBackFrames, "m for --density lookback (default 12)")->check(CLI::Range(1, 100));
+        app->add_option("--extend-velocity", a.extendVelocity,
+               "Continue the source's velocity this many voxels past its active region (Blender clips velocity to the "
+               "smoke; the zeros beyond would read as turbulence at the smoke's edge). Default 4; 0 = off")
+            ->check(CLI::Range(0, 64));
         app->add_flag("--resume", a.resume, "Skip frames already written and continue from the state saved in the last one");
         app->add_flag("--json", a.json, "One JSON line per frame and a summary on stdout");
         addReadOptions(app, a.targetRead, "target");

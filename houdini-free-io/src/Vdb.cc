@@ -17,6 +17,7 @@
 #include <cstring>
 #include <fcntl.h>
 #include <fstream>
+#include <functional>
 #include <mutex>
 #include <sstream>
 #include <sys/stat.h>
@@ -294,6 +295,55 @@ void staggeredToCentred(const openvdb::Vec3SGrid& mac, turb::VectorField& out)
     }
 }
 
+using CoordBBoxCallback = std::function<void(const openvdb::CoordBBox&)>;
+
+// Calls `cb` with the box of every active voxel or tile of a float or vector grid.
+void forEachActiveBox(const openvdb::GridBase& g, const CoordBBoxCallback& cb)
+{
+    if (const auto* v = dynamic_cast<const openvdb::Vec3SGrid*>(&g))
+        for (auto it = v->cbeginValueOn(); it; ++it) cb(it.getBoundingBox());
+    else if (const auto* f = dynamic_cast<const openvdb::FloatGrid*>(&g))
+        for (auto it = f->cbeginValueOn(); it; ++it) cb(it.getBoundingBox());
+}
+
+// Fills unknown voxels within `layers` 6-neighbour steps of known ones with the mean of their known (or
+// already filled) neighbours, one layer at a time, so values continue smoothly past a clipped region.
+void extendIntoUnknown(turb::VectorField& f, std::vector<uint8_t>& known, int layers)
+{
+    const turb::CoordBBox b = f.bbox();
+    std::vector<size_t> front;
+    std::vector<turb::Vec3f> values;
+    for (int layer = 0; layer < layers; ++layer) {
+        front.clear();
+        values.clear();
+        for (size_t n = 0; n < f.size(); ++n) {
+            if (known[n]) continue;
+            const turb::Coord c = f.coordOf(n);
+            turb::Vec3f sum(0.0f);
+            int cnt = 0;
+            for (int a = 0; a < 3; ++a)
+                for (int d : {-1, 1}) {
+                    turb::Coord q = c;
+                    q[a] += d;
+                    if (!b.isInside(q)) continue;
+                    const size_t m = f.offset(q.x(), q.y(), q.z());
+                    if (!known[m]) continue;
+                    sum += f.data()[m];
+                    ++cnt;
+                }
+            if (cnt) {
+                front.push_back(n);
+                values.push_back(sum / float(cnt));
+            }
+        }
+        if (front.empty()) break;
+        for (size_t i = 0; i < front.size(); ++i) {
+            f.data()[front[i]] = values[i];
+            known[front[i]] = 1;
+        }
+    }
+}
+
 template<typename T>
 void requireFinite(const std::string& path, const std::string& grid, const turb::Field<T>& f)
 {
@@ -524,6 +574,23 @@ static turb::Frame readFrameUnchecked(const std::string& path, int frameNumber, 
             for (auto& v : frame.velocity.values()) v *= s;
         }
         if (options.checkFinite) requireFinite(path, velLabel, frame.velocity);
+        if (options.extendVelocity > 0) {
+            // Known = active in the file. Blender (and sparse Houdini vel) store velocity only near the
+            // smoke; the zeros beyond are "unknown", and would read as a velocity jump at the smoke's edge.
+            std::vector<uint8_t> known(frame.velocity.size(), 0);
+            const auto mark = [&](const openvdb::GridBase& g) {
+                const CoordBBoxCallback cb = [&](const openvdb::CoordBBox& b) {
+                    openvdb::CoordBBox c = b;
+                    c.intersect(domain);
+                    for (auto it = c.begin(); it; ++it) known[frame.velocity.offset((*it).x(), (*it).y(), (*it).z())] = 1;
+                };
+                forEachActiveBox(g, cb);
+            };
+            if (vel) mark(*vel);
+            else
+                for (const auto& c : comp) mark(*c);
+            extendIntoUnknown(frame.velocity, known, options.extendVelocity);
+        }
         frame.metadata["vdbturb_input_velocity_units"] = cells ? "cells" : "world";
     }
     const auto extra = [&](const openvdb::FloatGrid::Ptr& g, std::optional<turb::ScalarField>& dst) {

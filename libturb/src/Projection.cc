@@ -6,7 +6,8 @@
 #include <turb/Parallel.h>
 
 #include <openvdb/openvdb.h>
-#include <openvdb/tools/Dense.h>
+#include <openvdb/math/ConjGradient.h>
+#include <openvdb/tools/Morphology.h>
 #include <openvdb/tools/PoissonSolver.h>
 #include <openvdb/tree/LeafManager.h>
 #include <openvdb/util/NullInterrupter.h>
@@ -14,6 +15,8 @@
 #include <algorithm>
 #include <cmath>
 #include <sstream>
+#include <type_traits>
+#include <vector>
 
 namespace turb {
 
@@ -73,28 +76,39 @@ struct DivStats
 
 DivStats divStats(const DoubleField& d, const FluidTest& fluid)
 {
-    const size_t n = d.size();
-    const size_t grain = 4096;
+    // One pass over fixed chunks, combined in chunk order: the same sums at any thread count.
+    struct Part
+    {
+        double count = 0, sum = 0, sq = 0, max = 0;
+    };
+    const size_t n = d.size(), grain = 1 << 14;
+    std::vector<Part> parts((n + grain - 1) / grain);
+    parallelFor(parts.size(), 1, [&](size_t c0, size_t c1) {
+        for (size_t c = c0; c < c1; ++c) {
+            Part pt;
+            for (size_t q = c * grain, e = std::min(n, q + grain); q < e; ++q) {
+                const double v = d.data()[q];
+                pt.max = std::max(pt.max, std::abs(v));
+                if (!fluid(d.coordOf(q))) continue;
+                pt.count += 1.0;
+                pt.sum += v;
+                pt.sq += v * v;
+            }
+            parts[c] = pt;
+        }
+    });
     DivStats s;
-    s.count = size_t(parallelSum(n, grain, [&](size_t b, size_t e) {
-        double c = 0;
-        for (size_t q = b; q < e; ++q) c += fluid(d.coordOf(q)) ? 1.0 : 0.0;
-        return c;
-    }));
+    double count = 0, sum = 0, sq = 0;
+    for (const Part& pt : parts) {
+        count += pt.count;
+        sum += pt.sum;
+        sq += pt.sq;
+        s.max = std::max(s.max, pt.max);
+    }
+    s.count = size_t(count);
     if (s.count == 0) return s;
-    const double sum = parallelSum(n, grain, [&](size_t b, size_t e) {
-        double a = 0;
-        for (size_t q = b; q < e; ++q) a += d.data()[q];
-        return a;
-    });
-    const double sq = parallelSum(n, grain, [&](size_t b, size_t e) {
-        double a = 0;
-        for (size_t q = b; q < e; ++q) a += d.data()[q] * d.data()[q];
-        return a;
-    });
-    for (size_t q = 0; q < n; ++q) s.max = std::max(s.max, std::abs(d.data()[q]));
-    s.mean = sum / double(s.count);
-    s.rms = std::sqrt(sq / double(s.count));
+    s.mean = sum / count;
+    s.rms = std::sqrt(sq / count);
     return s;
 }
 
@@ -198,6 +212,194 @@ ScalarField macDivergence(const VectorField& mac, const MaskField* solid)
     return out;
 }
 
+// ---- MacProjector
+
+struct MacProjector::Impl
+{
+    using Matrix = openvdb::tools::poisson::LaplacianMatrix;
+    using Vector = openvdb::math::pcg::Vector<double>;
+
+    CoordBBox cells;
+    ProjectionSettings settings;
+    MaskField solid; // empty: no solid cell
+
+    // Built on the first solve (build()): the matrix row of each cell (dense offset over `cells`; -1 for
+    // solid cells), the negated Laplacian (positive definite, as OpenVDB's solver negates it) and its
+    // preconditioner.
+    std::vector<std::int32_t> row;
+    Matrix::Ptr matrix;
+    openvdb::math::pcg::Preconditioner<double>::Ptr preconditioner;
+
+    FluidTest fluid() const { return FluidTest{cells, solid.empty() ? nullptr : &solid}; }
+
+    size_t offset(const Coord& c) const
+    {
+        const Coord d = cells.dim();
+        return (size_t(c.x() - cells.min().x()) * size_t(d.y()) + size_t(c.y() - cells.min().y())) * size_t(d.z()) +
+               size_t(c.z() - cells.min().z());
+    }
+
+    /// The same steps as tools::poisson::solveWithBoundaryConditionsAndPreconditioner (index tree, interior
+    /// mask, staggered Laplacian with the boundary op, preconditioner with its Jacobi fallback), kept
+    /// instead of rebuilt on every solve.
+    void build()
+    {
+        using BoolTree = openvdb::BoolTree;
+        BoolTree domain(false);
+        domain.denseFill(cells, true, /*active=*/true);
+        if (!solid.empty())
+            for (size_t q = 0; q < solid.size(); ++q)
+                if (solid.data()[q]) domain.setValueOff(solid.coordOf(q), false);
+        const auto index = openvdb::tools::poisson::createIndexTree(domain);
+        BoolTree interior(*index, /*background=*/false, openvdb::TopologyCopy());
+        openvdb::tools::erodeActiveValues(interior, 1, openvdb::tools::NN_FACE, openvdb::tools::IGNORE_TILES);
+        const auto rows = openvdb::math::pcg::SizeType(index->activeVoxelCount());
+        Vector source(rows, 0.0); // BoundaryOp leaves the source alone: the matrix depends on the domain only
+        const BoundaryOp boundary{cells, settings.faces};
+        matrix = openvdb::tools::poisson::createISLaplacianWithBoundaryConditions(
+            *index, interior, boundary, source, /*staggered=*/true);
+        matrix->scale(-1.0);
+        if (settings.incompleteCholesky)
+            preconditioner.reset(new openvdb::math::pcg::IncompleteCholeskyPreconditioner<Matrix>(*matrix));
+        // Incomplete Cholesky breaks down on the singular all-Neumann Laplacian: fall back to Jacobi, as
+        // OpenVDB's solver does.
+        if (!preconditioner || !preconditioner->isValid())
+            preconditioner.reset(new openvdb::math::pcg::JacobiPreconditioner<Matrix>(*matrix));
+
+        row.assign(size_t(cells.volume()), -1);
+        openvdb::tree::LeafManager<const std::remove_reference_t<decltype(*index)>> leaves(*index);
+        leaves.foreach([&](const auto& leaf, size_t) {
+            for (auto it = leaf.cbeginValueOn(); it; ++it) row[offset(it.getCoord())] = std::int32_t(*it);
+        });
+    }
+};
+
+MacProjector::MacProjector(const CoordBBox& cells, const ProjectionSettings& s, const MaskField* solid)
+    : mImpl(std::make_unique<Impl>())
+{
+    if (cells.empty()) throw ValueError("projection: the cell box " + boxText(cells) + " is empty");
+    if (solid && solid->bbox() != cells)
+        throw ValueError("projection: solid mask box " + boxText(solid->bbox()) + " differs from the cell box " +
+                         boxText(cells));
+    if (!(s.tolerance > 0.0 && s.tolerance < 1.0)) throw ValueError("projection: tolerance must lie in (0, 1)");
+    if (s.maxIterations < 1) throw ValueError("projection: maxIterations must be >= 1");
+    mImpl->cells = cells;
+    mImpl->settings = s;
+    if (solid && std::any_of(solid->values().begin(), solid->values().end(), [](std::uint8_t v) { return v != 0; }))
+        mImpl->solid = *solid;
+}
+
+MacProjector::MacProjector(const MacProjector& other) : mImpl(std::make_unique<Impl>())
+{
+    mImpl->cells = other.mImpl->cells;
+    mImpl->settings = other.mImpl->settings;
+    mImpl->solid = other.mImpl->solid;
+}
+
+MacProjector& MacProjector::operator=(const MacProjector& other)
+{
+    if (this != &other) *this = MacProjector(other);
+    return *this;
+}
+
+MacProjector::MacProjector(MacProjector&&) noexcept = default;
+MacProjector& MacProjector::operator=(MacProjector&&) noexcept = default;
+MacProjector::~MacProjector() = default;
+
+const CoordBBox& MacProjector::cells() const { return mImpl->cells; }
+const ProjectionSettings& MacProjector::settings() const { return mImpl->settings; }
+
+ProjectionResult MacProjector::project(VectorField& mac, ScalarField* pressure, Progress* progress)
+{
+    Impl& m = *mImpl;
+    const CoordBBox& cells = m.cells;
+    const ProjectionSettings& s = m.settings;
+    if (mac.empty() || mac.bbox() != macBox(cells))
+        throw ValueError("projection: velocity box " + boxText(mac.bbox()) + " is not the MAC box of the cells " +
+                         boxText(cells));
+    const bool warm = pressure && !pressure->empty();
+    if (warm && pressure->bbox() != cells)
+        throw ValueError("projection: pressure box " + boxText(pressure->bbox()) + " differs from the cell box");
+    checkCancelled(progress);
+    openvdb::initialize();
+
+    const double h = mac.lattice().voxelSize;
+    const FluidTest fluid = m.fluid();
+    ProjectionResult result;
+
+    DoubleField d = voxelDivergence(mac, fluid);
+    const DivStats before = divStats(d, fluid);
+    result.divMaxBefore = before.max / h;
+    result.divRmsBefore = before.rms / h;
+    if (before.count == 0 || before.max == 0.0) {
+        // Nothing to remove: p = 0 is a solution.
+        result.converged = true;
+        result.divMaxAfter = result.divMaxBefore;
+        result.divRmsAfter = result.divRmsBefore;
+        if (pressure) *pressure = ScalarField(cells, mac.lattice());
+        return result;
+    }
+
+    // With no open face the Laplacian is singular (pressure is defined up to a constant). The system
+    // is consistent when the right-hand side sums to zero, which still walls guarantee up to round-off:
+    // remove that round-off mean and let CG find one of the solutions. (Pinning one cell instead makes
+    // the matrix regular but so ill-conditioned that OpenVDB's CG stops on its divergence guard.)
+    const bool anyOpen = std::any_of(s.faces.begin(), s.faces.end(), [](Boundary b) { return b == Boundary::Open; });
+    const double mean = anyOpen ? 0.0 : before.mean;
+
+    if (!m.matrix) m.build();
+    const size_t n = d.size(), grain = 1 << 14;
+    // Right-hand side: minus the voxel-unit divergence, because the matrix is the negated index-space
+    // 7-point Laplacian (no h^2 factor anywhere). Initial guess: the previous pressure (warm start).
+    Impl::Vector b(m.matrix->numRows(), 0.0), x(m.matrix->numRows(), 0.0);
+    parallelFor(n, grain, [&](size_t q0, size_t q1) {
+        for (size_t q = q0; q < q1; ++q) {
+            const std::int32_t r = m.row[q];
+            if (r < 0) continue;
+            b[r] = -(d.data()[q] - mean);
+            if (warm) x[r] = double(pressure->data()[q]);
+        }
+    });
+
+    openvdb::math::pcg::State state = openvdb::math::pcg::terminationDefaults<double>();
+    state.iterations = s.maxIterations;
+    // Stop when max|residual| <= tolerance * max|div before|, also when warm-started. The solver tests
+    // its residual against absoluteError and against relativeError * max|b|: both say the same.
+    state.absoluteError = s.tolerance * before.max;
+    const double bMax = b.infNorm();
+    state.relativeError = bMax > 0.0 ? state.absoluteError / bMax : s.tolerance;
+    Interrupter interrupter;
+    interrupter.progress = progress;
+    try {
+        state = openvdb::math::pcg::solve(*m.matrix, b, x, *m.preconditioner, interrupter, state);
+    } catch (const openvdb::RuntimeError&) {
+        checkCancelled(progress);
+        throw;
+    }
+    checkCancelled(progress);
+    result.iterations = state.iterations;
+    result.converged = state.success;
+    result.relativeResidual = state.absoluteError / before.max;
+
+    DoubleField p(cells, mac.lattice());
+    parallelFor(n, grain, [&](size_t q0, size_t q1) {
+        for (size_t q = q0; q < q1; ++q)
+            if (m.row[q] >= 0) p.data()[q] = x[m.row[q]];
+    });
+    subtractGradient(mac, p, fluid, s.faces);
+
+    const DivStats after = divStats(voxelDivergence(mac, fluid), fluid);
+    result.divMaxAfter = after.max / h;
+    result.divRmsAfter = after.rms / h;
+    if (pressure) {
+        *pressure = ScalarField(cells, mac.lattice());
+        parallelFor(n, grain, [&](size_t q0, size_t q1) {
+            for (size_t q = q0; q < q1; ++q) pressure->data()[q] = float(p.data()[q]);
+        });
+    }
+    return result;
+}
+
 ProjectionResult projectMac(VectorField& mac, const ProjectionSettings& s, const MaskField* solid,
     ScalarField* pressure, Progress* progress)
 {
@@ -209,104 +411,10 @@ ProjectionResult projectMac(VectorField& mac, const ProjectionSettings& s, const
                          boxText(cells));
     if (!(s.tolerance > 0.0 && s.tolerance < 1.0)) throw ValueError("projectMac: tolerance must lie in (0, 1)");
     if (s.maxIterations < 1) throw ValueError("projectMac: maxIterations must be >= 1");
-    const bool warm = pressure && !pressure->empty();
-    if (warm && pressure->bbox() != cells)
+    if (pressure && !pressure->empty() && pressure->bbox() != cells)
         throw ValueError("projectMac: pressure box " + boxText(pressure->bbox()) + " differs from the cell box");
-    checkCancelled(progress);
-    openvdb::initialize();
-
-    const double h = mac.lattice().voxelSize;
-    const FluidTest fluid{cells, solid};
-    ProjectionResult result;
-
-    DoubleField d = voxelDivergence(mac, fluid);
-    const DivStats before = divStats(d, fluid);
-    result.divMaxBefore = before.max / h;
-    result.divRmsBefore = before.rms / h;
-
-    DoubleField p(cells, mac.lattice());
-    if (before.count == 0) {
-        result.converged = true;
-        if (pressure) *pressure = ScalarField(cells, mac.lattice());
-        return result;
-    }
-    if (warm) {
-        // Start from the previous step's pressure: remove its gradient, then solve for the correction.
-        for (size_t q = 0; q < p.size(); ++q) p.data()[q] = double(pressure->data()[q]);
-        subtractGradient(mac, p, fluid, s.faces);
-        d = voxelDivergence(mac, fluid);
-    }
-    const DivStats start = warm ? divStats(d, fluid) : before;
-
-    // With no open face the Laplacian is singular (pressure is defined up to a constant). The system
-    // is consistent when the right-hand side sums to zero, which still walls guarantee up to round-off:
-    // remove that round-off mean and let CG find one of the solutions. (Pinning one cell instead makes
-    // the matrix regular but so ill-conditioned that OpenVDB's CG stops on its divergence guard.)
-    BoundaryOp boundary{cells, s.faces};
-    const bool anyOpen = std::any_of(s.faces.begin(), s.faces.end(), [](Boundary b) { return b == Boundary::Open; });
-    if (!anyOpen)
-        for (size_t q = 0; q < d.size(); ++q)
-            if (fluid(d.coordOf(q))) d.data()[q] -= start.mean;
-
-    result.converged = true;
-    result.relativeResidual = start.max / before.max;
-    if (start.max > s.tolerance * before.max) {
-        // Right-hand side: the voxel-unit divergence on the active (fluid) voxels. The solver's
-        // Laplacian is the index-space 7-point stencil, so no h^2 factor appears anywhere.
-        openvdb::DoubleTree rhs(0.0);
-        rhs.denseFill(cells, 0.0, /*active=*/true);
-        if (solid)
-            for (size_t q = 0; q < solid->size(); ++q)
-                if (solid->data()[q]) rhs.setValueOff(solid->coordOf(q), 0.0);
-        {
-            openvdb::tree::LeafManager<openvdb::DoubleTree> leaves(rhs);
-            leaves.foreach([&](openvdb::DoubleTree::LeafNodeType& leaf, size_t) {
-                for (auto it = leaf.beginValueOn(); it; ++it) it.setValue(d[it.getCoord()]);
-            });
-        }
-
-        openvdb::math::pcg::State state = openvdb::math::pcg::terminationDefaults<double>();
-        state.iterations = s.maxIterations;
-        // Tolerance relative to the input's divergence, also when warm-started from a smaller residual.
-        state.absoluteError = s.tolerance * before.max;
-        state.relativeError = s.tolerance * before.max / start.max;
-        Interrupter interrupter;
-        interrupter.progress = progress;
-        openvdb::DoubleTree::Ptr solution;
-        try {
-            if (s.incompleteCholesky) {
-                using Pre = openvdb::math::pcg::IncompleteCholeskyPreconditioner<openvdb::tools::poisson::LaplacianMatrix>;
-                solution = openvdb::tools::poisson::solveWithBoundaryConditionsAndPreconditioner<Pre>(
-                    rhs, boundary, state, interrupter, /*staggered=*/true);
-            } else {
-                using Pre = openvdb::math::pcg::JacobiPreconditioner<openvdb::tools::poisson::LaplacianMatrix>;
-                solution = openvdb::tools::poisson::solveWithBoundaryConditionsAndPreconditioner<Pre>(
-                    rhs, boundary, state, interrupter, /*staggered=*/true);
-            }
-        } catch (const openvdb::RuntimeError&) {
-            checkCancelled(progress);
-            throw;
-        }
-        checkCancelled(progress);
-        result.iterations = state.iterations;
-        result.converged = state.success;
-        result.relativeResidual = state.absoluteError / before.max;
-
-        DoubleField dp(cells, mac.lattice());
-        openvdb::tools::Dense<double, openvdb::tools::LayoutZYX> dense(cells, dp.data());
-        openvdb::tools::copyToDense(*solution, dense);
-        subtractGradient(mac, dp, fluid, s.faces);
-        for (size_t q = 0; q < p.size(); ++q) p.data()[q] += dp.data()[q];
-    }
-
-    const DivStats after = divStats(voxelDivergence(mac, fluid), fluid);
-    result.divMaxAfter = after.max / h;
-    result.divRmsAfter = after.rms / h;
-    if (pressure) {
-        *pressure = ScalarField(cells, mac.lattice());
-        for (size_t q = 0; q < p.size(); ++q) pressure->data()[q] = float(p.data()[q]);
-    }
-    return result;
+    MacProjector projector(cells, s, solid);
+    return projector.project(mac, pressure, progress);
 }
 
 ProjectionResult project(VectorField& centred, const ProjectionSettings& s, const MaskField* solid, Progress* progress)

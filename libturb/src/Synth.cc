@@ -302,15 +302,8 @@ public:
             for (int i = b.min().x(); i <= b.max().x(); ++i)
                 for (int j = b.min().y(); j <= b.max().y(); ++j)
                     for (int k = b.min().z(); k <= b.max().z(); ++k) {
-                        Vec3f g;
-                        const int c[3] = {i, j, k};
-                        for (int a = 0; a < 3; ++a) {
-                            int lo[3] = {i, j, k}, hi[3] = {i, j, k};
-                            lo[a] = std::max(c[a] - 1, b.min()[a]);
-                            hi[a] = std::min(c[a] + 1, b.max()[a]);
-                            const int span = hi[a] - lo[a];
-                            g[a] = span ? (rho(hi[0], hi[1], hi[2]) - rho(lo[0], lo[1], lo[2])) / float(span) : 0.0f;
-                        }
+                        const Vec3f g(centralDifferenceAt(rho, i, j, k, 0), centralDifferenceAt(rho, i, j, k, 1),
+                            centralDifferenceAt(rho, i, j, k, 2));
                         mGrad(i, j, k) = g;
                         gmax = std::max(gmax, g.length());
                     }

@@ -48,6 +48,8 @@ struct ReadOptions
     double fps = 24.0;            ///< frames per second used for writer defaults of dt (Houdini, Blender)
     bool checkFinite = true;      ///< NaN/Inf voxels are an error naming the grid
     double maxVoxels = 5.0e8;     ///< largest dense domain accepted (velocity needs 12 bytes a voxel)
+    int extendVelocity = 0;       ///< continue velocity this many voxels past the grid's active region (caches
+                                  ///< that clip velocity to the smoke, as Blender's do); 0 = inactive reads as zero
 };
 
 /// The aliases of a role, in priority order.

@@ -7,6 +7,7 @@
 
 #include <turb/Field.h>
 
+#include <algorithm>
 #include <cmath>
 
 namespace turb {
@@ -51,20 +52,25 @@ struct Jacobian
     float frobeniusSq() const { return d[0].lengthSqr() + d[1].lengthSqr() + d[2].lengthSqr(); }
 };
 
-/// Central differences (one-sided on the box faces).
+/// (f(c + e_a) - f(c - e_a)) / 2 in index units, one-sided on the box faces (0 on a one-voxel axis).
+template<typename T>
+inline T centralDifferenceAt(const Field<T>& f, int i, int j, int k, int axis)
+{
+    const CoordBBox& b = f.bbox();
+    const int c[3] = {i, j, k};
+    int lo[3] = {i, j, k}, hi[3] = {i, j, k};
+    lo[axis] = std::max(c[axis] - 1, b.min()[axis]);
+    hi[axis] = std::min(c[axis] + 1, b.max()[axis]);
+    const int span = hi[axis] - lo[axis];
+    return span > 0 ? (f(hi[0], hi[1], hi[2]) - f(lo[0], lo[1], lo[2])) * (1.0f / float(span)) : Field<T>::zeroValue();
+}
+
+/// Central differences (one-sided on the box faces), in world units.
 inline Jacobian jacobianAt(const VectorField& u, int i, int j, int k)
 {
     Jacobian J;
-    const CoordBBox& b = u.bbox();
-    const int c[3] = {i, j, k};
-    for (int a = 0; a < 3; ++a) {
-        int lo[3] = {i, j, k}, hi[3] = {i, j, k};
-        lo[a] = std::max(c[a] - 1, b.min()[a]);
-        hi[a] = std::min(c[a] + 1, b.max()[a]);
-        const int span = hi[a] - lo[a];
-        J.d[a] = span > 0 ? (u(hi[0], hi[1], hi[2]) - u(lo[0], lo[1], lo[2])) * float(1.0 / (span * u.lattice().voxelSize))
-                          : Vec3f(0.0f);
-    }
+    const float inv = float(1.0 / u.lattice().voxelSize);
+    for (int a = 0; a < 3; ++a) J.d[a] = centralDifferenceAt(u, i, j, k, a) * inv;
     return J;
 }
 

@@ -31,6 +31,7 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
 
 namespace turb {
 
@@ -89,11 +90,47 @@ VectorField centredToMac(const VectorField& centred, const ProjectionSettings& s
 /// The MAC (solver's) divergence per cell in 1/time; 0 in solid cells. Covers cellBox(mac.bbox()).
 ScalarField macDivergence(const VectorField& mac, const MaskField* solid = nullptr);
 
+/// Projection onto divergence-free MAC fields of one fixed domain, for solvers that project every time
+/// step. The solver's matrix (OpenVDB's staggered Laplacian from
+/// tools::poisson::createISLaplacianWithBoundaryConditions) and its preconditioner depend only on the cell
+/// box, the solid cells and the boundary types, so they are built on the first solve and reused; each
+/// project() then runs OpenVDB's preconditioned conjugate gradient (math::pcg::solve) on that matrix,
+/// warm-started from `pressure`. At 128x128x192 building them costs about as much as 15 incomplete-Cholesky
+/// iterations. Copies share nothing: a copy rebuilds its own matrix on its first solve.
+///
+/// @code
+/// turb::MacProjector projector(cells, settings, &solid);   // cheap: nothing is built yet
+/// turb::ScalarField pressure;
+/// for (...) { advect(mac); projector.project(mac, &pressure); }
+/// @endcode
+class MacProjector
+{
+public:
+    /// Throws ValueError on an empty box, settings out of range, or a solid mask whose box is not `cells`.
+    explicit MacProjector(const CoordBBox& cells, const ProjectionSettings& s = {}, const MaskField* solid = nullptr);
+    MacProjector(const MacProjector& other);
+    MacProjector& operator=(const MacProjector& other);
+    MacProjector(MacProjector&&) noexcept;
+    MacProjector& operator=(MacProjector&&) noexcept;
+    ~MacProjector();
+
+    /// As projectMac() with this projector's settings and solid mask; `mac` must cover macBox(cells).
+    ProjectionResult project(VectorField& mac, ScalarField* pressure = nullptr, Progress* progress = nullptr);
+
+    const CoordBBox& cells() const;
+    const ProjectionSettings& settings() const;
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> mImpl;
+};
+
 /// Makes a MAC velocity divergence-free in place. `solid` (optional) covers cellBox(mac.bbox()).
 /// `pressure` (optional, in/out): when it holds a field over the cell box it is used as the initial
 /// guess (warm start between time steps); on return it holds the pressure potential p, in velocity
 /// times voxels, with u_new = u - (p(c+) - p(c-)) on each face. Throws ValueError on mismatched boxes,
-/// Cancelled when `progress` asks to stop.
+/// Cancelled when `progress` asks to stop. Builds the solver's matrix and preconditioner for this one
+/// call: to project many fields of one domain, keep a MacProjector.
 ProjectionResult projectMac(VectorField& mac, const ProjectionSettings& s = {}, const MaskField* solid = nullptr,
     ScalarField* pressure = nullptr, Progress* progress = nullptr);
 

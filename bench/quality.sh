@@ -1,0 +1,88 @@
+#!/bin/sh
+# Transfer quality on the issue's three pairs, the ablations and the alignment experiment, measured with
+# `vdbturb measure`. Prints one markdown table row per run (medians over frames, first frame excluded for
+# tcoh by construction) and keeps every JSON line under WORK. POSIX sh + sed only.
+#
+#   bench/quality.sh [--work DIR] [--frames N] [RUN...]
+#
+# Runs: a, a-noseams, a-gamma0, a-paper, a-paper-beta0, a-notracking, b, b-noseams, b-gamma0, b-paper,
+#       b-paper-beta0, b-notracking, c, side-none, side-rotate   (default: all)
+# Pair a: ../shared/data/blender-plume-32 -> blender-plume-128 (frames 1-10).
+# Pair b: built-in plume 16x16x24 -> swirl 128x128x192 (the paper's 3D configuration), N frames (default 12).
+# Pair c: target = blender-plume-128 box-downsampled by 4 -> blender-plume-128 (frames 1-10).
+# side-*: target blender-plume-32, source blender-plume-128 turned a quarter turn about y (flow along x).
+set -eu
+cd "$(dirname "$0")/.."
+WORK="${TMPDIR:-/tmp}/vdbturb-quality"
+FRAMES=12
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --work) WORK="$2"; shift 2 ;;
+    --frames) FRAMES="$2"; shift 2 ;;
+    --) shift; break ;;
+    -*) echo "quality: unknown option $1" >&2; exit 2 ;;
+    *) break ;;
+  esac
+done
+RUNS="${*:-a a-noseams a-gamma0 a-paper a-paper-beta0 a-notracking b b-noseams b-gamma0 b-paper b-paper-beta0 b-notracking c side-none side-rotate}"
+BIN=""
+for b in build/tools/vdbturb build*/tools/vdbturb; do [ -x "$b" ] && BIN="$b" && break; done
+[ -n "$BIN" ] || { echo "quality: build vdbturb first (tools/build.sh)" >&2; exit 2; }
+DATA=../shared/data
+mkdir -p "$WORK"
+
+# median VALUE of KEY from the measure summary line: "KEY":{...,"median":V,...}
+median() { sed -n 's/.*"'"$1"'":{[^}]*"median":\([-0-9.e+]*\).*/\1/p' "$2" | tail -n 1; }
+# median over the per-frame lines of a numeric KEY
+frame_median() {
+  sed -n 's/.*"'"$1"'":\([-0-9.e+]*\).*/\1/p' "$2" | sort -g | awk '{v[NR]=$1} END{if (NR) print (NR%2 ? v[(NR+1)/2] : (v[NR/2]+v[NR/2+1])/2)}'
+}
+fmt() { [ -n "$1" ] && printf '%.3g' "$1" || printf -- '-'; }
+
+prepare_b() {
+  t="$WORK/plume16"; s="$WORK/swirl128"
+  [ -f "$t/plume.$(printf %04d "$FRAMES").vdb" ] || "$BIN" sim plume --res 16x16x24 --frames "$FRAMES" --seed 1 --out "$t/plume.####.vdb" -q
+  [ -f "$s/swirl.$(printf %04d "$FRAMES").vdb" ] || "$BIN" sim swirl --res 128x128x192 --frames "$FRAMES" --seed 2 --out "$s/swirl.####.vdb" -q
+}
+prepare_c() {
+  [ -f "$WORK/proxy/proxy.0010.vdb" ] || "$BIN" resample "$DATA/blender-plume-128/fluid_data_####.vdb" --down 4 --frames 1-10 --out "$WORK/proxy/proxy.####.vdb" -q
+}
+prepare_side() {
+  [ -f "$WORK/side/side.0010.vdb" ] || "$BIN" resample "$DATA/blender-plume-128/fluid_data_####.vdb" --rotate y:1 --frames 1-10 --out "$WORK/side/side.####.vdb" -q
+}
+
+echo "| run | what | lf_err | hf_ratio | div_rel (source) | block | tcoh (source) | match E_h | energy scale | median s/frame |"
+echo "|---|---|---|---|---|---|---|---|---|---|"
+for run in $RUNS; do
+  pair=$(echo "$run" | cut -d- -f1)
+  variant=$(echo "$run" | cut -s -d- -f2-)
+  case "$pair" in
+    a) T="$DATA/blender-plume-32/fluid_data_####.vdb"; S="$DATA/blender-plume-128/fluid_data_####.vdb"; F="1-10" ;;
+    b) prepare_b; T="$WORK/plume16/plume.####.vdb"; S="$WORK/swirl128/swirl.####.vdb"; F="1-$FRAMES" ;;
+    c) prepare_c; T="$WORK/proxy/proxy.####.vdb"; S="$DATA/blender-plume-128/fluid_data_####.vdb"; F="1-10" ;;
+    side) prepare_side; T="$DATA/blender-plume-32/fluid_data_####.vdb"; S="$WORK/side/side.####.vdb"; F="1-10" ;;
+    *) echo "quality: unknown run $run" >&2; exit 2 ;;
+  esac
+  case "$variant" in
+    "") ARGS=""; WHAT="defaults" ;;
+    noseams) ARGS="--no-seams"; WHAT="no seam smoothing" ;;
+    gamma0) ARGS="--gamma 0"; WHAT="gamma = 0" ;;
+    paper) ARGS="--temporal-blend 0"; WHAT="beta 0.5, no temporal blending (the paper)" ;;
+    paper-beta0) ARGS="--temporal-blend 0 --beta 0"; WHAT="beta = 0, no temporal blending" ;;
+    notracking) ARGS="--no-tracking"; WHAT="global search every frame" ;;
+    none) ARGS="--align none"; WHAT="sideways source, --align none" ;;
+    rotate) ARGS="--align rotate"; WHAT="sideways source, --align rotate" ;;
+    *) echo "quality: unknown variant $variant" >&2; exit 2 ;;
+  esac
+  out="$WORK/$run"
+  rm -rf "$out"
+  # shellcheck disable=SC2086
+  "$BIN" transfer --target "$T" --source "$S" --out "$out/up.####.vdb" --frames "$F" $ARGS --json -q > "$WORK/$run.transfer.jsonl"
+  "$BIN" measure --output "$out/up.####.vdb" --target "$T" --source "$S" --frames "$F" --no-spectra -q > "$WORK/$run.measure.jsonl"
+  m="$WORK/$run.measure.jsonl"
+  tj="$WORK/$run.transfer.jsonl"
+  sec=$(sed -n 's/.*"median_s_per_frame":\([-0-9.e+]*\).*/\1/p' "$tj" | tail -n 1)
+  eh=$(frame_median mean_local_energy "$tj")
+  es=$(frame_median energy_scale "$tj")
+  echo "| $run | $WHAT | $(fmt "$(median lf_err "$m")") | $(fmt "$(median hf_ratio "$m")") | $(fmt "$(median div_rel "$m")") ($(fmt "$(median div_rel_source "$m")")) | $(fmt "$(median block "$m")") | $(fmt "$(median tcoh "$m")") ($(fmt "$(median tcoh_source "$m")")) | $(fmt "$eh") | $(fmt "$es") | $(fmt "$sec") |"
+done
