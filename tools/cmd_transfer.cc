@@ -171,7 +171,7 @@ int runTransfer(TransferArgs& a)
             em.push_back({{"cg_iterations", it.cgIterations}, {"cg_residual", it.cgResidual}, {"energy", it.energy}});
         extra["seam_em"] = em;
         nlohmann::json steps;
-        for (int k = 0; k < 8; ++k) steps[turb::TransferStats::stepName(k)] = st.seconds[k];
+        for (int k = 0; k < 9; ++k) steps[turb::TransferStats::stepName(k)] = st.seconds[k];
         extra["steps_s"] = steps;
         std::string human = r.empty ? "no smoke in target: wrote the up-sampled target"
                                     : std::to_string(st.localPatches) + " patches (" + std::to_string(st.globalSearches) +
@@ -191,7 +191,7 @@ int runTransfer(TransferArgs& a)
                    fmt("%.2f s", st.seams.mStepSeconds) + ", E-steps " + fmt("%.2f s", st.seams.eStepSeconds) + ", band " +
                    std::to_string(st.seams.bandVoxels) + " voxels, " + std::to_string(st.seams.boundaryPatches) + " boundary patches");
         std::string timing = "frame " + std::to_string(t) + ": time";
-        for (int k = 0; k < 7; ++k) timing += std::string(" ") + turb::TransferStats::stepName(k) + fmt(" %.2f", st.seconds[k]);
+        for (int k : {0, 8, 1, 2, 3, 4, 5, 6}) timing += std::string(" ") + turb::TransferStats::stepName(k) + fmt(" %.2f", st.seconds[k]);
         logVerbose(timing);
         report.frameDone(t, int(i), count, secondsSince(t0), human, extra);
     }

@@ -106,7 +106,7 @@ struct TransferStats
     double meanLocalEnergy = 0.0;  ///< mean E_h of the chosen local patches
     double energyScale = 1.0;      ///< factor applied to U_h by preserveEnergy
     SeamStats seams;               ///< EM/CG log of the seam smoothing
-    double seconds[8] = {0};       ///< split, global, local, paste, seams, output, density, total
+    double seconds[9] = {0};       ///< split, global, local, paste, seams, output, density, total, advect_detail
     static const char* stepName(int i);
 };
 

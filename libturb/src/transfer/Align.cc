@@ -211,6 +211,20 @@ VectorField coarsePart(const VectorField& detail, int factor, int iterations, do
     double norm0 = 0.0;
     for (const auto& v : target.values()) norm0 += double(v.lengthSqr());
     if (norm0 == 0.0) return c;
+    // c lives on the cells with box means and their neighbours only: left free, the iteration would
+    // spread c (and so up(c)) a cell further every step until the detail was non-zero everywhere.
+    std::vector<uint8_t> support(c.size(), 0);
+    const CoordBBox box = c.bbox();
+    for (size_t n = 0; n < target.size(); ++n) {
+        if (target.data()[n].lengthSqr() == 0.0f) continue;
+        const Coord p = target.coordOf(n);
+        for (int dx = -1; dx <= 1; ++dx)
+            for (int dy = -1; dy <= 1; ++dy)
+                for (int dz = -1; dz <= 1; ++dz) {
+                    const Coord q = p + Coord(dx, dy, dz);
+                    if (box.isInside(q)) support[c.offset(q.x(), q.y(), q.z())] = 1;
+                }
+    }
     // Richardson iteration c += b - BU(c): BU is close to the identity (its taps sum to 1 and the centre
     // tap dominates), so the error contracts every iteration; all of it runs on the coarse lattice.
     for (int it = 0; it < iterations; ++it) {
@@ -218,7 +232,7 @@ VectorField coarsePart(const VectorField& detail, int factor, int iterations, do
         double res = 0.0;
         for (size_t i = 0; i < c.size(); ++i) {
             const Vec3f r = target.data()[i] - bu.data()[i];
-            c.data()[i] += r;
+            if (support[i]) c.data()[i] += r;
             res += double(r.lengthSqr());
         }
         if (res <= tolerance * tolerance * norm0) break;

@@ -20,8 +20,8 @@ namespace turb {
 
 const char* TransferStats::stepName(int i)
 {
-    static const char* names[8] = {"split", "global", "local", "paste", "seams", "output", "density", "total"};
-    return (i >= 0 && i < 8) ? names[i] : "?";
+    static const char* names[9] = {"split", "global", "local", "paste", "seams", "output", "density", "total", "advect_detail"};
+    return (i >= 0 && i < 9) ? names[i] : "?";
 }
 
 namespace {
@@ -317,6 +317,7 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
 
         // --- Previous detail advected through the target velocity (the beta term) ---------------
         VectorField advectedDetail;
+        t0 = Clock::now();
         if (havePrevious && (s.beta > 0.0f || s.temporalBlend > 0.0f)) {
             AdvectSettings a;
             // BFECC: with temporal blending this detail is most of the next frame's, and first-order
@@ -324,6 +325,7 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
             a.scheme = s.temporalBlend > 0.0f ? AdvectSettings::Scheme::BFECC : AdvectSettings::Scheme::SemiLagrangian;
             advectedDetail = cropped(advect(prevDetail, prevTargetVelocity, prevDt, a), fineBox);
         }
+        st.seconds[8] = since(t0);
 
         // --- Global search (eq. 1), only where smoke newly entered a patch -------------------------
         if (progress) progress->begin("global search");
