@@ -207,6 +207,37 @@ TEST(Projection, BitIdenticalAtOneAndTwoThreads)
     EXPECT_TRUE(bitIdentical(a, b));
 }
 
+TEST(Projection, ReusedProjectorMatchesOneShotProjection)
+{
+    // MacProjector builds OpenVDB's Laplacian and preconditioner once and keeps them: every later solve,
+    // cold or warm, and a copy's solves must give exactly what a one-shot projectMac gives.
+    const CoordBBox cells({0, 0, 0}, {19, 17, 23});
+    const Lattice lat{0.2, {0, 0, 0}};
+    ProjectionSettings s;
+    s.faces[kFaceZMin] = Boundary::Closed;
+    MaskField solid(cells, lat);
+    for (size_t q = 0; q < solid.size(); ++q)
+        solid.data()[q] = (solid.coordOf(q).asVec3d() - Vec3d(9.5, 8.5, 11.0)).length() < 4.0 ? 1 : 0;
+    MacProjector projector(cells, s, &solid);
+    ScalarField warmA, warmB;
+    for (unsigned seed : {11u, 12u, 13u}) {
+        VectorField a = randomMac(cells, lat.voxelSize, seed), b = a;
+        const ProjectionResult ra = projector.project(a, &warmA);
+        const ProjectionResult rb = projectMac(b, s, &solid, &warmB);
+        EXPECT_TRUE(ra.converged);
+        EXPECT_EQ(ra.iterations, rb.iterations);
+        EXPECT_TRUE(bitIdentical(a, b));
+        EXPECT_TRUE(bitIdentical(warmA, warmB));
+        EXPECT_LE(maxAbs(macDivergence(a, &solid)) / ra.divMaxBefore, 1e-4);
+    }
+    MacProjector copy = projector;
+    VectorField a = randomMac(cells, lat.voxelSize, 14), b = a;
+    EXPECT_EQ(copy.project(a).iterations, projector.project(b).iterations);
+    EXPECT_TRUE(bitIdentical(a, b));
+    VectorField wrong = randomMac(CoordBBox({0, 0, 0}, {19, 17, 22}), lat.voxelSize, 15);
+    EXPECT_THROW(projector.project(wrong), ValueError);
+}
+
 TEST(Projection, RejectsMismatchedMasks)
 {
     VectorField mac = randomMac(CoordBBox({0, 0, 0}, {7, 7, 7}), 1.0, 7);

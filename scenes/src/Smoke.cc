@@ -125,9 +125,12 @@ SmokeSim::SmokeSim(const SmokeSettings& s) : mSettings(s)
             if ((lat.indexToWorld(Vec3d(i, j, k)) - o.centre).length() <= o.radius) mSolid(i, j, k) = 1;
         });
     }
-    mProjection.tolerance = s.pressureTolerance;
-    mProjection.maxIterations = s.pressureMaxIterations;
-    mProjection.faces = s.faces;
+    ProjectionSettings projection;
+    projection.tolerance = s.pressureTolerance;
+    projection.maxIterations = s.pressureMaxIterations;
+    projection.faces = s.faces;
+    projection.incompleteCholesky = s.pressureIncompleteCholesky;
+    mProjector.emplace(cells, projection, &mSolid);
 }
 
 void SmokeSim::emit(double dt)
@@ -265,6 +268,28 @@ void SmokeSim::enforceWalls()
     });
 }
 
+ScalarField SmokeSim::pressureGuess(double dt) const
+{
+    if (mPressure.empty()) return {};
+    // The projection's pressure p (velocity times voxels) is dt times the physical pressure P, which
+    // varies smoothly in time: extrapolate P linearly from the last two projections to this one and scale
+    // back (with one projection so far: P constant). Measured on plume 64x64x96, 30 frames: 1078 CG
+    // iterations against 1229 from the last pressure alone and 1135 / 1185 with half / 1.5 times the
+    // linear trend. The guess only changes where CG starts, not where it stops.
+    const bool linear = !mPressurePrev.empty();
+    const double r = dt / mPressureDt; // time to this projection over the time between the last two
+    const float wLast = float(r * (linear ? 1.0 + r : 1.0));
+    const float wPrev = linear ? float(-r * dt / mPressurePrevDt) : 0.0f;
+    ScalarField guess(mPressure.bbox(), mPressure.lattice());
+    const float* last = mPressure.data();
+    const float* prev = linear ? mPressurePrev.data() : nullptr;
+    float* g = guess.data();
+    parallelFor(guess.size(), 1 << 14, [&](size_t b, size_t e) {
+        for (size_t q = b; q < e; ++q) g[q] = wLast * last[q] + (prev ? wPrev * prev[q] : 0.0f);
+    });
+    return guess;
+}
+
 FrameStats SmokeSim::advanceFrame(Progress* progress)
 {
     using Clock = std::chrono::steady_clock;
@@ -286,7 +311,7 @@ FrameStats SmokeSim::advanceFrame(Progress* progress)
         adv.scalarScheme = mSettings.densityScheme;
         adv.velocityScheme = mSettings.velocityScheme;
         adv.revert = mSettings.revertLimiter;
-        adv.faces = mProjection.faces;
+        adv.faces = mSettings.faces;
         const float cool = std::exp(-float(mSettings.cooling * dt));
         const float decay = std::exp(-float(mSettings.densityDecay * dt));
 
@@ -312,7 +337,12 @@ FrameStats SmokeSim::advanceFrame(Progress* progress)
                 if (mSolid.data()[q]) mDensity.data()[q] = mTemperature.data()[q] = 0.0f;
             if (progress) progress->update(0.5);
             t0 = Clock::now();
-            const ProjectionResult r = projectMac(mMac, mProjection, &mSolid, &mPressure, progress);
+            ScalarField pressure = pressureGuess(dt);
+            const ProjectionResult r = mProjector->project(mMac, &pressure, progress);
+            mPressurePrev = std::move(mPressure);
+            mPressurePrevDt = mPressureDt;
+            mPressure = std::move(pressure);
+            mPressureDt = dt;
             st.projectSeconds += std::chrono::duration<double>(Clock::now() - t0).count();
             st.pressureIterations += r.iterations;
             st.converged = st.converged && r.converged;
