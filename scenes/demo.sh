@@ -6,14 +6,14 @@
 #   3. renders contact sheets (target | source | output) and prints their paths.
 #
 # Environment: VDBTURB (the binary, default build/tools/vdbturb), DEMO_OUT (default demo-out),
-# DEMO_FRAMES (default 24 = 1 s; the 128x128x192 swirl costs about 10 s a frame on 2 idle cores),
+# DEMO_FRAMES (default 16 = 2/3 s; the 128x128x192 swirl costs about 7 s a frame on 2 idle cores),
 # DEMO_THREADS (default 0 = all cores).
 set -eu
 cd "$(dirname "$0")/.."
 
 BIN="${VDBTURB:-build/tools/vdbturb}"
 OUT="${DEMO_OUT:-demo-out}"
-FRAMES="${DEMO_FRAMES:-24}"
+FRAMES="${DEMO_FRAMES:-16}"
 THREADS="${DEMO_THREADS:-0}"
 
 if [ ! -x "$BIN" ]; then
