@@ -8,6 +8,7 @@
 #include <openvdb/tools/Interpolation.h>
 #include <openvdb/tools/VolumeAdvect.h>
 
+#include <algorithm>
 #include <cmath>
 
 namespace turb {
@@ -74,6 +75,23 @@ ScalarField advect(const ScalarField& q, const VectorField& velocity, double dt,
 VectorField advect(const VectorField& q, const VectorField& velocity, double dt, const AdvectSettings& s)
 {
     return advectImpl<Vec3f, openvdb::Vec3SGrid>(q, velocity, dt, s);
+}
+
+ScalarField estimateSources(const ScalarField* previous, const ScalarField& density, const VectorField& velocity, double dt,
+    const AdvectSettings& advectSettings, const ScalarField* region)
+{
+    if (density.empty()) throw ValueError("sources: empty density");
+    if (region && region->bbox() != density.bbox()) throw ValueError("sources: the region must cover the density's box");
+    ScalarField s = density;
+    if (previous && !previous->empty()) {
+        if (previous->bbox() != density.bbox()) throw ValueError("sources: consecutive densities cover different boxes");
+        s = advect(*previous, velocity, dt, advectSettings);
+        for (size_t n = 0; n < s.size(); ++n) s.data()[n] = std::max(0.0f, density.data()[n] - s.data()[n]);
+        if (region)
+            for (size_t n = 0; n < s.size(); ++n)
+                if (!(region->data()[n] > 0.0f)) s.data()[n] = 0.0f;
+    }
+    return s;
 }
 
 } // namespace turb

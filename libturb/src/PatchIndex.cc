@@ -145,7 +145,7 @@ int PatchIndex::query(const float* descriptor, int k, int* indices, float* dist2
 void PatchIndex::queryMany(const float* descriptors, size_t count, int k, std::vector<int>& indices,
     std::vector<float>& dist2) const
 {
-    const size_t dim = mImpl->pca.inputDim(), rk = mImpl->pca.outputDim();
+    const size_t rk = mImpl->pca.outputDim();
     indices.assign(count * size_t(std::max(k, 0)), -1);
     dist2.assign(count * size_t(std::max(k, 0)), 0.0f);
     if (k <= 0 || count == 0) return;
@@ -155,7 +155,6 @@ void PatchIndex::queryMany(const float* descriptors, size_t count, int k, std::v
         for (size_t i = b; i < e; ++i)
             queryReduced(&reduced[i * rk], k, &indices[i * size_t(k)], &dist2[i * size_t(k)]);
     });
-    (void)dim;
 }
 
 } // namespace turb

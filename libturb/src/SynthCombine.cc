@@ -114,23 +114,6 @@ VectorField combineMotion(const VectorField& coarse, const VectorField& detail, 
     return F;
 }
 
-ScalarField estimateSources(const ScalarField* previous, const ScalarField& density, const VectorField& velocity, double dt,
-    const AdvectSettings& advectSettings, const ScalarField* region)
-{
-    if (density.empty()) throw ValueError("sources: empty density");
-    if (region && region->bbox() != density.bbox()) throw ValueError("sources: the region must cover the density's box");
-    ScalarField s = density;
-    if (previous && !previous->empty()) {
-        if (previous->bbox() != density.bbox()) throw ValueError("sources: consecutive densities cover different boxes");
-        s = advect(*previous, velocity, dt, advectSettings);
-        for (size_t n = 0; n < s.size(); ++n) s.data()[n] = std::max(0.0f, density.data()[n] - s.data()[n]);
-        if (region)
-            for (size_t n = 0; n < s.size(); ++n)
-                if (!(region->data()[n] > 0.0f)) s.data()[n] = 0.0f;
-    }
-    return s;
-}
-
 LookbackDensity::LookbackDensity(const LookbackSettings& s) : mSettings(s)
 {
     if (s.frames < 0) throw ValueError("look-back: frames must be >= 0");

@@ -28,4 +28,11 @@ struct AdvectSettings
 ScalarField advect(const ScalarField& q, const VectorField& velocity, double dt, const AdvectSettings& s = {});
 VectorField advect(const VectorField& q, const VectorField& velocity, double dt, const AdvectSettings& s = {});
 
+/// The density sources of one coarse frame: what advection alone does not explain,
+/// max(0, rho_i - advect(rho_{i-1}, L_i, dt)); all of rho_i when there is no previous frame. With
+/// `region` (same box) and a previous frame, only where region > 0: where the emitters are known,
+/// this keeps the difference between the cache's advection scheme and ours from counting as sources.
+ScalarField estimateSources(const ScalarField* previousDensity, const ScalarField& density, const VectorField& velocity,
+    double dt, const AdvectSettings& advect = {}, const ScalarField* region = nullptr);
+
 } // namespace turb

@@ -196,13 +196,6 @@ struct CombineSettings
 /// F = up(L) + omega * H' on H's box and lattice (section 3.5).
 VectorField combineMotion(const VectorField& coarse, const VectorField& detailWorld, const CombineSettings& settings);
 
-/// The density sources of one coarse frame: what advection alone does not explain,
-/// max(0, rho_i - advect(rho_{i-1}, L_i, dt)); all of rho_i when there is no previous frame. With
-/// `region` (same box) and a previous frame, only where region > 0: where the emitters are known,
-/// this keeps the difference between the cache's advection scheme and ours from counting as sources.
-ScalarField estimateSources(const ScalarField* previousDensity, const ScalarField& density, const VectorField& velocity,
-    double dt, const AdvectSettings& advect = {}, const ScalarField* region = nullptr);
-
 struct LookbackSettings
 {
     int frames = 12;       ///< m: frames of look-back integration (supplement A, paper: 10-20); 0 = naive (all frames)

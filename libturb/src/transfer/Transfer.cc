@@ -199,9 +199,8 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
     // Emission estimate for density: what the target gained that advection does not explain.
     ScalarField emission(target.density.bbox(), targetLattice);
     if (havePrevious) {
-        const ScalarField carried = cropped(advect(prevTargetDensity, prevTargetVelocity, prevDt), target.density.bbox());
-        for (size_t n = 0; n < emission.size(); ++n)
-            emission.data()[n] = std::max(0.0f, target.density.data()[n] - carried.data()[n]);
+        const ScalarField previous = cropped(prevTargetDensity, target.density.bbox());
+        emission = estimateSources(&previous, target.density, prevTargetVelocity, prevDt);
     }
     st.seconds[0] = since(t0);
 
@@ -379,8 +378,6 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
         std::vector<size_t> activeList;
         for (size_t p = 0; p < active.size(); ++p)
             if (active[p]) activeList.push_back(p);
-        const float sqrtAlphaUnused = 0.0f;
-        (void)sqrtAlphaUnused;
 
         // Full-resolution E_h of a target patch against a source corner (eq. 2).
         const auto energy = [&](const Coord& tCorner, const Coord& sCorner, bool temporal) {
