@@ -66,6 +66,11 @@ struct PatchLayout
     {
         return (size_t(P.x()) * size_t(count.y()) + size_t(P.y())) * size_t(count.z()) + size_t(P.z());
     }
+    Coord patchCoord(size_t p) const
+    {
+        return Coord(int(p / (size_t(count.y()) * size_t(count.z()))), int((p / size_t(count.z())) % size_t(count.y())),
+            int(p % size_t(count.z())));
+    }
     Coord patchOf(const Coord& voxel) const
     {
         return Coord(floorDiv(voxel.x() - origin.x(), size), floorDiv(voxel.y() - origin.y(), size),
@@ -89,8 +94,8 @@ struct SeamProblem
     std::vector<Coord> offset;               ///< per active patch: source voxel = output voxel + offset
     int boxFactor = 0;                       ///< coarse cell size f for the box-mean rows (0 = none)
     const VectorField* temporal = nullptr;   ///< optional previous detail (advected): edge targets become
-    float temporalWeight = 0.0f;             ///< (1 - w) * boundary patches' + w * its differences, in the
-    std::vector<uint8_t> temporalPatches;    ///< local patches flagged here (same box as the detail)
+    std::vector<float> temporalWeights;      ///< (1 - w) * boundary patches' + w * its differences, w per local
+                                             ///< patch (the mean of the edge's two patches)
     const VectorField* base = nullptr;       ///< optional field added to X in the divergence term: the
                                              ///< gamma term then penalises div(base + X) (same box as X)
 };

@@ -621,10 +621,11 @@ SeamStats smoothSeams(VectorField& detail, const SeamProblem& problem, const Sea
                                 wsum += wgt;
                             }
                     Vec3f t = wsum > 0.0f ? sum / wsum : detail[q] - detail[p];
-                    if (problem.temporal && problem.temporalPatches[L.patchIndex(L.patchOf(p))] &&
-                        problem.temporalPatches[L.patchIndex(L.patchOf(q))]) {
+                    if (problem.temporal) {
+                        const float w = 0.5f * (problem.temporalWeights[L.patchIndex(L.patchOf(p))] +
+                                                   problem.temporalWeights[L.patchIndex(L.patchOf(q))]);
                         const VectorField& T = *problem.temporal;
-                        t = t * (1.0f - problem.temporalWeight) + (T[q] - T[p]) * problem.temporalWeight;
+                        if (w > 0.0f) t = t * (1.0f - w) + (T[q] - T[p]) * w;
                     }
                     targets[r * 3 + size_t(a)] = t;
                 }

@@ -552,15 +552,34 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
         std::ostringstream energyLog;
         energyLog << "detail energy per smoke voxel: pasted " << meanSmokeEnergy(detail);
         if (!advectedDetail.empty()) energyLog << ", advected previous " << meanSmokeEnergy(advectedDetail);
-        std::vector<uint8_t> blendMask;
+        // Per-patch weights: lambda where the patch carried detail last frame; where smoke has just
+        // arrived, only as much as the detail advected into it (relative rms against the pasted detail),
+        // so detail that flowed in keeps moving instead of being replaced.
+        std::vector<float> blendWeight;
         const float lambda = (!advectedDetail.empty()) ? std::clamp(s.temporalBlend, 0.0f, 0.95f) : 0.0f;
         if (lambda > 0.0f) {
-            blendMask = tracked;
+            blendWeight.assign(layout.patchCount(), 0.0f);
+            parallelFor(activeList.size(), 16, [&](size_t b, size_t e) {
+                for (size_t i = b; i < e; ++i) {
+                    const size_t p = activeList[i];
+                    if (tracked[p]) {
+                        blendWeight[p] = lambda;
+                        continue;
+                    }
+                    CoordBBox pb = layout.patchBox(layout.patchCoord(p));
+                    pb.intersect(fineBox);
+                    double ea = 0.0, ep = 0.0;
+                    for (auto it = pb.begin(); it; ++it) {
+                        ea += double(advectedDetail[*it].lengthSqr());
+                        ep += double(detail[*it].lengthSqr());
+                    }
+                    blendWeight[p] = ep > 0.0 ? float(lambda * std::min(1.0, std::sqrt(ea / ep))) : lambda;
+                }
+            });
             parallelFor(detail.size(), 1 << 14, [&](size_t b, size_t e) {
                 for (size_t n = b; n < e; ++n) {
-                    const Coord c = detail.coordOf(n);
-                    if (!blendMask[layout.patchIndex(layout.patchOf(c))]) continue;
-                    detail.data()[n] = detail.data()[n] * (1.0f - lambda) + advectedDetail.data()[n] * lambda;
+                    const float w = blendWeight[layout.patchIndex(layout.patchOf(detail.coordOf(n)))];
+                    if (w > 0.0f) detail.data()[n] = detail.data()[n] * (1.0f - w) + advectedDetail.data()[n] * w;
                 }
             });
         }
@@ -578,8 +597,7 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
         if (s.removeCoarseDetail) problem.boxFactor = f;
         if (lambda > 0.0f) {
             problem.temporal = &advectedDetail;
-            problem.temporalWeight = lambda;
-            problem.temporalPatches = blendMask;
+            problem.temporalWeights = blendWeight;
         }
         SeamSettings seamSettings = s.seams;
         if (seamSettings.boundaryPatch <= 0) seamSettings.boundaryPatch = B % 2 == 0 ? B : B + 1;
