@@ -158,6 +158,15 @@ TEST(Image, TextSheetsAndPngRoundTrip)
     EXPECT_GT(sheet.width(), 60);
     EXPECT_GT(sheet.height(), 30);
 
+    // A caption longer than its cell wraps inside the cell's column: the neighbour's column below the
+    // pictures stays background, and the sheet grows taller instead.
+    const Image wrapped = contactSheet({{{&b, "alpha 0.004 vorticity 0-403/s"}, {&b, ""}}}, {}, "", 1);
+    const Image single = contactSheet({{{&b, "a"}, {&b, ""}}}, {}, "", 1);
+    EXPECT_GT(wrapped.height(), single.height());
+    const int pad = 6, secondX = pad + (b.width() + pad);
+    for (int y = 30 + pad; y < wrapped.height(); ++y)
+        for (int x = secondX - pad / 2; x < wrapped.width(); ++x) ASSERT_EQ(wrapped.at(x, y), Rgb(0.12f)) << x << "," << y;
+
     testutil::TempDir dir;
     Image grad(17, 9);
     for (int y = 0; y < 9; ++y)

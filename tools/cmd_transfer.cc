@@ -233,6 +233,10 @@ Command transferCommand()
         app->add_option("--em-tolerance", s.seams.emTolerance, "Stop EM when E_b changes by less than this fraction (default 0.02)");
         app->add_option("--cg-iterations", s.seams.maxCgIterations, "CG iterations per E-step at most (default 100)")->check(CLI::Range(1, 100000));
         app->add_option("--cg-tolerance", s.seams.cgTolerance, "CG relative residual (default 1e-3)");
+        app->add_option("--box-weight", s.seams.boxWeight,
+               "Weight of the seam solve's rows pulling U_h's coarse-cell means to zero (default 10; 0 = leave it all to "
+               "the exact coarse correction afterwards)")
+            ->check(CLI::NonNegativeNumber);
         app->add_option("--coherence", s.coherence,
                "Take a neighbour's continued source patch when it matches within this fraction of the best (default 0 = off, the paper)")
             ->check(CLI::NonNegativeNumber);
@@ -246,7 +250,7 @@ Command transferCommand()
         app->add_flag("--no-target-divergence", a.keepTargetDivergence,
             "Seam gamma term penalises div(U_h) only, as in the paper, not div(up(u_t) + U_h)");
         app->add_option("--temporal-blend", s.temporalBlend,
-            "Weight of last frame's detail advected through the target, mixed into tracked patches (default 0.9; 0 = paper)")
+            "Weight of last frame's detail advected through the target, mixed into the patches it reaches (default 0.9; 0 = paper)")
             ->check(CLI::Range(0.0, 0.95));
         app->add_option("--align", a.align, "Match after aligning flows: none (paper), normalize, rotate, both")
             ->check(CLI::IsMember({"none", "normalize", "rotate", "both"}));

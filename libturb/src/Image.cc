@@ -138,10 +138,42 @@ Rgb colormap(Colormap map, float t)
     return Rgb(t);
 }
 
+namespace {
+
+// Greedy word wrap to at most `width` pixels a line, so a long caption never runs into its neighbour; a
+// single word wider than that is cut at the width.
+std::vector<std::string> wrapText(const std::string& text, int width, int textScale)
+{
+    const size_t perLine = size_t(std::max(1, width / (6 * textScale)));
+    std::vector<std::string> lines;
+    std::string line, word;
+    const auto flushWord = [&]() {
+        while (word.size() > perLine) {
+            if (!line.empty()) lines.push_back(line), line.clear();
+            lines.push_back(word.substr(0, perLine));
+            word.erase(0, perLine);
+        }
+        if (word.empty()) return;
+        if (line.empty()) line = word;
+        else if (line.size() + 1 + word.size() <= perLine) line += ' ' + word;
+        else lines.push_back(line), line = word;
+        word.clear();
+    };
+    for (char ch : text) {
+        if (ch == ' ') flushWord();
+        else word += ch;
+    }
+    flushWord();
+    if (!line.empty()) lines.push_back(line);
+    return lines;
+}
+
+} // namespace
+
 Image contactSheet(const std::vector<std::vector<SheetCell>>& rows, const std::vector<std::string>& rowLabels,
     const std::string& title, int textScale)
 {
-    const int pad = 6 * textScale, labelH = Image::textHeight(textScale) + pad;
+    const int pad = 6 * textScale, lineH = Image::textHeight(textScale) + 2 * textScale;
     int cellW = 0, cellH = 0, cols = 0;
     for (const auto& r : rows) {
         cols = std::max(cols, int(r.size()));
@@ -151,14 +183,19 @@ Image contactSheet(const std::vector<std::vector<SheetCell>>& rows, const std::v
                 cellH = std::max(cellH, c.image->height());
             }
     }
+    size_t labelLines = 1;
+    for (const auto& r : rows)
+        for (const auto& c : r) labelLines = std::max(labelLines, wrapText(c.label, cellW, textScale).size());
+    const int labelH = int(labelLines) * lineH + pad;
     int rowLabelW = 0;
     for (const auto& l : rowLabels) rowLabelW = std::max(rowLabelW, Image::textWidth(l, textScale) + pad);
-    const int titleH = title.empty() ? 0 : Image::textHeight(textScale) + 2 * pad;
     const int width = rowLabelW + cols * (cellW + pad) + pad;
+    const std::vector<std::string> titleLines = title.empty() ? std::vector<std::string>{} : wrapText(title, width - 2 * pad, textScale);
+    const int titleH = titleLines.empty() ? 0 : int(titleLines.size()) * lineH + 2 * pad;
     const int height = titleH + int(rows.size()) * (cellH + labelH + pad) + pad;
     const Rgb bg(0.12f), fg(0.92f);
     Image sheet(width, height, bg);
-    if (!title.empty()) sheet.drawText(pad, pad, title, fg, textScale);
+    for (size_t i = 0; i < titleLines.size(); ++i) sheet.drawText(pad, pad + int(i) * lineH, titleLines[i], fg, textScale);
     for (size_t r = 0; r < rows.size(); ++r) {
         const int y = titleH + pad + int(r) * (cellH + labelH + pad);
         if (r < rowLabels.size())
@@ -167,7 +204,9 @@ Image contactSheet(const std::vector<std::vector<SheetCell>>& rows, const std::v
             const int x = rowLabelW + pad + int(c) * (cellW + pad);
             const SheetCell& cell = rows[r][c];
             if (cell.image) sheet.blit(*cell.image, x + (cellW - cell.image->width()) / 2, y + (cellH - cell.image->height()) / 2);
-            sheet.drawText(x, y + cellH + pad / 2, cell.label, fg, textScale);
+            const std::vector<std::string> lines = wrapText(cell.label, cellW, textScale);
+            for (size_t i = 0; i < lines.size(); ++i)
+                sheet.drawText(x, y + cellH + pad / 2 + int(i) * lineH, lines[i], fg, textScale);
         }
     }
     return sheet;
