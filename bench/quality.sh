@@ -6,11 +6,12 @@
 #   bench/quality.sh [--work DIR] [--frames N] [RUN...]
 #
 # Runs: a, a-noseams, a-gamma0, a-paper, a-paper-beta0, a-notracking, b, b-noseams, b-gamma0, b-paper,
-#       b-paper-beta0, b-notracking, c, side-none, side-rotate   (default: all)
+#       b-paper-beta0, b-notracking, c, d, side-none, side-rotate   (default: all)
 #       Also on any pair: -alpha0, -alpha1, -paper-beta5 (parameter pictures), -notd95, -boxw0 (tcoh study).
 # Pair a: ../shared/data/blender-plume-32 -> blender-plume-128 (frames 1-10).
 # Pair b: built-in plume 16x16x24 -> swirl 128x128x192 (the paper's 3D configuration), N frames (default 12).
 # Pair c: target = blender-plume-128 box-downsampled by 4 -> blender-plume-128 (frames 1-10).
+# Pair d: pair b with the swirl at 100x100x150: ratio 6.25, the source resampled to ratio 6.
 # side-*: target blender-plume-32, source blender-plume-128 turned a quarter turn about y (flow along x).
 set -eu
 cd "$(dirname "$0")/.."
@@ -25,7 +26,7 @@ while [ $# -gt 0 ]; do
     *) break ;;
   esac
 done
-RUNS="${*:-a a-noseams a-gamma0 a-paper a-paper-beta0 a-notracking b b-noseams b-gamma0 b-paper b-paper-beta0 b-notracking c side-none side-rotate}"
+RUNS="${*:-a a-noseams a-gamma0 a-paper a-paper-beta0 a-notracking b b-noseams b-gamma0 b-paper b-paper-beta0 b-notracking c d side-none side-rotate}"
 BIN=""
 for b in build/tools/vdbturb build*/tools/vdbturb; do [ -x "$b" ] && BIN="$b" && break; done
 [ -n "$BIN" ] || { echo "quality: build vdbturb first (tools/build.sh)" >&2; exit 2; }
@@ -45,6 +46,11 @@ prepare_b() {
   [ -f "$t/plume.$(printf %04d "$FRAMES").vdb" ] || "$BIN" sim plume --res 16x16x24 --frames "$FRAMES" --seed 1 --out "$t/plume.####.vdb" -q
   [ -f "$s/swirl.$(printf %04d "$FRAMES").vdb" ] || "$BIN" sim swirl --res 128x128x192 --frames "$FRAMES" --seed 2 --out "$s/swirl.####.vdb" -q
 }
+prepare_d() {
+  prepare_b
+  s="$WORK/swirl100"
+  [ -f "$s/swirl.$(printf %04d "$FRAMES").vdb" ] || "$BIN" sim swirl --res 100x100x150 --frames "$FRAMES" --seed 2 --out "$s/swirl.####.vdb" -q
+}
 prepare_c() {
   [ -f "$WORK/proxy/proxy.0010.vdb" ] || "$BIN" resample "$DATA/blender-plume-128/fluid_data_####.vdb" --down 4 --frames 1-10 --out "$WORK/proxy/proxy.####.vdb" -q
 }
@@ -60,6 +66,7 @@ for run in $RUNS; do
   case "$pair" in
     a) T="$DATA/blender-plume-32/fluid_data_####.vdb"; S="$DATA/blender-plume-128/fluid_data_####.vdb"; F="1-10" ;;
     b) prepare_b; T="$WORK/plume16/plume.####.vdb"; S="$WORK/swirl128/swirl.####.vdb"; F="1-$FRAMES" ;;
+    d) prepare_d; T="$WORK/plume16/plume.####.vdb"; S="$WORK/swirl100/swirl.####.vdb"; F="1-$FRAMES" ;;
     c) prepare_c; T="$WORK/proxy/proxy.####.vdb"; S="$DATA/blender-plume-128/fluid_data_####.vdb"; F="1-10" ;;
     side) prepare_side; T="$DATA/blender-plume-32/fluid_data_####.vdb"; S="$WORK/side/side.####.vdb"; F="1-10" ;;
     *) echo "quality: unknown run $run" >&2; exit 2 ;;

@@ -95,6 +95,42 @@ TEST(Resample, IntegerRatioRejectsBadRatios)
     EXPECT_EQ(integerRatio(0.8, 0.1), 8);
     EXPECT_THROW(integerRatio(0.1, 0.03), ValueError);
     EXPECT_THROW(integerRatio(0.03125, 0.125), ValueError);
+    EXPECT_EQ(nearestRatio(0.1, 0.04), 3); // 2.5 rounds half away from zero
+    EXPECT_EQ(nearestRatio(0.1, 0.03), 3);
+    EXPECT_EQ(nearestRatio(0.1, 0.08), 1);
+    EXPECT_THROW(nearestRatio(0.03125, 0.125), ValueError);
+}
+
+TEST(Resample, ResamplingToAnotherVoxelSizeIsExactOnLinearFieldsAndNeverExtrapolates)
+{
+    const Lattice lat{0.04, {1.0, -2.0, 0.5}};
+    const CoordBBox box({-3, 0, 2}, {20, 17, 25});
+    const auto linear = [](const Vec3d& x) { return Vec3f(float(1.0 + 2.0 * x.x() - x.y()), float(0.5 * x.z()), float(x.x() + x.y() + x.z())); };
+    VectorField u(box, lat);
+    for (auto it = box.begin(); it; ++it) {
+        const Coord c = *it;
+        u(c.x(), c.y(), c.z()) = linear(lat.indexToWorld(c.asVec3d()));
+    }
+    const double voxel = 0.1 / 3.0; // a 0.1 target at ratio 2.5 brought to ratio 3
+    const VectorField r = resampledToVoxel(u, voxel);
+    EXPECT_DOUBLE_EQ(r.lattice().voxelSize, voxel);
+    EXPECT_EQ(r.lattice().origin, lat.origin);
+    // Every new centre lies inside the hull of the old centres, and the hull is covered to within a voxel.
+    const Vec3d oldLo = lat.indexToWorld(box.min().asVec3d()), oldHi = lat.indexToWorld(box.max().asVec3d());
+    const Vec3d newLo = r.lattice().indexToWorld(r.bbox().min().asVec3d()), newHi = r.lattice().indexToWorld(r.bbox().max().asVec3d());
+    for (int a = 0; a < 3; ++a) {
+        EXPECT_GE(newLo[a], oldLo[a] - 1e-9);
+        EXPECT_LE(newHi[a], oldHi[a] + 1e-9);
+        EXPECT_LT(newLo[a] - oldLo[a], voxel);
+        EXPECT_LT(oldHi[a] - newHi[a], voxel);
+    }
+    double worst = 0.0;
+    for (auto it = r.bbox().begin(); it; ++it) {
+        const Coord c = *it;
+        const Vec3f want = linear(r.lattice().indexToWorld(c.asVec3d()));
+        worst = std::max(worst, double((r(c.x(), c.y(), c.z()) - want).length()));
+    }
+    EXPECT_LT(worst, 1e-4);
 }
 
 TEST(Operators, AnalyticDivergenceAndCurl)

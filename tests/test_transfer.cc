@@ -268,16 +268,43 @@ TEST_F(TransferPair, SavedStateResumesBitIdentically)
     EXPECT_EQ(out2.density.values(), ref[2].density.values());
 }
 
+TEST_F(TransferPair, NonIntegerRatioResamplesTheSourceToTheNearestInteger)
+{
+    // The same analytic source sampled at voxel 1/40 against the 1/12 target: ratio 3.33 -> 3.
+    const Modes coarse(10, 24.0, 60.0, 3, 1.0 / 48.0), fine(40, 3.0, 8.0, 4, 1.0 / 48.0);
+    const Lattice lat40{1.0 / 40.0, {0.0, 0.0, 0.0}};
+    const auto vel = [&](const Vec3d& x) { return coarse.at(x) * 2.0f + fine.at(x) * 0.6f; };
+    const auto dens = [](const Vec3d& x) { return (x - Vec3d(0.5)).length() < 0.38 ? 1.0f : 0.0f; };
+    const Frame source = makeFrame(CoordBBox({0, 0, 0}, {39, 39, 39}), lat40, vel, dens, 1, 1.0 / 24);
+    TransferSettings s;
+    const TransferResult r = TurbulenceTransfer(s).process(targets[0], source);
+    ASSERT_FALSE(r.empty);
+    EXPECT_EQ(r.stats.ratio, 3);
+    EXPECT_TRUE(r.stats.sourceResampled);
+    EXPECT_NEAR(r.stats.sourceRatio, 40.0 / 12.0, 1e-9);
+    EXPECT_TRUE(r.frame.velocity.lattice().approxEqual(targets[0].velocity.lattice().refined(3)));
+    EXPECT_EQ(r.frame.velocity.bbox(), refineBox(targets[0].velocity.bbox(), 3));
+    // The detail the transfer had is the source at ratio 3; the output carries as much of it and leaves
+    // the target's coarse motion alone.
+    const Frame at3 = resampledToVoxel(source, targets[0].velocity.lattice().voxelSize / 3);
+    const double hf = hfEnergy(r.frame.velocity, r.frame.density, 3) / hfEnergy(at3.velocity, at3.density, 3);
+    EXPECT_GT(hf, 0.8);
+    EXPECT_LT(hf, 1.25);
+    EXPECT_LT(lfErr(r.frame.velocity, targets[0].velocity, targets[0].density, 3), 0.05);
+}
+
 TEST_F(TransferPair, BadInputGetsClearErrorsOrADefinedNoOp)
 {
     TransferSettings s;
     // Ratio below 1: the "source" is coarser than the target.
     EXPECT_THROW(TurbulenceTransfer(s).process(sources[0], targets[0]), ValueError);
-    // Non-integer ratio.
+    // Non-integer ratio, when resampling the source is turned off.
     Frame odd = sources[0];
     odd.velocity.setLattice(Lattice{1.0 / 30.0, {0, 0, 0}});
     odd.density.setLattice(Lattice{1.0 / 30.0, {0, 0, 0}});
-    EXPECT_THROW(TurbulenceTransfer(s).process(targets[0], odd), ValueError);
+    TransferSettings strict = s;
+    strict.resampleSource = false;
+    EXPECT_THROW(TurbulenceTransfer(strict).process(targets[0], odd), ValueError);
     // A source with no smoke.
     Frame dry = sources[0];
     dry.density.fill(0.0f);

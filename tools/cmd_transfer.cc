@@ -8,6 +8,8 @@
 #include <turbio/Sequence.h>
 #include <turbio/Vdb.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
@@ -25,7 +27,7 @@ struct TransferArgs
     std::string wrap = "loop";
     std::string align = "none";
     std::string density = "advect";
-    bool noSeams = false, noTracking = false, keepCoarse = false, resume = false, json = false;
+    bool noSeams = false, noTracking = false, keepCoarse = false, resume = false, json = false, noResample = false;
     bool keepTargetDivergence = false;
     std::string energy = "source";
     int extendVelocity = 4;
@@ -63,6 +65,7 @@ int runTransfer(TransferArgs& a)
     s.threads = globals().threads;
     s.seams.enabled = !a.noSeams;
     s.trackGlobalPatches = !a.noTracking;
+    s.resampleSource = !a.noResample;
     s.removeCoarseDetail = !a.keepCoarse;
     s.detailEnergy = a.energy == "none" ? turb::DetailEnergy::None
                      : a.energy == "pasted" ? turb::DetailEnergy::Pasted : turb::DetailEnergy::Source;
@@ -129,8 +132,16 @@ int runTransfer(TransferArgs& a)
             if (g.role == turbio::GridRole::Velocity)
                 for (const auto& h : si.grids)
                     if (h.role == turbio::GridRole::Velocity)
-                        logInfo("resolution ratio " + fmt("%.4g", g.voxelSize / h.voxelSize) + " (target voxel " +
-                                fmt("%g", g.voxelSize) + ", source voxel " + fmt("%g", h.voxelSize) + ")");
+                    {
+                        const double r = g.voxelSize / h.voxelSize;
+                        const long n = std::lround(r);
+                        std::string how;
+                        if (r >= 1.0 - 1e-3 && std::abs(r - double(n)) > 1e-3 * double(n))
+                            how = a.noResample ? ": not an integer, would fail (--no-resample-source)"
+                                               : ": not an integer, the source would be resampled to ratio " + std::to_string(std::max(1L, n));
+                        logInfo("resolution ratio " + fmt("%.4g", r) + " (target voxel " + fmt("%g", g.voxelSize) + ", source voxel " +
+                                fmt("%g", h.voxelSize) + ")" + how);
+                    }
         return kOk;
     }
 
@@ -159,6 +170,10 @@ int runTransfer(TransferArgs& a)
         extra["source_frame"] = sourceFor[i];
         extra["empty"] = r.empty;
         extra["ratio"] = st.ratio;
+        if (st.sourceResampled) extra["source_ratio_resampled_from"] = st.sourceRatio;
+        if (st.sourceResampled && i == first)
+            logInfo("source resampled trilinearly from ratio " + fmt("%.4g", st.sourceRatio) + " to " + std::to_string(st.ratio) +
+                    " (output voxel = target voxel / " + std::to_string(st.ratio) + ")");
         extra["patches"] = st.localPatches;
         extra["global_searches"] = st.globalSearches;
         extra["tracked"] = st.trackedPatches;
@@ -241,6 +256,9 @@ Command transferCommand()
                "Take a neighbour's continued source patch when it matches within this fraction of the best (default 0 = off, the paper)")
             ->check(CLI::NonNegativeNumber);
         app->add_flag("--no-seams", a.noSeams, "Paste patches without seam smoothing (ablation)");
+        app->add_flag("--no-resample-source", a.noResample,
+            "Refuse a source whose voxel size is not an integer fraction of the target's (default: resample it trilinearly to "
+            "the nearest integer ratio; the output then has voxel target/ratio)");
         app->add_flag("--no-tracking", a.noTracking, "Run the global search every frame instead of following last frame's patch (ablation)");
         app->add_flag("--keep-coarse-detail", a.keepCoarse, "Do not remove U_h's coarse part (lets lf_err grow)");
         app->add_option("--detail-energy", a.energy,

@@ -349,6 +349,25 @@ FrameMeasures measureFrame(const MeasureInput& in, const MeasureSettings& s, Pro
     if (!(s.densityThreshold >= 0.0f)) throw ValueError("measure: density threshold must be >= 0");
     const Frame& O = *in.output;
     const Frame& T = *in.target;
+    // A source at a non-integer ratio is measured at the nearest integer one, resampled as the transfer
+    // resamples it, so hf_ratio compares the output with the detail the transfer actually had.
+    const Frame* src = in.source;
+    const Frame* prevSrc = in.previousSource;
+    Frame srcResampled, prevSrcResampled;
+    bool sourceResampled = false;
+    if (src) {
+        const double tv = T.lattice().voxelSize, sv = src->lattice().voxelSize;
+        const int n = nearestRatio(tv, sv);
+        if (std::abs(tv / sv - n) > 1e-3 * n) {
+            sourceResampled = true;
+            srcResampled = resampledToVoxel(*src, tv / n);
+            src = &srcResampled;
+            if (prevSrc) {
+                prevSrcResampled = resampledToVoxel(*prevSrc, tv / n);
+                prevSrc = &prevSrcResampled;
+            }
+        }
+    }
 
     FrameMeasures m;
     m.frame = O.number;
@@ -404,9 +423,11 @@ FrameMeasures measureFrame(const MeasureInput& in, const MeasureSettings& s, Pro
         checkCancelled(progress);
 
         Mask srcMask;
-        if (in.source) {
-            const Frame& S = *in.source;
+        if (src) {
+            const Frame& S = *src;
             m.sourceRatio = integerRatio(T.lattice().voxelSize, S.lattice().voxelSize);
+            if (sourceResampled)
+                m.notes.push_back("source resampled trilinearly to the integer ratio " + std::to_string(m.sourceRatio));
             srcMask = thresholdMask(S.density, S.velocity.bbox(), s.densityThreshold);
             m.hfEnergySource = highFrequencyEnergy(S.velocity, srcMask, m.sourceRatio);
             m.divRelSource = relativeDivergence(S.velocity, srcMask);
@@ -470,9 +491,9 @@ FrameMeasures measureFrame(const MeasureInput& in, const MeasureSettings& s, Pro
         checkCancelled(progress);
 
         // The source's own coherence: its detail above the target's Nyquist, carried by its own low band.
-        if (in.source && in.previousSource && !srcMask.empty()) {
-            const Frame& S = *in.source;
-            const Frame& Sp = *in.previousSource;
+        if (src && prevSrc && !srcMask.empty()) {
+            const Frame& S = *src;
+            const Frame& Sp = *prevSrc;
             requireVelocity(&Sp, "previous source");
             const double dt = s.dt > 0.0 ? s.dt : Sp.dt;
             if (dt > 0.0 && Sp.lattice().approxEqual(S.lattice())) {
@@ -506,7 +527,7 @@ FrameMeasures measureFrame(const MeasureInput& in, const MeasureSettings& s, Pro
             };
             m.spectrumOutput = spectrumOf(O.velocity, ownMask);
             m.spectrumTarget = spectrumOf(T.velocity, coarseMask);
-            if (in.source) m.spectrumSource = spectrumOf(in.source->velocity, srcMask);
+            if (src) m.spectrumSource = spectrumOf(src->velocity, srcMask);
         }
     });
     return m;

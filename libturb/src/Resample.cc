@@ -3,6 +3,7 @@
 #include <turb/Error.h>
 #include <turb/Parallel.h>
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 #include <vector>
@@ -149,6 +150,73 @@ int integerRatio(double coarseVoxel, double fineVoxel, double tol)
     return n;
 }
 
+int nearestRatio(double coarseVoxel, double fineVoxel, double tol)
+{
+    const double r = coarseVoxel / fineVoxel;
+    if (!(r >= 1.0 - tol)) return integerRatio(coarseVoxel, fineVoxel, tol); // throws, naming both
+    return std::max(1, int(std::lround(r)));
+}
+
+template<typename T>
+Field<T> resampledToVoxel(const Field<T>& f, double voxelSize)
+{
+    if (!(voxelSize > 0.0)) throw ValueError("resampledToVoxel: voxel size must be positive");
+    const Lattice from = f.lattice();
+    Lattice to = from;
+    to.voxelSize = voxelSize;
+    if (f.empty()) {
+        Field<T> none;
+        none.setLattice(to);
+        return none;
+    }
+    const double k = from.voxelSize / voxelSize; // new index per old index
+    const double eps = 1e-9;
+    const CoordBBox& b = f.bbox();
+    const Coord lo(int(std::ceil(b.min().x() * k - eps)), int(std::ceil(b.min().y() * k - eps)), int(std::ceil(b.min().z() * k - eps)));
+    const Coord hi(int(std::floor(b.max().x() * k + eps)), int(std::floor(b.max().y() * k + eps)), int(std::floor(b.max().z() * k + eps)));
+    Field<T> out(CoordBBox(lo, hi), to);
+    const double inv = 1.0 / k;
+    parallelFor(size_t(hi.x() - lo.x() + 1), 1, [&](size_t x0, size_t x1) {
+        for (size_t x = x0; x < x1; ++x) {
+            const int i = lo.x() + int(x);
+            const double px = i * inv;
+            const int ix = int(std::floor(px));
+            const float fx = float(px - ix);
+            for (int j = lo.y(); j <= hi.y(); ++j) {
+                const double py = j * inv;
+                const int iy = int(std::floor(py));
+                const float fy = float(py - iy);
+                for (int kk = lo.z(); kk <= hi.z(); ++kk) {
+                    const double pz = kk * inv;
+                    const int iz = int(std::floor(pz));
+                    const float fz = float(pz - iz);
+                    // clamped(): a centre on the hull's far face has weight 0 on the voxel beyond it.
+                    const auto at = [&](int a, int c, int d) { return f.clamped(ix + a, iy + c, iz + d); };
+                    const T x00 = at(0, 0, 0) * (1 - fx) + at(1, 0, 0) * fx, x10 = at(0, 1, 0) * (1 - fx) + at(1, 1, 0) * fx;
+                    const T x01 = at(0, 0, 1) * (1 - fx) + at(1, 0, 1) * fx, x11 = at(0, 1, 1) * (1 - fx) + at(1, 1, 1) * fx;
+                    out(i, j, kk) = (x00 * (1 - fy) + x10 * fy) * (1 - fz) + (x01 * (1 - fy) + x11 * fy) * fz;
+                }
+            }
+        }
+    });
+    return out;
+}
+
+Frame resampledToVoxel(const Frame& frame, double voxelSize)
+{
+    Frame out;
+    out.number = frame.number;
+    out.dt = frame.dt;
+    out.metadata = frame.metadata;
+    out.velocity = resampledToVoxel(frame.velocity, voxelSize);
+    out.density = resampledToVoxel(frame.density, voxelSize);
+    if (frame.temperature) out.temperature = resampledToVoxel(*frame.temperature, voxelSize);
+    if (frame.flame) out.flame = resampledToVoxel(*frame.flame, voxelSize);
+    return out;
+}
+
+template Field<float> resampledToVoxel(const Field<float>&, double);
+template Field<Vec3f> resampledToVoxel(const Field<Vec3f>&, double);
 template Field<float> upsample(const Field<float>&, int);
 template Field<Vec3f> upsample(const Field<Vec3f>&, int);
 template Field<float> boxDownsample(const Field<float>&, int);

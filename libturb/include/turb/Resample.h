@@ -15,6 +15,7 @@
 #pragma once
 
 #include <turb/Field.h>
+#include <turb/Frame.h>
 
 namespace turb {
 
@@ -42,5 +43,17 @@ Field<T> cropped(const Field<T>& f, const CoordBBox& box);
 /// The integer ratio coarse/fine of two voxel sizes; throws ValueError naming both when the ratio is
 /// below 1 or not within `tol` of an integer.
 int integerRatio(double coarseVoxel, double fineVoxel, double tol = 1e-3);
+
+/// coarse/fine rounded to the nearest integer; throws ValueError when the ratio is below 1.
+int nearestRatio(double coarseVoxel, double fineVoxel, double tol = 1e-3);
+
+/// `f` sampled trilinearly onto the lattice of voxel size `voxelSize` that keeps voxel (0,0,0)'s centre
+/// where f's is. The box holds every new voxel centre inside the hull of f's voxel centres, so no value
+/// is extrapolated. Used to bring a source at a non-integer ratio to the nearest integer one.
+template<typename T>
+Field<T> resampledToVoxel(const Field<T>& f, double voxelSize);
+
+/// Every field of `frame` resampled by resampledToVoxel; number, dt and metadata are kept.
+Frame resampledToVoxel(const Frame& frame, double voxelSize);
 
 } // namespace turb

@@ -82,6 +82,8 @@ struct TransferSettings
     float temporalBlend = 0.9f;   ///< beyond the paper: weight of last frame's detail (advected through the target)
                                   ///< mixed into patches that had detail, in [0, 0.95]; 0 = the paper
     FlowAlignment alignment = FlowAlignment::None; ///< see FlowAlignment
+    bool resampleSource = true;   ///< beyond the paper: a source at a non-integer ratio is resampled trilinearly to
+                                  ///< the nearest integer ratio; false = such a source is an error
 
     // Seam smoothing (section 3.3)
     SeamSettings seams;           ///< band width, boundary patch size, gamma, EM and CG tolerances
@@ -100,6 +102,8 @@ struct TransferSettings
 struct TransferStats
 {
     int ratio = 0;                 ///< resolution ratio f
+    double sourceRatio = 0.0;      ///< target voxel / source voxel as given
+    bool sourceResampled = false;  ///< sourceRatio was not an integer: the source was resampled to f
     int localPatches = 0;          ///< local patches holding smoke
     int globalSearches = 0;        ///< patches that ran the global search this frame
     int trackedPatches = 0;        ///< patches whose global patch followed the previous frame

@@ -172,12 +172,19 @@ TransferResult TurbulenceTransfer::process(const Frame& target, const Frame& sou
     return r;
 }
 
-TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Frame& sourceIn, Progress* progress)
+TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Frame& sourceArg, Progress* progress)
 {
     const auto tTotal = Clock::now();
     requireFrame(target, "target");
-    requireFrame(sourceIn, "source");
-    const int f = integerRatio(target.velocity.lattice().voxelSize, sourceIn.velocity.lattice().voxelSize);
+    requireFrame(sourceArg, "source");
+    const double tv = target.velocity.lattice().voxelSize, sv = sourceArg.velocity.lattice().voxelSize;
+    // A non-integer ratio (e.g. 2.5) is met by resampling the source trilinearly to the nearest integer
+    // ratio: the source is an exemplar library, so a slightly rescaled exemplar is still a valid one.
+    const int f = s.resampleSource ? nearestRatio(tv, sv) : integerRatio(tv, sv);
+    const bool resampleSource = std::abs(tv / sv - f) > 1e-3 * f;
+    Frame resampledSource;
+    if (resampleSource) resampledSource = resampledToVoxel(sourceArg, tv / f);
+    const Frame& sourceIn = resampleSource ? resampledSource : sourceArg;
     if (!started) start(target, f);
     if (f != ratio || !target.velocity.lattice().approxEqual(targetLattice))
         throw ValueError("target frame " + std::to_string(target.number) +
@@ -187,6 +194,8 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
     TransferResult result;
     TransferStats& st = result.stats;
     st.ratio = f;
+    st.sourceRatio = tv / sv;
+    st.sourceResampled = resampleSource;
     const int B = s.localPatch;
     const Lattice fineLattice = targetLattice.refined(f);
 
