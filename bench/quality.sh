@@ -10,7 +10,8 @@
 #       Also on any pair: -alpha0, -alpha1, -paper-beta5 (parameter pictures), -notd95, -boxw0 (tcoh study).
 # Pair a: ../shared/data/blender-plume-32 -> blender-plume-128 (frames 1-10).
 # Pair b: built-in plume 16x16x24 -> swirl 128x128x192 (the paper's 3D configuration), N frames (default 12).
-# Pair c: target = blender-plume-128 box-downsampled by 4 -> blender-plume-128 (frames 1-10).
+# Pair c: target = blender-plume-128 box-downsampled by 4 -> blender-plume-128 (frames 1-30, the whole
+#         cache; CFRAMES=1-10 for the first ten only).
 # Pair d: pair b with the swirl at 100x100x150: ratio 6.25, the source resampled to ratio 6.
 # side-*: target blender-plume-32, source blender-plume-128 turned a quarter turn about y (flow along x).
 set -eu
@@ -52,7 +53,7 @@ prepare_d() {
   [ -f "$s/swirl.$(printf %04d "$FRAMES").vdb" ] || "$BIN" sim swirl --res 100x100x150 --frames "$FRAMES" --seed 2 --out "$s/swirl.####.vdb" -q
 }
 prepare_c() {
-  [ -f "$WORK/proxy/proxy.0010.vdb" ] || "$BIN" resample "$DATA/blender-plume-128/fluid_data_####.vdb" --down 4 --frames 1-10 --out "$WORK/proxy/proxy.####.vdb" -q
+  [ -f "$WORK/proxy/proxy.0030.vdb" ] || "$BIN" resample "$DATA/blender-plume-128/fluid_data_####.vdb" --down 4 --frames 1-30 --out "$WORK/proxy/proxy.####.vdb" -q
 }
 prepare_side() {
   [ -f "$WORK/side/side.0010.vdb" ] || "$BIN" resample "$DATA/blender-plume-128/fluid_data_####.vdb" --rotate y:1 --frames 1-10 --out "$WORK/side/side.####.vdb" -q
@@ -67,7 +68,7 @@ for run in $RUNS; do
     a) T="$DATA/blender-plume-32/fluid_data_####.vdb"; S="$DATA/blender-plume-128/fluid_data_####.vdb"; F="1-10" ;;
     b) prepare_b; T="$WORK/plume16/plume.####.vdb"; S="$WORK/swirl128/swirl.####.vdb"; F="1-$FRAMES" ;;
     d) prepare_d; T="$WORK/plume16/plume.####.vdb"; S="$WORK/swirl100/swirl.####.vdb"; F="1-$FRAMES" ;;
-    c) prepare_c; T="$WORK/proxy/proxy.####.vdb"; S="$DATA/blender-plume-128/fluid_data_####.vdb"; F="1-10" ;;
+    c) prepare_c; T="$WORK/proxy/proxy.####.vdb"; S="$DATA/blender-plume-128/fluid_data_####.vdb"; F="${CFRAMES:-1-30}" ;;
     side) prepare_side; T="$DATA/blender-plume-32/fluid_data_####.vdb"; S="$WORK/side/side.####.vdb"; F="1-10" ;;
     *) echo "quality: unknown run $run" >&2; exit 2 ;;
   esac
@@ -83,6 +84,7 @@ for run in $RUNS; do
     paper-beta5) ARGS="--temporal-blend 0 --beta 5"; WHAT="beta = 5, no temporal blending" ;;
     notd95) ARGS="--no-target-divergence --temporal-blend 0.95"; WHAT="paper's div(U_h) term, blend 0.95" ;;
     boxw0) ARGS="--box-weight 0"; WHAT="no box rows in the seam solve" ;;
+    mu5) ARGS="--value-weight 5 --no-target-divergence --temporal-blend 0.95"; WHAT="value rows 5, paper's div term, blend 0.95" ;;
     none) ARGS="--align none"; WHAT="sideways source, --align none" ;;
     rotate) ARGS="--align rotate"; WHAT="sideways source, --align rotate" ;;
     *) echo "quality: unknown variant $variant" >&2; exit 2 ;;

@@ -396,6 +396,49 @@ TEST(SeamSmoothing, LeavesAFieldWithoutSeamsAlone)
     EXPECT_LT(change, 1e-8 * energy);
 }
 
+TEST(SeamSmoothing, ValueRowsKeepCarriedDetailNearItsValue)
+{
+    // Patches pasted from different offsets (real seams), all carrying last frame's detail with weight
+    // 0.9: the larger the value weight, the less the solve changes the detail, and a huge weight leaves
+    // it where it was.
+    const CoordBBox box({0, 0, 0}, {23, 23, 23});
+    const Modes fine(20, 3.0, 8.0, 21, 1.0);
+    VectorField source(CoordBBox({-16, -16, -16}, {47, 47, 47}), Lattice{});
+    for (size_t n = 0; n < source.size(); ++n) source.data()[n] = fine.at(source.coordOf(n).asVec3d());
+    SeamProblem p;
+    p.sourceHigh = &source;
+    p.layout = PatchLayout::covering(box, 8);
+    p.active.assign(p.layout.patchCount(), 1);
+    p.offset.resize(p.layout.patchCount());
+    for (size_t i = 0; i < p.offset.size(); ++i) p.offset[i] = Coord(int(i % 5) * 3 - 6, int(i % 3) * 4 - 4, int(i % 7) - 3);
+    VectorField pasted(box, Lattice{});
+    for (size_t n = 0; n < pasted.size(); ++n) {
+        const Coord c = pasted.coordOf(n);
+        pasted.data()[n] = source[c + p.offset[p.layout.patchIndex(p.layout.patchOf(c))]];
+    }
+    p.temporal = &pasted;
+    p.temporalWeights.assign(p.layout.patchCount(), 0.9f);
+    p.boxFactor = 4;
+    std::vector<double> changes;
+    for (float mu : {0.0f, 5.0f, 1e6f}) {
+        VectorField detail = pasted;
+        SeamSettings s;
+        s.valueWeight = mu;
+        s.maxCgIterations = 400;
+        s.cgTolerance = 1e-6;
+        smoothSeams(detail, p, s);
+        double change = 0, energy = 0;
+        for (size_t n = 0; n < detail.size(); ++n) {
+            change += (detail.data()[n] - pasted.data()[n]).lengthSqr();
+            energy += pasted.data()[n].lengthSqr();
+        }
+        changes.push_back(std::sqrt(change / energy));
+    }
+    EXPECT_GT(changes[0], 0.05) << "the seams must need smoothing for this test to mean anything";
+    EXPECT_LT(changes[1], changes[0]);
+    EXPECT_LT(changes[2], 1e-3);
+}
+
 TEST(Reorient, QuarterTurnsAreExactRotations)
 {
     // +90 degrees about z takes x to y; four turns are the identity; turns compose.

@@ -33,6 +33,8 @@ struct SeamSettings
     int maxCgIterations = 100;   ///< CG iterations per E-step
     double cgTolerance = 1e-3;   ///< CG stops at this relative residual of the normal equations
     float boxWeight = 10.0f;     ///< nu/f^3: weight of the rows pulling U_h's box means (coarse cells) to zero, >= 0
+    float valueWeight = 0.0f;    ///< mu: weight of rows keeping X near its value on entry, times the temporal blend
+                                 ///< weight of its patch (carried detail changes less); 0 = the paper's energy
 };
 
 /// One EM iteration, for the per-frame log.

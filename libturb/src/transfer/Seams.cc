@@ -190,13 +190,18 @@ public:
 
     // Residual rows of the full field: targets - grad X on edges, -sqrt(gamma) div X on div rows.
     // Values outside R are read from the dense field directly.
-    void residual(const VectorField& X, std::vector<Vec3f>& se, std::vector<float>& sd, std::vector<Vec3f>& sb) const
+    void residual(const VectorField& X, std::vector<Vec3f>& se, std::vector<float>& sd, std::vector<Vec3f>& sb,
+        std::vector<Vec3f>& sv) const
     {
         const size_t m = rows();
         se.assign(m * 3, Vec3f(0.0f));
         sd.assign(m, 0.0f);
         sb.assign(mCells.size(), Vec3f(0.0f));
+        sv.assign(mValueCoef.size(), Vec3f(0.0f));
         const Vec3f* x = X.data();
+        // Value rows: sqrt(mu_u) * (anchor - X) at the unknowns that have one.
+        for (size_t u = 0; u < mValueCoef.size(); ++u)
+            sv[u] = (mAnchor[u] - x[mLinear[size_t(mUnknowns[u])]]) * mValueCoef[u];
         // Box rows: -sqrt(nu) * (mean of X over the coarse cell, fixed voxels included).
         parallelFor(mCells.size(), 256, [&](size_t b, size_t e) {
             for (size_t c = b; c < e; ++c) {
@@ -237,12 +242,15 @@ public:
     }
 
     // q = A p for p over R (zero outside Ω).
-    void applyA(const std::vector<Vec3f>& p, std::vector<Vec3f>& qe, std::vector<float>& qd, std::vector<Vec3f>& qb) const
+    void applyA(const std::vector<Vec3f>& p, std::vector<Vec3f>& qe, std::vector<float>& qd, std::vector<Vec3f>& qb,
+        std::vector<Vec3f>& qv) const
     {
         const size_t m = rows();
         qe.assign(m * 3, Vec3f(0.0f));
         qd.assign(m, 0.0f);
         qb.assign(mCells.size(), Vec3f(0.0f));
+        qv.assign(mValueCoef.size(), Vec3f(0.0f));
+        for (size_t u = 0; u < mValueCoef.size(); ++u) qv[u] = p[size_t(mUnknowns[u])] * mValueCoef[u];
         parallelFor(mCells.size(), 256, [&](size_t b, size_t e) {
             for (size_t c = b; c < e; ++c) {
                 Vec3f sum(0.0f);
@@ -270,7 +278,7 @@ public:
 
     // g = A^T (se, sd), gathered at the unknowns (zero elsewhere).
     void applyAt(const std::vector<Vec3f>& se, const std::vector<float>& sd, const std::vector<Vec3f>& sb,
-        std::vector<Vec3f>& g) const
+        const std::vector<Vec3f>& sv, std::vector<Vec3f>& g) const
     {
         g.assign(rows(), Vec3f(0.0f));
         parallelFor(mUnknowns.size(), 2048, [&](size_t b, size_t e) {
@@ -291,6 +299,7 @@ public:
                     acc[a] += mSqrtGamma * d;
                 }
                 if (!mCells.empty()) acc += sb[size_t(mCellOf[u])] * mBoxCoef;
+                if (!sv.empty()) acc += sv[u] * mValueCoef[u];
                 g[r] = acc;
             }
         });
@@ -308,10 +317,12 @@ public:
         });
     }
 
-    double rowNormSq(const std::vector<Vec3f>& se, const std::vector<float>& sd, const std::vector<Vec3f>& sb) const
+    double rowNormSq(const std::vector<Vec3f>& se, const std::vector<float>& sd, const std::vector<Vec3f>& sb,
+        const std::vector<Vec3f>& sv) const
     {
         double boxes = 0.0;
         for (const auto& v : sb) boxes += double(v.lengthSqr());
+        for (const auto& v : sv) boxes += double(v.lengthSqr());
         return boxes + parallelSum(rows(), 4096, [&](size_t s, size_t e) {
             double acc = 0.0;
             for (size_t r = s; r < e; ++r)
@@ -353,6 +364,21 @@ public:
         mCellStart.push_back(int(mCellMembers.size()));
     }
 
+    // Adds one value row per unknown u with weight mu(u) > 0: sqrt(mu) * (X - anchor), so the solve
+    // changes the carried detail no more than the seams, box means and divergence need (tcoh measures
+    // that change in values, which the gradient rows alone do not see).
+    template<typename WeightFn>
+    void enableValueRows(const VectorField& anchor, WeightFn&& mu)
+    {
+        mValueCoef.assign(mUnknowns.size(), 0.0f);
+        mAnchor.assign(mUnknowns.size(), Vec3f(0.0f));
+        for (size_t u = 0; u < mUnknowns.size(); ++u) {
+            const size_t lin = mLinear[size_t(mUnknowns[u])];
+            mValueCoef[u] = std::sqrt(std::max(0.0f, mu(coordOfLinear(lin))));
+            mAnchor[u] = anchor.data()[lin];
+        }
+    }
+
     Coord coordOfLinear(size_t n) const
     {
         const int k = int(n % size_t(mDim.z()));
@@ -363,10 +389,10 @@ public:
     SeamIteration solve(VectorField& X, int maxIterations, double tolerance) const
     {
         SeamIteration out;
-        std::vector<Vec3f> se, qe, r, p, sb, qb, delta(rows(), Vec3f(0.0f));
+        std::vector<Vec3f> se, qe, r, p, sb, qb, sv, qv, delta(rows(), Vec3f(0.0f));
         std::vector<float> sd, qd;
-        residual(X, se, sd, sb);
-        applyAt(se, sd, sb, r);
+        residual(X, se, sd, sb, sv);
+        applyAt(se, sd, sb, sv, r);
         p = r;
         double rr = dotUnknowns(r, r);
         const double rr0 = rr;
@@ -374,8 +400,8 @@ public:
         if (rr0 > 0.0) {
             for (; it < maxIterations; ++it) {
                 if (std::sqrt(rr / rr0) <= tolerance) break;
-                applyA(p, qe, qd, qb);
-                const double qq = rowNormSq(qe, qd, qb);
+                applyA(p, qe, qd, qb, qv);
+                const double qq = rowNormSq(qe, qd, qb, qv);
                 if (!(qq > 0.0)) break;
                 const float alpha = float(rr / qq);
                 parallelFor(rows(), 4096, [&](size_t b, size_t e) {
@@ -386,7 +412,8 @@ public:
                     }
                 });
                 for (size_t c = 0; c < sb.size(); ++c) sb[c] -= qb[c] * alpha;
-                applyAt(se, sd, sb, r);
+                for (size_t u = 0; u < sv.size(); ++u) sv[u] -= qv[u] * alpha;
+                applyAt(se, sd, sb, sv, r);
                 const double rrNew = dotUnknowns(r, r);
                 const float beta = float(rrNew / rr);
                 rr = rrNew;
@@ -404,10 +431,10 @@ public:
 
     double energy(const VectorField& X) const
     {
-        std::vector<Vec3f> se, sb;
+        std::vector<Vec3f> se, sb, sv;
         std::vector<float> sd;
-        residual(X, se, sd, sb);
-        return rowNormSq(se, sd, sb);
+        residual(X, se, sd, sb, sv);
+        return rowNormSq(se, sd, sb, sv);
     }
 
 private:
@@ -430,6 +457,8 @@ private:
     std::vector<int> mCellStart, mCellMembers, mCellOf;
     std::vector<int> mGatherRow;      // per unknown, axis, k: div rows using x[r][a]
     std::vector<float> mGatherCoef;   // and their coefficients
+    std::vector<float> mValueCoef;    // per unknown: sqrt(mu) of its value row (empty = none)
+    std::vector<Vec3f> mAnchor;       // per unknown: the value that row pulls towards
 };
 
 void loadDenseTargets(SeamSystem& sys, const std::vector<Vec3f>& dense)
@@ -494,6 +523,10 @@ SeamStats smoothSeams(VectorField& detail, const SeamProblem& problem, const Sea
         throw ValueError("smoothSeams: the base field must cover the detail field's box");
     SeamSystem sys(detail, omega, settings.gamma, problem.base);
     if (problem.boxFactor > 1 && settings.boxWeight > 0.0f) sys.enableBoxRows(problem.boxFactor, settings.boxWeight);
+    if (settings.valueWeight > 0.0f && problem.temporal && !problem.temporalWeights.empty())
+        sys.enableValueRows(detail, [&](const Coord& c) {
+            return settings.valueWeight * problem.temporalWeights[L.patchIndex(L.patchOf(c))];
+        });
     stats.bandVoxels = sys.unknowns();
     if (stats.bandVoxels == 0) {
         stats.converged = true;
