@@ -95,6 +95,9 @@ TEST(Resample, IntegerRatioRejectsBadRatios)
     EXPECT_EQ(integerRatio(0.8, 0.1), 8);
     EXPECT_THROW(integerRatio(0.1, 0.03), ValueError);
     EXPECT_THROW(integerRatio(0.03125, 0.125), ValueError);
+    EXPECT_TRUE(isIntegerRatio(0.125, 0.03125));
+    EXPECT_TRUE(isIntegerRatio(0.1, 0.1 / 3.0));
+    EXPECT_FALSE(isIntegerRatio(0.1, 0.04));
     EXPECT_EQ(nearestRatio(0.1, 0.04), 3); // 2.5 rounds half away from zero
     EXPECT_EQ(nearestRatio(0.1, 0.03), 3);
     EXPECT_EQ(nearestRatio(0.1, 0.08), 1);

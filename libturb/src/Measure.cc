@@ -358,7 +358,7 @@ FrameMeasures measureFrame(const MeasureInput& in, const MeasureSettings& s, Pro
     if (src) {
         const double tv = T.lattice().voxelSize, sv = src->lattice().voxelSize;
         const int n = nearestRatio(tv, sv);
-        if (std::abs(tv / sv - n) > 1e-3 * n) {
+        if (!isIntegerRatio(tv, sv)) {
             sourceResampled = true;
             srcResampled = resampledToVoxel(*src, tv / n);
             src = &srcResampled;

@@ -150,6 +150,13 @@ int integerRatio(double coarseVoxel, double fineVoxel, double tol)
     return n;
 }
 
+bool isIntegerRatio(double coarseVoxel, double fineVoxel, double tol)
+{
+    const double r = coarseVoxel / fineVoxel;
+    const double n = std::max(1.0, double(std::lround(r)));
+    return std::abs(r - n) <= tol * n;
+}
+
 int nearestRatio(double coarseVoxel, double fineVoxel, double tol)
 {
     const double r = coarseVoxel / fineVoxel;

@@ -44,6 +44,9 @@ Field<T> cropped(const Field<T>& f, const CoordBBox& box);
 /// below 1 or not within `tol` of an integer.
 int integerRatio(double coarseVoxel, double fineVoxel, double tol = 1e-3);
 
+/// Whether coarse/fine is within `tol` (relative) of an integer.
+bool isIntegerRatio(double coarseVoxel, double fineVoxel, double tol = 1e-3);
+
 /// coarse/fine rounded to the nearest integer; throws ValueError when the ratio is below 1.
 int nearestRatio(double coarseVoxel, double fineVoxel, double tol = 1e-3);
 

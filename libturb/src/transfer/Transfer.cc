@@ -181,7 +181,7 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
     // A non-integer ratio (e.g. 2.5) is met by resampling the source trilinearly to the nearest integer
     // ratio: the source is an exemplar library, so a slightly rescaled exemplar is still a valid one.
     const int f = s.resampleSource ? nearestRatio(tv, sv) : integerRatio(tv, sv);
-    const bool resampleSource = std::abs(tv / sv - f) > 1e-3 * f;
+    const bool resampleSource = !isIntegerRatio(tv, sv);
     Frame resampledSource;
     if (resampleSource) resampledSource = resampledToVoxel(sourceArg, tv / f);
     const Frame& sourceIn = resampleSource ? resampledSource : sourceArg;
