@@ -94,6 +94,24 @@ TEST(Cli, TransferWritesResumesAndNeverClobbers)
     EXPECT_EQ(testutil::countEntries(dir / "up"), 3u) << "no temporary files may remain";
 }
 
+TEST(Cli, MeasureCanReadTheSourceAsTransferReadsIt)
+{
+    // Frame 1 of the Blender plume: the clipped source's edge step dominates its high-frequency energy;
+    // --source-extend-velocity reads it as transfer does, without the step.
+    const auto hfSource = [](const std::string& extra) {
+        const CmdResult r = run("measure --output " + hi() + " --target " + lo() + " --source " + hi() +
+                                " --frames 1 --no-spectra -q " + extra);
+        EXPECT_EQ(r.code, 0) << r.out;
+        const std::string key = "\"hf_energy_source\":";
+        const size_t at = r.out.find(key);
+        return at == std::string::npos ? -1.0 : std::stod(r.out.substr(at + key.size()));
+    };
+    const double asWritten = hfSource(""), extended = hfSource("--source-extend-velocity 4");
+    ASSERT_GT(asWritten, 0.0);
+    ASSERT_GT(extended, 0.0);
+    EXPECT_LT(extended, 0.5 * asWritten);
+}
+
 TEST(Cli, ACorruptFrameStopsTheRunWithoutDamagingEarlierOutput)
 {
     testutil::TempDir dir;

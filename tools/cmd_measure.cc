@@ -35,6 +35,7 @@ struct MeasureArgs
     bool noSpectra = false;
     turb::MeasureSettings settings;
     turbio::ReadOptions read;
+    int sourceExtend = 0;     // quality.md's definitions read the source as written: no extension by default
 };
 
 nlohmann::json opt(const std::optional<double>& v) { return v ? nlohmann::json(*v) : nlohmann::json(nullptr); }
@@ -142,6 +143,7 @@ int runMeasure(MeasureArgs& a)
     turbio::ReadOptions readOut = a.read, readTgt = a.read, readSrc = a.read;
     readOut.readExtras = readTgt.readExtras = readSrc.readExtras = false;
     readOut.requireDensity = false; // an up-res may carry velocity only; the target then gives the region
+    readSrc.extendVelocity = a.sourceExtend;
 
     const auto has = [](const turbio::Sequence& q, int f) {
         return std::binary_search(q.frames.begin(), q.frames.end(), f);
@@ -264,6 +266,11 @@ Command measureCommand()
                "Output vs refined target lattice: auto (index when the boxes match but the transforms do not "
                "nest, as in Blender caches; else world), world, index")
             ->check(CLI::IsMember({"auto", "world", "index"}));
+        app->add_option("--source-extend-velocity", args->sourceExtend,
+               "Continue the source's velocity this many voxels past its active region before measuring it, as "
+               "transfer reads it (default 0: the source as written; Blender's zeros beyond the smoke then count as "
+               "high-frequency energy at its edge)")
+            ->check(CLI::Range(0, 64));
         app->add_flag("--no-spectra", args->noSpectra, "Skip the energy spectra (faster)");
         app->add_flag("--spectra", args->spectraJson, "Include the E(k) arrays in the JSON lines");
         app->add_option("--plot", args->plotDir, "Write PNG plots here: spectrum.####.png per frame and metrics.png");
