@@ -7,7 +7,7 @@
 #
 # Runs: a, a-noseams, a-gamma0, a-paper, a-paper-beta0, a-notracking, b, b-noseams, b-gamma0, b-paper,
 #       b-paper-beta0, b-notracking, c, d, side-none, side-rotate   (default: all)
-#       Also on any pair: -alpha0, -alpha1, -paper-beta5 (parameter pictures), -notd95, -boxw0 (tcoh study).
+#       Also on any pair: -alpha0, -alpha1, -paper-beta5, -beta0 (parameters), -notd95, -boxw0 (tcoh study).
 # Pair a: ../shared/data/blender-plume-32 -> blender-plume-128 (frames 1-10).
 # Pair b: built-in plume 16x16x24 -> swirl 128x128x192 (the paper's 3D configuration), N frames (default 12).
 # Pair c: target = blender-plume-128 box-downsampled by 4 -> blender-plume-128 (frames 1-30, the whole
@@ -82,6 +82,7 @@ for run in $RUNS; do
     alpha0) ARGS="--alpha 0"; WHAT="alpha = 0 (velocity alone)" ;;
     alpha1) ARGS="--alpha 1"; WHAT="alpha = 1 (density weighs 250x the paper's)" ;;
     paper-beta5) ARGS="--temporal-blend 0 --beta 5"; WHAT="beta = 5, no temporal blending" ;;
+    beta0) ARGS="--beta 0"; WHAT="beta = 0, with temporal blending" ;;
     notd95) ARGS="--no-target-divergence --temporal-blend 0.95"; WHAT="paper's div(U_h) term, blend 0.95" ;;
     boxw0) ARGS="--box-weight 0"; WHAT="no box rows in the seam solve" ;;
     mu5) ARGS="--value-weight 5 --no-target-divergence --temporal-blend 0.95"; WHAT="value rows 5, paper's div term, blend 0.95" ;;
