@@ -149,14 +149,22 @@ std::vector<std::string> wrapText(const std::string& text, int width, int textSc
     std::string line, word;
     const auto flushWord = [&]() {
         while (word.size() > perLine) {
-            if (!line.empty()) lines.push_back(line), line.clear();
+            if (!line.empty()) {
+                lines.push_back(line);
+                line.clear();
+            }
             lines.push_back(word.substr(0, perLine));
             word.erase(0, perLine);
         }
         if (word.empty()) return;
-        if (line.empty()) line = word;
-        else if (line.size() + 1 + word.size() <= perLine) line += ' ' + word;
-        else lines.push_back(line), line = word;
+        if (line.empty()) {
+            line = word;
+        } else if (line.size() + 1 + word.size() <= perLine) {
+            line += ' ' + word;
+        } else {
+            lines.push_back(line);
+            line = word;
+        }
         word.clear();
     };
     for (char ch : text) {

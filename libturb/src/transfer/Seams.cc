@@ -276,7 +276,7 @@ public:
         });
     }
 
-    // g = A^T (se, sd), gathered at the unknowns (zero elsewhere).
+    // g = A^T (se, sd, sb, sv), gathered at the unknowns (zero elsewhere).
     void applyAt(const std::vector<Vec3f>& se, const std::vector<float>& sd, const std::vector<Vec3f>& sb,
         const std::vector<Vec3f>& sv, std::vector<Vec3f>& g) const
     {
