@@ -94,6 +94,36 @@ TEST(Measure, UpsampledTargetHasNoLowFrequencyErrorAndNoHighFrequencyEnergy)
     EXPECT_FALSE(m.tcoh);  // no previous frame
 }
 
+TEST(Measure, ASourceAtANonIntegerRatioIsMeasuredAtTheNearestInteger)
+{
+    // Target voxel 0.25, source voxel 0.1: ratio 2.5, measured as the source resampled to ratio 3, the
+    // way transfer uses it.
+    const Lattice lat{0.25, {0.1, -0.2, 0.3}};
+    const Frame target = makeFrame(5, CoordBBox({0, 0, 0}, {7, 7, 9}), lat, smoothFlow, kAll);
+    const Frame output = upFrame(target, 3, noiseDetail(0.3f, 3));
+    Frame source = makeFrame(5, CoordBBox({0, 0, 0}, {19, 19, 24}), Lattice{0.1, lat.origin}, smoothFlow, kAll);
+    const auto noise = noiseDetail(0.5f, 7);
+    for (size_t n = 0; n < source.velocity.size(); ++n) source.velocity.data()[n] += noise(source.velocity.coordOf(n));
+    MeasureSettings ms;
+    ms.spectra = false;
+    MeasureInput in;
+    in.output = &output;
+    in.target = &target;
+    in.source = &source;
+    const FrameMeasures m = measureFrame(in, ms);
+    const Frame at3 = resampledToVoxel(source, 0.25 / 3.0);
+    in.source = &at3;
+    const FrameMeasures ref = measureFrame(in, ms);
+    EXPECT_EQ(m.sourceRatio, 3);
+    ASSERT_TRUE(m.hfEnergySource && ref.hfEnergySource && m.divRelSource && ref.divRelSource);
+    EXPECT_GT(*m.hfEnergySource, 0.01);
+    EXPECT_EQ(*m.hfEnergySource, *ref.hfEnergySource);
+    EXPECT_EQ(*m.divRelSource, *ref.divRelSource);
+    bool noted = false;
+    for (const auto& n : m.notes) noted |= n.find("resampled") != std::string::npos;
+    EXPECT_TRUE(noted);
+}
+
 TEST(Measure, DetailWithZeroBlockMeansLeavesCoarseMotionAlone)
 {
     const Lattice lat{0.5, {0.0, 0.0, 0.0}};
@@ -266,12 +296,12 @@ TEST(Measure, BlockSeesPlantedSeamsEveryEightVoxels)
     };
     std::mt19937 rng(11);
     std::uniform_real_distribution<float> u(-0.6f, 0.6f);
-    std::vector<Vec3f> jumps(216);
+    std::vector<Vec3f> jumps(7 * 7 * 7); // block indices 0..6 per axis (offset 3 shifts them by one)
     for (auto& j : jumps) j = Vec3f(u(rng), u(rng), u(rng));
     const auto planted = [&](int offset) {
         return [&, offset](const Coord& c) {
             const int bx = floorDiv(c.x() - offset, 8) + 1, by = floorDiv(c.y() - offset, 8) + 1, bz = floorDiv(c.z() - offset, 8) + 1;
-            return smooth(c) + jumps[size_t((bx * 6 + by) * 6 + bz)];
+            return smooth(c) + jumps.at(size_t((bx * 7 + by) * 7 + bz));
         };
     };
     const Frame smoothOut = upFrame(target, 4, smooth);

@@ -169,7 +169,8 @@ TEST(RealCaches, VelocityExtensionContinuesBlendersClippedVelocityOnly)
     EXPECT_GT(filled4, 2 * filled1);
     // The point of it: the smoke's edge no longer steps to zero, so the source's high-frequency energy
     // over its smoke falls: by 9% on frame 5, and most on frame 1, where the plume is small and the edge
-    // dominates (docs/transfer.md: hf_ratio 0.17 measured against the clipped source, 1.01 against this).
+    // dominates (docs/transfer.md: the transfer's frame 1 measures hf_ratio 0.17 against the clipped
+    // source when it calibrates to the extended one, 1.01 when it calibrates to the clipped one).
     const auto hf = [](const turb::Frame& f) {
         const turb::VectorField low = turb::cropped(turb::upsample(turb::boxDownsample(f.velocity, 4), 4), f.velocity.bbox());
         double e = 0.0;

@@ -191,6 +191,9 @@ Image contactSheet(const std::vector<std::vector<SheetCell>>& rows, const std::v
                 cellH = std::max(cellH, c.image->height());
             }
     }
+    if (cellW == 0) // no pictures: give captions the widest one's room instead of one character a line
+        for (const auto& r : rows)
+            for (const auto& c : r) cellW = std::max(cellW, Image::textWidth(c.label, textScale));
     size_t labelLines = 1;
     for (const auto& r : rows)
         for (const auto& c : r) labelLines = std::max(labelLines, wrapText(c.label, cellW, textScale).size());

@@ -519,6 +519,8 @@ SeamStats smoothSeams(VectorField& detail, const SeamProblem& problem, const Sea
     auto t0 = Clock::now();
     const CoordBBox box = detail.bbox();
     const std::vector<uint8_t> omega = seamBand(box, L, problem.active, settings.bandWidth);
+    if (problem.temporal && problem.temporalWeights.size() != L.patchCount())
+        throw ValueError("smoothSeams: temporalWeights must hold one weight per local patch");
     if (problem.base && problem.base->bbox() != detail.bbox())
         throw ValueError("smoothSeams: the base field must cover the detail field's box");
     SeamSystem sys(detail, omega, settings.gamma, problem.base);

@@ -181,6 +181,14 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
     // A non-integer ratio (e.g. 2.5) is met by resampling the source trilinearly to the nearest integer
     // ratio: the source is an exemplar library, so a slightly rescaled exemplar is still a valid one.
     const int f = s.resampleSource ? nearestRatio(tv, sv) : integerRatio(tv, sv);
+    // At f = 1 there is no band above the target's Nyquist to transfer (and a ratio of 1.2 would round
+    // to it): refuse rather than run the search on empty detail.
+    if (f < 2) {
+        std::ostringstream os;
+        os << "resolution ratio " << tv << " / " << sv << " = " << tv / sv
+           << " leaves no detail to transfer: the source needs voxels at most half the target's";
+        throw ValueError(os.str());
+    }
     const bool resampleSource = !isIntegerRatio(tv, sv);
     Frame resampledSource;
     if (resampleSource) resampledSource = resampledToVoxel(sourceArg, tv / f);
