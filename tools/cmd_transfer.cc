@@ -134,7 +134,9 @@ int runTransfer(TransferArgs& a)
                     {
                         const double r = g.voxelSize / h.voxelSize;
                         std::string how;
-                        if (r >= 1.0 && !turb::isIntegerRatio(g.voxelSize, h.voxelSize))
+                        if (r < 1.5)
+                            how = ": below 2 after rounding, would fail (no detail above the target's resolution)";
+                        else if (!turb::isIntegerRatio(g.voxelSize, h.voxelSize))
                             how = a.noResample ? ": not an integer, would fail (--no-resample-source)"
                                                : ": not an integer, the source would be resampled to ratio " +
                                                      std::to_string(turb::nearestRatio(g.voxelSize, h.voxelSize));
