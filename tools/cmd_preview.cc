@@ -131,23 +131,17 @@ turb::Image render(const turb::Frame& f, Mode m, const PreviewArgs& a, const Inp
         outline(img);
         return img;
     }
-    case Mode::Speed: {
-        turb::SliceSettings s;
-        s.view = view;
-        s.position = a.slice;
-        s.width = a.width;
-        s.map = turb::Colormap::Viridis;
-        s.maxValue = in.speedMax > 0.0f ? in.speedMax : 1.0f;
-        return turb::renderSlice(turb::magnitude(f.velocity), s);
-    }
+    case Mode::Speed:
     case Mode::Vorticity: {
+        const bool speed = m == Mode::Speed;
         turb::SliceSettings s;
         s.view = view;
         s.position = a.slice;
         s.width = a.width;
-        s.map = turb::Colormap::Magma;
-        s.maxValue = in.vorticityMax > 0.0f ? in.vorticityMax : 1.0f;
-        return turb::renderSlice(turb::magnitude(turb::curl(f.velocity)), s);
+        s.map = speed ? turb::Colormap::Viridis : turb::Colormap::Magma;
+        const float top = speed ? in.speedMax : in.vorticityMax;
+        s.maxValue = top > 0.0f ? top : 1.0f;
+        return turb::renderSlice(turb::magnitude(speed ? f.velocity : turb::curl(f.velocity)), s);
     }
     case Mode::Lic: {
         turb::LicSettings s;

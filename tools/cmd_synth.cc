@@ -356,22 +356,18 @@ int runSynth(SynthArgs& a)
         s.orientation.densitySecondary = false;
         s.orientation.secondary = turb::Vec3d(v[0], v[1], v[2]);
     }
-    if (!a.iterations.empty()) {
-        const auto p = split(a.iterations, ',');
-        if (p.size() == 1) s.smallIterations = toInt(p[0], "--iterations");
+    // "SMALL" or "LARGE,SMALL" (the two neighbourhood passes per level).
+    const auto largeSmall = [](const std::string& text, const char* option, int& large, int& small) {
+        if (text.empty()) return;
+        const auto p = split(text, ',');
+        if (p.size() == 1) small = toInt(p[0], option);
         else {
-            s.largeIterations = toInt(p[0], "--iterations");
-            s.smallIterations = toInt(p[1], "--iterations");
+            large = toInt(p[0], option);
+            small = toInt(p[1], option);
         }
-    }
-    if (!a.radius.empty()) {
-        const auto p = split(a.radius, ',');
-        if (p.size() == 1) s.smallRadius = toInt(p[0], "--radius");
-        else {
-            s.largeRadius = toInt(p[0], "--radius");
-            s.smallRadius = toInt(p[1], "--radius");
-        }
-    }
+    };
+    largeSmall(a.iterations, "--iterations", s.largeIterations, s.smallIterations);
+    largeSmall(a.radius, "--radius", s.largeRadius, s.smallRadius);
     a.combine.relative = !a.omegaAbsolute;
     a.combine.weighting = a.omegaMode == "energy"      ? turb::CombineSettings::Weighting::KineticEnergy
                           : a.omegaMode == "vorticity" ? turb::CombineSettings::Weighting::Vorticity

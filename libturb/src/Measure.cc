@@ -229,18 +229,9 @@ Field<T> realign(const Field<T>& field, const Lattice& lattice, const CoordBBox&
     const bool copy = a == Alignment::Index || nestsExactly(from, lattice);
     const Coord shift = a == Alignment::Index ? Coord(0)
                                               : Coord(int(std::lround(d.x())), int(std::lround(d.y())), int(std::lround(d.z())));
-    parallelFor(size_t(box.dim().x()), 1, [&](size_t x0, size_t x1) {
-        for (size_t x = x0; x < x1; ++x) {
-            const int i = box.min().x() + int(x);
-            for (int j = box.min().y(); j <= box.max().y(); ++j)
-                for (int k = box.min().z(); k <= box.max().z(); ++k) {
-                    if (copy) {
-                        out(i, j, k) = field.valueOr(i + shift.x(), j + shift.y(), k + shift.z(), Field<T>::zeroValue());
-                    } else {
-                        out(i, j, k) = sampleZeroOutside(field, d + Vec3d(i, j, k) * scale);
-                    }
-                }
-        }
+    forEachVoxel(box, [&](int i, int j, int k) {
+        out(i, j, k) = copy ? field.valueOr(i + shift.x(), j + shift.y(), k + shift.z(), Field<T>::zeroValue())
+                            : sampleZeroOutside(field, d + Vec3d(i, j, k) * scale);
     });
     return out;
 }

@@ -42,18 +42,6 @@ struct FluidTest
     }
 };
 
-/// Runs body(i, j, k) over every voxel of `box`, parallel over x slabs (deterministic: no reductions).
-template<typename Fn>
-void forEachVoxel(const CoordBBox& box, Fn&& body)
-{
-    parallelFor(size_t(box.dim().x()), 1, [&](size_t x0, size_t x1) {
-        for (size_t x = x0; x < x1; ++x) {
-            const int i = box.min().x() + int(x);
-            for (int j = box.min().y(); j <= box.max().y(); ++j)
-                for (int k = box.min().z(); k <= box.max().z(); ++k) body(i, j, k);
-        }
-    });
-}
 
 /// Divergence in voxel units (sum of face differences) per fluid cell; 0 elsewhere.
 DoubleField voxelDivergence(const VectorField& mac, const FluidTest& fluid)
@@ -137,16 +125,18 @@ struct Interrupter : openvdb::util::NullInterrupter
     bool wasInterrupted(int /*percent*/ = -1) override { return progress && progress->cancelled(); }
 };
 
-/// Subtracts the voxel-unit pressure gradient from every face that has fluid on at least one side and
-/// is not a wall. The gradient across a face is p(c+) - p(c-): the backward difference at c+
-/// (math::ISGradient<math::BD_1ST>), the adjoint of voxelDivergence. Pressure outside an open face is 0.
-void subtractGradient(VectorField& mac, const DoubleField& p, const FluidTest& fluid,
-    const std::array<Boundary, 6>& faces)
+enum class FaceKind { Interior, OpenBelow, OpenAbove, Closed };
+
+/// Calls fn(i, j, k, a, kind, lo, hi) for every face a of the MAC box `macBox` that bounds the cell box:
+/// lo and hi are the cells below and above the face along a, and kind says whether both are fluid, the
+/// face is an open boundary below or above the box with fluid inside, or it is closed (wall, solid,
+/// outside). One classification for every operator, so their boundary conditions agree.
+template<typename Fn>
+void forEachMacFace(const CoordBBox& macBox, const FluidTest& fluid, const std::array<Boundary, 6>& faces, Fn&& fn)
 {
     const CoordBBox& cells = fluid.cells;
-    forEachVoxel(mac.bbox(), [&](int i, int j, int k) {
+    forEachVoxel(macBox, [&](int i, int j, int k) {
         const Coord hi(i, j, k);
-        Vec3f& u = mac(i, j, k);
         for (int a = 0; a < 3; ++a) {
             // Only faces of the cell box: the other two coordinates must lie inside it.
             const int b = (a + 1) % 3, c = (a + 2) % 3;
@@ -154,13 +144,31 @@ void subtractGradient(VectorField& mac, const DoubleField& p, const FluidTest& f
             Coord lo = hi;
             lo[a] -= 1;
             const bool inLo = fluid(lo), inHi = fluid(hi);
-            double g;
-            if (inLo && inHi) g = p[hi] - p[lo];
-            else if (inHi && lo[a] < cells.min()[a] && faces[2 * a] == Boundary::Open) g = p[hi];
-            else if (inLo && hi[a] > cells.max()[a] && faces[2 * a + 1] == Boundary::Open) g = -p[lo];
-            else continue; // wall, solid or outside
-            u[a] = float(double(u[a]) - g);
+            FaceKind kind = FaceKind::Closed;
+            if (inLo && inHi) kind = FaceKind::Interior;
+            else if (inHi && lo[a] < cells.min()[a] && faces[2 * a] == Boundary::Open) kind = FaceKind::OpenBelow;
+            else if (inLo && hi[a] > cells.max()[a] && faces[2 * a + 1] == Boundary::Open) kind = FaceKind::OpenAbove;
+            fn(i, j, k, a, kind, lo, hi);
         }
+    });
+}
+
+/// Subtracts the voxel-unit pressure gradient from every face that has fluid on at least one side and
+/// is not a wall. The gradient across a face is p(c+) - p(c-): the backward difference at c+
+/// (math::ISGradient<math::BD_1ST>), the adjoint of voxelDivergence. Pressure outside an open face is 0.
+void subtractGradient(VectorField& mac, const DoubleField& p, const FluidTest& fluid,
+    const std::array<Boundary, 6>& faces)
+{
+    forEachMacFace(mac.bbox(), fluid, faces, [&](int i, int j, int k, int a, FaceKind kind, const Coord& lo, const Coord& hi) {
+        double g;
+        switch (kind) {
+        case FaceKind::Interior: g = p[hi] - p[lo]; break;
+        case FaceKind::OpenBelow: g = p[hi]; break;
+        case FaceKind::OpenAbove: g = -p[lo]; break;
+        default: return; // wall, solid or outside
+        }
+        Vec3f& u = mac(i, j, k);
+        u[a] = float(double(u[a]) - g);
     });
 }
 
@@ -183,20 +191,15 @@ VectorField centredToMac(const VectorField& centred, const ProjectionSettings& s
     if (solid && solid->bbox() != cells) throw ValueError("centredToMac: solid mask box differs from the field's");
     const FluidTest fluid{cells, solid};
     VectorField mac(macBox(cells), centred.lattice());
-    forEachVoxel(mac.bbox(), [&](int i, int j, int k) {
-        const Coord hi(i, j, k);
-        for (int a = 0; a < 3; ++a) {
-            const int b = (a + 1) % 3, c = (a + 2) % 3;
-            if (hi[b] > cells.max()[b] || hi[c] > cells.max()[c]) continue;
-            Coord lo = hi;
-            lo[a] -= 1;
-            const bool inLo = fluid(lo), inHi = fluid(hi);
-            float v = 0.0f;
-            if (inLo && inHi) v = 0.5f * (centred[lo][a] + centred[hi][a]);
-            else if (inHi && lo[a] < cells.min()[a] && s.faces[2 * a] == Boundary::Open) v = centred[hi][a];
-            else if (inLo && hi[a] > cells.max()[a] && s.faces[2 * a + 1] == Boundary::Open) v = centred[lo][a];
-            mac(i, j, k)[a] = v;
+    forEachMacFace(mac.bbox(), fluid, s.faces, [&](int i, int j, int k, int a, FaceKind kind, const Coord& lo, const Coord& hi) {
+        float v = 0.0f;
+        switch (kind) {
+        case FaceKind::Interior: v = 0.5f * (centred[lo][a] + centred[hi][a]); break;
+        case FaceKind::OpenBelow: v = centred[hi][a]; break;
+        case FaceKind::OpenAbove: v = centred[lo][a]; break;
+        case FaceKind::Closed: break;
         }
+        mac(i, j, k)[a] = v;
     });
     return mac;
 }

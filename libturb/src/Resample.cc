@@ -136,25 +136,24 @@ FrequencySplit splitFrequencies(const VectorField& fine, int factor)
     return s;
 }
 
+bool isIntegerRatio(double coarseVoxel, double fineVoxel, double tol)
+{
+    const double r = coarseVoxel / fineVoxel;
+    const double n = std::max(1.0, double(std::lround(r)));
+    return std::abs(r - n) <= tol * n;
+}
+
 int integerRatio(double coarseVoxel, double fineVoxel, double tol)
 {
     const double r = coarseVoxel / fineVoxel;
-    const int n = int(std::lround(r));
-    if (!(r >= 1.0 - tol) || std::abs(r - n) > tol * n) {
+    if (!(r >= 1.0 - tol) || !isIntegerRatio(coarseVoxel, fineVoxel, tol)) {
         std::ostringstream os;
         os << "resolution ratio " << coarseVoxel << " / " << fineVoxel << " = " << r;
         if (r < 1.0 - tol) os << " is below 1: the high-resolution input has larger voxels than the low-resolution one";
         else os << " is not an integer";
         throw ValueError(os.str());
     }
-    return n;
-}
-
-bool isIntegerRatio(double coarseVoxel, double fineVoxel, double tol)
-{
-    const double r = coarseVoxel / fineVoxel;
-    const double n = std::max(1.0, double(std::lround(r)));
-    return std::abs(r - n) <= tol * n;
+    return int(std::lround(r));
 }
 
 int nearestRatio(double coarseVoxel, double fineVoxel, double tol)
@@ -183,43 +182,22 @@ Field<T> resampledToVoxel(const Field<T>& f, double voxelSize)
     const Coord hi(int(std::floor(b.max().x() * k + eps)), int(std::floor(b.max().y() * k + eps)), int(std::floor(b.max().z() * k + eps)));
     Field<T> out(CoordBBox(lo, hi), to);
     const double inv = 1.0 / k;
-    parallelFor(size_t(hi.x() - lo.x() + 1), 1, [&](size_t x0, size_t x1) {
-        for (size_t x = x0; x < x1; ++x) {
-            const int i = lo.x() + int(x);
-            const double px = i * inv;
-            const int ix = int(std::floor(px));
-            const float fx = float(px - ix);
-            for (int j = lo.y(); j <= hi.y(); ++j) {
-                const double py = j * inv;
-                const int iy = int(std::floor(py));
-                const float fy = float(py - iy);
-                for (int kk = lo.z(); kk <= hi.z(); ++kk) {
-                    const double pz = kk * inv;
-                    const int iz = int(std::floor(pz));
-                    const float fz = float(pz - iz);
-                    // clamped(): a centre on the hull's far face has weight 0 on the voxel beyond it.
-                    const auto at = [&](int a, int c, int d) { return f.clamped(ix + a, iy + c, iz + d); };
-                    const T x00 = at(0, 0, 0) * (1 - fx) + at(1, 0, 0) * fx, x10 = at(0, 1, 0) * (1 - fx) + at(1, 1, 0) * fx;
-                    const T x01 = at(0, 0, 1) * (1 - fx) + at(1, 0, 1) * fx, x11 = at(0, 1, 1) * (1 - fx) + at(1, 1, 1) * fx;
-                    out(i, j, kk) = (x00 * (1 - fy) + x10 * fy) * (1 - fz) + (x01 * (1 - fy) + x11 * fy) * fz;
-                }
-            }
-        }
+    forEachVoxel(out.bbox(), [&](int i, int j, int kk) {
+        const double px = i * inv, py = j * inv, pz = kk * inv;
+        const int ix = int(std::floor(px)), iy = int(std::floor(py)), iz = int(std::floor(pz));
+        const float fx = float(px - ix), fy = float(py - iy), fz = float(pz - iz);
+        // clamped(): a centre on the hull's far face has weight 0 on the voxel beyond it.
+        const auto at = [&](int a, int c, int d) { return f.clamped(ix + a, iy + c, iz + d); };
+        const T x00 = at(0, 0, 0) * (1 - fx) + at(1, 0, 0) * fx, x10 = at(0, 1, 0) * (1 - fx) + at(1, 1, 0) * fx;
+        const T x01 = at(0, 0, 1) * (1 - fx) + at(1, 0, 1) * fx, x11 = at(0, 1, 1) * (1 - fx) + at(1, 1, 1) * fx;
+        out(i, j, kk) = (x00 * (1 - fy) + x10 * fy) * (1 - fz) + (x01 * (1 - fy) + x11 * fy) * fz;
     });
     return out;
 }
 
 Frame resampledToVoxel(const Frame& frame, double voxelSize)
 {
-    Frame out;
-    out.number = frame.number;
-    out.dt = frame.dt;
-    out.metadata = frame.metadata;
-    out.velocity = resampledToVoxel(frame.velocity, voxelSize);
-    out.density = resampledToVoxel(frame.density, voxelSize);
-    if (frame.temperature) out.temperature = resampledToVoxel(*frame.temperature, voxelSize);
-    if (frame.flame) out.flame = resampledToVoxel(*frame.flame, voxelSize);
-    return out;
+    return mapFields(frame, [&](const auto& field) { return resampledToVoxel(field, voxelSize); });
 }
 
 template Field<float> resampledToVoxel(const Field<float>&, double);

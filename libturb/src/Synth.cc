@@ -408,28 +408,11 @@ inline void splat(const Level& L, float* acc, const Vec3f& pos, const int* comps
     const float wx = pos[0] - fx, wy = pos[1] - fy;
     float wv[3];
     for (int c = 0; c < nc; ++c) wv[c] = w * value[c];
-    if (L.flat) {
-        for (int cx = 0; cx < 2; ++cx) {
-            const int x = x0 + cx;
-            if (x < 0 || x >= L.n[0]) continue;
-            const float ax = cx ? wx : 1 - wx;
-            for (int cy = 0; cy < 2; ++cy) {
-                const int y = y0 + cy;
-                if (y < 0 || y >= L.n[1]) continue;
-                const float a = ax * (cy ? wy : 1 - wy);
-                float* o = acc + L.idx(x, y, 0) * 6;
-                for (int c = 0; c < nc; ++c) {
-                    o[comps[c]] += a * wv[c];
-                    o[3 + comps[c]] += a * w;
-                }
-            }
-        }
-        return;
-    }
-    const float fz = std::floor(pos[2]);
+    // A flat (2D) level has one z layer: z0 = 0 with full weight.
+    const float fz = L.flat ? 0.0f : std::floor(pos[2]);
     const int z0 = int(fz);
-    const float wz = pos[2] - fz;
-    if (x0 >= 0 && y0 >= 0 && z0 >= 0 && x0 + 1 < L.n[0] && y0 + 1 < L.n[1] && z0 + 1 < L.n[2]) {
+    const float wz = L.flat ? 0.0f : pos[2] - fz;
+    if (!L.flat && x0 >= 0 && y0 >= 0 && z0 >= 0 && x0 + 1 < L.n[0] && y0 + 1 < L.n[1] && z0 + 1 < L.n[2]) {
         // Interior fast path: all eight corners exist.
         const size_t sx = size_t(L.n[1]) * size_t(L.n[2]) * 6, sy = size_t(L.n[2]) * 6, sz = 6;
         float* base = acc + L.idx(x0, y0, z0) * 6;
@@ -454,7 +437,7 @@ inline void splat(const Level& L, float* acc, const Vec3f& pos, const int* comps
             const int y = y0 + cy;
             if (y < 0 || y >= L.n[1]) continue;
             const float axy = ax * (cy ? wy : 1 - wy);
-            for (int cz = 0; cz < 2; ++cz) {
+            for (int cz = 0; cz < (L.flat ? 1 : 2); ++cz) {
                 const int z = z0 + cz;
                 if (z < 0 || z >= L.n[2]) continue;
                 const float a = axy * (cz ? wz : 1 - wz);
@@ -1025,20 +1008,19 @@ std::vector<double> SynthExemplars::explainedVariance() const
     return out;
 }
 
-FineDomain fineDomain(const VectorField& coarse, int factor)
+FineDomain fineDomain(const CoordBBox& cb, const Lattice& coarseLattice, int factor)
 {
     if (factor < 1) throw ValueError("synth: the up-res factor must be >= 1");
     FineDomain d;
-    const CoordBBox cb = coarse.bbox();
     d.twoD = cb.dim().z() == 1;
-    d.lattice = coarse.lattice().refined(factor);
+    d.lattice = coarseLattice.refined(factor);
     d.box = refineBox(cb, factor);
     if (d.twoD) {
         // Keep one voxel in z, at the height of the coarse slice.
         const int k0 = cb.min().z();
         d.box = CoordBBox(Coord(d.box.min().x(), d.box.min().y(), k0), Coord(d.box.max().x(), d.box.max().y(), k0));
         Vec3d o = d.lattice.origin;
-        o[2] = coarse.lattice().origin.z() + k0 * coarse.lattice().voxelSize - k0 * d.lattice.voxelSize;
+        o[2] = coarseLattice.origin.z() + k0 * coarseLattice.voxelSize - k0 * d.lattice.voxelSize;
         d.lattice.origin = o;
     }
     return d;

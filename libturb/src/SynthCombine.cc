@@ -19,21 +19,7 @@ namespace {
 template<typename T>
 Field<T> upsampleImpl(const Field<T>& coarse, int factor)
 {
-    const FineDomain d = [&] {
-        FineDomain fd;
-        const CoordBBox cb = coarse.bbox();
-        fd.twoD = cb.dim().z() == 1;
-        fd.lattice = coarse.lattice().refined(factor);
-        fd.box = refineBox(cb, factor);
-        if (fd.twoD) {
-            const int k0 = cb.min().z();
-            fd.box = CoordBBox(Coord(fd.box.min().x(), fd.box.min().y(), k0), Coord(fd.box.max().x(), fd.box.max().y(), k0));
-            Vec3d o = fd.lattice.origin;
-            o[2] = coarse.lattice().origin.z() + k0 * coarse.lattice().voxelSize - k0 * fd.lattice.voxelSize;
-            fd.lattice.origin = o;
-        }
-        return fd;
-    }();
+    const FineDomain d = fineDomain(coarse.bbox(), coarse.lattice(), factor);
     if (!d.twoD) return upsample(coarse, factor);
     // 2D: the same cell-centred trilinear rule in x and y, one layer in z.
     Field<T> fine(d.box, d.lattice);
@@ -54,14 +40,12 @@ Field<T> upsampleImpl(const Field<T>& coarse, int factor)
 
 VectorField upsampleCoarse(const VectorField& coarse, int factor)
 {
-    if (factor < 1) throw ValueError("synth: the up-res factor must be >= 1");
-    return upsampleImpl(coarse, factor);
+    return upsampleImpl(coarse, factor); // fineDomain rejects factor < 1
 }
 
 ScalarField upsampleCoarse(const ScalarField& coarse, int factor)
 {
-    if (factor < 1) throw ValueError("synth: the up-res factor must be >= 1");
-    return upsampleImpl(coarse, factor);
+    return upsampleImpl(coarse, factor); // fineDomain rejects factor < 1
 }
 
 VectorField combineMotion(const VectorField& coarse, const VectorField& detail, const CombineSettings& s)

@@ -40,19 +40,6 @@ openvdb::tools::Scheme::SemiLagrangian toVdb(AdvectSettings::Scheme s)
     return openvdb::tools::Scheme::MAC;
 }
 
-/// Runs body(i, j, k) over the voxels of `box`, parallel over x slabs (each voxel written by one thread).
-template<typename Fn>
-void forEachVoxel(const CoordBBox& box, Fn&& body)
-{
-    if (box.empty()) return;
-    parallelFor(size_t(box.dim().x()), 1, [&](size_t x0, size_t x1) {
-        for (size_t x = x0; x < x1; ++x) {
-            const int i = box.min().x() + int(x);
-            for (int j = box.min().y(); j <= box.max().y(); ++j)
-                for (int k = box.min().z(); k <= box.max().z(); ++k) body(i, j, k);
-        }
-    });
-}
 
 /// The velocity VolumeAdvection needs for the grid on `box` whose voxels sit half a voxel below the
 /// cells along `axis` (a face component), or at the cell centres (axis = -1), as a collocated grid on

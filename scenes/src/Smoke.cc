@@ -58,19 +58,6 @@ double valueNoise(std::uint64_t seed, const Vec3d& p, double t)
     return acc;
 }
 
-/// Runs body(i, j, k) over the voxels of `box`, parallel over x (each voxel written by one thread).
-template<typename Fn>
-void forEachVoxel(const CoordBBox& box, Fn&& body)
-{
-    if (box.empty()) return;
-    parallelFor(size_t(box.dim().x()), 1, [&](size_t x0, size_t x1) {
-        for (size_t x = x0; x < x1; ++x) {
-            const int i = box.min().x() + int(x);
-            for (int j = box.min().y(); j <= box.max().y(); ++j)
-                for (int k = box.min().z(); k <= box.max().z(); ++k) body(i, j, k);
-        }
-    });
-}
 
 /// Cells whose centres lie within `r` (+ margin) of `c`, clipped to `cells`.
 CoordBBox sphereBox(const Lattice& lat, const Vec3d& c, double r, const CoordBBox& cells)

@@ -35,4 +35,20 @@ struct Frame
     const CoordBBox& bbox() const { return hasVelocity() ? velocity.bbox() : density.bbox(); }
 };
 
+/// A frame with `fn` (callable on ScalarField and VectorField) applied to each field it holds; number,
+/// dt and metadata are kept and absent fields stay absent.
+template<typename Fn>
+Frame mapFields(const Frame& f, Fn&& fn)
+{
+    Frame out;
+    out.number = f.number;
+    out.dt = f.dt;
+    out.metadata = f.metadata;
+    if (f.hasVelocity()) out.velocity = fn(f.velocity);
+    if (f.hasDensity()) out.density = fn(f.density);
+    if (f.temperature) out.temperature = fn(*f.temperature);
+    if (f.flame) out.flame = fn(*f.flame);
+    return out;
+}
+
 } // namespace turb

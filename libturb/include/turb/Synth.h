@@ -174,7 +174,8 @@ struct FineDomain
     Lattice lattice;
     bool twoD = false;
 };
-FineDomain fineDomain(const VectorField& coarse, int factor);
+FineDomain fineDomain(const CoordBBox& coarseBox, const Lattice& coarseLattice, int factor);
+inline FineDomain fineDomain(const VectorField& coarse, int factor) { return fineDomain(coarse.bbox(), coarse.lattice(), factor); }
 
 /// up(L): L sampled cell-centred trilinearly on the fine domain (constant extension at the faces).
 VectorField upsampleCoarse(const VectorField& coarse, int factor);

@@ -134,22 +134,12 @@ ScalarField rotated(const ScalarField& f, const AxisRotation& r)
 
 Frame reorientFrame(const Frame& f, const AxisRotation& r)
 {
-    Frame out = f;
-    if (f.hasVelocity()) out.velocity = rotated(f.velocity, r);
-    if (f.hasDensity()) out.density = rotated(f.density, r);
-    if (f.temperature) out.temperature = rotated(*f.temperature, r);
-    if (f.flame) out.flame = rotated(*f.flame, r);
-    return out;
+    return mapFields(f, [&](const auto& field) { return rotated(field, r); });
 }
 
 Frame downsampleFrame(const Frame& f, int factor)
 {
-    Frame out = f;
-    if (f.hasVelocity()) out.velocity = boxDownsample(f.velocity, factor);
-    if (f.hasDensity()) out.density = boxDownsample(f.density, factor);
-    if (f.temperature) out.temperature = boxDownsample(*f.temperature, factor);
-    if (f.flame) out.flame = boxDownsample(*f.flame, factor);
-    return out;
+    return mapFields(f, [&](const auto& field) { return boxDownsample(field, factor); });
 }
 
 } // namespace turb
