@@ -7,7 +7,8 @@
 #
 # Runs: a, a-noseams, a-gamma0, a-paper, a-paper-beta0, a-notracking, b, b-noseams, b-gamma0, b-paper,
 #       b-paper-beta0, b-notracking, c, d, side-none, side-rotate   (default: all)
-#       Also on any pair: -alpha0, -alpha1, -paper-beta5, -beta0 (parameters), -notd95, -boxw0 (tcoh study).
+#       Also on any pair: -alpha0, -alpha1, -paper-beta5, -beta0 (parameters); for the tcoh study -prev (the
+#       defaults before the coarse tolerance), -exact, -keep0, -notd, -mu5, -pure (see docs/transfer.md).
 # Pair a: ../shared/data/blender-plume-32 -> blender-plume-128 (frames 1-10).
 # Pair b: built-in plume 16x16x24 -> swirl 128x128x192 (the paper's 3D configuration), N frames (default 12).
 # Pair c: target = blender-plume-128 box-downsampled by 4 -> blender-plume-128 (frames 1-30, the whole
@@ -59,8 +60,8 @@ prepare_side() {
   [ -f "$WORK/side/side.0010.vdb" ] || "$BIN" resample "$DATA/blender-plume-128/fluid_data_####.vdb" --rotate y:1 --frames 1-10 --out "$WORK/side/side.####.vdb" -q
 }
 
-echo "| run | what | lf_err | hf_ratio | div_rel (source) | block | tcoh (source) | match E_h | energy scale | median s/frame |"
-echo "|---|---|---|---|---|---|---|---|---|---|"
+echo "| run | what | lf_err | hf_ratio | div_rel (source) | block | tcoh (source) | tcoh floor | match E_h | energy scale | median s/frame |"
+echo "|---|---|---|---|---|---|---|---|---|---|---|"
 for run in $RUNS; do
   pair=$(echo "$run" | cut -d- -f1)
   variant=$(echo "$run" | cut -s -d- -f2-)
@@ -83,9 +84,12 @@ for run in $RUNS; do
     alpha1) ARGS="--alpha 1"; WHAT="alpha = 1 (density weighs 250x the paper's)" ;;
     paper-beta5) ARGS="--temporal-blend 0 --beta 5"; WHAT="beta = 5, no temporal blending" ;;
     beta0) ARGS="--beta 0"; WHAT="beta = 0, with temporal blending" ;;
-    notd95) ARGS="--no-target-divergence --temporal-blend 0.95"; WHAT="paper's div(U_h) term, blend 0.95" ;;
-    boxw0) ARGS="--box-weight 0"; WHAT="no box rows in the seam solve" ;;
-    mu5) ARGS="--value-weight 5 --no-target-divergence --temporal-blend 0.95"; WHAT="value rows 5, paper's div term, blend 0.95" ;;
+    prev) ARGS="--temporal-blend 0.9 --box-keep 0 --coarse-tolerance 0"; WHAT="earlier defaults: blend 0.9, means to zero" ;;
+    exact) ARGS="--coarse-tolerance 0"; WHAT="coarse part removed exactly" ;;
+    keep0) ARGS="--box-keep 0"; WHAT="box rows pull the means to zero" ;;
+    notd) ARGS="--no-target-divergence"; WHAT="paper's div(U_h) term" ;;
+    mu5) ARGS="--value-weight 5"; WHAT="value rows, weight 5" ;;
+    pure) ARGS="--temporal-blend 0.999 --no-seams --coarse-tolerance 1"; WHAT="last frame's detail advected and rescaled, nothing else" ;;
     none) ARGS="--align none"; WHAT="sideways source, --align none" ;;
     rotate) ARGS="--align rotate"; WHAT="sideways source, --align rotate" ;;
     *) echo "quality: unknown variant $variant" >&2; exit 2 ;;
@@ -100,5 +104,8 @@ for run in $RUNS; do
   sec=$(sed -n 's/.*"median_s_per_frame":\([-0-9.e+]*\).*/\1/p' "$tj" | tail -n 1)
   eh=$(frame_median mean_local_energy "$tj")
   es=$(frame_median energy_scale "$tj")
-  echo "| $run | $WHAT | $(fmt "$(median lf_err "$m")") | $(fmt "$(median hf_ratio "$m")") | $(fmt "$(median div_rel "$m")") ($(fmt "$(median div_rel_source "$m")")) | $(fmt "$(median block "$m")") | $(fmt "$(median tcoh "$m")") ($(fmt "$(median tcoh_source "$m")")) | $(fmt "$eh") | $(fmt "$es") | $(fmt "$sec") |"
+  # The triangle inequality's floor on tcoh for a frame whose detail grew by g over last frame's, advected.
+  fl=$(sed -n 's/.*"detail_growth":\([-0-9.e+]*\).*/\1/p' "$tj" | awk '{f = 1 - 1 / $1; if (f < 0) f = 0; print f}' | sort -g |
+       awk '{v[NR]=$1} END{if (NR) print (NR%2 ? v[(NR+1)/2] : (v[NR/2]+v[NR/2+1])/2)}')
+  echo "| $run | $WHAT | $(fmt "$(median lf_err "$m")") | $(fmt "$(median hf_ratio "$m")") | $(fmt "$(median div_rel "$m")") ($(fmt "$(median div_rel_source "$m")")) | $(fmt "$(median block "$m")") | $(fmt "$(median tcoh "$m")") ($(fmt "$(median tcoh_source "$m")")) | $(fmt "$fl") | $(fmt "$eh") | $(fmt "$es") | $(fmt "$sec") |"
 done

@@ -77,7 +77,11 @@ TEST(Cli, TransferWritesResumesAndNeverClobbers)
     ASSERT_EQ(b.code, 0) << b.out;
     EXPECT_NE(b.out.find("continuing after frame 2"), std::string::npos) << b.out;
     const std::string ref = dir / "ref/turb.####.vdb";
-    ASSERT_EQ(run("transfer --target " + lo() + " --source " + hi() + " --out " + ref + " --frames 1-3 -q").code, 0);
+    const CmdResult whole3 = run("transfer --target " + lo() + " --source " + hi() + " --out " + ref + " --frames 1-3 -q --json");
+    ASSERT_EQ(whole3.code, 0) << whole3.out;
+    // Per-frame JSON carries the transfer's own lf_err and, from frame 2, its frame-to-frame change (tcoh).
+    EXPECT_NE(whole3.out.find("\"lf_err\":"), std::string::npos) << whole3.out;
+    EXPECT_NE(whole3.out.find("\"detail_change\":"), std::string::npos) << whole3.out;
     const turb::Frame resumed = turbio::readFrame(dir / "up/turb.0003.vdb", 3, turbio::ReadOptions{});
     const turb::Frame whole = turbio::readFrame(dir / "ref/turb.0003.vdb", 3, turbio::ReadOptions{});
     EXPECT_EQ(resumed.velocity.values(), whole.velocity.values());

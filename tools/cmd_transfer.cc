@@ -180,6 +180,12 @@ int runTransfer(TransferArgs& a)
         extra["tracked"] = st.trackedPatches;
         extra["mean_local_energy"] = st.meanLocalEnergy;
         extra["energy_scale"] = st.energyScale;
+        extra["coarse_kept"] = st.coarseKept;
+        extra["lf_err"] = st.lfErr;
+        if (st.detailChange >= 0.0) {
+            extra["detail_change"] = st.detailChange;
+            extra["detail_growth"] = st.detailGrowth;
+        }
         extra["band_voxels"] = st.seams.bandVoxels;
         extra["seam_initial_energy"] = st.seams.initialEnergy;
         nlohmann::json em = nlohmann::json::array();
@@ -206,6 +212,15 @@ int runTransfer(TransferArgs& a)
         logVerbose("frame " + std::to_string(t) + ": seams: setup " + fmt("%.2f s", st.seams.setupSeconds) + ", M-steps " +
                    fmt("%.2f s", st.seams.mStepSeconds) + ", E-steps " + fmt("%.2f s", st.seams.eStepSeconds) + ", band " +
                    std::to_string(st.seams.bandVoxels) + " voxels, " + std::to_string(st.seams.boundaryPatches) + " boundary patches");
+        if (!r.empty) {
+            std::string detailLine = "frame " + std::to_string(t) + ": detail energy x" + fmt("%.3f", st.energyScale) +
+                                     fmt(", coarse part kept %.2f", st.coarseKept) + fmt(" (lf_err %.3f)", st.lfErr);
+            if (st.detailChange >= 0.0)
+                detailLine += fmt(", change against last frame advected %.3f", st.detailChange) +
+                              fmt(" (growth %.3f: at least ", st.detailGrowth) +
+                              fmt("%.3f)", std::max(0.0, 1.0 - 1.0 / st.detailGrowth));
+            logVerbose(detailLine);
+        }
         std::string timing = "frame " + std::to_string(t) + ": time";
         for (int k : {0, 8, 1, 2, 3, 4, 5, 6}) timing += std::string(" ") + turb::TransferStats::stepName(k) + fmt(" %.2f", st.seconds[k]);
         logVerbose(timing);
@@ -255,9 +270,18 @@ Command transferCommand()
                "from 0.166 to 0.154 and raised div_rel; see docs/transfer.md)")
             ->check(CLI::NonNegativeNumber);
         app->add_option("--box-weight", s.seams.boxWeight,
-               "Weight of the seam solve's rows pulling U_h's coarse-cell means to zero (default 10; 0 = leave it all to "
-               "the exact coarse correction afterwards)")
+               "Weight of the seam solve's rows holding U_h's coarse-cell means (default 10; 0 = the solve may change them "
+               "and --coarse-tolerance alone bounds them)")
             ->check(CLI::NonNegativeNumber);
+        app->add_option("--box-keep", s.seams.boxKeep,
+               "The seam solve's box rows hold each coarse cell's mean of U_h at this fraction of its value on entry "
+               "(default 1: the solve leaves the coarse motion as it came; 0: pulls it to zero)")
+            ->check(CLI::Range(0.0, 1.0));
+        app->add_option("--coarse-tolerance", s.coarseTolerance,
+               "lf_err bound: U_h's coarse-cell means are reduced only until they are this fraction of the target's coarse "
+               "velocity (rms over smoke cells; default 0.04; 0 = removed exactly). What is left in is carried detail: "
+               "removing it changes the detail every frame (tcoh)")
+            ->check(CLI::Range(0.0, 1.0));
         app->add_option("--coherence", s.coherence,
                "Take a neighbour's continued source patch when it matches within this fraction of the best (default 0 = off, the paper)")
             ->check(CLI::NonNegativeNumber);
@@ -274,8 +298,8 @@ Command transferCommand()
         app->add_flag("--no-target-divergence", a.keepTargetDivergence,
             "Seam gamma term penalises div(U_h) only, as in the paper, not div(up(u_t) + U_h)");
         app->add_option("--temporal-blend", s.temporalBlend,
-            "Weight of last frame's detail advected through the target, mixed into the patches it reaches (default 0.9; 0 = paper)")
-            ->check(CLI::Range(0.0, 0.95));
+            "Weight of last frame's detail advected through the target, mixed into the patches it reaches (default 0.95; 0 = paper)")
+            ->check(CLI::Range(0.0, 0.999));
         app->add_option("--align", a.align, "Match after aligning flows: none (paper), normalize, rotate, both")
             ->check(CLI::IsMember({"none", "normalize", "rotate", "both"}));
         app->add_option("--density", a.density, "Output density: advect (default) or lookback (seed 003 supplement)")

@@ -32,7 +32,10 @@ struct SeamSettings
     double emTolerance = 0.02;   ///< stop when |E_b(k) - E_b(k-1)| / E_b(k-1) is below this
     int maxCgIterations = 100;   ///< CG iterations per E-step
     double cgTolerance = 1e-3;   ///< CG stops at this relative residual of the normal equations
-    float boxWeight = 10.0f;     ///< nu/f^3: weight of the rows pulling U_h's box means (coarse cells) to zero, >= 0
+    float boxWeight = 10.0f;     ///< nu/f^3: weight of the rows holding U_h's box means (coarse cells), >= 0
+    float boxKeep = 1.0f;        ///< the box rows pull each coarse cell's mean of X to this fraction of its mean on
+                                 ///< entry: 1 = the solve moves detail within cells but leaves their means (the coarse
+                                 ///< motion) as they came in; 0 = pulls them to zero
     float valueWeight = 0.0f;    ///< mu: weight of rows keeping X near its value on entry, times the temporal blend
                                  ///< weight of its patch (carried detail changes less); 0 = the paper's energy
 };

@@ -79,7 +79,7 @@ struct TransferSettings
     float coherence = 0.0f;       ///< beyond the paper: take a neighbour's continued source patch when its E_h is
                                   ///< within this fraction of the best (fewer seams); 0 = off
     int coherenceSweeps = 2;      ///< red-black sweeps of the coherence pass, >= 1
-    float temporalBlend = 0.9f;   ///< beyond the paper: weight of last frame's detail (advected through the target)
+    float temporalBlend = 0.95f;  ///< beyond the paper: weight of last frame's detail (advected through the target)
                                   ///< mixed into patches that had detail, in [0, 0.95]; 0 = the paper
     FlowAlignment alignment = FlowAlignment::None; ///< see FlowAlignment
     bool resampleSource = true;   ///< beyond the paper: a source at a non-integer ratio is resampled trilinearly to
@@ -91,7 +91,11 @@ struct TransferSettings
     // Output
     bool compensateTargetDivergence = true; ///< the seam solve's gamma term penalises div(up(u_t) + U_h), not
                                             ///< div(U_h) alone, so the band also cancels the up-sampled target's divergence
-    bool removeCoarseDetail = true; ///< subtract the smooth part of U_h whose box means are not zero (keeps lf_err ~ 0)
+    bool removeCoarseDetail = true; ///< reduce the smooth part of U_h whose box means are not zero (bounds lf_err)
+    float coarseTolerance = 0.04f; ///< beyond the paper: U_h's coarse-cell means are reduced only until they are this
+                                   ///< fraction of the target's coarse speed (rms over the smoke cells, lf_err's
+                                   ///< definition); 0 = removed exactly. What stays is carried detail that advection
+                                   ///< moved into the means: removing it is a change every frame (tcoh)
     DetailEnergy detailEnergy = DetailEnergy::Source; ///< what U_h's energy is scaled to (one scalar per frame)
     DensityMode densityMode = DensityMode::Advect; ///< how the output density is produced
     int lookBackFrames = 12;      ///< m for DensityMode::LookBack (seed 003 suggests 10-20)
@@ -108,7 +112,13 @@ struct TransferStats
     int globalSearches = 0;        ///< patches that ran the global search this frame
     int trackedPatches = 0;        ///< patches whose global patch followed the previous frame
     double meanLocalEnergy = 0.0;  ///< mean E_h of the chosen local patches
-    double energyScale = 1.0;      ///< factor applied to U_h by preserveEnergy
+    double energyScale = 1.0;      ///< factor applied to U_h to meet TransferSettings::detailEnergy
+    double coarseKept = 0.0;       ///< fraction of U_h's coarse part left in (coarseTolerance); 0 = removed exactly
+    double lfErr = 0.0;            ///< rms of U_h's coarse-cell means / rms of the target's, over its smoke cells
+    double detailChange = -1.0;    ///< rms(U_h - U_h(i-1) advected) / rms(U_h) over the output's smoke: what
+                                   ///< `measure` reports as tcoh; -1 on a first frame
+    double detailGrowth = 0.0;     ///< rms(U_h) / rms(U_h(i-1) advected) over the output's smoke; no field of this
+                                   ///< energy is closer to the advected one than 1 - 1/growth (tcoh's floor)
     SeamStats seams;               ///< EM/CG log of the seam smoothing
     double seconds[9] = {0};       ///< split, global, local, paste, seams, output, density, total, advect_detail
     static const char* stepName(int i);

@@ -230,4 +230,19 @@ VectorField coarsePart(const VectorField& detail, int factor, int iterations, do
     return c;
 }
 
+double coarseRatio(const VectorField& detail, const VectorField& up, const ScalarField& targetDensity, float threshold,
+    int factor)
+{
+    const VectorField means = boxDownsample(detail, factor);
+    const VectorField reference = boxDownsample(up, factor);
+    double num = 0.0, den = 0.0;
+    for (size_t n = 0; n < means.size(); ++n) {
+        const Coord c = means.coordOf(n);
+        if (!targetDensity.bbox().isInside(c) || !(targetDensity[c] > threshold)) continue;
+        num += double(means.data()[n].lengthSqr());
+        den += double(reference[c].lengthSqr());
+    }
+    return den > 0.0 ? std::sqrt(num / den) : 0.0;
+}
+
 } // namespace turb::detail

@@ -202,7 +202,7 @@ public:
         // Value rows: sqrt(mu_u) * (anchor - X) at the unknowns that have one.
         for (size_t u = 0; u < mValueCoef.size(); ++u)
             sv[u] = (mAnchor[u] - x[mLinear[size_t(mUnknowns[u])]]) * mValueCoef[u];
-        // Box rows: -sqrt(nu) * (mean of X over the coarse cell, fixed voxels included).
+        // Box rows: sqrt(nu) * (target mean - mean of X over the coarse cell, fixed voxels included).
         parallelFor(mCells.size(), 256, [&](size_t b, size_t e) {
             for (size_t c = b; c < e; ++c) {
                 CoordBBox cb = refineBox(CoordBBox(mCells[c], mCells[c]), mBoxF);
@@ -211,7 +211,7 @@ public:
                 for (int i = cb.min().x(); i <= cb.max().x(); ++i)
                     for (int j = cb.min().y(); j <= cb.max().y(); ++j)
                         for (int k = cb.min().z(); k <= cb.max().z(); ++k) sum += x[X.offset(i, j, k)];
-                sb[c] = sum * (-mBoxCoef);
+                sb[c] = (mBoxTarget[c] - sum) * mBoxCoef;
             }
         });
         parallelFor(m, 4096, [&](size_t b, size_t e) {
@@ -333,9 +333,10 @@ public:
     }
 
     // Adds one row per coarse cell (factor^3 fine voxels, cells at multiples of factor) that holds an
-    // unknown: sqrt(nu) * mean(X) over the cell, pulling the detail's box means to zero so the target's
-    // coarse motion is left alone (lf_err) without a separate, divergence-adding correction.
-    void enableBoxRows(int factor, float weight)
+    // unknown: sqrt(nu) * (mean(X) - keep * mean(X on entry)) over the cell. The seams and the divergence
+    // term then move detail within cells without adding coarse motion (lf_err), and no separate,
+    // divergence-adding correction has to take out what the solve would otherwise put there.
+    void enableBoxRows(const VectorField& X, int factor, float weight, float keep)
     {
         mBoxF = factor;
         mBoxCoef = std::sqrt(std::max(0.0f, weight) * float(factor * factor * factor)) / float(factor * factor * factor);
@@ -362,6 +363,18 @@ public:
             mCellMembers.push_back(mUnknowns[size_t(keyed[i].second)]);
         }
         mCellStart.push_back(int(mCellMembers.size()));
+        // Targets as sums over each cell (the rows' unit), from X as it enters the solve.
+        mBoxTarget.assign(mCells.size(), Vec3f(0.0f));
+        if (keep != 0.0f)
+            parallelFor(mCells.size(), 256, [&](size_t b, size_t e) {
+                for (size_t c = b; c < e; ++c) {
+                    CoordBBox cb = refineBox(CoordBBox(mCells[c], mCells[c]), mBoxF);
+                    cb.intersect(mBox);
+                    Vec3f sum(0.0f);
+                    for (auto it = cb.begin(); it; ++it) sum += X[*it];
+                    mBoxTarget[c] = sum * keep;
+                }
+            });
     }
 
     // Adds one value row per unknown u with weight mu(u) > 0: sqrt(mu) * (X - anchor), so the solve
@@ -454,6 +467,7 @@ private:
     int mBoxF = 1;
     float mBoxCoef = 0.0f;            // sqrt(nu) / factor^3
     std::vector<Coord> mCells;        // coarse cells with box rows
+    std::vector<Vec3f> mBoxTarget;    // per cell: the sum of X the row pulls towards
     std::vector<int> mCellStart, mCellMembers, mCellOf;
     std::vector<int> mGatherRow;      // per unknown, axis, k: div rows using x[r][a]
     std::vector<float> mGatherCoef;   // and their coefficients
@@ -524,7 +538,8 @@ SeamStats smoothSeams(VectorField& detail, const SeamProblem& problem, const Sea
     if (problem.base && problem.base->bbox() != detail.bbox())
         throw ValueError("smoothSeams: the base field must cover the detail field's box");
     SeamSystem sys(detail, omega, settings.gamma, problem.base);
-    if (problem.boxFactor > 1 && settings.boxWeight > 0.0f) sys.enableBoxRows(problem.boxFactor, settings.boxWeight);
+    if (problem.boxFactor > 1 && settings.boxWeight > 0.0f)
+        sys.enableBoxRows(detail, problem.boxFactor, settings.boxWeight, settings.boxKeep);
     if (settings.valueWeight > 0.0f && problem.temporal && !problem.temporalWeights.empty())
         sys.enableValueRows(detail, [&](const Coord& c) {
             return settings.valueWeight * problem.temporalWeights[L.patchIndex(L.patchOf(c))];

@@ -261,6 +261,7 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
     st.localPatches = int(std::count(active.begin(), active.end(), uint8_t(1)));
 
     VectorField detail(fineBox, fineLattice);
+    VectorField advectedDetail; // U_h(i-1) advected through u_t(i-1); empty on a first frame
     double referenceEnergy = 0.0; // mean |U_h|^2 per smoke voxel the detail is calibrated to
     detail::MatchWeights w = this->w;
     if (st.localPatches == 0) {
@@ -332,7 +333,6 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
         st.seconds[0] += since(t0);
 
         // --- Previous detail advected through the target velocity (the beta term) ---------------
-        VectorField advectedDetail;
         t0 = Clock::now();
         if (havePrevious && (s.beta > 0.0f || s.temporalBlend > 0.0f)) {
             AdvectSettings a;
@@ -573,7 +573,7 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
         // arrived, only as much as the detail advected into it (relative rms against the pasted detail),
         // so detail that flowed in keeps moving instead of being replaced.
         std::vector<float> blendWeight;
-        const float lambda = (!advectedDetail.empty()) ? std::clamp(s.temporalBlend, 0.0f, 0.95f) : 0.0f;
+        const float lambda = (!advectedDetail.empty()) ? std::clamp(s.temporalBlend, 0.0f, 0.999f) : 0.0f;
         if (lambda > 0.0f) {
             blendWeight.assign(layout.patchCount(), 0.0f);
             parallelFor(activeList.size(), 16, [&](size_t b, size_t e) {
@@ -604,6 +604,21 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
         // --- Seam smoothing (section 3.3) ---------------------------------------------------------
         if (progress) progress->begin("seams");
         t0 = Clock::now();
+        // The coarse part goes down to the tolerance before the solve: taking out a trilinear field adds
+        // divergence, which the solve's gamma term then removes while its box rows hold the means.
+        if (s.removeCoarseDetail) {
+            const VectorField cu = upsample(detail::coarsePart(detail, f), f);
+            double scale = 1.0; // the energy factor this frame will get, estimated without the solve
+            if (s.detailEnergy != DetailEnergy::None && referenceEnergy > 0.0) {
+                VectorField fine = detail;
+                for (size_t n = 0; n < fine.size(); ++n) fine.data()[n] -= cu.data()[n];
+                const double now = meanSmokeEnergy(fine);
+                if (now > 0.0) scale = std::clamp(std::sqrt(referenceEnergy / now), 1.0 / 3.0, 3.0);
+            }
+            const double lf = scale * detail::coarseRatio(cu, Ut, target.density, s.densityThreshold, f);
+            const float remove = lf > s.coarseTolerance ? float(1.0 - s.coarseTolerance / lf) : 0.0f;
+            for (size_t n = 0; n < detail.size(); ++n) detail.data()[n] -= cu.data()[n] * remove;
+        }
         SeamProblem problem;
         problem.sourceHigh = &split.high;
         problem.sourceScale = detailScale;
@@ -632,10 +647,10 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
 
     // --- Output velocity: U = up(u_t) + U_h ---------------------------------------------------------
     t0 = Clock::now();
+    VectorField coarseDetail; // the smooth part of U_h with U_h's coarse-cell means
     if (s.removeCoarseDetail && !result.empty) {
-        const VectorField c = detail::coarsePart(detail, f);
-        const VectorField cu = upsample(c, f);
-        for (size_t n = 0; n < detail.size(); ++n) detail.data()[n] -= cu.data()[n];
+        coarseDetail = upsample(detail::coarsePart(detail, f), f);
+        for (size_t n = 0; n < detail.size(); ++n) detail.data()[n] -= coarseDetail.data()[n];
     }
     if (s.detailEnergy != DetailEnergy::None && referenceEnergy > 0.0 && !result.empty) {
         const size_t n = smokeCount(outDensity, s.densityThreshold);
@@ -643,6 +658,27 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
         // Bounded: a large factor would mean the pipeline lost the detail, not something to amplify.
         st.energyScale = now > 0.0 ? std::clamp(std::sqrt(referenceEnergy / now), 1.0 / 3.0, 3.0) : 1.0;
         for (auto& v : detail.values()) v *= float(st.energyScale);
+    }
+    if (!coarseDetail.empty()) {
+        // Put back as much of the coarse part as the tolerance allows, measured as lf_err measures it:
+        // the coarse part's box means against the up-sampled target's, over the target's smoke cells.
+        const double lf = st.energyScale * detail::coarseRatio(coarseDetail, Ut, target.density, s.densityThreshold, f);
+        st.coarseKept = lf > s.coarseTolerance ? s.coarseTolerance / lf : 1.0;
+        st.lfErr = lf * st.coarseKept;
+        const float k = float(st.coarseKept * st.energyScale);
+        if (k > 0.0f)
+            for (size_t n = 0; n < detail.size(); ++n) detail.data()[n] += coarseDetail.data()[n] * k;
+    }
+    if (!advectedDetail.empty() && !result.empty) {
+        double change = 0.0, now = 0.0, before = 0.0;
+        for (size_t n = 0; n < detail.size(); ++n) {
+            if (!(outDensity.data()[n] > s.densityThreshold)) continue;
+            change += double((detail.data()[n] - advectedDetail.data()[n]).lengthSqr());
+            now += double(detail.data()[n].lengthSqr());
+            before += double(advectedDetail.data()[n].lengthSqr());
+        }
+        if (now > 0.0) st.detailChange = std::sqrt(change / now);
+        if (before > 0.0) st.detailGrowth = std::sqrt(now / before);
     }
     Frame out;
     out.number = target.number;
