@@ -609,10 +609,15 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
         if (s.removeCoarseDetail) {
             const VectorField cu = upsample(detail::coarsePart(detail, f), f);
             double scale = 1.0; // the energy factor this frame will get, estimated without the solve
-            if (s.detailEnergy != DetailEnergy::None && referenceEnergy > 0.0) {
-                VectorField fine = detail;
-                for (size_t n = 0; n < fine.size(); ++n) fine.data()[n] -= cu.data()[n];
-                const double now = meanSmokeEnergy(fine);
+            const size_t smoke = smokeCount(outDensity, s.densityThreshold);
+            if (s.detailEnergy != DetailEnergy::None && referenceEnergy > 0.0 && smoke > 0) {
+                const double now = parallelSum(detail.size(), 1 << 16, [&](size_t b, size_t e) {
+                    double acc = 0.0;
+                    for (size_t n = b; n < e; ++n)
+                        if (outDensity.data()[n] > s.densityThreshold)
+                            acc += double((detail.data()[n] - cu.data()[n]).lengthSqr());
+                    return acc;
+                }) / double(smoke);
                 if (now > 0.0) scale = std::clamp(std::sqrt(referenceEnergy / now), 1.0 / 3.0, 3.0);
             }
             const double lf = scale * detail::coarseRatio(cu, Ut, target.density, s.densityThreshold, f);
