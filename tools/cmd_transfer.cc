@@ -266,8 +266,8 @@ Command transferCommand()
         app->add_option("--cg-tolerance", s.seams.cgTolerance, "CG relative residual (default 1e-3)");
         app->add_option("--value-weight", s.seams.valueWeight,
                "Weight of rows keeping carried detail at its value in the seam solve, times the patch's blend weight "
-               "(default 0 = the paper's energy; on pair a with --no-target-divergence --temporal-blend 0.95, 5 lowered late-frame tcoh "
-               "from 0.166 to 0.154 and raised div_rel; see docs/transfer.md)")
+               "(default 0 = the paper's energy; 5 lowers pair a's tcoh from 0.198 to 0.193 but raises div_rel above the source's "
+               "on pairs b and d; see docs/transfer.md)")
             ->check(CLI::NonNegativeNumber);
         app->add_option("--box-weight", s.seams.boxWeight,
                "Weight of the seam solve's rows holding U_h's coarse-cell means (default 10; 0 = the solve may change them "

@@ -80,7 +80,7 @@ struct TransferSettings
                                   ///< within this fraction of the best (fewer seams); 0 = off
     int coherenceSweeps = 2;      ///< red-black sweeps of the coherence pass, >= 1
     float temporalBlend = 0.95f;  ///< beyond the paper: weight of last frame's detail (advected through the target)
-                                  ///< mixed into patches that had detail, in [0, 0.95]; 0 = the paper
+                                  ///< mixed into patches that had detail, in [0, 0.999]; 0 = the paper
     FlowAlignment alignment = FlowAlignment::None; ///< see FlowAlignment
     bool resampleSource = true;   ///< beyond the paper: a source at a non-integer ratio is resampled trilinearly to
                                   ///< the nearest integer ratio; false = such a source is an error
