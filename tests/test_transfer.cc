@@ -85,6 +85,33 @@ double lfErr(const VectorField& out, const VectorField& target, const ScalarFiel
     return std::sqrt(num / den);
 }
 
+// 24^3 of detail in 8^3 patches, each pasted from its own offset into one analytic source (real seams),
+// with box rows on a 4^3 coarse lattice. Holds the source the problem points at, so it stays put.
+struct PastedWithSeams
+{
+    VectorField source{CoordBBox({-16, -16, -16}, {47, 47, 47}), Lattice{}};
+    VectorField pasted{CoordBBox({0, 0, 0}, {23, 23, 23}), Lattice{}};
+    SeamProblem problem;
+    explicit PastedWithSeams(unsigned seed)
+    {
+        const Modes fine(20, 3.0, 8.0, seed, 1.0);
+        for (size_t n = 0; n < source.size(); ++n) source.data()[n] = fine.at(source.coordOf(n).asVec3d());
+        SeamProblem& p = problem;
+        p.sourceHigh = &source;
+        p.layout = PatchLayout::covering(pasted.bbox(), 8);
+        p.active.assign(p.layout.patchCount(), 1);
+        p.offset.resize(p.layout.patchCount());
+        for (size_t i = 0; i < p.offset.size(); ++i) p.offset[i] = Coord(int(i % 5) * 3 - 6, int(i % 3) * 4 - 4, int(i % 7) - 3);
+        p.boxFactor = 4;
+        for (size_t n = 0; n < pasted.size(); ++n) {
+            const Coord c = pasted.coordOf(n);
+            pasted.data()[n] = source[c + p.offset[p.layout.patchIndex(p.layout.patchOf(c))]];
+        }
+    }
+    PastedWithSeams(const PastedWithSeams&) = delete;
+    PastedWithSeams& operator=(const PastedWithSeams&) = delete;
+};
+
 } // namespace
 
 TEST(SeamBand, GeometryMatchesTheAnalyticCount)
@@ -510,22 +537,9 @@ TEST(SeamSmoothing, BoxRowsHoldTheCoarseMeansOrClearThem)
     // Patches pasted from different offsets: the seam solve moves detail across borders. Its box rows hold
     // each coarse cell's mean where it came in (keep 1) or pull it to zero (keep 0); without them the
     // means drift.
-    const CoordBBox box({0, 0, 0}, {23, 23, 23});
-    const Modes fine(20, 3.0, 8.0, 22, 1.0);
-    VectorField source(CoordBBox({-16, -16, -16}, {47, 47, 47}), Lattice{});
-    for (size_t n = 0; n < source.size(); ++n) source.data()[n] = fine.at(source.coordOf(n).asVec3d());
-    SeamProblem p;
-    p.sourceHigh = &source;
-    p.layout = PatchLayout::covering(box, 8);
-    p.active.assign(p.layout.patchCount(), 1);
-    p.offset.resize(p.layout.patchCount());
-    for (size_t i = 0; i < p.offset.size(); ++i) p.offset[i] = Coord(int(i % 5) * 3 - 6, int(i % 3) * 4 - 4, int(i % 7) - 3);
-    p.boxFactor = 4;
-    VectorField pasted(box, Lattice{});
-    for (size_t n = 0; n < pasted.size(); ++n) {
-        const Coord c = pasted.coordOf(n);
-        pasted.data()[n] = source[c + p.offset[p.layout.patchIndex(p.layout.patchOf(c))]];
-    }
+    const PastedWithSeams fx(22);
+    SeamProblem p = fx.problem;
+    const VectorField& pasted = fx.pasted;
     const VectorField before = boxDownsample(pasted, 4);
     const auto rms = [](const VectorField& a, const VectorField* b) {
         double e = 0;
@@ -555,23 +569,10 @@ TEST(SeamSmoothing, ValueRowsKeepCarriedDetailNearItsValue)
     // Patches pasted from different offsets (real seams), all carrying last frame's detail with weight
     // 0.9: the larger the value weight, the less the solve changes the detail, and a huge weight leaves
     // it where it was.
-    const CoordBBox box({0, 0, 0}, {23, 23, 23});
-    const Modes fine(20, 3.0, 8.0, 21, 1.0);
-    VectorField source(CoordBBox({-16, -16, -16}, {47, 47, 47}), Lattice{});
-    for (size_t n = 0; n < source.size(); ++n) source.data()[n] = fine.at(source.coordOf(n).asVec3d());
-    SeamProblem p;
-    p.sourceHigh = &source;
-    p.layout = PatchLayout::covering(box, 8);
-    p.active.assign(p.layout.patchCount(), 1);
-    p.offset.resize(p.layout.patchCount());
-    for (size_t i = 0; i < p.offset.size(); ++i) p.offset[i] = Coord(int(i % 5) * 3 - 6, int(i % 3) * 4 - 4, int(i % 7) - 3);
-    VectorField pasted(box, Lattice{});
-    for (size_t n = 0; n < pasted.size(); ++n) {
-        const Coord c = pasted.coordOf(n);
-        pasted.data()[n] = source[c + p.offset[p.layout.patchIndex(p.layout.patchOf(c))]];
-    }
+    const PastedWithSeams fx(21);
+    SeamProblem p = fx.problem;
+    const VectorField& pasted = fx.pasted;
     p.temporal = &pasted;
-    p.boxFactor = 4;
     // Relative change of the detail over the voxels of patches with weight w (w < 0: all).
     const auto relChange = [&](const VectorField& detail, float w) {
         double change = 0, energy = 0;
