@@ -8,7 +8,7 @@
 # Runs: a, a-noseams, a-gamma0, a-paper, a-paper-beta0, a-notracking, b, b-noseams, b-gamma0, b-paper,
 #       b-paper-beta0, b-notracking, c, d, side-none, side-rotate   (default: all)
 #       Also on any pair: -alpha0, -alpha1, -paper-beta5, -beta0 (parameters); for the tcoh study -prev (the
-#       defaults before the coarse tolerance), -exact, -keep0, -notd, -mu5, -pure (see docs/transfer.md).
+#       defaults before the coarse tolerance), -exact, -keep0, -notd, -mu5, -whole, -pure (see docs/transfer.md).
 # Pair a: ../shared/data/blender-plume-32 -> blender-plume-128 (frames 1-10).
 # Pair b: built-in plume 16x16x24 -> swirl 128x128x192 (the paper's 3D configuration), N frames (default 12).
 # Pair c: target = blender-plume-128 box-downsampled by 4 -> blender-plume-128 (frames 1-30, the whole
@@ -89,6 +89,7 @@ for run in $RUNS; do
     keep0) ARGS="--box-keep 0"; WHAT="box rows pull the means to zero" ;;
     notd) ARGS="--no-target-divergence"; WHAT="paper's div(U_h) term" ;;
     mu5) ARGS="--value-weight 5"; WHAT="value rows, weight 5" ;;
+    whole) ARGS="--whole-fresh-patches"; WHAT="fresh patches solved whole" ;;
     pure) ARGS="--temporal-blend 0.999 --no-seams --coarse-tolerance 1"; WHAT="last frame's detail advected and rescaled, nothing else" ;;
     none) ARGS="--align none"; WHAT="sideways source, --align none" ;;
     rotate) ARGS="--align rotate"; WHAT="sideways source, --align rotate" ;;

@@ -11,6 +11,7 @@
 #include <turb/Seams.h>
 #include <turb/Transfer.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -562,6 +563,78 @@ TEST(SeamSmoothing, BoxRowsHoldTheCoarseMeansOrClearThem)
     EXPECT_LT(rms(means(10.0f, 1.0f), &before) / scale, 0.25 * drift);
     // Rows are soft (weight 10 against the gradient and divergence rows): most of each mean goes.
     EXPECT_LT(rms(means(10.0f, 0.0f), nullptr) / scale, 0.35);
+}
+
+TEST(SeamSmoothing, DivergenceTermCancelsTheScaledBaseAndReachesWholePatches)
+{
+    // A base field of constant divergence 0.2 under pasted, divergence-free detail. The gamma term makes
+    // div(baseScale * base + X) small in Ω: the solve cancels the base scaled as asked (the detail is
+    // scaled by 1 / baseScale afterwards in the transfer), and whole patches take part everywhere.
+    const PastedWithSeams fx(23);
+    VectorField base(fx.pasted.bbox(), Lattice{});
+    for (size_t n = 0; n < base.size(); ++n) base.data()[n] = Vec3f(0.2f * float(base.coordOf(n).x()), 0.0f, 0.0f);
+    const std::vector<uint8_t> band = seamBand(fx.pasted.bbox(), fx.problem.layout, fx.problem.active, 2);
+    // rms of div(scale * base + x) over the band (or everywhere).
+    const auto rmsDiv = [&](const VectorField& x, float scale, bool bandOnly) {
+        VectorField u = x;
+        for (size_t n = 0; n < u.size(); ++n) u.data()[n] += base.data()[n] * scale;
+        const ScalarField div = divergence(u);
+        double e = 0;
+        size_t count = 0;
+        for (size_t n = 0; n < div.size(); ++n)
+            if (!bandOnly || band[n]) {
+                e += double(div.data()[n]) * div.data()[n];
+                ++count;
+            }
+        return std::sqrt(e / double(count));
+    };
+    const auto solved = [&](float scale, bool whole, SeamStats* stats = nullptr) {
+        SeamProblem p = fx.problem;
+        p.boxFactor = 0;
+        p.base = &base;
+        p.baseScale = scale;
+        if (whole) p.wholePatches.assign(p.layout.patchCount(), 1);
+        VectorField x = fx.pasted;
+        SeamSettings s;
+        s.gamma = 100.0f;
+        s.maxCgIterations = 400;
+        s.cgTolerance = 1e-6;
+        const SeamStats st = smoothSeams(x, p, s);
+        if (stats) *stats = st;
+        return x;
+    };
+    const VectorField one = solved(1.0f, false), half = solved(0.5f, false);
+    EXPECT_LT(rmsDiv(one, 1.0f, true), 0.3 * rmsDiv(one, 0.5f, true));
+    EXPECT_LT(rmsDiv(half, 0.5f, true), 0.3 * rmsDiv(half, 1.0f, true));
+
+    // Whole patches: every voxel is an unknown, and the divergence falls everywhere, not only in the band.
+    SeamStats inBand, inWhole;
+    const VectorField banded = solved(1.0f, false, &inBand), whole = solved(1.0f, true, &inWhole);
+    EXPECT_EQ(inWhole.bandVoxels, fx.pasted.size());
+    EXPECT_EQ(inBand.bandVoxels, size_t(std::count(band.begin(), band.end(), uint8_t(1))));
+    EXPECT_LT(inBand.bandVoxels, fx.pasted.size());
+    EXPECT_LT(rmsDiv(whole, 1.0f, false), 0.5 * rmsDiv(banded, 1.0f, false));
+    SeamProblem bad = fx.problem;
+    bad.wholePatches.assign(3, 1);
+    VectorField x = fx.pasted;
+    EXPECT_THROW(smoothSeams(x, bad, SeamSettings{}), ValueError) << "one flag per patch is required";
+}
+
+TEST_F(TransferPair, WholeFreshPatchesLowerTheFirstFramesDivergence)
+{
+    const auto firstFrameDiv = [&](bool whole) {
+        TransferSettings s;
+        s.solveFreshPatchesWhole = whole;
+        const TransferResult r = TurbulenceTransfer(s).process(targets[0], sources[0]);
+        MeasureInput in;
+        in.output = &r.frame;
+        in.target = &targets[0];
+        MeasureSettings ms;
+        ms.spectra = false;
+        return *measureFrame(in, ms).divRel;
+    };
+    const double banded = firstFrameDiv(false), whole = firstFrameDiv(true);
+    EXPECT_LT(whole, 0.8 * banded) << "banded " << banded << ", whole " << whole;
 }
 
 TEST(SeamSmoothing, ValueRowsKeepCarriedDetailNearItsValue)

@@ -285,6 +285,10 @@ Command transferCommand()
         app->add_option("--coherence", s.coherence,
                "Take a neighbour's continued source patch when it matches within this fraction of the best (default 0 = off, the paper)")
             ->check(CLI::NonNegativeNumber);
+        app->add_flag("--whole-fresh-patches", s.solveFreshPatchesWhole,
+            "Solve every voxel of patches without carried detail (first frames, entering smoke), not only the seam band: "
+            "the divergence term then reaches their insides (first frames' div_rel below the source's on pairs a, b, d; "
+            "about +0.005 tcoh; docs/transfer.md)");
         app->add_flag("--no-seams", a.noSeams, "Paste patches without seam smoothing (ablation)");
         app->add_flag("--no-resample-source", a.noResample,
             "Refuse a source whose voxel size is not an integer fraction of the target's (default: resample it trilinearly to "

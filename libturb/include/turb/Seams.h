@@ -102,7 +102,11 @@ struct SeamProblem
     std::vector<float> temporalWeights;      ///< (1 - w) * boundary patches' + w * its differences, w per local
                                              ///< patch (the mean of the edge's two patches)
     const VectorField* base = nullptr;       ///< optional field added to X in the divergence term: the
-                                             ///< gamma term then penalises div(base + X) (same box as X)
+                                             ///< gamma term then penalises div(baseScale * base + X) (same box as X)
+    std::vector<uint8_t> wholePatches;       ///< optional, per patch: 1 puts all of the patch's voxels in Ω, not only
+                                             ///< its band (fresh patches: the gamma term then reaches their insides)
+    float baseScale = 1.0f;                  ///< 1 / the factor X will be scaled by afterwards, so that
+                                             ///< div(base + factor * X) is what the solve makes small
 };
 
 /// Ω as a per-voxel mask over `box` (1 = in the band).

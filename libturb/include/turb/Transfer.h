@@ -91,6 +91,9 @@ struct TransferSettings
     // Output
     bool compensateTargetDivergence = true; ///< the seam solve's gamma term penalises div(up(u_t) + U_h), not
                                             ///< div(U_h) alone, so the band also cancels the up-sampled target's divergence
+    bool solveFreshPatchesWhole = false; ///< beyond the paper: patches without carried detail (first frames, smoke
+                                   ///< entering) join the seam solve whole, so its divergence term reaches their
+                                   ///< insides; lowers early frames' div_rel, costs some tcoh later
     bool removeCoarseDetail = true; ///< reduce the smooth part of U_h whose box means are not zero (bounds lf_err)
     float coarseTolerance = 0.04f; ///< beyond the paper: U_h's coarse-cell means are reduced only until they are this
                                    ///< fraction of the target's coarse speed (rms over the smoke cells, lf_err's

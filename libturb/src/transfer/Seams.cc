@@ -59,8 +59,10 @@ namespace {
 class SeamSystem
 {
 public:
-    SeamSystem(const VectorField& X, const std::vector<uint8_t>& omega, float gamma, const VectorField* base = nullptr)
-        : mBox(X.bbox()), mDim(X.bbox().dim()), mSqrtGamma(std::sqrt(std::max(0.0f, gamma))), mBase(base)
+    SeamSystem(const VectorField& X, const std::vector<uint8_t>& omega, float gamma, const VectorField* base = nullptr,
+        float baseScale = 1.0f)
+        : mBox(X.bbox()), mDim(X.bbox().dim()), mSqrtGamma(std::sqrt(std::max(0.0f, gamma))), mBase(base),
+          mBaseScale(baseScale)
     {
         const size_t n = X.size();
         mCompact.assign(n, -1);
@@ -232,7 +234,7 @@ public:
                     if (span) {
                         const size_t ih = X.offset(hi.x(), hi.y(), hi.z()), il = X.offset(lo.x(), lo.y(), lo.z());
                         float dv = x[ih][a] - x[il][a];
-                        if (mBase) dv += mBase->data()[ih][a] - mBase->data()[il][a];
+                        if (mBase) dv += (mBase->data()[ih][a] - mBase->data()[il][a]) * mBaseScale;
                         div += dv / float(span);
                     }
                 }
@@ -455,6 +457,7 @@ private:
     Coord mDim;
     float mSqrtGamma;
     const VectorField* mBase;
+    float mBaseScale;
     std::vector<int> mCompact;
     std::vector<size_t> mLinear;
     std::vector<uint8_t> mOmega, mInBox;
@@ -532,12 +535,22 @@ SeamStats smoothSeams(VectorField& detail, const SeamProblem& problem, const Sea
     const auto seconds = [](Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); };
     auto t0 = Clock::now();
     const CoordBBox box = detail.bbox();
-    const std::vector<uint8_t> omega = seamBand(box, L, problem.active, settings.bandWidth);
+    std::vector<uint8_t> omega = seamBand(box, L, problem.active, settings.bandWidth);
+    if (!problem.wholePatches.empty()) {
+        if (problem.wholePatches.size() != L.patchCount())
+            throw ValueError("smoothSeams: wholePatches must hold one flag per local patch");
+        parallelFor(omega.size(), 1 << 14, [&](size_t b, size_t e) {
+            for (size_t n = b; n < e; ++n) {
+                const size_t p = L.patchIndex(L.patchOf(detail.coordOf(n)));
+                if (problem.wholePatches[p] && problem.active[p]) omega[n] = 1;
+            }
+        });
+    }
     if (problem.temporal && problem.temporalWeights.size() != L.patchCount())
         throw ValueError("smoothSeams: temporalWeights must hold one weight per local patch");
     if (problem.base && problem.base->bbox() != detail.bbox())
         throw ValueError("smoothSeams: the base field must cover the detail field's box");
-    SeamSystem sys(detail, omega, settings.gamma, problem.base);
+    SeamSystem sys(detail, omega, settings.gamma, problem.base, problem.baseScale);
     if (problem.boxFactor > 1 && settings.boxWeight > 0.0f)
         sys.enableBoxRows(detail, problem.boxFactor, settings.boxWeight, settings.boxKeep);
     if (settings.valueWeight > 0.0f && problem.temporal && !problem.temporalWeights.empty())

@@ -605,24 +605,27 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
         if (progress) progress->begin("seams");
         t0 = Clock::now();
         // The coarse part goes down to the tolerance before the solve: taking out a trilinear field adds
-        // divergence, which the solve's gamma term then removes while its box rows hold the means.
-        if (s.removeCoarseDetail) {
-            const VectorField cu = upsample(detail::coarsePart(detail, f), f);
-            double scale = 1.0; // the energy factor this frame will get, estimated without the solve
-            const size_t smoke = smokeCount(outDensity, s.densityThreshold);
-            if (s.detailEnergy != DetailEnergy::None && referenceEnergy > 0.0 && smoke > 0) {
-                const double now = parallelSum(detail.size(), 1 << 16, [&](size_t b, size_t e) {
-                    double acc = 0.0;
-                    for (size_t n = b; n < e; ++n)
-                        if (outDensity.data()[n] > s.densityThreshold)
-                            acc += double((detail.data()[n] - cu.data()[n]).lengthSqr());
-                    return acc;
-                }) / double(smoke);
-                if (now > 0.0) scale = std::clamp(std::sqrt(referenceEnergy / now), 1.0 / 3.0, 3.0);
-            }
-            const double lf = scale * detail::coarseRatio(cu, Ut, target.density, s.densityThreshold, f);
+        // divergence, which the solve's gamma term then removes while its box rows hold the means. Both
+        // that tolerance and the solve's target-divergence term need the energy factor (step 10) this frame
+        // will get: estimated here from the detail without its coarse part.
+        VectorField coarse;
+        if (s.removeCoarseDetail) coarse = upsample(detail::coarsePart(detail, f), f);
+        double scaleEstimate = 1.0;
+        const size_t smokeVoxels = smokeCount(outDensity, s.densityThreshold);
+        if (s.detailEnergy != DetailEnergy::None && referenceEnergy > 0.0 && smokeVoxels > 0) {
+            const double now = parallelSum(detail.size(), 1 << 16, [&](size_t b, size_t e) {
+                double acc = 0.0;
+                for (size_t n = b; n < e; ++n)
+                    if (outDensity.data()[n] > s.densityThreshold)
+                        acc += double((coarse.empty() ? detail.data()[n] : detail.data()[n] - coarse.data()[n]).lengthSqr());
+                return acc;
+            }) / double(smokeVoxels);
+            if (now > 0.0) scaleEstimate = std::clamp(std::sqrt(referenceEnergy / now), 1.0 / 3.0, 3.0);
+        }
+        if (!coarse.empty()) {
+            const double lf = scaleEstimate * detail::coarseRatio(coarse, Ut, target.density, s.densityThreshold, f);
             const float remove = lf > s.coarseTolerance ? float(1.0 - s.coarseTolerance / lf) : 0.0f;
-            for (size_t n = 0; n < detail.size(); ++n) detail.data()[n] -= cu.data()[n] * remove;
+            for (size_t n = 0; n < detail.size(); ++n) detail.data()[n] -= coarse.data()[n] * remove;
         }
         SeamProblem problem;
         problem.sourceHigh = &split.high;
@@ -630,11 +633,21 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
         problem.layout = layout;
         problem.active = active;
         problem.offset = offsets;
-        if (s.compensateTargetDivergence) problem.base = &Ut;
+        if (s.compensateTargetDivergence) {
+            problem.base = &Ut;
+            // The energy factor scales U_h after the solve, and a compensation of the target's divergence
+            // scaled with it would overshoot (by 2x at the bound of 3 on first frames).
+            problem.baseScale = float(1.0 / scaleEstimate);
+        }
         if (s.removeCoarseDetail) problem.boxFactor = f;
         if (lambda > 0.0f) {
             problem.temporal = &advectedDetail;
             problem.temporalWeights = blendWeight;
+        }
+        if (s.solveFreshPatchesWhole) {
+            problem.wholePatches.assign(layout.patchCount(), 0);
+            for (size_t p = 0; p < layout.patchCount(); ++p)
+                problem.wholePatches[p] = active[p] && (blendWeight.empty() || blendWeight[p] == 0.0f);
         }
         SeamSettings seamSettings = s.seams;
         if (seamSettings.boundaryPatch <= 0) seamSettings.boundaryPatch = B % 2 == 0 ? B : B + 1;
