@@ -266,7 +266,7 @@ Command transferCommand()
         app->add_option("--cg-tolerance", s.seams.cgTolerance, "CG relative residual (default 1e-3)");
         app->add_option("--value-weight", s.seams.valueWeight,
                "Weight of rows keeping carried detail at its value in the seam solve, times the patch's blend weight "
-               "(default 0 = the paper's energy; 5 lowers pair a's tcoh from 0.198 to 0.193 but raises div_rel above the source's "
+               "(default 0 = the paper's energy; 5 lowers pair a's tcoh from 0.196 to 0.192 but raises div_rel above the source's "
                "on pairs b and d; see docs/transfer.md)")
             ->check(CLI::NonNegativeNumber);
         app->add_option("--box-weight", s.seams.boxWeight,
@@ -288,7 +288,7 @@ Command transferCommand()
         app->add_flag("--whole-fresh-patches", s.solveFreshPatchesWhole,
             "Solve every voxel of patches without carried detail (first frames, entering smoke), not only the seam band: "
             "the divergence term then reaches their insides (first frames' div_rel below the source's on pairs a, b, d; "
-            "about +0.005 tcoh; docs/transfer.md)");
+            "0.002-0.007 more tcoh; docs/transfer.md)");
         app->add_flag("--no-seams", a.noSeams, "Paste patches without seam smoothing (ablation)");
         app->add_flag("--no-resample-source", a.noResample,
             "Refuse a source whose voxel size is not an integer fraction of the target's (default: resample it trilinearly to "
