@@ -106,7 +106,7 @@ for run in $RUNS; do
   eh=$(frame_median mean_local_energy "$tj")
   es=$(frame_median energy_scale "$tj")
   # The triangle inequality's floor on tcoh for a frame whose detail grew by g over last frame's, advected.
-  fl=$(sed -n 's/.*"detail_growth":\([-0-9.e+]*\).*/\1/p' "$tj" | awk '{f = 1 - 1 / $1; if (f < 0) f = 0; print f}' | sort -g |
+  fl=$(sed -n 's/.*"detail_growth":\([-0-9.e+]*\).*/\1/p' "$tj" | awk '$1 > 0 {f = 1 - 1 / $1; if (f < 0) f = 0; print f}' | sort -g |
        awk '{v[NR]=$1} END{if (NR) print (NR%2 ? v[(NR+1)/2] : (v[NR/2]+v[NR/2+1])/2)}')
   echo "| $run | $WHAT | $(fmt "$(median lf_err "$m")") | $(fmt "$(median hf_ratio "$m")") | $(fmt "$(median div_rel "$m")") ($(fmt "$(median div_rel_source "$m")")) | $(fmt "$(median block "$m")") | $(fmt "$(median tcoh "$m")") ($(fmt "$(median tcoh_source "$m")")) | $(fmt "$fl") | $(fmt "$eh") | $(fmt "$es") | $(fmt "$sec") |"
 done

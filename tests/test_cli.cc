@@ -82,6 +82,18 @@ TEST(Cli, TransferWritesResumesAndNeverClobbers)
     // Per-frame JSON carries the transfer's own lf_err and, from frame 2, its frame-to-frame change (tcoh).
     EXPECT_NE(whole3.out.find("\"lf_err\":"), std::string::npos) << whole3.out;
     EXPECT_NE(whole3.out.find("\"detail_change\":"), std::string::npos) << whole3.out;
+    // The coarse-part options reach the library: lf_err stays within the tolerance asked for.
+    const CmdResult tight = run("transfer --target " + lo() + " --source " + hi() + " --out " + dir / "tight/t.####.vdb" +
+                                " --frames 1-2 -q --json --coarse-tolerance 0.01 --box-keep 0.5 --whole-fresh-patches");
+    ASSERT_EQ(tight.code, 0) << tight.out;
+    size_t at = 0, lines = 0;
+    while ((at = tight.out.find("\"lf_err\":", at)) != std::string::npos) {
+        at += 9;
+        EXPECT_LE(std::stod(tight.out.substr(at)), 0.01 + 1e-6) << tight.out;
+        ++lines;
+    }
+    EXPECT_EQ(lines, 2u) << tight.out;
+    EXPECT_NE(run("transfer --target " + lo() + " --source " + hi() + " --out " + dir / "bad/t.####.vdb" + " --box-keep 2").code, 0);
     const turb::Frame resumed = turbio::readFrame(dir / "up/turb.0003.vdb", 3, turbio::ReadOptions{});
     const turb::Frame whole = turbio::readFrame(dir / "ref/turb.0003.vdb", 3, turbio::ReadOptions{});
     EXPECT_EQ(resumed.velocity.values(), whole.velocity.values());

@@ -288,7 +288,7 @@ Command transferCommand()
         app->add_flag("--whole-fresh-patches", s.solveFreshPatchesWhole,
             "Solve every voxel of patches without carried detail (first frames, entering smoke), not only the seam band: "
             "the divergence term then reaches their insides (first frames' div_rel below the source's on pairs a, b, d; "
-            "0.002-0.007 more tcoh; docs/transfer.md)");
+            "tcoh +0.002 on pair a, +0.007 on pair c; docs/transfer.md)");
         app->add_flag("--no-seams", a.noSeams, "Paste patches without seam smoothing (ablation)");
         app->add_flag("--no-resample-source", a.noResample,
             "Refuse a source whose voxel size is not an integer fraction of the target's (default: resample it trilinearly to "

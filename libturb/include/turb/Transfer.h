@@ -116,10 +116,13 @@ struct TransferStats
     int trackedPatches = 0;        ///< patches whose global patch followed the previous frame
     double meanLocalEnergy = 0.0;  ///< mean E_h of the chosen local patches
     double energyScale = 1.0;      ///< factor applied to U_h to meet TransferSettings::detailEnergy
-    double coarseKept = 0.0;       ///< fraction of U_h's coarse part left in (coarseTolerance); 0 = removed exactly
+    double coarseKept = 0.0;       ///< fraction of U_h's coarse part left in (coarseTolerance): 0 = removed exactly,
+                                   ///< 1 = all kept (also with removeCoarseDetail off)
     double lfErr = 0.0;            ///< rms of U_h's coarse-cell means / rms of the target's, over its smoke cells
-    double detailChange = -1.0;    ///< rms(U_h - U_h(i-1) advected) / rms(U_h) over the output's smoke: what
-                                   ///< `measure` reports as tcoh; -1 on a first frame
+                                   ///< (0 when the target is at rest there)
+    double detailChange = -1.0;    ///< rms(U_h - U_h(i-1) advected) / rms(U_h) over the output's smoke: `measure`'s
+                                   ///< tcoh when both advect the same way (BFECC: temporal blend on, the default);
+                                   ///< -1 without carried detail (first frame, after an empty frame, beta = blend = 0)
     double detailGrowth = 0.0;     ///< rms(U_h) / rms(U_h(i-1) advected) over the output's smoke; no field of this
                                    ///< energy is closer to the advected one than 1 - 1/growth (tcoh's floor)
     SeamStats seams;               ///< EM/CG log of the seam smoothing

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <vector>
 
 namespace turb::detail {
@@ -242,7 +243,9 @@ double coarseRatio(const VectorField& detail, const VectorField& up, const Scala
         num += double(means.data()[n].lengthSqr());
         den += double(reference[c].lengthSqr());
     }
-    return den > 0.0 ? std::sqrt(num / den) : 0.0;
+    // Detail means over a target at rest have no relative size: infinitely large unless there are none.
+    if (!(den > 0.0)) return num > 0.0 ? std::numeric_limits<double>::infinity() : 0.0;
+    return std::sqrt(num / den);
 }
 
 } // namespace turb::detail

@@ -155,6 +155,9 @@ TurbulenceTransfer::TurbulenceTransfer(const TransferSettings& settings) : mImpl
         throw ValueError("stride, candidates and PCA components must be >= 1");
     if (s.densityMode == DensityMode::LookBack && s.lookBackFrames < 1)
         throw ValueError("look-back needs at least one frame");
+    if (!(s.temporalBlend >= 0.0f && s.temporalBlend <= 0.999f)) throw ValueError("temporal blend must lie in [0, 0.999]");
+    if (!(s.coarseTolerance >= 0.0f)) throw ValueError("coarse tolerance must be >= 0");
+    if (!(s.seams.boxKeep >= 0.0f && s.seams.boxKeep <= 1.0f)) throw ValueError("box keep must lie in [0, 1]");
     mImpl->s = settings;
     mImpl->w = detail::MatchWeights{s.alpha, s.beta, s.densityThreshold};
 }
@@ -573,7 +576,7 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
         // arrived, only as much as the detail advected into it (relative rms against the pasted detail),
         // so detail that flowed in keeps moving instead of being replaced.
         std::vector<float> blendWeight;
-        const float lambda = (!advectedDetail.empty()) ? std::clamp(s.temporalBlend, 0.0f, 0.999f) : 0.0f;
+        const float lambda = (!advectedDetail.empty()) ? s.temporalBlend : 0.0f;
         if (lambda > 0.0f) {
             blendWeight.assign(layout.patchCount(), 0.0f);
             parallelFor(activeList.size(), 16, [&](size_t b, size_t e) {
@@ -679,13 +682,18 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
     }
     if (!coarseDetail.empty()) {
         // Put back as much of the coarse part as the tolerance allows, measured as lf_err measures it:
-        // the coarse part's box means against the up-sampled target's, over the target's smoke cells.
+        // the coarse part's box means against the up-sampled target's, over the target's smoke cells. A
+        // target at rest there leaves no relative budget: the coarse part goes entirely.
         const double lf = st.energyScale * detail::coarseRatio(coarseDetail, Ut, target.density, s.densityThreshold, f);
-        st.coarseKept = lf > s.coarseTolerance ? s.coarseTolerance / lf : 1.0;
-        st.lfErr = lf * st.coarseKept;
+        st.coarseKept = !std::isfinite(lf) ? 0.0 : lf > s.coarseTolerance ? s.coarseTolerance / lf : 1.0;
+        st.lfErr = st.coarseKept > 0.0 ? lf * st.coarseKept : 0.0;
         const float k = float(st.coarseKept * st.energyScale);
         if (k > 0.0f)
             for (size_t n = 0; n < detail.size(); ++n) detail.data()[n] += coarseDetail.data()[n] * k;
+    } else if (!result.empty) {
+        st.coarseKept = 1.0;
+        const double lf = detail::coarseRatio(detail, Ut, target.density, s.densityThreshold, f);
+        st.lfErr = std::isfinite(lf) ? lf : 0.0;
     }
     if (!advectedDetail.empty() && !result.empty) {
         double change = 0.0, now = 0.0, before = 0.0;
@@ -695,8 +703,11 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
             now += double(detail.data()[n].lengthSqr());
             before += double(advectedDetail.data()[n].lengthSqr());
         }
-        if (now > 0.0) st.detailChange = std::sqrt(change / now);
-        if (before > 0.0) st.detailGrowth = std::sqrt(now / before);
+        // Without carried detail (after an empty frame) there is nothing to compare with.
+        if (now > 0.0 && before > 0.0) {
+            st.detailChange = std::sqrt(change / now);
+            st.detailGrowth = std::sqrt(now / before);
+        }
     }
     Frame out;
     out.number = target.number;
