@@ -134,12 +134,13 @@ int runTransfer(TransferArgs& a)
                     {
                         const double r = g.voxelSize / h.voxelSize;
                         std::string how;
-                        if (r < 1.5)
-                            how = ": below 2 after rounding, would fail (no detail above the target's resolution)";
-                        else if (!turb::isIntegerRatio(g.voxelSize, h.voxelSize))
-                            how = a.noResample ? ": not an integer, would fail (--no-resample-source)"
-                                               : ": not an integer, the source would be resampled to ratio " +
-                                                     std::to_string(turb::nearestRatio(g.voxelSize, h.voxelSize));
+                        try {
+                            const int f = turb::transferRatio(g.voxelSize, h.voxelSize, !a.noResample);
+                            if (!turb::isIntegerRatio(g.voxelSize, h.voxelSize))
+                                how = ": not an integer, the source would be resampled to ratio " + std::to_string(f);
+                        } catch (const turb::ValueError& e) {
+                            how = std::string(": would fail: ") + e.what();
+                        }
                         logInfo("resolution ratio " + fmt("%.4g", r) + " (target voxel " + fmt("%g", g.voxelSize) + ", source voxel " +
                                 fmt("%g", h.voxelSize) + ")" + how);
                     }

@@ -1,6 +1,7 @@
 #include <turb/Resample.h>
 
 #include <turb/Error.h>
+#include <turb/Operators.h>
 #include <turb/Parallel.h>
 
 #include <algorithm>
@@ -182,16 +183,8 @@ Field<T> resampledToVoxel(const Field<T>& f, double voxelSize)
     const Coord hi(int(std::floor(b.max().x() * k + eps)), int(std::floor(b.max().y() * k + eps)), int(std::floor(b.max().z() * k + eps)));
     Field<T> out(CoordBBox(lo, hi), to);
     const double inv = 1.0 / k;
-    forEachVoxel(out.bbox(), [&](int i, int j, int kk) {
-        const double px = i * inv, py = j * inv, pz = kk * inv;
-        const int ix = int(std::floor(px)), iy = int(std::floor(py)), iz = int(std::floor(pz));
-        const float fx = float(px - ix), fy = float(py - iy), fz = float(pz - iz);
-        // clamped(): a centre on the hull's far face has weight 0 on the voxel beyond it.
-        const auto at = [&](int a, int c, int d) { return f.clamped(ix + a, iy + c, iz + d); };
-        const T x00 = at(0, 0, 0) * (1 - fx) + at(1, 0, 0) * fx, x10 = at(0, 1, 0) * (1 - fx) + at(1, 1, 0) * fx;
-        const T x01 = at(0, 0, 1) * (1 - fx) + at(1, 0, 1) * fx, x11 = at(0, 1, 1) * (1 - fx) + at(1, 1, 1) * fx;
-        out(i, j, kk) = (x00 * (1 - fy) + x10 * fy) * (1 - fz) + (x01 * (1 - fy) + x11 * fy) * fz;
-    });
+    // Every new centre lies inside the hull of f's centres, so the clamping never moves a sample.
+    forEachVoxel(out.bbox(), [&](int i, int j, int kk) { out(i, j, kk) = sampleTrilinear(f, Vec3d(i, j, kk) * inv); });
     return out;
 }
 

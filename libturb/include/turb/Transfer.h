@@ -137,6 +137,11 @@ struct TransferResult
     bool empty = false;   ///< the target frame had no smoke: the frame is the upsampled target (defined no-op)
 };
 
+/// The resolution ratio a transfer runs at: target voxel / source voxel when that is an integer, else (with
+/// `resampleSource`) the nearest integer, the source then being resampled to it. Throws ValueError, saying
+/// why, for a ratio that rounds below 2 or, without `resampleSource`, is not an integer.
+int transferRatio(double targetVoxel, double sourceVoxel, bool resampleSource);
+
 /// Streaming transfer over a sequence: call process() once per frame, in order. Holds only what the
 /// method needs between frames (previous detail, previous output velocity/density, patch tracks).
 class TurbulenceTransfer

@@ -206,15 +206,7 @@ public:
             sv[u] = (mAnchor[u] - x[mLinear[size_t(mUnknowns[u])]]) * mValueCoef[u];
         // Box rows: sqrt(nu) * (target mean - mean of X over the coarse cell, fixed voxels included).
         parallelFor(mCells.size(), 256, [&](size_t b, size_t e) {
-            for (size_t c = b; c < e; ++c) {
-                CoordBBox cb = refineBox(CoordBBox(mCells[c], mCells[c]), mBoxF);
-                cb.intersect(mBox);
-                Vec3f sum(0.0f);
-                for (int i = cb.min().x(); i <= cb.max().x(); ++i)
-                    for (int j = cb.min().y(); j <= cb.max().y(); ++j)
-                        for (int k = cb.min().z(); k <= cb.max().z(); ++k) sum += x[X.offset(i, j, k)];
-                sb[c] = (mBoxTarget[c] - sum) * mBoxCoef;
-            }
+            for (size_t c = b; c < e; ++c) sb[c] = (mBoxTarget[c] - cellSum(X, c)) * mBoxCoef;
         });
         parallelFor(m, 4096, [&](size_t b, size_t e) {
             for (size_t r = b; r < e; ++r) {
@@ -369,14 +361,20 @@ public:
         mBoxTarget.assign(mCells.size(), Vec3f(0.0f));
         if (keep != 0.0f)
             parallelFor(mCells.size(), 256, [&](size_t b, size_t e) {
-                for (size_t c = b; c < e; ++c) {
-                    CoordBBox cb = refineBox(CoordBBox(mCells[c], mCells[c]), mBoxF);
-                    cb.intersect(mBox);
-                    Vec3f sum(0.0f);
-                    for (auto it = cb.begin(); it; ++it) sum += X[*it];
-                    mBoxTarget[c] = sum * keep;
-                }
+                for (size_t c = b; c < e; ++c) mBoxTarget[c] = cellSum(X, c) * keep;
             });
+    }
+
+    // The sum of X over box row c's coarse cell (fixed voxels included), in the box rows' unit.
+    Vec3f cellSum(const VectorField& X, size_t c) const
+    {
+        CoordBBox cb = refineBox(CoordBBox(mCells[c], mCells[c]), mBoxF);
+        cb.intersect(mBox);
+        Vec3f sum(0.0f);
+        for (int i = cb.min().x(); i <= cb.max().x(); ++i)
+            for (int j = cb.min().y(); j <= cb.max().y(); ++j)
+                for (int k = cb.min().z(); k <= cb.max().z(); ++k) sum += X.data()[X.offset(i, j, k)];
+        return sum;
     }
 
     // Adds one value row per unknown u with weight mu(u) > 0: sqrt(mu) * (X - anchor), so the solve

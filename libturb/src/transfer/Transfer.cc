@@ -39,15 +39,32 @@ void requireFrame(const Frame& f, const char* role)
         throw ValueError(std::string("the ") + role + " frame has no time per frame (dt); give it explicitly");
 }
 
-// Energy of the detail inside the smoke, where the turbulence is seen (and measured).
-double smokeEnergy(const VectorField& u, const ScalarField& density, float threshold)
+// Energy of the detail (minus `less`, same box, when given) inside the smoke, where the turbulence is
+// seen (and measured).
+double smokeEnergy(const VectorField& u, const ScalarField& density, float threshold, const VectorField* less = nullptr)
 {
     return parallelSum(u.size(), 1 << 16, [&](size_t b, size_t e) {
         double acc = 0.0;
         for (size_t n = b; n < e; ++n)
-            if (density.data()[n] > threshold) acc += double(u.data()[n].lengthSqr());
+            if (density.data()[n] > threshold)
+                acc += double((less ? u.data()[n] - less->data()[n] : u.data()[n]).lengthSqr());
         return acc;
     });
+}
+
+// The factor that brings detail of mean energy `now` to `reference`. Bounded: a large factor would mean
+// the pipeline lost the detail, not something to amplify.
+double energyFactor(double reference, double now)
+{
+    return now > 0.0 ? std::clamp(std::sqrt(reference / now), 1.0 / 3.0, 3.0) : 1.0;
+}
+
+// The fraction of a coarse part measuring `lf` (lf_err's ratio) that stays within `tolerance`; an
+// infinite lf (a target at rest under the detail) keeps none.
+double keptFraction(double lf, double tolerance)
+{
+    if (!std::isfinite(lf)) return 0.0;
+    return lf > tolerance ? tolerance / lf : 1.0;
 }
 
 size_t smokeCount(const ScalarField& density, float threshold)
@@ -146,6 +163,22 @@ struct TurbulenceTransfer::Impl
     TransferResult process(const Frame& target, const Frame& sourceIn, Progress* progress);
 };
 
+int transferRatio(double targetVoxel, double sourceVoxel, bool resampleSource)
+{
+    // A non-integer ratio (e.g. 2.5) is met by resampling the source trilinearly to the nearest integer
+    // ratio: the source is an exemplar library, so a slightly rescaled exemplar is still a valid one.
+    const int f = resampleSource ? nearestRatio(targetVoxel, sourceVoxel) : integerRatio(targetVoxel, sourceVoxel);
+    // At f = 1 there is no band above the target's Nyquist to transfer (and a ratio of 1.2 would round
+    // to it): refuse rather than run the search on empty detail.
+    if (f < 2) {
+        std::ostringstream os;
+        os << "resolution ratio " << targetVoxel << " / " << sourceVoxel << " = " << targetVoxel / sourceVoxel
+           << " leaves no detail to transfer: the source needs voxels at most half the target's";
+        throw ValueError(os.str());
+    }
+    return f;
+}
+
 TurbulenceTransfer::TurbulenceTransfer(const TransferSettings& settings) : mImpl(std::make_unique<Impl>())
 {
     const TransferSettings& s = settings;
@@ -181,17 +214,7 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
     requireFrame(target, "target");
     requireFrame(sourceArg, "source");
     const double tv = target.velocity.lattice().voxelSize, sv = sourceArg.velocity.lattice().voxelSize;
-    // A non-integer ratio (e.g. 2.5) is met by resampling the source trilinearly to the nearest integer
-    // ratio: the source is an exemplar library, so a slightly rescaled exemplar is still a valid one.
-    const int f = s.resampleSource ? nearestRatio(tv, sv) : integerRatio(tv, sv);
-    // At f = 1 there is no band above the target's Nyquist to transfer (and a ratio of 1.2 would round
-    // to it): refuse rather than run the search on empty detail.
-    if (f < 2) {
-        std::ostringstream os;
-        os << "resolution ratio " << tv << " / " << sv << " = " << tv / sv
-           << " leaves no detail to transfer: the source needs voxels at most half the target's";
-        throw ValueError(os.str());
-    }
+    const int f = transferRatio(tv, sv, s.resampleSource);
     const bool resampleSource = !isIntegerRatio(tv, sv);
     Frame resampledSource;
     if (resampleSource) resampledSource = resampledToVoxel(sourceArg, tv / f);
@@ -255,6 +278,11 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
     }
     st.seconds[6] = since(t0);
     t0 = Clock::now();
+
+    const size_t smokeVoxels = smokeCount(outDensity, s.densityThreshold);
+    const auto meanSmokeEnergy = [&](const VectorField& u, const VectorField* less = nullptr) {
+        return smokeVoxels ? smokeEnergy(u, outDensity, s.densityThreshold, less) / double(smokeVoxels) : 0.0;
+    };
 
     // Per-patch smoke test: the patches eq. 2 runs for.
     std::vector<uint8_t> active(layout.patchCount(), 0);
@@ -558,20 +586,19 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
         if (s.detailEnergy == DetailEnergy::Source) {
             referenceEnergy = sourceReference;
         } else if (s.detailEnergy == DetailEnergy::Pasted) {
-            referenceEnergy = smokeEnergy(detail, outDensity, s.densityThreshold) / std::max<size_t>(1, smokeCount(outDensity, s.densityThreshold));
+            referenceEnergy = meanSmokeEnergy(detail);
         }
 
         // Temporal coherence beyond eq. 2's beta term: where a patch already carried detail last frame,
         // mix in that detail advected through the target, so the turbulence moves with the flow instead
         // of being re-pasted every frame. Done before the seam solve, whose gradient targets blend the
         // same way, so its divergence term also cleans up what the advection distorted.
-        const auto meanSmokeEnergy = [&](const VectorField& u) {
-            const size_t cnt = smokeCount(outDensity, s.densityThreshold);
-            return cnt ? smokeEnergy(u, outDensity, s.densityThreshold) / double(cnt) : 0.0;
-        };
+        // The energy log is for a progress reporter only: four passes over the field are not free.
         std::ostringstream energyLog;
-        energyLog << "detail energy per smoke voxel: pasted " << meanSmokeEnergy(detail);
-        if (!advectedDetail.empty()) energyLog << ", advected previous " << meanSmokeEnergy(advectedDetail);
+        if (progress) {
+            energyLog << "detail energy per smoke voxel: pasted " << meanSmokeEnergy(detail);
+            if (!advectedDetail.empty()) energyLog << ", advected previous " << meanSmokeEnergy(advectedDetail);
+        }
         // Per-patch weights: lambda where the patch carried detail last frame; where smoke has just
         // arrived, only as much as the detail advected into it (relative rms against the pasted detail),
         // so detail that flowed in keeps moving instead of being replaced.
@@ -614,20 +641,11 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
         VectorField coarse;
         if (s.removeCoarseDetail) coarse = upsample(detail::coarsePart(detail, f), f);
         double scaleEstimate = 1.0;
-        const size_t smokeVoxels = smokeCount(outDensity, s.densityThreshold);
-        if (s.detailEnergy != DetailEnergy::None && referenceEnergy > 0.0 && smokeVoxels > 0) {
-            const double now = parallelSum(detail.size(), 1 << 16, [&](size_t b, size_t e) {
-                double acc = 0.0;
-                for (size_t n = b; n < e; ++n)
-                    if (outDensity.data()[n] > s.densityThreshold)
-                        acc += double((coarse.empty() ? detail.data()[n] : detail.data()[n] - coarse.data()[n]).lengthSqr());
-                return acc;
-            }) / double(smokeVoxels);
-            if (now > 0.0) scaleEstimate = std::clamp(std::sqrt(referenceEnergy / now), 1.0 / 3.0, 3.0);
-        }
+        if (s.detailEnergy != DetailEnergy::None && referenceEnergy > 0.0)
+            scaleEstimate = energyFactor(referenceEnergy, meanSmokeEnergy(detail, coarse.empty() ? nullptr : &coarse));
         if (!coarse.empty()) {
             const double lf = scaleEstimate * detail::coarseRatio(coarse, Ut, target.density, s.densityThreshold, f);
-            const float remove = lf > s.coarseTolerance ? float(1.0 - s.coarseTolerance / lf) : 0.0f;
+            const float remove = float(1.0 - keptFraction(lf, s.coarseTolerance));
             for (size_t n = 0; n < detail.size(); ++n) detail.data()[n] -= coarse.data()[n] * remove;
         }
         SeamProblem problem;
@@ -654,10 +672,12 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
         }
         SeamSettings seamSettings = s.seams;
         if (seamSettings.boundaryPatch <= 0) seamSettings.boundaryPatch = B % 2 == 0 ? B : B + 1;
-        energyLog << ", blended " << meanSmokeEnergy(detail);
+        if (progress) energyLog << ", blended " << meanSmokeEnergy(detail);
         st.seams = smoothSeams(detail, problem, seamSettings, progress);
-        energyLog << ", after seams " << meanSmokeEnergy(detail);
-        if (progress) progress->note(energyLog.str());
+        if (progress) {
+            energyLog << ", after seams " << meanSmokeEnergy(detail);
+            progress->note(energyLog.str());
+        }
         st.seconds[4] = since(t0);
 
         // Update tracks.
@@ -674,10 +694,7 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
         for (size_t n = 0; n < detail.size(); ++n) detail.data()[n] -= coarseDetail.data()[n];
     }
     if (s.detailEnergy != DetailEnergy::None && referenceEnergy > 0.0 && !result.empty) {
-        const size_t n = smokeCount(outDensity, s.densityThreshold);
-        const double now = n ? smokeEnergy(detail, outDensity, s.densityThreshold) / double(n) : 0.0;
-        // Bounded: a large factor would mean the pipeline lost the detail, not something to amplify.
-        st.energyScale = now > 0.0 ? std::clamp(std::sqrt(referenceEnergy / now), 1.0 / 3.0, 3.0) : 1.0;
+        st.energyScale = energyFactor(referenceEnergy, meanSmokeEnergy(detail));
         for (auto& v : detail.values()) v *= float(st.energyScale);
     }
     if (!coarseDetail.empty()) {
@@ -685,7 +702,7 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
         // the coarse part's box means against the up-sampled target's, over the target's smoke cells. A
         // target at rest there leaves no relative budget: the coarse part goes entirely.
         const double lf = st.energyScale * detail::coarseRatio(coarseDetail, Ut, target.density, s.densityThreshold, f);
-        st.coarseKept = !std::isfinite(lf) ? 0.0 : lf > s.coarseTolerance ? s.coarseTolerance / lf : 1.0;
+        st.coarseKept = keptFraction(lf, s.coarseTolerance);
         st.lfErr = st.coarseKept > 0.0 ? lf * st.coarseKept : 0.0;
         const float k = float(st.coarseKept * st.energyScale);
         if (k > 0.0f)
