@@ -32,7 +32,7 @@ struct MeasureArgs
     std::string output, target, source, frames, plotDir, align = "auto", patchOrigin;
     bool json = false;        // accepted for symmetry with the other commands; JSON is always written
     bool spectraJson = false; // include the E(k) arrays in the JSON lines
-    bool noSpectra = false;
+    bool noSpectra = false, noStructure = false;
     turb::MeasureSettings settings;
     turbio::ReadOptions read;
     int sourceExtend = 0;     // quality.md's definitions read the source as written: no extension by default
@@ -80,7 +80,9 @@ std::string humanLine(const turb::FrameMeasures& m)
         return std::string(b);
     };
     return "lf_err " + f(m.lfErr) + "  hf_ratio " + f(m.hfRatio) + "  div_rel " + f(m.divRel) + " (source " +
-           f(m.divRelSource) + ")  block " + f(m.block) + "  tcoh " + f(m.tcoh) + " (source " + f(m.tcohSource) + ")";
+           f(m.divRelSource) + ")  block " + f(m.block) + "  tcoh " + f(m.tcoh) + " (source " + f(m.tcohSource) + ")  mass " +
+           f(m.massRatio) + "  peak " + f(m.peakRatio) + "  density_err " + f(m.densityErr) + "  aniso " + f(m.aniso) +
+           " (source " + f(m.anisoSource) + ")  isotropy " + f(m.isotropy) + " (source " + f(m.isotropySource) + ")";
 }
 
 std::optional<turb::Coord> parseCoord(const std::string& text)
@@ -109,6 +111,7 @@ int runMeasure(MeasureArgs& a)
                                        : turb::Alignment::Auto;
     s.patchOrigin = parseCoord(a.patchOrigin);
     s.spectra = !a.noSpectra || !a.plotDir.empty() || a.spectraJson;
+    s.structure = !a.noStructure;
     s.threads = globals().threads;
 
     const turbio::Sequence out = turbio::resolveSequence(a.output, a.frames);
@@ -169,14 +172,15 @@ int runMeasure(MeasureArgs& a)
                 if (has(*src, sn)) sf = turbio::readFrame(src->path(sn), sn, readSrc);
                 else logWarning("frame " + std::to_string(f) + ": source frame " + std::to_string(sn) + " missing");
             }
-            const bool consecutive = prevOut && prevTgt && prevOut->number == f - 1;
+            // tcoh compares with the previous *processed* frame, over the real time between the two.
+            const bool consecutive = prevOut && prevTgt && prevOut->number < f;
             turb::MeasureInput in;
             in.output = &o;
             in.target = &t;
             in.source = sf ? &*sf : nullptr;
             in.previousOutput = consecutive ? &*prevOut : nullptr;
             in.previousTarget = consecutive ? &*prevTgt : nullptr;
-            in.previousSource = (sf && prevSrc && prevSrc->number == sf->number - 1) ? &*prevSrc : nullptr;
+            in.previousSource = (sf && prevSrc && prevSrc->number < sf->number) ? &*prevSrc : nullptr;
             ConsoleProgress progress(int(i), int(frames.size()), f);
             turb::FrameMeasures m = turb::measureFrame(in, s, &progress);
             progress.clear();
@@ -272,6 +276,7 @@ Command measureCommand()
                "high-frequency energy at its edge)")
             ->check(CLI::Range(0, 64));
         app->add_flag("--no-spectra", args->noSpectra, "Skip the energy spectra (faster)");
+        app->add_flag("--no-structure", args->noStructure, "Skip aniso and isotropy (faster)");
         app->add_flag("--spectra", args->spectraJson, "Include the E(k) arrays in the JSON lines");
         app->add_option("--plot", args->plotDir, "Write PNG plots here: spectrum.####.png per frame and metrics.png");
         app->add_flag("--json", args->json, "Accepted for symmetry with other commands: measure always prints JSON");

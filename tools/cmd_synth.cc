@@ -498,9 +498,12 @@ int runSynth(SynthArgs& a)
         in.coarseDensity = cf.hasDensity() ? &cf.density : nullptr;
         in.obstacle = obstacle ? &*obstacle : nullptr;
         in.factor = a.factor;
-        const bool continuing = previous && previousFrame == fr - 1;
+        // Continue from the previous *processed* frame over the real time between the two: frames two apart
+        // (--frames 1-30x2, a cache written every second frame) advect by two frames' time.
+        const bool continuing = bool(previous);
+        const double elapsed = continuing ? dt * double(fr - previousFrame) : dt;
         in.previous = continuing ? &*previous : nullptr;
-        in.dt = dt;
+        in.dt = elapsed;
         turb::DetailField H = turb::synthesizeDetail(prepared, in, s, &progress);
         lap(1);
 
@@ -544,10 +547,10 @@ int runSynth(SynthArgs& a)
             if (!continuing) lookback = turb::LookbackDensity(lbs); // a gap in the frames starts a new history
             const std::optional<turb::ScalarField> emitters = source.sceneEmitters(cf.density, fr);
             const turb::ScalarField src = turb::estimateSources(previousDensity.empty() || !continuing ? nullptr : &previousDensity,
-                cf.density, cf.velocity, dt, turb::AdvectSettings{}, emitters ? &*emitters : nullptr);
+                cf.density, cf.velocity, elapsed, turb::AdvectSettings{}, emitters ? &*emitters : nullptr);
             const turb::ScalarField fineSrc = turb::upsampleCoarse(src, a.factor);
             const turb::ScalarField coarseOnly = a.lookback > 0 ? turb::upsampleCoarse(cf.density, a.factor) : turb::ScalarField();
-            outFrame.density = lookback.step(F, fineSrc, coarseOnly, dt, &progress);
+            outFrame.density = lookback.step(F, fineSrc, coarseOnly, elapsed, &progress);
             previousDensity = cf.density;
             densityMass = 0.0;
             for (float v : outFrame.density.values()) densityMass += v;
