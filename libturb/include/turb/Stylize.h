@@ -92,6 +92,10 @@ struct StylizeStats
                                      ///< lambda_q / lambda >= 0.5 and X_a^t >= 0.05; -1 on a first frame
     double temporalPixels = 0.0;     ///< fraction of target pixels in that region
     double iou = 0.0;                ///< IoU of (output alpha >= 0.5) with (target alpha >= 0.5)
+    std::vector<double> boundaryGradient;         ///< histogram of |grad alpha| in the target's boundary segment
+                                                  ///< (16 bins of 1/32 per pixel, the last open), normalised
+    std::vector<double> exemplarBoundaryGradient; ///< the same over the exemplar's boundary segment
+    double boundaryGradientMatch = 0.0;           ///< histogram intersection of the two, [0, 1]; 1 = identical
     int levels = 0;                  ///< pyramid levels used
     int width = 0, height = 0;       ///< target size
     double secondsGuides = 0.0, secondsNnf = 0.0, secondsVote = 0.0, secondsWarp = 0.0, secondsStats = 0.0;

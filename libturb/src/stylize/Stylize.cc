@@ -201,6 +201,26 @@ InteriorStats luminanceStats(const ChannelImage& straight, const std::vector<cha
     return st;
 }
 
+/// Normalised histogram of |grad alpha| (central differences) over pixels with blurred alpha in (l, u).
+std::vector<double> boundaryGradientHistogram(const ChannelImage& alpha, int channel, const ChannelImage& blurred, float l, float u)
+{
+    std::vector<double> h(16, 0.0);
+    double n = 0.0;
+    const int W = alpha.width(), H = alpha.height();
+    for (int y = 1; y < H - 1; ++y)
+        for (int x = 1; x < W - 1; ++x) {
+            const float b = blurred.at(x, y, 0);
+            if (!(b > l && b < u)) continue;
+            const double gx = 0.5 * (alpha.at(x + 1, y, channel) - alpha.at(x - 1, y, channel));
+            const double gy = 0.5 * (alpha.at(x, y + 1, channel) - alpha.at(x, y - 1, channel));
+            h[size_t(std::min(15, int(std::hypot(gx, gy) * 32.0)))] += 1.0;
+            n += 1.0;
+        }
+    if (n > 0.0)
+        for (double& v : h) v /= n;
+    return h;
+}
+
 std::vector<char> interiorMask(const ChannelImage& blurredAlpha, float upper)
 {
     std::vector<char> m(blurredAlpha.pixelCount());
@@ -379,6 +399,10 @@ StylizedFrame Stylizer::next(const StylizeFrame& frame, Progress* progress)
         }
     }
     st.iou = uni ? double(inter) / double(uni) : 1.0;
+    st.boundaryGradient = boundaryGradientHistogram(current, 3, blur, s.lower, s.upper);
+    st.exemplarBoundaryGradient = boundaryGradientHistogram(exCur, 3, exBlur, s.lower, s.upper);
+    for (size_t b = 0; b < st.boundaryGradient.size(); ++b)
+        st.boundaryGradientMatch += std::min(st.boundaryGradient[b], st.exemplarBoundaryGradient[b]);
     if (!first) {
         st.temporalChange = region ? change / double(region) : 0.0;
         st.temporalPixels = double(region) / double(current.pixelCount());
