@@ -389,6 +389,7 @@ nlohmann::json statsJson(const turb::StylizeStats& st)
     j["patch_usage"] = usage;
     j["coverage"] = st.coverage;
     j["rounds"] = st.rounds;
+    j["energy"] = st.energy;
     j["std_ratio"] = st.stdRatio;
     j["gradient_ratio"] = st.gradientRatio;
     if (st.temporalChange >= 0.0) {
@@ -470,7 +471,7 @@ int runStylize(StylizeArgs& a)
     turb::withThreads(globals().threads, [&] {
         turb::Stylizer styl(s);
         RunReport report("stylize", a.json);
-        std::optional<turb::ChannelImage> previousMotion;
+        std::optional<turb::ChannelImage> previousMotion, previousAlpha;
         int previousFrame = 0;
         const auto& frames = target.frames();
         for (size_t i = 0; i < frames.size(); ++i) {
@@ -503,6 +504,12 @@ int runStylize(StylizeArgs& a)
             turbio::writeImage(outPath, outFrame.image, wo);
             nlohmann::json extra = statsJson(outFrame.stats);
             extra["out"] = outPath;
+            if (in.motionIn && previousAlpha && previousAlpha->sameSize(t.alpha)) {
+                // Is the target's motion right? The previous alpha advected by it against left in place.
+                const turb::AdvectionCheck ac = turb::checkAdvection(*previousAlpha, *previousMotion, t.alpha);
+                extra["alpha_error_advected"] = ac.advected;
+                extra["alpha_error_still"] = ac.still;
+            }
             if (!a.writeTarget.empty()) writeTargetFiles(a.writeTarget, fr, t, a.noClobber);
             if (!a.preview.empty()) {
                 const std::string png = turbio::FramePattern::parse(a.preview + "/stylize.####.png").format(fr);
@@ -513,6 +520,7 @@ int runStylize(StylizeArgs& a)
             progress.clear();
             report.frameDone(fr, int(i), int(frames.size()), secondsSince(t0), humanLine(outFrame.stats) + " -> " + outPath, extra);
             previousMotion = t.motion;
+            previousAlpha = t.alpha;
             previousFrame = fr;
         }
         report.finish();
@@ -540,8 +548,8 @@ Command stylizeCommand()
         app->add_option("--alpha", a.alpha, "2D target alpha masks per frame (grayscale images)");
         app->add_flag("--flow-y-up", a.flowYUp, "The flow images' G channel points up (Nuke/Houdini style) rather than down");
         app->add_option("--cache", a.cache, "A 3D cache (density + velocity) seen through --camera: alpha = rendered opacity, motion = projected velocity");
-        app->add_option("--scene", a.scene, "A built-in 2D target: rotate, swirl (a blob in a rotating/shearing vortex) or rise")
-            ->check(CLI::IsMember({"rotate", "swirl", "rise"}));
+        app->add_option("--scene", a.scene, "A built-in 2D target: rotate, swirl (a blob in a rotating/shearing vortex), rise, or fill (all fluid)")
+            ->check(CLI::IsMember({"rotate", "swirl", "rise", "fill"}));
         app->add_option("--scene-size", a.sceneSize, "Built-in target size WxH (default 256x256)");
         app->add_option("--scene-speed", a.sceneSpeed, "Built-in target: radians per frame at the centre (rise: image widths per frame) (default 0.02)");
         app->add_option("--frames", a.frames, "Frames (e.g. 1-150); a scene: a count N or a list (default: every frame on disk; scene 1)");

@@ -42,8 +42,8 @@ double valueNoise(double x, double y, double cell, std::uint64_t seed)
 Target2D target2D(const Target2DSettings& s, int frame)
 {
     if (s.width < 16 || s.height < 16) throw ValueError("target2D: size must be at least 16x16");
-    if (s.kind != "rotate" && s.kind != "swirl" && s.kind != "rise")
-        throw ValueError("target2D: unknown kind '" + s.kind + "' (rotate, swirl, rise)");
+    if (s.kind != "rotate" && s.kind != "swirl" && s.kind != "rise" && s.kind != "fill")
+        throw ValueError("target2D: unknown kind '" + s.kind + "' (rotate, swirl, rise, fill)");
     const int W = s.width, H = s.height;
     const double cx = (W - 1) / 2.0, cy = (H - 1) / 2.0, R = 0.3 * std::min(W, H);
     Target2D t{ChannelImage(W, H, 1), ChannelImage(W, H, 2)};
@@ -61,9 +61,9 @@ Target2D target2D(const Target2DSettings& s, int frame)
             }
             const double r = std::hypot(dx, dy);
             // Angular speed (radians per frame, counter-clockwise on screen with y down).
-            const double w = s.kind == "rotate" ? s.speed : s.speed * std::exp(-(r * r) / (2.0 * R * R));
+            const double w = s.kind != "swirl" ? s.speed : s.speed * std::exp(-(r * r) / (2.0 * R * R));
             const double theta = std::atan2(-dy, dx) - w * frame; // where this point was at frame 0
-            t.alpha.at(x, y, 0) = lobes(r, theta, R);
+            t.alpha.at(x, y, 0) = s.kind == "fill" ? 1.0f : lobes(r, theta, R);
             // Screen rotation counter-clockwise: (dx, -dy) turns by w, so the motion is w * (dy, -dx).
             t.motion.at(x, y, 0) = float(w * dy);
             t.motion.at(x, y, 1) = float(-w * dx);
@@ -83,14 +83,14 @@ RgbaImage fireExemplar(int n, std::uint64_t seed)
             const double theta = std::atan2(y - c, x - c);
             const double wobble = 0.12 * R * (valueNoise(std::cos(theta) * 40.0 + 100.0, std::sin(theta) * 40.0 + 100.0, 9.0, seed + 7) - 0.5);
             const double a = std::min(1.0, std::max(0.0, (R + wobble - std::hypot(x - c, y - c)) / 4.0 + 0.5));
-            double v;
-            if (x < n / 2) {
-                v = 0.25 + 0.7 * (1.0 - double(y) / n); // smooth: a ramp, brighter at the top
-            } else {
-                double f = 0.0, amp = 0.5;
-                for (double cell = n / 6.0; cell >= 1.5; cell /= 2.0, amp *= 0.6) f += amp * (valueNoise(x, y, cell, seed) - 0.5);
-                v = std::min(1.0, std::max(0.0, 0.55 + 1.6 * f));
-            }
+            // Smooth on the left (a ramp, brighter at the top), textured on the right, blended over the
+            // middle fifth so no hard seam becomes a feature of its own.
+            const double ramp = 0.25 + 0.7 * (1.0 - double(y) / n);
+            double f = 0.0, amp = 0.5;
+            for (double cell = n / 6.0; cell >= 1.5; cell /= 2.0, amp *= 0.6) f += amp * (valueNoise(x, y, cell, seed) - 0.5);
+            const double tex = std::min(1.0, std::max(0.0, 0.55 + 1.6 * f));
+            const double m = std::min(1.0, std::max(0.0, (double(x) / n - 0.4) / 0.2));
+            const double v = ramp + (tex - ramp) * m * m * (3.0 - 2.0 * m);
             // A fire ramp: dark red -> orange -> pale yellow.
             const float r = float(std::min(1.0, 0.35 + 0.9 * v)), g = float(std::min(1.0, std::max(0.0, 1.25 * v - 0.25))),
                         b = float(std::min(1.0, std::max(0.0, 1.6 * v - 1.0)));

@@ -45,4 +45,14 @@ CameraView viewThroughCamera(const Frame& frame, const BridgeSettings& settings)
 /// Mean |a - b| of two 1-channel images of one size (for the advection check of the bridge).
 double meanAbsDifference(const ChannelImage& a, const ChannelImage& b);
 
+/// Does the motion move the alpha? Compares alpha(t+1) with alpha(t) forward-warped by F^t (Warp.h)
+/// and with alpha(t) left in place. A motion field that describes the alpha's motion gives
+/// advected < still.
+struct AdvectionCheck
+{
+    double advected = 0.0; ///< mean |warp(alpha_t, F^t) - alpha_{t+1}|
+    double still = 0.0;    ///< mean |alpha_t - alpha_{t+1}|
+};
+AdvectionCheck checkAdvection(const ChannelImage& alpha, const ChannelImage& motion, const ChannelImage& nextAlpha);
+
 } // namespace turb

@@ -18,7 +18,9 @@
 /// compare and vote as (0, 0, 0, 0) whatever colour the file stores under them.
 ///
 /// Beyond the paper: the pyramid, its levels and iterations are ours to choose (defaults measured in
-/// docs/stylize.md); optional exemplar rotations by 90/180/270 degrees (section 4.5, Lukáč et al.) and
+/// docs/stylize.md); every frame starts its coarsest level from random exemplar patches of each target
+/// patch's segment (Kwatra et al.'s initialisation; the paper notes uniform usage needs none in
+/// particular, and it gives the standard NNF a fair, textured start); optional exemplar rotations by 90/180/270 degrees (section 4.5, Lukáč et al.) and
 /// motion blur along the flow (Fig. 9).
 ///
 /// @code
@@ -86,6 +88,7 @@ struct StylizeStats
     std::vector<SegmentUsage> usage; ///< exemplar patch usage at the finest level's last E-step, per segment
     double coverage = 0.0;           ///< fraction of exemplar patches used at least once, all segments
     int rounds = 0;                  ///< reversed-NNF retrieval rounds, summed over the frame
+    double energy = 0.0;             ///< eq. 7 per target patch at the finest level's last E-step (mean D)
     double stdRatio = 0.0;           ///< interior luminance standard deviation, output / exemplar
     double gradientRatio = 0.0;      ///< interior mean |grad luminance|^2, output / exemplar
     double temporalChange = -1.0;    ///< mean |X^t - warped X^{t-1}| (premultiplied RGBA, per channel) where

@@ -3,6 +3,7 @@
 #include <turb/Error.h>
 #include <turb/Operators.h>
 #include <turb/Parallel.h>
+#include <turb/Warp.h>
 
 #include <cmath>
 
@@ -60,6 +61,14 @@ double meanAbsDifference(const ChannelImage& a, const ChannelImage& b)
     double s = 0.0;
     for (size_t i = 0; i < a.pixelCount(); ++i) s += std::abs(double(a.pixel(i)[0]) - double(b.pixel(i)[0]));
     return a.pixelCount() ? s / double(a.pixelCount()) : 0.0;
+}
+
+AdvectionCheck checkAdvection(const ChannelImage& alpha, const ChannelImage& motion, const ChannelImage& nextAlpha)
+{
+    AdvectionCheck c;
+    c.advected = meanAbsDifference(forwardWarp(alpha, motion).image, nextAlpha);
+    c.still = meanAbsDifference(alpha, nextAlpha);
+    return c;
 }
 
 } // namespace turb

@@ -333,6 +333,19 @@ StylizedFrame Stylizer::next(const StylizeFrame& frame, Progress* progress)
         if (!current.empty()) {
             const ChannelImage init = padClamped(enlarged(current, tl.width, tl.height), r);
             for (size_t i = 0; i < init.pixelCount(); ++i) std::copy(init.pixel(i), init.pixel(i) + 4, tl.features.pixel(i));
+        } else {
+            // Kwatra et al.'s start: random exemplar patches of each target patch's segment, voted.
+            std::vector<std::vector<std::int32_t>> lists(2);
+            for (size_t p = 0; p < ex.labels.size(); ++p)
+                if (ex.labels[p] >= 0) lists[size_t(ex.labels[p])].push_back(std::int32_t(p));
+            Nnf random = emptyNnf(tl.features.width(), tl.features.height());
+            for (size_t q = 0; q < tl.labels.size(); ++q) {
+                const int L = tl.labels[q];
+                if (L < 0 || lists[size_t(L)].empty()) continue;
+                detail::Rng rng(detail::key(s.seed, std::uint64_t(mFrames), q, 0x1d1d));
+                random.source[q] = lists[size_t(L)][rng.below(std::uint32_t(lists[size_t(L)].size()))];
+            }
+            vote(ex.features, random, r, 0, 0, 4, tl.features);
         }
         st.secondsGuides += since(tg);
         const PatchSpace space{&ex.features, &tl.features, &tl.weights, r};
@@ -368,6 +381,16 @@ StylizedFrame Stylizer::next(const StylizeFrame& frame, Progress* progress)
     // Statistics of the frame, then the output.
     auto ts = Clock::now();
     st.usage = usage;
+    {
+        double e = 0.0;
+        long long n = 0;
+        for (size_t q = 0; q < nnf.source.size(); ++q)
+            if (nnf.source[q] >= 0) {
+                e += nnf.distance[q];
+                ++n;
+            }
+        st.energy = n ? e / double(n) : 0.0;
+    }
     long long used = 0, sources = 0;
     for (const auto& u : usage) {
         used += (long long)std::llround(u.coverage * double(u.sources));

@@ -7,7 +7,8 @@
 /// - `rotate`: a three-lobed blob turning rigidly about the image centre (LazyFluids Fig. 2 uses a pure
 ///   rotation: the flow that exposes wash-out);
 /// - `swirl`: the same blob in a vortex whose angular speed falls off with the radius (it shears);
-/// - `rise`: a round blob moving up at constant speed, wrapping around the image.
+/// - `rise`: a round blob moving up at constant speed, wrapping around the image;
+/// - `fill`: the whole image is fluid (alpha 1) in a rigid rotation: the benchmark's worst case.
 /// Motion is in pixels per frame, x right, y down (ChannelImage's convention).
 ///
 /// @code
@@ -27,7 +28,7 @@ namespace turb::scenes {
 
 struct Target2DSettings
 {
-    std::string kind = "rotate"; ///< rotate, swirl or rise
+    std::string kind = "rotate"; ///< rotate, swirl, rise or fill
     int width = 256;             ///< pixels, >= 16
     int height = 256;            ///< pixels, >= 16
     double speed = 0.02;         ///< rotate/swirl: radians per frame at the centre; rise: pixels per frame / width
@@ -43,8 +44,9 @@ struct Target2D
 /// turb::ValueError for an unknown kind or a size below 16.
 Target2D target2D(const Target2DSettings& settings, int frame);
 
-/// A fire-coloured RGBA exemplar of n x n pixels (n >= 16) with a soft, ragged alpha edge: its left half
-/// is smooth (a vertical colour ramp), its right half textured (seeded multi-octave value noise), the
+/// A fire-coloured RGBA exemplar of n x n pixels (n >= 16) with a soft, ragged alpha edge: its left part
+/// is smooth (a vertical colour ramp), its right part textured (seeded multi-octave value noise),
+/// blended over the middle fifth; the
 /// mix LazyFluids' wash-out needs to show. Straight alpha, sRGB-encoded colours.
 RgbaImage fireExemplar(int n, std::uint64_t seed);
 
