@@ -480,9 +480,11 @@ int runStylize(StylizeArgs& a)
             ConsoleProgress progress(int(i), int(frames.size()), fr);
             progress.begin("reading");
             const TargetFrame t = target.read(fr);
-            const turb::RgbaImage& ex = exemplar.frame(i);
-            const turb::RgbaImage* exPrev = exemplar.video() && i > 0 ? &exemplar.frame(i - 1) : nullptr;
-            if (exPrev && !exPrev->sameSize(ex)) exPrev = nullptr;
+            // Copies: the exemplar source keeps only a few frames of a video cached.
+            const turb::RgbaImage ex = exemplar.frame(i);
+            std::optional<turb::RgbaImage> exPrevious;
+            if (exemplar.video() && i > 0) exPrevious = exemplar.frame(i - 1);
+            const turb::RgbaImage* exPrev = exPrevious && exPrevious->sameSize(ex) ? &*exPrevious : nullptr;
             turb::StylizeFrame in;
             in.alpha = &t.alpha;
             // Frames that do not follow each other (a step, a gap) start a new shot: F^{t-1} does not apply.
