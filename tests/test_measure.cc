@@ -8,7 +8,7 @@
 #include <turb/Plot.h>
 #include <turb/Resample.h>
 #include <turb/Spectrum.h>
-#include <turbio/Png.h>
+#include <turbio/ImageIO.h>
 #include <turbio/Sequence.h>
 #include <turbio/Vdb.h>
 
@@ -615,9 +615,9 @@ TEST(Measure, FiguresRenderAndWrite)
     EXPECT_GT(sp.width(), 500);
     EXPECT_GT(mf.width(), 1000);
     testutil::TempDir dir;
-    turbio::writePng(dir / "spectrum.png", sp);
-    turbio::writePng(dir / "metrics.png", mf);
-    EXPECT_EQ(turbio::readPng(dir / "metrics.png").width(), mf.width());
+    turbio::writeImage(dir / "spectrum.png", sp);
+    turbio::writeImage(dir / "metrics.png", mf);
+    EXPECT_EQ(turbio::readImage(dir / "metrics.png").width(), mf.width());
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -5,7 +5,7 @@
 
 #include <turb/Error.h>
 #include <turb/Measure.h>
-#include <turbio/Png.h>
+#include <turbio/ImageIO.h>
 #include <turbio/Sequence.h>
 #include <turbio/System.h>
 #include <turbio/Vdb.h>
@@ -29,7 +29,7 @@ namespace {
 
 struct MeasureArgs
 {
-    std::string output, target, source, frames, plotDir, align = "auto", patchOrigin;
+    std::string output, target, source, frames, plotDir, plotFormat = "png", align = "auto", patchOrigin;
     bool json = false;        // accepted for symmetry with the other commands; JSON is always written
     bool spectraJson = false; // include the E(k) arrays in the JSON lines
     bool noSpectra = false, noStructure = false;
@@ -186,8 +186,8 @@ int runMeasure(MeasureArgs& a)
             progress.clear();
             if (!a.plotDir.empty()) {
                 char name[64];
-                std::snprintf(name, sizeof(name), "/spectrum.%04d.png", f);
-                turbio::writePng(a.plotDir + name, turb::spectrumFigure(m, "E(k) frame " + std::to_string(f)));
+                std::snprintf(name, sizeof(name), "/spectrum.%04d.%s", f, a.plotFormat.c_str());
+                turbio::writeImage(a.plotDir + name, turb::spectrumFigure(m, "E(k) frame " + std::to_string(f)));
             }
             const double sec = secondsSince(t1);
             seconds.push_back(sec);
@@ -215,8 +215,9 @@ int runMeasure(MeasureArgs& a)
     }
 
     if (!a.plotDir.empty() && !results.empty()) {
-        turbio::writePng(a.plotDir + "/metrics.png", turb::metricsFigure(results, "vdbturb measure: " + out.pattern.str()));
-        logInfo("plots: " + a.plotDir + "/metrics.png, " + a.plotDir + "/spectrum.####.png");
+        const std::string ext = "." + a.plotFormat;
+        turbio::writeImage(a.plotDir + "/metrics" + ext, turb::metricsFigure(results, "vdbturb measure: " + out.pattern.str()));
+        logInfo("plots: " + a.plotDir + "/metrics" + ext + ", " + a.plotDir + "/spectrum.####" + ext);
     }
 
     nlohmann::json sum;
@@ -278,7 +279,9 @@ Command measureCommand()
         app->add_flag("--no-spectra", args->noSpectra, "Skip the energy spectra (faster)");
         app->add_flag("--no-structure", args->noStructure, "Skip aniso and isotropy (faster)");
         app->add_flag("--spectra", args->spectraJson, "Include the E(k) arrays in the JSON lines");
-        app->add_option("--plot", args->plotDir, "Write PNG plots here: spectrum.####.png per frame and metrics.png");
+        app->add_option("--plot", args->plotDir, "Write plots here: spectrum.####.png per frame and metrics.png");
+        app->add_option("--plot-format", args->plotFormat, "Picture format of the plots: png (default), exr (linear half), tif")
+            ->check(CLI::IsMember({"png", "exr", "tif"}));
         app->add_flag("--json", args->json, "Accepted for symmetry with other commands: measure always prints JSON");
         addReadOptions(app, args->read);
     };

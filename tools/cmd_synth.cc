@@ -9,7 +9,7 @@
 #include <turb/Projection.h>
 #include <turb/Render.h>
 #include <turb/Synth.h>
-#include <turbio/Png.h>
+#include <turbio/ImageIO.h>
 #include <turbio/Sequence.h>
 #include <turbio/Vdb.h>
 
@@ -48,6 +48,7 @@ struct SynthArgs
     std::string out = "synth/synth.####.vdb";
     std::string preview, previewView;
     int previewWidth = 256;
+    std::string previewFormat = "png";
     int volumeCrop = 32;
     turbio::ReadOptions read;
     turbio::WriteOptions write;
@@ -150,7 +151,7 @@ turb::Exemplar loadExemplar(const std::string& spec, const SynthArgs& a)
     if (kind == "rg" || kind == "gray") {
         double scale = 1.0;
         const std::string path = pathAndScale(scale);
-        const turb::Image img = turbio::readPng(path);
+        const turb::Image img = turb::rgbOf(turbio::readImage(path));
         e = kind == "rg" ? turb::exemplarFromVectorImage(img, scale) : turb::exemplarFromGrayImage(img, scale, a.periodic);
         e.periodic = a.periodic;
         e.name = spec;
@@ -625,9 +626,9 @@ int runSynth(SynthArgs& a)
                 row.push_back({&dImg, ""});
             }
             const turb::Image sheet = turb::contactSheet({row}, {""}, "synth frame " + std::to_string(fr), 1);
-            const std::string png = a.preview + "/" + turbio::FramePattern::parse("synth.####.png").format(fr);
+            const std::string png = a.preview + "/" + turbio::FramePattern::parse("synth.####." + a.previewFormat).format(fr);
             turbio::ensureParentDirectory(png);
-            turbio::writePng(png, sheet);
+            turbio::writeImage(png, sheet);
             extra["preview"] = png;
         }
         progress.clear();
@@ -675,7 +676,7 @@ Command synthCommand()
         app->add_option("--factor", a.factor, "Up-res factor: output voxel = coarse voxel / factor (default 4)")->check(CLI::Range(1, 32));
         app->add_option("--exemplar", a.exemplars,
             "Exemplar, repeatable (one per view): circles|swirls|squares|hearts|stripes|sinusoids[:PERIOD[:SIZE]] "
-            "(default circles:16, size 64); rg:FILE.png[:SCALE] (R,G = x,y; v = (2c-1)*SCALE); gray:FILE.png[:SCALE] "
+            "(default circles:16, size 64); rg:FILE[:SCALE] (a picture, any format OpenImageIO reads; R,G = x,y; v = (2c-1)*SCALE); gray:FILE[:SCALE] "
             "(curl of intensity); vdb:FILE.vdb[:AXIS:INDEX] (a slice); vdb3:FILE.vdb (a volume)");
         app->add_option("--exemplar-scale", a.exemplarScale, "Texture scale: features this many times larger (default 1)")
             ->check(CLI::PositiveNumber);
@@ -727,7 +728,9 @@ Command synthCommand()
             ->check(CLI::Range(0, 200));
         app->add_flag("--no-density", a.noDensity, "Write velocity only");
         app->add_option("--out", a.out, "Output pattern (default synth/synth.####.vdb; directories are created)");
-        app->add_option("--preview", a.preview, "Write a PNG per frame into DIR: LIC of exemplar, up(L), H', F, and density");
+        app->add_option("--preview", a.preview, "Write a picture per frame into DIR: LIC of exemplar, up(L), H', F, and density");
+        app->add_option("--preview-format", a.previewFormat, "Picture format of --preview: png (default), exr (linear half), tif")
+            ->check(CLI::IsMember({"png", "exr", "tif"}));
         app->add_option("--preview-width", a.previewWidth, "Width of each preview panel in pixels (default 256)")
             ->check(CLI::Range(32, 4096));
         app->add_option("--preview-view", a.previewView, "Preview slice: top, front, side (default top in 2D, front in 3D)")
