@@ -185,8 +185,8 @@ int runTransfer(TransferArgs& a)
         extra["lf_err"] = st.lfErr;
         extra["density_err"] = st.densityErr;
         extra["density_err_before_guide"] = st.densityErrBefore;
-        if (st.detailChange >= 0.0) {
-            extra["detail_change"] = st.detailChange;
+        if (st.detailChange) {
+            extra["detail_change"] = *st.detailChange;
             extra["detail_growth"] = st.detailGrowth;
         }
         extra["band_voxels"] = st.seams.bandVoxels;
@@ -196,7 +196,7 @@ int runTransfer(TransferArgs& a)
             em.push_back({{"cg_iterations", it.cgIterations}, {"cg_residual", it.cgResidual}, {"energy", it.energy}});
         extra["seam_em"] = em;
         nlohmann::json steps;
-        for (int k = 0; k < 9; ++k) steps[turb::TransferStats::stepName(k)] = st.seconds[k];
+        for (const auto& [name, sec] : st.seconds.named()) steps[name] = sec;
         extra["steps_s"] = steps;
         std::string human = r.empty ? "no smoke in target: wrote the up-sampled target"
                                     : std::to_string(st.localPatches) + " patches (" + std::to_string(st.globalSearches) +
@@ -218,14 +218,15 @@ int runTransfer(TransferArgs& a)
         if (!r.empty) {
             std::string detailLine = "frame " + std::to_string(t) + ": detail energy x" + fmt("%.3f", st.energyScale) +
                                      fmt(", coarse part kept %.2f", st.coarseKept) + fmt(" (lf_err %.3f)", st.lfErr);
-            if (st.detailChange >= 0.0)
-                detailLine += fmt(", change against last frame advected %.3f", st.detailChange) +
+            if (st.detailChange)
+                detailLine += fmt(", change against last frame advected %.3f", *st.detailChange) +
                               fmt(" (growth %.3f: at least ", st.detailGrowth) +
                               fmt("%.3f)", std::max(0.0, 1.0 - 1.0 / st.detailGrowth));
             logVerbose(detailLine);
         }
         std::string timing = "frame " + std::to_string(t) + ": time";
-        for (int k : {0, 8, 1, 2, 3, 4, 5, 6}) timing += std::string(" ") + turb::TransferStats::stepName(k) + fmt(" %.2f", st.seconds[k]);
+        for (const auto& [name, sec] : st.seconds.named())
+            if (std::string(name) != "total") timing += std::string(" ") + name + fmt(" %.2f", sec);
         logVerbose(timing);
         report.frameDone(t, int(i), count, secondsSince(t0), human, extra);
     }

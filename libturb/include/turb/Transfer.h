@@ -34,7 +34,9 @@
 #include <turb/Seams.h>
 
 #include <memory>
+#include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace turb {
@@ -108,6 +110,26 @@ struct TransferSettings
     int threads = 0;              ///< worker threads, 0 = all; results do not depend on it
 };
 
+/// Where one frame's time went, in seconds (steady clock).
+struct TransferTimings
+{
+    double split = 0.0;        ///< target up-sampling, emission estimate, source frequency split
+    double density = 0.0;      ///< output density: advection or look-back, emission, guide
+    double advectDetail = 0.0; ///< U_h(i-1) advected through the target
+    double global = 0.0;       ///< global search (eq. 1)
+    double local = 0.0;        ///< local search (eq. 2) and the coherence pass
+    double paste = 0.0;        ///< pasting U_h
+    double seams = 0.0;        ///< temporal blend, coarse part, seam smoothing (section 3.3)
+    double output = 0.0;       ///< coarse part, energy, assembling the frame
+    double total = 0.0;        ///< the whole process() call
+    /// (name, seconds) in report order; the names are the JSON keys of `steps_s`.
+    std::vector<std::pair<const char*, double>> named() const
+    {
+        return {{"split", split}, {"advect_detail", advectDetail}, {"global", global}, {"local", local}, {"paste", paste},
+            {"seams", seams}, {"output", output}, {"density", density}, {"total", total}};
+    }
+};
+
 /// Numbers a TD or a log wants per frame.
 struct TransferStats
 {
@@ -123,16 +145,15 @@ struct TransferStats
                                    ///< 1 = all kept (also with removeCoarseDetail off)
     double lfErr = 0.0;            ///< rms of U_h's coarse-cell means / rms of the target's, over its smoke cells
                                    ///< (0 when the target is at rest there)
-    double detailChange = -1.0;    ///< rms(U_h - U_h(i-1) advected) / rms(U_h) over the output's smoke: `measure`'s
-                                   ///< tcoh when both advect the same way (BFECC: temporal blend on, the default);
-                                   ///< -1 without carried detail (first frame, after an empty frame, beta = blend = 0)
+    std::optional<double> detailChange; ///< rms(U_h - U_h(i-1) advected) / rms(U_h) over the output's smoke: `measure`'s
+                                   ///< tcoh when both advect the same way (BFECC: temporal blend on, the default); empty
+                                   ///< without carried detail (first frame, after an empty frame, beta = blend = 0)
     double densityErrBefore = 0.0; ///< coarse density error (measure's density_err) before the density guide
     double densityErr = 0.0;       ///< the same after it: what the written density has
     double detailGrowth = 0.0;     ///< rms(U_h) / rms(U_h(i-1) advected) over the output's smoke; no field of this
                                    ///< energy is closer to the advected one than 1 - 1/growth (tcoh's floor)
     SeamStats seams;               ///< EM/CG log of the seam smoothing
-    double seconds[9] = {0};       ///< split, global, local, paste, seams, output, density, total, advect_detail
-    static const char* stepName(int i);
+    TransferTimings seconds;       ///< where the time went
 };
 
 struct TransferResult

@@ -1,0 +1,36 @@
+/// @file Metadata.h
+/// @brief The names of the metadata vdbturb writes into its output files and reads back (Frame::metadata). One
+///        list, so a writer and its readers (measure, resume, preview) cannot drift apart.
+#pragma once
+
+namespace turb::meta {
+
+// Written by every command.
+inline constexpr const char* kCommand = "vdbturb_command";         ///< the command that wrote the file
+inline constexpr const char* kDt = "vdbturb_dt";                   ///< time per frame of the velocity
+inline constexpr const char* kInputVelocityUnits = "vdbturb_input_velocity_units"; ///< units the input had
+
+// transfer
+inline constexpr const char* kPatchSize = "vdbturb_patch_size";     ///< B, output voxels (measure's block)
+inline constexpr const char* kPatchOrigin = "vdbturb_patch_origin"; ///< "x,y,z": an output voxel where a patch starts
+inline constexpr const char* kRatio = "vdbturb_ratio";             ///< resolution ratio f
+inline constexpr const char* kGlobalPatch = "vdbturb_global_patch"; ///< b, target voxels
+inline constexpr const char* kAlpha = "vdbturb_alpha";
+inline constexpr const char* kBeta = "vdbturb_beta";
+inline constexpr const char* kGamma = "vdbturb_gamma";
+inline constexpr const char* kState = "vdbturb_state";             ///< what --resume needs (saveState)
+inline constexpr const char* kSourceFrame = "vdbturb_source_frame"; ///< the source frame the output was made from
+
+// synth
+inline constexpr const char* kExemplars = "vdbturb_exemplars";
+inline constexpr const char* kOmega = "vdbturb_omega";
+inline constexpr const char* kSeed = "vdbturb_seed";
+
+// sim
+inline constexpr const char* kScene = "vdbturb_scene";
+inline constexpr const char* kSimResolution = "vdbturb_sim_resolution";
+inline constexpr const char* kSimSeed = "vdbturb_sim_seed";
+inline constexpr const char* kSimTime = "vdbturb_sim_time";
+inline constexpr const char* kUpAxis = "vdbturb_up_axis";
+
+} // namespace turb::meta

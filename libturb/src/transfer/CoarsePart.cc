@@ -1,0 +1,73 @@
+// U_h's coarse part: the smooth field with U_h's coarse-cell means. Left in, it changes the target's coarse motion
+// (lf_err); taken out exactly, it costs temporal coherence, since advected detail moves some energy into the means.
+// It is reduced to a tolerance, once before the seam solve and once after the energy factor.
+#include "Stages.h"
+
+#include <cmath>
+
+namespace turb::detail {
+
+namespace {
+
+// The fraction of a coarse part measuring `lf` (lf_err's ratio) that stays within `tolerance`; an infinite lf
+// (a target at rest under the detail) keeps none.
+double keptFraction(double lf, double tolerance)
+{
+    if (!std::isfinite(lf)) return 0.0;
+    return lf > tolerance ? tolerance / lf : 1.0;
+}
+
+} // namespace
+
+double reduceCoarsePartBeforeSeams(VectorField& detail, const TargetAtOutput& t, const Frame& target,
+    const SmokeEnergy& smoke, double referenceEnergy, const FrameSetup& fs)
+{
+    const TransferSettings& s = *fs.s;
+    // Taking out a trilinear field adds divergence, which the solve's gamma term then removes while its box rows
+    // hold the means. Both this tolerance and the solve's target-divergence term need the energy factor this frame
+    // will get: estimated here from the detail without its coarse part.
+    VectorField coarse;
+    if (s.removeCoarseDetail) coarse = upsample(coarsePart(detail, fs.f), fs.f);
+    double estimate = 1.0;
+    if (s.detailEnergy != DetailEnergy::None && referenceEnergy > 0.0)
+        estimate = energyFactor(referenceEnergy, smoke(detail, coarse.empty() ? nullptr : &coarse));
+    if (!coarse.empty()) {
+        const double lf = estimate * coarseRatio(coarse, t.Ut, target.density, s.densityThreshold, fs.f);
+        const float remove = float(1.0 - keptFraction(lf, s.coarseTolerance));
+        for (size_t n = 0; n < detail.size(); ++n) detail.data()[n] -= coarse.data()[n] * remove;
+    }
+    return estimate;
+}
+
+void calibrateDetail(VectorField& detail, const TargetAtOutput& t, const Frame& target, const SmokeEnergy& smoke,
+    double referenceEnergy, const FrameSetup& fs, TransferStats& st)
+{
+    const TransferSettings& s = *fs.s;
+    const int f = fs.f;
+    VectorField coarse;
+    if (s.removeCoarseDetail) {
+        coarse = upsample(coarsePart(detail, f), f);
+        for (size_t n = 0; n < detail.size(); ++n) detail.data()[n] -= coarse.data()[n];
+    }
+    if (s.detailEnergy != DetailEnergy::None && referenceEnergy > 0.0) {
+        st.energyScale = energyFactor(referenceEnergy, smoke(detail));
+        for (auto& v : detail.values()) v *= float(st.energyScale);
+    }
+    if (!coarse.empty()) {
+        // Put back as much of the coarse part as the tolerance allows, measured as lf_err measures it: the coarse
+        // part's box means against the up-sampled target's, over the target's smoke cells. A target at rest there
+        // leaves no relative budget: the coarse part goes entirely.
+        const double lf = st.energyScale * coarseRatio(coarse, t.Ut, target.density, s.densityThreshold, f);
+        st.coarseKept = keptFraction(lf, s.coarseTolerance);
+        st.lfErr = st.coarseKept > 0.0 ? lf * st.coarseKept : 0.0;
+        const float k = float(st.coarseKept * st.energyScale);
+        if (k > 0.0f)
+            for (size_t n = 0; n < detail.size(); ++n) detail.data()[n] += coarse.data()[n] * k;
+    } else {
+        st.coarseKept = 1.0;
+        const double lf = coarseRatio(detail, t.Ut, target.density, s.densityThreshold, f);
+        st.lfErr = std::isfinite(lf) ? lf : 0.0;
+    }
+}
+
+} // namespace turb::detail

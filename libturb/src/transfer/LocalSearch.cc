@@ -1,0 +1,134 @@
+// Eq. 2: the local search for B^3 fine patches inside each patch's global region: PCA-reduced candidates on the
+// stride lattice, the best few re-scored with the full-resolution E_h (with the beta term on U^_h).
+#include "Stages.h"
+
+#include <turb/Error.h>
+#include <turb/Parallel.h>
+
+#include <algorithm>
+
+namespace turb::detail {
+
+double PatchEnergy::operator()(const Coord& tCorner, const Coord& sCorner, bool temporal) const
+{
+    const TransferSettings& s = *fs.s;
+    const int B = fs.B;
+    double e = 0.0;
+    for (int x = 0; x < B; ++x)
+        for (int y = 0; y < B; ++y)
+            for (int z = 0; z < B; ++z) {
+                const Coord tv = tCorner + Coord(x, y, z);
+                if (!fs.fineBox.isInside(tv)) continue;
+                const Coord sv = sCorner + Coord(x, y, z);
+                const Vec3f du = t.Ut[tv] * src.kt - src.split.low[sv] * src.ks;
+                const float dm = float(t.Dt[tv] > s.densityThreshold) - float(src.Ds[sv] > s.densityThreshold);
+                e += double(du.lengthSqr()) + double(s.alpha) * double(dm * dm);
+                if (temporal) {
+                    const Vec3f dh = advectedDetail[tv] * src.kt - src.split.high[sv] * src.ks;
+                    e += double(s.beta) * double(dh.lengthSqr());
+                }
+            }
+    return e;
+}
+
+double LocalSearchResult::meanEnergy() const
+{
+    double sum = 0.0;
+    for (size_t p : activeList) sum += energy[p];
+    return activeList.empty() ? 0.0 : sum / double(activeList.size());
+}
+
+namespace {
+
+// The PCA distances of the candidates within `radius` of a patch's region centre on the stride lattice (widened
+// when the region holds no smoke-bearing candidate, e.g. at the edge of the source's smoke; the whole lattice as a
+// last resort for tiny sources).
+void regionCandidates(const LocalCandidates& cands, const Coord& centre, int B, int radius, int grow,
+    const std::vector<float>& red, std::vector<std::pair<float, Coord>>& best)
+{
+    const size_t rk = cands.pca().outputDim();
+    const CoordBBox& corners = cands.cornerBox();
+    const int stride = cands.stride();
+    const auto consider = [&](const Coord& c) {
+        if (const float* r = cands.reduced(c)) {
+            float d2 = 0.0f;
+            for (size_t k = 0; k < rk; ++k) d2 += (r[k] - red[k]) * (r[k] - red[k]);
+            best.emplace_back(d2, c);
+        }
+    };
+    for (int g = 0; g < 4 && best.empty(); ++g) {
+        const int rad = radius + g * grow;
+        const Coord lo = centre - Coord(B / 2) - Coord(rad), hi = centre - Coord(B / 2) + Coord(rad);
+        Coord c0, c1;
+        for (int a = 0; a < 3; ++a) {
+            const int base = corners.min()[a];
+            const int l = std::max(lo[a], base), h = std::min(hi[a], corners.max()[a]);
+            c0[a] = base + ((l - base + stride - 1) / stride) * stride;
+            c1[a] = h;
+        }
+        for (int x = c0.x(); x <= c1.x(); x += stride)
+            for (int y = c0.y(); y <= c1.y(); y += stride)
+                for (int z = c0.z(); z <= c1.z(); z += stride) consider(Coord(x, y, z));
+    }
+    if (!best.empty()) return;
+    for (int x = corners.min().x(); x <= corners.max().x(); x += stride)
+        for (int y = corners.min().y(); y <= corners.max().y(); y += stride)
+            for (int z = corners.min().z(); z <= corners.max().z(); z += stride) consider(Coord(x, y, z));
+}
+
+} // namespace
+
+LocalSearchResult localSearch(const PatchEnergy& energy, const std::vector<uint8_t>& active,
+    const GlobalSearchResult& global, const PatchTracks& tracks, const MatchWeights& w)
+{
+    const FrameSetup& fs = energy.fs;
+    const TransferSettings& s = *fs.s;
+    const int B = fs.B;
+    LocalCandidates cands;
+    cands.build(energy.src.split.low, energy.src.Ds, B, s.localStride, energy.src.ks, w, s.pcaComponents);
+    if (cands.count() == 0) throw ValueError("the source has no local patch holding smoke");
+    const int radius = std::max(0, (fs.globalPatch * fs.f - B) / 2);
+    const size_t rk = cands.pca().outputDim(), ldim = localDescriptorSize(B);
+    LocalSearchResult out;
+    out.corners = cands.cornerBox();
+    out.chosen.assign(fs.layout.patchCount(), Coord(0));
+    out.energy.assign(fs.layout.patchCount(), 0.0);
+    for (size_t p = 0; p < active.size(); ++p)
+        if (active[p]) out.activeList.push_back(p);
+    const bool haveAdvected = !energy.advectedDetail.empty();
+    parallelFor(out.activeList.size(), 8, [&](size_t b, size_t e) {
+        std::vector<float> desc(ldim), red(rk);
+        std::vector<std::pair<float, Coord>> best;
+        for (size_t i = b; i < e; ++i) {
+            const size_t p = out.activeList[i];
+            const Coord tCorner = fs.layout.patchBox(fs.layout.patchCoord(p)).min();
+            localDescriptor(energy.t.Ut, energy.t.Dt, tCorner, B, energy.src.kt, w, desc.data());
+            cands.pca().project(desc.data(), red.data());
+            best.clear();
+            regionCandidates(cands, global.regionCentre[p], B, radius, fs.globalPatch * fs.f, red, best);
+            const size_t m = std::min(best.size(), size_t(s.refineCandidates));
+            std::partial_sort(best.begin(), best.begin() + long(m), best.end(), [](const auto& a, const auto& c) {
+                if (a.first != c.first) return a.first < c.first;
+                return a.second < c.second;
+            });
+            best.resize(m);
+            // Keep last frame's match in the running: the cheapest way to stay coherent.
+            if (tracks.tracked[p] && out.corners.isInside(tracks.match[p])) best.emplace_back(0.0f, tracks.match[p]);
+            const bool temporal = haveAdvected && tracks.tracked[p];
+            double bestE = -1.0;
+            Coord bestC = best.empty() ? out.corners.min() : best.front().second;
+            for (const auto& cand : best) {
+                const double en = energy(tCorner, cand.second, temporal);
+                if (bestE < 0.0 || en < bestE || (en == bestE && cand.second < bestC)) {
+                    bestE = en;
+                    bestC = cand.second;
+                }
+            }
+            out.chosen[p] = bestC;
+            out.energy[p] = std::max(0.0, bestE);
+        }
+    });
+    return out;
+}
+
+} // namespace turb::detail

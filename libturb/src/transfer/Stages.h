@@ -1,0 +1,237 @@
+// Private to the transfer: the stages of Sato et al. 2018, section 3, as named functions over one frame. Each
+// lives in its own file under src/transfer/ and returns a small struct; TurbulenceTransfer::process (Transfer.cc)
+// calls them in the paper's order. Units: velocities in world units per time unit, positions in fine (output)
+// voxels unless a name says "coarse".
+#pragma once
+
+#include "Align.h"
+#include "PatchSearch.h"
+
+#include <turb/Resample.h>
+#include <turb/Seams.h>
+#include <turb/Transfer.h>
+
+#include <deque>
+#include <map>
+#include <optional>
+#include <vector>
+
+namespace turb::detail {
+
+/// What is fixed over one frame: the ratio, the boxes, the patch layout on the absolute lattice of multiples of
+/// B, and the time since the previous processed frame.
+struct FrameSetup
+{
+    const TransferSettings* s = nullptr;
+    int f = 0;               ///< resolution ratio
+    int B = 8;               ///< local patch edge (fine voxels)
+    int globalPatch = 3;     ///< b (coarse voxels)
+    Lattice targetLattice, fineLattice;
+    CoordBBox targetBox, fineBox;
+    PatchLayout layout;
+    double elapsed = 0.0;    ///< time since the previous processed frame; 0 on a first frame
+    int frameGap = 1;        ///< frame-number gap to that frame
+};
+
+/// One look-back step (DensityMode::LookBack).
+struct LookBackStep
+{
+    VectorField velocity;      ///< U(j)
+    ScalarField emission;      ///< coarse emission estimate injected at step j
+    ScalarField targetDensity; ///< up-sampled when a look-back starts here; bounds the emission
+    double elapsed = 0.0;      ///< time from frame j to the next processed frame (set when it arrives)
+};
+
+/// What the previous frames leave for this one.
+struct CarriedState
+{
+    bool havePrevious = false;
+    VectorField prevDetail;         ///< U_h(i-1), output lattice
+    VectorField prevTargetVelocity; ///< u_t(i-1), target lattice
+    ScalarField prevTargetDensity;  ///< d_t(i-1)
+    ScalarField prevDensity;        ///< D(i-1), output lattice
+    VectorField prevVelocity;       ///< U(i-1), output lattice
+    double prevDt = 0.0;            ///< time per frame at frame i-1
+    int prevNumber = 0;             ///< frame number of i-1, the previous *processed* frame
+    std::deque<LookBackStep> history; ///< LookBack mode: the last m frames
+    /// Patch (on the absolute patch lattice, fine index / B) -> source corner of its best local patch last frame.
+    /// Keyed absolutely so a target whose active box grows or moves keeps its tracks.
+    std::map<Coord, Coord> tracks;
+};
+
+/// This frame's view of the tracks, per patch of the layout.
+struct PatchTracks
+{
+    std::vector<uint8_t> tracked; ///< 1 where the patch has a track
+    std::vector<Coord> match;     ///< that track's source corner
+};
+
+// --- Split (section 3.1) ------------------------------------------------------------------------------
+
+/// The target at output resolution and its density sources.
+struct TargetAtOutput
+{
+    VectorField Ut;       ///< up(u_t)
+    ScalarField Dt;       ///< up(d_t)
+    ScalarField emission; ///< coarse: max(0, d_t - advect(d_t(i-1))) over the elapsed time; zero on a first frame
+};
+TargetAtOutput splitTarget(const Frame& target, const CarriedState& c, const FrameSetup& fs);
+
+/// The source's bands and the velocity scales matching compares them in.
+struct SourceBands
+{
+    FrequencySplit split;   ///< U_sl (low), U_sh (high) and u_s (coarse); high without its box means
+    ScalarField Ds, ds;     ///< source density, and its box means on the coarse lattice
+    double reference = 0.0; ///< the source's high-frequency energy per smoke voxel, in output units^2
+    float kt = 1.0f, ks = 1.0f; ///< target and source velocity -> matching units (coarse cells per frame)
+    float detailScale = 1.0f;   ///< U_sh (source world units) -> output world units
+};
+/// Sequence-wide alignment of the source (chosen once, so it does not flip between frames).
+struct AlignmentState
+{
+    bool chosen = false;
+    AxisRotation rotation;
+};
+SourceBands splitSource(const Frame& source, const Frame& target, const FrameSetup& fs, AlignmentState& align);
+
+// --- Density ------------------------------------------------------------------------------------------
+
+struct DensityStep
+{
+    ScalarField density;          ///< D(i) on the fine box
+    double errorBefore = 0.0;     ///< coarse density error before the guide
+    double errorAfter = 0.0;      ///< and after it
+};
+/// The output density: advected (or looked back), the target's emission added up to the target's density, then
+/// guided onto the target's coarse means. Needs only past velocities, so it comes before this frame's detail.
+DensityStep advanceDensity(const Frame& target, const TargetAtOutput& t, const CarriedState& c, const FrameSetup& fs);
+
+/// Per patch of the layout: 1 where the target or the output density has smoke (the patches eq. 2 runs for).
+std::vector<uint8_t> activePatches(const FrameSetup& fs, const ScalarField& Dt, const ScalarField& density);
+
+// --- Temporal terms -----------------------------------------------------------------------------------
+
+/// U_h(i-1) advected through u_t(i-1) over the elapsed time (the beta term's U^_h, and the carried detail); empty
+/// on a first frame or when neither beta nor the temporal blend needs it.
+VectorField advectPreviousDetail(const CarriedState& c, const FrameSetup& fs);
+
+// --- Global search (eq. 1) ----------------------------------------------------------------------------
+
+struct GlobalSearchResult
+{
+    std::vector<Coord> regionCentre; ///< per patch: fine source voxel at the centre of its search region
+    int searches = 0;                ///< patches that ran the global search
+    int tracked = 0;                 ///< patches whose region followed last frame's match
+};
+GlobalSearchResult globalSearch(const Frame& target, const SourceBands& src, const std::vector<uint8_t>& active,
+    const PatchTracks& tracks, const FrameSetup& fs, const MatchWeights& w);
+
+// --- Local search (eq. 2) and coherence ---------------------------------------------------------------
+
+/// Full-resolution E_h of a target patch (corner) against a source corner, with or without the beta term.
+struct PatchEnergy
+{
+    const FrameSetup& fs;
+    const TargetAtOutput& t;
+    const SourceBands& src;
+    const VectorField& advectedDetail;
+    double operator()(const Coord& targetCorner, const Coord& sourceCorner, bool temporal) const;
+};
+
+struct LocalSearchResult
+{
+    std::vector<size_t> activeList;   ///< indices of the active patches, ascending
+    std::vector<Coord> chosen;        ///< per patch: the chosen source corner
+    std::vector<double> energy;       ///< per patch: its E_h
+    CoordBBox corners;                ///< allowed source corners
+    double meanEnergy() const;
+};
+LocalSearchResult localSearch(const PatchEnergy& energy, const std::vector<uint8_t>& active,
+    const GlobalSearchResult& global, const PatchTracks& tracks, const MatchWeights& w);
+
+/// Beyond the paper: red-black sweeps where a patch takes a neighbour's continued source patch when its E_h is
+/// within TransferSettings::coherence of its own. Deterministic at any thread count.
+void coherencePass(LocalSearchResult& local, const PatchEnergy& energy, const std::vector<uint8_t>& active,
+    const PatchTracks& tracks);
+
+// --- Paste, temporal blend, seams ---------------------------------------------------------------------
+
+struct PasteResult
+{
+    VectorField detail;          ///< U_h over the fine box, zero outside active patches
+    std::vector<Coord> offsets;  ///< per patch: source voxel = output voxel + offset
+};
+PasteResult pastePatches(const LocalSearchResult& local, const SourceBands& src, const FrameSetup& fs);
+
+/// Beyond eq. 2's beta term: mixes last frame's advected detail into the patches it reaches, lambda^gap where the
+/// patch carried detail, and as much as flowed in where smoke just arrived. Returns the per-patch weights (empty
+/// without carried detail).
+std::vector<float> blendTemporal(VectorField& detail, const VectorField& advectedDetail, const LocalSearchResult& local,
+    const PatchTracks& tracks, const FrameSetup& fs);
+
+/// What the seam stage is given besides the detail.
+struct SeamInputs
+{
+    const TargetAtOutput& t;
+    const SourceBands& src;
+    const std::vector<uint8_t>& active;
+    const std::vector<Coord>& offsets;
+    const VectorField& advectedDetail;
+    const std::vector<float>& blendWeight;
+    double scaleEstimate = 1.0; ///< the energy factor this frame's detail is expected to get
+};
+/// Section 3.3 with this project's additions (target-divergence term, box rows, temporal targets).
+SeamStats smoothPatchSeams(VectorField& detail, const SeamInputs& in, const FrameSetup& fs, Progress* progress);
+
+// --- Coarse part and energy ---------------------------------------------------------------------------
+
+/// Mean |u|^2 (of u - less, when given) per voxel of the output's smoke.
+struct SmokeEnergy
+{
+    const ScalarField& density;
+    float threshold;
+    size_t voxels;
+    SmokeEnergy(const ScalarField& d, float th);
+    double operator()(const VectorField& u, const VectorField* less = nullptr) const;
+};
+
+/// The factor that brings detail of mean energy `now` to `reference`, bounded to [1/3, 3].
+double energyFactor(double reference, double now);
+
+/// Before the seam solve: the energy factor this frame will get (estimated on the detail without its coarse
+/// part), and the coarse part reduced to the tolerance under that factor. Returns the estimate.
+double reduceCoarsePartBeforeSeams(VectorField& detail, const TargetAtOutput& t, const Frame& target,
+    const SmokeEnergy& smoke, double referenceEnergy, const FrameSetup& fs);
+
+/// After the seam solve: the coarse part out, the energy factor applied, the coarse part put back within the
+/// tolerance. Fills energyScale, coarseKept and lfErr.
+void calibrateDetail(VectorField& detail, const TargetAtOutput& t, const Frame& target, const SmokeEnergy& smoke,
+    double referenceEnergy, const FrameSetup& fs, TransferStats& st);
+
+// --- Output and state ---------------------------------------------------------------------------------
+
+/// rms(U_h - U^_h) / rms(U_h) and rms(U_h) / rms(U^_h) over the output's smoke (nullopt without carried detail).
+void detailChange(const VectorField& detail, const VectorField& advectedDetail, const ScalarField& density,
+    float threshold, TransferStats& st);
+
+/// U = up(u_t) + U_h, the density, up-sampled temperature and flame, and the metadata a later measure or resume
+/// reads.
+Frame assembleOutput(const Frame& target, const TargetAtOutput& t, const VectorField& detail, ScalarField density,
+    const FrameSetup& fs);
+
+/// Carries this frame into `c` for the next one: the detail is recomputed from the output velocity exactly as
+/// restoreState must do from the written file, so a --resume continues bit-identically.
+void carryState(CarriedState& c, const Frame& target, const Frame& out, const TargetAtOutput& t,
+    const ScalarField& emission, const FrameSetup& fs);
+
+/// The compact text form of the tracks and the alignment, and its inverse (throws ValueError on damage).
+std::string saveStateText(int f, int B, const AlignmentState& align, const std::map<Coord, Coord>& tracks);
+struct SavedState
+{
+    int f = 0, B = 0;
+    AlignmentState align;
+    std::map<Coord, Coord> tracks;
+};
+SavedState parseStateText(const std::string& text);
+
+} // namespace turb::detail
