@@ -857,6 +857,73 @@ TEST(TransferTime, ResumeAcrossAFrameGapIsBitIdentical)
     EXPECT_EQ(again.density.values(), ref.density.values());
 }
 
+TEST(TransferFollow, ReusedDetailMovesWithTheTargetNotWithTheSource)
+{
+    // The target carries a puff along x at 8 fine voxels (one local patch) per frame; the source's detail drifts
+    // along y. Tracks move with the target, but re-pasting a patch from last frame's source corner gives whatever has
+    // drifted into that corner since; following the source's flow from where the carried detail came from gives the
+    // same detail again, now moved with the target. The temporal blend and term are off, so nothing else carries
+    // detail from frame to frame.
+    const double voxel = MovingPuff::kVoxel, dt = MovingPuff::kDt;
+    const Vec3f speed(float(4.0 * voxel / dt), 0.0f, 0.0f);
+    const auto puff = [&](const Vec3d& x, int frame) {
+        const Vec3d d = x - Vec3d(0.9 + 4.0 * voxel * (frame - 1), 0.825, 0.825);
+        return float(std::exp(-d.lengthSqr() / (2.0 * 0.3 * 0.3)));
+    };
+    const auto target = [&](int frame) {
+        return makeFrame(CoordBBox({0, 0, 0}, {27, 11, 11}), Lattice{voxel, {0.0, 0.0, 0.0}},
+            [&](const Vec3d&) { return speed; }, [&](const Vec3d& x) { return puff(x, frame); }, frame, dt);
+    };
+    // Frozen turbulence: a fixed pattern carried along y at 4 fine voxels per frame by the source's mean flow.
+    const Modes pattern{30, 3.0, 7.0, 5, voxel / 2};
+    const Vec3d drift(0.0, 4.0 * voxel / 2, 0.0);
+    const auto source = [&](int frame) {
+        return makeFrame(CoordBBox({-12, -12, -12}, {67, 35, 35}), Lattice{voxel, {0.0, 0.0, 0.0}}.refined(2),
+            [&](const Vec3d& x) { return Vec3f(drift / dt) + pattern.at(x - drift * double(frame)) * 0.1f; },
+            [](const Vec3d& x) {
+                // Smoke away from the box's faces, so the chosen patches and their continuations have room.
+                const bool in = x.x() > -0.16 && x.x() < 4.28 && x.y() > -0.16 && x.y() < 1.88 && x.z() > -0.16 &&
+                                x.z() < 1.88;
+                return in ? 1.0f : 0.0f;
+            },
+            frame, dt);
+    };
+    const auto run = [&](bool follow, int& followed) {
+        TransferSettings s;
+        s.threads = 2;
+        s.temporalBlend = 0.0f;
+        s.beta = 0.0f;
+        s.followSourceFlow = follow;
+        TurbulenceTransfer transfer(s);
+        std::vector<Frame> out;
+        for (int fr = 1; fr <= 3; ++fr) {
+            TransferResult r = transfer.process(target(fr), source(fr));
+            followed = r.stats.followedPatches;
+            out.push_back(std::move(r.frame));
+        }
+        // Correlation of frame 3's detail with frame 2's moved on by the target's 8 fine voxels, over the puff's core.
+        const Frame &a = out[1], &b = out[2];
+        double ab = 0.0, aa = 0.0, bb = 0.0;
+        for (auto it = b.velocity.bbox().begin(); it; ++it) {
+            const Coord c = *it, up = c.offsetBy(-8, 0, 0);
+            if (!a.velocity.bbox().isInside(up)) continue;
+            if (puff(b.velocity.lattice().indexToWorld(c.asVec3d()), 3) < 0.5f) continue;
+            const Vec3f x = a.velocity[up] - speed, y = b.velocity[c] - speed;
+            ab += double(x.dot(y));
+            aa += double(x.lengthSqr());
+            bb += double(y.lengthSqr());
+        }
+        return ab / std::sqrt(aa * bb);
+    };
+    int followedOn = 0, followedOff = 0;
+    const double on = run(true, followedOn), off = run(false, followedOff);
+    std::printf("moved-detail correlation: following %.3f (%d patches followed), re-pasting %.3f\n", on, followedOn, off);
+    EXPECT_GT(followedOn, 0);
+    EXPECT_EQ(followedOff, 0);
+    EXPECT_GT(on, 0.8) << "the followed detail did not move with the target";
+    EXPECT_LT(off, 0.5) << "re-pasting from the same corner should leave the detail behind";
+}
+
 TEST(TransferDensity, InflowThatSetsDensityDoesNotPileUp)
 {
     // Issue 20, item 1: an inflow emitter holds the target's density at 1 (as Blender and Houdini inflow do) while a

@@ -26,7 +26,7 @@ struct TransferArgs
     std::string wrap = "loop";
     std::string align = "none";
     std::string density = "advect";
-    bool noSeams = false, noTracking = false, keepCoarse = false, resume = false, json = false, noResample = false;
+    bool noSeams = false, noTracking = false, noFollow = false, keepCoarse = false, resume = false, json = false, noResample = false;
     bool keepTargetDivergence = false;
     std::string energy = "source";
     int extendVelocity = 4;
@@ -64,6 +64,7 @@ int runTransfer(TransferArgs& a)
     s.threads = globals().threads;
     s.seams.enabled = !a.noSeams;
     s.trackGlobalPatches = !a.noTracking;
+    s.followSourceFlow = !a.noFollow;
     s.resampleSource = !a.noResample;
     s.removeCoarseDetail = !a.keepCoarse;
     s.detailEnergy = a.energy == "none" ? turb::DetailEnergy::None
@@ -179,6 +180,8 @@ int runTransfer(TransferArgs& a)
         extra["patches"] = st.localPatches;
         extra["global_searches"] = st.globalSearches;
         extra["tracked"] = st.trackedPatches;
+        extra["followed"] = st.followedPatches;
+        extra["continuations"] = st.continuations;
         extra["mean_local_energy"] = st.meanLocalEnergy;
         extra["energy_scale"] = st.energyScale;
         extra["coarse_kept"] = st.coarseKept;
@@ -297,6 +300,15 @@ Command transferCommand()
         app->add_flag("--no-resample-source", a.noResample,
             "Refuse a source whose voxel size is not an integer fraction of the target's (default: resample it trilinearly to "
             "the nearest integer ratio; the output then has voxel target/ratio)");
+        app->add_flag("--no-follow-source", a.noFollow,
+            "Re-paste patches where last frame found them instead of following the source's flow (ablation)");
+        app->add_option("--follow-tolerance", s.followTolerance,
+               "Keep a patch's continuation in the source's flow while its E_h is within (1 + this) of the best (default 1)")
+            ->check(CLI::NonNegativeNumber);
+        app->add_option("--source-smoke", s.sourceSmoke,
+               "Fraction of a source patch's voxels that must hold smoke for it to be a candidate (default 0.5; 0 = any "
+               "smoke, the paper's rule)")
+            ->check(CLI::Range(0.0f, 1.0f));
         app->add_flag("--no-tracking", a.noTracking, "Run the global search every frame instead of following last frame's patch (ablation)");
         app->add_flag("--keep-coarse-detail", a.keepCoarse, "Do not remove U_h's coarse part (lets lf_err grow)");
         app->add_option("--detail-energy", a.energy,

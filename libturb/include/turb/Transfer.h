@@ -79,6 +79,16 @@ struct TransferSettings
     int localStride = 2;          ///< spacing of candidate local-patch centres in the source, >= 1
     int refineCandidates = 24;    ///< local candidates re-scored with the full-resolution energy E_h, >= 1
     bool trackGlobalPatches = true; ///< the paper's temporal rule; false = global search every frame
+    bool followSourceFlow = true; ///< beyond the paper: a patch that carried detail continues from where that detail
+                                  ///< came from in the source, moved by the source's own flow (sub-voxel, tricubic);
+                                  ///< without it the re-pasted detail stays put while the carried detail moves, and
+                                  ///< the blend smears it into streaks along the flow
+    float sourceSmoke = 0.5f;     ///< beyond the paper: a source patch is a candidate when this fraction of its voxels
+                                  ///< holds smoke (relaxed to half the smokiest patch's share on thin first frames);
+                                  ///< 0 = any smoke, the paper's rule, which let velocity alone pick patches outside
+                                  ///< the source's smoke, where a cache like Blender's holds no detail
+    float followTolerance = 1.0f; ///< the continuation is kept while its E_h is at most (1 + this) times the best
+                                  ///< searched patch's, >= 0
     float coherence = 0.0f;       ///< beyond the paper: take a neighbour's continued source patch when its E_h is
                                   ///< within this fraction of the best (fewer seams); 0 = off
     int coherenceSweeps = 2;      ///< red-black sweeps of the coherence pass, >= 1
@@ -139,6 +149,8 @@ struct TransferStats
     int localPatches = 0;          ///< local patches holding smoke
     int globalSearches = 0;        ///< patches that ran the global search this frame
     int trackedPatches = 0;        ///< patches whose global patch followed the previous frame
+    int continuations = 0;         ///< patches with a continuation in the source's flow this frame
+    int followedPatches = 0;       ///< patches that took it (followSourceFlow, followTolerance)
     double meanLocalEnergy = 0.0;  ///< mean E_h of the chosen local patches
     double energyScale = 1.0;      ///< factor applied to U_h to meet TransferSettings::detailEnergy
     double coarseKept = 0.0;       ///< fraction of U_h's coarse part left in (coarseTolerance): 0 = removed exactly,

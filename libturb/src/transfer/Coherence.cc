@@ -43,6 +43,7 @@ void coherencePass(LocalSearchResult& local, const PatchEnergy& energy, const st
                         bestC = c;
                     }
                 }
+                if (bestC != local.chosen[p]) local.chosenExact[p] = bestC.asVec3d();
                 local.chosen[p] = bestC;
                 local.energy[p] = bestE;
             }

@@ -5,7 +5,10 @@
 #include <turb/Error.h>
 #include <turb/Parallel.h>
 
+#include <turb/Operators.h>
+
 #include <algorithm>
+#include <cmath>
 
 namespace turb::detail {
 
@@ -31,6 +34,30 @@ double PatchEnergy::operator()(const Coord& tCorner, const Coord& sCorner, bool 
     return e;
 }
 
+double PatchEnergy::at(const Coord& tCorner, const Vec3d& sCorner, bool temporal) const
+{
+    const Coord base(int(std::floor(sCorner.x())), int(std::floor(sCorner.y())), int(std::floor(sCorner.z())));
+    if (base.asVec3d() == sCorner) return (*this)(tCorner, base, temporal);
+    const TransferSettings& s = *fs.s;
+    const int B = fs.B;
+    double e = 0.0;
+    for (int x = 0; x < B; ++x)
+        for (int y = 0; y < B; ++y)
+            for (int z = 0; z < B; ++z) {
+                const Coord tv = tCorner + Coord(x, y, z);
+                if (!fs.fineBox.isInside(tv)) continue;
+                const Vec3d sv = sCorner + Vec3d(x, y, z);
+                const Vec3f du = t.Ut[tv] * src.kt - sampleTrilinear(src.split.low, sv) * src.ks;
+                const float dm = float(t.Dt[tv] > s.densityThreshold) - float(sampleTrilinear(src.Ds, sv) > s.densityThreshold);
+                e += double(du.lengthSqr()) + double(s.alpha) * double(dm * dm);
+                if (temporal) {
+                    const Vec3f dh = advectedDetail[tv] * src.kt - sampleTrilinear(src.split.high, sv) * src.ks;
+                    e += double(s.beta) * double(dh.lengthSqr());
+                }
+            }
+    return e;
+}
+
 double LocalSearchResult::meanEnergy() const
 {
     double sum = 0.0;
@@ -39,6 +66,17 @@ double LocalSearchResult::meanEnergy() const
 }
 
 namespace {
+
+// Voxels of the B^3 patch at `corner` (rounded) whose density exceeds the threshold; outside the box counts none.
+int smokeVoxels(const ScalarField& D, const Vec3d& corner, int B, float threshold)
+{
+    const Coord c(int(std::lround(corner.x())), int(std::lround(corner.y())), int(std::lround(corner.z())));
+    int n = 0;
+    for (int x = 0; x < B; ++x)
+        for (int y = 0; y < B; ++y)
+            for (int z = 0; z < B; ++z) n += D.valueOr(c.x() + x, c.y() + y, c.z() + z, 0.0f) > threshold;
+    return n;
+}
 
 // The PCA distances of the candidates within `radius` of a patch's region centre on the stride lattice (widened
 // when the region holds no smoke-bearing candidate, e.g. at the edge of the source's smoke; the whole lattice as a
@@ -85,13 +123,15 @@ LocalSearchResult localSearch(const PatchEnergy& energy, const std::vector<uint8
     const TransferSettings& s = *fs.s;
     const int B = fs.B;
     LocalCandidates cands;
-    cands.build(energy.src.split.low, energy.src.Ds, B, s.localStride, energy.src.ks, w, s.pcaComponents);
+    cands.build(energy.src.split.low, energy.src.Ds, B, s.localStride, energy.src.ks, w, s.pcaComponents, s.sourceSmoke);
     if (cands.count() == 0) throw ValueError("the source has no local patch holding smoke");
     const int radius = std::max(0, (fs.globalPatch * fs.f - B) / 2);
     const size_t rk = cands.pca().outputDim(), ldim = localDescriptorSize(B);
     LocalSearchResult out;
     out.corners = cands.cornerBox();
     out.chosen.assign(fs.layout.patchCount(), Coord(0));
+    out.chosenExact.assign(fs.layout.patchCount(), Vec3d(0.0));
+    std::vector<uint8_t> followed(fs.layout.patchCount(), 0);
     out.energy.assign(fs.layout.patchCount(), 0.0);
     for (size_t p = 0; p < active.size(); ++p)
         if (active[p]) out.activeList.push_back(p);
@@ -125,9 +165,23 @@ LocalSearchResult localSearch(const PatchEnergy& energy, const std::vector<uint8
                 }
             }
             out.chosen[p] = bestC;
+            out.chosenExact[p] = bestC.asVec3d();
             out.energy[p] = std::max(0.0, bestE);
+            // The continuation in the source's flow wins while it matches nearly as well as the best found.
+            if (!tracks.following.empty() && tracks.following[p] &&
+                smokeVoxels(energy.src.Ds, tracks.follow[p], B, s.densityThreshold) >= cands.minSmokeVoxels()) {
+                const double ef = energy.at(tCorner, tracks.follow[p], temporal);
+                if (ef <= (1.0 + double(s.followTolerance)) * out.energy[p]) {
+                    const Vec3d& c = tracks.follow[p];
+                    out.chosenExact[p] = c;
+                    out.chosen[p] = Coord(int(std::lround(c.x())), int(std::lround(c.y())), int(std::lround(c.z())));
+                    out.energy[p] = ef;
+                    followed[p] = 1;
+                }
+            }
         }
     });
+    out.followed = int(std::count(followed.begin(), followed.end(), uint8_t(1)));
     return out;
 }
 

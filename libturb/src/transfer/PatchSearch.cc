@@ -99,7 +99,7 @@ void localDescriptor(const VectorField& U, const ScalarField& D, const Coord& co
 }
 
 void LocalCandidates::build(const VectorField& Usl, const ScalarField& Ds, int B, int stride, float k,
-    const MatchWeights& w, int pcaComponents)
+    const MatchWeights& w, int pcaComponents, double minSmoke)
 {
     mB = B;
     mStride = std::max(1, stride);
@@ -132,15 +132,23 @@ void LocalCandidates::build(const VectorField& Usl, const ScalarField& Ds, int B
         const int x0 = lo.x() - box.min().x(), y0 = lo.y() - box.min().y(), z0 = lo.z() - box.min().z();
         const int x1 = x0 + B, y1 = y0 + B, z1 = z0 + B;
         return sum[at(x1, y1, z1)] - sum[at(x0, y1, z1)] - sum[at(x1, y0, z1)] - sum[at(x1, y1, z0)] +
-                   sum[at(x0, y0, z1)] + sum[at(x0, y1, z0)] + sum[at(x1, y0, z0)] - sum[at(x0, y0, z0)] > 0;
+               sum[at(x0, y0, z1)] + sum[at(x0, y1, z0)] + sum[at(x1, y0, z0)] - sum[at(x0, y0, z0)];
     };
+    // The smoke a candidate needs: `minSmoke` of its voxels, relaxed to half the smokiest patch's share when the
+    // source holds no patch that full (thin shells of smoke on a plume's first frames).
+    int most = 0;
+    for (int x = 0; x < mLattice.x(); ++x)
+        for (int y = 0; y < mLattice.y(); ++y)
+            for (int z = 0; z < mLattice.z(); ++z)
+                most = std::max(most, smokeIn(mCorners.min() + Coord(x * mStride, y * mStride, z * mStride)));
+    mMinSmoke = std::max(1, int(std::ceil(std::min(minSmoke * double(B) * double(B) * double(B), 0.5 * most))));
     mSlot.assign(cells, -1);
     std::vector<Coord> corners;
     for (int x = 0; x < mLattice.x(); ++x)
         for (int y = 0; y < mLattice.y(); ++y)
             for (int z = 0; z < mLattice.z(); ++z) {
                 const Coord c = mCorners.min() + Coord(x * mStride, y * mStride, z * mStride);
-                if (!smokeIn(c)) continue;
+                if (smokeIn(c) < mMinSmoke) continue;
                 mSlot[(size_t(x) * size_t(mLattice.y()) + size_t(y)) * size_t(mLattice.z()) + size_t(z)] = int(corners.size());
                 corners.push_back(c);
             }

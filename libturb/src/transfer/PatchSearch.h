@@ -53,8 +53,10 @@ inline size_t localDescriptorSize(int B)
 class LocalCandidates
 {
 public:
+    /// Candidates are patches with at least `minSmoke` of their voxels in the smoke, or half the smokiest patch's
+    /// count when that is less (and always at least one voxel).
     void build(const VectorField& Usl, const ScalarField& Ds, int B, int stride, float k, const MatchWeights& w,
-        int pcaComponents);
+        int pcaComponents, double minSmoke = 0.0);
     const Pca& pca() const { return mPca; }
     int stride() const { return mStride; }
     /// Corners allowed for a patch (the whole patch inside the source box).
@@ -63,6 +65,8 @@ public:
     /// box's minimum), or nullptr when that patch holds no smoke.
     const float* reduced(const Coord& c) const;
     size_t count() const { return mCount; }
+    /// The smoke voxels a candidate patch needed (see build).
+    int minSmokeVoxels() const { return mMinSmoke; }
 
 private:
     Pca mPca;
@@ -72,6 +76,7 @@ private:
     std::vector<int> mSlot;
     std::vector<float> mReduced;
     size_t mCount = 0;
+    int mMinSmoke = 1;
 };
 
 } // namespace turb::detail

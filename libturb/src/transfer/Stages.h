@@ -54,16 +54,21 @@ struct CarriedState
     double prevDt = 0.0;            ///< time per frame at frame i-1
     int prevNumber = 0;             ///< frame number of i-1, the previous *processed* frame
     std::deque<LookBackStep> history; ///< LookBack mode: the last m frames
-    /// Patch (on the absolute patch lattice, fine index / B) -> source corner of its best local patch last frame.
-    /// Keyed absolutely so a target whose active box grows or moves keeps its tracks.
-    std::map<Coord, Coord> tracks;
+    int prevSourceNumber = 0;       ///< source frame number used at i-1
+    double prevSourceDt = 0.0;      ///< and its time per frame
+    /// Patch (on the absolute patch lattice, fine index / B) -> source corner (fine source voxels, possibly between
+    /// voxels when it followed the source's flow) of its detail last frame. Keyed absolutely so a target whose
+    /// active box grows or moves keeps its tracks.
+    std::map<Coord, Vec3d> tracks;
 };
 
 /// This frame's view of the tracks, per patch of the layout.
 struct PatchTracks
 {
-    std::vector<uint8_t> tracked; ///< 1 where the patch has a track
-    std::vector<Coord> match;     ///< that track's source corner
+    std::vector<uint8_t> tracked;   ///< 1 where the patch has a track
+    std::vector<Coord> match;       ///< that track's source corner (rounded)
+    std::vector<uint8_t> following; ///< 1 where followSourceFlow found a continuation
+    std::vector<Vec3d> follow;      ///< its source corner, carried by both flows to this frame
 };
 
 // --- Split (section 3.1) ------------------------------------------------------------------------------
@@ -115,6 +120,13 @@ std::vector<uint8_t> activePatches(const FrameSetup& fs, const ScalarField& Dt, 
 /// on a first frame or when neither beta nor the temporal blend needs it.
 VectorField advectPreviousDetail(const CarriedState& c, const FrameSetup& fs);
 
+/// Beyond the paper: for each active patch, where the detail that flowed into it came from in the source, moved on
+/// by the source's own flow to this frame. Pasting from there gives the source's detail as it evolved, moving with
+/// the target's flow; re-pasting a fixed source position while carrying the last frame's detail smears it into
+/// streaks along the flow. Fills `tracks.following` and `tracks.follow`.
+void followSourceFlow(PatchTracks& tracks, const CarriedState& c, const TargetAtOutput& t, const SourceBands& src,
+    const Frame& source, const std::vector<uint8_t>& active, const FrameSetup& fs);
+
 // --- Global search (eq. 1) ----------------------------------------------------------------------------
 
 struct GlobalSearchResult
@@ -136,12 +148,16 @@ struct PatchEnergy
     const SourceBands& src;
     const VectorField& advectedDetail;
     double operator()(const Coord& targetCorner, const Coord& sourceCorner, bool temporal) const;
+    /// The same at a source corner between voxels (trilinear samples).
+    double at(const Coord& targetCorner, const Vec3d& sourceCorner, bool temporal) const;
 };
 
 struct LocalSearchResult
 {
     std::vector<size_t> activeList;   ///< indices of the active patches, ascending
-    std::vector<Coord> chosen;        ///< per patch: the chosen source corner
+    std::vector<Coord> chosen;        ///< per patch: the chosen source corner (rounded when it is between voxels)
+    std::vector<Vec3d> chosenExact;   ///< per patch: the chosen source corner
+    int followed = 0;                 ///< patches that took their continuation (followSourceFlow)
     std::vector<double> energy;       ///< per patch: its E_h
     CoordBBox corners;                ///< allowed source corners
     double meanEnergy() const;
@@ -221,17 +237,20 @@ Frame assembleOutput(const Frame& target, const TargetAtOutput& t, const VectorF
 
 /// Carries this frame into `c` for the next one: the detail is recomputed from the output velocity exactly as
 /// restoreState must do from the written file, so a --resume continues bit-identically.
-void carryState(CarriedState& c, const Frame& target, const Frame& out, const TargetAtOutput& t,
+void carryState(CarriedState& c, const Frame& target, const Frame& source, const Frame& out, const TargetAtOutput& t,
     const ScalarField& emission, const FrameSetup& fs);
 
-/// The compact text form of the tracks and the alignment, and its inverse (throws ValueError on damage).
-std::string saveStateText(int f, int B, const AlignmentState& align, const std::map<Coord, Coord>& tracks);
+/// The compact text form of the tracks, the alignment and the source frame, and its inverse (throws ValueError on
+/// damage; reads the integer tracks of version 2 too).
 struct SavedState
 {
     int f = 0, B = 0;
     AlignmentState align;
-    std::map<Coord, Coord> tracks;
+    std::map<Coord, Vec3d> tracks;
+    int sourceNumber = 0;
+    double sourceDt = 0.0; ///< 0 when unknown (version 2): no continuation on the first resumed frame
 };
+std::string saveStateText(const SavedState& state);
 SavedState parseStateText(const std::string& text);
 
 } // namespace turb::detail

@@ -3,11 +3,12 @@
 
 #include <turb/Error.h>
 
+#include <cmath>
 #include <sstream>
 
 namespace turb::detail {
 
-void carryState(CarriedState& c, const Frame& target, const Frame& out, const TargetAtOutput& t,
+void carryState(CarriedState& c, const Frame& target, const Frame& source, const Frame& out, const TargetAtOutput& t,
     const ScalarField& emission, const FrameSetup& fs)
 {
     if (fs.s->densityMode == DensityMode::LookBack) {
@@ -22,15 +23,21 @@ void carryState(CarriedState& c, const Frame& target, const Frame& out, const Ta
     c.prevVelocity = out.velocity;
     c.prevDt = target.dt;
     c.prevNumber = target.number;
+    c.prevSourceNumber = source.number;
+    c.prevSourceDt = source.dt;
     c.havePrevious = true;
 }
 
-std::string saveStateText(int f, int B, const AlignmentState& align, const std::map<Coord, Coord>& tracks)
+std::string saveStateText(const SavedState& st)
 {
+    // Version 3: corners between voxels, written with 17 significant digits so a resume reads back the same
+    // doubles, and the source frame the continuation starts from.
     std::ostringstream os;
-    os << "v2 f=" << f << " B=" << B << " rot=" << (align.chosen ? align.rotation.id() : -1) << " tracks=";
+    os.precision(17);
+    os << "v3 f=" << st.f << " B=" << st.B << " rot=" << (st.align.chosen ? st.align.rotation.id() : -1)
+       << " src=" << st.sourceNumber << ',' << st.sourceDt << " tracks=";
     bool first = true;
-    for (const auto& [P, m] : tracks) {
+    for (const auto& [P, m] : st.tracks) {
         os << (first ? "" : ";") << P.x() << ',' << P.y() << ',' << P.z() << ',' << m.x() << ',' << m.y() << ',' << m.z();
         first = false;
     }
@@ -39,12 +46,18 @@ std::string saveStateText(int f, int B, const AlignmentState& align, const std::
 
 SavedState parseStateText(const std::string& text)
 {
+    const auto damaged = [&] {
+        return ValueError("unrecognised or damaged transfer state in the previous output: '" + text.substr(0, 60) + "'");
+    };
     std::istringstream is(text);
-    std::string version, fField, bField, rotField, tracks;
-    is >> version >> fField >> bField >> rotField >> tracks;
-    if (version != "v2" || fField.rfind("f=", 0) != 0 || bField.rfind("B=", 0) != 0 || rotField.rfind("rot=", 0) != 0 ||
-        tracks.rfind("tracks=", 0) != 0)
-        throw ValueError("unrecognised transfer state in the previous output: '" + text.substr(0, 60) + "'");
+    std::string version, fField, bField, rotField, srcField, tracks;
+    is >> version >> fField >> bField >> rotField;
+    const bool v3 = version == "v3";
+    if (v3) is >> srcField;
+    is >> tracks;
+    if ((version != "v2" && !v3) || fField.rfind("f=", 0) != 0 || bField.rfind("B=", 0) != 0 ||
+        rotField.rfind("rot=", 0) != 0 || tracks.rfind("tracks=", 0) != 0 || (v3 && srcField.rfind("src=", 0) != 0))
+        throw damaged();
     SavedState st;
     try {
         st.f = std::stoi(fField.substr(2));
@@ -54,20 +67,28 @@ SavedState parseStateText(const std::string& text)
             st.align.rotation = AxisRotation::fromId(rot);
             st.align.chosen = true;
         }
+        if (v3) {
+            const size_t comma = srcField.find(',');
+            if (comma == std::string::npos) throw damaged();
+            st.sourceNumber = std::stoi(srcField.substr(4, comma - 4));
+            st.sourceDt = std::stod(srcField.substr(comma + 1));
+        }
     } catch (const std::logic_error&) {
-        throw ValueError("damaged transfer state in the previous output: '" + text.substr(0, 60) + "'");
+        throw damaged();
     }
     std::stringstream ts(tracks.substr(7));
     std::string item;
     while (std::getline(ts, item, ';')) {
         if (item.empty()) continue;
-        int v[6];
+        int P[3];
+        double m[3];
         char sep;
         std::istringstream one(item);
-        bool ok = bool(one >> v[0]);
-        for (int k = 1; k < 6 && ok; ++k) ok = bool(one >> sep >> v[k]) && sep == ',';
+        bool ok = bool(one >> P[0]);
+        for (int k = 1; k < 3 && ok; ++k) ok = bool(one >> sep >> P[k]) && sep == ',';
+        for (int k = 0; k < 3 && ok; ++k) ok = bool(one >> sep >> m[k]) && sep == ',' && std::isfinite(m[k]);
         if (!ok) throw ValueError("damaged transfer state entry '" + item + "'");
-        st.tracks[Coord(v[0], v[1], v[2])] = Coord(v[3], v[4], v[5]);
+        st.tracks[Coord(P[0], P[1], P[2])] = Vec3d(m[0], m[1], m[2]);
     }
     return st;
 }

@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <sstream>
 
 namespace turb {
@@ -119,7 +120,7 @@ detail::PatchTracks TurbulenceTransfer::Impl::tracksFor(const detail::FrameSetup
             rel.z() >= L.count.z())
             continue;
         t.tracked[L.patchIndex(rel)] = 1;
-        t.match[L.patchIndex(rel)] = m;
+        t.match[L.patchIndex(rel)] = Coord(int(std::lround(m.x())), int(std::lround(m.y())), int(std::lround(m.z())));
     }
     return t;
 }
@@ -152,6 +153,8 @@ TurbulenceTransfer::TurbulenceTransfer(const TransferSettings& settings) : mImpl
     if (!(s.temporalBlend >= 0.0f && s.temporalBlend <= 0.999f)) throw ValueError("temporal blend must lie in [0, 0.999]");
     if (!(s.coarseTolerance >= 0.0f)) throw ValueError("coarse tolerance must be >= 0");
     if (!(s.seams.boxKeep >= 0.0f && s.seams.boxKeep <= 1.0f)) throw ValueError("box keep must lie in [0, 1]");
+    if (!(s.followTolerance >= 0.0f)) throw ValueError("follow tolerance must be >= 0");
+    if (!(s.sourceSmoke >= 0.0f && s.sourceSmoke <= 1.0f)) throw ValueError("source smoke fraction must lie in [0, 1]");
     if (!(s.densityGuide.strength >= 0.0f && s.densityGuide.strength <= 1.0f))
         throw ValueError("density guide strength must lie in [0, 1]");
     mImpl->s = settings;
@@ -188,7 +191,7 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
         throw ValueError("target frame " + std::to_string(target.number) + " changed voxel size or transform within the sequence");
     const FrameSetup fs = setup(target);
     if (!carried.history.empty()) carried.history.back().elapsed = fs.elapsed;
-    const PatchTracks tracks = tracksFor(fs);
+    PatchTracks tracks = tracksFor(fs);
 
     TransferResult result;
     TransferStats& st = result.stats;
@@ -219,6 +222,14 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
     } else {
         const SourceBands bands = splitSource(src, target, fs, align);
         time.split += lap(t0);
+        // Where each patch's detail came from in the source, moved on by the source's flow; the search region of a
+        // patch that has one follows it.
+        followSourceFlow(tracks, carried, t, bands, src, active, fs);
+        for (size_t p = 0; p < tracks.following.size(); ++p)
+            if (tracks.following[p]) {
+                const Vec3d& c = tracks.follow[p];
+                tracks.match[p] = Coord(int(std::lround(c.x())), int(std::lround(c.y())), int(std::lround(c.z())));
+            }
         advectedDetail = advectPreviousDetail(carried, fs); // U^_h, the beta term's and the blend's
         time.advectDetail = lap(t0);
 
@@ -233,6 +244,8 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
         LocalSearchResult local = localSearch(energy, active, global, tracks, w);
         coherencePass(local, energy, active, tracks);
         st.meanLocalEnergy = local.meanEnergy();
+        st.followedPatches = local.followed;
+        st.continuations = int(std::count(tracks.following.begin(), tracks.following.end(), uint8_t(1)));
         time.local = lap(t0);
         PasteResult pasted = pastePatches(local, bands, fs);
         detail = std::move(pasted.detail);
@@ -250,14 +263,14 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
         carried.tracks.clear();
         for (size_t p = 0; p < active.size(); ++p)
             if (active[p]) carried.tracks[fs.layout.patchCoord(p) + Coord(fs.layout.origin.x() / fs.B, fs.layout.origin.y() / fs.B,
-                                                          fs.layout.origin.z() / fs.B)] = local.chosen[p];
+                                                          fs.layout.origin.z() / fs.B)] = local.chosenExact[p];
 
         // 3.4: the detail's coarse part and energy, then U = up(u_t) + U_h.
         calibrateDetail(detail, t, target, smoke, referenceEnergy, fs, st);
         detailChange(detail, advectedDetail, density.density, s.densityThreshold, st);
     }
     result.frame = assembleOutput(target, t, detail, std::move(density.density), fs);
-    carryState(carried, target, result.frame, t, t.emission, fs);
+    carryState(carried, target, src, result.frame, t, t.emission, fs);
     time.output = lap(t0);
     time.total = std::chrono::duration<double>(Clock::now() - tStart).count();
     return result;
@@ -265,7 +278,14 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
 
 std::string TurbulenceTransfer::saveState() const
 {
-    return detail::saveStateText(mImpl->ratio, mImpl->s.localPatch, mImpl->align, mImpl->carried.tracks);
+    detail::SavedState st;
+    st.f = mImpl->ratio;
+    st.B = mImpl->s.localPatch;
+    st.align = mImpl->align;
+    st.tracks = mImpl->carried.tracks;
+    st.sourceNumber = mImpl->carried.prevSourceNumber;
+    st.sourceDt = mImpl->carried.prevSourceDt;
+    return detail::saveStateText(st);
 }
 
 void TurbulenceTransfer::restore(const std::string& state, const Frame& previousOutput, const Frame& previousTarget)
@@ -289,7 +309,10 @@ void TurbulenceTransfer::restore(const std::string& state, const Frame& previous
     out.density = cropped(previousOutput.density, fs.fineBox);
     detail::TargetAtOutput t;
     t.Ut = upsample(previousTarget.velocity, saved.f);
-    detail::carryState(m.carried, previousTarget, out, t, ScalarField(), fs);
+    Frame previousSource;
+    previousSource.number = saved.sourceNumber;
+    previousSource.dt = saved.sourceDt;
+    detail::carryState(m.carried, previousTarget, previousSource, out, t, ScalarField(), fs);
     m.carried.history.clear();
 }
 
