@@ -219,14 +219,6 @@ int runPreview(PreviewArgs& a)
         return std::find(in.seq.frames.begin(), in.seq.frames.end(), frame) != in.seq.frames.end();
     };
 
-    if (globals().dryRun) {
-        for (int f : frames)
-            for (const auto& in : inputs)
-                logInfo("frame " + std::to_string(f) + ": " + (exists(in, f) ? in.seq.path(f) : "(missing) " + in.seq.path(f)));
-        logInfo("would write " + (a.sheet.empty() ? turbio::FramePattern::parse(a.out).str() : a.sheet));
-        return kOk;
-    }
-
     int result = kOk;
     turb::withThreads(globals().threads, [&] {
         // Fixed colour ranges for the whole run, from the last row's frame, so sequences do not flicker.
@@ -323,6 +315,7 @@ Command previewCommand()
 {
     auto args = std::make_shared<PreviewArgs>();
     Command c;
+    c.globals = kVerbosity | kThreads;
     c.name = "preview";
     c.help = "PNG pictures of caches: lit density, speed/vorticity slices, LIC, and labelled contact sheets";
     c.setup = [args](CLI::App* app) {

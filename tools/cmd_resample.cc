@@ -65,6 +65,7 @@ Command resampleCommand()
 {
     auto args = std::make_shared<ResampleArgs>();
     Command c;
+    c.globals = kVerbosity | kDryRun;
     c.name = "resample";
     c.help = "Box-downsample a cache by an integer factor and/or turn it by quarter turns (exact)";
     c.setup = [args](CLI::App* app) {
