@@ -2,6 +2,7 @@
 // stdout: one JSON line per frame and a summary line (always: the numbers are this command's product).
 #include "Commands.h"
 #include "Console.h"
+#include "Preflight.h"
 
 #include <turb/Error.h>
 #include <turb/Measure.h>
@@ -137,13 +138,29 @@ int runMeasure(MeasureArgs& a)
     logInfo("measure: output " + out.pattern.str() + ", target " + tgt.pattern.str() +
             (src ? ", source " + src->pattern.str() : std::string(", no source")) + ", frames " +
             turbio::formatFrameList(frames));
-    if (globals().dryRun) return kOk;
-    if (!a.plotDir.empty()) std::filesystem::create_directories(a.plotDir);
 
     turbio::ReadOptions readOut = a.read, readTgt = a.read, readSrc = a.read;
     readOut.readExtras = readTgt.readExtras = readSrc.readExtras = false;
     readOut.requireDensity = false; // an up-res may carry velocity only; the target then gives the region
     readSrc.extendVelocity = a.sourceExtend;
+
+    // Every frame's headers before the first measurement (a dry run stops here). Frames are measured one by
+    // one, so a lattice that changes within a sequence is read frame by frame; tcoh skips the change.
+    const turbio::SequenceScan outScan = checkInput("measure", "output", out, frames, readOut, LatticePolicy::Report);
+    const turbio::SequenceScan tgtScan = checkInput("measure", "target", tgt, frames, readTgt, LatticePolicy::Report);
+    reportTiming("output", outScan, true);
+    reportTiming("target", tgtScan, true);
+    if (src) {
+        const turbio::SequenceScan srcScan = checkInput("measure", "source", *src, src->frames, readSrc, LatticePolicy::Report);
+        reportTiming("source", srcScan, true);
+    }
+    if (!a.plotDir.empty()) {
+        std::vector<std::string> plots{a.plotDir + "/metrics.png"};
+        for (int f : frames) plots.push_back(a.plotDir + "/" + turbio::FramePattern::parse("spectrum.####.png").format(f));
+        checkOutputs(plots, {}, false, false);
+    }
+    if (globals().dryRun) return kOk;
+    if (!a.plotDir.empty()) std::filesystem::create_directories(a.plotDir);
 
     const auto has = [](const turbio::Sequence& q, int f) {
         return std::binary_search(q.frames.begin(), q.frames.end(), f);
@@ -169,7 +186,8 @@ int runMeasure(MeasureArgs& a)
                 if (has(*src, sn)) sf = turbio::readFrame(src->path(sn), sn, readSrc);
                 else logWarning("frame " + std::to_string(f) + ": source frame " + std::to_string(sn) + " missing");
             }
-            const bool consecutive = prevOut && prevTgt && prevOut->number == f - 1;
+            const bool consecutive = prevOut && prevTgt && prevOut->number == f - 1 &&
+                                     prevOut->lattice().approxEqual(o.lattice()) && prevTgt->lattice().approxEqual(t.lattice());
             turb::MeasureInput in;
             in.output = &o;
             in.target = &t;

@@ -1,6 +1,7 @@
 // vdbturb preview: pictures of caches (density render, speed/vorticity slices, LIC) and contact sheets.
 #include "Commands.h"
 #include "Console.h"
+#include "Preflight.h"
 #include "RunReport.h"
 
 #include <turb/Error.h>
@@ -218,6 +219,19 @@ int runPreview(PreviewArgs& a)
     const auto exists = [](const Input& in, int frame) {
         return std::find(in.seq.frames.begin(), in.seq.frames.end(), frame) != in.seq.frames.end();
     };
+
+    // Every picture's frames, checked before the first is drawn; each frame is drawn on its own lattice.
+    std::vector<std::string> outputs, inputPaths;
+    for (const auto& in : inputs) {
+        checkInput("preview", in.label, in.seq, frames, read, LatticePolicy::Report);
+        for (int f : frames)
+            if (exists(in, f)) inputPaths.push_back(in.seq.path(f));
+    }
+    if (a.sheet.empty())
+        for (int f : frames) outputs.push_back(turbio::FramePattern::parse(a.out).format(f));
+    else
+        outputs.push_back(a.sheet);
+    checkOutputs(outputs, inputPaths, false, false);
 
     int result = kOk;
     turb::withThreads(globals().threads, [&] {
