@@ -505,3 +505,17 @@ TEST(Writing, AFileSizeLimitIsAClearErrorAndLeavesNoFile)
     EXPECT_EQ(WEXITSTATUS(status), 0) << "10: no error, 11: message lacks the file or the reason";
     EXPECT_EQ(testutil::countEntries(dir.path()), 0u) << "no partial or temporary file";
 }
+
+TEST(BadInput, AFrameTooLargeToLoadNamesTheGridAndItsSpan)
+{
+    // Two density voxels 20000 apart: a sparse cache that is fine on disk and impossible densely.
+    testutil::TempDir dir;
+    auto d = densityBox(openvdb::CoordBBox({0, 0, 0}, {3, 3, 3}), 1.0f);
+    d->tree().setValue(openvdb::Coord(20000, 20000, 20000), 1.0f);
+    auto v = linearMac(openvdb::CoordBBox({0, 0, 0}, {3, 3, 3}), "vel", 0.1);
+    writeGrids(dir / "sparse.vdb", {d, v});
+    const std::string e = errorOf([&] { readFrame(dir / "sparse.vdb", 1, ReadOptions{}); });
+    EXPECT_NE(e.find("sparse.vdb: not enough memory to load the frame"), std::string::npos) << e;
+    EXPECT_NE(e.find("grid 'density' [0, 0, 0]-[20000, 20000, 20000] (20001x20001x20001 voxels)"), std::string::npos) << e;
+    EXPECT_NE(e.find("grid 'vel' [0, 0, 0]-[3, 3, 3] (4x4x4 voxels)"), std::string::npos) << e;
+}

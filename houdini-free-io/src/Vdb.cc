@@ -25,6 +25,7 @@
 #include <functional>
 #include <mutex>
 #include <sstream>
+#include <dirent.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -968,6 +969,23 @@ std::string tempPathFor(const std::string& path)
            std::to_string(counter++);
 }
 
+// Removes temporary files a killed run left for `path` (".NAME.tmpPID_N" whose process no longer runs), so a
+// kill -9 mid-write leaves no litter once the frame is written again (e.g. by --resume).
+void removeStaleTemporaries(const std::string& path)
+{
+    const std::string dir = dirName(path), head = "." + baseName(path) + ".tmp";
+    DIR* d = ::opendir(dir.c_str());
+    if (!d) return;
+    while (const dirent* e = ::readdir(d)) {
+        const std::string name = e->d_name;
+        if (name.compare(0, head.size(), head) != 0) continue;
+        const long pid = std::strtol(name.c_str() + head.size(), nullptr, 10);
+        if (pid <= 0 || pid == long(::getpid())) continue;
+        if (::kill(pid_t(pid), 0) != 0 && errno == ESRCH) ::unlink((dir + "/" + name).c_str());
+    }
+    ::closedir(d);
+}
+
 bool fileExists(const std::string& path)
 {
     struct stat st;
@@ -1250,6 +1268,7 @@ void writeFrame(const std::string& path, const turb::Frame& frame, const WriteOp
         meta.insertMeta("vdbturb_dt", openvdb::StringMetadata(os.str()));
     }
 
+    removeStaleTemporaries(path);
     const std::string tmp = tempPathFor(path);
     writeVdbChecked(tmp, path, grids, meta);
     commitTemp(tmp, path, options.noClobber);
