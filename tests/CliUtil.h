@@ -22,11 +22,10 @@ struct Result
     std::string out;     ///< stdout + stderr (or stdout only with run(..., false))
 };
 
-/// Runs `vdbturb ARGS` through the shell (ARGS is shell text: quote patterns with $). `stderrToo` merges it.
-inline Result run(const std::string& args, bool stderrToo = true)
+/// Runs shell command `cmd`; its stdout is captured (add 2>&1 for stderr).
+inline Result shell(const std::string& cmd)
 {
     Result r;
-    const std::string cmd = std::string(VDBTURB_EXE) + " " + args + (stderrToo ? " 2>&1" : " 2>/dev/null");
     FILE* p = ::popen(cmd.c_str(), "r");
     if (!p) return r;
     std::array<char, 4096> buf;
@@ -34,9 +33,15 @@ inline Result run(const std::string& args, bool stderrToo = true)
     while ((n = std::fread(buf.data(), 1, buf.size(), p)) > 0) r.out.append(buf.data(), n);
     const int status = ::pclose(p);
     if (WIFEXITED(status)) r.code = WEXITSTATUS(status);
-    // popen's shell reports a signalled child as 128 + signal.
+    // The shell reports a signalled child as 128 + signal.
     if (r.code > 128 && r.code < 160) r.signal = r.code - 128;
     return r;
+}
+
+/// Runs `vdbturb ARGS` through the shell (ARGS is shell text: quote patterns with $). `stderrToo` merges it.
+inline Result run(const std::string& args, bool stderrToo = true)
+{
+    return shell(std::string(VDBTURB_EXE) + " " + args + (stderrToo ? " 2>&1" : " 2>/dev/null"));
 }
 
 /// A vdbturb process started in the background (its output goes to `log`), to signal mid-run.

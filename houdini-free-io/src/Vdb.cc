@@ -640,7 +640,7 @@ ReadReport resolveTiming(bool blenderVelocity, bool blenderCache, double recorde
         r.cells = blenderVelocity;
         r.unitsSource = blenderVelocity ? "detected: Blender's staggered 'velocity' with file_base_resolution is in grid cells "
                                           "per time unit"
-                                        : "world units (Houdini, EmberGen and vdbturb write them; no Blender markers)";
+                                        : "no Blender markers: Houdini, EmberGen and vdbturb write world units";
         break;
     }
     r.fps = options.fps > 0.0 ? options.fps : 24.0;
