@@ -473,6 +473,10 @@ TEST(GridAliases, SelectorsByPositionAndUniqueName)
     EXPECT_EQ(resolveGrid(names, GridRole::Density, "density[1]"), (std::vector<std::string>{"density[1]"}));
     EXPECT_TRUE(resolveGrid(names, GridRole::Density, "#4").empty());
     EXPECT_TRUE(resolveGrid(names, GridRole::Density, "#").empty());
+    // Two grids named 'density' are "density[0]" and "density[1]": the name alone is the first.
+    const std::vector<std::string> dup{"density[0]", "vel", "density[1]"};
+    EXPECT_EQ(resolveGrid(dup, GridRole::Density), (std::vector<std::string>{"density[0]"}));
+    EXPECT_EQ(resolveGrid(dup, GridRole::Density, "density"), (std::vector<std::string>{"density[0]"}));
 }
 
 TEST(Writing, AFileSizeLimitIsAClearErrorAndLeavesNoFile)

@@ -63,7 +63,7 @@ std::vector<std::string> timingLines(const std::string& role, const turbio::Fram
     return lines;
 }
 
-void reportTiming(const std::string& role, const turbio::SequenceScan& scan, bool usesDt)
+void reportTiming(const std::string& role, const turbio::SequenceScan& scan, bool usesDt, const std::string& optionPrefix)
 {
     if (scan.frames.empty()) return;
     const turbio::FrameScan& f = scan.frames.front();
@@ -75,8 +75,7 @@ void reportTiming(const std::string& role, const turbio::SequenceScan& scan, boo
         warnOnce("fps " + role,
             role + " " + f.path + ": the cache records no frame rate; dt " + num("%.6g", f.timing.dt) + " assumes 24 fps" +
                 (f.timing.dtSource.find("Blender") != std::string::npos ? " and Blender's time scale 1" : "") +
-                ". Give --" + (role == "cache" ? std::string() : role + "-") +
-                "fps or --" + (role == "cache" ? std::string() : role + "-") + "dt if the shot differs");
+                ". Give --" + optionPrefix + "fps or --" + optionPrefix + "dt if the shot differs");
 }
 
 void checkOutputs(const std::vector<std::string>& outputs, const std::vector<std::string>& inputs, bool noClobber,

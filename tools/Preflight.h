@@ -31,8 +31,8 @@ turbio::SequenceScan checkInput(const std::string& command, const std::string& r
 std::vector<std::string> timingLines(const std::string& role, const turbio::FrameScan& frame);
 
 /// Prints timingLines in a dry run (always) or at -v, and warns once when the time step rests on an assumed
-/// frame rate and the command uses it (`usesDt`).
-void reportTiming(const std::string& role, const turbio::SequenceScan& scan, bool usesDt);
+/// frame rate and the command uses it (`usesDt`); the warning names --PREFIXfps / --PREFIXdt.
+void reportTiming(const std::string& role, const turbio::SequenceScan& scan, bool usesDt, const std::string& optionPrefix = "");
 
 /// Refuses outputs that cannot be written: a parent path that is a file, a directory that cannot be
 /// written, an output that is a directory, an output that is one of `inputs`, and (with `noClobber`) an

@@ -5,6 +5,7 @@
 #include "Preflight.h"
 
 #include <turb/Error.h>
+#include <turb/Resample.h>
 #include <turb/Measure.h>
 #include <turbio/Png.h>
 #include <turbio/Sequence.h>
@@ -154,6 +155,16 @@ int runMeasure(MeasureArgs& a)
         const turbio::SequenceScan srcScan = checkInput("measure", "source", *src, src->frames, readSrc, LatticePolicy::Report);
         reportTiming("source", srcScan, true);
     }
+    // An up-res sits on a lattice an integer number of times finer than its target's.
+    if (!outScan.frames.empty() && !tgtScan.frames.empty()) {
+        const turbio::FrameScan& o = outScan.frames.front();
+        const turbio::FrameScan& t = tgtScan.frames.front();
+        if (!turb::isIntegerRatio(t.lattice.voxelSize, o.lattice.voxelSize))
+            throw turb::ValueError("the output " + o.path + " (voxel " + std::to_string(o.lattice.voxelSize) +
+                                   ") is not an integer refinement of the target " + t.path + " (voxel " +
+                                   std::to_string(t.lattice.voxelSize) + "): ratio " +
+                                   std::to_string(t.lattice.voxelSize / o.lattice.voxelSize) + " is not an integer");
+    }
     if (!a.plotDir.empty()) {
         std::vector<std::string> plots{a.plotDir + "/metrics.png"};
         for (int f : frames) plots.push_back(a.plotDir + "/" + turbio::FramePattern::parse("spectrum.####.png").format(f));
@@ -219,9 +230,15 @@ int runMeasure(MeasureArgs& a)
             prevSrc = std::move(sf);
         } catch (const turb::Cancelled&) {
             throw;
+        } catch (const turb::IoError& e) {
+            ++failed;
+            logError("frame " + std::to_string(f) + ": " + e.what()); // names its file
+            prevOut.reset();
+            prevTgt.reset();
+            prevSrc.reset();
         } catch (const turb::Error& e) {
             ++failed;
-            logError("frame " + std::to_string(f) + ": " + e.what());
+            logError("frame " + std::to_string(f) + " (output " + out.path(f) + ", target " + tgt.path(f) + "): " + e.what());
             prevOut.reset();
             prevTgt.reset();
             prevSrc.reset();

@@ -102,8 +102,8 @@ void preflight(const TransferArgs& a, const turbio::Sequence& target, const turb
     if (targetFrames.empty()) return;
     const turbio::SequenceScan ts = checkInput("transfer", "target", target, targetFrames, a.targetRead, LatticePolicy::Refuse);
     const turbio::SequenceScan ss = checkInput("transfer", "source", source, sourceFrames, a.sourceRead, LatticePolicy::Refuse);
-    reportTiming("target", ts, true);
-    reportTiming("source", ss, true);
+    reportTiming("target", ts, true, "target-");
+    reportTiming("source", ss, true, "source-");
 
     const turbio::FrameScan& t0 = ts.frames.front();
     const turbio::FrameScan& s0 = ss.frames.front();

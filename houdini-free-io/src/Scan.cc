@@ -64,7 +64,10 @@ void resolveFrame(FrameScan& fs, const FileInfo& info, const ReadOptions& option
         for (GridRole role : {GridRole::Temperature, GridRole::Flame})
             if (auto n = resolveGrid(names, role); !n.empty())
                 if (const GridInfo* e = findSelector(info.grids, n[0])) used.push_back(e);
-    if (used.empty()) throw turb::IoError(fs.path + ": none of the requested grids is present; the file has: " + listing);
+    if (used.empty())
+        throw turb::IoError(fs.path + ": none of the requested grids is present; the file has: " + listing + ". Choose grids with --" +
+                            options.optionPrefix + "density-grid / --" + options.optionPrefix +
+                            "vel-grid NAME, or '#N' for the N-th grid listed here.");
     for (const GridInfo* g : used)
         if (!g->supportedTransform) throw turb::IoError(detail::unsupportedTransformMessage(fs.path, g->name, g->mapType));
 

@@ -24,6 +24,13 @@ struct Token
     int width = 0;
 };
 
+// A padding width from its digits; absurd widths (which std::stoi cannot hold) become 1000, refused by parse().
+int widthOf(const std::string& digits)
+{
+    if (digits.empty()) return 0;
+    return digits.size() > 4 ? 1000 : std::stoi(digits);
+}
+
 // Finds every frame token in `s` (used to reject patterns with two).
 std::vector<Token> findTokens(const std::string& s)
 {
@@ -42,7 +49,7 @@ std::vector<Token> findTokens(const std::string& s)
             while (j < s.size() && std::isdigit(static_cast<unsigned char>(s[j]))) ++j;
             if (j < s.size() && s[j] == 'd') {
                 const std::string digits = s.substr(i + 1, j - i - 1);
-                out.push_back({i, j + 1 - i, digits.empty() ? 0 : std::stoi(digits)});
+                out.push_back({i, j + 1 - i, widthOf(digits)});
                 i = j + 1;
             } else {
                 ++i;
@@ -53,7 +60,7 @@ std::vector<Token> findTokens(const std::string& s)
             while (j < s.size() && std::isdigit(static_cast<unsigned char>(s[j]))) ++j;
             if (j < s.size() && s[j] == '}') {
                 const std::string digits = s.substr(i + 3, j - i - 3);
-                out.push_back({i, j + 1 - i, digits.empty() ? 0 : std::stoi(digits)});
+                out.push_back({i, j + 1 - i, widthOf(digits)});
                 i = j + 1;
             } else {
                 ++i;
@@ -62,7 +69,7 @@ std::vector<Token> findTokens(const std::string& s)
             size_t j = i + 2;
             while (j < s.size() && std::isdigit(static_cast<unsigned char>(s[j]))) ++j;
             const std::string digits = s.substr(i + 2, j - i - 2);
-            out.push_back({i, j - i, digits.empty() ? 0 : std::stoi(digits)});
+            out.push_back({i, j - i, widthOf(digits)});
             i = j;
         } else {
             ++i;
@@ -208,8 +215,8 @@ std::vector<int> parseFrameList(const std::string& spec)
                 throw bad("expected FIRST-LAST");
             if (b < a) throw bad("range runs backwards");
         }
-        if (double(b - a) / step > 1e6) throw bad("more than a million frames");
-        for (int f = a; f <= b; f += step) frames.insert(f);
+        if ((double(b) - double(a)) / step > 1e6) throw bad("more than a million frames");
+        for (long long f = a; f <= b; f += step) frames.insert(int(f));
     }
     if (frames.empty()) throw turb::ValueError("frame list '" + spec + "' names no frames");
     return {frames.begin(), frames.end()};
@@ -226,8 +233,8 @@ std::string formatFrameList(const std::vector<int>& in)
     while (i < f.size()) {
         // Longest arithmetic run starting at i.
         size_t j = i + 1;
-        int step = (j < f.size()) ? f[j] - f[i] : 1;
-        while (j < f.size() && f[j] - f[j - 1] == step) ++j;
+        const long long step = (j < f.size()) ? (long long)f[j] - f[i] : 1;
+        while (j < f.size() && (long long)f[j] - f[j - 1] == step) ++j;
         if (!first) os << ',';
         first = false;
         if (j - i >= 3) {
@@ -380,11 +387,13 @@ Sequence resolveSequence(const std::string& text, const std::string& frameSpec)
         seq.frames = onDisk;
         // Gaps inside the range on disk are missing frames. A sequence cached on every n-th frame
         // (all gaps multiples of n) only misses multiples of n.
-        int step = 0;
-        for (size_t i = 1; i < onDisk.size(); ++i) step = std::gcd(step, onDisk[i] - onDisk[i - 1]);
+        long long step = 0;
+        for (size_t i = 1; i < onDisk.size(); ++i) step = std::gcd(step, (long long)onDisk[i] - onDisk[i - 1]);
         if (step <= 0) step = 1;
-        for (int f = onDisk.front(); f <= onDisk.back(); f += step)
-            if (!std::binary_search(onDisk.begin(), onDisk.end(), f)) seq.missing.push_back(f);
+        // A few files far apart would list millions of missing frames: only gaps the size of a shot count.
+        if ((double(onDisk.back()) - onDisk.front()) / double(step) <= 1e6)
+            for (long long f = onDisk.front(); f <= onDisk.back(); f += step)
+                if (!std::binary_search(onDisk.begin(), onDisk.end(), int(f))) seq.missing.push_back(int(f));
         return seq;
     }
     for (int f : parseFrameList(frameSpec)) {
@@ -398,15 +407,16 @@ Sequence resolveSequence(const std::string& text, const std::string& frameSpec)
 int mapSourceFrame(int targetFrame, const std::vector<int>& sourceFrames, int offset, SourceWrap wrap)
 {
     if (sourceFrames.empty()) throw turb::ValueError("the source sequence has no frames");
-    const int first = sourceFrames.front(), last = sourceFrames.back();
-    const int len = last - first + 1;
-    int s = targetFrame + offset;
+    // 64-bit arithmetic: frame numbers and offsets near the int limits must not overflow.
+    const long long first = sourceFrames.front(), last = sourceFrames.back();
+    const long long len = last - first + 1;
+    long long s = (long long)targetFrame + offset;
     if (s < first || s > last) {
         switch (wrap) {
         case SourceWrap::Loop: s = first + ((s - first) % len + len) % len; break;
         case SourceWrap::PingPong: {
-            const int period = std::max(1, 2 * (len - 1));
-            int k = ((s - first) % period + period) % period;
+            const long long period = std::max(1LL, 2 * (len - 1));
+            long long k = ((s - first) % period + period) % period;
             if (k >= len) k = period - k;
             s = first + k;
             break;
@@ -418,10 +428,10 @@ int mapSourceFrame(int targetFrame, const std::vector<int>& sourceFrames, int of
                                    "-" + std::to_string(last) + " (use --source-offset or --source-wrap)");
         }
     }
-    if (!std::binary_search(sourceFrames.begin(), sourceFrames.end(), s))
+    if (!std::binary_search(sourceFrames.begin(), sourceFrames.end(), int(s)))
         throw turb::ValueError("source frame " + std::to_string(s) + " (for target frame " +
                                std::to_string(targetFrame) + ") is missing from the source sequence");
-    return s;
+    return int(s);
 }
 
 void ensureParentDirectory(const std::string& path)

@@ -520,13 +520,20 @@ const std::vector<std::string>& gridAliases(GridRole role)
 std::vector<std::string> resolveGrid(const std::vector<std::string>& names, GridRole role,
     const std::string& overrideName)
 {
+    // A name shared by several grids appears as "name[0]", "name[1]", ... (OpenVDB's unique names): the name
+    // alone means the first of them, as in OpenVDB's own readGrid(name).
+    const auto find = [&](const std::string& n) -> std::string {
+        if (hasName(names, n)) return n;
+        if (hasName(names, n + "[0]")) return n + "[0]";
+        return "";
+    };
     const auto components = [&](const std::string& stem) -> std::vector<std::string> {
-        const std::vector<std::string> c{stem + ".x", stem + ".y", stem + ".z"};
-        if (hasName(names, c[0]) && hasName(names, c[1]) && hasName(names, c[2])) return c;
+        const std::vector<std::string> c{find(stem + ".x"), find(stem + ".y"), find(stem + ".z")};
+        if (!c[0].empty() && !c[1].empty() && !c[2].empty()) return c;
         return {};
     };
     if (!overrideName.empty()) {
-        if (hasName(names, overrideName)) return {overrideName};
+        if (const std::string n = find(overrideName); !n.empty()) return {n};
         // "#N": the N-th grid in file order.
         if (overrideName.size() > 1 && overrideName[0] == '#' &&
             std::all_of(overrideName.begin() + 1, overrideName.end(), [](char c) { return std::isdigit(static_cast<unsigned char>(c)); })) {
@@ -543,7 +550,7 @@ std::vector<std::string> resolveGrid(const std::vector<std::string>& names, Grid
         return {};
     }
     for (const auto& a : gridAliases(role))
-        if (hasName(names, a)) return {a};
+        if (const std::string n = find(a); !n.empty()) return {n};
     if (role == GridRole::Velocity)
         for (const auto& a : gridAliases(role))
             if (auto c = components(a); !c.empty()) return c;
@@ -699,7 +706,10 @@ void readRoles(openvdb::io::File& file, const std::vector<Descriptor>& order, op
         if (auto n = resolveGrid(names, GridRole::Temperature); !n.empty()) take(n[0], "temperature");
         if (auto n = resolveGrid(names, GridRole::Flame); !n.empty()) take(n[0], "flame");
     }
-    if (out.empty()) throw IoError(path + ": none of the requested grids is present; the file has: " + describeEntries(entries));
+    if (out.empty())
+        throw IoError(path + ": none of the requested grids is present; the file has: " + describeEntries(entries) +
+                      ". Choose grids with --" + options.optionPrefix + "density-grid / --" + options.optionPrefix +
+                      "vel-grid NAME, or '#N' for the N-th grid listed here.");
     meta.insertMeta("__turb_grid_list", openvdb::StringMetadata(describeEntries(entries)));
     if (auto fm = file.getMetadata())
         for (auto it = fm->beginMeta(); it != fm->endMeta(); ++it) meta.insertMeta(it->first, *it->second);
