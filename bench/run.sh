@@ -26,7 +26,7 @@ FRAMES_OVERRIDE=""
 RECORD=1
 PERF="$ROOT/docs/performance.md"
 
-CONFIGS="tiny measure-plume sim128 paper3d plume4x synth2d synth3d"
+CONFIGS="tiny measure-plume sim128 paper3d plume4x synth2d synth3d stylize1m stylize1m-full"
 
 describe() {
     case "$1" in
@@ -37,6 +37,8 @@ describe() {
     plume4x) echo "transfer: blender-plume-32 (target) -> blender-plume-128 (source), the 10 frames both hold" ;;
     synth2d) echo "synth: 2D, analytic vortex 64x64x1 -> 256x256 (factor 4), 30 frames (paper: about 1 min)" ;;
     synth3d) echo "synth: 3D, coarse plume 64x64x16 -> 256x256x64 (factor 4), 30 frames (paper: about 1 h single-threaded)" ;;
+    stylize1m) echo "stylize: 1024x1024 rotating blob (0.37 Mpix of fluid), 256^2 exemplar, 5 frames (paper: 5 min per 1-Mpix frame, 4 cores)" ;;
+    stylize1m-full) echo "stylize: 1024x1024 all fluid (1.05 Mpix of patches), 256^2 exemplar, 3 frames (the worst case)" ;;
     *) return 1 ;;
     esac
 }
@@ -240,6 +242,25 @@ cfg_synth3d() {
     rm -rf "$WORK/synth3d_out"
     # shellcheck disable=SC2086
     timed synth3d "$VDBTURB" synth $THREAD_ARGS --target "$c/plume.####.vdb" --factor 4 --out "$WORK/synth3d_out/up.####.vdb" --json
+}
+
+# stylize: built-in 2D targets and the procedural exemplar (no preparation).
+cfg_stylize1m() {
+    need_command stylize --scene --scene-size --frames --exemplar --out --json || return 1
+    n=$(frames_or 5)
+    rm -rf "$WORK/stylize1m_out"
+    # shellcheck disable=SC2086
+    timed stylize1m "$VDBTURB" stylize $THREAD_ARGS --scene rotate --scene-size 1024x1024 --frames "$n" \
+        --exemplar builtin:fire:256 --out "$WORK/stylize1m_out/s.####.exr" --json
+}
+
+cfg_stylize1m_full() {
+    need_command stylize --scene --scene-size --frames --exemplar --out --json || return 1
+    n=$(frames_or 3)
+    rm -rf "$WORK/stylize1m_full_out"
+    # shellcheck disable=SC2086
+    timed stylize1m-full "$VDBTURB" stylize $THREAD_ARGS --scene fill --scene-size 1024x1024 --frames "$n" \
+        --exemplar builtin:fire:256 --out "$WORK/stylize1m_full_out/s.####.exr" --json
 }
 
 # --- main -------------------------------------------------------------------------------------------

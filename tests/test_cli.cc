@@ -1,9 +1,11 @@
 // The vdbturb executable end to end: exit codes, atomic outputs, --resume, --dry-run, --no-clobber.
 #include "TestUtil.h"
 
+#include <turbio/ImageIO.h>
 #include <turbio/Vdb.h>
 
 #include <array>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <sys/wait.h>
@@ -160,4 +162,115 @@ TEST(Cli, ACorruptFrameStopsTheRunWithoutDamagingEarlierOutput)
     EXPECT_FALSE(std::filesystem::exists(dir / "out/o.0002.vdb"));
     EXPECT_EQ(testutil::countEntries(dir / "out"), 1u) << "no partial or temporary file";
     EXPECT_NO_THROW(turbio::readFrame(dir / "out/o.0001.vdb", 1, turbio::ReadOptions{}));
+}
+
+// ---------------------------------------------------------------------------------------------
+// stylize: inputs, outputs, and bad input refused before anything is written
+
+namespace {
+
+/// A 32x32 RGBA exemplar (soft disk alpha, striped colours), optionally without its alpha channel.
+void writeExemplar(const std::string& path, int n, bool withAlpha)
+{
+    turb::RgbaImage z(n, n);
+    for (int y = 0; y < n; ++y)
+        for (int x = 0; x < n; ++x) {
+            const float a = std::min(1.0f, std::max(0.0f, float(n * 0.42 - std::hypot(x - n / 2.0, y - n / 2.0)) / 3.0f + 0.5f));
+            z.at(x, y) = turb::Rgba(0.5f + 0.4f * std::sin(0.9f * float(x)), 0.3f, 0.2f + 0.01f * float(y), a);
+        }
+    turbio::ImageWriteOptions o;
+    o.alpha = withAlpha;
+    turbio::writeImage(path, z, o);
+}
+
+/// Frames 1..n of a 2D target: R,G = (1, 0.5) pixels per frame in float EXR, a disk alpha in PNG.
+void writeTarget(const std::string& dir, int n, int w, int h, bool emptySecond = false)
+{
+    std::filesystem::create_directories(dir);
+    for (int f = 1; f <= n; ++f) {
+        turb::RgbaImage flow(w, h, turb::Rgba(1.0f, 0.5f, 0.0f, 1.0f)), alpha(w, h);
+        for (int y = 0; y < h; ++y)
+            for (int x = 0; x < w; ++x) {
+                const float a = (emptySecond && f == 2) ? 0.0f : (std::hypot(x - w / 2.0 - f, y - h / 2.0) < w * 0.3 ? 1.0f : 0.0f);
+                alpha.at(x, y) = turb::Rgba(a, a, a, 1.0f);
+            }
+        turbio::ImageWriteOptions fo;
+        fo.bits = turbio::PixelBits::Float;
+        fo.alpha = false;
+        turbio::writeImage(dir + "/flow." + std::to_string(1000 + f).substr(1) + ".exr", flow, fo);
+        turbio::ImageWriteOptions ao;
+        ao.alpha = false;
+        turbio::writeImage(dir + "/alpha." + std::to_string(1000 + f).substr(1) + ".png", alpha, ao);
+    }
+}
+
+} // namespace
+
+TEST(Cli, StylizeWritesFramesAndJson)
+{
+    testutil::TempDir dir;
+    writeExemplar(dir / "ex.png", 32, true);
+    writeTarget(dir / "t", 3, 48, 40);
+    const std::string in = " --flow " + dir / "t/flow.###.exr" + " --alpha " + dir / "t/alpha.###.png" + " --exemplar " + dir / "ex.png";
+    const CmdResult dry = run("stylize" + in + " --out " + dir / "o/s.####.png --dry-run");
+    EXPECT_EQ(dry.code, 0) << dry.out;
+    EXPECT_FALSE(std::filesystem::exists(dir / "o"));
+    const CmdResult r = run("stylize" + in + " --out " + dir / "o/s.####.exr --json -q --threads 2");
+    ASSERT_EQ(r.code, 0) << r.out;
+    EXPECT_EQ(testutil::countEntries(dir / "o"), 3u);
+    EXPECT_NE(r.out.find("\"coverage\":1.0"), std::string::npos) << r.out.substr(0, 600);
+    EXPECT_NE(r.out.find("\"temporal_change\":"), std::string::npos);
+    EXPECT_NE(r.out.find("\"iou\":"), std::string::npos);
+    const turb::RgbaImage out = turbio::readImage(dir / "o/s.0002.exr");
+    EXPECT_EQ(out.width(), 48);
+    EXPECT_EQ(out.height(), 40);
+    // The same run at one thread gives the same pixels.
+    const CmdResult one = run("stylize" + in + " --out " + dir / "p/s.####.exr -q --threads 1");
+    ASSERT_EQ(one.code, 0) << one.out;
+    EXPECT_EQ(turbio::readImage(dir / "p/s.0003.exr").pixels(), turbio::readImage(dir / "o/s.0003.exr").pixels());
+    // A cache through a camera.
+    const CmdResult cache = run("stylize --cache " + testutil::dataPath("blender-plume2-32/fluid_data_####.vdb") +
+                                " --frames 20-21 --camera side --width 64 --exemplar " + dir / "ex.png" + " --out " + dir / "c/c.####.png -q");
+    ASSERT_EQ(cache.code, 0) << cache.out;
+    EXPECT_EQ(turbio::readImage(dir / "c/c.0021.png").width(), 64);
+}
+
+TEST(Cli, StylizeRefusesBadInputBeforeWritingAnything)
+{
+    testutil::TempDir dir;
+    writeExemplar(dir / "ex.png", 32, true);
+    writeExemplar(dir / "tiny.png", 4, true);
+    writeExemplar(dir / "opaque.png", 32, false);
+    writeTarget(dir / "t", 3, 48, 40);
+    writeTarget(dir / "e", 3, 48, 40, true);
+    writeTarget(dir / "small", 3, 40, 40);
+    const auto expectRefused = [&](const std::string& args, const std::string& names) {
+        const CmdResult r = run("stylize " + args + " --out " + dir / "o/s.####.png");
+        EXPECT_EQ(r.code, 1) << args << "\n" << r.out;
+        EXPECT_NE(r.out.find(names), std::string::npos) << "the message must name " << names << ":\n" << r.out;
+        EXPECT_FALSE(std::filesystem::exists(dir / "o")) << "nothing may be written: " << args;
+    };
+    const std::string flow = " --flow " + dir / "t/flow.###.exr", alpha = " --alpha " + dir / "t/alpha.###.png";
+    // An exemplar smaller than a patch.
+    expectRefused(flow + alpha + " --exemplar " + dir / "tiny.png", "tiny.png");
+    // An empty alpha everywhere (frame 2 of the target).
+    expectRefused(" --flow " + dir / "e/flow.###.exr --alpha " + dir / "e/alpha.###.png --exemplar " + dir / "ex.png", "alpha.002.png");
+    // Flow and alpha of different sizes.
+    expectRefused(" --flow " + dir / "small/flow.###.exr" + alpha + " --exemplar " + dir / "ex.png", "flow.001.exr");
+    // A missing frame.
+    std::filesystem::remove(dir / "t/alpha.003.png");
+    expectRefused(flow + alpha + " --exemplar " + dir / "ex.png", "alpha.003.png");
+    // An exemplar with no alpha and no --exemplar-alpha; with the mask it runs.
+    writeTarget(dir / "t", 3, 48, 40);
+    expectRefused(flow + alpha + " --exemplar " + dir / "opaque.png", "opaque.png");
+    turb::RgbaImage mask = turbio::readImage(dir / "ex.png");
+    for (auto& p : mask.pixels()) p = turb::Rgba(p[3], p[3], p[3], 1.0f);
+    turbio::ImageWriteOptions mo;
+    mo.alpha = false;
+    turbio::writeImage(dir / "mask.png", mask, mo);
+    const CmdResult masked = run("stylize" + flow + alpha + " --exemplar " + dir / "opaque.png --exemplar-alpha " + dir / "mask.png" +
+                                 " --frames 1 --out " + dir / "m/s.####.png -q");
+    EXPECT_EQ(masked.code, 0) << masked.out;
+    // An unknown output format is a usage error.
+    EXPECT_EQ(run("stylize" + flow + alpha + " --exemplar " + dir / "ex.png --out " + dir / "o/s.####.bmpx").code, 2);
 }

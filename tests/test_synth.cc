@@ -569,3 +569,21 @@ TEST(Lookback, OnlyTheLastMFramesOfSourcesRemain)
     EXPECT_NEAR(s(3, 3, 1), 0.0f, 1e-4);
     EXPECT_NEAR(s(6, 6, 2), 0.5f, 1e-4);
 }
+
+TEST(Lookback, EachStepAdvectsOverItsOwnFrameGap)
+{
+    // Frames processed 1, 2, 4 (a gap of two): a voxel of smoke injected at frame 1 and carried at one voxel per
+    // frame must sit 3 voxels on at frame 4, in the windowed (look-back) mode as in the naive one.
+    const CoordBBox box(Coord(0), Coord(11, 3, 3));
+    const VectorField right(box, Lattice{}, Vec3f(1.0f, 0.0f, 0.0f));
+    ScalarField puff(box, Lattice{}), none(box, Lattice{});
+    puff(2, 1, 1) = 1.0f;
+    for (int m : {0, 3}) {
+        LookbackDensity d(LookbackSettings{m, {}});
+        d.step(right, puff, none, 1.0);
+        d.step(right, none, none, 1.0);
+        const ScalarField at4 = d.step(right, none, none, 2.0);
+        EXPECT_NEAR(at4(5, 1, 1), 1.0f, 1e-4) << "m " << m;
+        EXPECT_NEAR(at4(4, 1, 1), 0.0f, 1e-4) << "m " << m;
+    }
+}

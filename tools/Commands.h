@@ -29,6 +29,7 @@ Command transferCommand();
 Command resampleCommand();
 Command measureCommand();
 Command synthCommand();
+Command stylizeCommand();
 
 /// All commands, in the order `vdbturb --help` lists them.
 std::vector<Command> allCommands();

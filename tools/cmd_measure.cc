@@ -7,7 +7,7 @@
 #include <turb/Error.h>
 #include <turb/Resample.h>
 #include <turb/Measure.h>
-#include <turbio/Png.h>
+#include <turbio/ImageIO.h>
 #include <turbio/Sequence.h>
 #include <turbio/System.h>
 #include <turbio/Vdb.h>
@@ -31,10 +31,10 @@ namespace {
 
 struct MeasureArgs
 {
-    std::string output, target, source, frames, plotDir, align = "auto", patchOrigin;
+    std::string output, target, source, frames, plotDir, plotFormat = "png", align = "auto", patchOrigin;
     bool json = false;        // accepted for symmetry with the other commands; JSON is always written
     bool spectraJson = false; // include the E(k) arrays in the JSON lines
-    bool noSpectra = false;
+    bool noSpectra = false, noStructure = false;
     turb::MeasureSettings settings;
     turbio::ReadOptions read;
     int sourceExtend = 0;     // quality.md's definitions read the source as written: no extension by default
@@ -82,7 +82,9 @@ std::string humanLine(const turb::FrameMeasures& m)
         return std::string(b);
     };
     return "lf_err " + f(m.lfErr) + "  hf_ratio " + f(m.hfRatio) + "  div_rel " + f(m.divRel) + " (source " +
-           f(m.divRelSource) + ")  block " + f(m.block) + "  tcoh " + f(m.tcoh) + " (source " + f(m.tcohSource) + ")";
+           f(m.divRelSource) + ")  block " + f(m.block) + "  tcoh " + f(m.tcoh) + " (source " + f(m.tcohSource) + ")  mass " +
+           f(m.massRatio) + "  peak " + f(m.peakRatio) + "  density_err " + f(m.densityErr) + "  aniso " + f(m.aniso) +
+           " (source " + f(m.anisoSource) + ")  isotropy " + f(m.isotropy) + " (source " + f(m.isotropySource) + ")";
 }
 
 std::optional<turb::Coord> parseCoord(const std::string& text)
@@ -111,6 +113,7 @@ int runMeasure(MeasureArgs& a)
                                        : turb::Alignment::Auto;
     s.patchOrigin = parseCoord(a.patchOrigin);
     s.spectra = !a.noSpectra || !a.plotDir.empty() || a.spectraJson;
+    s.structure = !a.noStructure;
     s.threads = globals().threads;
 
     const turbio::Sequence out = turbio::resolveSequence(a.output, a.frames);
@@ -197,22 +200,24 @@ int runMeasure(MeasureArgs& a)
                 if (has(*src, sn)) sf = turbio::readFrame(src->path(sn), sn, readSrc);
                 else logWarning("frame " + std::to_string(f) + ": source frame " + std::to_string(sn) + " missing");
             }
-            const bool consecutive = prevOut && prevTgt && prevOut->number == f - 1 &&
-                                     prevOut->lattice().approxEqual(o.lattice()) && prevTgt->lattice().approxEqual(t.lattice());
+            // tcoh compares with the previous *processed* frame, over the real time between the two, and only
+            // on one lattice (a sequence whose lattice changes is measured frame by frame).
+            const bool consecutive = prevOut && prevTgt && prevOut->number < f && prevOut->lattice().approxEqual(o.lattice()) &&
+                                     prevTgt->lattice().approxEqual(t.lattice());
             turb::MeasureInput in;
             in.output = &o;
             in.target = &t;
             in.source = sf ? &*sf : nullptr;
             in.previousOutput = consecutive ? &*prevOut : nullptr;
             in.previousTarget = consecutive ? &*prevTgt : nullptr;
-            in.previousSource = (sf && prevSrc && prevSrc->number == sf->number - 1) ? &*prevSrc : nullptr;
+            in.previousSource = (sf && prevSrc && prevSrc->number < sf->number) ? &*prevSrc : nullptr;
             ConsoleProgress progress(int(i), int(frames.size()), f);
             turb::FrameMeasures m = turb::measureFrame(in, s, &progress);
             progress.clear();
             if (!a.plotDir.empty()) {
                 char name[64];
-                std::snprintf(name, sizeof(name), "/spectrum.%04d.png", f);
-                turbio::writePng(a.plotDir + name, turb::spectrumFigure(m, "E(k) frame " + std::to_string(f)));
+                std::snprintf(name, sizeof(name), "/spectrum.%04d.%s", f, a.plotFormat.c_str());
+                turbio::writeImage(a.plotDir + name, turb::spectrumFigure(m, "E(k) frame " + std::to_string(f)));
             }
             const double sec = secondsSince(t1);
             seconds.push_back(sec);
@@ -246,8 +251,9 @@ int runMeasure(MeasureArgs& a)
     }
 
     if (!a.plotDir.empty() && !results.empty()) {
-        turbio::writePng(a.plotDir + "/metrics.png", turb::metricsFigure(results, "vdbturb measure: " + out.pattern.str()));
-        logInfo("plots: " + a.plotDir + "/metrics.png, " + a.plotDir + "/spectrum.####.png");
+        const std::string ext = "." + a.plotFormat;
+        turbio::writeImage(a.plotDir + "/metrics" + ext, turb::metricsFigure(results, "vdbturb measure: " + out.pattern.str()));
+        logInfo("plots: " + a.plotDir + "/metrics" + ext + ", " + a.plotDir + "/spectrum.####" + ext);
     }
 
     nlohmann::json sum;
@@ -307,8 +313,11 @@ Command measureCommand()
                "high-frequency energy at its edge)")
             ->check(CLI::Range(0, 64));
         app->add_flag("--no-spectra", args->noSpectra, "Skip the energy spectra (faster)");
+        app->add_flag("--no-structure", args->noStructure, "Skip aniso and isotropy (faster)");
         app->add_flag("--spectra", args->spectraJson, "Include the E(k) arrays in the JSON lines");
-        app->add_option("--plot", args->plotDir, "Write PNG plots here: spectrum.####.png per frame and metrics.png");
+        app->add_option("--plot", args->plotDir, "Write plots here: spectrum.####.png per frame and metrics.png");
+        app->add_option("--plot-format", args->plotFormat, "Picture format of the plots: png (default), exr (linear half), tif")
+            ->check(CLI::IsMember({"png", "exr", "tif"}));
         app->add_flag("--json", args->json, "Accepted for symmetry with other commands: measure always prints JSON");
         addReadOptions(app, args->read);
     };

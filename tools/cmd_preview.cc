@@ -9,7 +9,7 @@
 #include <turb/Operators.h>
 #include <turb/Parallel.h>
 #include <turb/Render.h>
-#include <turbio/Png.h>
+#include <turbio/ImageIO.h>
 #include <turbio/Sequence.h>
 #include <turbio/Vdb.h>
 
@@ -171,11 +171,17 @@ int runPreview(PreviewArgs& a)
     const std::vector<Mode> modes = parseModes(a.modes);
     // Argument combinations CLI11 cannot express are usage errors too (exit 2).
     if (a.sheet.empty() && a.out.empty()) {
-        logError("give --out PATTERN.png (one picture per frame) or --sheet FILE.png");
+        logError("give --out PATTERN.png|.exr (one picture per frame) or --sheet FILE.png|.exr");
         return kUsage;
     }
     if (a.sheet.empty() && a.inputs.size() > 1) {
         logError("several caches go side by side into a contact sheet: add --sheet FILE.png");
+        return kUsage;
+    }
+    try {
+        turbio::outputFormatOf(a.sheet.empty() ? a.out : a.sheet); // an unknown extension fails before any work
+    } catch (const turb::ValueError& e) {
+        logError(e.what());
         return kUsage;
     }
 
@@ -294,7 +300,7 @@ int runPreview(PreviewArgs& a)
                 }
                 const std::string path = turbio::FramePattern::parse(a.out).format(frame);
                 turbio::ensureParentDirectory(path);
-                turbio::writePng(path, pic);
+                turbio::writeImage(path, pic);
                 extra["out"] = path;
                 report.frameDone(frame, int(r), int(frames.size()), secondsSince(t0), "-> " + path, extra);
             } else {
@@ -315,7 +321,7 @@ int runPreview(PreviewArgs& a)
             }
             const turb::Image sheet = turb::contactSheet(rows, rowLabels, title, 2);
             turbio::ensureParentDirectory(a.sheet);
-            turbio::writePng(a.sheet, sheet);
+            turbio::writeImage(a.sheet, sheet);
             logInfo("wrote " + a.sheet + " (" + std::to_string(sheet.width()) + "x" + std::to_string(sheet.height()) + ")");
         }
         report.finish();
@@ -331,7 +337,7 @@ Command previewCommand()
     Command c;
     c.globals = kVerbosity | kThreads;
     c.name = "preview";
-    c.help = "PNG pictures of caches: lit density, speed/vorticity slices, LIC, and labelled contact sheets";
+    c.help = "Pictures of caches (PNG, EXR, TIFF, JPEG): lit density, speed/vorticity slices, LIC, and labelled contact sheets";
     c.setup = [args](CLI::App* app) {
         PreviewArgs& a = *args;
         app->add_option("caches", a.inputs,
@@ -350,7 +356,7 @@ Command previewCommand()
                 },
                 "MODES"));
         app->add_option("--frames", a.frames, "Frames, e.g. 10,30,60 or 1-60 (default: all; a sheet: three spread frames)");
-        app->add_option("--out", a.out, "One picture per frame, e.g. pics/plume.####.png");
+        app->add_option("--out", a.out, "One picture per frame, e.g. pics/plume.####.png (.exr: linear half float)");
         app->add_option("--sheet", a.sheet, "Write one contact sheet: rows = frames, columns = caches x modes");
         app->add_option("--title", a.title, "Title of the contact sheet (default: the labels)");
         app->add_option("--view", a.view, "Camera: front (along +y, default), side (along +x), top (down -z)")

@@ -11,7 +11,7 @@
 #include <turb/Projection.h>
 #include <turb/Render.h>
 #include <turb/Synth.h>
-#include <turbio/Png.h>
+#include <turbio/ImageIO.h>
 #include <turbio/Sequence.h>
 #include <turbio/System.h>
 #include <turbio/Vdb.h>
@@ -51,6 +51,7 @@ struct SynthArgs
     std::string out = "synth/synth.####.vdb";
     std::string preview, previewView;
     int previewWidth = 256;
+    std::string previewFormat = "png";
     int volumeCrop = 32;
     turbio::ReadOptions read;
     turbio::WriteOptions write;
@@ -153,7 +154,7 @@ turb::Exemplar loadExemplar(const std::string& spec, const SynthArgs& a)
     if (kind == "rg" || kind == "gray") {
         double scale = 1.0;
         const std::string path = pathAndScale(scale);
-        const turb::Image img = turbio::readPng(path);
+        const turb::Image img = turb::rgbOf(turbio::readImage(path));
         e = kind == "rg" ? turb::exemplarFromVectorImage(img, scale) : turb::exemplarFromGrayImage(img, scale, a.periodic);
         e.periodic = a.periodic;
         e.name = spec;
@@ -542,9 +543,12 @@ int runSynth(SynthArgs& a)
         in.coarseDensity = cf.hasDensity() ? &cf.density : nullptr;
         in.obstacle = obstacle ? &*obstacle : nullptr;
         in.factor = a.factor;
-        const bool continuing = previous && previousFrame == fr - 1;
+        // Continue from the previous *processed* frame over the real time between the two: frames two apart
+        // (--frames 1-30x2, a cache written every second frame) advect by two frames' time.
+        const bool continuing = bool(previous);
+        const double elapsed = continuing ? dt * double(fr - previousFrame) : dt;
         in.previous = continuing ? &*previous : nullptr;
-        in.dt = dt;
+        in.dt = elapsed;
         turb::DetailField H;
         try {
             H = turb::synthesizeDetail(prepared, in, s, &progress);
@@ -595,10 +599,10 @@ int runSynth(SynthArgs& a)
             if (!continuing) lookback = turb::LookbackDensity(lbs); // a gap in the frames starts a new history
             const std::optional<turb::ScalarField> emitters = source.sceneEmitters(cf.density, fr);
             const turb::ScalarField src = turb::estimateSources(previousDensity.empty() || !continuing ? nullptr : &previousDensity,
-                cf.density, cf.velocity, dt, turb::AdvectSettings{}, emitters ? &*emitters : nullptr);
+                cf.density, cf.velocity, elapsed, turb::AdvectSettings{}, emitters ? &*emitters : nullptr);
             const turb::ScalarField fineSrc = turb::upsampleCoarse(src, a.factor);
             const turb::ScalarField coarseOnly = a.lookback > 0 ? turb::upsampleCoarse(cf.density, a.factor) : turb::ScalarField();
-            outFrame.density = lookback.step(F, fineSrc, coarseOnly, dt, &progress);
+            outFrame.density = lookback.step(F, fineSrc, coarseOnly, elapsed, &progress);
             previousDensity = cf.density;
             densityMass = 0.0;
             for (float v : outFrame.density.values()) densityMass += v;
@@ -673,9 +677,9 @@ int runSynth(SynthArgs& a)
                 row.push_back({&dImg, ""});
             }
             const turb::Image sheet = turb::contactSheet({row}, {""}, "synth frame " + std::to_string(fr), 1);
-            const std::string png = a.preview + "/" + turbio::FramePattern::parse("synth.####.png").format(fr);
+            const std::string png = a.preview + "/" + turbio::FramePattern::parse("synth.####." + a.previewFormat).format(fr);
             turbio::ensureParentDirectory(png);
-            turbio::writePng(png, sheet);
+            turbio::writeImage(png, sheet);
             extra["preview"] = png;
         }
         progress.clear();
@@ -723,7 +727,7 @@ Command synthCommand()
         app->add_option("--factor", a.factor, "Up-res factor: output voxel = coarse voxel / factor (default 4)")->check(CLI::Range(1, 32));
         app->add_option("--exemplar", a.exemplars,
             "Exemplar, repeatable (one per view): circles|swirls|squares|hearts|stripes|sinusoids[:PERIOD[:SIZE]] "
-            "(default circles:16, size 64); rg:FILE.png[:SCALE] (R,G = x,y; v = (2c-1)*SCALE); gray:FILE.png[:SCALE] "
+            "(default circles:16, size 64); rg:FILE[:SCALE] (a picture, any format OpenImageIO reads; R,G = x,y; v = (2c-1)*SCALE); gray:FILE[:SCALE] "
             "(curl of intensity); vdb:FILE.vdb[:AXIS:INDEX] (a slice); vdb3:FILE.vdb (a volume)");
         app->add_option("--exemplar-scale", a.exemplarScale, "Texture scale: features this many times larger (default 1)")
             ->check(CLI::PositiveNumber);
@@ -775,7 +779,9 @@ Command synthCommand()
             ->check(CLI::Range(0, 200));
         app->add_flag("--no-density", a.noDensity, "Write velocity only");
         app->add_option("--out", a.out, "Output pattern (default synth/synth.####.vdb; directories are created)");
-        app->add_option("--preview", a.preview, "Write a PNG per frame into DIR: LIC of exemplar, up(L), H', F, and density");
+        app->add_option("--preview", a.preview, "Write a picture per frame into DIR: LIC of exemplar, up(L), H', F, and density");
+        app->add_option("--preview-format", a.previewFormat, "Picture format of --preview: png (default), exr (linear half), tif")
+            ->check(CLI::IsMember({"png", "exr", "tif"}));
         app->add_option("--preview-width", a.previewWidth, "Width of each preview panel in pixels (default 256)")
             ->check(CLI::Range(32, 4096));
         app->add_option("--preview-view", a.previewView, "Preview slice: top, front, side (default top in 2D, front in 3D)")

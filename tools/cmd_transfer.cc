@@ -278,6 +278,8 @@ int runTransfer(TransferArgs& a)
         extra["energy_scale"] = st.energyScale;
         extra["coarse_kept"] = st.coarseKept;
         extra["lf_err"] = st.lfErr;
+        extra["density_err"] = st.densityErr;
+        extra["density_err_before_guide"] = st.densityErrBefore;
         if (st.detailChange >= 0.0) {
             extra["detail_change"] = st.detailChange;
             extra["detail_growth"] = st.detailGrowth;
@@ -405,6 +407,10 @@ Command transferCommand()
         app->add_option("--density", a.density, "Output density: advect (default) or lookback (seed 003 supplement)")
             ->check(CLI::IsMember({"advect", "lookback"}));
         app->add_option("--lookback", s.lookBackFrames, "m for --density lookback (default 12)")->check(CLI::Range(1, 100));
+        app->add_option("--density-guide", s.densityGuide.strength,
+               "Move the output density's coarse cell means this fraction of the way onto the target's each frame "
+               "(default 1; 0 = off: the high-res density drifts from the target's)")
+            ->check(CLI::Range(0.0, 1.0));
         app->add_option("--extend-velocity", a.extendVelocity,
                "Continue the source's velocity this many voxels past its active region (Blender clips velocity to the "
                "smoke; the zeros beyond would read as turbulence at the smoke's edge). Default 4; 0 = off")

@@ -64,7 +64,7 @@ void addWriteOptions(CLI::App* app, turbio::WriteOptions& opt)
     app->add_flag("--half", opt.halfFloat, "Store floats as half precision (smaller files)");
 }
 
-std::vector<Command> allCommands() { return {infoCommand(), transferCommand(), measureCommand(), simCommand(), previewCommand(), synthCommand(), resampleCommand()}; }
+std::vector<Command> allCommands() { return {infoCommand(), transferCommand(), measureCommand(), simCommand(), previewCommand(), synthCommand(), stylizeCommand(), resampleCommand()}; }
 
 } // namespace vdbturb
 

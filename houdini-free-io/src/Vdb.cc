@@ -1213,6 +1213,20 @@ void writeFileAtomic(const std::string& path, const std::string& bytes, bool noC
     commitTemp(tmp, path, noClobber);
 }
 
+void writeAtomically(const std::string& path, bool noClobber, const std::function<void(const std::string& tmp)>& write)
+{
+    if (noClobber && fileExists(path)) throw IoError(path + ": exists, not replaced (--no-clobber)");
+    const std::string tmp = tempPathFor(path);
+    try {
+        write(tmp);
+    } catch (...) {
+        ::unlink(tmp.c_str());
+        throw;
+    }
+    if (!fileExists(tmp)) throw IoError(path + ": the writer produced no file");
+    commitTemp(tmp, path, noClobber);
+}
+
 void writeFrame(const std::string& path, const turb::Frame& frame, const WriteOptions& options)
 {
     initOpenVdb();

@@ -3,33 +3,10 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <map>
 
 namespace turb {
 
 namespace {
-
-struct Glyph
-{
-    char c;
-    std::array<const char*, 7> rows;
-};
-
-const Glyph kFont[] = {
-#include "Font5x7.inc"
-};
-
-const Glyph* findGlyph(char c)
-{
-    if (c >= 'a' && c <= 'z') c = char(c - 'a' + 'A');
-    static const std::map<char, const Glyph*> table = [] {
-        std::map<char, const Glyph*> t;
-        for (const Glyph& g : kFont) t[g.c] = &g;
-        return t;
-    }();
-    auto it = table.find(c);
-    return it == table.end() ? table.at('?') : it->second;
-}
 
 float clamp01(float v) { return v < 0.0f ? 0.0f : (v > 1.0f ? 1.0f : v); }
 
@@ -67,7 +44,11 @@ void Image::blend(int x, int y, const Rgb& c, float alpha)
     p = p * (1.0f - alpha) + c * alpha;
 }
 
-void Image::fill(const Rgb& c) { std::fill(mPixels.begin(), mPixels.end(), c); }
+void Image::fill(const Rgb& c)
+{
+    std::fill(mPixels.begin(), mPixels.end(), c);
+    mTexts.clear();
+}
 
 void Image::fillRect(int x0, int y0, int w, int h, const Rgb& c)
 {
@@ -102,21 +83,29 @@ void Image::drawLine(double x0, double y0, double x1, double y1, const Rgb& c)
 
 int Image::drawText(int x, int y, const std::string& text, const Rgb& c, int scale)
 {
-    int cx = x;
-    for (char ch : text) {
-        const Glyph* g = findGlyph(ch);
-        for (int r = 0; r < 7; ++r)
-            for (int col = 0; col < 5; ++col)
-                if (g->rows[size_t(r)][col] == '#') fillRect(cx + col * scale, y + r * scale, scale, scale, c);
-        cx += 6 * scale;
-    }
-    return cx - x;
+    scale = std::max(1, scale);
+    if (!text.empty()) mTexts.push_back(TextLabel{x, y, text, c, scale});
+    return textWidth(text, scale);
+}
+
+int Image::textWidth(const std::string& text, int scale)
+{
+    // Monospaced: one advance per code point (UTF-8 continuation bytes do not start a character).
+    int n = 0;
+    for (unsigned char ch : text)
+        if ((ch & 0xC0u) != 0x80u) ++n;
+    return n * 6 * std::max(1, scale);
 }
 
 void Image::blit(const Image& src, int x, int y)
 {
     for (int sy = 0; sy < src.height(); ++sy)
         for (int sx = 0; sx < src.width(); ++sx) set(x + sx, y + sy, src.at(sx, sy));
+    for (TextLabel t : src.mTexts) {
+        t.x += x;
+        t.y += y;
+        mTexts.push_back(std::move(t));
+    }
 }
 
 Image Image::upscaled(int factor) const
@@ -125,6 +114,12 @@ Image Image::upscaled(int factor) const
     Image out(mWidth * factor, mHeight * factor);
     for (int y = 0; y < out.height(); ++y)
         for (int x = 0; x < out.width(); ++x) out.at(x, y) = at(x / factor, y / factor);
+    for (TextLabel t : mTexts) {
+        t.x *= factor;
+        t.y *= factor;
+        t.scale *= factor;
+        out.mTexts.push_back(std::move(t));
+    }
     return out;
 }
 

@@ -321,11 +321,57 @@ std::optional<double> blockRatio(const VectorField& u, const Mask& mask, int pat
     return (s[0] / s[1]) / (s[2] / s[3]);
 }
 
+DensityMeasures densityMeasures(const ScalarField& output, const ScalarField& outputOnRefined, const ScalarField& target,
+    int f, float threshold)
+{
+    if (f < 1) throw ValueError("densityMeasures: ratio must be >= 1");
+    if (outputOnRefined.bbox() != refineBox(target.bbox(), f))
+        throw ValueError("densityMeasures: the refined output must cover refineBox(target box, f)");
+    DensityMeasures d;
+    const auto massOf = [](const ScalarField& q) {
+        const double v = q.lattice().voxelSize;
+        double sum = 0.0;
+        for (float x : q.values()) sum += double(x);
+        return sum * v * v * v;
+    };
+    const auto peakOf = [](const ScalarField& q) {
+        float p = 0.0f;
+        for (float x : q.values()) p = std::max(p, x);
+        return double(p);
+    };
+    const double mt = massOf(target), pt = peakOf(target);
+    d.peak = peakOf(output);
+    if (mt > 0.0) d.massRatio = massOf(output) / mt;
+    if (pt > 0.0) d.peakRatio = *d.peak / pt;
+    if (pt > threshold) d.coarseErr = coarseDensityError(outputOnRefined, target, f, threshold);
+    return d;
+}
+
+double coarseDensityError(const ScalarField& fine, const ScalarField& coarse, int f, float threshold)
+{
+    if (f < 1) throw ValueError("coarse density error: ratio must be >= 1");
+    if (fine.bbox() != refineBox(coarse.bbox(), f))
+        throw ValueError("coarse density error: the fine density must cover refineBox(coarse box, f)");
+    const ScalarField down = boxDownsample(fine, f);
+    double err = 0.0, ref = 0.0;
+    for (size_t n = 0; n < coarse.size(); ++n) {
+        const float t = coarse.data()[n];
+        if (!(t > threshold)) continue;
+        const double d = double(down.data()[n]) - double(t);
+        err += d * d;
+        ref += double(t) * double(t);
+    }
+    return ref > 0.0 ? std::sqrt(err / ref) : 0.0;
+}
+
+
 std::vector<std::pair<std::string, std::optional<double>>> FrameMeasures::scalars() const
 {
     return {{"lf_err", lfErr}, {"hf_ratio", hfRatio}, {"hf_energy", hfEnergy}, {"hf_energy_source", hfEnergySource},
         {"div_rel", divRel}, {"div_rel_source", divRelSource}, {"block", block}, {"tcoh", tcoh},
-        {"tcoh_source", tcohSource}};
+        {"tcoh_source", tcohSource}, {"mass_ratio", massRatio}, {"peak_density", peakDensity},
+        {"peak_ratio", peakRatio}, {"density_err", densityErr}, {"aniso", aniso}, {"aniso_source", anisoSource},
+        {"aniso_ratio", anisoRatio}, {"isotropy", isotropy}, {"isotropy_source", isotropySource}};
 }
 
 FrameMeasures measureFrame(const MeasureInput& in, const MeasureSettings& s, Progress* progress)
@@ -408,6 +454,15 @@ FrameMeasures measureFrame(const MeasureInput& in, const MeasureSettings& s, Pro
             m.notes.push_back("the output has no density: its smoke region is the upsampled target's");
         }
         m.smokeVoxels = countMask(ownMask);
+        if (O.hasDensity()) {
+            const DensityMeasures dm = densityMeasures(O.density, realign(O.density, a.refined, a.box, a.alignment),
+                T.density.bbox() == T.velocity.bbox() ? T.density : cropped(T.density, T.velocity.bbox()), a.f,
+                s.densityThreshold);
+            m.massRatio = dm.massRatio;
+            m.peakDensity = dm.peak;
+            m.peakRatio = dm.peakRatio;
+            m.densityErr = dm.coarseErr;
+        }
         m.hfEnergy = highFrequencyEnergy(O.velocity, ownMask, a.f);
         m.divRel = relativeDivergence(O.velocity, ownMask);
         if (m.smokeVoxels == 0) m.notes.push_back("the output has no smoke");
@@ -428,6 +483,26 @@ FrameMeasures measureFrame(const MeasureInput& in, const MeasureSettings& s, Pro
             m.notes.push_back("hf_ratio, div_rel_source: no source given");
         }
         checkCancelled(progress);
+
+        if (s.structure) {
+            if (progress) progress->begin("structure");
+            // d: the target's mean flow over its smoke cells; the source's detail is measured along the same d.
+            Vec3d mean(0.0);
+            for (size_t n = 0; n < T.velocity.size(); ++n)
+                if (coarseMask[n]) {
+                    const Vec3f& v = T.velocity.data()[n];
+                    mean += Vec3d(v.x(), v.y(), v.z());
+                }
+            m.aniso = detailAnisotropy(O.velocity, ownMask, a.f, mean);
+            if (!m.aniso) m.notes.push_back("aniso: no smoke, no mean flow or no detail gradient");
+            m.isotropy = detailIsotropy(O.velocity, ownMask, a.f);
+            if (src) {
+                m.anisoSource = detailAnisotropy(src->velocity, srcMask, m.sourceRatio, mean);
+                if (m.aniso && m.anisoSource && *m.anisoSource > 0.0) m.anisoRatio = *m.aniso / *m.anisoSource;
+                m.isotropySource = detailIsotropy(src->velocity, srcMask, m.sourceRatio);
+            }
+            checkCancelled(progress);
+        }
 
         // block: seams at the patch grid of the output's maker.
         m.patchSize = s.patchSize > 0 ? s.patchSize : metadataInt(O, "vdbturb_patch_size", 0);
@@ -451,8 +526,11 @@ FrameMeasures measureFrame(const MeasureInput& in, const MeasureSettings& s, Pro
             requireVelocity(in.previousTarget, "previous target");
             const Frame& Op = *in.previousOutput;
             const Frame& Tp = *in.previousTarget;
-            const double dt = s.dt > 0.0 ? s.dt : Tp.dt;
-            if (!(dt > 0.0)) m.notes.push_back("tcoh: unknown time step (give --dt)");
+            // The real time between the two frames: frames measured two apart are two frames' time apart.
+            const int gap = T.number - Tp.number;
+            const double dt = (s.dt > 0.0 ? s.dt : Tp.dt) * gap;
+            if (gap <= 0) m.notes.push_back("tcoh: the previous frame is not earlier than this one");
+            else if (!(dt > 0.0)) m.notes.push_back("tcoh: unknown time step (give --dt)");
             else if (!Tp.lattice().approxEqual(T.lattice()) || resolutionRatio(Tp, Op) != a.f)
                 m.notes.push_back("tcoh: the previous frame is on another lattice");
             else {
@@ -486,7 +564,7 @@ FrameMeasures measureFrame(const MeasureInput& in, const MeasureSettings& s, Pro
             const Frame& S = *src;
             const Frame& Sp = *prevSrc;
             requireVelocity(&Sp, "previous source");
-            const double dt = s.dt > 0.0 ? s.dt : Sp.dt;
+            const double dt = (s.dt > 0.0 ? s.dt : Sp.dt) * (S.number - Sp.number);
             if (dt > 0.0 && Sp.lattice().approxEqual(S.lattice())) {
                 const FrequencySplit now = splitFrequencies(S.velocity, m.sourceRatio);
                 const FrequencySplit before = splitFrequencies(Sp.velocity, m.sourceRatio);

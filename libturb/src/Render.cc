@@ -162,35 +162,24 @@ Image renderDensity(const ScalarField& density, const DensityRenderSettings& s)
 {
     if (!(s.extinction > 0.0f) || !(s.exposure > 0.0f)) throw ValueError("renderDensity: extinction and exposure must be > 0");
     if (!(s.stepVoxels > 0.0f && s.stepVoxels <= 1.0f)) throw ValueError("renderDensity: stepVoxels must lie in (0, 1]");
-    const Raster r(density.bbox(), s.view, s.width);
+    CameraSettings cam;
+    cam.view = s.view;
+    cam.width = s.width;
+    const CameraRays rays(s.camera ? *s.camera : cam, density.bbox(), density.lattice());
     const ScalarField T = lightTransmittance(density, s.toLight, s.extinction);
-    const double h = density.lattice().voxelSize;
-    const CoordBBox& b = density.bbox();
-    const double d0 = b.min()[r.ax.depth] - 0.5, d1 = b.max()[r.ax.depth] + 0.5;
-    const int steps = std::max(1, int(std::ceil((d1 - d0) / s.stepVoxels)));
-    const double step = (d1 - d0) / steps;
-    const double dsActual = step * h;
 
-    Image img(r.width, r.height);
-    parallelFor(size_t(r.height), 1, [&](size_t y0, size_t y1) {
+    Image img(rays.width(), rays.height());
+    parallelFor(size_t(rays.height()), 1, [&](size_t y0, size_t y1) {
         for (size_t yy = y0; yy < y1; ++yy) {
             const int py = int(yy);
-            for (int px = 0; px < r.width; ++px) {
+            for (int px = 0; px < rays.width(); ++px) {
                 Rgb radiance(0.0f);
-                float view = 1.0f;
-                for (int n = 0; n < steps && view > 1e-4f; ++n) {
-                    // Front to back: the near side of the box is where the camera looks from.
-                    const double t = (n + 0.5) * step;
-                    const double depth = r.ax.depthSign > 0 ? d0 + t : d1 - t;
-                    const Vec3d p = r.point(px, py, depth);
-                    const float rho = sampleTrilinear(density, p);
-                    if (rho <= 0.0f) continue;
-                    const float alpha = 1.0f - std::exp(-float(s.extinction * rho * dsActual));
-                    const float lit = sampleTrilinear(T, p);
-                    const Rgb in = s.ambient + s.light * lit;
-                    radiance += in * (view * alpha * s.albedo);
-                    view *= 1.0f - alpha;
-                }
+                const float view = marchRay(density, rays.ray(px, py), s.stepVoxels, s.extinction,
+                    [&](const Vec3d& p, float alpha, float transmittance) {
+                        const float lit = sampleTrilinear(T, p);
+                        const Rgb in = s.ambient + s.light * lit;
+                        radiance += in * (transmittance * alpha * s.albedo);
+                    });
                 const Rgb c(toneCurve(radiance.x() * s.exposure), toneCurve(radiance.y() * s.exposure),
                     toneCurve(radiance.z() * s.exposure));
                 img.at(px, py) = c + s.background * view;

@@ -236,6 +236,7 @@ void buildNeigh(Neigh& N, const PreparedView& pv, const Exemplar& ex, int radius
     PcaSettings pca;
     pca.components = std::max(1, s.pcaComponents);
     pca.maxSamples = 4000; // plenty for a covariance of a few hundred dimensions, and fast
+    pca.exactMaxDim = std::numeric_limits<size_t>::max(); // 3D neighbourhoods reach ~1000 dimensions; exact stays fast
     if (kcoh) {
         // k-coherence needs the reduced rows and each row's k most similar rows (Tong et al. 2002).
         const std::vector<float> copy = rows;

@@ -123,10 +123,12 @@ ScalarField LookbackDensity::step(const VectorField& motion, const ScalarField& 
         throw ValueError("look-back: the coarse-only density must cover the motion's box");
     mMotion.push_back(motion);
     mSources.push_back(sources);
+    mDt.push_back(dt);
     mCoarse.push_back(coarseOnly);
     while (int(mMotion.size()) > m) {
         mMotion.pop_front();
         mSources.pop_front();
+        mDt.pop_front();
     }
     while (int(mCoarse.size()) > m + 1) mCoarse.pop_front();
     // D_i from O_{i-m} (empty before the sequence has m frames), through F_{i-m+1..i}.
@@ -135,7 +137,7 @@ ScalarField LookbackDensity::step(const VectorField& motion, const ScalarField& 
     for (size_t j = 0; j < mMotion.size(); ++j) {
         checkCancelled(progress);
         if (progress) progress->update(double(j) / double(mMotion.size()));
-        if (j > 0 || full) d = advect(d, mMotion[j], dt, mSettings.advect);
+        if (j > 0 || full) d = advect(d, mMotion[j], mDt[j], mSettings.advect); // each step over its own time
         addSources(d, mSources[j]);
     }
     return d;

@@ -20,6 +20,7 @@
 
 #include <turb/Frame.h>
 
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -115,6 +116,12 @@ void writeFrame(const std::string& path, const turb::Frame& frame, const WriteOp
 
 /// Writes `bytes` to `path` atomically (used for images and reports too).
 void writeFileAtomic(const std::string& path, const std::string& bytes, bool noClobber = false);
+
+/// Atomic write through a writer that creates the file itself (OpenImageIO, OpenVDB): `write` is given
+/// a temporary name in the same directory as `path`; when it returns, the file is renamed over `path`
+/// (with `noClobber`, linked, failing if `path` exists). If `write` throws, the temporary file is
+/// removed and the exception propagates; nothing appears at `path`.
+void writeAtomically(const std::string& path, bool noClobber, const std::function<void(const std::string& tmp)>& write);
 
 // ---------------------------------------------------------------------------------------------
 // Inspection (vdbturb info)

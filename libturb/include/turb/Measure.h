@@ -50,6 +50,7 @@ enum class Alignment
 
 const char* alignmentName(Alignment a);
 
+
 struct MeasureSettings
 {
     float densityThreshold = 0.01f; ///< smoke region is density > this (quality.md: 0.01); >= 0
@@ -57,9 +58,11 @@ struct MeasureSettings
                              ///< of the output frame; block is not computed when neither gives >= 2
     std::optional<Coord> patchOrigin; ///< an output voxel where a patch starts (seam planes at origin[a] + n *
                              ///< patchSize); unset = metadata "vdbturb_patch_origin" ("x,y,z"), else (0,0,0)
-    double dt = 0.0;         ///< time per frame for tcoh's advection; 0 = the previous target frame's dt
+    double dt = 0.0;         ///< time per frame for tcoh's advection; 0 = the previous target frame's dt. tcoh
+                             ///< advects over (frame - previous frame) times this: the real time between them
     Alignment alignment = Alignment::Auto; ///< how output voxels meet the refined target lattice
     bool spectra = true;     ///< compute E(k) of output, target and source
+    bool structure = true;   ///< compute aniso and isotropy (their source figures need a source)
     SpectrumSettings spectrum;             ///< window and mean removal of the spectra
     AdvectSettings advect;   ///< scheme advecting U_h(f-1) for tcoh (default BFECC + clamp)
     int threads = 0;         ///< worker threads, 0 = all; results are identical at any count
@@ -71,9 +74,9 @@ struct MeasureInput
     const Frame* output = nullptr;         ///< required: the up-res (velocity; density optional)
     const Frame* target = nullptr;         ///< required: the low-res frame it was made from (velocity, density)
     const Frame* source = nullptr;         ///< optional: the high-res source (velocity, density): hf_ratio, div_rel_source
-    const Frame* previousOutput = nullptr; ///< optional: the output one frame earlier, for tcoh
-    const Frame* previousTarget = nullptr; ///< optional: the target one frame earlier, for tcoh
-    const Frame* previousSource = nullptr; ///< optional: the source one frame earlier, for tcoh_source
+    const Frame* previousOutput = nullptr; ///< optional: the previous processed output (any earlier frame), for tcoh
+    const Frame* previousTarget = nullptr; ///< optional: the target of that same earlier frame, for tcoh
+    const Frame* previousSource = nullptr; ///< optional: an earlier source frame, for tcoh_source
 };
 
 /// One frame's numbers. A metric that cannot be computed for this frame (no source, no smoke, no patch
@@ -99,9 +102,21 @@ struct FrameMeasures
     int patchSize = 0;                  ///< the seam spacing block used (0 = none)
     Coord patchOrigin{0};               ///< the patch origin block used, in output voxels
     std::optional<double> tcoh;         ///< rms(U_h(f) - advect(U_h(f-1), U_t(f-1), dt)) / rms(U_h(f))
-    double dt = 0.0;                    ///< the time step tcoh advected over (0 = no tcoh)
+    double dt = 0.0;                    ///< the time tcoh advected over: frame gap x time per frame (0 = no tcoh)
     std::optional<double> tcohSource;   ///< the source's own: its detail U_s - up(boxdown(U_s)) carried by
                                         ///< its boxdown velocity, for reference
+    std::optional<double> massRatio;    ///< output density mass / target density mass (sum of density x voxel
+                                        ///< volume over each whole frame); 0.9-1.1 keeps the target's smoke
+    std::optional<double> peakDensity;  ///< the output's largest density
+    std::optional<double> peakRatio;    ///< peakDensity / the target's largest density (<= 1.05: no pile-up)
+    std::optional<double> densityErr;   ///< rms(boxdown_f(D_out) - D_t) / rms(D_t) over the target's smoke cells:
+                                        ///< the output keeps the target's density at its scale (<= 0.1)
+    std::optional<double> aniso;        ///< detail anisotropy along the target's mean flow (detailAnisotropy): about 1
+                                        ///< for isotropic detail, well below 1 for streaks stretched along the flow
+    std::optional<double> anisoSource;  ///< the same of the source's detail, along the same direction
+    std::optional<double> anisoRatio;   ///< aniso / anisoSource: 0.8-1.25 keeps the source's structure
+    std::optional<double> isotropy;     ///< detailIsotropy of the output: direction-free, catches streaks along any axis
+    std::optional<double> isotropySource; ///< the same of the source
 
     double targetNyquist = 0.0;         ///< pi / target voxel size, radians per world unit
     Spectrum spectrumOutput, spectrumTarget, spectrumSource; ///< empty when not computed
@@ -142,6 +157,33 @@ Alignment resolveAlignment(Alignment requested, const Field<Vec3f>& output, cons
 std::vector<unsigned char> smokeMask(const ScalarField& density, float threshold);
 /// The bounding box of density > threshold (empty when there is none).
 CoordBBox smokeBBox(const ScalarField& density, float threshold);
+
+/// Density numbers of an up-res against its target (FrameMeasures::massRatio ... densityErr).
+struct DensityMeasures
+{
+    std::optional<double> massRatio, peak, peakRatio, coarseErr;
+};
+/// `output` is the up-res density on its own lattice, `outputOnRefined` the same on the refined target lattice
+/// over refineBox(target box, f); `target` the coarse density. Entries are empty when their denominator is zero.
+DensityMeasures densityMeasures(const ScalarField& output, const ScalarField& outputOnRefined, const ScalarField& target,
+    int f, float threshold);
+/// rms(boxdown_f(fine) - coarse) / rms(coarse) over the coarse cells where `coarse` exceeds `threshold` (0 when
+/// there are none): density_err. `fine` must cover refineBox(coarse box, f); throws ValueError otherwise.
+double coarseDensityError(const ScalarField& fine, const ScalarField& coarse, int f, float threshold);
+
+/// Anisotropy of the detail H = U - up_f(boxdown_f(U)) along a unit direction d, over the mask:
+///   a = mean|(d.grad)H|^2 / (1/2 (mean|grad H|^2 - mean|(d.grad)H|^2))
+/// (central differences). Isotropic detail gives 1; detail stretched along d (streaks) gives well below 1, and
+/// detail squashed along d above 1. nullopt when the mask is empty, d is zero or H has no gradient.
+std::optional<double> detailAnisotropy(const VectorField& u, const std::vector<unsigned char>& mask, int f,
+    const Vec3d& direction);
+
+
+/// Direction-free structure: the energy-weighted mean, over `block`^3 tiles of the box with at least half their
+/// voxels in the mask, of lambda_min / lambda_max of the tile's gradient structure tensor sum_c grad H_c grad H_c^T
+/// (H = U - up_f(boxdown_f(U)), central differences, masked voxels only). Near 1 where the detail has no preferred
+/// direction, near 0 where it is stretched into sheets or streaks along any direction. nullopt without such tiles.
+std::optional<double> detailIsotropy(const VectorField& u, const std::vector<unsigned char>& mask, int f, int block = 8);
 
 /// mean over the mask of |U - up_f(boxdown_f(U))|^2 (nullopt if the mask is empty).
 std::optional<double> highFrequencyEnergy(const VectorField& u, const std::vector<unsigned char>& mask, int f);

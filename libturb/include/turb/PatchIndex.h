@@ -24,6 +24,8 @@ struct PcaSettings
 {
     int components = 16;        ///< reduced dimension, >= 1 (clamped to the descriptor dimension)
     size_t maxSamples = 12000;  ///< rows used to estimate the covariance (an even stride through the set)
+    size_t exactMaxDim = 512;   ///< up to this descriptor dimension the covariance is decomposed exactly; above
+                                ///< it, randomized subspace iteration finds the top axes (Halko et al. 2011)
 };
 
 /// Principal axes of a set of row vectors.
@@ -66,6 +68,9 @@ public:
     void build(std::vector<float> rows, size_t dim, const PcaSettings& pca);
     /// Builds the tree with an already fitted PCA (shared between frames, or fit on another set).
     void build(std::vector<float> rows, size_t dim, const Pca& pca);
+    /// Builds the tree over rows already reduced by `pca` (count x pca.outputDim()), so callers can project
+    /// large sets in chunks without holding every full descriptor at once.
+    void buildReduced(std::vector<float> reduced, const Pca& pca);
 
     size_t size() const;
     bool empty() const { return size() == 0; }

@@ -3,7 +3,7 @@
 ///        legend, and reference lines (a Nyquist wavenumber, a quality threshold).
 ///
 /// Small on purpose: enough for the figures `vdbturb measure --plot` writes, with no dependency on a
-/// plotting package. Text uses Image's 5x7 font (capitals only).
+/// plotting package. Text is laid out with Image's caption metrics and drawn by the IO layer.
 ///
 /// @code
 /// turb::PlotSeries s{"output", k, e, turb::Rgb(0.1f, 0.3f, 0.8f)};
@@ -48,7 +48,7 @@ struct PlotSettings
     double xMax = std::numeric_limits<double>::quiet_NaN();
     double yMin = std::numeric_limits<double>::quiet_NaN();
     double yMax = std::numeric_limits<double>::quiet_NaN();
-    int textScale = 2;          ///< font pixel size (1 = 5x7 glyphs)
+    int textScale = 2;          ///< caption scale (font size 10 x scale pixels)
 };
 
 /// Draws the series. Rules outside the axis range are not drawn. A plot with no finite points shows

@@ -19,19 +19,14 @@
 /// @endcode
 #pragma once
 
+#include <turb/Camera.h>
 #include <turb/Field.h>
 #include <turb/Image.h>
 
 #include <cstdint>
+#include <optional>
 
 namespace turb {
-
-enum class View
-{
-    Front, ///< along +y: x right, z up
-    Side,  ///< along +x: -y right, z up
-    Top    ///< along -z: x right, y up
-};
 
 struct DensityRenderSettings
 {
@@ -45,10 +40,12 @@ struct DensityRenderSettings
     float exposure = 1.0f;        ///< linear scale before the tone curve 1 - exp(-x); fixed across frames, > 0
     Rgb background{0.07f, 0.075f, 0.09f}; ///< display value where the view ray meets no smoke
     float stepVoxels = 0.5f;      ///< ray-march step in voxels, (0, 1]
+    std::optional<CameraSettings> camera; ///< any camera (e.g. perspective) instead of `view` and `width`
 };
 
-/// Emission–absorption ray march of a density field with single scattering from one directional
-/// light (shadowed through the smoke) plus ambient light. An empty field renders `background` exactly.
+/// Emission–absorption ray march (Camera.h's marchRay) of a density field with single scattering from
+/// one directional light (shadowed through the smoke) plus ambient light. An empty field renders
+/// `background` exactly.
 Image renderDensity(const ScalarField& density, const DensityRenderSettings& s = {});
 
 struct SliceSettings

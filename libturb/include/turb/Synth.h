@@ -212,7 +212,8 @@ class LookbackDensity
 public:
     explicit LookbackDensity(const LookbackSettings& settings);
     /// Adds frame i: its combined motion F_i, its sources S_i and its coarse-only density O_i (all on
-    /// the fine lattice; O_i may be empty when m = 0). Returns D_i.
+    /// the fine lattice; O_i may be empty when m = 0). `dt` is the time since the previous call's frame (frame
+    /// gap x time per frame). Returns D_i.
     ScalarField step(const VectorField& motion, const ScalarField& sources, const ScalarField& coarseOnly, double dt,
         Progress* progress = nullptr);
 
@@ -220,6 +221,7 @@ private:
     LookbackSettings mSettings;
     std::deque<VectorField> mMotion;  // F of the last m frames
     std::deque<ScalarField> mSources; // S of the last m frames
+    std::deque<double> mDt;           // time from the frame before each of them (frame gaps differ)
     std::deque<ScalarField> mCoarse;  // O of the last m + 1 frames
     ScalarField mNaive;               // m = 0
 };

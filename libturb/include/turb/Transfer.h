@@ -28,6 +28,7 @@
 /// @endcode
 #pragma once
 
+#include <turb/DensityGuide.h>
 #include <turb/Frame.h>
 #include <turb/Progress.h>
 #include <turb/Seams.h>
@@ -101,6 +102,8 @@ struct TransferSettings
                                    ///< moved into the means: removing it is a change every frame (tcoh)
     DetailEnergy detailEnergy = DetailEnergy::Source; ///< what U_h's energy is scaled to (one scalar per frame)
     DensityMode densityMode = DensityMode::Advect; ///< how the output density is produced
+    DensityGuideSettings densityGuide; ///< beyond the paper: the output density's coarse means are moved onto the
+                                   ///< target's every frame (strength 0 = off), so it does not drift from the target
     int lookBackFrames = 12;      ///< m for DensityMode::LookBack (seed 003 suggests 10-20)
     int threads = 0;              ///< worker threads, 0 = all; results do not depend on it
 };
@@ -123,6 +126,8 @@ struct TransferStats
     double detailChange = -1.0;    ///< rms(U_h - U_h(i-1) advected) / rms(U_h) over the output's smoke: `measure`'s
                                    ///< tcoh when both advect the same way (BFECC: temporal blend on, the default);
                                    ///< -1 without carried detail (first frame, after an empty frame, beta = blend = 0)
+    double densityErrBefore = 0.0; ///< coarse density error (measure's density_err) before the density guide
+    double densityErr = 0.0;       ///< the same after it: what the written density has
     double detailGrowth = 0.0;     ///< rms(U_h) / rms(U_h(i-1) advected) over the output's smoke; no field of this
                                    ///< energy is closer to the advected one than 1 - 1/growth (tcoh's floor)
     SeamStats seams;               ///< EM/CG log of the seam smoothing

@@ -45,12 +45,31 @@ void GlobalIndex::build(const VectorField& us, const ScalarField& ds, int b, flo
         if (smoke) mCells.push_back(c);
     }
     if (mCells.empty()) return;
+    // Fit the PCA on an even sample, then project the cells in fixed chunks: at ratio 2 a descriptor has 2916
+    // floats, and holding all of them for a 64^3 source would take gigabytes.
     const size_t dim = globalDescriptorSize(b);
-    std::vector<float> rows(mCells.size() * dim);
-    parallelFor(mCells.size(), 64, [&](size_t s, size_t e) {
-        for (size_t i = s; i < e; ++i) globalDescriptor(us, ds, mCells[i], b, k, w, &rows[i * dim]);
-    });
-    mIndex.build(std::move(rows), dim, PcaSettings{pcaComponents});
+    const PcaSettings ps{pcaComponents};
+    const size_t sample = std::min(mCells.size(), ps.maxSamples);
+    const double step = double(mCells.size()) / double(sample);
+    Pca pca;
+    {
+        std::vector<float> rows(sample * dim);
+        parallelFor(sample, 64, [&](size_t s, size_t e) {
+            for (size_t i = s; i < e; ++i) globalDescriptor(us, ds, mCells[size_t(i * step)], b, k, w, &rows[i * dim]);
+        });
+        pca.fit(rows.data(), sample, dim, ps);
+    }
+    const size_t rk = pca.outputDim(), chunk = 4096;
+    std::vector<float> reduced(mCells.size() * rk), rows;
+    for (size_t c0 = 0; c0 < mCells.size(); c0 += chunk) {
+        const size_t c1 = std::min(mCells.size(), c0 + chunk);
+        rows.resize((c1 - c0) * dim);
+        parallelFor(c1 - c0, 64, [&](size_t s, size_t e) {
+            for (size_t i = s; i < e; ++i) globalDescriptor(us, ds, mCells[c0 + i], b, k, w, &rows[i * dim]);
+        });
+        pca.projectRows(rows.data(), c1 - c0, &reduced[c0 * rk]);
+    }
+    mIndex.buildReduced(std::move(reduced), pca);
 }
 
 Coord GlobalIndex::nearest(const float* descriptor) const

@@ -81,6 +81,33 @@ bool anySmoke(const ScalarField& d, float threshold)
     return false;
 }
 
+// Adds the target's emission (fine, same box as `d`) where it emits, but never beyond the target's own density
+// there (`targetFine`) unless `d` already holds more. Inflow emitters in Blender and Houdini set (or take the
+// maximum of) density inside the emitter rather than adding without limit; the estimate max(0, d_t - advect(d_t))
+// cannot tell the two apart, and summed onto a high-resolution density that keeps more smoke at the emitter than
+// the coarse advection predicts, it piles up there frame after frame.
+void addBoundedEmission(ScalarField& d, const ScalarField& emissionFine, const ScalarField& targetFine)
+{
+    for (size_t n = 0; n < d.size(); ++n) {
+        const float e = emissionFine.data()[n];
+        if (!(e > 0.0f)) continue;
+        float& v = d.data()[n];
+        v = std::min(v + e, std::max(v, targetFine.data()[n]));
+    }
+}
+
+// The time between two processed frames: their frame-number gap times the time per frame (the mean of the two
+// frames' when they differ), so frames processed two apart (a cache written every second frame, --frames x2)
+// are advanced by two frames' time. Throws on frames out of order.
+double elapsedTime(int previousNumber, double previousDt, int number, double dt)
+{
+    const int gap = number - previousNumber;
+    if (gap <= 0)
+        throw ValueError("frames must be processed in increasing order: frame " + std::to_string(number) + " after frame " +
+                         std::to_string(previousNumber));
+    return 0.5 * (previousDt + dt) * double(gap);
+}
+
 } // namespace
 
 struct TurbulenceTransfer::Impl
@@ -110,12 +137,14 @@ struct TurbulenceTransfer::Impl
     ScalarField prevTargetDensity;  // d_t(i-1)
     ScalarField prevDensity;        // D(i-1), output lattice
     VectorField prevVelocity;       // U(i-1), output lattice
-    double prevDt = 0.0;
+    double prevDt = 0.0;            // time per frame at frame i-1
+    int prevNumber = 0;             // frame number of i-1 (the previous *processed* frame)
     struct History
     {
         VectorField velocity;       // U(j)
         ScalarField emission;       // coarse emission estimate injected at step j
-        ScalarField targetDensity;  // up-sampled later when a look-back starts here
+        ScalarField targetDensity;  // up-sampled later when a look-back starts here, and bounds the emission
+        double elapsed = 0.0;       // time from frame j to the next processed frame (set when it arrives)
     };
     std::deque<History> history;    // LookBack mode: the last m frames
 
@@ -224,6 +253,11 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
         throw ValueError("target frame " + std::to_string(target.number) +
                          " changed voxel size or transform within the sequence");
     setBox(target.velocity.bbox()); // also loads this frame's view of the patch tracks
+    // Every temporal step below (density and detail advection, the emission estimate, the temporal blend) spans
+    // the real time since the previous processed frame, not one frame's.
+    const double elapsed = havePrevious ? elapsedTime(prevNumber, prevDt, target.number, target.dt) : 0.0;
+    const int frameGap = havePrevious ? target.number - prevNumber : 1;
+    if (!history.empty()) history.back().elapsed = elapsed;
 
     TransferResult result;
     TransferStats& st = result.stats;
@@ -243,7 +277,7 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
     ScalarField emission(target.density.bbox(), targetLattice);
     if (havePrevious) {
         const ScalarField previous = cropped(prevTargetDensity, target.density.bbox());
-        emission = estimateSources(&previous, target.density, prevTargetVelocity, prevDt);
+        emission = estimateSources(&previous, target.density, prevTargetVelocity, elapsed);
     }
     st.seconds[0] = since(t0);
 
@@ -257,9 +291,8 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
         if (!havePrevious) {
             outDensity = Dt;
         } else {
-            outDensity = cropped(advect(prevDensity, prevVelocity, prevDt), fineBox);
-            const ScalarField e = upsample(emission, f);
-            for (size_t n = 0; n < outDensity.size(); ++n) outDensity.data()[n] += e.data()[n];
+            outDensity = cropped(advect(prevDensity, prevVelocity, elapsed), fineBox);
+            addBoundedEmission(outDensity, upsample(emission, f), Dt);
         }
     } else {
         // Seed 003, pseudocode 4: start from the target's density m frames back and advect it through
@@ -269,12 +302,20 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
         } else {
             outDensity = cropped(upsample(history.front().targetDensity, f), fineBox);
             for (size_t j = 0; j < history.size(); ++j) {
-                outDensity = advect(outDensity, history[j].velocity, target.dt);
-                const ScalarField& em = j + 1 < history.size() ? history[j + 1].emission : emission;
-                const ScalarField e = cropped(upsample(em, f), fineBox);
-                for (size_t n = 0; n < outDensity.size(); ++n) outDensity.data()[n] += e.data()[n];
+                outDensity = advect(outDensity, history[j].velocity, history[j].elapsed);
+                const bool last = j + 1 == history.size();
+                const ScalarField& em = last ? emission : history[j + 1].emission;
+                addBoundedEmission(outDensity, cropped(upsample(em, f), fineBox),
+                    last ? Dt : cropped(upsample(history[j + 1].targetDensity, f), fineBox));
             }
         }
+    }
+    {
+        DensityGuideSettings g = s.densityGuide;
+        g.threshold = s.densityThreshold;
+        const DensityGuideStats gs = guideDensity(outDensity, target.density, f, g);
+        st.densityErrBefore = gs.errorBefore;
+        st.densityErr = gs.errorAfter;
     }
     st.seconds[6] = since(t0);
     t0 = Clock::now();
@@ -370,7 +411,7 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
             // BFECC: with temporal blending this detail is most of the next frame's, and first-order
             // advection would blur it a little more every frame.
             a.scheme = s.temporalBlend > 0.0f ? AdvectSettings::Scheme::BFECC : AdvectSettings::Scheme::SemiLagrangian;
-            advectedDetail = cropped(advect(prevDetail, prevTargetVelocity, prevDt, a), fineBox);
+            advectedDetail = cropped(advect(prevDetail, prevTargetVelocity, elapsed, a), fineBox);
         }
         st.seconds[8] = since(t0);
 
@@ -603,7 +644,8 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
         // arrived, only as much as the detail advected into it (relative rms against the pasted detail),
         // so detail that flowed in keeps moving instead of being replaced.
         std::vector<float> blendWeight;
-        const float lambda = (!advectedDetail.empty()) ? s.temporalBlend : 0.0f;
+        // The blend's memory is in frames: over a gap of k frames the carried detail keeps lambda^k.
+        const float lambda = (!advectedDetail.empty()) ? float(std::pow(double(s.temporalBlend), frameGap)) : 0.0f;
         if (lambda > 0.0f) {
             blendWeight.assign(layout.patchCount(), 0.0f);
             parallelFor(activeList.size(), 16, [&](size_t b, size_t e) {
@@ -737,7 +779,7 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
 
     out.density = std::move(outDensity);
     if (s.densityMode == DensityMode::LookBack) {
-        history.push_back(History{out.velocity, emission, target.density});
+        history.push_back(History{out.velocity, emission, target.density, 0.0});
         while (int(history.size()) > s.lookBackFrames) history.pop_front();
     }
 
@@ -751,6 +793,7 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
     prevDensity = out.density;
     prevVelocity = out.velocity;
     prevDt = target.dt;
+    prevNumber = target.number;
     havePrevious = true;
 
     std::ostringstream meta;
@@ -830,6 +873,7 @@ void TurbulenceTransfer::restore(const std::string& state, const Frame& previous
     m.prevVelocity = velocity;
     m.prevDensity = cropped(previousOutput.density, m.fineBox);
     m.prevDt = previousTarget.dt;
+    m.prevNumber = previousTarget.number;
     m.havePrevious = true;
     m.history.clear();
 }

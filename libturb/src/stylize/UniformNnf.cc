@@ -1,0 +1,196 @@
+// Reversed NNF retrieval with uniform patch usage (LazyFluids section 4.1 and 4.2).
+#include <turb/UniformNnf.h>
+
+#include <turb/Error.h>
+#include <turb/Parallel.h>
+
+#include "Search.h"
+
+#include <algorithm>
+#include <limits>
+#include <string>
+
+namespace turb {
+
+namespace {
+
+struct Claim
+{
+    float distance;
+    std::int32_t source, target;
+    bool operator<(const Claim& o) const
+    {
+        if (distance != o.distance) return distance < o.distance;
+        if (source != o.source) return source < o.source;
+        return target < o.target;
+    }
+};
+
+/// Per-segment bookkeeping of eq. 5.
+struct Budget
+{
+    long long K = 0, R = 0;
+};
+
+int maxLabel(const Labels& a, const Labels& b)
+{
+    int m = -1;
+    for (auto v : a) m = std::max(m, int(v));
+    for (auto v : b) m = std::max(m, int(v));
+    return m;
+}
+
+} // namespace
+
+std::vector<SegmentUsage> patchUsage(const Nnf& nnf, const Labels& sourceLabels, const Labels& targetLabels,
+    std::vector<std::int32_t>* countsOut)
+{
+    std::vector<std::int32_t> counts(sourceLabels.size(), 0);
+    for (size_t q = 0; q < nnf.source.size(); ++q)
+        if (targetLabels[q] >= 0 && nnf.source[q] >= 0) ++counts[size_t(nnf.source[q])];
+    const int nl = maxLabel(sourceLabels, targetLabels) + 1;
+    std::vector<SegmentUsage> usage;
+    for (int L = 0; L < nl; ++L) {
+        SegmentUsage u;
+        u.label = L;
+        for (auto v : targetLabels) u.targets += v == L;
+        if (u.targets == 0) continue;
+        long long used = 0;
+        u.minCount = std::numeric_limits<long long>::max();
+        for (size_t p = 0; p < sourceLabels.size(); ++p) {
+            if (sourceLabels[p] != L) continue;
+            ++u.sources;
+            u.minCount = std::min<long long>(u.minCount, counts[p]);
+            u.maxCount = std::max<long long>(u.maxCount, counts[p]);
+            used += counts[p] > 0;
+        }
+        if (u.sources == 0) u.minCount = 0;
+        u.K = u.sources ? u.targets / u.sources : 0;
+        u.R = u.sources ? u.targets % u.sources : 0;
+        for (size_t p = 0; p < sourceLabels.size(); ++p) u.countsAtKPlusOne += sourceLabels[p] == L && counts[p] == u.K + 1;
+        u.coverage = u.sources ? double(used) / double(u.sources) : 0.0;
+        usage.push_back(u);
+    }
+    if (countsOut) *countsOut = std::move(counts);
+    return usage;
+}
+
+UniformNnf uniformNnf(const PatchSpace& space, const Labels& sourceLabels, const Labels& targetLabels,
+    const UniformNnfSettings& settings, Progress* progress)
+{
+    validatePatchSpace(space);
+    const ChannelImage& S = *space.source;
+    const ChannelImage& T = *space.target;
+    if (sourceLabels.size() != S.pixelCount() || targetLabels.size() != T.pixelCount())
+        throw ValueError("uniform NNF: labels must have one entry per pixel");
+    if (settings.sweepsPerRound < 1 || settings.randomTargets < 0 || !(settings.exhaustiveBudget >= 0.0))
+        throw ValueError("uniform NNF: sweepsPerRound must be >= 1, randomTargets and exhaustiveBudget >= 0");
+
+    const int nl = maxLabel(sourceLabels, targetLabels) + 1;
+    std::vector<long long> nS(size_t(std::max(0, nl)), 0), nT(nS.size(), 0);
+    for (auto v : sourceLabels) if (v >= 0) ++nS[size_t(v)];
+    for (auto v : targetLabels) if (v >= 0) ++nT[size_t(v)];
+    std::vector<Budget> budget(nS.size());
+    for (size_t L = 0; L < nS.size(); ++L) {
+        if (nT[L] > 0 && nS[L] == 0)
+            throw ValueError("uniform NNF: segment " + std::to_string(L) + " has " + std::to_string(nT[L]) +
+                             " target patches but no source patch");
+        if (nS[L] > 0) budget[L] = Budget{nT[L] / nS[L], nT[L] % nS[L]};
+    }
+
+    UniformNnf out;
+    out.nnf = emptyNnf(T.width(), T.height());
+    out.counts.assign(S.pixelCount(), 0);
+    std::vector<std::int32_t> assigned(T.pixelCount(), -1); // target -> source, -1 = unassigned
+    std::vector<std::int32_t> claim(S.pixelCount(), -1);    // source -> claimed target
+    std::vector<float> claimDist(S.pixelCount(), std::numeric_limits<float>::infinity());
+    long long unassigned = 0;
+    for (auto v : targetLabels) unassigned += v >= 0;
+
+    const auto usable = [&](size_t p) {
+        const int L = sourceLabels[p];
+        if (L < 0) return false;
+        const Budget& b = budget[size_t(L)];
+        return out.counts[p] < b.K || (out.counts[p] == b.K && b.R > 0);
+    };
+    const auto assign = [&](const Claim& c) {
+        const int L = sourceLabels[size_t(c.source)];
+        Budget& b = budget[size_t(L)];
+        if (assigned[size_t(c.target)] >= 0) return false;
+        const long long n = out.counts[size_t(c.source)];
+        if (n == b.K && b.R > 0) --b.R; // one of the R patches used K + 1 times
+        else if (n >= b.K) return false;
+        ++out.counts[size_t(c.source)];
+        assigned[size_t(c.target)] = c.source;
+        out.nnf.source[size_t(c.target)] = c.source;
+        out.nnf.distance[size_t(c.target)] = c.distance;
+        --unassigned;
+        return true;
+    };
+
+    detail::SearchConfig cfg;
+    cfg.qW = S.width();
+    cfg.qH = S.height();
+    cfg.dW = T.width();
+    cfg.dH = T.height();
+    cfg.iterations = settings.sweepsPerRound;
+    cfg.tileSize = settings.tileSize;
+    cfg.seed = settings.seed;
+    const auto ok = [&](std::int32_t q, int L) { return targetLabels[size_t(q)] == L && assigned[size_t(q)] < 0; };
+    const auto dist = [&](std::int32_t p, std::int32_t q, float cutoff) { return space.distance(p, q, cutoff); };
+
+    const long long total = unassigned;
+    int randomTargets = settings.randomTargets;
+    std::vector<char> active(S.pixelCount());
+    std::vector<std::vector<std::int32_t>> lists;
+    while (unassigned > 0) {
+        checkCancelled(progress);
+        lists.assign(nS.size(), {});
+        for (size_t q = 0; q < T.pixelCount(); ++q)
+            if (targetLabels[q] >= 0 && assigned[q] < 0) lists[size_t(targetLabels[q])].push_back(std::int32_t(q));
+        long long nUsable = 0;
+        for (size_t p = 0; p < active.size(); ++p) nUsable += (active[p] = usable(p));
+
+        std::vector<Claim> claims;
+        if (double(unassigned) * double(nUsable) <= settings.exhaustiveBudget) {
+            // The tail: compare every remaining pair and assign greedily by distance. Capacity left equals
+            // the targets left (eq. 5), so this round assigns them all.
+            for (size_t p = 0; p < active.size(); ++p) {
+                if (!active[p]) continue;
+                for (std::int32_t q : lists[size_t(sourceLabels[p])])
+                    claims.push_back(Claim{space.distance(std::int32_t(p), q, std::numeric_limits<float>::infinity()), std::int32_t(p), q});
+            }
+            std::sort(claims.begin(), claims.end());
+            for (const Claim& c : claims) assign(c);
+            ++out.exhaustiveRounds;
+            ++out.rounds;
+            if (unassigned > 0) throw Error("uniform NNF: exhaustive round left targets unassigned (internal error)");
+            break;
+        }
+
+        cfg.salt = std::uint64_t(out.rounds);
+        cfg.randomCentres = randomTargets;
+        detail::sweepSearch(cfg, active, sourceLabels, lists, ok, dist, claim, claimDist, nullptr);
+
+        // Collisions: each target keeps its closest claim (ties: lower source index).
+        std::vector<std::int32_t> winner(T.pixelCount(), -1);
+        for (size_t p = 0; p < active.size(); ++p) {
+            if (!active[p] || claim[p] < 0) continue;
+            std::int32_t& w = winner[size_t(claim[p])];
+            if (w < 0 || claimDist[p] < claimDist[size_t(w)] || (claimDist[p] == claimDist[size_t(w)] && std::int32_t(p) < w)) w = std::int32_t(p);
+        }
+        for (size_t q = 0; q < winner.size(); ++q)
+            if (winner[q] >= 0) claims.push_back(Claim{claimDist[size_t(winner[q])], winner[q], std::int32_t(q)});
+        std::sort(claims.begin(), claims.end());
+        const long long before = unassigned;
+        for (const Claim& c : claims) assign(c);
+        ++out.rounds;
+        // Few new assignments (many sources crowding few targets): widen the random draws.
+        if (before - unassigned < std::max<long long>(1, before / 50)) randomTargets = std::min(64, std::max(1, randomTargets * 2));
+        if (progress) progress->update(double(total - unassigned) / double(std::max<long long>(1, total)));
+    }
+    out.usage = patchUsage(out.nnf, sourceLabels, targetLabels);
+    return out;
+}
+
+} // namespace turb

@@ -1,0 +1,102 @@
+#include <scenes/Targets2D.h>
+
+#include <turb/Error.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace turb::scenes {
+
+namespace {
+
+/// Three-lobed blob of mean radius R (pixels) in polar coordinates, soft edge of 2 pixels.
+float lobes(double r, double theta, double R)
+{
+    const double edge = R * (1.0 + 0.22 * std::cos(3.0 * theta));
+    return float(std::min(1.0, std::max(0.0, (edge - r) / 2.0 + 0.5)));
+}
+
+std::uint64_t mix(std::uint64_t x)
+{
+    x += 0x9e3779b97f4a7c15ull;
+    x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
+    x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
+    return x ^ (x >> 31);
+}
+
+/// Smooth value noise with period `cell` pixels.
+double valueNoise(double x, double y, double cell, std::uint64_t seed)
+{
+    const double fx = x / cell, fy = y / cell;
+    const long ix = long(std::floor(fx)), iy = long(std::floor(fy));
+    const double tx = fx - ix, ty = fy - iy;
+    const auto v = [&](long a, long b) { return double(mix(seed ^ mix(std::uint64_t(a) * 73856093ull ^ std::uint64_t(b) * 19349663ull)) >> 11) / 9007199254740992.0; };
+    const auto s = [](double t) { return t * t * (3.0 - 2.0 * t); };
+    const double a = v(ix, iy) + (v(ix + 1, iy) - v(ix, iy)) * s(tx);
+    const double b = v(ix, iy + 1) + (v(ix + 1, iy + 1) - v(ix, iy + 1)) * s(tx);
+    return a + (b - a) * s(ty);
+}
+
+} // namespace
+
+Target2D target2D(const Target2DSettings& s, int frame)
+{
+    if (s.width < 16 || s.height < 16) throw ValueError("target2D: size must be at least 16x16");
+    if (s.kind != "rotate" && s.kind != "swirl" && s.kind != "rise" && s.kind != "fill")
+        throw ValueError("target2D: unknown kind '" + s.kind + "' (rotate, swirl, rise, fill)");
+    const int W = s.width, H = s.height;
+    const double cx = (W - 1) / 2.0, cy = (H - 1) / 2.0, R = 0.3 * std::min(W, H);
+    Target2D t{ChannelImage(W, H, 1), ChannelImage(W, H, 2)};
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+            double dx = x - cx, dy = y - cy;
+            if (s.kind == "rise") {
+                // The blob moves up by speed * W pixels a frame, wrapping around.
+                const double v = s.speed * W;
+                const double py = std::fmod(dy + v * frame + 1e6 * H, double(H));
+                const double wy = py > H / 2.0 ? py - H : py;
+                t.alpha.at(x, y, 0) = float(std::min(1.0, std::max(0.0, (0.8 * R - std::hypot(dx, wy)) / 2.0 + 0.5)));
+                t.motion.at(x, y, 1) = float(-v);
+                continue;
+            }
+            const double r = std::hypot(dx, dy);
+            // Angular speed (radians per frame, counter-clockwise on screen with y down).
+            const double w = s.kind != "swirl" ? s.speed : s.speed * std::exp(-(r * r) / (2.0 * R * R));
+            const double theta = std::atan2(-dy, dx) - w * frame; // where this point was at frame 0
+            t.alpha.at(x, y, 0) = s.kind == "fill" ? 1.0f : lobes(r, theta, R);
+            // Screen rotation counter-clockwise: (dx, -dy) turns by w, so the motion is w * (dy, -dx).
+            t.motion.at(x, y, 0) = float(w * dy);
+            t.motion.at(x, y, 1) = float(-w * dx);
+        }
+    return t;
+}
+
+RgbaImage fireExemplar(int n, std::uint64_t seed)
+{
+    if (n < 16) throw ValueError("fireExemplar: size must be at least 16");
+    RgbaImage z(n, n);
+    z.colorSpace = "sRGB";
+    const double c = (n - 1) / 2.0, R = 0.44 * n;
+    for (int y = 0; y < n; ++y)
+        for (int x = 0; x < n; ++x) {
+            // Ragged edge: the radius wobbles with low-frequency noise; the edge is soft over ~4 pixels.
+            const double theta = std::atan2(y - c, x - c);
+            const double wobble = 0.12 * R * (valueNoise(std::cos(theta) * 40.0 + 100.0, std::sin(theta) * 40.0 + 100.0, 9.0, seed + 7) - 0.5);
+            const double a = std::min(1.0, std::max(0.0, (R + wobble - std::hypot(x - c, y - c)) / 4.0 + 0.5));
+            // Smooth on the left (a ramp, brighter at the top), textured on the right, blended over the
+            // middle fifth so no hard seam becomes a feature of its own.
+            const double ramp = 0.25 + 0.7 * (1.0 - double(y) / n);
+            double f = 0.0, amp = 0.5;
+            for (double cell = n / 6.0; cell >= 1.5; cell /= 2.0, amp *= 0.6) f += amp * (valueNoise(x, y, cell, seed) - 0.5);
+            const double tex = std::min(1.0, std::max(0.0, 0.55 + 1.6 * f));
+            const double m = std::min(1.0, std::max(0.0, (double(x) / n - 0.4) / 0.2));
+            const double v = ramp + (tex - ramp) * m * m * (3.0 - 2.0 * m);
+            // A fire ramp: dark red -> orange -> pale yellow.
+            const float r = float(std::min(1.0, 0.35 + 0.9 * v)), g = float(std::min(1.0, std::max(0.0, 1.25 * v - 0.25))),
+                        b = float(std::min(1.0, std::max(0.0, 1.6 * v - 1.0)));
+            z.at(x, y) = Rgba(r, g, b, float(a));
+        }
+    return z;
+}
+
+} // namespace turb::scenes
