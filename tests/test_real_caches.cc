@@ -270,7 +270,8 @@ TEST(RealCaches, KnownReaderCrashAndHangBecomeErrors)
     EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 2.0);
 
     // Damage inside the voxel data that makes OpenVDB loop (found by this test's flips of the 128^3 plume):
-    // the guard's timeout ends it.
+    // the guard's timeout ends it. OpenVDB 10 reads uninitialised memory here, so some runs end in a read
+    // error instead of the loop; either way a clean error naming the file, in bounded time.
     std::string hang = slurp(dataPath("blender-plume-128/fluid_data_0010.vdb"));
     hang[172654] ^= 0x08;
     std::ofstream(dir / "hang.vdb", std::ios::binary) << hang;
@@ -280,7 +281,9 @@ TEST(RealCaches, KnownReaderCrashAndHangBecomeErrors)
         readFrame(dir / "hang.vdb", 1, o);
         ADD_FAILURE() << "expected an error";
     } catch (const turb::IoError& e) {
-        EXPECT_NE(std::string(e.what()).find("did not finish"), std::string::npos) << e.what();
+        const std::string m = e.what();
+        EXPECT_TRUE(m.find("did not finish") != std::string::npos || m.find("could not be read") != std::string::npos) << m;
+        EXPECT_NE(m.find(dir / "hang.vdb"), std::string::npos) << m;
     }
     EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 30.0);
 }

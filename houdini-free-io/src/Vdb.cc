@@ -1224,6 +1224,14 @@ void writeAtomically(const std::string& path, bool noClobber, const std::functio
         throw;
     }
     if (!fileExists(tmp)) throw IoError(path + ": the writer produced no file");
+    // The writer closed the file; a full disk can still surface when its pages reach the disk.
+    const int fd = ::open(tmp.c_str(), O_RDONLY | O_CLOEXEC);
+    const int err = fd < 0 ? errno : (::fsync(fd) != 0 ? errno : 0);
+    if (fd >= 0) ::close(fd);
+    if (err != 0) {
+        ::unlink(tmp.c_str());
+        throw IoError(writeFailure(path, err));
+    }
     commitTemp(tmp, path, noClobber);
 }
 
