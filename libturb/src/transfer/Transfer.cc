@@ -10,6 +10,8 @@
 #include <turb/Resample.h>
 
 #include <algorithm>
+#include <cerrno>
+#include <cstdlib>
 #include <chrono>
 #include <cmath>
 #include <deque>
@@ -841,11 +843,23 @@ void TurbulenceTransfer::restore(const std::string& state, const Frame& previous
     if (version != "v2" || fField.rfind("f=", 0) != 0 || bField.rfind("B=", 0) != 0 || rotField.rfind("rot=", 0) != 0 ||
         tracks.rfind("tracks=", 0) != 0)
         throw ValueError("unrecognised transfer state in the previous output: '" + state.substr(0, 60) + "'");
-    const int f = std::stoi(fField.substr(2));
-    const int B = std::stoi(bField.substr(2));
+    // The state comes from a file: a damaged one is refused, never a crash (tests/fuzz/fuzz_resume_state.cc).
+    const auto number = [&](const std::string& text, long long lo, long long hi) {
+        char* end = nullptr;
+        errno = 0;
+        const long long v = std::strtoll(text.c_str(), &end, 10);
+        if (text.empty() || *end != '\0' || errno == ERANGE || v < lo || v > hi)
+            throw ValueError("damaged transfer state in the previous output: '" + text.substr(0, 40) + "' is not a number in [" +
+                             std::to_string(lo) + ", " + std::to_string(hi) + "]");
+        return int(v);
+    };
+    const int f = number(fField.substr(2), 1, 256);
+    if (!previousOutput.velocity.lattice().approxEqual(previousTarget.velocity.lattice().refined(f)))
+        throw ValueError("the previous output's voxel is not the target's / " + std::to_string(f) + " as its state says");
+    const int B = number(bField.substr(2), 2, 1024);
     if (B != m.s.localPatch)
         throw ValueError("the previous output used local patch " + std::to_string(B) + ", not " + std::to_string(m.s.localPatch));
-    const int rot = std::stoi(rotField.substr(4));
+    const int rot = number(rotField.substr(4), -1, 1 << 20);
     if (rot >= 0) {
         m.rotation = detail::AxisRotation::fromId(rot);
         m.rotationChosen = true;
@@ -860,7 +874,9 @@ void TurbulenceTransfer::restore(const std::string& state, const Frame& previous
         std::istringstream one(item);
         bool ok = bool(one >> v[0]);
         for (int k = 1; k < 6 && ok; ++k) ok = bool(one >> sep >> v[k]) && sep == ',';
-        if (!ok) throw ValueError("damaged transfer state entry '" + item + "'");
+        // Patch and source coordinates far beyond any lattice would overflow the search arithmetic.
+        for (int k = 0; k < 6 && ok; ++k) ok = std::abs(v[k]) < (1 << 24);
+        if (!ok) throw ValueError("damaged transfer state entry '" + item.substr(0, 60) + "'");
         m.tracks[Coord(v[0], v[1], v[2])] = Coord(v[3], v[4], v[5]);
     }
     m.start(previousTarget, f);
