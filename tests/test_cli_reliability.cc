@@ -283,3 +283,17 @@ TEST(CliReliability, ValidateSaysADensityOnlyFileCannotDriveTransfer)
     EXPECT_EQ(r.code, 0) << r.out;
     EXPECT_NE(r.out.find("density only, no velocity grid: it cannot drive transfer"), std::string::npos) << r.out;
 }
+
+TEST(CliReliability, ResolutionsAreCellsAlongXYZForEveryOption)
+{
+    // --flow-res and --scene-res (and sim --res) read NXxNYxNZ the same way: a factor-2 synthesis doubles each.
+    const auto flow = run("synth --flow uniform --flow-res 12x8x1 --factor 2 --dry-run --out x.####.vdb", false);
+    ASSERT_EQ(flow.code, 0) << flow.out;
+    EXPECT_NE(flow.out.find("output lattice: 24x16x1 voxels"), std::string::npos) << flow.out;
+    const auto scene = run("synth --scene plume --scene-res 12x8x16 --frames 1 --factor 2 --dry-run --out x.####.vdb", false);
+    ASSERT_EQ(scene.code, 0) << scene.out;
+    EXPECT_NE(scene.out.find("output lattice: 24x16x32 voxels"), std::string::npos) << scene.out;
+    const auto help = run("synth --help", false);
+    EXPECT_EQ(clitest::count(help.out, "NXxNYxNZ"), 2u) << help.out;
+    EXPECT_NE(run("sim --help", false).out.find("NXxNYxNZ"), std::string::npos);
+}

@@ -101,7 +101,7 @@ turb::Coord parseRes(const std::string& s, const std::string& what)
         const int n = toInt(p[0], what);
         return turb::Coord(n, n, n);
     }
-    if (p.size() != 3) throw turb::ValueError(what + ": expected WxDxH or N, got '" + s + "'");
+    if (p.size() != 3) throw turb::ValueError(what + ": expected NXxNYxNZ (cells along x, y, z) or N, got '" + s + "'");
     return turb::Coord(toInt(p[0], what), toInt(p[1], what), toInt(p[2], what));
 }
 
@@ -715,11 +715,11 @@ Command synthCommand()
         turb::SynthSettings& s = a.settings;
         app->add_option("--target", a.target, "Coarse motion L: a VDB cache (pattern or one file); density optional");
         app->add_option("--scene", a.scene, "Coarse motion from a built-in scene simulated on the fly (plume, swirl, obstacle, wind)");
-        app->add_option("--scene-res", a.sceneRes, "Scene resolution WxDxH (default 32x32x48)");
+        app->add_option("--scene-res", a.sceneRes, "Scene cells NXxNYxNZ along x, y, z (z is up), as sim --res (default 32x32x48)");
         app->add_option("--scene-seed", a.sceneSeed, "Scene emitter noise seed (default 1)");
         app->add_option("--flow", a.flow, "Coarse motion from an analytic flow: uniform, vortex, shear (no density)")
             ->check(CLI::IsMember({"uniform", "vortex", "shear"}));
-        app->add_option("--flow-res", a.flowRes, "Analytic flow resolution WxHxD; D = 1 is 2D (default 64x64x1)");
+        app->add_option("--flow-res", a.flowRes, "Analytic flow cells NXxNYxNZ along x, y, z; NZ = 1 is 2D (default 64x64x1)");
         app->add_option("--flow-speed", a.flowSpeed, "Analytic flow speed, world units/s (default 1; domain 4 units wide)");
         app->add_option("--flow-angle", a.flowAngle, "Uniform flow direction in the xy plane, degrees from +x (default 0)");
         app->add_option("--frames", a.frames, "Cache: frames to use (default all). Scene/flow: a count N or a list (default 1)");
