@@ -129,7 +129,7 @@ void record(const Case& c, int cmd, const clitest::Result& r)
     for (size_t at; (at = first.find(prefix)) != std::string::npos;) first.erase(at, prefix.size());
     std::lock_guard<std::mutex> lock(gResultsMutex);
     std::ofstream(kRoot + "/results/" + c.name + "." + commandName(cmd) + ".tsv")
-        << c.name << '\t' << commandName(cmd) << '\t' << r.code << '\t' << first << '\n';
+        << c.name << '\t' << commandName(cmd) << '\t' << r.code << '\t' << first << '\t' << c.what << '\n';
 }
 
 class Corpus : public ::testing::TestWithParam<size_t>
