@@ -134,22 +134,30 @@ void preflight(const TransferArgs& a, const turbio::Sequence& target, const turb
               turbio::formatBytes(outBytes * double(targetFrames.size())) + " for " + std::to_string(targetFrames.size()) +
               " frame" + (targetFrames.size() == 1 ? "" : "s") + (a.write.halfFloat ? " (half the floats' share with --half)" : ""));
 
-    const double need = turb::transferPeakBytes(tVoxels, f, sVoxels);
+    // The source is matched at the ratio's voxel: a non-integer ratio resamples it first.
+    const auto matchedVoxels = [&](double sourceVoxel, double voxels, int ratio) {
+        return voxels * std::pow(sourceVoxel * ratio / tv, 3.0);
+    };
+    const double need = turb::transferPeakBytes(tVoxels, f, matchedVoxels(sv, sVoxels, f));
     const long long usable = turbio::usableMemoryBytes();
     std::string fits;
-    if (usable > 0) {
-        const int fMax = turb::largestTransferRatio(0.9 * double(usable), tVoxels, sVoxels);
-        if (fMax >= 2) {
-            const double sourceVoxel = tv / fMax;
-            int down = 1; // the smallest box-downsampling of the source whose ratio rounds to at most fMax
-            while (std::lround(tv / (sv * down)) > fMax) ++down;
-            fits = "A ratio up to " + std::to_string(fMax) + " fits: a source with voxels of at least " + fmt("%g", sourceVoxel) +
-                   (down > 1 ? " (e.g. vdbturb resample " + source.pattern.str() + " --down " + std::to_string(down) +
-                                   " --out PROXY.####.vdb)"
-                             : "");
-        } else {
-            fits = "Even ratio 2 does not fit: crop or coarsen the target first.";
+    if (usable > 0 && need > 0.9 * double(usable)) {
+        // The smallest box-downsampling of the source (vdbturb resample --down K) that fits.
+        for (int down = 2; down <= 64 && fits.empty(); ++down) {
+            const double sv2 = sv * down;
+            int f2 = 0;
+            try {
+                f2 = turb::transferRatio(tv, sv2, !a.noResample);
+            } catch (const turb::ValueError&) {
+                break; // the ratio fell below 2
+            }
+            const double n2 = sVoxels / double(down) / double(down) / double(down);
+            if (turb::transferPeakBytes(tVoxels, f2, matchedVoxels(sv2, n2, f2)) <= 0.9 * double(usable))
+                fits = "A source box-downsampled by " + std::to_string(down) + " (voxel " + fmt("%g", sv2) + ", ratio " +
+                       std::to_string(f2) + ") fits: vdbturb resample " + source.pattern.str() + " --down " +
+                       std::to_string(down) + " --out PROXY.####.vdb";
         }
+        if (fits.empty()) fits = "No coarser source fits: crop or coarsen the target first.";
     }
     checkMemory(need, "target " + dims(tBox.dim()) + " at ratio " + std::to_string(f) + " = " + dims(outDim) +
                           " output voxels, source " + (sl ? dims(sl->domain.dim()) : std::string("?")),

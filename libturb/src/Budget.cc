@@ -2,21 +2,15 @@
 
 namespace turb {
 
-// Fitted on this machine (docs/reliability.md): plume 128^3 source, target 64^3 / 32^3 / 16^3 (ratios 2, 4, 8)
-// measured 766 / 398 / 235 MB peak RSS; the formula gives 842 / 488 / 311 MB.
+// Fitted on this machine (docs/reliability.md, "Memory estimates"): the Blender plume's 128^3 source against
+// targets at ratios 2, 4 and 8 measured 766, 398 and 235 MB peak RSS: the source term goes as 1/ratio.
 double transferPeakBytes(double targetVoxels, int ratio, double sourceVoxels)
 {
-    return 50e6 + 40.0 * sourceVoxels + 675.0 * targetVoxels * double(ratio) * double(ratio);
+    const double f = double(ratio);
+    return 60e6 + 664.0 * sourceVoxels / f + 30.0 * targetVoxels * f * f * f;
 }
 
-int largestTransferRatio(double bytes, double targetVoxels, double sourceVoxels)
-{
-    int best = 0;
-    for (int f = 2; f <= 1024 && transferPeakBytes(targetVoxels, f, sourceVoxels) <= bytes; ++f) best = f;
-    return best;
-}
-
-// Fitted on plume 32^3, 2 frames, at factors 2 and 4 (95 and 408 MB measured; 127 and 611 MB estimated) and
+// Fitted on plume 32^3, 2 frames, at factors 2 and 4 (95 and 408 MB measured; 112 and 545 MB estimated) and
 // the bench's synth3d (64x64x16 at factor 4, 30 frames: 1741 MB measured, 1.8 GB estimated).
 double synthPeakBytes(double coarseVoxels, int factor, int frames, int lookback)
 {

@@ -7,20 +7,17 @@
 /// estimates"); they err on the high side by up to about 1.3x. They do not depend on thread count.
 ///
 /// @code
-/// double need = turb::transferPeakBytes(32 * 32 * 32, 4, 128 * 128 * 128); // about 0.5 GB
+/// double need = turb::transferPeakBytes(32 * 32 * 32, 4, 128 * 128 * 128); // about 0.47 GB
 /// @endcode
 #pragma once
 
 namespace turb {
 
-/// Peak bytes of `transfer` over a target domain of `targetVoxels` voxels at resolution ratio `ratio` (>= 1)
-/// with a source domain of `sourceVoxels`: 50 MB + 40 B per source voxel + 675 B x targetVoxels x ratio^2.
-/// (Output voxels are targetVoxels x ratio^3; the per-output-voxel cost falls as 1/ratio because the coarse
-/// search structures shrink.)
+/// Peak bytes of `transfer` at resolution ratio `ratio` (>= 1) over a target domain of `targetVoxels` voxels, with
+/// a source of `sourceVoxels` voxels as matched (after resampling to the ratio, when it was not an integer):
+/// 60 MB + 664 B x sourceVoxels / ratio + 30 B x targetVoxels x ratio^3. The source term (patch descriptors and
+/// search structures) dominates on this project's caches; the last is the output's dense fields.
 double transferPeakBytes(double targetVoxels, int ratio, double sourceVoxels);
-
-/// The largest ratio >= 2 whose transferPeakBytes fits in `bytes`; 0 when even ratio 2 does not.
-int largestTransferRatio(double bytes, double targetVoxels, double sourceVoxels);
 
 /// Peak bytes of `synth` over a coarse domain of `coarseVoxels` at up-sampling `factor`, for a run of `frames`
 /// frames with look-back density over `lookback` frames (0 = none): 50 MB + (200 B + 18 B x min(frames,
