@@ -73,7 +73,8 @@ for t in $targets; do
   cov=$(grep -o 'cov: [0-9]*' "$log" | tail -1 | cut -d' ' -f2)
   ft=$(grep -o 'ft: [0-9]*' "$log" | tail -1 | cut -d' ' -f2)
   n=$(ls "$corpus" | wc -l)
-  c=$(ls "$crashes" | wc -l)
+  # Findings: crash-, leak-, timeout- and oom- files; slow-unit- files are only inputs slower than 10 s.
+  c=$(ls "$crashes" | grep -c -E '^(crash|leak|timeout|oom)-' || true)
   printf '%-14s %8s %12s %8s %8s %8s %8s\n' "$t" "$seconds" "${execs:-?}" "${cov:-?}" "${ft:-?}" "$n" "$c"
 done
 echo "logs and crash inputs: $work"
