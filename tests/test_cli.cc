@@ -69,7 +69,7 @@ TEST(Cli, TransferWritesResumesAndNeverClobbers)
     // Dry run: resolves, prints the plan, writes nothing.
     const CmdResult dry = run("transfer --target " + lo() + " --source " + hi() + " --out " + out + " --frames 1-3 --dry-run");
     EXPECT_EQ(dry.code, 0) << dry.out;
-    EXPECT_NE(dry.out.find("resolution ratio 4"), std::string::npos) << dry.out;
+    EXPECT_NE(dry.out.find("ratio 4 (target voxel 0.125, source voxel 0.03125)"), std::string::npos) << dry.out;
     EXPECT_FALSE(std::filesystem::exists(dir / "up"));
 
     // Frames 1-2, then --resume to 3; compare with an uninterrupted 1-3 run.
@@ -137,12 +137,27 @@ TEST(Cli, ACorruptFrameStopsTheRunWithoutDamagingEarlierOutput)
     for (int f = 1; f <= 3; ++f)
         std::filesystem::copy_file(testutil::dataPath("blender-plume-32/fluid_data_000" + std::to_string(f) + ".vdb"),
             dir / ("lo/t_000" + std::to_string(f) + ".vdb"));
-    // Cut frame 2 in half.
+    // Frame 2 cut in half: the header check before the first frame finds it, and nothing is written.
     std::filesystem::resize_file(dir / "lo/t_0002.vdb", std::filesystem::file_size(dir / "lo/t_0002.vdb") / 2);
     const CmdResult r = run("transfer --target " + dir / "lo/t_####.vdb" + " --source " + hi() + " --out " + dir / "out/o.####.vdb");
     EXPECT_EQ(r.code, 1) << r.out;
     EXPECT_NE(r.out.find("t_0002.vdb"), std::string::npos) << r.out;
     EXPECT_NE(r.out.find("truncated"), std::string::npos) << r.out;
+    EXPECT_FALSE(std::filesystem::exists(dir / "out")) << "refused before writing anything";
+
+    // Damaged compressed data in frame 2 (its headers are intact, so only reading its voxels finds it): frame 1
+    // is written whole, frame 2 is not, and the message names the file and the grid.
+    std::filesystem::remove(dir / "lo/t_0002.vdb");
+    std::string bytes;
+    {
+        std::ifstream in(testutil::dataPath("blender-plume-32/fluid_data_0002.vdb"), std::ios::binary);
+        bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    }
+    bytes[56451] ^= char(0x80);
+    std::ofstream(dir / "lo/t_0002.vdb", std::ios::binary) << bytes;
+    const CmdResult d = run("transfer --target " + dir / "lo/t_####.vdb" + " --source " + hi() + " --out " + dir / "out/o.####.vdb");
+    EXPECT_EQ(d.code, 1) << d.out;
+    EXPECT_NE(d.out.find("t_0002.vdb: grid 'temperature' could not be read"), std::string::npos) << d.out;
     EXPECT_TRUE(std::filesystem::exists(dir / "out/o.0001.vdb"));
     EXPECT_FALSE(std::filesystem::exists(dir / "out/o.0002.vdb"));
     EXPECT_EQ(testutil::countEntries(dir / "out"), 1u) << "no partial or temporary file";

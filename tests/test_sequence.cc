@@ -57,8 +57,12 @@ TEST(FramePattern, DetectsFrameNumberFromRealNames)
     ASSERT_TRUE(b);
     EXPECT_EQ(b->second, 1001);
     EXPECT_EQ(b->first.format(1002), "pyro.1002.vdb");
-    // Digits in the directory are not the frame number.
+    // Digits in the directory are not the frame number, nor digits inside the stem.
     EXPECT_FALSE(FramePattern::fromFileName("/cache42/smoke.vdb"));
+    EXPECT_FALSE(FramePattern::fromFileName("smoke2_final.vdb"));
+    auto c = FramePattern::fromFileName("cache/pyro.0042.bgeo.sc");
+    ASSERT_TRUE(c);
+    EXPECT_EQ(c->second, 42);
 }
 
 TEST(FrameList, RangesStepsAndSingles)
@@ -123,4 +127,65 @@ TEST(Sequence, NothingOnDiskIsAnIoError)
     testutil::TempDir dir;
     EXPECT_THROW(turbio::resolveSequence(dir / "none.####.vdb"), turb::IoError);
     EXPECT_THROW(turbio::resolveSequence(dir / "none.vdb"), turb::IoError);
+}
+
+TEST(FramePattern, BracedHoudiniTokenAndMessagesInTheUsersOwnForm)
+{
+    EXPECT_EQ(FramePattern::parse("a.${F4}.vdb").format(12), "a.0012.vdb");
+    EXPECT_EQ(FramePattern::parse("a.${F}.vdb").format(12), "a.12.vdb");
+    EXPECT_FALSE(FramePattern::parse("a.${X}.vdb").numbered());
+    EXPECT_EQ(FramePattern::parse("a.$F.vdb").str(), "a.$F.vdb") << "never the internal '@' form";
+    testutil::TempDir dir;
+    try {
+        turbio::resolveSequence(dir / "none.$F.vdb");
+        FAIL();
+    } catch (const turb::IoError& e) {
+        const std::string m = e.what();
+        EXPECT_NE(m.find("none.$F.vdb"), std::string::npos) << m;
+        EXPECT_EQ(m.find('@'), std::string::npos) << m;
+    }
+}
+
+TEST(Sequence, ALoneNumberedFileKeepsItsFrameNumber)
+{
+    testutil::TempDir dir;
+    std::ofstream(dir / "pyro.1001.vdb") << "x";
+    const auto seq = turbio::resolveSequence(dir / "pyro.1001.vdb");
+    ASSERT_EQ(seq.frames, (std::vector<int>{1001}));
+    EXPECT_EQ(seq.path(1001), dir / "pyro.1001.vdb");
+    EXPECT_TRUE(seq.missing.empty());
+    // A file without a frame number stays frame 0.
+    std::ofstream(dir / "smoke.vdb") << "x";
+    EXPECT_EQ(turbio::resolveSequence(dir / "smoke.vdb").frames, (std::vector<int>{0}));
+}
+
+TEST(Sequence, NoMatchSaysWhichPaddingsExist)
+{
+    testutil::TempDir dir;
+    for (int f = 1; f <= 3; ++f) std::ofstream(dir / ("fluid_data_000" + std::to_string(f) + ".vdb")) << "x";
+    try {
+        turbio::resolveSequence(dir / "fluid_data_###.vdb");
+        FAIL();
+    } catch (const turb::IoError& e) {
+        const std::string m = e.what();
+        EXPECT_NE(m.find("fluid_data_####.vdb (3 files, 4-digit"), std::string::npos) << m;
+        EXPECT_NE(m.find("$F4"), std::string::npos) << m;
+    }
+    // A directory given as the cache names the sequences it holds.
+    try {
+        turbio::resolveSequence(dir.path());
+        FAIL();
+    } catch (const turb::IoError& e) {
+        const std::string m = e.what();
+        EXPECT_NE(m.find("is a directory"), std::string::npos) << m;
+        EXPECT_NE(m.find("fluid_data_####.vdb (3 files)"), std::string::npos) << m;
+        EXPECT_EQ(m.find("no such file"), std::string::npos) << m;
+    }
+    // Another name in the same directory: the sequences that are there.
+    try {
+        turbio::resolveSequence(dir / "density_####.vdb");
+        FAIL();
+    } catch (const turb::IoError& e) {
+        EXPECT_NE(std::string(e.what()).find("holds " + dir.path() + "/fluid_data_####.vdb"), std::string::npos) << e.what();
+    }
 }

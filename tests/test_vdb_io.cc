@@ -8,6 +8,10 @@
 #include <openvdb/io/File.h>
 
 #include <cmath>
+#include <csignal>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
 #include <fstream>
 
 using namespace turbio;
@@ -314,7 +318,7 @@ TEST(BadInput, EveryErrorNamesTheFileAndTheProblem)
     writeGrids(dir / "d.vdb", {densityBox(openvdb::CoordBBox({0, 0, 0}, {2, 2, 2}), 1.0f)});
     const std::string noVel = errorOf([&] { readFrame(dir / "d.vdb", 1, ReadOptions{}); });
     EXPECT_NE(noVel.find("no velocity"), std::string::npos) << noVel;
-    EXPECT_NE(noVel.find("the file has: density"), std::string::npos) << noVel;
+    EXPECT_NE(noVel.find("the file has: #0 'density' float fog volume"), std::string::npos) << noVel;
     EXPECT_NE(noVel.find("--vel-grid"), std::string::npos) << noVel;
 
     // A newer file format (OpenVDB 13 writes 225).
@@ -337,12 +341,19 @@ TEST(BadInput, EveryErrorNamesTheFileAndTheProblem)
     EXPECT_NE(nanMsg.find("'density'"), std::string::npos) << nanMsg;
     EXPECT_NE(nanMsg.find("NaN"), std::string::npos) << nanMsg;
 
-    // Mismatched transforms between the grids of one frame.
-    auto d2 = densityBox(openvdb::CoordBBox({0, 0, 0}, {2, 2, 2}), 1.0f, 0.1);
-    auto v2 = linearMac(openvdb::CoordBBox({0, 0, 0}, {2, 2, 2}), "vel", 0.2);
-    writeGrids(dir / "mismatch.vdb", {d2, v2});
-    const std::string mm = errorOf([&] { readFrame(dir / "mismatch.vdb", 1, ReadOptions{}); });
-    EXPECT_NE(mm.find("does not share the transform"), std::string::npos) << mm;
+    // Velocity components on different lattices cannot form one vector.
+    auto cx = openvdb::FloatGrid::create(0.0f), cy = openvdb::FloatGrid::create(0.0f), cz = openvdb::FloatGrid::create(0.0f);
+    for (auto* c : {&cx, &cy, &cz}) (*c)->fill(openvdb::CoordBBox({0, 0, 0}, {2, 2, 2}), 1.0f, true);
+    cx->setName("vel.x");
+    cy->setName("vel.y");
+    cz->setName("vel.z");
+    cx->setTransform(xform(0.1));
+    cy->setTransform(xform(0.1));
+    cz->setTransform(xform(0.2));
+    writeGrids(dir / "mismatch.vdb", {cx, cy, cz});
+    const std::string mm = errorOf([&] { readFrame(dir / "mismatch.vdb", 1, anyGrids()); });
+    EXPECT_NE(mm.find("different lattices"), std::string::npos) << mm;
+    EXPECT_NE(mm.find("'vel.x'"), std::string::npos) << mm;
 
     // Rotated transforms are refused.
     auto rot = densityBox(openvdb::CoordBBox({0, 0, 0}, {2, 2, 2}), 1.0f);
@@ -362,4 +373,153 @@ TEST(BadInput, EveryErrorNamesTheFileAndTheProblem)
     ReadOptions asDensity = anyGrids();
     asDensity.densityGrid = "flags";
     EXPECT_NE(errorOf([&] { readFrame(dir / "flags.vdb", 1, asDensity); }).find("int32"), std::string::npos);
+}
+
+TEST(Lattices, HoudiniVelocityVoxelScaleIsResampledOntoTheDensity)
+{
+    // Houdini's "Velocity Voxel Scale" 2: vel at voxel 0.2, density at 0.1, both cell-centred from the same
+    // origin. Velocity is the linear field u(x) = A x + c (world units), which trilinear resampling keeps exactly.
+    testutil::TempDir dir;
+    auto d = densityBox(openvdb::CoordBBox({0, 0, 0}, {9, 9, 9}), 0.5f, 0.1);
+    auto v = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.0f));
+    auto acc = v->getAccessor();
+    for (auto c = openvdb::CoordBBox({-1, -1, -1}, {6, 6, 6}).begin(); c; ++c) {
+        const openvdb::Vec3d x = openvdb::Vec3d((*c).x(), (*c).y(), (*c).z()) * 0.2;
+        acc.setValue(*c, openvdb::Vec3s(float(linear(0, x)), float(linear(1, x)), float(linear(2, x))));
+    }
+    v->setName("vel");
+    v->setTransform(xform(0.2));
+    writeGrids(dir / "pyro.vdb", {d, v});
+
+    ReadReport report;
+    const turb::Frame f = readFrame(dir / "pyro.vdb", 1, ReadOptions{}, &report);
+    EXPECT_DOUBLE_EQ(f.lattice().voxelSize, 0.1);
+    EXPECT_TRUE(f.density.lattice().approxEqual(f.velocity.lattice()));
+    ASSERT_EQ(report.notes.size(), 1u);
+    EXPECT_NE(report.notes[0].find("resampled"), std::string::npos) << report.notes[0];
+    EXPECT_NE(report.notes[0].find("voxel scale 2"), std::string::npos) << report.notes[0];
+    double worst = 0.0;
+    int checked = 0;
+    for (int i = 0; i <= 9; ++i)
+        for (int j = 0; j <= 9; ++j)
+            for (int k = 0; k <= 9; ++k) {
+                const openvdb::Vec3d x = openvdb::Vec3d(i, j, k) * 0.1;
+                for (int a = 0; a < 3; ++a) worst = std::max(worst, std::abs(f.velocity(i, j, k)[a] - linear(a, x)));
+                ++checked;
+            }
+    EXPECT_EQ(checked, 1000);
+    EXPECT_LT(worst, 1e-5);
+    // Outside vel's cells (more than half a vel voxel beyond its box) nothing is invented.
+    EXPECT_EQ(f.velocity.bbox().max().x(), 13) << "domain: the union of density and vel's cells on density's lattice";
+}
+
+TEST(GridIdentity, UnnamedGridsKeepTheirOwnStatisticsAndCanBeChosen)
+{
+    // The VDB Convert SOP can write grids without names: a float density and a vec3 velocity, both "".
+    testutil::TempDir dir;
+    auto d = densityBox(openvdb::CoordBBox({0, 0, 0}, {3, 3, 3}), 0.25f);
+    d->tree().setValue(openvdb::Coord(1, 1, 1), 0.875f);
+    d->setName("");
+    auto v = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.0f));
+    v->fill(openvdb::CoordBBox({0, 0, 0}, {3, 3, 3}), openvdb::Vec3s(0.6f, 0.8f, 0.0f), true); // |v| = 1
+    v->tree().setValue(openvdb::Coord(2, 2, 2), openvdb::Vec3s(0.0f, 1.2f, 0.0f));             // |v| = 1.2
+    v->setTransform(xform(0.1));
+    writeGrids(dir / "unnamed.vdb", {d, v});
+
+    const FileInfo info = inspectFile(dir / "unnamed.vdb", true);
+    ASSERT_EQ(info.grids.size(), 2u);
+    for (const auto& g : info.grids) {
+        EXPECT_TRUE(g.name.empty());
+        ASSERT_TRUE(g.hasRange) << g.selector;
+        if (g.valueType == "float") {
+            EXPECT_NEAR(g.minValue, 0.25, 1e-6);
+            EXPECT_NEAR(g.maxValue, 0.875, 1e-6);
+        } else {
+            EXPECT_NEAR(g.minValue, 1.0, 1e-6) << "the vec3 grid's own magnitudes, not the float grid's values";
+            EXPECT_NEAR(g.maxValue, 1.2, 1e-6);
+        }
+    }
+    EXPECT_NE(info.grids[0].selector, info.grids[1].selector);
+    EXPECT_EQ(info.grids[0].index, 0);
+    EXPECT_EQ(info.grids[1].index, 1);
+
+    // The error lists what is there (index, type, class) and how to choose.
+    ReadOptions o;
+    o.optionPrefix = "target-";
+    const std::string err = errorOf([&] { readFrame(dir / "unnamed.vdb", 1, o); });
+    EXPECT_NE(err.find("#0 (unnamed)"), std::string::npos) << err;
+    EXPECT_NE(err.find("float fog volume"), std::string::npos) << err;
+    EXPECT_NE(err.find("vec3s"), std::string::npos) << err;
+    EXPECT_NE(err.find("--target-density-grid"), std::string::npos) << err;
+    EXPECT_EQ(err.find("none of the requested"), std::string::npos) << err;
+
+    // Chosen by file position or by OpenVDB's unique name.
+    const int fi = info.grids[0].valueType == "float" ? 0 : 1;
+    o.densityGrid = "#" + std::to_string(fi);
+    o.velocityGrid = info.grids[1 - fi].selector;
+    const turb::Frame f = readFrame(dir / "unnamed.vdb", 1, o);
+    EXPECT_FLOAT_EQ(f.density(1, 1, 1), 0.875f);
+    EXPECT_FLOAT_EQ(f.velocity(2, 2, 2)[1], 1.2f);
+    o.densityGrid = "#7";
+    EXPECT_NE(errorOf([&] { readFrame(dir / "unnamed.vdb", 1, o); }).find("no '#7' grid"), std::string::npos);
+}
+
+TEST(GridAliases, SelectorsByPositionAndUniqueName)
+{
+    const std::vector<std::string> names{"[0]", "density", "density[1]", "vel"};
+    EXPECT_EQ(resolveGrid(names, GridRole::Density, "#0"), (std::vector<std::string>{"[0]"}));
+    EXPECT_EQ(resolveGrid(names, GridRole::Density, "#2"), (std::vector<std::string>{"density[1]"}));
+    EXPECT_EQ(resolveGrid(names, GridRole::Density, "density[0]"), (std::vector<std::string>{"density"}));
+    EXPECT_EQ(resolveGrid(names, GridRole::Density, "density[1]"), (std::vector<std::string>{"density[1]"}));
+    EXPECT_TRUE(resolveGrid(names, GridRole::Density, "#4").empty());
+    EXPECT_TRUE(resolveGrid(names, GridRole::Density, "#").empty());
+    // Two grids named 'density' are "density[0]" and "density[1]": the name alone is the first.
+    const std::vector<std::string> dup{"density[0]", "vel", "density[1]"};
+    EXPECT_EQ(resolveGrid(dup, GridRole::Density), (std::vector<std::string>{"density[0]"}));
+    EXPECT_EQ(resolveGrid(dup, GridRole::Density, "density"), (std::vector<std::string>{"density[0]"}));
+}
+
+TEST(Writing, AFileSizeLimitIsAClearErrorAndLeavesNoFile)
+{
+    // RLIMIT_FSIZE with SIGXFSZ ignored: write() fails with EFBIG, as on a full disk with ENOSPC.
+    testutil::TempDir dir;
+    turb::Frame f;
+    f.density = turb::ScalarField(turb::CoordBBox({0, 0, 0}, {63, 63, 63}), turb::Lattice{}, 0.0f);
+    for (size_t n = 0; n < f.density.size(); ++n) f.density.data()[n] = float(n % 977) / 977.0f; // incompressible-ish
+    const pid_t pid = ::fork();
+    if (pid == 0) {
+        ::signal(SIGXFSZ, SIG_IGN);
+        struct rlimit rl{64 * 1024, 64 * 1024};
+        ::setrlimit(RLIMIT_FSIZE, &rl);
+        try {
+            writeFrame(dir / "big.vdb", f, WriteOptions{});
+            ::_exit(10);
+        } catch (const turb::IoError& e) {
+            const std::string m = e.what();
+            const bool named = m.find("big.vdb") != std::string::npos;
+            const bool said = m.find("file-size limit") != std::string::npos;
+            ::_exit(named && said ? 0 : 11);
+        } catch (...) {
+            ::_exit(12);
+        }
+    }
+    int status = 0;
+    ::waitpid(pid, &status, 0);
+    ASSERT_TRUE(WIFEXITED(status)) << "killed by signal " << WTERMSIG(status);
+    EXPECT_EQ(WEXITSTATUS(status), 0) << "10: no error, 11: message lacks the file or the reason";
+    EXPECT_EQ(testutil::countEntries(dir.path()), 0u) << "no partial or temporary file";
+}
+
+TEST(BadInput, AFrameTooLargeToLoadNamesTheGridAndItsSpan)
+{
+    // Two density voxels 20000 apart: a sparse cache that is fine on disk and impossible densely.
+    testutil::TempDir dir;
+    auto d = densityBox(openvdb::CoordBBox({0, 0, 0}, {3, 3, 3}), 1.0f);
+    d->tree().setValue(openvdb::Coord(20000, 20000, 20000), 1.0f);
+    auto v = linearMac(openvdb::CoordBBox({0, 0, 0}, {3, 3, 3}), "vel", 0.1);
+    writeGrids(dir / "sparse.vdb", {d, v});
+    const std::string e = errorOf([&] { readFrame(dir / "sparse.vdb", 1, ReadOptions{}); });
+    EXPECT_NE(e.find("sparse.vdb: not enough memory to load the frame"), std::string::npos) << e;
+    EXPECT_NE(e.find("grid 'density' [0, 0, 0]-[20000, 20000, 20000] (20001x20001x20001 voxels)"), std::string::npos) << e;
+    EXPECT_NE(e.find("grid 'vel' [0, 0, 0]-[3, 3, 3] (4x4x4 voxels)"), std::string::npos) << e;
 }

@@ -19,6 +19,7 @@ struct Command
     std::string help;
     std::function<void(CLI::App*)> setup; ///< declares the options
     std::function<int()> run;             ///< returns an exit code
+    unsigned globals = 7;                 ///< which shared options apply (Console.h GlobalOption bits)
 };
 
 Command infoCommand();

@@ -3,7 +3,9 @@
 #include <csignal>
 #include <cstdio>
 #include <iostream>
+#include <algorithm>
 #include <mutex>
+#include <set>
 #include <unistd.h>
 
 namespace vdbturb {
@@ -25,13 +27,16 @@ Globals& globals()
     return g;
 }
 
-void addGlobalOptions(CLI::App* app)
+void addGlobalOptions(CLI::App* app, unsigned which)
 {
     app->add_flag_callback("-v,--verbose", [] { globals().verbosity = 2; }, "Print details: solver iterations, timings");
     app->add_flag_callback("-q,--quiet", [] { globals().verbosity = 0; }, "Print errors only");
-    app->add_option("--threads", globals().threads, "Worker threads (0 = all cores); results do not depend on it")
-        ->check(CLI::NonNegativeNumber);
-    app->add_flag("--dry-run", globals().dryRun, "Resolve inputs, print what would be done, write nothing");
+    if (which & kThreads)
+        app->add_option("--threads", globals().threads, "Worker threads (0 = all cores); results do not depend on it")
+            ->check(CLI::NonNegativeNumber);
+    if (which & kDryRun)
+        app->add_flag("--dry-run", globals().dryRun,
+            "Check everything the run needs (every input's headers, the output paths, memory), print the plan, write nothing");
 }
 
 void installSignalHandlers()
@@ -68,6 +73,49 @@ void logInfo(const std::string& msg)
 void logVerbose(const std::string& msg)
 {
     if (globals().verbosity >= 2) emit("  ", msg);
+}
+
+void printData(const std::string& text, bool toStderr)
+{
+    if (globals().verbosity < 1) return;
+    std::lock_guard<std::mutex> lock(gLogMutex);
+    std::FILE* out = toStderr ? stderr : stdout;
+    if (toStderr && stderrIsTty()) std::fputs("\r\033[K", stderr);
+    std::fputs(text.c_str(), out);
+    if (!text.empty() && text.back() != '\n') std::fputc('\n', out);
+    std::fflush(out);
+}
+
+std::string alignColumns(const std::vector<std::vector<std::string>>& rows, const std::string& indent)
+{
+    std::vector<size_t> width;
+    for (const auto& r : rows)
+        for (size_t c = 0; c < r.size(); ++c) {
+            if (width.size() <= c) width.resize(c + 1, 0);
+            width[c] = std::max(width[c], r[c].size());
+        }
+    std::string out;
+    for (const auto& r : rows) {
+        std::string line = indent;
+        for (size_t c = 0; c < r.size(); ++c) {
+            line += r[c];
+            if (c + 1 < r.size()) line += std::string(width[c] - r[c].size() + 2, ' ');
+        }
+        while (!line.empty() && line.back() == ' ') line.pop_back();
+        out += line + "\n";
+    }
+    return out;
+}
+
+void warnOnce(const std::string& key, const std::string& warning)
+{
+    static std::mutex m;
+    static std::set<std::string> seen;
+    {
+        std::lock_guard<std::mutex> lock(m);
+        if (!seen.insert(key).second) return;
+    }
+    logWarning(warning);
 }
 
 ConsoleProgress::ConsoleProgress(int frameIndex, int frameCount, int frameNumber)

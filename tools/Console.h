@@ -10,6 +10,7 @@
 #include <atomic>
 #include <chrono>
 #include <string>
+#include <vector>
 
 namespace vdbturb {
 
@@ -25,8 +26,11 @@ struct Globals
 
 Globals& globals();
 
-/// Adds -v/-q/--threads/--dry-run to a subcommand.
-void addGlobalOptions(CLI::App* app);
+/// Which of the shared options a command takes: only those that mean something for it.
+enum GlobalOption : unsigned { kVerbosity = 1, kThreads = 2, kDryRun = 4, kAllGlobals = 7 };
+
+/// Adds -v/-q and, as `which` says, --threads and --dry-run to a subcommand.
+void addGlobalOptions(CLI::App* app, unsigned which = kAllGlobals);
 
 /// Installs the SIGINT/SIGTERM handler that turns Ctrl-C into a cancellation request.
 void installSignalHandlers();
@@ -36,6 +40,16 @@ void logError(const std::string& msg);   ///< always printed: "vdbturb: error: m
 void logWarning(const std::string& msg); ///< printed unless -q
 void logInfo(const std::string& msg);    ///< printed unless -q
 void logVerbose(const std::string& msg); ///< printed with -v
+/// A command's data for people (info's tables, a dry run's plan): stdout unless -q; `toStderr` keeps stdout
+/// free for JSON.
+void printData(const std::string& text, bool toStderr = false);
+
+/// Rows of cells as text with every column padded to its widest cell, one line per row, each prefixed by
+/// `indent`.
+std::string alignColumns(const std::vector<std::vector<std::string>>& rows, const std::string& indent = "  ");
+
+/// Logs `warning` once per process for each distinct `key` (conventions assumed, conversions made).
+void warnOnce(const std::string& key, const std::string& warning);
 
 /// True when stderr is a terminal (progress bar) rather than a farm log (one line per frame).
 bool stderrIsTty();

@@ -1,7 +1,8 @@
-// vdbturb info PATTERN: what a cache holds, from file headers.
+// vdbturb info PATTERN: what a cache holds, from file headers. The tables are the command's data: stdout.
 #include "Commands.h"
 #include "Console.h"
 
+#include <turbio/Scan.h>
 #include <turbio/Sequence.h>
 #include <turbio/Vdb.h>
 #include <turb/Error.h>
@@ -38,13 +39,31 @@ std::string fmtCoord(const turb::Coord& c)
 std::string fmtVec(const turb::Vec3d& v)
 {
     char buf[96];
-    std::snprintf(buf, sizeof(buf), "(%g,%g,%g)", v.x(), v.y(), v.z());
+    std::snprintf(buf, sizeof(buf), "(%.4g,%.4g,%.4g)", v.x(), v.y(), v.z());
     return buf;
 }
+
+std::string fmtNum(const char* f, double v)
+{
+    char buf[64];
+    std::snprintf(buf, sizeof(buf), f, v);
+    return buf;
+}
+
+// World-space extent of the cells of index box `b`: from the low corner of its first voxel to the high
+// corner of its last.
+std::pair<turb::Vec3d, turb::Vec3d> worldBounds(const turb::CoordBBox& b, double voxel, const turb::Vec3d& origin)
+{
+    return {origin + (b.min().asVec3d() - turb::Vec3d(0.5)) * voxel, origin + (b.max().asVec3d() + turb::Vec3d(0.5)) * voxel};
+}
+
+nlohmann::json vecJson(const turb::Vec3d& v) { return {v.x(), v.y(), v.z()}; }
 
 nlohmann::json gridJson(const turbio::GridInfo& g)
 {
     nlohmann::json j;
+    j["index"] = g.index;
+    j["selector"] = g.selector;
     j["name"] = g.name;
     j["type"] = g.valueType;
     j["class"] = g.gridClass;
@@ -53,59 +72,125 @@ nlohmann::json gridJson(const turbio::GridInfo& g)
     if (!g.units.empty()) j["units"] = g.units;
     j["half_float"] = g.halfFloat;
     j["voxel_size"] = g.voxelSize;
-    j["origin"] = {g.origin.x(), g.origin.y(), g.origin.z()};
+    j["origin"] = vecJson(g.origin);
     j["map"] = g.mapType;
     j["supported_transform"] = g.supportedTransform;
-    if (g.hasBBox)
+    if (g.hasBBox) {
         j["active_bbox"] = {{g.activeBBox.min().x(), g.activeBBox.min().y(), g.activeBBox.min().z()},
             {g.activeBBox.max().x(), g.activeBBox.max().y(), g.activeBBox.max().z()}};
-    else
+        const auto wb = worldBounds(g.activeBBox, g.voxelSize, g.origin);
+        j["world_bounds"] = {vecJson(wb.first), vecJson(wb.second)};
+    } else {
         j["active_bbox"] = nullptr;
+        j["world_bounds"] = nullptr;
+    }
     j["active_voxels"] = g.activeVoxels;
     if (g.hasRange) j["value_range"] = {g.minValue, g.maxValue};
     else j["value_range"] = nullptr;
     return j;
 }
 
-void printGridTable(const turbio::FileInfo& fi)
+std::string gridTable(const turbio::FileInfo& fi)
 {
-    logInfo("  file format " + std::to_string(fi.fileVersion) + ", written by OpenVDB " + fi.libraryVersion +
-            (fi.creator.empty() ? "" : ", creator '" + fi.creator + "'") +
-            (fi.baseResolution ? ", Blender domain " + fmtCoord(*fi.baseResolution) : ""));
-    for (const auto& g : fi.grids) {
-        char line[512];
-        std::string range = g.hasRange ? "" : "-";
-        if (g.hasRange) {
-            char r[96];
-            std::snprintf(r, sizeof(r), "[%.4g, %.4g]%s", g.minValue, g.maxValue,
-                (g.valueType.rfind("vec", 0) == 0) ? " |v|" : "");
-            range = r;
-        }
-        std::snprintf(line, sizeof(line), "  %-20s %-6s %-11s %-9s%s voxel %-8g origin %-22s bbox %s-%s  %lld active  range %s%s",
-            g.name.c_str(), g.valueType.c_str(), g.gridClass.c_str(), turbio::roleName(g.role),
-            g.units.empty() ? "" : (" [" + g.units + "]").c_str(), g.voxelSize, fmtVec(g.origin).c_str(),
-            g.hasBBox ? fmtCoord(g.activeBBox.min()).c_str() : "(empty)",
-            g.hasBBox ? fmtCoord(g.activeBBox.max()).c_str() : "", g.activeVoxels, range.c_str(),
-            g.supportedTransform ? "" : ("  UNSUPPORTED " + g.mapType).c_str());
-        logInfo(line);
+    std::string out = "  file format " + std::to_string(fi.fileVersion) + ", written by OpenVDB " + fi.libraryVersion +
+                      (fi.creator.empty() ? "" : ", creator '" + fi.creator + "'");
+    if (fi.baseResolution) {
+        const turb::Coord r = *fi.baseResolution;
+        out += ", Blender domain " + std::to_string(r.x()) + "x" + std::to_string(r.y()) + "x" + std::to_string(r.z());
     }
+    out += "\n";
+    std::vector<std::vector<std::string>> rows{
+        {"#", "grid", "type", "class", "role", "voxel", "origin", "active box (index)", "world bounds", "active", "values"}};
+    for (const auto& g : fi.grids) {
+        std::string range = "-";
+        if (g.hasRange)
+            range = "[" + fmtNum("%.4g", g.minValue) + ", " + fmtNum("%.4g", g.maxValue) + "]" +
+                    (g.valueType.rfind("vec", 0) == 0 ? " |v|" : "");
+        std::string role = turbio::roleName(g.role);
+        if (!g.units.empty()) role += " (" + g.units + ")";
+        std::string box = "(empty)", bounds = "-";
+        if (g.hasBBox) {
+            box = fmtCoord(g.activeBBox.min()) + "-" + fmtCoord(g.activeBBox.max());
+            const auto wb = worldBounds(g.activeBBox, g.voxelSize, g.origin);
+            bounds = fmtVec(wb.first) + "-" + fmtVec(wb.second);
+        }
+        std::string name = g.name.empty() ? "(unnamed) " + g.selector : g.name;
+        if (!g.name.empty() && g.selector != g.name) name += " (" + g.selector + ")";
+        rows.push_back({std::to_string(g.index), name, g.valueType, g.gridClass, role, fmtNum("%g", g.voxelSize),
+            fmtVec(g.origin), box, bounds, g.activeVoxels < 0 ? "?" : std::to_string(g.activeVoxels),
+            range + (g.supportedTransform ? "" : "  UNSUPPORTED " + g.mapType + " transform")});
+    }
+    return out + alignColumns(rows, "  ");
+}
+
+// What the frames can drive, from the grids a read found (said plainly: a density-only file is valid
+// but cannot be a transfer target or source).
+std::string usability(bool density, bool velocity)
+{
+    if (density && velocity) return "velocity and density: usable by transfer (target or source), synth, measure and preview";
+    if (velocity) return "velocity without density: usable by synth (no smoke mask), measure's --output and preview's "
+                         "speed/vorticity/lic; transfer needs density in target and source";
+    if (density) return "density only, no velocity grid: it cannot drive transfer (target or source) or synth; usable by "
+                        "preview --mode density";
+    return "neither density nor velocity: no command can use it";
 }
 
 int runInfo(const InfoArgs& a)
 {
     const turbio::Sequence seq = turbio::resolveSequence(a.pattern, a.frames);
-    const bool numbered = seq.pattern.numbered();
-    logInfo("sequence " + seq.pattern.str() + ": " + std::to_string(seq.frames.size()) + " frame" +
-            (seq.frames.size() == 1 ? "" : "s") +
-            (numbered ? " (" + turbio::formatFrameList(seq.frames) + ")" : "") +
-            ", missing: " + (seq.missing.empty() ? "none" : turbio::formatFrameList(seq.missing)));
+    const bool toStderr = a.json; // stdout carries the JSON then
+    std::string head = "sequence " + seq.pattern.str() + ": " + std::to_string(seq.frames.size()) + " frame" +
+                       (seq.frames.size() == 1 ? "" : "s") +
+                       (seq.pattern.numbered() ? " (" + turbio::formatFrameList(seq.frames) + ")" : "") +
+                       ", missing: " + (seq.missing.empty() ? "none" : turbio::formatFrameList(seq.missing));
+
+    // Headers of every frame: the lattice, its changes, dt and units with their sources.
+    turbio::ReadOptions ro = a.read;
+    ro.requireDensity = !ro.densityGrid.empty();
+    ro.requireVelocity = !ro.velocityGrid.empty();
+    const turbio::SequenceScan scan = turbio::scanSequence(seq, seq.frames, ro);
+    const turbio::FrameScan* first = nullptr;
+    for (const auto& f : scan.frames)
+        if (f.error.empty()) {
+            first = &f;
+            break;
+        }
+    if (first) {
+        const turbio::ReadReport& t = first->timing;
+        head += "\nlattice: voxel " + fmtNum("%g", first->lattice.voxelSize) + ", origin " + fmtVec(first->lattice.origin) +
+                (scan.changes.empty() ? std::string(", the same in every frame")
+                                      : "; CHANGES within the sequence: " + scan.describeChanges());
+        const auto wb = worldBounds(first->domain, first->lattice.voxelSize, first->lattice.origin);
+        const turb::Coord d = first->domain.dim();
+        head += "\ndomain (frame " + std::to_string(first->frame) + "): " + std::to_string(d.x()) + "x" + std::to_string(d.y()) +
+                "x" + std::to_string(d.z()) + " voxels, world " + fmtVec(wb.first) + "-" + fmtVec(wb.second);
+        head += "\ndt: " + fmtNum("%.6g", t.dt) + " per frame (" + t.dtSource + ")";
+        if (t.fpsSource != "not used") head += "; fps " + fmtNum("%g", t.fps) + " (" + t.fpsSource + ")";
+        if (!first->velocityGrid.empty())
+            head += "\nvelocity units: " +
+                    (t.cells ? "grid cells per time unit, x voxel " + fmtNum("%g", first->lattice.voxelSize) + " = world units"
+                             : std::string("world units per time unit")) +
+                    " (" + t.unitsSource + ")";
+        for (const auto& n : t.notes) head += "\nnote: " + n;
+    }
+    printData(head, toStderr);
 
     nlohmann::json out;
     out["pattern"] = seq.pattern.str();
     out["frames"] = seq.frames;
     out["missing"] = seq.missing;
+    out["lattice_changes"] = nlohmann::json::array();
+    for (const auto& c : scan.changes)
+        out["lattice_changes"].push_back({{"from_frame", c.fromFrame}, {"to_frame", c.toFrame}, {"from_path", c.fromPath},
+            {"to_path", c.toPath}, {"from_voxel", c.from.voxelSize}, {"to_voxel", c.to.voxelSize},
+            {"from_origin", vecJson(c.from.origin)}, {"to_origin", vecJson(c.to.origin)}});
+    if (first)
+        out["timing"] = {{"dt", first->timing.dt}, {"dt_source", first->timing.dtSource}, {"fps", first->timing.fps},
+            {"fps_source", first->timing.fpsSource}, {"velocity_units", first->timing.cells ? "cells" : "world"},
+            {"units_source", first->timing.unitsSource}, {"convention_assumed", first->timing.conventionAssumed}};
     out["files"] = nlohmann::json::array();
     int failures = 0;
+    bool anyDensity = false, anyVelocity = false;
     for (size_t i = 0; i < seq.frames.size(); ++i) {
         const int frame = seq.frames[i];
         const std::string path = seq.path(frame);
@@ -119,12 +204,16 @@ int runInfo(const InfoArgs& a)
             const turbio::FileInfo fi = turbio::inspectFile(path, values);
             if (a.validate) {
                 // Read the frame exactly as the other commands would: every voxel, NaN/Inf checks.
-                turbio::ReadOptions ro = a.read;
-                ro.requireDensity = !ro.densityGrid.empty();
-                ro.requireVelocity = !ro.velocityGrid.empty();
-                const turb::Frame f = turbio::readFrame(path, frame, ro);
+                turbio::ReadReport report;
+                const turb::Frame f = turbio::readFrame(path, frame, ro, &report);
                 fj["valid"] = true;
                 fj["dt"] = f.dt;
+                fj["dt_source"] = report.dtSource;
+                fj["has_density"] = f.hasDensity();
+                fj["has_velocity"] = f.hasVelocity();
+                fj["usable"] = usability(f.hasDensity(), f.hasVelocity());
+                anyDensity = anyDensity || f.hasDensity();
+                anyVelocity = anyVelocity || f.hasVelocity();
             }
             fj["file_version"] = fi.fileVersion;
             fj["library_version"] = fi.libraryVersion;
@@ -133,15 +222,17 @@ int runInfo(const InfoArgs& a)
                 fj["blender_base_resolution"] = {fi.baseResolution->x(), fi.baseResolution->y(), fi.baseResolution->z()};
             fj["grids"] = nlohmann::json::array();
             for (const auto& g : fi.grids) fj["grids"].push_back(gridJson(g));
-            if (i == 0 || a.allValues || globals().verbosity >= 2) {
-                logInfo("frame " + std::to_string(frame) + ": " + path);
-                printGridTable(fi);
+            bool changed = false;
+            for (const auto& c : scan.changes) changed = changed || c.toFrame == frame;
+            if (i == 0 || a.allValues || changed || globals().verbosity >= 2) {
+                printData("frame " + std::to_string(frame) + ": " + path + (changed ? "  (lattice changes here)" : "") + "\n" +
+                              gridTable(fi),
+                    toStderr);
             } else {
                 std::string s = "frame " + std::to_string(frame) + ":";
                 for (const auto& g : fi.grids)
-                    if (g.role != turbio::GridRole::Other)
-                        s += " " + g.name + "=" + std::to_string(g.activeVoxels);
-                logInfo(s + " active voxels");
+                    if (g.role != turbio::GridRole::Other) s += " " + g.name + "=" + std::to_string(g.activeVoxels);
+                printData(s + " active voxels", toStderr);
             }
         } catch (const turb::Error& e) {
             ++failures;
@@ -149,6 +240,13 @@ int runInfo(const InfoArgs& a)
             logError(e.what());
         }
         out["files"].push_back(fj);
+    }
+    if (a.validate) {
+        const std::string verdict = failures ? std::to_string(failures) + " of " + std::to_string(seq.frames.size()) +
+                                                   " frames fail to read"
+                                             : "every frame reads";
+        printData("validate: " + verdict + "; " + usability(anyDensity, anyVelocity), toStderr);
+        out["usable"] = usability(anyDensity, anyVelocity);
     }
     if (a.json) std::cout << out.dump(1) << std::endl;
     return failures ? kFailed : kOk;
@@ -161,16 +259,19 @@ Command infoCommand()
     auto args = std::make_shared<InfoArgs>();
     Command c;
     c.name = "info";
-    c.help = "Describe a cache: frames found and missing, grids, units, transforms, bounding boxes";
+    c.help = "Describe a cache: frames found and missing, grids, lattice and its changes, world bounds, dt and units";
+    c.globals = kVerbosity;
     c.setup = [args](CLI::App* app) {
-        app->add_option("pattern", args->pattern, "Cache: a pattern (####, @, %04d, $F4) or one real file name")
+        app->add_option("pattern", args->pattern,
+               "Cache: a pattern (####, @, %04d, $F4, ${F4}; quote $ patterns in the shell) or one real file name")
             ->required();
         app->add_option("--frames", args->frames, "Frames to inspect, e.g. 1001-1100x2,1200 (default: all on disk)");
-        app->add_flag("--json", args->json, "Print a JSON report on stdout (human text stays on stderr)");
+        app->add_flag("--json", args->json, "Print a JSON report on stdout (the tables then go to stderr)");
         app->add_flag("--all-values", args->allValues, "Read every frame's voxels for value ranges (slower)");
         app->add_flag("--headers-only", args->noValues, "Read no voxels at all (no value ranges)");
         app->add_flag("--validate", args->validate,
-            "Also load every frame as transfer/measure would (all voxels, NaN/Inf checks); exit 1 on any bad frame");
+            "Also load every frame as transfer/measure would (all voxels, NaN/Inf checks), say which commands the "
+            "frames can drive; exit 1 on any bad frame");
         addReadOptions(app, args->read);
     };
     c.run = [args] { return runInfo(*args); };

@@ -2,8 +2,10 @@
 // stdout: one JSON line per frame and a summary line (always: the numbers are this command's product).
 #include "Commands.h"
 #include "Console.h"
+#include "Preflight.h"
 
 #include <turb/Error.h>
+#include <turb/Resample.h>
 #include <turb/Measure.h>
 #include <turbio/ImageIO.h>
 #include <turbio/Sequence.h>
@@ -140,13 +142,39 @@ int runMeasure(MeasureArgs& a)
     logInfo("measure: output " + out.pattern.str() + ", target " + tgt.pattern.str() +
             (src ? ", source " + src->pattern.str() : std::string(", no source")) + ", frames " +
             turbio::formatFrameList(frames));
-    if (globals().dryRun) return kOk;
-    if (!a.plotDir.empty()) std::filesystem::create_directories(a.plotDir);
 
     turbio::ReadOptions readOut = a.read, readTgt = a.read, readSrc = a.read;
     readOut.readExtras = readTgt.readExtras = readSrc.readExtras = false;
     readOut.requireDensity = false; // an up-res may carry velocity only; the target then gives the region
     readSrc.extendVelocity = a.sourceExtend;
+
+    // Every frame's headers before the first measurement (a dry run stops here). Frames are measured one by
+    // one, so a lattice that changes within a sequence is read frame by frame; tcoh skips the change.
+    const turbio::SequenceScan outScan = checkInput("measure", "output", out, frames, readOut, LatticePolicy::Report);
+    const turbio::SequenceScan tgtScan = checkInput("measure", "target", tgt, frames, readTgt, LatticePolicy::Report);
+    reportTiming("output", outScan, true);
+    reportTiming("target", tgtScan, true);
+    if (src) {
+        const turbio::SequenceScan srcScan = checkInput("measure", "source", *src, src->frames, readSrc, LatticePolicy::Report);
+        reportTiming("source", srcScan, true);
+    }
+    // An up-res sits on a lattice an integer number of times finer than its target's.
+    if (!outScan.frames.empty() && !tgtScan.frames.empty()) {
+        const turbio::FrameScan& o = outScan.frames.front();
+        const turbio::FrameScan& t = tgtScan.frames.front();
+        if (!turb::isIntegerRatio(t.lattice.voxelSize, o.lattice.voxelSize))
+            throw turb::ValueError("the output " + o.path + " (voxel " + std::to_string(o.lattice.voxelSize) +
+                                   ") is not an integer refinement of the target " + t.path + " (voxel " +
+                                   std::to_string(t.lattice.voxelSize) + "): ratio " +
+                                   std::to_string(t.lattice.voxelSize / o.lattice.voxelSize) + " is not an integer");
+    }
+    if (!a.plotDir.empty()) {
+        std::vector<std::string> plots{a.plotDir + "/metrics.png"};
+        for (int f : frames) plots.push_back(a.plotDir + "/" + turbio::FramePattern::parse("spectrum.####.png").format(f));
+        checkOutputs(plots, {}, false, false);
+    }
+    if (globals().dryRun) return kOk;
+    if (!a.plotDir.empty()) std::filesystem::create_directories(a.plotDir);
 
     const auto has = [](const turbio::Sequence& q, int f) {
         return std::binary_search(q.frames.begin(), q.frames.end(), f);
@@ -172,8 +200,10 @@ int runMeasure(MeasureArgs& a)
                 if (has(*src, sn)) sf = turbio::readFrame(src->path(sn), sn, readSrc);
                 else logWarning("frame " + std::to_string(f) + ": source frame " + std::to_string(sn) + " missing");
             }
-            // tcoh compares with the previous *processed* frame, over the real time between the two.
-            const bool consecutive = prevOut && prevTgt && prevOut->number < f;
+            // tcoh compares with the previous *processed* frame, over the real time between the two, and only
+            // on one lattice (a sequence whose lattice changes is measured frame by frame).
+            const bool consecutive = prevOut && prevTgt && prevOut->number < f && prevOut->lattice().approxEqual(o.lattice()) &&
+                                     prevTgt->lattice().approxEqual(t.lattice());
             turb::MeasureInput in;
             in.output = &o;
             in.target = &t;
@@ -205,9 +235,15 @@ int runMeasure(MeasureArgs& a)
             prevSrc = std::move(sf);
         } catch (const turb::Cancelled&) {
             throw;
+        } catch (const turb::IoError& e) {
+            ++failed;
+            logError("frame " + std::to_string(f) + ": " + e.what()); // names its file
+            prevOut.reset();
+            prevTgt.reset();
+            prevSrc.reset();
         } catch (const turb::Error& e) {
             ++failed;
-            logError("frame " + std::to_string(f) + ": " + e.what());
+            logError("frame " + std::to_string(f) + " (output " + out.path(f) + ", target " + tgt.path(f) + "): " + e.what());
             prevOut.reset();
             prevTgt.reset();
             prevSrc.reset();

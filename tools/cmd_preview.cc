@@ -1,6 +1,7 @@
 // vdbturb preview: pictures of caches (density render, speed/vorticity slices, LIC) and contact sheets.
 #include "Commands.h"
 #include "Console.h"
+#include "Preflight.h"
 #include "RunReport.h"
 
 #include <turb/Error.h>
@@ -225,13 +226,18 @@ int runPreview(PreviewArgs& a)
         return std::find(in.seq.frames.begin(), in.seq.frames.end(), frame) != in.seq.frames.end();
     };
 
-    if (globals().dryRun) {
+    // Every picture's frames, checked before the first is drawn; each frame is drawn on its own lattice.
+    std::vector<std::string> outputs, inputPaths;
+    for (const auto& in : inputs) {
+        checkInput("preview", in.label, in.seq, frames, read, LatticePolicy::Report);
         for (int f : frames)
-            for (const auto& in : inputs)
-                logInfo("frame " + std::to_string(f) + ": " + (exists(in, f) ? in.seq.path(f) : "(missing) " + in.seq.path(f)));
-        logInfo("would write " + (a.sheet.empty() ? turbio::FramePattern::parse(a.out).str() : a.sheet));
-        return kOk;
+            if (exists(in, f)) inputPaths.push_back(in.seq.path(f));
     }
+    if (a.sheet.empty())
+        for (int f : frames) outputs.push_back(turbio::FramePattern::parse(a.out).format(f));
+    else
+        outputs.push_back(a.sheet);
+    checkOutputs(outputs, inputPaths, false, false);
 
     int result = kOk;
     turb::withThreads(globals().threads, [&] {
@@ -329,6 +335,7 @@ Command previewCommand()
 {
     auto args = std::make_shared<PreviewArgs>();
     Command c;
+    c.globals = kVerbosity | kThreads;
     c.name = "preview";
     c.help = "Pictures of caches (PNG, EXR, TIFF, JPEG): lit density, speed/vorticity slices, LIC, and labelled contact sheets";
     c.setup = [args](CLI::App* app) {

@@ -1,6 +1,7 @@
 // vdbturb resample: box-downsample and/or turn a cache by quarter turns (proxies and test inputs).
 #include "Commands.h"
 #include "Console.h"
+#include "Preflight.h"
 #include "RunReport.h"
 
 #include <turb/Error.h>
@@ -38,8 +39,17 @@ int runResample(ResampleArgs& a)
     if (seq.frames.size() > 1 && !outPattern.numbered())
         throw turb::ValueError("--out '" + a.out + "' has no frame token but several frames are requested");
     a.read.requireDensity = a.read.requireVelocity = false;
+    // Each frame is resampled on its own, so a lattice change within the sequence is carried through.
+    const turbio::SequenceScan scan = checkInput("resample", "cache", seq, seq.frames, a.read, LatticePolicy::Report);
+    reportTiming("cache", scan, true); // the output records dt (vdbturb_dt)
+    std::vector<std::string> outputs, inputs;
+    for (int f : seq.frames) {
+        outputs.push_back(outPattern.format(f));
+        inputs.push_back(seq.path(f));
+    }
+    checkOutputs(outputs, inputs, a.write.noClobber, false);
     if (globals().dryRun) {
-        for (int f : seq.frames) logInfo("would write " + outPattern.format(f) + " from " + seq.path(f));
+        for (int f : seq.frames) printData("would write " + outPattern.format(f) + " from " + seq.path(f));
         return kOk;
     }
     RunReport report("resample", false);
@@ -65,6 +75,7 @@ Command resampleCommand()
 {
     auto args = std::make_shared<ResampleArgs>();
     Command c;
+    c.globals = kVerbosity | kDryRun;
     c.name = "resample";
     c.help = "Box-downsample a cache by an integer factor and/or turn it by quarter turns (exact)";
     c.setup = [args](CLI::App* app) {

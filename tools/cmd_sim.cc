@@ -54,7 +54,7 @@ turb::Coord parseResolution(const std::string& text)
         (c2 == 'x' || c2 == 'X'))
         return turb::Coord(x, y, z);
     if (std::sscanf(text.c_str(), "%d%c", &x, &extra) == 1) return turb::Coord(x, x, x);
-    throw turb::ValueError("--res: expected WxDxH (e.g. 16x16x24) or N, got '" + text + "'");
+    throw turb::ValueError("--res: expected NXxNYxNZ (cells along x, y, z; e.g. 16x16x24) or N, got '" + text + "'");
 }
 
 std::string resText(const turb::Coord& r)
@@ -167,8 +167,8 @@ Command simCommand()
         app->add_option("scene", a.scene, "Scene: plume, swirl, obstacle or wind (see --list)")->check(CLI::IsMember(names));
         app->add_flag("--list", a.list, "List the scenes and exit");
         app->add_option("--res", a.res,
-               "Cells WxDxH or N for a cube (default 32x32x48). The world domain is fixed per scene: 4 units wide, "
-               "voxel = 4/W; 16x16x24 and 128x128x192 cover the same 4x4x6 domain")
+               "Cells NXxNYxNZ along x, y, z (z is up), or N for a cube (default 32x32x48). The world domain is fixed "
+               "per scene: 4 units wide, voxel = 4/NX; 16x16x24 and 128x128x192 cover the same 4x4x6 domain")
             ->check(CLI::Validator(
                 [](std::string& v) {
                     try {
@@ -178,7 +178,7 @@ Command simCommand()
                     }
                     return std::string();
                 },
-                "WxDxH"));
+                "NXxNYxNZ"));
         app->add_option("--frames", a.frames, "Frames to simulate (default 60, 24 fps)")->check(CLI::PositiveNumber);
         app->add_option("--start", a.start, "Number of the first frame written (default 1)");
         app->add_option("--seed", a.seed, "Emitter noise seed; the same seed gives identical caches (default 1)");

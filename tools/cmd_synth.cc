@@ -1,9 +1,11 @@
 // vdbturb synth: motion-field texture synthesis (seed 003) over a coarse flow.
 #include "Commands.h"
 #include "Console.h"
+#include "Preflight.h"
 #include "RunReport.h"
 
 #include <scenes/Smoke.h>
+#include <turb/Budget.h>
 #include <turb/Error.h>
 #include <turb/Operators.h>
 #include <turb/Projection.h>
@@ -11,6 +13,7 @@
 #include <turb/Synth.h>
 #include <turbio/ImageIO.h>
 #include <turbio/Sequence.h>
+#include <turbio/System.h>
 #include <turbio/Vdb.h>
 
 #include <cmath>
@@ -98,7 +101,7 @@ turb::Coord parseRes(const std::string& s, const std::string& what)
         const int n = toInt(p[0], what);
         return turb::Coord(n, n, n);
     }
-    if (p.size() != 3) throw turb::ValueError(what + ": expected WxDxH or N, got '" + s + "'");
+    if (p.size() != 3) throw turb::ValueError(what + ": expected NXxNYxNZ (cells along x, y, z) or N, got '" + s + "'");
     return turb::Coord(toInt(p[0], what), toInt(p[1], what), toInt(p[2], what));
 }
 
@@ -247,6 +250,8 @@ public:
 
     const std::vector<int>& frames() const { return mFrames; }
     const std::string& label() const { return mLabel; }
+    /// The cache sequence, when the coarse motion comes from one.
+    const std::optional<turbio::Sequence>& sequence() const { return mSeq; }
 
     turb::Frame read(int frame, turb::Progress* progress)
     {
@@ -342,6 +347,9 @@ turb::Image labelled(const turb::Image& img, const std::string& label)
     return out;
 }
 
+// The synthesis carries look-back density only when the coarse input has density and it is written.
+bool cf0HasDensity(const turb::Frame& f, const SynthArgs& a) { return f.hasDensity() && !a.noDensity; }
+
 int runSynth(SynthArgs& a)
 {
     turb::SynthSettings& s = a.settings;
@@ -380,6 +388,20 @@ int runSynth(SynthArgs& a)
     if (frames.size() > 1 && !outPattern.numbered())
         throw turb::ValueError("--out '" + a.out + "' has no frame token (####, %04d, $F4) but " + std::to_string(frames.size()) +
                                " frames are requested");
+    // Before anything is read in full: every frame's headers, one lattice, the output paths.
+    std::optional<turbio::SequenceScan> scan;
+    {
+        std::vector<std::string> outputs, inputs;
+        for (int fr : frames) outputs.push_back(outPattern.format(fr));
+        if (const auto& seq = source.sequence()) {
+            turbio::ReadOptions ro = a.read;
+            ro.requireDensity = false;
+            scan = checkInput("synth", "target", *seq, frames, ro, LatticePolicy::Refuse);
+            reportTiming("target", *scan, true);
+            for (int fr : frames) inputs.push_back(seq->path(fr));
+        }
+        checkOutputs(outputs, inputs, a.write.noClobber, false);
+    }
 
     // Exemplars and views.
     if (a.exemplars.empty()) a.exemplars.push_back("circles:16");
@@ -452,11 +474,33 @@ int runSynth(SynthArgs& a)
                 (v.exemplar.planar() ? "" : "x" + std::to_string(v.exemplar.nz)) + (v.exemplar.periodic ? ", periodic" : "") +
                 ")" + (v.exemplar.planar() && volume ? ", looks along e" + std::to_string(v.normal + 1) : "") +
                 (views.size() > 1 ? ", weight " + fmt("%g", v.weight) : ""));
-    if (globals().dryRun) {
+    {
+        // Output lattice and memory, from the largest coarse frame.
+        turb::CoordBBox coarse = f0.velocity.bbox();
+        if (scan)
+            if (const turbio::FrameScan* l = scan->largestDomain()) coarse = l->domain;
         const turb::FineDomain d = turb::fineDomain(f0.velocity, a.factor);
-        logInfo("output " + std::to_string(d.box.dim().x()) + "x" + std::to_string(d.box.dim().y()) + "x" +
-                std::to_string(d.box.dim().z()) + " voxels of " + fmt("%g", d.lattice.voxelSize));
-        for (int fr : frames) logInfo("would write " + outPattern.format(fr));
+        const turb::Lattice& cl = f0.velocity.lattice();
+        const turb::Vec3d lo = cl.indexToWorld(coarse.min().asVec3d() - turb::Vec3d(0.5));
+        const turb::Vec3d hi = cl.indexToWorld(coarse.max().asVec3d() + turb::Vec3d(0.5));
+        const double outVoxels = double(coarse.volume()) * std::pow(double(a.factor), volume ? 3.0 : 2.0);
+        if (globals().dryRun || globals().verbosity >= 2)
+            printData("output lattice: " + std::to_string(d.box.dim().x()) + "x" + std::to_string(d.box.dim().y()) + "x" +
+                      std::to_string(d.box.dim().z()) + " voxels of " + fmt("%g", d.lattice.voxelSize) + " (factor " +
+                      std::to_string(a.factor) + "), world (" + fmt("%.4g", lo.x()) + "," + fmt("%.4g", lo.y()) + "," +
+                      fmt("%.4g", lo.z()) + ")-(" + fmt("%.4g", hi.x()) + "," + fmt("%.4g", hi.y()) + "," + fmt("%.4g", hi.z()) +
+                      "); output size about " + turbio::formatBytes(outVoxels * 16.0) + " per frame");
+        const int lb = cf0HasDensity(f0, a) ? a.lookback : 0;
+        const double coarseVoxels = volume ? double(coarse.volume()) : double(coarse.volume()) / a.factor;
+        const double need = turb::synthPeakBytes(coarseVoxels, a.factor, int(frames.size()), lb);
+        const long long usable = turbio::usableMemoryBytes();
+        const int fMax = usable > 0 ? turb::largestSynthFactor(0.9 * double(usable), coarseVoxels, int(frames.size()), lb) : 0;
+        checkMemory(need, std::to_string(coarse.dim().x()) + "x" + std::to_string(coarse.dim().y()) + "x" +
+                              std::to_string(coarse.dim().z()) + " coarse voxels at factor " + std::to_string(a.factor),
+            fMax >= 1 ? "--factor " + std::to_string(fMax) + " fits" : "no factor fits: crop the coarse cache");
+    }
+    if (globals().dryRun) {
+        for (int fr : frames) printData("would write " + outPattern.format(fr));
         return kOk;
     }
 
@@ -505,7 +549,14 @@ int runSynth(SynthArgs& a)
         const double elapsed = continuing ? dt * double(fr - previousFrame) : dt;
         in.previous = continuing ? &*previous : nullptr;
         in.dt = elapsed;
-        turb::DetailField H = turb::synthesizeDetail(prepared, in, s, &progress);
+        turb::DetailField H;
+        try {
+            H = turb::synthesizeDetail(prepared, in, s, &progress);
+        } catch (const turb::ValueError& e) {
+            const auto& seq = source.sequence();
+            throw turb::ValueError("frame " + std::to_string(fr) + (seq ? " (" + seq->path(fr) + ")" : std::string()) + ": " +
+                                   e.what());
+        }
         lap(1);
 
         progress.begin("combine");
@@ -664,11 +715,11 @@ Command synthCommand()
         turb::SynthSettings& s = a.settings;
         app->add_option("--target", a.target, "Coarse motion L: a VDB cache (pattern or one file); density optional");
         app->add_option("--scene", a.scene, "Coarse motion from a built-in scene simulated on the fly (plume, swirl, obstacle, wind)");
-        app->add_option("--scene-res", a.sceneRes, "Scene resolution WxDxH (default 32x32x48)");
+        app->add_option("--scene-res", a.sceneRes, "Scene cells NXxNYxNZ along x, y, z (z is up), as sim --res (default 32x32x48)");
         app->add_option("--scene-seed", a.sceneSeed, "Scene emitter noise seed (default 1)");
         app->add_option("--flow", a.flow, "Coarse motion from an analytic flow: uniform, vortex, shear (no density)")
             ->check(CLI::IsMember({"uniform", "vortex", "shear"}));
-        app->add_option("--flow-res", a.flowRes, "Analytic flow resolution WxHxD; D = 1 is 2D (default 64x64x1)");
+        app->add_option("--flow-res", a.flowRes, "Analytic flow cells NXxNYxNZ along x, y, z; NZ = 1 is 2D (default 64x64x1)");
         app->add_option("--flow-speed", a.flowSpeed, "Analytic flow speed, world units/s (default 1; domain 4 units wide)");
         app->add_option("--flow-angle", a.flowAngle, "Uniform flow direction in the xy plane, degrees from +x (default 0)");
         app->add_option("--frames", a.frames, "Cache: frames to use (default all). Scene/flow: a count N or a list (default 1)");

@@ -1,14 +1,19 @@
 // vdbturb transfer: turbulence style transfer (seed 002) from a high-res source onto a low-res target.
 #include "Commands.h"
 #include "Console.h"
+#include "Preflight.h"
 #include "RunReport.h"
 
+#include <turb/Budget.h>
 #include <turb/Error.h>
 #include <turb/Resample.h>
 #include <turb/Transfer.h>
 #include <turbio/Sequence.h>
+#include <turbio/System.h>
 #include <turbio/Vdb.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
@@ -58,6 +63,120 @@ std::string fmt(const char* f, double v)
     return b;
 }
 
+std::string dims(const turb::Coord& d)
+{
+    return std::to_string(d.x()) + "x" + std::to_string(d.y()) + "x" + std::to_string(d.z());
+}
+
+std::string worldBox(const turb::CoordBBox& b, const turb::Lattice& l)
+{
+    const turb::Vec3d lo = l.indexToWorld(b.min().asVec3d() - turb::Vec3d(0.5));
+    const turb::Vec3d hi = l.indexToWorld(b.max().asVec3d() + turb::Vec3d(0.5));
+    char buf[160];
+    std::snprintf(buf, sizeof(buf), "(%.4g,%.4g,%.4g)-(%.4g,%.4g,%.4g)", lo.x(), lo.y(), lo.z(), hi.x(), hi.y(), hi.z());
+    return buf;
+}
+
+// Voxels of the frame's velocity box padded by two voxels (clipped to its domain), from the header.
+double velocityBoxVoxels(const turbio::FrameScan& fr)
+{
+    for (const auto& g : fr.grids)
+        if (g.selector == fr.velocityGrid && g.hasBBox) {
+            turb::CoordBBox b = g.activeBBox;
+            b.expand(2);
+            b.intersect(fr.domain);
+            return double(b.volume());
+        }
+    return double(fr.domain.volume());
+}
+
+// Everything the run needs, checked before its first frame (and all a dry run does): every target and source
+// frame's headers, one lattice per sequence, the ratio, the output paths, the memory.
+void preflight(const TransferArgs& a, const turbio::Sequence& target, const turbio::Sequence& source,
+    const std::vector<int>& sourceFor, const turbio::FramePattern& outPattern, size_t first)
+{
+    const std::vector<int> targetFrames(target.frames.begin() + long(first), target.frames.end());
+    std::vector<int> sourceFrames(sourceFor.begin() + long(first), sourceFor.end());
+    std::sort(sourceFrames.begin(), sourceFrames.end());
+    sourceFrames.erase(std::unique(sourceFrames.begin(), sourceFrames.end()), sourceFrames.end());
+    if (targetFrames.empty()) return;
+    const turbio::SequenceScan ts = checkInput("transfer", "target", target, targetFrames, a.targetRead, LatticePolicy::Refuse);
+    const turbio::SequenceScan ss = checkInput("transfer", "source", source, sourceFrames, a.sourceRead, LatticePolicy::Refuse);
+    reportTiming("target", ts, true, "target-");
+    reportTiming("source", ss, true, "source-");
+
+    const turbio::FrameScan& t0 = ts.frames.front();
+    const turbio::FrameScan& s0 = ss.frames.front();
+    const double tv = t0.lattice.voxelSize, sv = s0.lattice.voxelSize;
+    const int f = turb::transferRatio(tv, sv, !a.noResample); // throws, saying why, where the run would
+    const bool resampled = !turb::isIntegerRatio(tv, sv);
+    const turbio::FrameScan* tl = ts.largestDomain();
+    const turbio::FrameScan* sl = ss.largestDomain();
+    const turb::CoordBBox tBox = tl ? tl->domain : t0.domain;
+    const double tVoxels = double(tBox.volume());
+    const double sVoxels = sl ? double(sl->domain.volume()) : 0.0;
+    const turb::Lattice outLattice = t0.lattice.refined(f);
+    const turb::Coord outDim(tBox.dim().x() * f, tBox.dim().y() * f, tBox.dim().z() * f);
+    printData("ratio " + fmt("%.4g", tv / sv) + " (target voxel " + fmt("%g", tv) + ", source voxel " + fmt("%g", sv) + ")" +
+              (resampled ? ": not an integer, the source is resampled trilinearly to ratio " + std::to_string(f) : ""));
+    printData("output lattice: " + dims(outDim) + " voxels of " + fmt("%g", outLattice.voxelSize) + ", world " +
+              worldBox(tBox, t0.lattice) + " (the target's domain" + (tl && tl->frame != t0.frame ? " at frame " +
+              std::to_string(tl->frame) + ", its largest" : "") + ")");
+
+    // Output size: the target's velocity box padded by two target voxels and its density, at f^3 voxels each
+    // (velocity 12 B, density and temperature 4 B a voxel; Blosc gains little on noisy floats).
+    double outBytes = 0.0;
+    for (const auto& fr : ts.frames) {
+        const double dens = fr.densityActive > 0 ? double(fr.densityActive) : double(fr.domain.volume());
+        outBytes = std::max(outBytes, double(f) * f * f * (velocityBoxVoxels(fr) * 12.0 + dens * 8.0));
+    }
+    printData("output size: about " + turbio::formatBytes(outBytes) + " per frame, " +
+              turbio::formatBytes(outBytes * double(targetFrames.size())) + " for " + std::to_string(targetFrames.size()) +
+              " frame" + (targetFrames.size() == 1 ? "" : "s") + (a.write.halfFloat ? " (half the floats' share with --half)" : ""));
+
+    // The source is matched at the ratio's voxel: a non-integer ratio resamples it first.
+    const auto matchedVoxels = [&](double sourceVoxel, double voxels, int ratio) {
+        return voxels * std::pow(sourceVoxel * ratio / tv, 3.0);
+    };
+    const double need = turb::transferPeakBytes(tVoxels, f, matchedVoxels(sv, sVoxels, f));
+    const long long usable = turbio::usableMemoryBytes();
+    std::string fits;
+    if (usable > 0 && need > 0.9 * double(usable)) {
+        // The smallest box-downsampling of the source (vdbturb resample --down K) that fits.
+        for (int down = 2; down <= 64 && fits.empty(); ++down) {
+            const double sv2 = sv * down;
+            int f2 = 0;
+            try {
+                f2 = turb::transferRatio(tv, sv2, !a.noResample);
+            } catch (const turb::ValueError&) {
+                break; // the ratio fell below 2
+            }
+            const double n2 = sVoxels / double(down) / double(down) / double(down);
+            if (turb::transferPeakBytes(tVoxels, f2, matchedVoxels(sv2, n2, f2)) <= 0.9 * double(usable))
+                fits = "A source box-downsampled by " + std::to_string(down) + " (voxel " + fmt("%g", sv2) + ", ratio " +
+                       std::to_string(f2) + ") fits: vdbturb resample " + source.pattern.str() + " --down " +
+                       std::to_string(down) + " --out PROXY.####.vdb";
+        }
+        if (fits.empty()) fits = "No coarser source fits: crop or coarsen the target first.";
+    }
+    checkMemory(need, "target " + dims(tBox.dim()) + " at ratio " + std::to_string(f) + " = " + dims(outDim) +
+                          " output voxels, source " + (sl ? dims(sl->domain.dim()) : std::string("?")),
+        fits);
+
+    std::vector<std::string> outputs, inputs;
+    for (size_t i = first; i < target.frames.size(); ++i) outputs.push_back(outPattern.format(target.frames[i]));
+    for (int t : target.frames) inputs.push_back(target.path(t));
+    for (int sf : sourceFrames) inputs.push_back(source.path(sf));
+    checkOutputs(outputs, inputs, a.write.noClobber, false);
+    if (globals().dryRun)
+        for (size_t i = first; i < target.frames.size(); ++i)
+            if (i < first + 3 || i + 2 >= target.frames.size())
+                printData("would write " + outPattern.format(target.frames[i]) + " from target " + target.path(target.frames[i]) +
+                          " and source " + source.path(sourceFor[i]));
+            else if (i == first + 3)
+                printData("  ... " + std::to_string(target.frames.size() - first - 5) + " more frames");
+}
+
 int runTransfer(TransferArgs& a)
 {
     turb::TransferSettings& s = a.settings;
@@ -87,65 +206,42 @@ int runTransfer(TransferArgs& a)
     const turbio::SourceWrap wrap = parseWrap(a.wrap);
     std::vector<int> sourceFor;
     for (int t : target.frames) sourceFor.push_back(turbio::mapSourceFrame(t, source.frames, a.sourceOffset, wrap));
-    // Never write over an input.
-    for (int t : target.frames) {
-        const std::string o = outPattern.format(t);
-        for (const std::string& in : {target.path(t), source.path(sourceFor[0])})
-            if (std::filesystem::exists(o) && std::filesystem::exists(in) && std::filesystem::equivalent(o, in))
-                throw turb::ValueError("--out " + o + " is an input file");
-    }
 
     logInfo("transfer: target " + target.pattern.str() + " frames " + turbio::formatFrameList(target.frames) +
             ", source " + source.pattern.str() + " frames " + turbio::formatFrameList(source.frames) +
             (source.frames.size() < target.frames.size() ? " (" + a.wrap + ")" : ""));
 
-    turb::TurbulenceTransfer transfer(s);
     size_t first = 0;
+    if (a.resume)
+        while (first < target.frames.size() && std::filesystem::exists(outPattern.format(target.frames[first]))) ++first;
+    preflight(a, target, source, sourceFor, outPattern, first);
+    if (globals().dryRun) return kOk;
+
+    turb::TurbulenceTransfer transfer(s);
     if (a.resume) {
         // Continue after the last frame already written, from the state saved with it.
-        while (first < target.frames.size() && std::filesystem::exists(outPattern.format(target.frames[first]))) ++first;
         if (first == target.frames.size()) {
             logInfo("resume: every requested frame already exists; nothing to do");
             return kOk;
         }
         if (first > 0) {
             const int prev = target.frames[first - 1];
+            const std::string prevPath = outPattern.format(prev);
             turbio::ReadOptions ro;
-            const turb::Frame prevOut = turbio::readFrame(outPattern.format(prev), prev, ro);
+            const turb::Frame prevOut = turbio::readFrame(prevPath, prev, ro);
             const auto it = prevOut.metadata.find("vdbturb_state");
             if (it == prevOut.metadata.end())
-                throw turb::IoError(outPattern.format(prev) + ": no vdbturb_state metadata to resume from");
+                throw turb::IoError(prevPath + ": no vdbturb_state metadata to resume from");
             const turb::Frame prevTarget = turbio::readFrame(target.path(prev), prev, a.targetRead);
-            transfer.restore(it->second, prevOut, prevTarget);
+            try {
+                transfer.restore(it->second, prevOut, prevTarget);
+            } catch (const turb::Error& e) {
+                throw turb::IoError(prevPath + ": cannot resume from this frame: " + e.what());
+            } catch (const std::exception& e) {
+                throw turb::IoError(prevPath + ": cannot resume from this frame: damaged vdbturb_state (" + e.what() + ")");
+            }
             logInfo("resume: continuing after frame " + std::to_string(prev));
         }
-    }
-
-    if (globals().dryRun) {
-        for (size_t i = first; i < target.frames.size(); ++i)
-            logInfo("would write " + outPattern.format(target.frames[i]) + " from target " + target.path(target.frames[i]) +
-                    " and source " + source.path(sourceFor[i]));
-        // Read the first pair's headers so ratio problems show up now.
-        const turbio::FileInfo ti = turbio::inspectFile(target.path(target.frames[first]), false);
-        const turbio::FileInfo si = turbio::inspectFile(source.path(sourceFor[first]), false);
-        for (const auto& g : ti.grids)
-            if (g.role == turbio::GridRole::Velocity)
-                for (const auto& h : si.grids)
-                    if (h.role == turbio::GridRole::Velocity)
-                    {
-                        const double r = g.voxelSize / h.voxelSize;
-                        std::string how;
-                        try {
-                            const int f = turb::transferRatio(g.voxelSize, h.voxelSize, !a.noResample);
-                            if (!turb::isIntegerRatio(g.voxelSize, h.voxelSize))
-                                how = ": not an integer, the source would be resampled to ratio " + std::to_string(f);
-                        } catch (const turb::ValueError& e) {
-                            how = std::string(": would fail: ") + e.what();
-                        }
-                        logInfo("resolution ratio " + fmt("%.4g", r) + " (target voxel " + fmt("%g", g.voxelSize) + ", source voxel " +
-                                fmt("%g", h.voxelSize) + ")" + how);
-                    }
-        return kOk;
     }
 
     RunReport report("transfer", a.json);
@@ -157,7 +253,14 @@ int runTransfer(TransferArgs& a)
         progress.begin("reading");
         const turb::Frame tf = turbio::readFrame(target.path(t), t, a.targetRead);
         const turb::Frame sf = turbio::readFrame(source.path(sourceFor[i]), sourceFor[i], a.sourceRead);
-        turb::TransferResult r = transfer.process(tf, sf, &progress);
+        turb::TransferResult r;
+        try {
+            r = transfer.process(tf, sf, &progress);
+        } catch (const turb::ValueError& e) {
+            // The library names frames, not files: say which files this frame came from.
+            throw turb::ValueError("frame " + std::to_string(t) + " (target " + target.path(t) + ", source " +
+                                   source.path(sourceFor[i]) + "): " + e.what());
+        }
         r.frame.metadata["vdbturb_state"] = transfer.saveState();
         r.frame.metadata["vdbturb_source_frame"] = std::to_string(sourceFor[i]);
         r.frame.metadata["vdbturb_command"] = "transfer";

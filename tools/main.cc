@@ -4,6 +4,8 @@
 
 #include <turb/Error.h>
 
+#include <algorithm>
+#include <cctype>
 #include <iostream>
 
 using namespace vdbturb;
@@ -13,9 +15,25 @@ namespace vdbturb {
 void addReadOptions(CLI::App* app, turbio::ReadOptions& opt, const std::string& prefix)
 {
     const std::string p = prefix.empty() ? "--" : "--" + prefix + "-";
-    app->add_option(p + "density-grid", opt.densityGrid, "Density grid name (default: density, density_noise)");
+    opt.optionPrefix = prefix.empty() ? "" : prefix + "-";
+    // An empty name cannot select an unnamed grid (it means "the default" everywhere else): say what does.
+    const auto selector = [p](const char* what) {
+        return CLI::Validator(
+            [p, what](std::string& v) {
+                return v.empty() ? p + what + " '': give a grid name, OpenVDB's NAME[N] ('[0]' is the first unnamed grid) "
+                                              "or '#N' (the N-th grid as `vdbturb info` lists them)"
+                                 : std::string();
+            },
+            "GRID");
+    };
+    app->add_option(p + "density-grid", opt.densityGrid,
+           "Density grid: a name, NAME[N] (the N-th grid of that name; '[0]' = first unnamed grid) or '#N' (the file's "
+           "N-th grid as `vdbturb info` numbers them). Default: density, density_noise")
+        ->check(selector("density-grid"));
     app->add_option(p + "vel-grid", opt.velocityGrid,
-        "Velocity grid name, or the stem of NAME.x/.y/.z (default: vel, velocity, v)");
+           "Velocity grid: as --" + prefix + (prefix.empty() ? "" : "-") +
+               "density-grid, or the stem of NAME.x/.y/.z. Default: vel, velocity, v")
+        ->check(selector("vel-grid"));
     app->add_option_function<std::string>(p + "vel-units",
            [&opt](const std::string& s) {
                opt.velocityUnits = s == "world" ? turbio::VelocityUnits::World
@@ -25,9 +43,11 @@ void addReadOptions(CLI::App* app, turbio::ReadOptions& opt, const std::string& 
            "Velocity units: world, cells (grid cells per time unit, Blender), auto (default: detect)")
         ->check(CLI::IsMember({"auto", "world", "cells"}));
     app->add_option(p + "dt", opt.dt,
-           "Time per frame in the velocity's time unit (default: from vdbturb metadata; Blender 0.1*25/fps; else 1/fps)")
+           "Time per frame in the velocity's time unit (default: vdbturb_dt metadata; Blender 0.1*25/fps; else 1/fps)")
         ->check(CLI::PositiveNumber);
-    app->add_option(p + "fps", opt.fps, "Frames per second, for the default time per frame (default 24)")
+    app->add_option(p + "fps", opt.fps,
+           "Frames per second of the shot, for the default time per frame (default: 24 assumed, with a warning; "
+           "Blender's and Houdini's caches do not record it)")
         ->check(CLI::PositiveNumber);
 }
 
@@ -48,6 +68,107 @@ std::vector<Command> allCommands() { return {infoCommand(), transferCommand(), m
 
 } // namespace vdbturb
 
+namespace {
+
+// Optimal string alignment distance (edits and adjacent swaps): "tranfser" is one swap from "transfer".
+size_t editDistance(const std::string& a, const std::string& b)
+{
+    std::vector<std::vector<size_t>> d(a.size() + 1, std::vector<size_t>(b.size() + 1));
+    for (size_t i = 0; i <= a.size(); ++i) d[i][0] = i;
+    for (size_t j = 0; j <= b.size(); ++j) d[0][j] = j;
+    for (size_t i = 1; i <= a.size(); ++i)
+        for (size_t j = 1; j <= b.size(); ++j) {
+            d[i][j] = std::min({d[i - 1][j] + 1, d[i][j - 1] + 1, d[i - 1][j - 1] + (a[i - 1] != b[j - 1])});
+            if (i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1]) d[i][j] = std::min(d[i][j], d[i - 2][j - 2] + 1);
+        }
+    return d[a.size()][b.size()];
+}
+
+// The candidate nearest to `word`, when it is near enough to be a typo.
+std::string nearest(const std::string& word, const std::vector<std::string>& candidates)
+{
+    std::string best;
+    size_t bestD = std::string::npos;
+    for (const auto& c : candidates) {
+        const size_t d = editDistance(word, c);
+        if (d < bestD) {
+            bestD = d;
+            best = c;
+        }
+    }
+    const size_t limit = std::max<size_t>(2, word.size() / 3);
+    return bestD <= limit ? best : std::string();
+}
+
+std::vector<std::string> longOptions(CLI::App* sub)
+{
+    std::vector<std::string> names;
+    for (const CLI::Option* o : sub->get_options())
+        for (const auto& n : o->get_lnames()) names.push_back("--" + n);
+    return names;
+}
+
+bool isLongOption(CLI::App* sub, const std::string& name)
+{
+    const auto all = longOptions(sub);
+    return std::find(all.begin(), all.end(), name) != all.end();
+}
+
+bool isShortOption(CLI::App* sub, char c)
+{
+    for (const CLI::Option* o : sub->get_options())
+        for (const auto& n : o->get_snames())
+            if (n.size() == 1 && n[0] == c) return true;
+    return false;
+}
+
+// Typos CLI11 reports poorly ("A subcommand is required", "arguments were not expected", a missing
+// --target after "-target"): checked before parsing, with the nearest command or option as a hint.
+std::string checkSpelling(int argc, char** argv, CLI::App& app, const std::vector<std::pair<CLI::App*, Command*>>& subs)
+{
+    if (argc < 2) return "";
+    const std::string first = argv[1];
+    if (first.empty() || first[0] == '-') return "";
+    CLI::App* sub = nullptr;
+    std::vector<std::string> names;
+    for (const auto& [s, c] : subs) {
+        names.push_back(c->name);
+        if (c->name == first) sub = s;
+    }
+    if (!sub) {
+        const std::string near = nearest(first, names);
+        std::string all;
+        for (const auto& n : names) all += (all.empty() ? "" : ", ") + n;
+        return "unknown command '" + first + "'" + (near.empty() ? "" : "; did you mean '" + near + "'?") +
+               " Commands: " + all + ".";
+    }
+    for (int i = 2; i < argc; ++i) {
+        const std::string arg = argv[i];
+        if (arg == "--") break;
+        if (arg.size() < 2 || arg[0] != '-' || std::isdigit(static_cast<unsigned char>(arg[1])) || arg[1] == '.') continue;
+        if (arg[1] == '-') {
+            const std::string name = arg.substr(0, arg.find('='));
+            if (name == "--help" || name == "--version" || isLongOption(sub, name)) continue;
+            const std::string near = nearest(name, longOptions(sub));
+            return "'" + first + "' has no option " + name + (near.empty() ? "." : "; did you mean " + near + "?") +
+                   " See vdbturb " + first + " --help.";
+        }
+        // "-target": a long option with one dash (unless every letter is a short flag, as in -vq).
+        bool allShort = true;
+        for (size_t k = 1; k < arg.size(); ++k) allShort = allShort && isShortOption(sub, arg[k]);
+        if (arg.size() > 2 && !allShort) {
+            const std::string dashed = "-" + arg.substr(0, arg.find('='));
+            if (isLongOption(sub, dashed)) return "'" + arg + "' has one dash; long options take two: " + dashed;
+            const std::string near = nearest(dashed, longOptions(sub));
+            return "'" + first + "' has no option " + arg + (near.empty() ? "." : "; did you mean " + near + "?");
+        }
+    }
+    (void)app;
+    return "";
+}
+
+} // namespace
+
 int main(int argc, char** argv)
 {
     CLI::App app{"vdbturb: turbulence up-res for smoke caches (VDB in, VDB out)"};
@@ -58,9 +179,13 @@ int main(int argc, char** argv)
     std::vector<std::pair<CLI::App*, Command*>> subs;
     for (auto& c : commands) {
         CLI::App* sub = app.add_subcommand(c.name, c.help);
-        addGlobalOptions(sub);
+        addGlobalOptions(sub, c.globals);
         c.setup(sub);
         subs.emplace_back(sub, &c);
+    }
+    if (const std::string typo = checkSpelling(argc, argv, app, subs); !typo.empty()) {
+        logError(typo);
+        return kUsage;
     }
     try {
         app.parse(argc, argv);
@@ -81,6 +206,9 @@ int main(int argc, char** argv)
             return kFailed;
         } catch (const turb::Error& e) {
             logError(e.what());
+            return kFailed;
+        } catch (const std::bad_alloc&) {
+            logError("out of memory (std::bad_alloc); a --dry-run estimates what a run needs");
             return kFailed;
         } catch (const std::exception& e) {
             logError(std::string("unexpected: ") + e.what());

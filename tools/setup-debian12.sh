@@ -1,11 +1,12 @@
 #!/bin/sh
 # Installs everything vdbturb needs to build, test and run its demo on Debian 12, as root.
-# Idempotent: packages already present are left alone.
+# Idempotent: packages already present are left alone. clang-14 and libfuzzer-14-dev serve bench/fuzz.sh only.
 set -eu
 PACKAGES="g++ cmake ninja-build ccache pkg-config make git
   libopenvdb-dev libboost-iostreams-dev libtbb-dev libeigen3-dev libflann-dev liblz4-dev libblosc-dev
   libgtest-dev libgmock-dev libcli11-dev nlohmann-json3-dev libfftw3-dev
-  libopenimageio-dev fonts-dejavu-core"
+  libopenimageio-dev fonts-dejavu-core
+  clang-14 libfuzzer-14-dev"
 missing=""
 for p in $PACKAGES; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing="$missing $p"

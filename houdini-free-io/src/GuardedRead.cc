@@ -43,8 +43,14 @@ size_t currentVirtualBytes()
     return pages * size_t(::sysconf(_SC_PAGESIZE));
 }
 
+extern "C" __attribute__((weak)) void __sanitizer_set_death_callback(void (*)(void));
+
 [[noreturn]] void childMain(int fd, const std::string& path, const ReadBody& body)
 {
+    // The child must die of its own crash, reported by the parent as a damaged file: a crash handler inherited
+    // from the parent (vdbturb's, a fuzzer's, a sanitizer's death callback) would report it as the parent's.
+    for (int sig : {SIGSEGV, SIGBUS, SIGABRT, SIGFPE, SIGILL}) std::signal(sig, SIG_DFL);
+    if (__sanitizer_set_death_callback) __sanitizer_set_death_callback(nullptr);
     // glibc's heap-corruption reports would land in the user's log; the parent reports instead.
     const int devnull = ::open("/dev/null", O_WRONLY);
     if (devnull >= 0) ::dup2(devnull, STDERR_FILENO);

@@ -6,6 +6,7 @@
 #include <cctype>
 #include <cstdio>
 #include <filesystem>
+#include <map>
 #include <numeric>
 #include <set>
 #include <sstream>
@@ -22,6 +23,13 @@ struct Token
     size_t len = 0;
     int width = 0;
 };
+
+// A padding width from its digits; absurd widths (which std::stoi cannot hold) become 1000, refused by parse().
+int widthOf(const std::string& digits)
+{
+    if (digits.empty()) return 0;
+    return digits.size() > 4 ? 1000 : std::stoi(digits);
+}
 
 // Finds every frame token in `s` (used to reject patterns with two).
 std::vector<Token> findTokens(const std::string& s)
@@ -41,7 +49,18 @@ std::vector<Token> findTokens(const std::string& s)
             while (j < s.size() && std::isdigit(static_cast<unsigned char>(s[j]))) ++j;
             if (j < s.size() && s[j] == 'd') {
                 const std::string digits = s.substr(i + 1, j - i - 1);
-                out.push_back({i, j + 1 - i, digits.empty() ? 0 : std::stoi(digits)});
+                out.push_back({i, j + 1 - i, widthOf(digits)});
+                i = j + 1;
+            } else {
+                ++i;
+            }
+        } else if (c == '$' && i + 2 < s.size() && s[i + 1] == '{' && s[i + 2] == 'F') {
+            // Houdini's braced form ${F} / ${F4}; without the closing brace it is not a token.
+            size_t j = i + 3;
+            while (j < s.size() && std::isdigit(static_cast<unsigned char>(s[j]))) ++j;
+            if (j < s.size() && s[j] == '}') {
+                const std::string digits = s.substr(i + 3, j - i - 3);
+                out.push_back({i, j + 1 - i, widthOf(digits)});
                 i = j + 1;
             } else {
                 ++i;
@@ -50,7 +69,7 @@ std::vector<Token> findTokens(const std::string& s)
             size_t j = i + 2;
             while (j < s.size() && std::isdigit(static_cast<unsigned char>(s[j]))) ++j;
             const std::string digits = s.substr(i + 2, j - i - 2);
-            out.push_back({i, j - i, digits.empty() ? 0 : std::stoi(digits)});
+            out.push_back({i, j - i, widthOf(digits)});
             i = j;
         } else {
             ++i;
@@ -92,10 +111,15 @@ FramePattern FramePattern::parse(const std::string& text)
         throw turb::ValueError("pattern '" + text + "' has more than one frame token");
     if (tokens.empty()) {
         p.mPrefix = text;
+        p.mText = text;
         return p;
     }
+    p.mText = text;
     p.mPrefix = text.substr(0, tokens[0].pos);
     p.mSuffix = text.substr(tokens[0].pos + tokens[0].len);
+    if (tokens[0].width > 32)
+        throw turb::ValueError("pattern '" + text + "': frame padding " + std::to_string(tokens[0].width) +
+                               " is wider than 32 digits");
     p.mWidth = tokens[0].width;
     p.mNumbered = true;
     return p;
@@ -105,7 +129,7 @@ std::optional<std::pair<FramePattern, int>> FramePattern::fromFileName(const std
 {
     const size_t slash = path.find_last_of('/');
     const size_t nameStart = (slash == std::string::npos) ? 0 : slash + 1;
-    // Last run of digits in the file name.
+    // The last run of digits in the file name that ends the stem: followed by nothing or by the extension.
     size_t end = std::string::npos;
     for (size_t i = path.size(); i > nameStart; --i) {
         if (std::isdigit(static_cast<unsigned char>(path[i - 1]))) {
@@ -114,9 +138,11 @@ std::optional<std::pair<FramePattern, int>> FramePattern::fromFileName(const std
         }
     }
     if (end == std::string::npos) return std::nullopt;
+    if (end < path.size() && path[end] != '.') return std::nullopt;
     size_t begin = end;
     while (begin > nameStart && std::isdigit(static_cast<unsigned char>(path[begin - 1]))) --begin;
     const std::string digits = path.substr(begin, end - begin);
+    if (digits.size() > 9) return std::nullopt; // not a frame number an int holds
     FramePattern p;
     p.mPrefix = path.substr(0, begin);
     p.mSuffix = path.substr(end);
@@ -131,7 +157,7 @@ std::optional<std::pair<FramePattern, int>> FramePattern::fromFileName(const std
 std::string FramePattern::format(int frame) const
 {
     if (!mNumbered) return mPrefix;
-    char buf[32];
+    char buf[48];
     if (frame < 0)
         std::snprintf(buf, sizeof(buf), "-%0*d", mWidth, -frame);
     else
@@ -155,6 +181,7 @@ std::optional<int> FramePattern::match(const std::string& path) const
 
 std::string FramePattern::str() const
 {
+    if (!mText.empty()) return mText;
     if (!mNumbered) return mPrefix;
     return mPrefix + std::string(size_t(std::max(mWidth, 1)), mWidth == 0 ? '@' : '#') + mSuffix;
 }
@@ -188,8 +215,8 @@ std::vector<int> parseFrameList(const std::string& spec)
                 throw bad("expected FIRST-LAST");
             if (b < a) throw bad("range runs backwards");
         }
-        if (double(b - a) / step > 1e6) throw bad("more than a million frames");
-        for (int f = a; f <= b; f += step) frames.insert(f);
+        if ((double(b) - double(a)) / step > 1e6) throw bad("more than a million frames");
+        for (long long f = a; f <= b; f += step) frames.insert(int(f));
     }
     if (frames.empty()) throw turb::ValueError("frame list '" + spec + "' names no frames");
     return {frames.begin(), frames.end()};
@@ -206,8 +233,8 @@ std::string formatFrameList(const std::vector<int>& in)
     while (i < f.size()) {
         // Longest arithmetic run starting at i.
         size_t j = i + 1;
-        int step = (j < f.size()) ? f[j] - f[i] : 1;
-        while (j < f.size() && f[j] - f[j - 1] == step) ++j;
+        const long long step = (j < f.size()) ? (long long)f[j] - f[i] : 1;
+        while (j < f.size() && (long long)f[j] - f[j - 1] == step) ++j;
         if (!first) os << ',';
         first = false;
         if (j - i >= 3) {
@@ -245,65 +272,151 @@ std::vector<int> scanFrames(const FramePattern& pattern)
     return frames;
 }
 
+std::vector<std::pair<std::string, int>> sequencesInDirectory(const std::string& dir)
+{
+    std::map<std::string, int> counts; // pattern -> files
+    std::error_code ec;
+    fs::directory_iterator it(dir, ec);
+    if (ec) return {};
+    const std::string base = (dir.empty() || dir.back() == '/') ? dir : dir + "/";
+    for (const auto& entry : it) {
+        if (!entry.is_regular_file(ec)) continue;
+        const std::string name = entry.path().filename().string();
+        if (!name.empty() && name[0] == '.') continue; // temporary and hidden files
+        if (auto d = FramePattern::fromFileName(base + name)) ++counts[d->first.str()];
+        else ++counts[base + name];
+    }
+    std::vector<std::pair<std::string, int>> out(counts.begin(), counts.end());
+    std::stable_sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a.second > b.second; });
+    return out;
+}
+
+namespace {
+
+std::string listSequences(const std::vector<std::pair<std::string, int>>& seqs, size_t most)
+{
+    std::string s;
+    for (size_t i = 0; i < seqs.size() && i < most; ++i)
+        s += (i ? ", " : "") + seqs[i].first + " (" + std::to_string(seqs[i].second) + " file" +
+             (seqs[i].second == 1 ? "" : "s") + ")";
+    if (seqs.size() > most) s += ", ...";
+    return s;
+}
+
+// Why nothing matched `pattern`, and what is there instead: the same name with other frame-number
+// widths, or the sequences of its directory.
+std::string noMatchMessage(const FramePattern& pattern)
+{
+    const std::string prefix = pattern.prefix();
+    const size_t slash = prefix.find_last_of('/');
+    const std::string dir = (slash == std::string::npos) ? std::string(".") : prefix.substr(0, slash + 1);
+    const std::string head = pattern.str() + ": no file matches this pattern";
+    std::error_code ec;
+    if (!fs::is_directory(dir, ec)) return head + " (directory " + dir + " does not exist)";
+    const std::string stem = (slash == std::string::npos) ? prefix : prefix.substr(slash + 1);
+    std::map<int, int> widths; // digits -> files
+    for (const auto& entry : fs::directory_iterator(dir, ec)) {
+        const std::string name = entry.path().filename().string();
+        const std::string& suffix = pattern.suffix();
+        if (name.size() <= stem.size() + suffix.size() || name.compare(0, stem.size(), stem) != 0 ||
+            name.compare(name.size() - suffix.size(), suffix.size(), suffix) != 0)
+            continue;
+        const std::string mid = name.substr(stem.size(), name.size() - stem.size() - suffix.size());
+        if (std::all_of(mid.begin(), mid.end(), [](char c) { return std::isdigit(static_cast<unsigned char>(c)); }))
+            ++widths[int(mid.size())];
+    }
+    if (!widths.empty()) {
+        std::string w;
+        for (const auto& [digits, files] : widths) {
+            FramePattern p = FramePattern::parse(prefix + std::string(size_t(digits), '#') + pattern.suffix());
+            w += (w.empty() ? "" : ", ") + p.str() + " (" + std::to_string(files) + " file" + (files == 1 ? "" : "s") + ", " +
+                 std::to_string(digits) + "-digit frame numbers)";
+        }
+        const std::string want = pattern.width() <= 1 ? "unpadded numbers" : std::to_string(pattern.width()) + "-digit numbers";
+        return head + ", which asks for " + want + "; these exist: " + w + ". Use as many # (or $F" +
+               std::to_string(widths.rbegin()->first) + ") as the files have digits";
+    }
+    const auto seqs = sequencesInDirectory(dir);
+    if (seqs.empty()) return head + " (directory " + dir + " is empty)";
+    return head + "; " + dir + " holds " + listSequences(seqs, 4);
+}
+
+} // namespace
+
 Sequence resolveSequence(const std::string& text, const std::string& frameSpec)
 {
     Sequence seq;
+    std::error_code ec;
+    if (fs::is_directory(text, ec)) {
+        const auto seqs = sequencesInDirectory(text);
+        throw turb::IoError(text + ": is a directory, not a cache: give a file pattern" +
+                            (seqs.empty() ? std::string(" (the directory is empty)") : "; it holds " + listSequences(seqs, 4)));
+    }
     FramePattern pattern = FramePattern::parse(text);
     if (!pattern.numbered()) {
-        // One real file name: a single file, or a member of a numbered sequence.
-        std::error_code ec;
+        // One real file name: a member of a numbered sequence (siblings found by scanning), a lone frame
+        // (pyro.1001.vdb is frame 1001, as in Houdini and Blender), or a file without a frame number.
         const bool exists = fs::is_regular_file(text, ec);
         auto detected = FramePattern::fromFileName(text);
         if (detected && (exists || !frameSpec.empty())) {
-            FramePattern p = detected->first;
-            std::vector<int> siblings = scanFrames(p);
-            if (siblings.size() > 1 || !frameSpec.empty()) pattern = p;
-            else if (exists) {
+            pattern = detected->first;
+            if (frameSpec.empty() && exists && scanFrames(pattern).size() <= 1) {
                 seq.pattern = pattern;
-                seq.frames = {0};
+                seq.frames = {detected->second};
                 return seq;
             }
         } else if (exists) {
             seq.pattern = pattern;
             seq.frames = {0};
             return seq;
+        } else if (fs::exists(text, ec)) {
+            throw turb::IoError(text + ": not a regular file");
         } else {
-            throw turb::IoError(text + ": no such file");
+            const size_t slash = text.find_last_of('/');
+            const std::string dir = slash == std::string::npos ? "." : text.substr(0, slash + 1);
+            std::string why = text + ": no such file";
+            if (!fs::is_directory(dir, ec)) why += " (directory " + dir + " does not exist)";
+            else if (const auto seqs = sequencesInDirectory(dir); !seqs.empty()) why += "; " + dir + " holds " + listSequences(seqs, 4);
+            throw turb::IoError(why);
         }
     }
     seq.pattern = pattern;
     const std::vector<int> onDisk = scanFrames(pattern);
     if (frameSpec.empty()) {
-        if (onDisk.empty()) throw turb::IoError(pattern.str() + ": no file matches this pattern");
+        if (onDisk.empty()) throw turb::IoError(noMatchMessage(pattern));
         seq.frames = onDisk;
         // Gaps inside the range on disk are missing frames. A sequence cached on every n-th frame
         // (all gaps multiples of n) only misses multiples of n.
-        int step = 0;
-        for (size_t i = 1; i < onDisk.size(); ++i) step = std::gcd(step, onDisk[i] - onDisk[i - 1]);
+        long long step = 0;
+        for (size_t i = 1; i < onDisk.size(); ++i) step = std::gcd(step, (long long)onDisk[i] - onDisk[i - 1]);
         if (step <= 0) step = 1;
-        for (int f = onDisk.front(); f <= onDisk.back(); f += step)
-            if (!std::binary_search(onDisk.begin(), onDisk.end(), f)) seq.missing.push_back(f);
+        // A few files far apart would list millions of missing frames: only gaps the size of a shot count.
+        if ((double(onDisk.back()) - onDisk.front()) / double(step) <= 1e6)
+            for (long long f = onDisk.front(); f <= onDisk.back(); f += step)
+                if (!std::binary_search(onDisk.begin(), onDisk.end(), int(f))) seq.missing.push_back(int(f));
         return seq;
     }
     for (int f : parseFrameList(frameSpec)) {
         if (std::binary_search(onDisk.begin(), onDisk.end(), f)) seq.frames.push_back(f);
         else seq.missing.push_back(f);
     }
+    if (seq.frames.empty() && onDisk.empty()) throw turb::IoError(noMatchMessage(pattern));
     return seq;
 }
 
 int mapSourceFrame(int targetFrame, const std::vector<int>& sourceFrames, int offset, SourceWrap wrap)
 {
     if (sourceFrames.empty()) throw turb::ValueError("the source sequence has no frames");
-    const int first = sourceFrames.front(), last = sourceFrames.back();
-    const int len = last - first + 1;
-    int s = targetFrame + offset;
+    // 64-bit arithmetic: frame numbers and offsets near the int limits must not overflow.
+    const long long first = sourceFrames.front(), last = sourceFrames.back();
+    const long long len = last - first + 1;
+    long long s = (long long)targetFrame + offset;
     if (s < first || s > last) {
         switch (wrap) {
         case SourceWrap::Loop: s = first + ((s - first) % len + len) % len; break;
         case SourceWrap::PingPong: {
-            const int period = std::max(1, 2 * (len - 1));
-            int k = ((s - first) % period + period) % period;
+            const long long period = std::max(1LL, 2 * (len - 1));
+            long long k = ((s - first) % period + period) % period;
             if (k >= len) k = period - k;
             s = first + k;
             break;
@@ -315,10 +428,10 @@ int mapSourceFrame(int targetFrame, const std::vector<int>& sourceFrames, int of
                                    "-" + std::to_string(last) + " (use --source-offset or --source-wrap)");
         }
     }
-    if (!std::binary_search(sourceFrames.begin(), sourceFrames.end(), s))
+    if (!std::binary_search(sourceFrames.begin(), sourceFrames.end(), int(s)))
         throw turb::ValueError("source frame " + std::to_string(s) + " (for target frame " +
                                std::to_string(targetFrame) + ") is missing from the source sequence");
-    return s;
+    return int(s);
 }
 
 void ensureParentDirectory(const std::string& path)

@@ -2,8 +2,11 @@
 #include <turbio/Vdb.h>
 
 #include "GuardedRead.h"
+#include "ReadChecks.h"
 
 #include <turb/Error.h>
+#include <turb/Operators.h>
+#include <turbio/System.h>
 
 #include <openvdb/openvdb.h>
 #include <openvdb/io/File.h>
@@ -14,12 +17,15 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <csignal>
+#include <cstdlib>
 #include <cstring>
 #include <fcntl.h>
 #include <fstream>
 #include <functional>
 #include <mutex>
 #include <sstream>
+#include <dirent.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -70,13 +76,30 @@ void checkHeader(const std::string& path)
     }
 }
 
+// One grid as the file's header lists it, in file order.
+struct Descriptor
+{
+    std::string unique; // OpenVDB's unique name, printable: "density", "[0]" (unnamed), "vel[1]" (second 'vel')
+    std::string type;   // tree type, e.g. "Tree_float_5_4_3"
+};
+
+// OpenVDB's unique names carry a record separator before the index; it prints them as "name[N]".
+std::string printableUnique(const std::string& raw)
+{
+    const size_t sep = raw.find('\x1e');
+    if (sep == std::string::npos) return raw;
+    return raw.substr(0, sep) + "[" + raw.substr(sep + 1) + "]";
+}
+
 // OpenVDB reads raw and compressed chunks without checking for end of file, so a file cut short
 // inside its last grid reads "successfully" with garbage. Walk the grid descriptors (the layout of
-// io::Archive::readHeader and io::GridDescriptor::read) and check every grid ends inside the file.
-void checkGridExtents(const std::string& path)
+// io::Archive::readHeader and io::GridDescriptor::read), check every grid ends inside the file, and
+// return the grids in file order (empty for layouts without offsets, which are not walked).
+std::vector<Descriptor> walkDescriptors(const std::string& path)
 {
+    std::vector<Descriptor> out;
     std::ifstream in(path, std::ios::binary);
-    if (!in) return;
+    if (!in) return out;
     const int64_t size = fileSize(path);
     const auto corrupt = [&](const std::string& why) {
         return IoError(path + ": truncated or corrupt file (" + why + ")");
@@ -97,7 +120,7 @@ void checkGridExtents(const std::string& path)
     uint32_t version = 0, major = 0, minor = 0;
     readRaw(&magic, 8);
     readRaw(&version, 4);
-    if (version < 222) return; // older layouts are not walked; the guarded reader still applies
+    if (version < 222) return out; // older layouts are not walked; the guarded reader still applies
     readRaw(&major, 4);
     readRaw(&minor, 4);
     char hasOffsets = 0;
@@ -111,12 +134,13 @@ void checkGridExtents(const std::string& path)
         readString(); // type
         readString(); // value, stored as size + bytes
     }
-    if (!hasOffsets) return;
+    if (!hasOffsets) return out;
     uint32_t gridCount = 0;
     readRaw(&gridCount, 4);
+    if (int64_t(gridCount) > size / 16) throw corrupt("grid count " + std::to_string(gridCount) + " cannot fit in the file");
     for (uint32_t g = 0; g < gridCount; ++g) {
         const std::string name = readString();
-        readString(); // type
+        const std::string type = readString();
         readString(); // instance parent
         int64_t gridPos = 0, blockPos = 0, endPos = 0;
         readRaw(&gridPos, 8);
@@ -126,31 +150,121 @@ void checkGridExtents(const std::string& path)
         if (gridPos < here || blockPos < gridPos || endPos < blockPos)
             throw corrupt("grid descriptor " + std::to_string(g) + " has inconsistent offsets");
         if (endPos > size)
-            throw IoError(path + ": truncated file: grid '" + cleanMessage(name) + "' ends at byte " +
+            throw IoError(path + ": truncated file: grid '" + cleanMessage(printableUnique(name)) + "' ends at byte " +
                           std::to_string(endPos) + " but the file has " + std::to_string(size) + " bytes");
+        // The grid's own metadata (after its compression flags) must lie before its data blocks: a damaged
+        // entry count or length makes OpenVDB read (and allocate) for minutes.
+        in.seekg(gridPos);
+        uint32_t compression = 0;
+        int32_t count = 0;
+        readRaw(&compression, 4);
+        readRaw(&count, 4);
+        const auto damaged = [&](const std::string& why) {
+            return IoError(path + ": corrupt file: grid '" + cleanMessage(printableUnique(name)) + "' has damaged metadata (" +
+                           why + ")");
+        };
+        if (count < 0 || int64_t(count) * 12 > blockPos - gridPos) throw damaged("entry count " + std::to_string(count));
+        for (int32_t m = 0; m < count; ++m)
+            for (int part = 0; part < 3; ++part) { // name, type name, value
+                uint32_t n = 0;
+                readRaw(&n, 4);
+                if (int64_t(in.tellg()) + int64_t(n) > blockPos) throw damaged("an entry runs past the grid's header");
+                if (part == 0 && n == 0) throw damaged("an entry without a name");
+                in.seekg(n, std::ios::cur);
+            }
+        out.push_back({printableUnique(name), type});
         in.seekg(endPos);
     }
+    return out;
 }
 
-// Runs a read body on `path` in the guarded child after the cheap in-process checks.
-detail::GuardedResult guarded(const std::string& path, const detail::ReadBody& body)
+// Runs a read body on `path` in the guarded child after the cheap in-process checks. The body gets the
+// file's grids in file order (from the header walk) so that "#N" and listings agree with `info`.
+using OrderedBody = std::function<void(openvdb::io::File&, const std::vector<Descriptor>&, openvdb::GridPtrVec&,
+    openvdb::MetaMap&)>;
+
+detail::GuardedResult guarded(const std::string& path, const OrderedBody& body)
 {
     initOpenVdb();
+    struct stat st;
+    if (::stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode)) throw IoError(path + ": is a directory, not a VDB file");
     checkHeader(path);
-    checkGridExtents(path);
+    const std::vector<Descriptor> order = walkDescriptors(path);
     // Generous: a healthy read runs at hundreds of MB/s, even slow farm storage at 5 MB/s passes; only a
     // reader stuck in a loop hits this.
-    const double timeout = 10.0 + double(std::max<int64_t>(fileSize(path), 0)) / 5.0e6;
-    return detail::guardedRead(path, body, timeout);
+    // VDBTURB_READ_TIMEOUT_S replaces the 10 s base (tests of damaged files use a short one).
+    static const double base = [] {
+        const char* e = std::getenv("VDBTURB_READ_TIMEOUT_S");
+        const double v = e ? std::atof(e) : 0.0;
+        return v > 0.0 ? v : 10.0;
+    }();
+    const double timeout = base + double(std::max<int64_t>(fileSize(path), 0)) / 5.0e6;
+    return detail::guardedRead(path,
+        [&](openvdb::io::File& file, openvdb::GridPtrVec& grids, openvdb::MetaMap& meta) { body(file, order, grids, meta); },
+        timeout);
 }
 
 // --- helpers that run inside the reader child (no TBB) ---
 
-std::vector<std::string> gridNames(openvdb::io::File& file)
+// One grid of the file, for choosing and listing: its unique name and what its header says.
+struct GridEntry
 {
-    std::vector<std::string> names;
-    for (auto it = file.beginName(); it != file.endName(); ++it) names.push_back(*it);
-    return names;
+    std::string unique; // what io::File::readGrid accepts
+    std::string name;   // the grid's own name ("" when unnamed)
+    std::string type;   // value type: "float", "vec3s", ...
+    std::string gridClass;
+};
+
+// The file's grids in file order (the header walk's), else in OpenVDB's name order.
+std::vector<GridEntry> listGrids(openvdb::io::File& file, const std::vector<Descriptor>& order)
+{
+    std::vector<std::string> uniques;
+    for (auto it = file.beginName(); it != file.endName(); ++it) uniques.push_back(*it);
+    if (order.size() == uniques.size()) {
+        std::vector<std::string> byFile;
+        for (const auto& d : order)
+            if (std::find(uniques.begin(), uniques.end(), d.unique) != uniques.end()) byFile.push_back(d.unique);
+        if (byFile.size() == uniques.size()) uniques = byFile;
+    }
+    std::vector<GridEntry> out;
+    for (const auto& u : uniques) {
+        GridEntry e;
+        e.unique = u;
+        try {
+            auto g = file.readGridMetadata(u);
+            e.name = g->getName();
+            e.type = g->valueType();
+            e.gridClass = openvdb::GridBase::gridClassToString(g->getGridClass());
+        } catch (const std::exception&) {
+            e.name = u;
+            e.type = "?";
+        }
+        out.push_back(e);
+    }
+    return out;
+}
+
+std::string describeEntry(size_t i, const GridEntry& e)
+{
+    const std::string name = e.name.empty() ? std::string("(unnamed)") : "'" + cleanMessage(e.name) + "'";
+    std::string s = "#" + std::to_string(i) + " " + name;
+    if (!e.name.empty() && e.unique != e.name) s += " (" + cleanMessage(e.unique) + ")";
+    else if (e.name.empty()) s += " (" + cleanMessage(e.unique) + ")";
+    return s + " " + e.type + " " + e.gridClass;
+}
+
+std::string describeEntries(const std::vector<GridEntry>& grids)
+{
+    std::string s;
+    for (size_t i = 0; i < grids.size(); ++i) s += (i ? ", " : "") + describeEntry(i, grids[i]);
+    return s.empty() ? "no grids" : s;
+}
+
+std::vector<std::string> uniqueNames(const std::vector<GridEntry>& grids)
+{
+    std::vector<std::string> n;
+    for (const auto& g : grids) n.push_back(g.unique);
+    return n;
 }
 
 openvdb::GridBase::Ptr readGridNamed(openvdb::io::File& file, const std::string& path, const std::string& name)
@@ -166,13 +280,6 @@ openvdb::GridBase::Ptr readGridNamed(openvdb::io::File& file, const std::string&
         throw IoError(path + ": grid " + quoted(name) + " could not be read; truncated or corrupt file (" +
                       cleanMessage(e.what()) + ")");
     }
-}
-
-std::string joinNames(const std::vector<std::string>& names)
-{
-    std::string s;
-    for (const auto& n : names) s += (s.empty() ? "" : ", ") + n;
-    return s.empty() ? "(none)" : s;
 }
 
 bool hasName(const std::vector<std::string>& names, const std::string& n)
@@ -203,13 +310,8 @@ turb::Lattice latticeOf(const std::string& path, const openvdb::GridBase& g)
 {
     double vs = 0;
     turb::Vec3d o(0.0);
-    if (!uniformTransform(g.transform(), vs, o)) {
-        std::ostringstream os;
-        os << path << ": grid " << quoted(g.getName()) << " has a " << g.transform().mapType()
-           << " transform with non-uniform scale, rotation, shear or perspective; vdbturb supports only "
-              "uniform voxels with a translation. Resample the cache (e.g. Houdini VDB Resample) first.";
-        throw IoError(os.str());
-    }
+    if (!uniformTransform(g.transform(), vs, o))
+        throw IoError(detail::unsupportedTransformMessage(path, g.getName(), g.transform().mapType()));
     return turb::Lattice{vs, o};
 }
 
@@ -418,204 +520,438 @@ const std::vector<std::string>& gridAliases(GridRole role)
 std::vector<std::string> resolveGrid(const std::vector<std::string>& names, GridRole role,
     const std::string& overrideName)
 {
+    // A name shared by several grids appears as "name[0]", "name[1]", ... (OpenVDB's unique names): the name
+    // alone means the first of them, as in OpenVDB's own readGrid(name).
+    const auto find = [&](const std::string& n) -> std::string {
+        if (hasName(names, n)) return n;
+        if (hasName(names, n + "[0]")) return n + "[0]";
+        return "";
+    };
     const auto components = [&](const std::string& stem) -> std::vector<std::string> {
-        const std::vector<std::string> c{stem + ".x", stem + ".y", stem + ".z"};
-        if (hasName(names, c[0]) && hasName(names, c[1]) && hasName(names, c[2])) return c;
+        const std::vector<std::string> c{find(stem + ".x"), find(stem + ".y"), find(stem + ".z")};
+        if (!c[0].empty() && !c[1].empty() && !c[2].empty()) return c;
         return {};
     };
     if (!overrideName.empty()) {
-        if (hasName(names, overrideName)) return {overrideName};
+        if (const std::string n = find(overrideName); !n.empty()) return {n};
+        // "#N": the N-th grid in file order.
+        if (overrideName.size() > 1 && overrideName[0] == '#' &&
+            std::all_of(overrideName.begin() + 1, overrideName.end(), [](char c) { return std::isdigit(static_cast<unsigned char>(c)); })) {
+            const std::string digits = overrideName.substr(1);
+            if (digits.size() < 7 && size_t(std::stoi(digits)) < names.size()) return {names[size_t(std::stoi(digits))]};
+            return {};
+        }
+        // "name[0]" is the first grid of that name, whose unique name carries no index.
+        if (overrideName.size() > 3 && overrideName.compare(overrideName.size() - 3, 3, "[0]") == 0) {
+            const std::string plain = overrideName.substr(0, overrideName.size() - 3);
+            if (!plain.empty() && hasName(names, plain)) return {plain};
+        }
         if (role == GridRole::Velocity) return components(overrideName);
         return {};
     }
     for (const auto& a : gridAliases(role))
-        if (hasName(names, a)) return {a};
+        if (const std::string n = find(a); !n.empty()) return {n};
     if (role == GridRole::Velocity)
         for (const auto& a : gridAliases(role))
             if (auto c = components(a); !c.empty()) return c;
     return {};
 }
 
-static turb::Frame readFrameUnchecked(const std::string& path, int frameNumber, const ReadOptions& options);
-
-turb::Frame readFrame(const std::string& path, int frameNumber, const ReadOptions& options)
+std::string describeGrids(const std::vector<GridInfo>& grids)
 {
-    try {
-        return readFrameUnchecked(path, frameNumber, options);
-    } catch (const std::bad_alloc&) {
-        throw IoError(path + ": not enough memory to load the frame");
+    std::string s;
+    for (const auto& g : grids) {
+        const std::string name = g.name.empty() ? std::string("(unnamed)") : "'" + g.name + "'";
+        s += (s.empty() ? "" : ", ") + ("#" + std::to_string(g.index) + " " + name);
+        if (g.selector != g.name) s += " (" + g.selector + ")";
+        s += " " + g.valueType + " " + g.gridClass;
     }
+    return s.empty() ? "no grids" : s;
 }
 
-static turb::Frame readFrameUnchecked(const std::string& path, int frameNumber, const ReadOptions& options)
-{
-    // Child: resolve names and read just the grids we need, labelled with their role.
-    const auto body = [&](openvdb::io::File& file, openvdb::GridPtrVec& out, openvdb::MetaMap& meta) {
-        const std::vector<std::string> names = gridNames(file);
-        const auto densName = resolveGrid(names, GridRole::Density, options.densityGrid);
-        const auto velName = resolveGrid(names, GridRole::Velocity, options.velocityGrid);
-        if (densName.empty() && (options.requireDensity || !options.densityGrid.empty())) {
-            const std::string wanted = options.densityGrid.empty() ? "density (density, density_noise)"
-                                                                   : quoted(options.densityGrid);
-            throw IoError(path + ": no " + wanted + " grid; the file has: " + joinNames(names) +
-                          ". Use --density-grid NAME.");
-        }
-        if (velName.empty() && (options.requireVelocity || !options.velocityGrid.empty())) {
-            const std::string wanted = options.velocityGrid.empty()
-                                           ? "velocity (vel, velocity, v, or vel.x/vel.y/vel.z)"
-                                           : quoted(options.velocityGrid);
-            throw IoError(path + ": no " + wanted + " grid; the file has: " + joinNames(names) +
-                          ". Use --vel-grid NAME.");
-        }
-        const auto take = [&](const std::string& name, const std::string& role) {
-            auto g = readGridNamed(file, path, name);
-            g->insertMeta(kRoleKey, openvdb::StringMetadata(role));
-            out.push_back(g);
-        };
-        if (!densName.empty()) take(densName[0], "density");
-        if (velName.size() == 1) take(velName[0], "velocity");
-        else if (velName.size() == 3) {
-            take(velName[0], "velocity.x");
-            take(velName[1], "velocity.y");
-            take(velName[2], "velocity.z");
-        }
-        if (options.readExtras) {
-            if (auto n = resolveGrid(names, GridRole::Temperature); !n.empty()) take(n[0], "temperature");
-            if (auto n = resolveGrid(names, GridRole::Flame); !n.empty()) take(n[0], "flame");
-        }
-        if (auto fm = file.getMetadata())
-            for (auto it = fm->beginMeta(); it != fm->endMeta(); ++it) meta.insertMeta(it->first, *it->second);
-    };
-    const detail::GuardedResult r = guarded(path, body);
+namespace detail {
 
+std::string missingGridMessage(const std::string& path, GridRole role, const ReadOptions& options, const std::string& listing)
+{
+    const bool density = role == GridRole::Density;
+    const std::string& chosen = density ? options.densityGrid : options.velocityGrid;
+    const std::string wanted = !chosen.empty() ? "'" + chosen + "'"
+                               : density       ? std::string("density (density, density_noise)")
+                                               : std::string("velocity (vel, velocity, v, or vel.x/vel.y/vel.z)");
+    return path + ": no " + wanted + " grid; the file has: " + listing + ". Use --" + options.optionPrefix +
+           (density ? "density-grid" : "vel-grid") + " NAME, or '#N' for the N-th grid listed here.";
+}
+
+std::string unsupportedTransformMessage(const std::string& path, const std::string& grid, const std::string& mapType)
+{
+    return path + ": grid '" + grid + "' has a " + mapType +
+           " transform with non-uniform scale, rotation, shear or perspective; vdbturb supports only uniform voxels "
+           "with a translation. Resample the cache (e.g. Houdini VDB Resample) first.";
+}
+
+turb::CoordBBox boxOnLattice(const turb::CoordBBox& b, const turb::Lattice& own, const turb::Lattice& target)
+{
+    if (b.empty()) return b;
+    if (own.approxEqual(target)) return b;
+    const turb::Vec3d lo = target.worldToIndex(own.indexToWorld(b.min().asVec3d() - turb::Vec3d(0.5)));
+    const turb::Vec3d hi = target.worldToIndex(own.indexToWorld(b.max().asVec3d() + turb::Vec3d(0.5)));
+    turb::Coord a, c;
+    for (int k = 0; k < 3; ++k) {
+        a[k] = int(std::ceil(std::max(lo[k] - 1e-9, -2.0e9)));
+        c[k] = int(std::floor(std::min(hi[k] + 1e-9, 2.0e9)));
+    }
+    return turb::CoordBBox(a, c);
+}
+
+std::string denseSizeProblem(const std::string& path, const turb::CoordBBox& domain,
+    const std::vector<std::pair<std::string, turb::CoordBBox>>& spans, double bytesPerVoxel, const ReadOptions& options)
+{
+    const double voxels = double(domain.dim().x()) * double(domain.dim().y()) * double(domain.dim().z());
+    const double bytes = voxels * bytesPerVoxel;
+    const long long usable = usableMemoryBytes();
+    const bool tooMany = voxels > options.maxVoxels;
+    const bool tooBig = usable > 0 && bytes > 0.8 * double(usable);
+    if (!tooMany && !tooBig) return "";
+    const auto span = [](const turb::CoordBBox& b) {
+        std::ostringstream os;
+        const turb::Coord d = b.dim();
+        os << b.min() << "-" << b.max() << " (" << d.x() << "x" << d.y() << "x" << d.z() << " voxels)";
+        return os.str();
+    };
+    std::ostringstream os;
+    os << path << ": not enough memory to load the frame: its grids span " << span(domain) << ", "
+       << formatBytes(bytes) << " as dense fields";
+    if (tooMany) os << "; vdbturb holds at most " << options.maxVoxels << " voxels";
+    if (usable > 0) os << "; this machine has " << formatBytes(double(usable));
+    os << ". Spans:";
+    for (size_t i = 0; i < spans.size(); ++i)
+        os << (i ? "," : "") << " grid '" << spans[i].first << "' " << (spans[i].second.empty() ? "(empty)" : span(spans[i].second));
+    os << ". A grid whose span is far larger than the others' holds stray voxels or a damaged bounding box;"
+          " clip or resample it.";
+    return os.str();
+}
+
+} // namespace detail
+
+ReadReport resolveTiming(bool blenderVelocity, bool blenderCache, double recordedDt, const ReadOptions& options)
+{
+    ReadReport r;
+    const std::string flag = "--" + options.optionPrefix;
+    switch (options.velocityUnits) {
+    case VelocityUnits::Cells:
+        r.cells = true;
+        r.unitsSource = flag + "vel-units cells";
+        break;
+    case VelocityUnits::World: r.unitsSource = flag + "vel-units world"; break;
+    case VelocityUnits::Auto:
+        r.cells = blenderVelocity;
+        r.unitsSource = blenderVelocity ? "detected: Blender's staggered 'velocity' with file_base_resolution is in grid cells "
+                                          "per time unit"
+                                        : "no Blender markers: Houdini, EmberGen and vdbturb write world units";
+        break;
+    }
+    r.fps = options.fps > 0.0 ? options.fps : 24.0;
+    const std::string fpsText = options.fps > 0.0 ? "--" + options.optionPrefix + "fps" : "assumed: the cache records no frame rate";
+    if (options.dt > 0.0) {
+        r.dt = options.dt;
+        r.dtSource = flag + "dt";
+        r.fpsSource = "not used";
+    } else if (recordedDt > 0.0) {
+        r.dt = recordedDt;
+        r.dtSource = "vdbturb_dt metadata";
+        r.fpsSource = "not used";
+    } else if (blenderCache) {
+        // Blender/Mantaflow: frame_length = 0.1 * (25 / fps) * time_scale, in Mantaflow time units. Its VDB
+        // caches record neither the frame rate nor the time scale (checked on Blender 3.2 and 3.4 caches).
+        r.dt = 0.1 * 25.0 / r.fps;
+        r.dtSource = "Blender's frame length 0.1 x 25/fps, time scale 1 assumed";
+        r.fpsSource = fpsText;
+        r.conventionAssumed = options.fps <= 0.0;
+    } else {
+        r.dt = 1.0 / r.fps;
+        r.dtSource = "1/fps seconds";
+        r.fpsSource = fpsText;
+        r.conventionAssumed = options.fps <= 0.0;
+    }
+    return r;
+}
+
+namespace {
+
+// The child's part of readFrame: resolve the selectors and read just the grids needed, labelled by role.
+void readRoles(openvdb::io::File& file, const std::vector<Descriptor>& order, openvdb::GridPtrVec& out,
+    openvdb::MetaMap& meta, const std::string& path, const ReadOptions& options)
+{
+    const std::vector<GridEntry> entries = listGrids(file, order);
+    const std::vector<std::string> names = uniqueNames(entries);
+    const auto densName = resolveGrid(names, GridRole::Density, options.densityGrid);
+    const auto velName = resolveGrid(names, GridRole::Velocity, options.velocityGrid);
+    if (densName.empty() && (options.requireDensity || !options.densityGrid.empty()))
+        throw IoError(detail::missingGridMessage(path, GridRole::Density, options, describeEntries(entries)));
+    if (velName.empty() && (options.requireVelocity || !options.velocityGrid.empty()))
+        throw IoError(detail::missingGridMessage(path, GridRole::Velocity, options, describeEntries(entries)));
+    const auto take = [&](const std::string& name, const std::string& role) {
+        auto g = readGridNamed(file, path, name);
+        g->insertMeta(kRoleKey, openvdb::StringMetadata(role));
+        out.push_back(g);
+    };
+    if (!densName.empty()) take(densName[0], "density");
+    if (velName.size() == 1) take(velName[0], "velocity");
+    else if (velName.size() == 3) {
+        take(velName[0], "velocity.x");
+        take(velName[1], "velocity.y");
+        take(velName[2], "velocity.z");
+    }
+    if (options.readExtras) {
+        if (auto n = resolveGrid(names, GridRole::Temperature); !n.empty()) take(n[0], "temperature");
+        if (auto n = resolveGrid(names, GridRole::Flame); !n.empty()) take(n[0], "flame");
+    }
+    if (out.empty())
+        throw IoError(path + ": none of the requested grids is present; the file has: " + describeEntries(entries) +
+                      ". Choose grids with --" + options.optionPrefix + "density-grid / --" + options.optionPrefix +
+                      "vel-grid NAME, or '#N' for the N-th grid listed here.");
+    meta.insertMeta("__turb_grid_list", openvdb::StringMetadata(describeEntries(entries)));
+    if (auto fm = file.getMetadata())
+        for (auto it = fm->beginMeta(); it != fm->endMeta(); ++it) meta.insertMeta(it->first, *it->second);
+}
+
+// The grids of one frame, from the trusted stream, by role.
+struct RoleGrids
+{
     openvdb::FloatGrid::Ptr density, temperature, flame;
     openvdb::Vec3SGrid::Ptr vel;
     openvdb::FloatGrid::Ptr comp[3];
-    for (const auto& g : r.grids) {
-        const std::string role = roleOf(*g);
-        if (role == "density") density = asFloatGrid(path, g, "density");
-        else if (role == "velocity") vel = asVec3Grid(path, g);
-        else if (role == "velocity.x") comp[0] = asFloatGrid(path, g, "velocity component");
-        else if (role == "velocity.y") comp[1] = asFloatGrid(path, g, "velocity component");
-        else if (role == "velocity.z") comp[2] = asFloatGrid(path, g, "velocity component");
-        else if (role == "temperature") temperature = asFloatGrid(path, g, "temperature");
-        else if (role == "flame") flame = asFloatGrid(path, g, "flame");
-    }
 
-    // One lattice for the frame; every grid must agree.
-    std::vector<openvdb::GridBase::ConstPtr> all;
-    for (const auto& g : {openvdb::GridBase::ConstPtr(density), openvdb::GridBase::ConstPtr(vel),
-             openvdb::GridBase::ConstPtr(comp[0]), openvdb::GridBase::ConstPtr(comp[1]),
-             openvdb::GridBase::ConstPtr(comp[2]), openvdb::GridBase::ConstPtr(temperature),
-             openvdb::GridBase::ConstPtr(flame)})
-        if (g) all.push_back(g);
-    if (all.empty()) throw IoError(path + ": none of the requested grids is present");
-    const turb::Lattice lattice = latticeOf(path, *all.front());
-    for (const auto& g : all) {
-        const turb::Lattice l = latticeOf(path, *g);
-        if (!l.approxEqual(lattice)) {
-            std::ostringstream os;
-            os << path << ": grid " << quoted(g->getName()) << " (voxel " << l.voxelSize << ", origin " << l.origin
-               << ") does not share the transform of grid " << quoted(all.front()->getName()) << " (voxel "
-               << lattice.voxelSize << ", origin " << lattice.origin
-               << "); vdbturb needs all grids of a frame on one lattice";
-            throw IoError(os.str());
+    std::vector<openvdb::GridBase::ConstPtr> all() const
+    {
+        std::vector<openvdb::GridBase::ConstPtr> v;
+        for (const auto& g : {openvdb::GridBase::ConstPtr(density), openvdb::GridBase::ConstPtr(vel),
+                 openvdb::GridBase::ConstPtr(comp[0]), openvdb::GridBase::ConstPtr(comp[1]),
+                 openvdb::GridBase::ConstPtr(comp[2]), openvdb::GridBase::ConstPtr(temperature),
+                 openvdb::GridBase::ConstPtr(flame)})
+            if (g) v.push_back(g);
+        return v;
+    }
+};
+
+turb::CoordBBox activeBoxOn(const openvdb::GridBase& g, const turb::Lattice& own, const turb::Lattice& target)
+{
+    return detail::boxOnLattice(g.evalActiveVoxelBoundingBox(), own, target);
+}
+
+// `src` sampled trilinearly at the voxel centres of `box` on `lattice`; zero more than half a voxel
+// outside src's box (where the file has no values).
+template<typename T>
+turb::Field<T> resampledOnto(const turb::Field<T>& src, const turb::CoordBBox& box, const turb::Lattice& lattice)
+{
+    turb::Field<T> out(box, lattice);
+    const turb::CoordBBox& sb = src.bbox();
+    for (size_t n = 0; n < out.size(); ++n) {
+        const turb::Vec3d p = src.lattice().worldToIndex(lattice.indexToWorld(out.coordOf(n).asVec3d()));
+        bool inside = true;
+        for (int k = 0; k < 3; ++k) inside = inside && p[k] >= sb.min()[k] - 0.5 && p[k] <= sb.max()[k] + 0.5;
+        if (inside) out.data()[n] = turb::sampleTrilinear(src, p);
+    }
+    return out;
+}
+
+std::string spanText(const turb::CoordBBox& b)
+{
+    std::ostringstream os;
+    const turb::Coord d = b.dim();
+    os << b.min() << "-" << b.max() << " = " << d.x() << "x" << d.y() << "x" << d.z() << " voxels";
+    return os.str();
+}
+
+// Velocity of the frame on its own lattice over `box`: cell-centred, in world units, finite-checked and
+// extended past its active region as the options say.
+turb::VectorField velocityField(const std::string& path, const RoleGrids& g, const turb::CoordBBox& box,
+    const turb::Lattice& lattice, bool cells, const ReadOptions& options)
+{
+    turb::VectorField v(box, lattice);
+    std::string label;
+    if (g.vel) {
+        label = g.vel->getName();
+        if (g.vel->getGridClass() == openvdb::GRID_STAGGERED) staggeredToCentred(*g.vel, v);
+        else copyToField(*g.vel, v);
+    } else {
+        label = g.comp[0]->getName() + "/.y/.z";
+        turb::ScalarField c(box, lattice);
+        for (int a = 0; a < 3; ++a) {
+            c.fill(0.0f);
+            copyToField(*g.comp[a], c);
+            for (size_t n = 0; n < c.size(); ++n) v.data()[n][a] = c.data()[n];
         }
     }
+    if (cells) {
+        const float s = float(lattice.voxelSize);
+        for (auto& x : v.values()) x *= s;
+    }
+    if (options.checkFinite) requireFinite(path, label, v);
+    if (options.extendVelocity > 0) {
+        // Known = active in the file. Blender (and sparse Houdini vel) store velocity only near the
+        // smoke; the zeros beyond are "unknown", and would read as a velocity jump at the smoke's edge.
+        std::vector<uint8_t> known(v.size(), 0);
+        const auto mark = [&](const openvdb::GridBase& grid) {
+            const CoordBBoxCallback cb = [&](const openvdb::CoordBBox& b) {
+                openvdb::CoordBBox c = b;
+                c.intersect(box);
+                for (auto it = c.begin(); it; ++it) known[v.offset((*it).x(), (*it).y(), (*it).z())] = 1;
+            };
+            forEachActiveBox(grid, cb);
+        };
+        if (g.vel) mark(*g.vel);
+        else
+            for (const auto& c : g.comp) mark(*c);
+        extendIntoUnknown(v, known, options.extendVelocity);
+    }
+    return v;
+}
+
+turb::ScalarField scalarField(const std::string& path, const openvdb::FloatGrid& grid, const turb::CoordBBox& box,
+    const turb::Lattice& lattice, bool checkFinite)
+{
+    turb::ScalarField f(box, lattice);
+    copyToField(grid, f);
+    if (checkFinite) requireFinite(path, grid.getName(), f);
+    return f;
+}
+
+} // namespace
+
+static turb::Frame readFrameUnchecked(const std::string& path, int frameNumber, const ReadOptions& options,
+    ReadReport* report, std::string& stage);
+
+turb::Frame readFrame(const std::string& path, int frameNumber, const ReadOptions& options, ReadReport* report)
+{
+    std::string stage;
+    try {
+        return readFrameUnchecked(path, frameNumber, options, report, stage);
+    } catch (const std::bad_alloc&) {
+        throw IoError(path + ": not enough memory to load the frame" + (stage.empty() ? "" : " (" + stage + ")"));
+    }
+}
+
+static turb::Frame readFrameUnchecked(const std::string& path, int frameNumber, const ReadOptions& options,
+    ReadReport* report, std::string& stage)
+{
+    const detail::GuardedResult r = guarded(path,
+        [&](openvdb::io::File& file, const std::vector<Descriptor>& order, openvdb::GridPtrVec& out, openvdb::MetaMap& meta) {
+            readRoles(file, order, out, meta, path, options);
+        });
+
+    RoleGrids g;
+    for (const auto& grid : r.grids) {
+        const std::string role = roleOf(*grid);
+        if (role == "density") g.density = asFloatGrid(path, grid, "density");
+        else if (role == "velocity") g.vel = asVec3Grid(path, grid);
+        else if (role == "velocity.x") g.comp[0] = asFloatGrid(path, grid, "velocity component");
+        else if (role == "velocity.y") g.comp[1] = asFloatGrid(path, grid, "velocity component");
+        else if (role == "velocity.z") g.comp[2] = asFloatGrid(path, grid, "velocity component");
+        else if (role == "temperature") g.temperature = asFloatGrid(path, grid, "temperature");
+        else if (role == "flame") g.flame = asFloatGrid(path, grid, "flame");
+    }
+    const std::vector<openvdb::GridBase::ConstPtr> all = g.all();
+    if (all.empty()) throw IoError(path + ": none of the requested grids is present");
+
+    // One lattice for the frame: the density's (the velocity's without density). Grids on another uniform
+    // lattice (Houdini's velocity voxel scale) are resampled onto it; components must share one lattice.
+    const turb::Lattice lattice = latticeOf(path, *all.front());
+    std::vector<turb::Lattice> lattices;
+    for (const auto& grid : all) lattices.push_back(latticeOf(path, *grid));
+    if (g.comp[0])
+        for (int a = 1; a < 3; ++a)
+            if (!latticeOf(path, *g.comp[a]).approxEqual(latticeOf(path, *g.comp[0])))
+                throw IoError(path + ": velocity components " + quoted(g.comp[0]->getName()) + " and " +
+                              quoted(g.comp[a]->getName()) + " lie on different lattices");
 
     // Domain: Blender records its full simulation box; otherwise the union of the grids' active boxes.
     turb::CoordBBox domain;
     std::optional<turb::Coord> baseRes;
-    for (const auto& g : all)
-        if (auto res = baseResolution(*g)) baseRes = res;
+    for (const auto& grid : all)
+        if (auto res = baseResolution(*grid)) baseRes = res;
     if (baseRes) domain = turb::CoordBBox(turb::Coord(0), *baseRes - turb::Coord(1));
-    for (const auto& g : all) {
-        const turb::CoordBBox b = g->evalActiveVoxelBoundingBox();
+    std::vector<turb::CoordBBox> spans;
+    double bytesPerVoxel = 0.0;
+    for (size_t i = 0; i < all.size(); ++i) {
+        const turb::CoordBBox b = activeBoxOn(*all[i], lattices[i], lattice);
+        spans.push_back(b);
         if (!b.empty()) domain.expand(b);
+        const bool vector = all[i] == openvdb::GridBase::ConstPtr(g.vel);
+        bytesPerVoxel += vector ? 12.0 : 4.0;
     }
     if (domain.empty()) domain = turb::CoordBBox(turb::Coord(0), turb::Coord(0)); // every grid is empty
-    if (double(domain.volume()) > options.maxVoxels) {
-        std::ostringstream os;
-        os << path << ": the grids span " << domain << " (" << double(domain.volume())
-           << " voxels), more than the " << options.maxVoxels
-           << " voxels vdbturb holds densely; a damaged file, or a cache too large for this tool";
-        throw IoError(os.str());
+    {
+        std::vector<std::pair<std::string, turb::CoordBBox>> named;
+        for (size_t i = 0; i < all.size(); ++i) named.emplace_back(all[i]->getName(), spans[i]);
+        const std::string problem = detail::denseSizeProblem(path, domain, named, bytesPerVoxel, options);
+        if (!problem.empty()) throw IoError(problem);
     }
 
     turb::Frame frame;
     frame.number = frameNumber;
-    if (density) {
-        frame.density = turb::ScalarField(domain, lattice);
-        copyToField(*density, frame.density);
-        if (options.checkFinite) requireFinite(path, density->getName(), frame.density);
+    ReadReport rep;
+    const auto onOwnLattice = [&](const openvdb::GridBase& grid) { return latticeOf(path, grid).approxEqual(lattice); };
+    if (g.density) {
+        stage = "grid " + quoted(g.density->getName()) + " over " + spanText(domain);
+        frame.density = scalarField(path, *g.density, domain, lattice, options.checkFinite);
     }
-    if (vel || comp[0]) {
-        frame.velocity = turb::VectorField(domain, lattice);
-        bool cells = false;
-        std::string velLabel;
-        if (vel) {
-            velLabel = vel->getName();
-            if (vel->getGridClass() == openvdb::GRID_STAGGERED) staggeredToCentred(*vel, frame.velocity);
-            else copyToField(*vel, frame.velocity);
-            cells = isBlenderVelocity(*vel);
+    bool blenderVelocity = false;
+    if (g.vel || g.comp[0]) {
+        const openvdb::GridBase& vg = g.vel ? static_cast<const openvdb::GridBase&>(*g.vel) : *g.comp[0];
+        blenderVelocity = g.vel && isBlenderVelocity(*g.vel);
+        const bool cells = options.velocityUnits == VelocityUnits::Cells ||
+                           (options.velocityUnits == VelocityUnits::Auto && blenderVelocity);
+        if (onOwnLattice(vg)) {
+            stage = "grid " + quoted(vg.getName()) + " over " + spanText(domain);
+            frame.velocity = velocityField(path, g, domain, lattice, cells, options);
         } else {
-            velLabel = comp[0]->getName() + "/.y/.z";
-            turb::ScalarField c(domain, lattice);
-            for (int a = 0; a < 3; ++a) {
-                c.fill(0.0f);
-                copyToField(*comp[a], c);
-                for (size_t n = 0; n < c.size(); ++n) frame.velocity.data()[n][a] = c.data()[n];
-            }
-        }
-        if (options.velocityUnits == VelocityUnits::Cells) cells = true;
-        if (options.velocityUnits == VelocityUnits::World) cells = false;
-        if (cells) {
-            const float s = float(lattice.voxelSize);
-            for (auto& v : frame.velocity.values()) v *= s;
-        }
-        if (options.checkFinite) requireFinite(path, velLabel, frame.velocity);
-        if (options.extendVelocity > 0) {
-            // Known = active in the file. Blender (and sparse Houdini vel) store velocity only near the
-            // smoke; the zeros beyond are "unknown", and would read as a velocity jump at the smoke's edge.
-            std::vector<uint8_t> known(frame.velocity.size(), 0);
-            const auto mark = [&](const openvdb::GridBase& g) {
-                const CoordBBoxCallback cb = [&](const openvdb::CoordBBox& b) {
-                    openvdb::CoordBBox c = b;
-                    c.intersect(domain);
-                    for (auto it = c.begin(); it; ++it) known[frame.velocity.offset((*it).x(), (*it).y(), (*it).z())] = 1;
-                };
-                forEachActiveBox(g, cb);
-            };
-            if (vel) mark(*vel);
-            else
-                for (const auto& c : comp) mark(*c);
-            extendIntoUnknown(frame.velocity, known, options.extendVelocity);
+            // Read on its own lattice over its own active box (plus the extension), then resample.
+            const turb::Lattice own = latticeOf(path, vg);
+            turb::CoordBBox box = vg.evalActiveVoxelBoundingBox();
+            if (box.empty()) box = turb::CoordBBox(turb::Coord(0), turb::Coord(0));
+            box.expand(options.extendVelocity);
+            stage = "grid " + quoted(vg.getName()) + " over " + spanText(box) + " before resampling";
+            const turb::VectorField native = velocityField(path, g, box, own, cells, options);
+            stage = "grid " + quoted(vg.getName()) + " resampled over " + spanText(domain);
+            frame.velocity = resampledOnto(native, domain, lattice);
+            std::ostringstream note;
+            note << "grid " << quoted(vg.getName()) << " (voxel " << own.voxelSize << ") resampled trilinearly onto the "
+                 << (g.density ? "density's" : "frame's") << " lattice (voxel " << lattice.voxelSize
+                 << ")" << (std::abs(own.voxelSize / lattice.voxelSize - 2.0) < 1e-6 ? ": Houdini's velocity voxel scale 2" : "");
+            rep.notes.push_back(note.str());
         }
         frame.metadata["vdbturb_input_velocity_units"] = cells ? "cells" : "world";
     }
-    const auto extra = [&](const openvdb::FloatGrid::Ptr& g, std::optional<turb::ScalarField>& dst) {
-        if (!g) return;
-        dst = turb::ScalarField(domain, lattice);
-        copyToField(*g, *dst);
-        if (options.checkFinite) requireFinite(path, g->getName(), *dst);
+    const auto extra = [&](const openvdb::FloatGrid::Ptr& grid, std::optional<turb::ScalarField>& dst) {
+        if (!grid) return;
+        stage = "grid " + quoted(grid->getName()) + " over " + spanText(domain);
+        if (onOwnLattice(*grid)) {
+            dst = scalarField(path, *grid, domain, lattice, options.checkFinite);
+            return;
+        }
+        const turb::CoordBBox box = grid->evalActiveVoxelBoundingBox();
+        const turb::ScalarField native = scalarField(path, *grid,
+            box.empty() ? turb::CoordBBox(turb::Coord(0), turb::Coord(0)) : box, latticeOf(path, *grid), options.checkFinite);
+        dst = resampledOnto(native, domain, lattice);
+        rep.notes.push_back("grid " + quoted(grid->getName()) + " resampled trilinearly onto the frame's lattice");
     };
-    extra(temperature, frame.temperature);
-    extra(flame, frame.flame);
+    extra(g.temperature, frame.temperature);
+    extra(g.flame, frame.flame);
+    stage.clear();
 
     // File-level string metadata (vdbturb parameters, creator) travels with the frame.
     for (auto it = r.meta->beginMeta(); it != r.meta->endMeta(); ++it)
-        if (it->second && it->second->typeName() == openvdb::StringMetadata::staticTypeName())
+        if (it->second && it->second->typeName() == openvdb::StringMetadata::staticTypeName() && it->first.rfind("__turb", 0) != 0)
             frame.metadata[it->first] = it->second->str();
 
-    // Time per frame: explicit option > recorded by vdbturb > the writer's convention.
-    double dt = metaDouble(*r.meta, "vdbturb_dt", 0.0);
-    if (options.dt > 0.0) dt = options.dt;
-    else if (dt <= 0.0) {
-        // Blender/Mantaflow: frame_length = 0.1 * (25 / fps) * time_scale, in Mantaflow time units
-        // (time_scale assumed 1). Houdini and most others: seconds.
-        dt = baseRes ? 0.1 * 25.0 / options.fps : 1.0 / options.fps;
+    // Time per frame and the units: explicit option > recorded by vdbturb > the writer's convention.
+    const ReadReport timing = resolveTiming(blenderVelocity, baseRes.has_value(), metaDouble(*r.meta, "vdbturb_dt", 0.0), options);
+    frame.dt = timing.dt;
+    if (report) {
+        *report = timing;
+        report->notes = rep.notes;
     }
-    frame.dt = dt;
     return frame;
 }
 
@@ -643,25 +979,163 @@ std::string tempPathFor(const std::string& path)
            std::to_string(counter++);
 }
 
+// Removes temporary files a killed run left for `path` (".NAME.tmpPID_N" whose process no longer runs), so a
+// kill -9 mid-write leaves no litter once the frame is written again (e.g. by --resume).
+void removeStaleTemporaries(const std::string& path)
+{
+    const std::string dir = dirName(path), head = "." + baseName(path) + ".tmp";
+    DIR* d = ::opendir(dir.c_str());
+    if (!d) return;
+    while (const dirent* e = ::readdir(d)) {
+        const std::string name = e->d_name;
+        if (name.compare(0, head.size(), head) != 0) continue;
+        const long pid = std::strtol(name.c_str() + head.size(), nullptr, 10);
+        if (pid <= 0 || pid == long(::getpid())) continue;
+        if (::kill(pid_t(pid), 0) != 0 && errno == ESRCH) ::unlink((dir + "/" + name).c_str());
+    }
+    ::closedir(d);
+}
+
 bool fileExists(const std::string& path)
 {
     struct stat st;
     return ::stat(path.c_str(), &st) == 0;
 }
 
-void fsyncPath(const std::string& path)
+// An output stream over a file descriptor that remembers the first write error (errno), so a full disk,
+// a file-size limit (EFBIG with SIGXFSZ ignored) or an I/O error is reported instead of leaving a short
+// file behind. Seekable, as OpenVDB's writer goes back to fill in grid offsets.
+class FdOutBuf : public std::streambuf
 {
-    const int fd = ::open(path.c_str(), O_RDONLY);
-    if (fd >= 0) {
-        ::fsync(fd);
-        ::close(fd);
+public:
+    explicit FdOutBuf(int fd, bool killAfterFirstFlush = false)
+        : mFd(fd), mKill(killAfterFirstFlush), mBuf(1 << 20)
+    {
+        setp(mBuf.data(), mBuf.data() + mBuf.size());
+    }
+    ~FdOutBuf() override { flushBuffer(); }
+    int error() const { return mErr; }
+    bool flushBuffer()
+    {
+        const char* p = pbase();
+        size_t n = size_t(pptr() - pbase());
+        while (n > 0 && mErr == 0) {
+            const ssize_t w = ::write(mFd, p, n);
+            if (w < 0) {
+                if (errno == EINTR) continue;
+                mErr = errno;
+                break;
+            }
+            p += w;
+            n -= size_t(w);
+            if (mKill) {
+                ::fsync(mFd);
+                ::kill(::getpid(), SIGKILL);
+            }
+        }
+        setp(mBuf.data(), mBuf.data() + mBuf.size());
+        return mErr == 0;
+    }
+
+protected:
+    int_type overflow(int_type c) override
+    {
+        if (!flushBuffer()) return traits_type::eof();
+        if (!traits_type::eq_int_type(c, traits_type::eof())) {
+            *pptr() = traits_type::to_char_type(c);
+            pbump(1);
+        }
+        return traits_type::not_eof(c);
+    }
+    int sync() override { return flushBuffer() ? 0 : -1; }
+    pos_type seekoff(off_type off, std::ios_base::seekdir dir, std::ios_base::openmode) override
+    {
+        if (!flushBuffer()) return pos_type(off_type(-1));
+        const int whence = dir == std::ios_base::beg ? SEEK_SET : dir == std::ios_base::cur ? SEEK_CUR : SEEK_END;
+        const off_t r = ::lseek(mFd, off_t(off), whence);
+        if (r < 0) mErr = errno;
+        return r < 0 ? pos_type(off_type(-1)) : pos_type(off_type(r));
+    }
+    pos_type seekpos(pos_type pos, std::ios_base::openmode which) override
+    {
+        return seekoff(off_type(pos), std::ios_base::beg, which);
+    }
+
+private:
+    int mFd;
+    bool mKill;
+    int mErr = 0;
+    std::vector<char> mBuf;
+};
+
+// OpenVDB's File::write opens its own std::ofstream and never checks it; its protected seekable writer is
+// the same code on a stream we own.
+class CheckedArchive : public openvdb::io::Archive
+{
+public:
+    void writeTo(std::ostream& os, const openvdb::GridPtrVec& grids, const openvdb::MetaMap& meta) const
+    {
+        Archive::write(os, grids, /*seekable=*/true, meta);
+    }
+};
+
+// The message for a failed write: a full disk and a file-size limit say so in words.
+std::string writeFailure(const std::string& path, int err)
+{
+    std::string why = std::strerror(err);
+    if (err == ENOSPC) why += ": the disk is full";
+    else if (err == EFBIG) why += ": the file-size limit (ulimit -f) or the file system's maximum file size was reached";
+    else if (err == EDQUOT) why += ": the disk quota is exhausted";
+    return path + ": write failed (" + why + "); nothing was written under this name";
+}
+
+// Test hook for tests/test_faults.cc: with VDBTURB_TEST_KILL_IN_WRITE=N the process sends itself SIGKILL
+// during its N-th VDB write, after the first part of the temporary file reached the disk: kill -9 in the
+// middle of a write, at a reproducible point.
+bool killThisWrite()
+{
+    static const char* env = std::getenv("VDBTURB_TEST_KILL_IN_WRITE");
+    if (!env || !*env) return false;
+    static std::atomic<int> writes{0};
+    return ++writes == std::atoi(env);
+}
+
+// Writes `grids` to the new file `tmp` through a checked stream, fsyncs it, and throws naming `path` on any
+// error (the temporary file is removed).
+void writeVdbChecked(const std::string& tmp, const std::string& path, const openvdb::GridPtrVec& grids,
+    const openvdb::MetaMap& meta)
+{
+    const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+    if (fd < 0) throw IoError(path + ": cannot write (" + std::strerror(errno) + ")");
+    int err = 0;
+    std::string other;
+    {
+        FdOutBuf buf(fd, killThisWrite());
+        std::ostream os(&buf);
+        try {
+            CheckedArchive archive;
+            archive.setCompression(openvdb::io::COMPRESS_BLOSC | openvdb::io::COMPRESS_ACTIVE_MASK);
+            archive.writeTo(os, grids, meta);
+            os.flush();
+            buf.flushBuffer();
+        } catch (const std::exception& e) {
+            other = e.what();
+        }
+        err = buf.error();
+        if (err == 0 && !os && other.empty()) err = EIO;
+    }
+    if (err == 0 && other.empty() && ::fsync(fd) != 0) err = errno;
+    if (::close(fd) != 0 && err == 0 && other.empty()) err = errno;
+    if (err != 0 || !other.empty()) {
+        ::unlink(tmp.c_str());
+        if (err != 0) throw IoError(writeFailure(path, err));
+        throw IoError(path + ": write failed (" + cleanMessage(other) + ")");
     }
 }
 
-// Moves a finished temporary file into place. With noClobber, link() fails instead of replacing.
+// Moves a finished (fsynced) temporary file into place. With noClobber, link() fails instead of replacing.
 void commitTemp(const std::string& tmp, const std::string& path, bool noClobber)
 {
-    fsyncPath(tmp);
     if (noClobber) {
         if (::link(tmp.c_str(), path.c_str()) != 0) {
             const int err = errno;
@@ -721,15 +1195,20 @@ void writeFileAtomic(const std::string& path, const std::string& bytes, bool noC
 {
     if (noClobber && fileExists(path)) throw IoError(path + ": exists, not replaced (--no-clobber)");
     const std::string tmp = tempPathFor(path);
-    FILE* fp = std::fopen(tmp.c_str(), "wb");
-    if (!fp) throw IoError(path + ": cannot write (" + std::strerror(errno) + ")");
-    const size_t n = std::fwrite(bytes.data(), 1, bytes.size(), fp);
-    const bool ok = (n == bytes.size()) && std::fflush(fp) == 0;
-    const int err = errno;
-    std::fclose(fp);
-    if (!ok) {
+    const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+    if (fd < 0) throw IoError(path + ": cannot write (" + std::strerror(errno) + ")");
+    int err = 0;
+    {
+        FdOutBuf buf(fd);
+        buf.sputn(bytes.data(), std::streamsize(bytes.size()));
+        buf.flushBuffer();
+        err = buf.error();
+    }
+    if (err == 0 && ::fsync(fd) != 0) err = errno;
+    if (::close(fd) != 0 && err == 0) err = errno;
+    if (err != 0) {
         ::unlink(tmp.c_str());
-        throw IoError(path + ": write failed (" + std::strerror(err) + ")");
+        throw IoError(writeFailure(path, err));
     }
     commitTemp(tmp, path, noClobber);
 }
@@ -745,6 +1224,14 @@ void writeAtomically(const std::string& path, bool noClobber, const std::functio
         throw;
     }
     if (!fileExists(tmp)) throw IoError(path + ": the writer produced no file");
+    // The writer closed the file; a full disk can still surface when its pages reach the disk.
+    const int fd = ::open(tmp.c_str(), O_RDONLY | O_CLOEXEC);
+    const int err = fd < 0 ? errno : (::fsync(fd) != 0 ? errno : 0);
+    if (fd >= 0) ::close(fd);
+    if (err != 0) {
+        ::unlink(tmp.c_str());
+        throw IoError(writeFailure(path, err));
+    }
     commitTemp(tmp, path, noClobber);
 }
 
@@ -813,21 +1300,9 @@ void writeFrame(const std::string& path, const turb::Frame& frame, const WriteOp
         meta.insertMeta("vdbturb_dt", openvdb::StringMetadata(os.str()));
     }
 
+    removeStaleTemporaries(path);
     const std::string tmp = tempPathFor(path);
-    try {
-        openvdb::io::File file(tmp);
-        file.setCompression(openvdb::io::COMPRESS_BLOSC | openvdb::io::COMPRESS_ACTIVE_MASK);
-        file.write(grids, meta);
-        file.close();
-    } catch (const std::exception& e) {
-        ::unlink(tmp.c_str());
-        throw IoError(path + ": write failed (" + e.what() + ")");
-    }
-    struct stat st;
-    if (::stat(tmp.c_str(), &st) != 0 || st.st_size == 0) {
-        ::unlink(tmp.c_str());
-        throw IoError(path + ": write failed (empty file; disk full or directory not writable?)");
-    }
+    writeVdbChecked(tmp, path, grids, meta);
     commitTemp(tmp, path, options.noClobber);
 }
 
@@ -836,23 +1311,34 @@ void writeFrame(const std::string& path, const turb::Frame& frame, const WriteOp
 
 FileInfo inspectFile(const std::string& path, bool readValues)
 {
-    // Child: headers of every grid, and with readValues a serial pass over each float/vector grid for
-    // its range, count and bounding box (OpenVDB's own counters use TBB, which a forked child must not).
-    const auto body = [&](openvdb::io::File& file, openvdb::GridPtrVec& out, openvdb::MetaMap& meta) {
+    // Child: headers of every grid in file order, and with readValues a serial pass over each float/vector
+    // grid for its range, count and bounding box (OpenVDB's own counters use TBB, which a forked child must
+    // not). Grids are read by their unique names, so two unnamed grids each get their own statistics.
+    const auto body = [&](openvdb::io::File& file, const std::vector<Descriptor>& order, openvdb::GridPtrVec& out,
+                          openvdb::MetaMap& meta) {
         meta.insertMeta("__turb_file_version", openvdb::Int64Metadata(file.fileVersion()));
         const auto lv = file.libraryVersion();
         meta.insertMeta("__turb_lib_version",
             openvdb::StringMetadata(std::to_string(lv.first) + "." + std::to_string(lv.second)));
         if (auto fm = file.getMetadata())
             for (auto it = fm->beginMeta(); it != fm->endMeta(); ++it) meta.insertMeta(it->first, *it->second);
-        openvdb::GridPtrVecPtr metas = file.readAllGridMetadata();
-        for (const auto& g : *metas) {
+        const std::vector<GridEntry> entries = listGrids(file, order);
+        for (size_t i = 0; i < entries.size(); ++i) {
+            openvdb::GridBase::Ptr g;
+            try {
+                g = file.readGridMetadata(entries[i].unique);
+            } catch (const std::exception& e) {
+                throw IoError(path + ": grid " + quoted(cleanMessage(entries[i].unique)) + " has a damaged header (" +
+                              cleanMessage(e.what()) + ")");
+            }
             g->insertMeta(kHalfKey, openvdb::BoolMetadata(g->saveFloatAsHalf()));
+            g->insertMeta("__turb_unique", openvdb::StringMetadata(entries[i].unique));
+            g->insertMeta("__turb_index", openvdb::Int64Metadata(int64_t(i)));
             const std::string type = g->valueType();
             const bool scalar = type == "float" || type == "double";
             const bool vector = type == "vec3s" || type == "vec3d";
             if (readValues && (scalar || vector)) {
-                auto full = readGridNamed(file, path, g->getName());
+                auto full = readGridNamed(file, path, entries[i].unique);
                 double lo = 0, hi = 0;
                 long long count = 0;
                 openvdb::CoordBBox box;
@@ -889,21 +1375,29 @@ FileInfo inspectFile(const std::string& path, bool readValues)
     if (auto m = r.meta->getMetadata<openvdb::Int64Metadata>("__turb_file_version")) info.fileVersion = unsigned(m->value());
     if (auto m = r.meta->getMetadata<openvdb::StringMetadata>("__turb_lib_version")) info.libraryVersion = m->value();
     if (auto c = r.meta->getMetadata<openvdb::StringMetadata>("creator")) info.creator = c->value();
+    info.recordedDt = metaDouble(*r.meta, "vdbturb_dt", 0.0);
 
     std::vector<std::string> names;
-    for (const auto& g : r.grids) names.push_back(g->getName());
+    for (const auto& g : r.grids) {
+        auto u = g->getMetadata<openvdb::StringMetadata>("__turb_unique");
+        names.push_back(u ? u->value() : g->getName());
+    }
     const auto roleOfName = [&](const std::string& n) {
         for (GridRole role : {GridRole::Density, GridRole::Velocity, GridRole::Temperature, GridRole::Flame})
             if (hasName(resolveGrid(names, role), n)) return role;
         return GridRole::Other;
     };
-    for (const auto& g : r.grids) {
+    for (size_t i = 0; i < r.grids.size(); ++i) {
+        const auto& g = r.grids[i];
         GridInfo gi;
+        gi.index = int(i);
+        if (auto idx = g->getMetadata<openvdb::Int64Metadata>("__turb_index")) gi.index = int(idx->value());
+        gi.selector = names[i];
         gi.name = g->getName();
         gi.valueType = g->valueType();
         gi.gridClass = openvdb::GridBase::gridClassToString(g->getGridClass());
         gi.vectorType = openvdb::GridBase::vecTypeToString(g->getVectorType());
-        gi.role = roleOfName(gi.name);
+        gi.role = roleOfName(names[i]);
         if (auto h = g->getMetadata<openvdb::BoolMetadata>(kHalfKey)) gi.halfFloat = h->value();
         gi.mapType = g->transform().mapType();
         gi.supportedTransform = uniformTransform(g->transform(), gi.voxelSize, gi.origin);
@@ -935,6 +1429,7 @@ FileInfo inspectFile(const std::string& path, bool readValues)
         }
         info.grids.push_back(gi);
     }
+    std::sort(info.grids.begin(), info.grids.end(), [](const GridInfo& a, const GridInfo& b) { return a.index < b.index; });
     return info;
 }
 

@@ -1,5 +1,5 @@
 /// @file Sequence.h
-/// @brief Frame-sequence names: patterns (####, @, %04d, $F4), frame lists (1001-1100x2,1200),
+/// @brief Frame-sequence names: patterns (####, @, %04d, $F4, ${F4}), frame lists (1001-1100x2,1200),
 ///        auto-detection from one real file name, and scanning a directory for the frames present.
 ///
 /// @code
@@ -20,12 +20,15 @@ class FramePattern
 {
 public:
     /// Parses a pattern. Recognised tokens: runs of '#' (width = run length), '@' (one '@' means
-    /// unpadded, a run of n means width n), printf '%d' / '%0Nd', Houdini '$F' / '$FN'. A name with
-    /// no token is a single file (numbered() is false). Throws turb::ValueError on two tokens.
+    /// unpadded, a run of n means width n), printf '%d' / '%0Nd', Houdini '$F' / '$FN' / '${F}' /
+    /// '${FN}'. A name with no token is a single file (numbered() is false). Throws turb::ValueError on
+    /// two tokens.
     static FramePattern parse(const std::string& text);
 
-    /// Treats the last run of digits in the file name (not the directory) of a real file as the frame
-    /// number: "fluid_data_0001.vdb" -> "fluid_data_####.vdb", frame 1. nullopt if there are none.
+    /// The frame number of a real file name, as Houdini, Blender and renderers read it: the run of digits
+    /// that ends the name's stem (followed only by the extension, e.g. ".vdb" or ".bgeo.sc"):
+    /// "fluid_data_0001.vdb" -> "fluid_data_####.vdb", frame 1. nullopt if the stem does not end in digits
+    /// ("smoke.vdb", "smoke2_final.vdb"). Digits in the directory never count.
     static std::optional<std::pair<FramePattern, int>> fromFileName(const std::string& path);
 
     /// The file name of frame `frame`. For an unnumbered pattern, the pattern itself.
@@ -35,13 +38,15 @@ public:
 
     bool numbered() const { return mNumbered; }
     int width() const { return mWidth; }
-    /// The pattern written with '#' padding, for messages.
+    /// The pattern as the user wrote it (e.g. "pyro.$F.vdb"), or with '#' padding when it was detected
+    /// from a file name; for messages.
     std::string str() const;
     const std::string& prefix() const { return mPrefix; }
     const std::string& suffix() const { return mSuffix; }
 
 private:
     std::string mPrefix, mSuffix;
+    std::string mText;     // as given to parse(); empty when detected from a file name
     int mWidth = 0;        // zero-padding width; 0 or 1 = unpadded
     bool mNumbered = false;
 };
@@ -67,9 +72,15 @@ struct Sequence
 };
 
 /// Resolves user input to a sequence. `text` may be a pattern or one real file name (auto-detected,
-/// siblings found by scanning). `frameSpec` (parseFrameList syntax) restricts/extends the request;
-/// empty means "every frame on disk". Throws turb::IoError when no file matches at all.
+/// siblings found by scanning; a lone file whose stem ends in digits is that frame, e.g. pyro.1001.vdb
+/// is frame 1001). `frameSpec` (parseFrameList syntax) restricts/extends the request; empty means
+/// "every frame on disk". Throws turb::IoError when no file matches at all; the message says what is
+/// there instead (other paddings of the same name, the sequences in a directory given as the cache).
 Sequence resolveSequence(const std::string& text, const std::string& frameSpec = "");
+
+/// The frame sequences in directory `dir`, as patterns with '#' padding and their frame counts, most
+/// frames first (for messages such as "a directory is not a cache: it holds fluid_data_####.vdb").
+std::vector<std::pair<std::string, int>> sequencesInDirectory(const std::string& dir);
 
 /// How a target frame picks its source frame when the sequences differ in length.
 enum class SourceWrap

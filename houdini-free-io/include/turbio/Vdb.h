@@ -39,30 +39,60 @@ enum class GridRole { Density, Velocity, Temperature, Flame, Other };
 
 struct ReadOptions
 {
-    std::string densityGrid;   ///< grid name overriding the density aliases; empty = aliases
-    std::string velocityGrid;  ///< grid name (or "name.x" stem) overriding the velocity aliases
+    std::string densityGrid;   ///< grid selector overriding the density aliases: a name, OpenVDB's "name[N]" (the
+                               ///< N-th grid of that name; "[0]" = the first unnamed grid) or "#N" (the file's N-th
+                               ///< grid, as `vdbturb info` numbers them); empty = aliases
+    std::string velocityGrid;  ///< the same for velocity; a name may also be the stem of NAME.x/.y/.z
     VelocityUnits velocityUnits = VelocityUnits::Auto; ///< unit convention of the velocity grid
     bool requireDensity = true;   ///< a missing density grid is an error (else the field stays empty)
     bool requireVelocity = true;  ///< a missing velocity grid is an error (else the field stays empty)
     bool readExtras = true;       ///< also read temperature and flame when present
     double dt = 0.0;              ///< time per frame; > 0 overrides metadata and writer defaults
-    double fps = 24.0;            ///< frames per second used for writer defaults of dt (Houdini, Blender)
+    double fps = 0.0;             ///< frames per second for the writers' default dt; 0 = not given (24 is assumed,
+                                  ///< and ReadReport says so)
     bool checkFinite = true;      ///< NaN/Inf voxels are an error naming the grid
     double maxVoxels = 5.0e8;     ///< largest dense domain accepted (velocity needs 12 bytes a voxel)
     int extendVelocity = 0;       ///< continue velocity this many voxels past the grid's active region (caches
                                   ///< that clip velocity to the smoke, as Blender's do); 0 = inactive reads as zero
+    std::string optionPrefix;     ///< how the command line spells these options ("" = --vel-grid, "target-" =
+                                  ///< --target-vel-grid), so messages name the option the user must give
 };
+
+/// How a read interpreted the cache: the time step and velocity units, and where each came from (a flag,
+/// metadata, or a writer's convention). Filled by readFrame and scanFrame for logs and dry runs.
+struct ReadReport
+{
+    double dt = 0.0;           ///< time per frame in the velocity's time unit
+    std::string dtSource;      ///< e.g. "vdbturb_dt metadata", "--dt", "Blender frame length 0.1 x 25/fps"
+    double fps = 24.0;         ///< the frame rate dt was derived from (when it was)
+    std::string fpsSource;     ///< "--fps", "assumed (the cache records no frame rate)", "not used"
+    bool cells = false;        ///< the velocity was in grid cells per time unit and was scaled by the voxel size
+    std::string unitsSource;   ///< why the units were taken as they were
+    bool conventionAssumed = false; ///< dt rests on an assumed frame rate / time scale (warn the user once)
+    std::vector<std::string> notes; ///< conversions worth one log line (e.g. velocity resampled onto density)
+};
+
+/// The time step and units rules, shared by readFrame and header scans. `blenderVelocity`: the velocity
+/// grid is Blender's (staggered `velocity` with file_base_resolution); `blenderCache`: the file has
+/// Blender's domain metadata; `recordedDt`: vdbturb_dt metadata, <= 0 if absent.
+ReadReport resolveTiming(bool blenderVelocity, bool blenderCache, double recordedDt, const ReadOptions& options);
 
 /// The aliases of a role, in priority order.
 const std::vector<std::string>& gridAliases(GridRole role);
 
-/// Chooses the grid of `role` among `names` (an override wins and must exist). For velocity the result
-/// may be three names (x, y, z components). Empty when nothing matches.
+/// Chooses the grid of `role` among `names` (an override wins and must exist). `names` are OpenVDB's
+/// unique grid names in file order ("density", "[0]" for an unnamed grid, "vel[1]" for a second "vel");
+/// an override may also be "#N" (the N-th name) or "name[0]" (the first grid of that name). For velocity
+/// the result may be three names (x, y, z components). Empty when nothing matches.
 std::vector<std::string> resolveGrid(const std::vector<std::string>& names, GridRole role,
     const std::string& overrideName = "");
 
-/// Reads one frame. `frameNumber` is stored in the frame.
-turb::Frame readFrame(const std::string& path, int frameNumber, const ReadOptions& options);
+/// Reads one frame. `frameNumber` is stored in the frame. Grids of a frame on different lattices (e.g.
+/// Houdini's velocity voxel scale: vel at twice the density's voxel) are resampled trilinearly onto the
+/// density's lattice (the velocity's when there is no density); `report` (optional) gets a note saying so,
+/// and the time step and units with their sources.
+turb::Frame readFrame(const std::string& path, int frameNumber, const ReadOptions& options,
+    ReadReport* report = nullptr);
 
 /// Convention of the written grids.
 enum class WriteStyle
@@ -98,6 +128,9 @@ void writeAtomically(const std::string& path, bool noClobber, const std::functio
 
 struct GridInfo
 {
+    int index = 0;           ///< position in the file (what "#N" selects)
+    std::string selector;    ///< how to choose this grid with --density-grid/--vel-grid: its name when unique,
+                             ///< else OpenVDB's "name[N]" ("[0]" for the first unnamed grid)
     std::string name;
     std::string valueType;   ///< "float", "vec3s", "int32", ...
     std::string gridClass;   ///< "fog volume", "staggered", "level set", "unknown"
@@ -123,7 +156,8 @@ struct FileInfo
     std::string libraryVersion;
     std::string creator;          ///< file-level "creator" metadata, if any
     std::optional<turb::Coord> baseResolution; ///< Blender's file_base_resolution
-    std::vector<GridInfo> grids;
+    double recordedDt = 0.0;      ///< vdbturb_dt metadata, 0 if absent
+    std::vector<GridInfo> grids;  ///< in file order
 };
 
 /// Reads a file's header and grid descriptors (fast: no voxel data), and with `readValues` also
@@ -132,5 +166,8 @@ FileInfo inspectFile(const std::string& path, bool readValues);
 
 /// Name of a role, for messages ("density", "velocity", ...).
 const char* roleName(GridRole role);
+
+/// One line per grid for messages: "#0 'density' float fog volume, #1 (unnamed) vec3s staggered".
+std::string describeGrids(const std::vector<GridInfo>& grids);
 
 } // namespace turbio

@@ -3,7 +3,9 @@
 
 #include <turb/Error.h>
 
+#include <cerrno>
 #include <cmath>
+#include <cstdlib>
 #include <sstream>
 
 namespace turb::detail {
@@ -58,23 +60,32 @@ SavedState parseStateText(const std::string& text)
     if ((version != "v2" && !v3) || fField.rfind("f=", 0) != 0 || bField.rfind("B=", 0) != 0 ||
         rotField.rfind("rot=", 0) != 0 || tracks.rfind("tracks=", 0) != 0 || (v3 && srcField.rfind("src=", 0) != 0))
         throw damaged();
+    // The state comes from a file: a damaged one is refused, never a crash (tests/fuzz/fuzz_resume_state.cc).
+    const auto integer = [&](const std::string& field, long long lo, long long hi) {
+        char* end = nullptr;
+        errno = 0;
+        const long long v = std::strtoll(field.c_str(), &end, 10);
+        if (field.empty() || *end != '\0' || errno == ERANGE || v < lo || v > hi)
+            throw ValueError("damaged transfer state in the previous output: '" + field.substr(0, 40) +
+                             "' is not a number in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
+        return int(v);
+    };
     SavedState st;
-    try {
-        st.f = std::stoi(fField.substr(2));
-        st.B = std::stoi(bField.substr(2));
-        const int rot = std::stoi(rotField.substr(4));
-        if (rot >= 0) {
-            st.align.rotation = AxisRotation::fromId(rot);
-            st.align.chosen = true;
-        }
-        if (v3) {
-            const size_t comma = srcField.find(',');
-            if (comma == std::string::npos) throw damaged();
-            st.sourceNumber = std::stoi(srcField.substr(4, comma - 4));
-            st.sourceDt = std::stod(srcField.substr(comma + 1));
-        }
-    } catch (const std::logic_error&) {
-        throw damaged();
+    st.f = integer(fField.substr(2), 1, 256);
+    st.B = integer(bField.substr(2), 2, 1024);
+    const int rot = integer(rotField.substr(4), -1, 1 << 20);
+    if (rot >= 0) {
+        st.align.rotation = AxisRotation::fromId(rot);
+        st.align.chosen = true;
+    }
+    if (v3) {
+        const size_t comma = srcField.find(',');
+        if (comma == std::string::npos) throw damaged();
+        st.sourceNumber = integer(srcField.substr(4, comma - 4), -(1 << 30), 1 << 30);
+        const std::string dtText = srcField.substr(comma + 1);
+        char* end = nullptr;
+        st.sourceDt = std::strtod(dtText.c_str(), &end);
+        if (dtText.empty() || *end != '\0' || !std::isfinite(st.sourceDt) || st.sourceDt < 0.0) throw damaged();
     }
     std::stringstream ts(tracks.substr(7));
     std::string item;
@@ -87,7 +98,9 @@ SavedState parseStateText(const std::string& text)
         bool ok = bool(one >> P[0]);
         for (int k = 1; k < 3 && ok; ++k) ok = bool(one >> sep >> P[k]) && sep == ',';
         for (int k = 0; k < 3 && ok; ++k) ok = bool(one >> sep >> m[k]) && sep == ',' && std::isfinite(m[k]);
-        if (!ok) throw ValueError("damaged transfer state entry '" + item + "'");
+        // Far-out coordinates would overflow the lattice arithmetic downstream.
+        for (int k = 0; k < 3 && ok; ++k) ok = std::abs(P[k]) < (1 << 24) && std::abs(m[k]) < double(1 << 24);
+        if (!ok) throw ValueError("damaged transfer state entry '" + item.substr(0, 60) + "'");
         st.tracks[Coord(P[0], P[1], P[2])] = Vec3d(m[0], m[1], m[2]);
     }
     return st;

@@ -295,6 +295,8 @@ void TurbulenceTransfer::restore(const std::string& state, const Frame& previous
     if (!previousOutput.hasVelocity() || !previousOutput.hasDensity())
         throw ValueError("the previous output frame has no velocity or density to resume from");
     const detail::SavedState saved = detail::parseStateText(state);
+    if (!previousOutput.velocity.lattice().approxEqual(previousTarget.velocity.lattice().refined(saved.f)))
+        throw ValueError("the previous output's voxel is not the target's / " + std::to_string(saved.f) + " as its state says");
     if (saved.B != m.s.localPatch)
         throw ValueError("the previous output used local patch " + std::to_string(saved.B) + ", not " +
                          std::to_string(m.s.localPatch));

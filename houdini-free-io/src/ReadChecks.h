@@ -1,0 +1,27 @@
+// Private to turb_io: the checks and messages readFrame and the header scans (Scan.cc) share, so a dry run
+// fails with the same words as the run.
+#pragma once
+
+#include <turbio/Vdb.h>
+
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace turbio::detail {
+
+/// "PATH: no velocity (...) grid; the file has: LISTING. Use --target-vel-grid NAME, or '#N' ..."
+std::string missingGridMessage(const std::string& path, GridRole role, const ReadOptions& options, const std::string& listing);
+
+/// "PATH: grid 'G' has a MAP transform with ...; vdbturb supports only uniform voxels with a translation."
+std::string unsupportedTransformMessage(const std::string& path, const std::string& grid, const std::string& mapType);
+
+/// The voxels of `target` whose centres lie inside the world-space cells of box `b` on lattice `own`.
+turb::CoordBBox boxOnLattice(const turb::CoordBBox& b, const turb::Lattice& own, const turb::Lattice& target);
+
+/// "" when a dense frame over `domain` fits (ReadOptions::maxVoxels and 80% of the usable memory); else the
+/// message, naming every grid's span.
+std::string denseSizeProblem(const std::string& path, const turb::CoordBBox& domain,
+    const std::vector<std::pair<std::string, turb::CoordBBox>>& spans, double bytesPerVoxel, const ReadOptions& options);
+
+} // namespace turbio::detail

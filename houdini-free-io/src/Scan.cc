@@ -1,0 +1,190 @@
+// Header scans of frames and sequences: what a read will give, without reading voxels.
+#include <turbio/Scan.h>
+
+#include "ReadChecks.h"
+
+#include <turb/Error.h>
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+namespace turbio {
+
+namespace {
+
+bool isFloatType(const std::string& t) { return t == "float" || t == "double"; }
+bool isVectorType(const std::string& t) { return t == "vec3s" || t == "vec3d"; }
+
+const GridInfo* findSelector(const std::vector<GridInfo>& grids, const std::string& selector)
+{
+    for (const auto& g : grids)
+        if (g.selector == selector) return &g;
+    return nullptr;
+}
+
+turb::Lattice latticeOf(const GridInfo& g) { return turb::Lattice{g.voxelSize, g.origin}; }
+
+// Everything the header says about the grids a read would use; throws the read's own messages.
+void resolveFrame(FrameScan& fs, const FileInfo& info, const ReadOptions& options)
+{
+    std::vector<std::string> names;
+    for (const auto& g : info.grids) names.push_back(g.selector);
+    const std::string listing = describeGrids(info.grids);
+    const auto dens = resolveGrid(names, GridRole::Density, options.densityGrid);
+    const auto vel = resolveGrid(names, GridRole::Velocity, options.velocityGrid);
+    if (dens.empty() && (options.requireDensity || !options.densityGrid.empty()))
+        throw turb::IoError(detail::missingGridMessage(fs.path, GridRole::Density, options, listing));
+    if (vel.empty() && (options.requireVelocity || !options.velocityGrid.empty()))
+        throw turb::IoError(detail::missingGridMessage(fs.path, GridRole::Velocity, options, listing));
+
+    std::vector<const GridInfo*> used;
+    const GridInfo* d = dens.empty() ? nullptr : findSelector(info.grids, dens[0]);
+    const GridInfo* v = vel.empty() ? nullptr : findSelector(info.grids, vel[0]);
+    if (d) {
+        if (!isFloatType(d->valueType))
+            throw turb::IoError(fs.path + ": grid '" + d->name + "' has type " + d->valueType +
+                                "; a density grid must be float or double");
+        used.push_back(d);
+        fs.densityGrid = d->selector;
+        fs.densityActive = d->activeVoxels;
+    }
+    if (v) {
+        const bool ok = vel.size() == 3 ? isFloatType(v->valueType) : isVectorType(v->valueType);
+        if (!ok)
+            throw turb::IoError(fs.path + ": grid '" + v->name + "' has type " + v->valueType +
+                                "; a velocity grid must be vec3s or vec3d (or three float grids name.x/.y/.z)");
+        used.push_back(v);
+        for (size_t k = 1; k < vel.size(); ++k)
+            if (const GridInfo* c = findSelector(info.grids, vel[k])) used.push_back(c);
+        fs.velocityGrid = v->selector;
+        fs.velocityActive = v->activeVoxels;
+    }
+    if (options.readExtras)
+        for (GridRole role : {GridRole::Temperature, GridRole::Flame})
+            if (auto n = resolveGrid(names, role); !n.empty())
+                if (const GridInfo* e = findSelector(info.grids, n[0])) used.push_back(e);
+    if (used.empty())
+        throw turb::IoError(fs.path + ": none of the requested grids is present; the file has: " + listing + ". Choose grids with --" +
+                            options.optionPrefix + "density-grid / --" + options.optionPrefix +
+                            "vel-grid NAME, or '#N' for the N-th grid listed here.");
+    for (const GridInfo* g : used)
+        if (!g->supportedTransform) throw turb::IoError(detail::unsupportedTransformMessage(fs.path, g->name, g->mapType));
+
+    fs.lattice = latticeOf(*used.front());
+    if (v && !sameLattice(latticeOf(*v), fs.lattice)) fs.velocityVoxel = v->voxelSize;
+    fs.domain = turb::CoordBBox();
+    if (info.baseResolution) fs.domain = turb::CoordBBox(turb::Coord(0), *info.baseResolution - turb::Coord(1));
+    fs.domainKnown = true;
+    std::vector<std::pair<std::string, turb::CoordBBox>> spans;
+    double bytesPerVoxel = 0.0;
+    for (const GridInfo* g : used) {
+        bytesPerVoxel += isVectorType(g->valueType) ? 12.0 : 4.0;
+        if (!g->hasBBox) {
+            if (g->activeVoxels != 0) fs.domainKnown = false; // no header statistics
+            spans.emplace_back(g->name, turb::CoordBBox());
+            continue;
+        }
+        const turb::CoordBBox b = detail::boxOnLattice(g->activeBBox, latticeOf(*g), fs.lattice);
+        spans.emplace_back(g->name, b);
+        fs.domain.expand(b);
+    }
+    if (fs.domain.empty()) fs.domain = turb::CoordBBox(turb::Coord(0), turb::Coord(0));
+    if (fs.domainKnown) {
+        const std::string problem = detail::denseSizeProblem(fs.path, fs.domain, spans, bytesPerVoxel, options);
+        if (!problem.empty()) throw turb::IoError(problem);
+    }
+    const bool blenderVel = v && info.baseResolution && v->name == "velocity" && v->gridClass == "staggered";
+    fs.timing = resolveTiming(blenderVel, info.baseResolution.has_value(), info.recordedDt, options);
+    if (fs.velocityVoxel > 0.0) {
+        std::ostringstream note;
+        note << "grid '" << v->name << "' (voxel " << v->voxelSize << ") will be resampled trilinearly onto the "
+             << (d ? "density's" : "frame's") << " lattice (voxel " << fs.lattice.voxelSize << ")";
+        fs.timing.notes.push_back(note.str());
+    }
+}
+
+} // namespace
+
+bool sameLattice(const turb::Lattice& a, const turb::Lattice& b) { return a.approxEqual(b); }
+
+FrameScan scanFrame(const std::string& path, int frame, const ReadOptions& options, bool readVoxelsIfNeeded)
+{
+    FrameScan fs;
+    fs.frame = frame;
+    fs.path = path;
+    try {
+        FileInfo info = inspectFile(path, false);
+        fs.grids = info.grids;
+        resolveFrame(fs, info, options);
+        if (!fs.domainKnown && readVoxelsIfNeeded) {
+            info = inspectFile(path, true);
+            fs.grids = info.grids;
+            resolveFrame(fs, info, options);
+        }
+    } catch (const turb::Error& e) {
+        fs.error = e.what();
+    }
+    return fs;
+}
+
+std::string SequenceScan::firstError() const
+{
+    for (const auto& f : frames)
+        if (!f.error.empty()) return f.error;
+    return "";
+}
+
+std::string SequenceScan::describeChanges(size_t most) const
+{
+    std::ostringstream os;
+    for (size_t i = 0; i < changes.size() && i < most; ++i) {
+        const LatticeChange& c = changes[i];
+        if (i) os << "; ";
+        if (c.voxelSizeChanged)
+            os << "voxel size changes from " << c.from.voxelSize << " at frame " << c.fromFrame << " (" << c.fromPath
+               << ") to " << c.to.voxelSize << " at frame " << c.toFrame << " (" << c.toPath << ")";
+        else
+            os << "the lattice moves from origin " << c.from.origin << " at frame " << c.fromFrame << " (" << c.fromPath
+               << ") to " << c.to.origin << " at frame " << c.toFrame << " (" << c.toPath << ")";
+    }
+    if (changes.size() > most) os << "; and " << (changes.size() - most) << " more changes";
+    return os.str();
+}
+
+const FrameScan* SequenceScan::largestDomain() const
+{
+    const FrameScan* best = nullptr;
+    for (const auto& f : frames)
+        if (f.error.empty() && f.domainKnown && (!best || f.domain.volume() > best->domain.volume())) best = &f;
+    return best;
+}
+
+SequenceScan scanSequence(const Sequence& seq, const std::vector<int>& frames, const ReadOptions& options,
+    bool readVoxelsIfNeeded)
+{
+    SequenceScan scan;
+    for (int f : frames) {
+        if (!std::binary_search(seq.frames.begin(), seq.frames.end(), f)) continue;
+        scan.frames.push_back(scanFrame(seq.path(f), f, options, readVoxelsIfNeeded && scan.frames.empty()));
+    }
+    const FrameScan* prev = nullptr;
+    for (const auto& f : scan.frames) {
+        if (!f.error.empty()) continue;
+        if (prev && !sameLattice(prev->lattice, f.lattice)) {
+            LatticeChange c;
+            c.fromFrame = prev->frame;
+            c.toFrame = f.frame;
+            c.fromPath = prev->path;
+            c.toPath = f.path;
+            c.from = prev->lattice;
+            c.to = f.lattice;
+            c.voxelSizeChanged = std::abs(prev->lattice.voxelSize - f.lattice.voxelSize) > 1e-6 * prev->lattice.voxelSize;
+            scan.changes.push_back(c);
+        }
+        prev = &f;
+    }
+    return scan;
+}
+
+} // namespace turbio

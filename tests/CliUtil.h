@@ -1,0 +1,115 @@
+// Running the vdbturb executable from tests: exit codes, output, and processes to signal.
+#pragma once
+
+#include "TestUtil.h"
+
+#include <array>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <fstream>
+#include <string>
+#include <sys/wait.h>
+#include <thread>
+#include <unistd.h>
+
+namespace clitest {
+
+struct Result
+{
+    int code = -1;       ///< exit status, or -1 when killed by a signal
+    int signal = 0;      ///< the signal that ended it, 0 if it exited
+    std::string out;     ///< stdout + stderr (or stdout only with run(..., false))
+};
+
+/// Runs shell command `cmd`; its stdout is captured (add 2>&1 for stderr).
+inline Result shell(const std::string& cmd)
+{
+    Result r;
+    FILE* p = ::popen(cmd.c_str(), "r");
+    if (!p) return r;
+    std::array<char, 4096> buf;
+    size_t n;
+    while ((n = std::fread(buf.data(), 1, buf.size(), p)) > 0) r.out.append(buf.data(), n);
+    const int status = ::pclose(p);
+    if (WIFEXITED(status)) r.code = WEXITSTATUS(status);
+    // The shell reports a signalled child as 128 + signal.
+    if (r.code > 128 && r.code < 160) r.signal = r.code - 128;
+    return r;
+}
+
+/// Runs `vdbturb ARGS` through the shell (ARGS is shell text: quote patterns with $). `stderrToo` merges it.
+inline Result run(const std::string& args, bool stderrToo = true)
+{
+    return shell(std::string(VDBTURB_EXE) + " " + args + (stderrToo ? " 2>&1" : " 2>/dev/null"));
+}
+
+/// A vdbturb process started in the background (its output goes to `log`), to signal mid-run.
+class Process
+{
+public:
+    Process(const std::string& args, const std::string& log, const std::string& env = "")
+    {
+        mPid = ::fork();
+        if (mPid == 0) {
+            ::setpgid(0, 0);
+            const std::string cmd = env + " exec " + std::string(VDBTURB_EXE) + " " + args + " >" + log + " 2>&1";
+            ::execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
+            ::_exit(127);
+        }
+    }
+    ~Process()
+    {
+        if (mPid > 0 && !mDone) {
+            ::kill(mPid, SIGKILL);
+            wait();
+        }
+    }
+    /// Waits until `path` exists or `seconds` pass; false on timeout or if the process ended first.
+    bool waitForFile(const std::string& path, double seconds)
+    {
+        const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+        while (std::chrono::steady_clock::now() < end) {
+            if (std::filesystem::exists(path)) return true;
+            int status = 0;
+            if (::waitpid(mPid, &status, WNOHANG) == mPid) {
+                mDone = true;
+                mStatus = status;
+                return std::filesystem::exists(path);
+            }
+            std::this_thread::sleep_for(std::chrono::milliseconds(20));
+        }
+        return false;
+    }
+    void signal(int sig) { ::kill(mPid, sig); }
+    /// Waits for the end; returns the raw wait status.
+    int wait()
+    {
+        if (!mDone) {
+            while (::waitpid(mPid, &mStatus, 0) < 0 && errno == EINTR) {
+            }
+            mDone = true;
+        }
+        return mStatus;
+    }
+
+private:
+    pid_t mPid = -1;
+    bool mDone = false;
+    int mStatus = 0;
+};
+
+inline std::string slurp(const std::string& path)
+{
+    std::ifstream in(path, std::ios::binary);
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+inline size_t count(const std::string& text, const std::string& what)
+{
+    size_t n = 0;
+    for (size_t at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
+    return n;
+}
+
+} // namespace clitest

@@ -1,0 +1,300 @@
+// The vdbturb executable on real-world cache conditions (issue 11) and on what a TD trips over first
+// (issue 20): dry runs that fail where the run would, time steps and units with their sources, messages
+// that point at the fix, and info's data on stdout.
+#include "CliUtil.h"
+
+#include <turbio/Vdb.h>
+
+#include <openvdb/openvdb.h>
+#include <openvdb/io/File.h>
+
+#include <regex>
+
+using clitest::run;
+
+namespace {
+
+std::string lo() { return testutil::dataPath("blender-plume-32/fluid_data_####.vdb"); }
+std::string hi() { return testutil::dataPath("blender-plume-128/fluid_data_####.vdb"); }
+std::string loFrame(int f) { return testutil::dataPath("blender-plume-32/fluid_data_00" + std::string(f < 10 ? "0" : "") + std::to_string(f) + ".vdb"); }
+
+void writeGrids(const std::string& path, openvdb::GridPtrVec grids)
+{
+    openvdb::initialize();
+    openvdb::io::File f(path);
+    f.write(grids);
+    f.close();
+}
+
+double numberAfter(const std::string& text, const std::string& key)
+{
+    const size_t at = text.find(key);
+    return at == std::string::npos ? -1.0 : std::stod(text.substr(at + key.size()));
+}
+
+} // namespace
+
+TEST(CliReliability, ALoneNumberedFileKeepsItsFrameNumber)
+{
+    testutil::TempDir dir;
+    std::filesystem::copy_file(loFrame(5), dir / "pyro.1001.vdb");
+    const auto r = run("resample " + dir / "pyro.1001.vdb" + " --out '" + dir / "r.####.vdb'");
+    ASSERT_EQ(r.code, 0) << r.out;
+    EXPECT_TRUE(std::filesystem::exists(dir / "r.1001.vdb")) << r.out;
+    EXPECT_FALSE(std::filesystem::exists(dir / "r.0000.vdb"));
+    const auto info = run("info " + dir / "pyro.1001.vdb" + " --json --headers-only", false);
+    EXPECT_NE(info.out.find("\"frame\": 1001"), std::string::npos) << info.out.substr(0, 300);
+}
+
+TEST(CliReliability, UnnamedGridsAreListedWithTheirOwnValuesAndCanBeChosen)
+{
+    testutil::TempDir dir;
+    openvdb::initialize();
+    auto d = openvdb::FloatGrid::create(0.0f);
+    d->fill(openvdb::CoordBBox({0, 0, 0}, {7, 7, 7}), 0.5f, true);
+    d->setGridClass(openvdb::GRID_FOG_VOLUME);
+    auto v = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.0f));
+    v->fill(openvdb::CoordBBox({0, 0, 0}, {7, 7, 7}), openvdb::Vec3s(0.0f, 0.0f, 2.0f), true);
+    writeGrids(dir / "convert.vdb", {d, v});
+
+    const auto info = run("info " + dir / "convert.vdb", false);
+    ASSERT_EQ(info.code, 0) << info.out;
+    EXPECT_NE(info.out.find("[0.5, 0.5]"), std::string::npos) << info.out;
+    EXPECT_NE(info.out.find("[2, 2] |v|"), std::string::npos) << "the vec3 grid's own magnitudes\n" << info.out;
+    const auto refused = run("info " + dir / "convert.vdb" + " --validate --vel-grid vel");
+    EXPECT_EQ(refused.code, 1);
+    EXPECT_NE(refused.out.find("#0 (unnamed) ([0]) float fog volume, #1 (unnamed) ([1]) vec3s"), std::string::npos) << refused.out;
+    const auto chosen = run("info " + dir / "convert.vdb" + " --validate --density-grid '#0' --vel-grid '[1]'");
+    EXPECT_EQ(chosen.code, 0) << chosen.out;
+    EXPECT_NE(chosen.out.find("velocity and density"), std::string::npos) << chosen.out;
+    const auto empty = run("info " + dir / "convert.vdb" + " --density-grid ''");
+    EXPECT_EQ(empty.code, 2) << "'' cannot select an unnamed grid: the message says what does\n" << empty.out;
+    EXPECT_NE(empty.out.find("'#N'"), std::string::npos) << empty.out;
+}
+
+TEST(CliReliability, LatticeChangesAreReportedUpFrontAndTransferRefusesBeforeWriting)
+{
+    testutil::TempDir dir;
+    std::filesystem::create_directories(dir / "t");
+    for (int f = 1; f <= 2; ++f) std::filesystem::copy_file(loFrame(f), dir / ("t/t." + std::to_string(f) + ".vdb"));
+    // A re-cached frame 3 at twice the voxel size.
+    ASSERT_EQ(run("resample " + loFrame(3) + " --frames 3 --down 2 --out " + dir / "t/t.3.vdb -q").code, 0);
+
+    const std::string want = "voxel size changes from 0.125 at frame 2 (" + dir / "t/t.2.vdb) to 0.25 at frame 3 (" +
+                             dir / "t/t.3.vdb)";
+    const auto info = run("info '" + dir / "t/t.@.vdb' --headers-only", false);
+    EXPECT_NE(info.out.find(want), std::string::npos) << info.out;
+    const auto json = run("info '" + dir / "t/t.@.vdb' --headers-only --json", false);
+    EXPECT_NE(json.out.find("\"to_voxel\": 0.25"), std::string::npos) << json.out.substr(0, 600);
+
+    const auto dry = run("transfer --target '" + dir / "t/t.@.vdb' --source " + hi() + " --out " + dir / "o/o.####.vdb --dry-run");
+    EXPECT_EQ(dry.code, 1) << dry.out;
+    EXPECT_NE(dry.out.find(want), std::string::npos) << dry.out;
+    const auto real = run("transfer --target '" + dir / "t/t.@.vdb' --source " + hi() + " --out " + dir / "o/o.####.vdb");
+    EXPECT_EQ(real.code, 1) << real.out;
+    EXPECT_NE(real.out.find(want), std::string::npos) << real.out;
+    EXPECT_FALSE(std::filesystem::exists(dir / "o")) << "refused before writing anything";
+
+    // Per-frame commands read each frame on its own lattice, and say so once.
+    const auto rs = run("resample '" + dir / "t/t.@.vdb' --out " + dir / "r/r.####.vdb");
+    EXPECT_EQ(rs.code, 0) << rs.out;
+    EXPECT_EQ(clitest::count(rs.out, "the lattice is not the same in every frame"), 1u) << rs.out;
+    EXPECT_NEAR(turbio::readFrame(dir / "r/r.0003.vdb", 3, turbio::ReadOptions{}).lattice().voxelSize, 0.25, 1e-9);
+}
+
+TEST(CliReliability, HoudiniVelocityVoxelScaleIsReadAndSaidOnce)
+{
+    testutil::TempDir dir;
+    openvdb::initialize();
+    auto d = openvdb::FloatGrid::create(0.0f);
+    d->fill(openvdb::CoordBBox({0, 0, 0}, {15, 15, 15}), 0.5f, true);
+    d->setName("density");
+    d->setTransform(openvdb::math::Transform::createLinearTransform(0.1));
+    auto v = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.0f));
+    v->fill(openvdb::CoordBBox({0, 0, 0}, {7, 7, 7}), openvdb::Vec3s(1.0f, 0.0f, 0.0f), true);
+    v->setName("vel");
+    v->setTransform(openvdb::math::Transform::createLinearTransform(0.2));
+    for (int f = 1; f <= 2; ++f) writeGrids(dir / ("pyro." + std::to_string(f) + ".vdb"), {d, v});
+    const auto r = run("resample '" + dir / "pyro.$F.vdb' --out " + dir / "r/r.####.vdb");
+    ASSERT_EQ(r.code, 0) << r.out;
+    EXPECT_EQ(clitest::count(r.out, "resampled trilinearly onto the density's lattice"), 1u) << r.out;
+    const turb::Frame f = turbio::readFrame(dir / "r/r.0001.vdb", 1, turbio::ReadOptions{});
+    EXPECT_NEAR(f.lattice().voxelSize, 0.1, 1e-9);
+    EXPECT_NEAR(f.velocity(8, 8, 8)[0], 1.0f, 1e-6);
+}
+
+TEST(CliReliability, DryRunFailsOnEveryFatalInputAsTheRunDoes)
+{
+    testutil::TempDir dir;
+    const std::string out = " --out " + dir / "o/o.####.vdb";
+    // A density-only target: the hint names transfer's own option.
+    const std::string smoke = testutil::dataPath("houdini-smoke1/smoke.vdb");
+    for (const std::string dry : {" --dry-run", ""}) {
+        const auto r = run("transfer --target " + smoke + " --source " + hi() + " --out " + dir / "o/o.vdb" + dry);
+        EXPECT_EQ(r.code, 1) << r.out;
+        EXPECT_NE(r.out.find("smoke.vdb: no velocity"), std::string::npos) << r.out;
+        EXPECT_NE(r.out.find("--target-vel-grid"), std::string::npos) << r.out;
+    }
+    // A ratio whose output cannot fit: refused with the estimate and what would fit.
+    const std::string c42 = testutil::dataPath("blender-c42/fluid_data_####.vdb");
+    for (const std::string dry : {" --dry-run", ""}) {
+        const auto r = run("transfer --target " + c42 + " --source " + hi() + out + " --frames 1-2" + dry);
+        EXPECT_EQ(r.code, 1) << r.out;
+        EXPECT_NE(r.out.find("3250x3250x1560"), std::string::npos) << r.out;
+        EXPECT_NE(r.out.find("not enough memory for this run"), std::string::npos) << r.out;
+        EXPECT_NE(r.out.find("A source box-downsampled by"), std::string::npos) << r.out;
+        EXPECT_NE(r.out.find("vdbturb resample"), std::string::npos) << r.out;
+        EXPECT_EQ(r.out.find("bad_alloc"), std::string::npos) << r.out;
+    }
+    // --out through a regular file.
+    std::ofstream(dir / "afile") << "x";
+    for (const std::string dry : {" --dry-run", ""}) {
+        const auto r = run("transfer --target " + lo() + " --source " + hi() + " --out " + dir / "afile/o.####.vdb --frames 1" + dry);
+        EXPECT_EQ(r.code, 1) << r.out;
+        EXPECT_NE(r.out.find("afile is a file, not a directory"), std::string::npos) << r.out;
+    }
+    // An output that is an input.
+    const auto same = run("resample " + dir / "afile" + " --out " + dir / "afile --dry-run");
+    EXPECT_EQ(same.code, 1) << same.out;
+    EXPECT_FALSE(std::filesystem::exists(dir / "o"));
+}
+
+TEST(CliReliability, DryRunPrintsTheLatticeRatioTimingAndEstimatesThatHold)
+{
+    testutil::TempDir dir;
+    const std::string args = "transfer --target " + lo() + " --source " + hi() + " --out " + dir / "o/o.####.vdb --frames 1-2";
+    const auto dry = run(args + " --dry-run", false);
+    ASSERT_EQ(dry.code, 0) << dry.out;
+    EXPECT_NE(dry.out.find("ratio 4 (target voxel 0.125, source voxel 0.03125)"), std::string::npos) << dry.out;
+    EXPECT_NE(dry.out.find("output lattice: 128x128x128 voxels of 0.03125, world (-0.0625,-0.0625,-0.0625)-(3.938,3.938,3.938)"),
+        std::string::npos) << dry.out;
+    EXPECT_NE(dry.out.find("target dt: 0.104167 per frame (Blender's frame length 0.1 x 25/fps, time scale 1 assumed), fps 24 "
+                           "(assumed: the cache records no frame rate)"),
+        std::string::npos) << dry.out;
+    EXPECT_NE(dry.out.find("target velocity: grid 'velocity', grid cells per time unit x voxel 0.125 = world units (detected"),
+        std::string::npos) << dry.out;
+    const double estimateMb = numberAfter(dry.out, "memory: about ");
+    ASSERT_GT(estimateMb, 0.0) << dry.out;
+    const double sizeMb = numberAfter(dry.out, "output size: about ");
+    ASSERT_GT(sizeMb, 0.0) << dry.out;
+    EXPECT_FALSE(std::filesystem::exists(dir / "o"));
+
+    // The run itself: its peak memory and file sizes against the estimates (both in MB above).
+    const auto real = run(args + " --json -q", false);
+    ASSERT_EQ(real.code, 0) << real.out;
+    const double peakMb = numberAfter(real.out, "\"peak_rss_mb\":");
+    ASSERT_GT(peakMb, 0.0) << real.out;
+    EXPECT_GT(estimateMb, 0.5 * peakMb) << "estimate " << estimateMb << " MB, measured " << peakMb << " MB";
+    EXPECT_LT(estimateMb, 2.0 * peakMb) << "estimate " << estimateMb << " MB, measured " << peakMb << " MB";
+    const double fileMb = double(std::max(std::filesystem::file_size(dir / "o/o.0001.vdb"), std::filesystem::file_size(dir / "o/o.0002.vdb"))) / 1e6;
+    EXPECT_GT(sizeMb, fileMb / 3.0) << "estimate " << sizeMb << " MB, written " << fileMb << " MB";
+    EXPECT_LT(sizeMb, fileMb * 3.0) << "estimate " << sizeMb << " MB, written " << fileMb << " MB";
+}
+
+TEST(CliReliability, TimeStepFpsAndUnitsShowWhereTheyCameFrom)
+{
+    testutil::TempDir dir;
+    const auto info = run("info " + loFrame(1) + " --headers-only", false);
+    EXPECT_NE(info.out.find("dt: 0.104167 per frame (Blender's frame length 0.1 x 25/fps, time scale 1 assumed); fps 24 "
+                            "(assumed: the cache records no frame rate)"),
+        std::string::npos) << info.out;
+    EXPECT_NE(info.out.find("velocity units: grid cells per time unit, x voxel 0.125 = world units (detected"), std::string::npos)
+        << info.out;
+    const auto fps = run("info " + loFrame(1) + " --headers-only --fps 25", false);
+    EXPECT_NE(fps.out.find("dt: 0.1 per frame"), std::string::npos) << fps.out;
+    EXPECT_NE(fps.out.find("fps 25 (--fps)"), std::string::npos) << fps.out;
+    const auto houdini = run("info " + testutil::dataPath("houdini-vel/vel_VDB_bound_v02.vdb") + " --headers-only", false);
+    EXPECT_NE(houdini.out.find("dt: 0.0416667 per frame (1/fps seconds)"), std::string::npos) << houdini.out;
+    EXPECT_NE(houdini.out.find("velocity units: world units per time unit"), std::string::npos) << houdini.out;
+    const auto flag = run("transfer --target " + lo() + " --source " + hi() + " --out " + dir / "o.####.vdb --frames 1 --dry-run"
+                          " --target-fps 25 --source-dt 0.2",
+        false);
+    EXPECT_NE(flag.out.find("target dt: 0.1 per frame (Blender's frame length 0.1 x 25/fps, time scale 1 assumed), fps 25 (--target-fps)"),
+        std::string::npos) << flag.out;
+    EXPECT_NE(flag.out.find("source dt: 0.2 per frame (--source-dt)"), std::string::npos) << flag.out;
+
+    // A run warns once per input when a convention is assumed; vdbturb's own output records its dt.
+    const auto r = run("resample " + lo() + " --frames 1-3 --out " + dir / "r/r.####.vdb");
+    ASSERT_EQ(r.code, 0) << r.out;
+    EXPECT_EQ(clitest::count(r.out, "records no frame rate"), 1u) << r.out;
+    const auto again = run("info '" + dir / "r/r.####.vdb' --headers-only");
+    EXPECT_NE(again.out.find("dt: 0.104167 per frame (vdbturb_dt metadata)"), std::string::npos) << again.out;
+    EXPECT_EQ(again.out.find("records no frame rate"), std::string::npos) << again.out;
+}
+
+TEST(CliReliability, TyposAndNearMissesGetTheFix)
+{
+    const auto cmd = run("tranfser --target x");
+    EXPECT_EQ(cmd.code, 2);
+    EXPECT_NE(cmd.out.find("did you mean 'transfer'?"), std::string::npos) << cmd.out;
+    const auto flag = run("info --frmaes 1-3 x");
+    EXPECT_EQ(flag.code, 2);
+    EXPECT_NE(flag.out.find("did you mean --frames?"), std::string::npos) << flag.out;
+    const auto dash = run("transfer -target x --source y --out z");
+    EXPECT_EQ(dash.code, 2);
+    EXPECT_NE(dash.out.find("long options take two: --target"), std::string::npos) << dash.out;
+    EXPECT_EQ(dash.out.find("--target is required"), std::string::npos) << dash.out;
+    // Options that mean nothing for a command are not accepted.
+    EXPECT_EQ(run("info --threads 2 " + loFrame(1)).code, 2);
+    EXPECT_EQ(run("preview --dry-run " + loFrame(1) + " --out x.png").code, 2);
+    EXPECT_EQ(run("resample --threads 2 " + loFrame(1) + " --out x.vdb").code, 2);
+    // Patterns: a padding that is not on disk says which is; a directory is not "no such file".
+    const auto pad = run("info '" + testutil::dataPath("blender-plume-32/fluid_data_###.vdb") + "'");
+    EXPECT_EQ(pad.code, 1);
+    EXPECT_NE(pad.out.find("fluid_data_####.vdb (10 files, 4-digit frame numbers)"), std::string::npos) << pad.out;
+    const auto dirArg = run("info " + testutil::dataPath("blender-plume-32"));
+    EXPECT_EQ(dirArg.code, 1);
+    EXPECT_NE(dirArg.out.find("is a directory, not a cache"), std::string::npos) << dirArg.out;
+    const auto houdini = run("info '" + testutil::dataPath("blender-plume-32/fluid_data_$F.vdb") + "'");
+    EXPECT_NE(houdini.out.find("fluid_data_$F.vdb: no file matches"), std::string::npos) << houdini.out;
+    EXPECT_EQ(houdini.out.find('@'), std::string::npos) << houdini.out;
+    EXPECT_EQ(run("info '" + testutil::dataPath("blender-plume-32/fluid_data_${F4}.vdb") + "' --headers-only").code, 0);
+}
+
+TEST(CliReliability, InfoPutsAlignedTablesWithWorldBoundsOnStdout)
+{
+    const auto r = run("info " + loFrame(3) + " --frames 3", false); // stdout only
+    ASSERT_EQ(r.code, 0) << r.out;
+    EXPECT_NE(r.out.find("domain (frame 3): 32x32x32 voxels, world (-0.0625,-0.0625,-0.0625)-(3.938,3.938,3.938)"),
+        std::string::npos) << r.out;
+    // Every row of the grid table starts its columns where the header's do.
+    std::vector<std::string> rows;
+    size_t at = r.out.find("  #  grid");
+    ASSERT_NE(at, std::string::npos) << r.out;
+    for (size_t i = 0; i < 6; ++i) {
+        const size_t end = r.out.find('\n', at);
+        rows.push_back(r.out.substr(at, end - at));
+        at = end + 1;
+    }
+    for (const char* column : {"class", "voxel", "world bounds"}) {
+        const size_t c = rows[0].find(column);
+        ASSERT_NE(c, std::string::npos);
+        for (size_t i = 1; i < rows.size(); ++i) {
+            EXPECT_EQ(rows[i][c - 1], ' ') << column << " misaligned in: " << rows[i];
+            EXPECT_NE(rows[i][c], ' ') << column << " misaligned in: " << rows[i];
+        }
+    }
+    // Density box (9,9,1)-(22,22,10) at voxel 0.125: cells from 8.5 x 0.125 to 22.5 x 0.125 (z: 0.5 to 10.5).
+    EXPECT_NE(r.out.find("(1.062,1.062,0.0625)-(2.812,2.812,1.312)"), std::string::npos) << "world bounds of the smoke\n" << r.out;
+}
+
+TEST(CliReliability, ValidateSaysADensityOnlyFileCannotDriveTransfer)
+{
+    const auto r = run("info " + testutil::dataPath("houdini-smoke1/smoke.vdb") + " --validate --headers-only", false);
+    EXPECT_EQ(r.code, 0) << r.out;
+    EXPECT_NE(r.out.find("density only, no velocity grid: it cannot drive transfer"), std::string::npos) << r.out;
+}
+
+TEST(CliReliability, ResolutionsAreCellsAlongXYZForEveryOption)
+{
+    // --flow-res and --scene-res (and sim --res) read NXxNYxNZ the same way: a factor-2 synthesis doubles each.
+    const auto flow = run("synth --flow uniform --flow-res 12x8x1 --factor 2 --dry-run --out x.####.vdb", false);
+    ASSERT_EQ(flow.code, 0) << flow.out;
+    EXPECT_NE(flow.out.find("output lattice: 24x16x1 voxels"), std::string::npos) << flow.out;
+    const auto scene = run("synth --scene plume --scene-res 12x8x16 --frames 1 --factor 2 --dry-run --out x.####.vdb", false);
+    ASSERT_EQ(scene.code, 0) << scene.out;
+    EXPECT_NE(scene.out.find("output lattice: 24x16x32 voxels"), std::string::npos) << scene.out;
+    const auto help = run("synth --help", false);
+    EXPECT_EQ(clitest::count(help.out, "NXxNYxNZ"), 2u) << help.out;
+    EXPECT_NE(run("sim --help", false).out.find("NXxNYxNZ"), std::string::npos);
+}

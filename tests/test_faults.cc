@@ -1,0 +1,143 @@
+// Faults that lose nothing: Ctrl-C / SIGTERM mid-frame, kill -9 mid-write, a full disk and a file-size limit.
+// Each run's files are compared with an uninterrupted run's.
+#include "CliUtil.h"
+
+#include <turbio/Vdb.h>
+
+#include <cerrno>
+#include <cstring>
+#include <sys/mount.h>
+
+namespace {
+
+std::string lo() { return testutil::dataPath("blender-plume-32/fluid_data_####.vdb"); }
+std::string hi() { return testutil::dataPath("blender-plume-128/fluid_data_####.vdb"); }
+
+std::string transferArgs(const std::string& out) { return "transfer --target " + lo() + " --source " + hi() + " --out " + out + " --frames 1-2"; }
+
+void expectSameFrame(const std::string& a, const std::string& b, int frame)
+{
+    const turb::Frame fa = turbio::readFrame(a, frame, turbio::ReadOptions{});
+    const turb::Frame fb = turbio::readFrame(b, frame, turbio::ReadOptions{});
+    EXPECT_EQ(fa.velocity.values(), fb.velocity.values()) << a << " vs " << b;
+    EXPECT_EQ(fa.density.values(), fb.density.values()) << a << " vs " << b;
+}
+
+// Names in `dir` that start with '.' (temporary files of unfinished writes).
+size_t temporaries(const std::string& dir)
+{
+    size_t n = 0;
+    for (const auto& e : std::filesystem::directory_iterator(dir)) n += e.path().filename().string()[0] == '.';
+    return n;
+}
+
+} // namespace
+
+TEST(Faults, InterruptOrTerminateMidFrameLeavesWholeFramesAndResumesBitIdentically)
+{
+    testutil::TempDir dir;
+    const auto ref = clitest::run(transferArgs(dir / "ref/o.####.vdb") + " -q");
+    ASSERT_EQ(ref.code, 0) << ref.out;
+    for (int sig : {SIGINT, SIGTERM}) {
+        const std::string sub = sig == SIGINT ? "int" : "term";
+        clitest::Process p(transferArgs(dir / (sub + "/o.####.vdb")), dir / (sub + ".log"));
+        // The signal arrives while frame 2 is being made: frame 1 is on disk.
+        ASSERT_TRUE(p.waitForFile(dir / (sub + "/o.0001.vdb"), 300)) << clitest::slurp(dir / (sub + ".log"));
+        p.signal(sig);
+        const int status = p.wait();
+        ASSERT_TRUE(WIFEXITED(status)) << "signal death " << WTERMSIG(status);
+        EXPECT_EQ(WEXITSTATUS(status), 130) << clitest::slurp(dir / (sub + ".log"));
+        EXPECT_NE(clitest::slurp(dir / (sub + ".log")).find("interrupted"), std::string::npos);
+        EXPECT_FALSE(std::filesystem::exists(dir / (sub + "/o.0002.vdb")));
+        EXPECT_EQ(temporaries(dir / sub), 0u) << "no partial file";
+        expectSameFrame(dir / (sub + "/o.0001.vdb"), dir / "ref/o.0001.vdb", 1);
+
+        const auto resumed = clitest::run(transferArgs(dir / (sub + "/o.####.vdb")) + " --resume");
+        ASSERT_EQ(resumed.code, 0) << resumed.out;
+        EXPECT_NE(resumed.out.find("continuing after frame 1"), std::string::npos) << resumed.out;
+        expectSameFrame(dir / (sub + "/o.0002.vdb"), dir / "ref/o.0002.vdb", 2);
+    }
+}
+
+TEST(Faults, KillNineMidWriteLeavesNoPartialFileAndResumeContinues)
+{
+    testutil::TempDir dir;
+    const auto ref = clitest::run(transferArgs(dir / "ref/o.####.vdb") + " -q");
+    ASSERT_EQ(ref.code, 0) << ref.out;
+    // SIGKILL arrives in the middle of frame 2's write (a test hook in the writer sends it after the first
+    // part of the temporary file reached the disk).
+    clitest::Process p(transferArgs(dir / "k/o.####.vdb"), dir / "k.log", "VDBTURB_TEST_KILL_IN_WRITE=2");
+    const int status = p.wait();
+    ASSERT_TRUE(WIFSIGNALED(status)) << clitest::slurp(dir / "k.log");
+    EXPECT_EQ(WTERMSIG(status), SIGKILL);
+    EXPECT_FALSE(std::filesystem::exists(dir / "k/o.0002.vdb")) << "no partial file under the final name";
+    EXPECT_EQ(temporaries(dir / "k"), 1u) << "the write was cut: its temporary file is there";
+    expectSameFrame(dir / "k/o.0001.vdb", dir / "ref/o.0001.vdb", 1);
+
+    const auto resumed = clitest::run(transferArgs(dir / "k/o.####.vdb") + " --resume");
+    ASSERT_EQ(resumed.code, 0) << resumed.out;
+    expectSameFrame(dir / "k/o.0002.vdb", dir / "ref/o.0002.vdb", 2);
+    EXPECT_EQ(temporaries(dir / "k"), 0u) << "the dead run's temporary file is cleaned up";
+}
+
+namespace {
+
+// Frames 1-30 of the 32^3 plume through `resample` (fast; the files grow with the smoke).
+std::string resampleArgs(const std::string& out)
+{
+    return "resample " + testutil::dataPath("blender-plume2-32/fluid_data_####.vdb") + " --out " + out;
+}
+
+// After a write failure: exit 1, the message names the file and the reason, every earlier frame is whole and
+// identical to the reference, the failed frame and later ones are absent, no temporary file is left.
+void expectCleanWriteFailure(const clitest::Result& r, const std::string& dir, const std::string& ref, const std::string& reason)
+{
+    EXPECT_EQ(r.code, 1) << r.out;
+    EXPECT_NE(r.out.find(reason), std::string::npos) << r.out;
+    int firstMissing = 0;
+    for (int f = 1; f <= 30 && !firstMissing; ++f) {
+        char name[32];
+        std::snprintf(name, sizeof(name), "/r.%04d.vdb", f);
+        if (!std::filesystem::exists(dir + name)) firstMissing = f;
+        else expectSameFrame(dir + name, ref + name, f);
+    }
+    ASSERT_GT(firstMissing, 1) << "frame 1 fits";
+    char failed[32];
+    std::snprintf(failed, sizeof(failed), "r.%04d.vdb: write failed", firstMissing);
+    EXPECT_NE(r.out.find(failed), std::string::npos) << r.out;
+    EXPECT_EQ(testutil::countEntries(dir), size_t(firstMissing - 1)) << "only whole earlier frames, nothing partial";
+}
+
+} // namespace
+
+TEST(Faults, AFileSizeLimitStopsTheRunCleanly)
+{
+    testutil::TempDir dir;
+    ASSERT_EQ(clitest::run(resampleArgs(dir / "ref/r.####.vdb") + " -q").code, 0);
+    const auto small = std::filesystem::file_size(dir / "ref/r.0001.vdb");
+    const auto large = std::filesystem::file_size(dir / "ref/r.0030.vdb");
+    ASSERT_GT(large, 2 * small);
+    // ulimit -f with SIGXFSZ ignored: the write that crosses the limit fails with EFBIG.
+    const auto r = clitest::shell("prlimit --fsize=" + std::to_string((small + large) / 2) + " sh -c \"trap '' XFSZ; exec " +
+                                  VDBTURB_EXE + " " + resampleArgs(dir / "lim/r.####.vdb") + "\" 2>&1");
+    expectCleanWriteFailure(r, dir / "lim", dir / "ref", "file-size limit");
+}
+
+TEST(Faults, AFullDiskStopsTheRunCleanly)
+{
+    testutil::TempDir dir;
+    ASSERT_EQ(clitest::run(resampleArgs(dir / "ref/r.####.vdb") + " -q").code, 0);
+    uintmax_t half = 0;
+    for (int f = 1; f <= 15; ++f) {
+        char name[32];
+        std::snprintf(name, sizeof(name), "ref/r.%04d.vdb", f);
+        half += std::filesystem::file_size(dir / name);
+    }
+    std::filesystem::create_directories(dir / "disk");
+    const std::string opts = "size=" + std::to_string(half + 64 * 1024);
+    if (::mount("tmpfs", (dir / "disk").c_str(), "tmpfs", 0, opts.c_str()) != 0)
+        GTEST_SKIP() << "cannot mount a small tmpfs here (needs root): " << std::strerror(errno);
+    const auto r = clitest::run(resampleArgs(dir / "disk/r.####.vdb"));
+    expectCleanWriteFailure(r, dir / "disk", dir / "ref", "the disk is full");
+    ::umount((dir / "disk").c_str());
+}

@@ -1,0 +1,126 @@
+#include "Preflight.h"
+
+#include "Console.h"
+
+#include <turb/Error.h>
+#include <turbio/System.h>
+
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <unistd.h>
+
+namespace fs = std::filesystem;
+
+namespace vdbturb {
+
+namespace {
+
+std::string num(const char* f, double v)
+{
+    char b[64];
+    std::snprintf(b, sizeof(b), f, v);
+    return b;
+}
+
+bool dryOrVerbose() { return globals().dryRun || globals().verbosity >= 2; }
+
+} // namespace
+
+turbio::SequenceScan checkInput(const std::string& command, const std::string& role, const turbio::Sequence& seq,
+    const std::vector<int>& frames, const turbio::ReadOptions& read, LatticePolicy policy)
+{
+    turbio::SequenceScan scan = turbio::scanSequence(seq, frames, read, /*readVoxelsIfNeeded=*/true);
+    const std::string error = scan.firstError();
+    if (!error.empty()) throw turb::IoError(error);
+    if (!scan.changes.empty()) {
+        const std::string what = role + " " + seq.pattern.str() + ": the lattice is not the same in every frame: " +
+                                 scan.describeChanges();
+        if (policy == LatticePolicy::Refuse)
+            throw turb::IoError(what + ". " + command +
+                                " carries state from frame to frame on one lattice, so it refuses such a sequence before "
+                                "writing anything: run the frames of each lattice separately (--frames), or bring the cache "
+                                "onto one lattice first (e.g. Houdini's VDB Resample)");
+        warnOnce("lattice " + role, what + "; each frame is read on its own lattice");
+    }
+    return scan;
+}
+
+std::vector<std::string> timingLines(const std::string& role, const turbio::FrameScan& f)
+{
+    const turbio::ReadReport& t = f.timing;
+    std::vector<std::string> lines;
+    std::string dt = role + " dt: " + num("%.6g", t.dt) + " per frame (" + t.dtSource + ")";
+    if (t.fpsSource != "not used") dt += ", fps " + num("%g", t.fps) + " (" + t.fpsSource + ")";
+    lines.push_back(dt);
+    if (!f.velocityGrid.empty())
+        lines.push_back(role + " velocity: grid '" + f.velocityGrid + "', " +
+                        (t.cells ? "grid cells per time unit x voxel " + num("%g", f.lattice.voxelSize) + " = world units"
+                                 : std::string("world units")) +
+                        " (" + t.unitsSource + ")");
+    for (const auto& n : t.notes) lines.push_back(role + ": " + n);
+    return lines;
+}
+
+void reportTiming(const std::string& role, const turbio::SequenceScan& scan, bool usesDt, const std::string& optionPrefix)
+{
+    if (scan.frames.empty()) return;
+    const turbio::FrameScan& f = scan.frames.front();
+    if (dryOrVerbose())
+        for (const auto& line : timingLines(role, f)) printData(line);
+    else
+        for (const auto& n : f.timing.notes) warnOnce("note " + role, role + ": " + n);
+    if (usesDt && f.timing.conventionAssumed)
+        warnOnce("fps " + role,
+            role + " " + f.path + ": the cache records no frame rate; dt " + num("%.6g", f.timing.dt) + " assumes 24 fps" +
+                (f.timing.dtSource.find("Blender") != std::string::npos ? " and Blender's time scale 1" : "") +
+                ". Give --" + optionPrefix + "fps or --" + optionPrefix + "dt if the shot differs");
+}
+
+void checkOutputs(const std::vector<std::string>& outputs, const std::vector<std::string>& inputs, bool noClobber,
+    bool skipExisting)
+{
+    std::vector<fs::path> in;
+    for (const auto& p : inputs) {
+        std::error_code ec;
+        if (fs::exists(p, ec)) in.push_back(fs::canonical(p, ec));
+    }
+    std::string checkedDir;
+    for (const auto& out : outputs) {
+        std::error_code ec;
+        const fs::path path(out);
+        if (fs::exists(path, ec)) {
+            if (fs::is_directory(path, ec)) throw turb::IoError(out + ": is a directory; the output must be a file name");
+            const fs::path c = fs::canonical(path, ec);
+            for (const auto& i : in)
+                if (c == i) throw turb::IoError(out + ": is an input of this run; give another --out");
+            if (noClobber && !skipExisting) throw turb::IoError(out + ": exists, not replaced (--no-clobber)");
+        }
+        // The first existing ancestor must be a writable directory (the rest is created).
+        fs::path dir = path.parent_path();
+        if (dir.empty()) dir = ".";
+        if (dir.string() == checkedDir) continue;
+        checkedDir = dir.string();
+        fs::path probe = dir;
+        while (!fs::exists(probe, ec) && probe.has_parent_path() && probe != probe.parent_path()) probe = probe.parent_path();
+        if (!fs::exists(probe, ec)) continue;
+        if (!fs::is_directory(probe, ec))
+            throw turb::IoError(out + ": cannot create its directory: " + probe.string() + " is a file, not a directory");
+        if (::access(probe.c_str(), W_OK | X_OK) != 0)
+            throw turb::IoError(out + ": cannot write into " + probe.string() + " (" + std::strerror(errno) + ")");
+    }
+}
+
+void checkMemory(double estimateBytes, const std::string& what, const std::string& whatFits)
+{
+    const long long usable = turbio::usableMemoryBytes();
+    const std::string line = "memory: about " + turbio::formatBytes(estimateBytes) + " at peak (" + what + ")" +
+                             (usable > 0 ? "; this machine has " + turbio::formatBytes(double(usable)) : "");
+    if (dryOrVerbose()) printData(line);
+    if (usable > 0 && estimateBytes > 0.9 * double(usable))
+        throw turb::IoError("not enough memory for this run: it needs about " + turbio::formatBytes(estimateBytes) + " (" +
+                            what + "), this machine has " + turbio::formatBytes(double(usable)) + ". " + whatFits);
+}
+
+} // namespace vdbturb

@@ -1,0 +1,47 @@
+/// @file Preflight.h
+/// @brief The checks every command runs before its first frame, and that --dry-run prints: every input
+///        frame's headers (missing grids, damaged or newer files, unsupported transforms, lattices that change
+///        halfway), the output paths, and the memory the run needs. A dry run therefore fails where the run
+///        would, and a run fails before it writes anything.
+#pragma once
+
+#include <turbio/Scan.h>
+#include <turbio/Sequence.h>
+#include <turbio/Vdb.h>
+
+#include <string>
+#include <vector>
+
+namespace vdbturb {
+
+/// What a command does with a sequence whose lattice changes between frames.
+enum class LatticePolicy
+{
+    Refuse, ///< temporal commands (transfer, synth): carried state lives on one lattice; refuse before writing
+    Report  ///< per-frame commands (measure, resample, preview): each frame is read on its own lattice; say so
+};
+
+/// Scans the headers of `frames` of `seq` as `read` will read them. Throws the first frame's error (it names
+/// the file and grid), and with LatticePolicy::Refuse a lattice change naming the frames and files; with
+/// Report it logs the change once. `role` ("target", "source", "cache") and `command` word the messages.
+turbio::SequenceScan checkInput(const std::string& command, const std::string& role, const turbio::Sequence& seq,
+    const std::vector<int>& frames, const turbio::ReadOptions& read, LatticePolicy policy);
+
+/// How a scanned input's time step and velocity units were decided, one line each (for -v and dry runs).
+std::vector<std::string> timingLines(const std::string& role, const turbio::FrameScan& frame);
+
+/// Prints timingLines in a dry run (always) or at -v, and warns once when the time step rests on an assumed
+/// frame rate and the command uses it (`usesDt`); the warning names --PREFIXfps / --PREFIXdt.
+void reportTiming(const std::string& role, const turbio::SequenceScan& scan, bool usesDt, const std::string& optionPrefix = "");
+
+/// Refuses outputs that cannot be written: a parent path that is a file, a directory that cannot be
+/// written, an output that is a directory, an output that is one of `inputs`, and (with `noClobber`) an
+/// output that exists, unless `skipExisting` (a resume) will skip it.
+void checkOutputs(const std::vector<std::string>& outputs, const std::vector<std::string>& inputs, bool noClobber,
+    bool skipExisting);
+
+/// Refuses a run whose peak memory estimate exceeds what this process may use, with the estimate, the
+/// reason and `whatFits` (what would run instead). Logged at -v and in dry runs either way.
+void checkMemory(double estimateBytes, const std::string& what, const std::string& whatFits);
+
+} // namespace vdbturb
