@@ -94,7 +94,8 @@ ScalarField macDivergence(const VectorField& mac, const MaskField* solid = nullp
 /// step. The solver's matrix (OpenVDB's staggered Laplacian from
 /// tools::poisson::createISLaplacianWithBoundaryConditions) and its preconditioner depend only on the cell
 /// box, the solid cells and the boundary types, so they are built on the first solve and reused; each
-/// project() then runs OpenVDB's preconditioned conjugate gradient (math::pcg::solve) on that matrix,
+/// project() then runs preconditioned conjugate gradient (math::pcg::solve's recurrence without its
+/// divergence guard, which stopped 2D solves with walls early) on that matrix,
 /// warm-started from `pressure`. At 128x128x192 building them costs about as much as 15 incomplete-Cholesky
 /// iterations. Copies share nothing: a copy rebuilds its own matrix on its first solve.
 ///

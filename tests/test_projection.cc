@@ -1,0 +1,316 @@
+// Pressure projection (Projection.h): divergence-free results for every boundary type, 2D (one z layer)
+// included, pressure recovery, warm starts, determinism and the reused projector.
+#include "TestUtil.h"
+
+#include <turb/Error.h>
+#include <turb/Measure.h>
+#include <turb/Parallel.h>
+#include <turb/Projection.h>
+
+#include <cmath>
+#include <cstring>
+#include <random>
+
+using namespace turb;
+
+namespace {
+
+VectorField randomMac(const CoordBBox& cells, double h, unsigned seed)
+{
+    VectorField mac(macBox(cells), Lattice{h, {0, 0, 0}});
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> U(-1.0f, 1.0f);
+    for (auto& v : mac.values()) v = Vec3f(U(rng), U(rng), U(rng));
+    return mac;
+}
+
+double maxAbs(const ScalarField& f)
+{
+    double m = 0;
+    for (float v : f.values()) m = std::max(m, double(std::abs(v)));
+    return m;
+}
+
+template<typename T>
+bool bitIdentical(const Field<T>& a, const Field<T>& b)
+{
+    return a.bbox() == b.bbox() && a.size() == b.size() &&
+           std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0;
+}
+
+} // namespace
+
+TEST(Projection, RandomMacFieldBecomesDivergenceFreeWithOpenBoundaries)
+{
+    const CoordBBox cells({0, 0, 0}, {19, 15, 23});
+    VectorField mac = randomMac(cells, 0.25, 1);
+    const double before = maxAbs(macDivergence(mac));
+    ProjectionSettings s;
+    const ProjectionResult r = projectMac(mac, s);
+    EXPECT_TRUE(r.converged);
+    EXPECT_GT(r.iterations, 0);
+    EXPECT_NEAR(r.divMaxBefore, before, 1e-4 * before);
+    // Measured independently of the solver's report.
+    const double after = maxAbs(macDivergence(mac));
+    EXPECT_LE(after / before, 1e-4);
+    EXPECT_LE(r.relativeDivergence(), s.tolerance * 1.01);
+    EXPECT_NEAR(r.divMaxAfter, after, 1e-3 * before);
+}
+
+TEST(Projection, ClosedWallsAndObstacleKeepTheirFacesAndRemoveDivergence)
+{
+    const CoordBBox cells({-3, 2, 0}, {12, 17, 19});
+    VectorField mac = randomMac(cells, 0.1, 2);
+    ProjectionSettings s;
+    s.faces[kFaceZMin] = Boundary::Closed;
+    s.faces[kFaceXMin] = Boundary::Closed;
+    MaskField solid(cells, mac.lattice());
+    for (size_t q = 0; q < solid.size(); ++q) {
+        const Coord c = solid.coordOf(q);
+        const Vec3d d = c.asVec3d() - Vec3d(4.5, 9.5, 10.0);
+        solid.data()[q] = d.length() < 4.0 ? 1 : 0;
+    }
+    // Still walls: zero normal velocity on the closed faces and around the solid.
+    for (int j = cells.min().y(); j <= cells.max().y(); ++j)
+        for (int k = cells.min().z(); k <= cells.max().z(); ++k) mac(cells.min().x(), j, k)[0] = 0.0f;
+    for (int i = cells.min().x(); i <= cells.max().x(); ++i)
+        for (int j = cells.min().y(); j <= cells.max().y(); ++j) mac(i, j, cells.min().z())[2] = 0.0f;
+    const VectorField mac0 = mac;
+    const ProjectionResult r = projectMac(mac, s, &solid);
+    EXPECT_TRUE(r.converged);
+    EXPECT_LE(maxAbs(macDivergence(mac, &solid)) / r.divMaxBefore, 1e-4);
+    // Wall faces were not touched.
+    for (int j = cells.min().y(); j <= cells.max().y(); ++j)
+        for (int k = cells.min().z(); k <= cells.max().z(); ++k)
+            ASSERT_EQ(mac(cells.min().x(), j, k)[0], 0.0f);
+    int solidFaces = 0;
+    for (size_t q = 0; q < solid.size(); ++q) {
+        const Coord c = solid.coordOf(q);
+        if (!solid.data()[q] || c.x() == cells.min().x()) continue;
+        ++solidFaces;
+        ASSERT_EQ(mac[c][0], mac0[c][0]) << c; // the -x face of a solid cell is a wall
+    }
+    EXPECT_GT(solidFaces, 100);
+}
+
+TEST(Projection, FullyClosedBoxIsSolvable)
+{
+    const CoordBBox cells({0, 0, 0}, {15, 15, 15});
+    VectorField mac = randomMac(cells, 1.0, 3);
+    // Zero the normal velocity on all six walls.
+    for (size_t q = 0; q < mac.size(); ++q) {
+        const Coord c = mac.coordOf(q);
+        for (int a = 0; a < 3; ++a)
+            if (c[a] == cells.min()[a] || c[a] == cells.max()[a] + 1) mac.data()[q][a] = 0.0f;
+    }
+    ProjectionSettings s;
+    s.faces.fill(Boundary::Closed);
+    const ProjectionResult r = projectMac(mac, s);
+    EXPECT_TRUE(r.converged);
+    EXPECT_LE(maxAbs(macDivergence(mac)) / r.divMaxBefore, 1e-4);
+}
+
+TEST(Projection, PureGradientIsRemovedAndPressureRecovered)
+{
+    // u = grad(phi) for a bump phi that vanishes near the open boundary: the projection must return
+    // phi as the pressure and leave (almost) nothing of u.
+    const CoordBBox cells({0, 0, 0}, {23, 23, 23});
+    const Lattice lat{0.5, {0, 0, 0}};
+    ScalarField phi(cells, lat);
+    for (size_t q = 0; q < phi.size(); ++q) {
+        const Vec3d d = (phi.coordOf(q).asVec3d() - Vec3d(11.5)) / 8.0;
+        const double r2 = d.lengthSqr();
+        phi.data()[q] = r2 < 1.0 ? float(std::pow(1.0 - r2, 3)) : 0.0f;
+    }
+    VectorField mac(macBox(cells), lat);
+    for (size_t q = 0; q < mac.size(); ++q) {
+        const Coord c = mac.coordOf(q);
+        for (int a = 0; a < 3; ++a) {
+            Coord lo = c;
+            lo[a] -= 1;
+            mac.data()[q][a] = phi.valueOr(c.x(), c.y(), c.z(), 0.0f) - phi.valueOr(lo.x(), lo.y(), lo.z(), 0.0f);
+        }
+    }
+    double umax = 0;
+    for (const auto& v : mac.values()) umax = std::max(umax, double(v.length()));
+    ScalarField p;
+    ProjectionSettings s;
+    s.tolerance = 1e-6;
+    projectMac(mac, s, nullptr, &p);
+    double rest = 0, perr = 0;
+    for (const auto& v : mac.values()) rest = std::max(rest, double(v.length()));
+    for (size_t q = 0; q < p.size(); ++q) perr = std::max(perr, double(std::abs(p.data()[q] - phi.data()[q])));
+    EXPECT_LT(rest / umax, 1e-3);
+    EXPECT_LT(perr, 1e-3);
+}
+
+TEST(Projection, WarmStartReachesTheSameToleranceInFewerIterations)
+{
+    // As between two time steps: the next unprojected field differs a little from the previous one,
+    // so the previous pressure is a good first guess.
+    const CoordBBox cells({0, 0, 0}, {23, 23, 31});
+    VectorField a = randomMac(cells, 0.2, 4);
+    const VectorField noise = randomMac(cells, 0.2, 5);
+    VectorField b = a;
+    for (size_t q = 0; q < b.size(); ++q) b.data()[q] += noise.data()[q] * 0.01f;
+    VectorField c = b;
+    ScalarField p;
+    projectMac(a, {}, nullptr, &p);
+    const ProjectionResult warm = projectMac(b, {}, nullptr, &p);
+    const ProjectionResult cold = projectMac(c, {});
+    EXPECT_TRUE(warm.converged);
+    EXPECT_LE(maxAbs(macDivergence(b)) / warm.divMaxBefore, 1e-4);
+    EXPECT_LT(warm.iterations, cold.iterations);
+}
+
+TEST(Projection, CellCentredEntryReducesCentralDifferenceDivergence)
+{
+    const CoordBBox cells({0, 0, 0}, {31, 31, 31});
+    const Lattice lat{1.0 / 32, {0, 0, 0}};
+    // A smooth field with both a divergent and a rotational part.
+    VectorField u(cells, lat);
+    for (size_t q = 0; q < u.size(); ++q) {
+        const Vec3d x = lat.indexToWorld(u.coordOf(q).asVec3d()) * (2 * M_PI);
+        u.data()[q] = Vec3f(float(std::sin(x.x()) * std::cos(x.y()) + 0.5 * std::sin(x.z())),
+            float(std::sin(x.y() + 0.3) * std::cos(x.z())), float(std::cos(x.x()) * std::sin(2 * x.z())));
+    }
+    // The faces' corrections averaged to the cells cancel the central-difference divergence up to
+    // O(h^2) inside; the two voxel layers at open faces keep more (measured: 0.79 -> 0.13 with them,
+    // 0.73 -> 0.023 without).
+    std::vector<unsigned char> interior(u.size()), all(u.size(), 1);
+    for (size_t q = 0; q < u.size(); ++q) {
+        const Coord c = u.coordOf(q);
+        bool in = true;
+        for (int a = 0; a < 3; ++a) in &= c[a] >= 2 && c[a] <= 29;
+        interior[q] = in ? 1 : 0;
+    }
+    const double relBefore = *relativeDivergence(u, interior);
+    const double allBefore = *relativeDivergence(u, all);
+    const ProjectionResult r = project(u);
+    EXPECT_TRUE(r.converged);
+    EXPECT_LE(r.relativeDivergence(), 1e-4);
+    EXPECT_GT(relBefore, 0.5);
+    EXPECT_LT(*relativeDivergence(u, interior), 0.05 * relBefore);
+    EXPECT_LT(*relativeDivergence(u, all), 0.25 * allBefore);
+}
+
+TEST(Projection, BitIdenticalAtOneAndTwoThreads)
+{
+    const CoordBBox cells({0, 0, 0}, {27, 21, 33});
+    VectorField a = randomMac(cells, 0.2, 6), b = a;
+    ProjectionResult ra, rb;
+    withThreads(1, [&] { ra = projectMac(a); });
+    withThreads(2, [&] { rb = projectMac(b); });
+    EXPECT_EQ(ra.iterations, rb.iterations);
+    EXPECT_TRUE(bitIdentical(a, b));
+}
+
+TEST(Projection, ReusedProjectorMatchesOneShotProjection)
+{
+    // MacProjector builds OpenVDB's Laplacian and preconditioner once and keeps them: every later solve,
+    // cold or warm, and a copy's solves must give exactly what a one-shot projectMac gives.
+    const CoordBBox cells({0, 0, 0}, {19, 17, 23});
+    const Lattice lat{0.2, {0, 0, 0}};
+    ProjectionSettings s;
+    s.faces[kFaceZMin] = Boundary::Closed;
+    MaskField solid(cells, lat);
+    for (size_t q = 0; q < solid.size(); ++q)
+        solid.data()[q] = (solid.coordOf(q).asVec3d() - Vec3d(9.5, 8.5, 11.0)).length() < 4.0 ? 1 : 0;
+    MacProjector projector(cells, s, &solid);
+    ScalarField warmA, warmB;
+    for (unsigned seed : {11u, 12u, 13u}) {
+        VectorField a = randomMac(cells, lat.voxelSize, seed), b = a;
+        const ProjectionResult ra = projector.project(a, &warmA);
+        const ProjectionResult rb = projectMac(b, s, &solid, &warmB);
+        EXPECT_TRUE(ra.converged);
+        EXPECT_EQ(ra.iterations, rb.iterations);
+        EXPECT_TRUE(bitIdentical(a, b));
+        EXPECT_TRUE(bitIdentical(warmA, warmB));
+        EXPECT_LE(maxAbs(macDivergence(a, &solid)) / ra.divMaxBefore, 1e-4);
+    }
+    MacProjector copy = projector;
+    VectorField a = randomMac(cells, lat.voxelSize, 14), b = a;
+    EXPECT_EQ(copy.project(a).iterations, projector.project(b).iterations);
+    EXPECT_TRUE(bitIdentical(a, b));
+    VectorField wrong = randomMac(CoordBBox({0, 0, 0}, {19, 17, 22}), lat.voxelSize, 15);
+    EXPECT_THROW(projector.project(wrong), ValueError);
+}
+
+TEST(Projection, RejectsMismatchedMasks)
+{
+    VectorField mac = randomMac(CoordBBox({0, 0, 0}, {7, 7, 7}), 1.0, 7);
+    MaskField wrong(CoordBBox({0, 0, 0}, {8, 7, 7}), mac.lattice());
+    EXPECT_THROW(projectMac(mac, {}, &wrong), ValueError);
+    ProjectionSettings s;
+    s.tolerance = 0.0;
+    EXPECT_THROW(projectMac(mac, s), ValueError);
+}
+
+
+namespace {
+
+/// The 2D case of `synth --project`: one z layer, both z faces closed, and any of the four in-plane faces
+/// a wall (bit f of `walls` closes face f). Normal velocity on walls is 0, as centredToMac leaves it.
+ProjectionSettings planarSettings(unsigned walls)
+{
+    ProjectionSettings s;
+    s.faces[kFaceZMin] = s.faces[kFaceZMax] = Boundary::Closed;
+    for (int f = 0; f < 4; ++f)
+        if (walls & (1u << f)) s.faces[size_t(f)] = Boundary::Closed;
+    return s;
+}
+
+/// A smooth 2D field like synthesised detail on a vortex: rotation plus a divergent ripple, 2D components.
+VectorField planarField(const CoordBBox& cells, double h)
+{
+    VectorField u(cells, Lattice{h, {0, 0, 0}});
+    const Vec3d c = (cells.min().asVec3d() + cells.max().asVec3d()) * 0.5;
+    for (size_t q = 0; q < u.size(); ++q) {
+        const Vec3d x = u.coordOf(q).asVec3d() - c;
+        const double k = 2 * M_PI / 16.0;
+        u.data()[q] = Vec3f(float(-x.y() / 40 + std::sin(k * x.x()) * std::cos(0.7 * k * x.y())),
+            float(x.x() / 40 + std::cos(1.3 * k * x.x() + 0.4) * std::sin(k * x.y())), 0.0f);
+    }
+    return u;
+}
+
+} // namespace
+
+TEST(Projection, PlanarWithEveryWallCombinationConverges)
+{
+    // OpenVDB's pcg::solve stopped these solves after 30-90 iterations on its divergence guard (the L2
+    // residual rose to twice its minimum), leaving max|div| at 1e-3..1e-2 of the input.
+    const CoordBBox cells({0, 0, 3}, {95, 79, 3});
+    for (unsigned walls = 0; walls < 16; ++walls) {
+        const ProjectionSettings s = planarSettings(walls);
+        // MAC entry: the smooth field plus cell noise, normal velocity 0 on the walls.
+        VectorField noisy = planarField(cells, 0.05);
+        std::mt19937 rng(walls);
+        std::uniform_real_distribution<float> U(-0.5f, 0.5f);
+        for (Vec3f& v : noisy.values()) v += Vec3f(U(rng), U(rng), 0.0f);
+        VectorField mac = centredToMac(noisy, s);
+        const ProjectionResult r = projectMac(mac, s);
+        EXPECT_TRUE(r.converged) << "walls " << walls << ": " << r.iterations << " iterations";
+        EXPECT_LE(maxAbs(macDivergence(mac)) / r.divMaxBefore, 1e-4) << "walls " << walls;
+        for (const Vec3f& v : mac.values()) ASSERT_EQ(v[2], 0.0f); // still planar: no z flow
+        // Cell-centred entry (what synth --project calls).
+        VectorField u = planarField(cells, 0.05);
+        const ProjectionResult rc = project(u, s);
+        EXPECT_TRUE(rc.converged) << "walls " << walls << " (cell-centred): " << rc.iterations << " iterations";
+        EXPECT_LE(rc.relativeDivergence(), 1e-4) << "walls " << walls;
+        EXPECT_LT(rc.iterations, 400);
+    }
+}
+
+TEST(Projection, PlanarBitIdenticalAtOneAndTwoThreads)
+{
+    const CoordBBox cells({0, 0, 0}, {63, 47, 0});
+    const ProjectionSettings s = planarSettings(0b0101);
+    VectorField a = planarField(cells, 0.1), b = a;
+    ProjectionResult ra, rb;
+    withThreads(1, [&] { ra = project(a, s); });
+    withThreads(2, [&] { rb = project(b, s); });
+    EXPECT_TRUE(ra.converged);
+    EXPECT_EQ(ra.iterations, rb.iterations);
+    EXPECT_TRUE(bitIdentical(a, b));
+}
