@@ -4,7 +4,9 @@
 #
 # vdbturb benchmark harness: runs named configurations and reports, per configuration, the median seconds
 # per frame, the total time, the peak RSS, the thread count and the machine, all taken from the summary
-# line the timed command prints with --json. Each run appends a row to docs/performance.md.
+# line the timed command prints with --json; and, measured here, the CPU time the command used, the load
+# average before and after it, and its seconds per frame at the 5th and at the last frame (growth). Each
+# run appends a row to docs/performance.md.
 #
 # A benchmark, not a test: nothing here fails because the machine is busy. A configuration whose command
 # or data is missing is reported as "not available yet" and skipped; only a command that runs and fails
@@ -14,7 +16,7 @@
 #   bench/run.sh [--vdbturb PATH] [--work DIR] [--threads N] [--frames N] [--no-record] CONFIG...
 #
 # POSIX sh and coreutils only (no python, no jq), so it runs on a fresh Debian 12 after
-# tools/setup-debian12.sh.
+# tools/setup-debian12.sh. The blender-* configurations also need Blender (apt-get install blender).
 set -eu
 
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
@@ -26,7 +28,8 @@ FRAMES_OVERRIDE=""
 RECORD=1
 PERF="$ROOT/docs/performance.md"
 
-CONFIGS="tiny measure-plume sim128 paper3d plume4x synth2d synth3d stylize1m stylize1m-full"
+CONFIGS="tiny measure-plume sim128 paper3d plume4x blender-paper3d blender-plume2 ratio2 blender-noise synth2d synth3d
+ stylize1m stylize1m-full"
 
 describe() {
     case "$1" in
@@ -35,6 +38,10 @@ describe() {
     sim128) echo "sim: built-in scene plume at 128x128x192, 30 frames (the paper's same-size simulation: 50 s/frame)" ;;
     paper3d) echo "transfer: plume 16x16x24 (target) -> swirl 128x128x192 (source), 30 frames (paper: 270 s/frame)" ;;
     plume4x) echo "transfer: blender-plume-32 (target) -> blender-plume-128 (source), the 10 frames both hold" ;;
+    blender-paper3d) echo "transfer: Blender plume 16x16x24 (target) -> Blender two-jet swirl 128x128x192 (source), 30 frames (baked by bench/blender_pairs.sh)" ;;
+    blender-plume2) echo "transfer: blender-plume2-32 (target) -> blender-plume2-128 (source), 30 frames (ratio 4)" ;;
+    ratio2) echo "transfer: blender-plume2-128 box-downsampled to 64^3 (target) -> blender-plume2-128 (source), 30 frames (ratio 2)" ;;
+    blender-noise) echo "Blender 3.4 Mantaflow: the blender-paper3d plume 16x16x24 with its Noise up-res x8 (128x128x192), 30 frames, base sim included" ;;
     synth2d) echo "synth: 2D, analytic vortex 64x64x1 -> 256x256 (factor 4), 30 frames (paper: about 1 min)" ;;
     synth3d) echo "synth: 3D, coarse plume 64x64x16 -> 256x256x64 (factor 4), 30 frames (paper: about 1 h single-threaded)" ;;
     stylize1m) echo "stylize: 1024x1024 rotating blob (0.37 Mpix of fluid), 256^2 exemplar, 5 frames (paper: 5 min per 1-Mpix frame, 4 cores)" ;;
@@ -46,7 +53,7 @@ describe() {
 usage() {
     sed -n "5,17p" "$0" | sed "s/^# \{0,1\}//"
     echo "configurations:"
-    for c in $CONFIGS; do printf '  %-14s %s\n' "$c" "$(describe "$c")"; done
+    for c in $CONFIGS; do printf '  %-16s %s\n' "$c" "$(describe "$c")"; done
 }
 
 log() { printf 'bench: %s\n' "$*" >&2; }
@@ -82,6 +89,40 @@ THREAD_ARGS=""
 
 now() { date +%s.%N 2>/dev/null || date +%s; }
 elapsed() { awk -v a="$1" -v b="$2" 'BEGIN { printf "%.1f", b - a }'; }
+load1() { cut -d ' ' -f 1 /proc/loadavg 2>/dev/null || echo "?"; }
+# child_cpu: sets CPU to the user + system CPU seconds of this shell's finished children. `times` must run
+# in this shell, never in a command substitution (a fork reports its own children), so it writes a file.
+child_cpu() {
+    times > "$WORK/.times.$$"
+    CPU=$(awk 'NR == 2 { s = 0; for (i = 1; i <= 2; i++) { split($i, a, "m"); sub("s", "", a[2]); s += a[1] * 60 + a[2] }
+        printf "%.2f", s }' "$WORK/.times.$$")
+    rm -f "$WORK/.times.$$"
+}
+
+# per_frame JSONL: "frame seconds" for each per-frame line (not the summary), in the order written.
+per_frame() {
+    grep -v '"summary":true' "$1" | grep '"seconds":' | awk '{
+        f = ""; s = ""
+        if (match($0, /"frame":[0-9-]+/)) f = substr($0, RSTART + 8, RLENGTH - 8)
+        if (match($0, /"seconds":[0-9.eE+-]+/)) s = substr($0, RSTART + 10, RLENGTH - 10)
+        if (f != "" && s != "") print f, s }' || true
+}
+# growth JSONL: "s/frame at the 5th frame -> at the last (last/5th)", or at the first when fewer than 5 ran.
+growth() {
+    per_frame "$1" | awk '{ n++; s[n] = $2; f[n] = $1 } END {
+        if (n == 0) { print "-"; exit }
+        k = n >= 5 ? 5 : 1
+        printf "f%s %.2f -> f%s %.2f (x%.1f)", f[k], s[k], f[n], s[n], (s[k] > 0 ? s[n] / s[k] : 0) }'
+}
+# steps JSONL FRAME: the frame's steps_s (transfer, synth, stylize), largest first, "total" left out, then
+# "outside": the frame's seconds less steps_s.total (reading, writing, reporting).
+steps() {
+    l=$(grep -v '"summary":true' "$1" | grep "\"frame\":$2[,}]" | tail -n 1)
+    sec=$(printf '%s\n' "$l" | sed -n 's/.*"seconds":\([0-9.eE+-]*\).*/\1/p')
+    printf '%s\n' "$l" | sed -n 's/.*"steps_s":{\([^}]*\)}.*/\1/p' | tr ',' '\n' | tr -d '"' |
+        awk -F ':' -v sec="$sec" '$1 == "total" && sec != "" { printf "%.6f outside\n", sec - $2 } $1 != "total" && $2 != "" { print $2, $1 }' |
+        sort -rn | awk '{ printf "%s%s %.2f", (NR > 1 ? ", " : ""), $2, $1 }'
+}
 
 # --- availability -----------------------------------------------------------------------------------
 
@@ -105,6 +146,10 @@ need_data() {
         [ -d "$DATA/$d" ] || { REASON="missing data $DATA/$d"; return 1; }
     done
 }
+BLENDER=${BLENDER:-blender}
+need_blender() {
+    command -v "$BLENDER" >/dev/null 2>&1 || { REASON="no '$BLENDER' on PATH (Debian 12: apt-get install blender)"; return 1; }
+}
 
 # --- running ----------------------------------------------------------------------------------------
 
@@ -123,13 +168,19 @@ FAILED=0
 timed() {
     cfg=$1; shift
     out="$WORK/$cfg.jsonl"
-    log "$cfg: $*"
+    load0=$(load1)
+    log "$cfg: $* (load average $load0)"
+    child_cpu
+    cpu0=$CPU
     t0=$(now)
     set +e
     "$@" > "$out"
     rc=$?
     set -e
     t1=$(now)
+    child_cpu
+    cpu=$(awk -v a="$cpu0" -v b="$CPU" 'BEGIN { printf "%.1f", b - a }')
+    load=$load0"->"$(load1)
     wall=$(elapsed "$t0" "$t1")
     summary=$(grep '"summary":true' "$out" | tail -n 1 || true)
     if [ "$rc" -ne 0 ] || [ -z "$summary" ]; then
@@ -146,9 +197,16 @@ timed() {
     threads=$(field threads)
     machine=$(printf '%s\n' "$summary" | sed -n 's/.*"machine":"\([^"]*\)".*/\1/p')
     [ -n "$machine" ] || machine="$(grep -m1 'model name' /proc/cpuinfo | sed 's/.*: //') ($(nproc) threads)"
+    grow=$(growth "$out")
     line=$(awk -v c="$cfg" -v f="$frames" -v m="$median" -v t="$total" -v w="$wall" -v r="$rss" -v th="$threads" -v mc="$machine" \
-        'BEGIN { printf "%s\t%s\t%.3f\t%.1f\t%.1f\t%.0f\t%s\t%s", c, f, m, t, w, r, th, mc }')
+        -v cpu="$cpu" -v ld="$load" -v g="$grow" \
+        'BEGIN { printf "%s\t%s\t%.3f\t%.1f\t%.1f\t%.0f\t%s\t%s\t%s\t%s\t%s", c, f, m, t, w, r, th, mc, cpu, ld, g }')
     printf '%s\n' "$line" >> "$RESULTS"
+    # Where the time went at the 5th and the last frame, for commands that report steps_s.
+    per_frame "$out" | awk 'NR == 5 || NR == 1 { print $1 } { l = $1 } END { print l }' | sort -un | while read -r fr; do
+        st=$(steps "$out" "$fr")
+        [ -z "$st" ] || log "$cfg: frame $fr steps_s: $st"
+    done
     if [ "$RECORD" = 1 ]; then record "$line" "$*"; fi
 }
 
@@ -162,7 +220,7 @@ record() {
     # Paths in the table are relative to the repository, so rows compare across machines.
     cmd=$(printf '%s' "$2" | sed -e "s#$DATA#../shared/data#g" -e "s#$ROOT/##g" -e "s#$WORK#WORK#g")
     printf '%s\n' "$1" | awk -F '\t' -v d="$(date -u +%Y-%m-%d)" -v rev="$rev" -v cmd="$cmd" \
-        '{ printf "| %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | `%s` |\n", d, $1, $2, $3, $4, $5, $6, $7, $8, rev, cmd }' >> "$PERF"
+        '{ printf "| %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | `%s` | %s | %s | %s |\n", d, $1, $2, $3, $4, $5, $6, $7, $8, rev, cmd, $9, $10, $11 }' >> "$PERF"
 }
 
 frames_or() { if [ -n "$FRAMES_OVERRIDE" ]; then echo "$FRAMES_OVERRIDE"; else echo "$1"; fi; }
@@ -221,6 +279,63 @@ cfg_plume4x() {
         --source "$DATA/blender-plume-128/fluid_data_####.vdb" --out "$WORK/plume4x_out/up.####.vdb" --frames "1-$n" --json
 }
 
+# blender-paper3d: the paper's 3D configuration as Blender 3.4 caches, baked once by bench/blender_pairs.sh
+# (untimed) and reused; a bake already in WORK is used even where Blender is not installed.
+cfg_blender_paper3d() {
+    need_command transfer --target --source --out --frames --json || return 1
+    n=$(frames_or 30)
+    b="$WORK/blender"
+    t="$b/plume_16x16x24_f30/data"
+    s="$b/swirl2jet_128x128x192_f30/data"
+    if [ ! -f "$t/fluid_data_0030.vdb" ] || [ ! -f "$s/fluid_data_0030.vdb" ]; then
+        need_blender || { REASON="no baked pair in $b and $REASON"; return 1; }
+        # shellcheck disable=SC2086
+        prepare "Blender pair: bench/blender_pairs.sh" "$s/fluid_data_0030.vdb" \
+            "$ROOT/bench/blender_pairs.sh" --work "$WORK" --frames 30 ${THREADS:+--threads "$THREADS"} || return 1
+    fi
+    rm -rf "$WORK/blender_paper3d_out"
+    # shellcheck disable=SC2086
+    timed blender-paper3d "$VDBTURB" transfer $THREAD_ARGS --target "$t/fluid_data_####.vdb" --source "$s/fluid_data_####.vdb" \
+        --out "$WORK/blender_paper3d_out/up.####.vdb" --frames "1-$n" --json
+}
+
+cfg_blender_plume2() {
+    need_command transfer --target --source --out --frames --json && need_data blender-plume2-32 blender-plume2-128 || return 1
+    n=$(frames_or 30)
+    rm -rf "$WORK/blender_plume2_out"
+    # shellcheck disable=SC2086
+    timed blender-plume2 "$VDBTURB" transfer $THREAD_ARGS --target "$DATA/blender-plume2-32/fluid_data_####.vdb" \
+        --source "$DATA/blender-plume2-128/fluid_data_####.vdb" --out "$WORK/blender_plume2_out/up.####.vdb" --frames "1-$n" --json
+}
+
+# ratio2: the most common production up-res (x2); the 64^3 target is the 128^3 Blender plume box-averaged.
+cfg_ratio2() {
+    need_command resample --down --out --style && need_command transfer --target --source --out --frames --json &&
+        need_data blender-plume2-128 || return 1
+    n=$(frames_or 30)
+    t="$WORK/plume2_64_down2"
+    # shellcheck disable=SC2086
+    prepare "target: resample --down 2 blender-plume2-128" "$t/fluid_data_0030.vdb" \
+        "$VDBTURB" resample $THREAD_ARGS --down 2 --style blender --out "$t/fluid_data_####.vdb" -q \
+        "$DATA/blender-plume2-128/fluid_data_####.vdb" || return 1
+    rm -rf "$WORK/ratio2_out"
+    # shellcheck disable=SC2086
+    timed ratio2 "$VDBTURB" transfer $THREAD_ARGS --target "$t/fluid_data_####.vdb" \
+        --source "$DATA/blender-plume2-128/fluid_data_####.vdb" --out "$WORK/ratio2_out/up.####.vdb" --frames "1-$n" --json
+}
+
+# blender-noise: what a Blender user runs instead of transfer. The bake folder is emptied first: a REPLAY
+# cache finding earlier files would read them instead of simulating.
+cfg_blender_noise() {
+    need_blender || return 1
+    n=$(frames_or 30)
+    o="$WORK/blender_noise_out"
+    rm -rf "$o"
+    mkdir -p "$o"
+    timed blender-noise "$BLENDER" -b --factory-startup -t "${THREADS:-0}" --python "$ROOT/bench/blender/plume_noise.py" -- \
+        "$o" "$n" 8 24 "${THREADS:-0}"
+}
+
 # synth2d: an analytic vortex as the coarse flow (no preparation); synth3d: the plume scene simulated once.
 cfg_synth2d() {
     need_command synth --flow --flow-res --frames --factor --out --json || return 1
@@ -275,11 +390,12 @@ for c in "$@"; do
     fi
 done
 
-printf '%-14s %7s %15s %9s %8s %12s %8s  %s\n' config frames "median s/frame" "total s" "wall s" "peak RSS MB" threads machine
-while IFS="$(printf '\t')" read -r c f m t w r th mc; do
+printf '%-15s %6s %14s %8s %8s %8s %11s %7s %-12s %-30s %s\n' config frames "median s/frame" "total s" "wall s" "cpu s" \
+    "peak RSS MB" threads load "s/frame 5th -> last" machine
+while IFS="$(printf '\t')" read -r c f m t w r th mc cpu ld g; do
     case "$f" in
-    FAILED*|not\ available*) printf '%-14s %s\n' "$c" "$f" ;;
-    *) printf '%-14s %7s %15s %9s %8s %12s %8s  %s\n' "$c" "$f" "$m" "$t" "$w" "$r" "$th" "$mc" ;;
+    FAILED*|not\ available*) printf '%-15s %s\n' "$c" "$f" ;;
+    *) printf '%-15s %6s %14s %8s %8s %8s %11s %7s %-12s %-30s %s\n' "$c" "$f" "$m" "$t" "$w" "$cpu" "$r" "$th" "$ld" "$g" "$mc" ;;
     esac
 done < "$RESULTS"
 rm -f "$RESULTS"

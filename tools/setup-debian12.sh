@@ -1,12 +1,19 @@
 #!/bin/sh
 # Installs everything vdbturb needs to build, test and run its demo on Debian 12, as root.
 # Idempotent: packages already present are left alone. clang-14 and libfuzzer-14-dev serve bench/fuzz.sh only.
+#   tools/setup-debian12.sh          build, test and demo
+#   tools/setup-debian12.sh --bench  also Blender 3.4, for the blender-* benchmarks (bench/blender_pairs.sh)
 set -eu
 PACKAGES="g++ cmake ninja-build ccache pkg-config make git
   libopenvdb-dev libboost-iostreams-dev libtbb-dev libeigen3-dev libflann-dev liblz4-dev libblosc-dev
   libgtest-dev libgmock-dev libcli11-dev nlohmann-json3-dev libfftw3-dev
   libopenimageio-dev fonts-dejavu-core
   clang-14 libfuzzer-14-dev"
+case "${1:-}" in
+--bench) PACKAGES="$PACKAGES blender" ;;
+"") ;;
+*) echo "usage: $0 [--bench]" >&2; exit 2 ;;
+esac
 missing=""
 for p in $PACKAGES; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing="$missing $p"
