@@ -1,0 +1,108 @@
+/// @file HistogramMatch.h
+/// @brief Heeger-Bergen histogram matching of animation frames to the target still (Okabe et al. 2009,
+///        section 5.6, after Heeger and Bergen 1995), on a grid of overlapping cells, with a Laplacian
+///        single-pass preview mode (section 6).
+///
+/// Per frame and per colour channel (optionally decorrelated first by the target's colour PCA, as Heeger
+/// and Bergen do for colour synthesis; off by default, as it does not keep the RGB statistics):
+///   match the pixel histogram; repeat `reps` times { build the steerable pyramid (SteerablePyramid.h),
+///   match every sub-band's histogram (high-pass, oriented bands, low-pass residual) to the target's same
+///   sub-band, collapse, match the pixel histogram }.
+/// The preview mode (`pyramid = Laplacian`) runs the loop once on a Laplacian pyramid (the paper's
+/// preview: "we adopt the Laplacian pyramid ... apply histogram matching once").
+///
+/// **Grid** (5.6). The image is split into cols x rows cells; every cell's statistics are taken over the
+/// cell (grown by `reach` x its size on each side, 0 by default). In every sub-band, each coefficient's
+/// matched value is the blend of its cells' matches with weights that are 1 in a cell's core and ramp
+/// linearly across zones reaching `overlap` x the cell size into each neighbour (a partition of unity):
+/// the paper's alpha-blended overlaps. The same cells, scaled by 2^-level, apply to every sub-band. The
+/// final pixel-domain match of each repetition is per cell without blending (`blendPixels` = false), so
+/// every cell's mean and standard deviation end up those of the target's same cell; the sub-bands have
+/// already been blended, and no seam was measured (docs/animate.md). Blending it as well, as the paper
+/// does, leaves a cell's statistics off by a few per cent where neighbouring cells differ.
+/// The default grid is proportional to the resolution, cells of about `cellSize` pixels (the paper's
+/// Table 1 uses cells of 35..120 px, mostly about 60).
+///
+/// A histogram match maps each value through the source's cumulative histogram (`bins` bins over the
+/// cell's range, linear within a bin) to the target's quantile table (`quantiles` entries, linear between).
+///
+/// @code
+/// turb::HistogramMatchSettings s;          // steerable, 3 repetitions, grid of ~64 px cells
+/// turb::HistogramMatcher hm(target, s);    // the target's pyramids and quantiles, once
+/// turb::ChannelImage out = hm.match(frame); // thread-safe; frames may be matched concurrently
+/// @endcode
+#pragma once
+
+#include <turb/ChannelImage.h>
+
+#include <memory>
+#include <vector>
+
+namespace turb {
+
+enum class HmPyramid
+{
+    Steerable, ///< Heeger-Bergen on the steerable pyramid, `reps` times (the paper's final render)
+    Laplacian  ///< one pass on a Laplacian pyramid (the paper's fast preview)
+};
+
+struct HistogramMatchSettings
+{
+    int reps = 3;             ///< HM Rep: repetitions of the pyramid loop (paper 3), 1..10; Laplacian mode runs 1
+    int gridCols = 0;         ///< HM Grid columns; 0 = from the resolution (cells of about cellSize px)
+    int gridRows = 0;         ///< HM Grid rows; 0 = from the resolution
+    int cellSize = 64;        ///< the automatic grid's cell size in pixels, >= 16
+    double overlap = 0.25;    ///< sub-band blend zones reach this fraction of a cell's size into each neighbour, [0, 0.5]
+    bool blendPixels = false; ///< also blend the pixel-domain matches (else each cell's is exact: measured seam-free, docs/animate.md)
+    double reach = 0.0;       ///< a cell's statistics also take this fraction of its size around it, [0, 1] (0 = the cell itself)
+    HmPyramid pyramid = HmPyramid::Steerable;
+    int levels = 4;           ///< pyramid levels (clamped so the coarsest band keeps >= 8 px), >= 1
+    int orientations = 4;     ///< steerable orientations (Heeger-Bergen 4), 1..8
+    int bins = 256;           ///< source histogram bins, >= 16
+    int quantiles = 1024;     ///< target quantile table entries, >= 16
+    bool colorPca = false;    ///< decorrelate colour channels by the target's PCA first (Heeger-Bergen's colour; off: it
+                              ///< leaves the RGB statistics up to 6% off, measured in docs/animate.md)
+};
+
+/// Throws ValueError naming the first setting out of range.
+void validate(const HistogramMatchSettings& s);
+
+/// A cell of the grid: the core rectangle [x0, x1) x [y0, y1) and the pixels its statistics use.
+struct HmCell
+{
+    int x0 = 0, y0 = 0, x1 = 0, y1 = 0; ///< the cell (cells tile the image)
+    int sx0 = 0, sy0 = 0, sx1 = 0, sy1 = 0; ///< its statistics region (grown by `reach`, clamped)
+};
+
+class HistogramMatcher
+{
+public:
+    /// Precomputes the target's pyramids and per-cell quantile tables. `target` has 1..4 channels (colour
+    /// PCA over the first 3 when there are 3+). Throws ValueError on an empty target or bad settings.
+    HistogramMatcher(const ChannelImage& target, const HistogramMatchSettings& settings);
+    ~HistogramMatcher();
+    HistogramMatcher(HistogramMatcher&&) noexcept;
+    HistogramMatcher& operator=(HistogramMatcher&&) noexcept;
+
+    /// The frame matched to the target. Same size and channels as the target, else ValueError.
+    /// Const and thread-safe.
+    ChannelImage match(const ChannelImage& frame) const;
+
+    int gridCols() const;
+    int gridRows() const;
+    const std::vector<HmCell>& cells() const; ///< row by row
+    int levels() const;                       ///< pyramid levels actually used
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> mImpl;
+};
+
+/// Mean and standard deviation of channel c over a rectangle [x0, x1) x [y0, y1).
+struct MeanStd
+{
+    double mean = 0.0, std = 0.0;
+};
+MeanStd meanStd(const ChannelImage& img, int c, int x0, int y0, int x1, int y1);
+
+} // namespace turb
