@@ -32,13 +32,13 @@ void RunReport::frameDone(int frame, int index, int count, double seconds, const
     }
 }
 
-nlohmann::json RunReport::finish(int failed)
+nlohmann::json RunReport::finish(int failed, const nlohmann::json& extra)
 {
     std::vector<double> s = mSeconds;
     std::sort(s.begin(), s.end());
     const double median = s.empty() ? 0.0 : (s.size() % 2 ? s[s.size() / 2] : 0.5 * (s[s.size() / 2 - 1] + s[s.size() / 2]));
     const int threads = globals().threads > 0 ? globals().threads : tbb::info::default_concurrency();
-    nlohmann::json j;
+    nlohmann::json j = extra;
     j["summary"] = true;
     j["command"] = mCommand;
     j["frames"] = mSeconds.size();

@@ -23,8 +23,9 @@ public:
     /// `extra` is merged into the frame's JSON line.
     void frameDone(int frame, int index, int count, double seconds, const std::string& human,
         const nlohmann::json& extra = nlohmann::json::object());
-    /// Prints the summary (JSON on stdout when enabled, a human line on stderr). Returns it.
-    nlohmann::json finish(int failed = 0);
+    /// Prints the summary (JSON on stdout when enabled, a human line on stderr) with `extra` merged into
+    /// the JSON. Returns it.
+    nlohmann::json finish(int failed = 0, const nlohmann::json& extra = nlohmann::json::object());
 
 private:
     std::string mCommand;

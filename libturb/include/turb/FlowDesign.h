@@ -56,6 +56,8 @@ struct FlowStroke
     double size = 32.0;              ///< local: brush diameter in pixels, > 0
     double alpha = 1.0;              ///< local: brush opacity, [0, 1]
     double speed = 0.0;              ///< speed strokes: pixels per frame, >= 0
+    bool exampleSpeed = false;       ///< speed strokes: use StrokeSettings::defaultSpeed instead (the example's
+                                     ///< mean speed in `animate`: the paper's "fetch the speed from the video example")
     std::vector<StrokePoint> points; ///< the polyline, >= 2 points, not all equal
 };
 
@@ -64,7 +66,7 @@ struct StrokeSettings
     double sampleSpacing = 4.0;  ///< samples along a stroke every this many pixels, > 0 (raised so a layer keeps <= maxSamples)
     int maxSamples = 400;        ///< most RBF centres per layer (the dense solve is cubic in them), >= 8
     int rbfStep = 4;             ///< the interpolant is evaluated every rbfStep pixels, bilinear between, 1..16
-    double defaultSpeed = 1.0;   ///< base speed without a global speed stroke, pixels per frame, >= 0
+    double defaultSpeed = 1.0;   ///< base speed without a global speed stroke, and the speed of exampleSpeed strokes, pixels per frame, >= 0
 };
 
 /// Throws ValueError naming the stroke (0-based index) that is malformed: too few points, all points

@@ -58,7 +58,7 @@ struct HistogramMatchSettings
     HmPyramid pyramid = HmPyramid::Steerable;
     int levels = 4;           ///< pyramid levels (clamped so the coarsest band keeps >= 8 px), >= 1
     int orientations = 4;     ///< steerable orientations (Heeger-Bergen 4), 1..8
-    int bins = 256;           ///< source histogram bins, >= 16
+    int bins = 1024;          ///< source histogram bins (transfer functions are tabulated at their edges), >= 16
     int quantiles = 1024;     ///< target quantile table entries, >= 16
     bool colorPca = false;    ///< decorrelate colour channels by the target's PCA first (Heeger-Bergen's colour; off: it
                               ///< leaves the RGB statistics up to 6% off, measured in docs/animate.md)
@@ -78,8 +78,11 @@ class HistogramMatcher
 {
 public:
     /// Precomputes the target's pyramids and per-cell quantile tables. `target` has 1..4 channels (colour
-    /// PCA over the first 3 when there are 3+). Throws ValueError on an empty target or bad settings.
-    HistogramMatcher(const ChannelImage& target, const HistogramMatchSettings& settings);
+    /// PCA over the first 3 when there are 3+ and colorPca is set). With a `matte` (1 channel, target
+    /// size), each cell's statistics, the target's and the frame's, come from its pixels with
+    /// matte >= 0.5 only (when it has >= 16 of them in that band): the fluid is matched to the fluid, not to
+    /// the still parts around it. Throws ValueError on an empty target, a mismatched matte or bad settings.
+    HistogramMatcher(const ChannelImage& target, const HistogramMatchSettings& settings, const ChannelImage* matte = nullptr);
     ~HistogramMatcher();
     HistogramMatcher(HistogramMatcher&&) noexcept;
     HistogramMatcher& operator=(HistogramMatcher&&) noexcept;

@@ -295,7 +295,7 @@ AnimateStats animate(AnimateInput in, const AnimateSettings& s, const std::funct
     if (progress) progress->begin("histogram matching");
     std::unique_ptr<HistogramMatcher> hm;
     if (s.histogramMatch) {
-        hm = std::make_unique<HistogramMatcher>(target, s.hm);
+        hm = std::make_unique<HistogramMatcher>(target, s.hm, matte);
         st.gridCols = hm->gridCols();
         st.gridRows = hm->gridRows();
     }

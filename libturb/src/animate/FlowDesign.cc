@@ -31,7 +31,7 @@ void validateStrokes(const std::vector<FlowStroke>& strokes, int width, int heig
         if (!moves) throw ValueError(who + ": all its points are the same, it has no direction");
         if (s.local && !(s.size > 0.0 && std::isfinite(s.size))) throw ValueError(who + ": brush size must be > 0");
         if (s.local && !(s.alpha >= 0.0 && s.alpha <= 1.0)) throw ValueError(who + ": brush alpha must be in [0, 1]");
-        if (s.kind == StrokeKind::Speed && !(s.speed >= 0.0 && std::isfinite(s.speed)))
+        if (s.kind == StrokeKind::Speed && !s.exampleSpeed && !(s.speed >= 0.0 && std::isfinite(s.speed)))
             throw ValueError(who + ": speed must be a number >= 0 (pixels per frame)");
         if (s.kind == StrokeKind::Orientation && !s.local) globalOrientation = true;
     }
@@ -49,8 +49,9 @@ double strokeLength(const FlowStroke& s)
 
 /// Samples every `spacing` pixels along the stroke (and its end), with the stroke's value there:
 /// the unit tangent (orientation) or the speed.
-void sampleStroke(const FlowStroke& s, double spacing, std::vector<rbf::Sample>& out)
+void sampleStroke(const FlowStroke& s, double spacing, double exampleSpeed, std::vector<rbf::Sample>& out)
 {
+    const double speed = s.exampleSpeed ? exampleSpeed : s.speed;
     double carried = 0.0; // distance along the stroke to the next sample, from the current segment's start
     for (size_t i = 1; i < s.points.size(); ++i) {
         const StrokePoint a = s.points[i - 1], b = s.points[i];
@@ -62,7 +63,7 @@ void sampleStroke(const FlowStroke& s, double spacing, std::vector<rbf::Sample>&
             if (s.kind == StrokeKind::Orientation)
                 smp.values = {tx, ty};
             else
-                smp.values = {s.speed};
+                smp.values = {speed};
             out.push_back(std::move(smp));
         };
         double t = carried;
@@ -78,7 +79,7 @@ rbf::Interpolant fitLayer(const std::vector<const FlowStroke*>& strokes, const S
     for (const FlowStroke* s : strokes) L += strokeLength(*s);
     const double spacing = std::max(st.sampleSpacing, L / double(std::max(8, st.maxSamples)));
     std::vector<rbf::Sample> samples;
-    for (const FlowStroke* s : strokes) sampleStroke(*s, spacing, samples);
+    for (const FlowStroke* s : strokes) sampleStroke(*s, spacing, st.defaultSpeed, samples);
     rbf::Interpolant f;
     f.fit(std::move(samples));
     return f;

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <string>
 
 namespace turb {
@@ -57,6 +58,22 @@ struct Geometry
     int w = 0, h = 0;                 // band size
     std::vector<AxisTap> xs, ys;      // per column / row
     std::vector<HmCell> regions;      // per cell, statistics region in band pixels (valid part only)
+    std::vector<std::uint8_t> mask;   // per band pixel: inside the matte (empty: no matte)
+    std::vector<std::uint8_t> masked; // per cell: its statistics use the mask (enough matte pixels in it)
+
+    /// Calls fn(value) for the pixels of cell k's statistics.
+    template<typename Fn>
+    void forCell(const ChannelImage& band, size_t k, Fn&& fn) const
+    {
+        const HmCell& r = regions[k];
+        const bool useMask = !masked.empty() && masked[k];
+        for (int y = r.sy0; y < r.sy1; ++y) {
+            const float* row = band.pixel(0, y);
+            const std::uint8_t* m = useMask ? &mask[size_t(y) * size_t(w)] : nullptr;
+            for (int x = r.sx0; x < r.sx1; ++x)
+                if (!m || m[x]) fn(row[x]);
+        }
+    }
 };
 
 std::vector<AxisTap> axisTaps(int n, const std::vector<double>& edges, double o)
@@ -81,59 +98,60 @@ std::vector<AxisTap> axisTaps(int n, const std::vector<double>& edges, double o)
     return taps;
 }
 
-/// Cumulative histogram of a cell's source values, and its map to the target's quantiles.
-struct SourceHistogram
+/// A cell's transfer function for one band: the source's cumulative histogram (`bins` bins over the
+/// cell's value range, linear within a bin) composed with the target's quantile table, tabulated at the
+/// bin edges; between edges it is linear (the composition is, to within the quantile table's steps).
+struct CellMap
 {
-    float lo = 0.0f, hi = 0.0f;
-    std::vector<float> below; // fraction of values below each bin
-    std::vector<float> inBin; // fraction in each bin
+    float lo = 0.0f, scale = 0.0f;  // bin coordinate t = (v - lo) * scale
+    std::vector<float> at;          // bins + 1 values at the bin edges
+    float operator()(float v) const
+    {
+        const int B = int(at.size()) - 1;
+        const float t = std::clamp((v - lo) * scale, 0.0f, float(B));
+        const int b = std::min(int(t), B - 1);
+        const float f = t - float(b);
+        return at[size_t(b)] + f * (at[size_t(b + 1)] - at[size_t(b)]);
+    }
 };
 
-SourceHistogram histogramOf(const ChannelImage& band, const HmCell& r, int bins)
+/// The target's value at cumulative probability p in [0, 1].
+inline float quantileAt(const std::vector<float>& q, double p)
 {
-    SourceHistogram h;
-    h.lo = 1e30f;
-    h.hi = -1e30f;
-    for (int y = r.sy0; y < r.sy1; ++y)
-        for (int x = r.sx0; x < r.sx1; ++x) {
-            const float v = band.at(x, y, 0);
-            h.lo = std::min(h.lo, v);
-            h.hi = std::max(h.hi, v);
-        }
-    std::vector<double> count(size_t(bins), 0.0);
-    double n = 0.0;
-    const double scale = h.hi > h.lo ? bins / double(h.hi - h.lo) : 0.0;
-    for (int y = r.sy0; y < r.sy1; ++y)
-        for (int x = r.sx0; x < r.sx1; ++x) {
-            const int b = std::clamp(int((band.at(x, y, 0) - h.lo) * scale), 0, bins - 1);
-            count[size_t(b)] += 1.0;
-            n += 1.0;
-        }
-    h.below.resize(size_t(bins));
-    h.inBin.resize(size_t(bins));
-    double acc = 0.0;
-    for (int b = 0; b < bins; ++b) {
-        h.below[size_t(b)] = float(acc / std::max(n, 1.0));
-        h.inBin[size_t(b)] = float(count[size_t(b)] / std::max(n, 1.0));
-        acc += count[size_t(b)];
-    }
-    return h;
-}
-
-inline float mapValue(float v, const SourceHistogram& h, const std::vector<float>& q)
-{
-    const int bins = int(h.below.size());
-    double p = 0.5;
-    if (h.hi > h.lo) {
-        const double t = (double(v) - h.lo) / (double(h.hi) - h.lo) * bins;
-        const int b = std::clamp(int(std::floor(t)), 0, bins - 1);
-        const double frac = std::clamp(t - b, 0.0, 1.0);
-        p = h.below[size_t(b)] + frac * h.inBin[size_t(b)];
-    }
     const double at = std::clamp(p, 0.0, 1.0) * double(q.size() - 1);
     const size_t i = std::min(size_t(at), q.size() - 2);
     const double f = at - double(i);
     return float((1.0 - f) * q[i] + f * q[i + 1]);
+}
+
+CellMap cellMap(const ChannelImage& band, const Geometry& g, size_t k, int bins, const std::vector<float>& q)
+{
+    float lo = 1e30f, hi = -1e30f;
+    g.forCell(band, k, [&](float v) {
+        lo = std::min(lo, v);
+        hi = std::max(hi, v);
+    });
+    CellMap m;
+    m.lo = lo;
+    m.at.assign(size_t(bins) + 1, 0.0f);
+    if (!(hi > lo)) {
+        // A constant region: every value maps to the target's median.
+        std::fill(m.at.begin(), m.at.end(), quantileAt(q, 0.5));
+        return m;
+    }
+    m.scale = float(bins / (double(hi) - double(lo)));
+    std::vector<double> count(size_t(bins), 0.0);
+    double n = 0.0;
+    g.forCell(band, k, [&](float v) {
+        count[size_t(std::clamp(int((v - lo) * m.scale), 0, bins - 1))] += 1.0;
+        n += 1.0;
+    });
+    double acc = 0.0;
+    for (int b = 0; b <= bins; ++b) {
+        m.at[size_t(b)] = quantileAt(q, acc / n);
+        if (b < bins) acc += count[size_t(b)];
+    }
+    return m;
 }
 
 std::vector<float> quantileTable(std::vector<float> values, int Q)
@@ -163,6 +181,7 @@ struct HistogramMatcher::Impl
     double ox = 0.0, oy = 0.0;
     // Colour PCA: y = E^T (x - mu) over the first 3 channels.
     bool pca = false;
+    const ChannelImage* matte = nullptr; // only during construction
     Eigen::Matrix3d E = Eigen::Matrix3d::Identity();
     Eigen::Vector3d mu = Eigen::Vector3d::Zero();
     // Per band slot: geometry and, per channel, the target's quantile tables per cell.
@@ -190,6 +209,22 @@ struct HistogramMatcher::Impl
             r.sy1 = std::clamp(int(std::ceil(c.sy1 * scale)), r.sy0 + 1, vh);
             g.regions.push_back(r);
         }
+        if (matte) {
+            // The matte seen at this band's resolution (nearest sample); cells with too few fluid
+            // pixels keep all their pixels.
+            g.mask.assign(size_t(w) * size_t(h), 0);
+            for (int y = 0; y < vh; ++y)
+                for (int x = 0; x < vw; ++x) {
+                    const int mx = std::min(W - 1, int((x + 0.5) / scale)), my = std::min(H - 1, int((y + 0.5) / scale));
+                    g.mask[size_t(y) * size_t(w) + size_t(x)] = matte->at(mx, my, 0) >= 0.5f;
+                }
+            for (const HmCell& r : g.regions) {
+                size_t n = 0;
+                for (int y = r.sy0; y < r.sy1; ++y)
+                    for (int x = r.sx0; x < r.sx1; ++x) n += g.mask[size_t(y) * size_t(w) + size_t(x)];
+                g.masked.push_back(n >= 16);
+            }
+        }
         return g;
     }
 
@@ -198,11 +233,8 @@ struct HistogramMatcher::Impl
         std::vector<std::vector<float>> t(cells.size());
         parallelFor(cells.size(), 1, [&](size_t b, size_t e) {
             for (size_t k = b; k < e; ++k) {
-                const HmCell& r = g.regions[k];
                 std::vector<float> v;
-                v.reserve(size_t(r.sx1 - r.sx0) * size_t(r.sy1 - r.sy0));
-                for (int y = r.sy0; y < r.sy1; ++y)
-                    for (int x = r.sx0; x < r.sx1; ++x) v.push_back(band.at(x, y, 0));
+                g.forCell(band, k, [&](float x) { v.push_back(x); });
                 t[k] = quantileTable(std::move(v), s.quantiles);
             }
         });
@@ -213,16 +245,21 @@ struct HistogramMatcher::Impl
     {
         const Geometry& g = geometry[slot];
         const auto& tab = tables[size_t(channel)][slot];
-        std::vector<SourceHistogram> hist(cells.size());
+        std::vector<CellMap> maps(cells.size());
         parallelFor(cells.size(), 1, [&](size_t b, size_t e) {
-            for (size_t k = b; k < e; ++k) hist[k] = histogramOf(band, g.regions[k], s.bins);
+            for (size_t k = b; k < e; ++k) maps[k] = cellMap(band, g, k, s.bins, tab[k]);
         });
         parallelFor(size_t(g.h), 8, [&](size_t y0, size_t y1) {
             for (size_t y = y0; y < y1; ++y) {
                 const AxisTap ty = g.ys[y];
+                float* row = band.pixel(0, int(y));
                 for (int x = 0; x < g.w; ++x) {
                     const AxisTap tx = g.xs[size_t(x)];
-                    const float v = band.at(x, int(y), 0);
+                    const float v = row[x];
+                    if (ty.w >= 1.0f && tx.w >= 1.0f) { // a cell's core: its own map alone
+                        row[x] = maps[size_t(ty.a) * size_t(cols) + size_t(tx.a)](v);
+                        continue;
+                    }
                     float out = 0.0f;
                     const int ra[2] = {ty.a, ty.b}, ca[2] = {tx.a, tx.b};
                     const float rw[2] = {ty.w, 1.0f - ty.w}, cw[2] = {tx.w, 1.0f - tx.w};
@@ -230,10 +267,9 @@ struct HistogramMatcher::Impl
                         for (int j = 0; j < 2; ++j) {
                             const float w = rw[i] * cw[j];
                             if (w <= 0.0f) continue;
-                            const size_t cell = size_t(ra[i]) * size_t(cols) + size_t(ca[j]);
-                            out += w * mapValue(v, hist[cell], tab[cell]);
+                            out += w * maps[size_t(ra[i]) * size_t(cols) + size_t(ca[j])](v);
                         }
-                    band.at(x, int(y), 0) = out;
+                    row[x] = out;
                 }
             }
         });
@@ -298,12 +334,16 @@ void HistogramMatcher::Impl::matchPlane(ChannelImage& p, int c) const
     }
 }
 
-HistogramMatcher::HistogramMatcher(const ChannelImage& target, const HistogramMatchSettings& settings) : mImpl(std::make_unique<Impl>())
+HistogramMatcher::HistogramMatcher(const ChannelImage& target, const HistogramMatchSettings& settings, const ChannelImage* matte)
+    : mImpl(std::make_unique<Impl>())
 {
+    if (matte && (!matte->sameSize(target) || matte->channels() != 1))
+        throw ValueError("histogram matching: the matte must be a 1-channel image of the target's size");
     validate(settings);
     if (target.empty() || target.channels() < 1 || target.channels() > 4) throw ValueError("histogram matching: the target must be a non-empty 1..4 channel image");
     Impl& m = *mImpl;
     m.s = settings;
+    m.matte = matte;
     m.W = target.width();
     m.H = target.height();
     m.C = target.channels();

@@ -26,10 +26,11 @@ template<typename T>
 class FftwBuffer
 {
 public:
-    explicit FftwBuffer(size_t n) : mN(n), mP(static_cast<T*>(fftwf_malloc(sizeof(T) * std::max<size_t>(n, 1))))
+    /// Uninitialised storage of n elements (`zero` fills it).
+    explicit FftwBuffer(size_t n, bool zero = false) : mN(n), mP(static_cast<T*>(fftwf_malloc(sizeof(T) * std::max<size_t>(n, 1))))
     {
         if (!mP) throw std::bad_alloc();
-        std::fill(mP, mP + n, T{});
+        if (zero) std::fill(mP, mP + n, T{});
     }
     ~FftwBuffer() { fftwf_free(mP); }
     FftwBuffer(const FftwBuffer&) = delete;
@@ -76,12 +77,12 @@ struct Spectrum
     Complex at(int y, int kx) const { return c->data()[size_t(y) * size_t(cols()) + size_t(kx)]; }
 };
 
-Spectrum emptySpectrum(int w, int h)
+Spectrum emptySpectrum(int w, int h, bool zero = false)
 {
     Spectrum s;
     s.w = w;
     s.h = h;
-    s.c = std::make_shared<FftwBuffer<Complex>>(size_t(h) * size_t(w / 2 + 1));
+    s.c = std::make_shared<FftwBuffer<Complex>>(size_t(h) * size_t(w / 2 + 1), zero);
     return s;
 }
 
@@ -97,13 +98,11 @@ Spectrum forward(const ChannelImage& img)
     return s;
 }
 
-/// The real image of a spectrum (the spectrum is copied: FFTW's c2r overwrites its input).
-ChannelImage inverse(const Spectrum& s)
+/// The real image of a spectrum. FFTW's c2r overwrites its input: the spectrum is consumed.
+ChannelImage inverse(Spectrum& s)
 {
-    FftwBuffer<Complex> tmp(s.c->size());
-    std::copy(s.c->data(), s.c->data() + s.c->size(), tmp.data());
     FftwBuffer<float> real(size_t(s.w) * size_t(s.h));
-    fftwf_execute_dft_c2r(plansFor(s.w, s.h).c2r, reinterpret_cast<fftwf_complex*>(tmp.data()), real.data());
+    fftwf_execute_dft_c2r(plansFor(s.w, s.h).c2r, reinterpret_cast<fftwf_complex*>(s.c->data()), real.data());
     ChannelImage img(s.w, s.h, 1);
     std::copy(real.data(), real.data() + real.size(), img.data().begin());
     return img;
@@ -209,7 +208,7 @@ Spectrum cropHalf(const Spectrum& s)
 /// The inverse of cropHalf: zero outside.
 Spectrum padDouble(const Spectrum& s, int w, int h)
 {
-    Spectrum out = emptySpectrum(w, h);
+    Spectrum out = emptySpectrum(w, h, true);
     for (int y = 0; y < s.h; ++y) {
         const int ky = y < (s.h + 1) / 2 ? y : y - s.h;
         const int dy = ky >= 0 ? ky : h + ky;

@@ -55,6 +55,40 @@ void checkFrames(const std::vector<ChannelImage>& frames)
                              std::to_string(f0.width()) + "x" + std::to_string(f0.height()) + "x" + std::to_string(f0.channels()));
 }
 
+double medianOf(std::vector<double> v)
+{
+    if (v.empty()) return 0.0;
+    const size_t m = v.size() / 2;
+    std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(m), v.end());
+    return v[m];
+}
+
+/// Drops tracks that disagree with their neighbours: r = |d - median of the 8 nearest tracks' d|, kept
+/// when r <= max(0.5 px, 4 x the median r). Lucas-Kanade slides along edges (the aperture problem) and
+/// locks onto features that appear or vanish; one such track would spread over its neighbourhood.
+std::vector<cv::Track> consistentTracks(const std::vector<cv::Track>& t)
+{
+    if (t.size() < 5) return t;
+    const size_t k = std::min<size_t>(8, t.size() - 1);
+    std::vector<double> r(t.size());
+    std::vector<std::pair<double, size_t>> near(t.size());
+    for (size_t i = 0; i < t.size(); ++i) {
+        for (size_t j = 0; j < t.size(); ++j) near[j] = {std::hypot(t[j].x - t[i].x, t[j].y - t[i].y), j};
+        std::partial_sort(near.begin(), near.begin() + std::ptrdiff_t(k + 1), near.end());
+        std::vector<double> dx, dy;
+        for (size_t n = 1; n <= k; ++n) { // near[0] is the track itself
+            dx.push_back(t[near[n].second].dx);
+            dy.push_back(t[near[n].second].dy);
+        }
+        r[i] = std::hypot(t[i].dx - medianOf(dx), t[i].dy - medianOf(dy));
+    }
+    const double limit = std::max(0.5, 4.0 * medianOf(r));
+    std::vector<cv::Track> kept;
+    for (size_t i = 0; i < t.size(); ++i)
+        if (r[i] <= limit) kept.push_back(t[i]);
+    return kept;
+}
+
 /// The mean of the frames, in double per pixel.
 ChannelImage meanImage(const std::vector<ChannelImage>& frames)
 {
@@ -107,7 +141,7 @@ ChannelImage trackedMeanFlow(const std::vector<ChannelImage>& diffs, const Analy
         ChannelImage acc(W, H, 2);
         for (size_t i = b; i < e; ++i) {
             checkCancelled(progress);
-            const std::vector<cv::Track> t = cv::trackFeatures(track[i], track[i + 1], ts);
+            const std::vector<cv::Track> t = consistentTracks(cv::trackFeatures(track[i], track[i + 1], ts));
             if (t.empty()) continue;
             std::vector<rbf::Sample> samples;
             samples.reserve(t.size());
