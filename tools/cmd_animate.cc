@@ -493,10 +493,16 @@ int runAnimate(AnimateArgs& a)
     // Quality measures need the example before the library consumes it.
     std::optional<turb::TemporalStats> exTemporal, outTemporal;
     std::vector<turb::ChannelImage> outLuma;
+    std::optional<turb::FlowAgreement> exampleAgreement;
     if (a.measure) {
         exTemporal.emplace(s.tau);
         for (int i = s.tau; i < N; ++i) exTemporal->add(example.frames[size_t(i)]);
         outTemporal.emplace(s.tau, target.matte ? &*target.matte : nullptr);
+        // Calibration of the measurement: the same tracking on the example against the cache's own flow.
+        if (example.flow)
+            turb::withThreads(globals().threads, [&] {
+                exampleAgreement = turb::compareFlows(turb::estimateMeanFlow(example.frames, s.analysis), *example.flow, nullptr, 0.25);
+            });
     }
     SheetParts sheet;
     if (!a.sheet.empty())
@@ -579,6 +585,12 @@ int runAnimate(AnimateArgs& a)
             summary["quality"] = {{"flow_median_angle_deg", fa.medianAngleDeg}, {"flow_median_speed_ratio", fa.medianSpeedRatio},
                 {"flow_pixels", fa.pixels}, {"temporal_std", to.temporalStd}, {"temporal_std_example", te.temporalStd},
                 {"autocorrelation", to.autocorrelation}, {"autocorrelation_example", te.autocorrelation}};
+            if (exampleAgreement) {
+                summary["quality"]["example_flow_median_angle_deg"] = exampleAgreement->medianAngleDeg;
+                summary["quality"]["example_flow_median_speed_ratio"] = exampleAgreement->medianSpeedRatio;
+                logInfo("animate: the same tracking on the example against the cache's flow: median angle " +
+                        fmt("%.1f deg", exampleAgreement->medianAngleDeg) + ", speed ratio " + fmt("%.2f", exampleAgreement->medianSpeedRatio));
+            }
             logInfo("animate: motion vs design: median angle " + fmt("%.1f deg", fa.medianAngleDeg) + ", speed ratio " +
                     fmt("%.2f", fa.medianSpeedRatio) + "; temporal std " + fmt("%.4f", to.temporalStd) + " (example " + fmt("%.4f", te.temporalStd) +
                     "); autocorrelation lag 1 " + fmt("%.2f", to.autocorrelation[0]) + " (example " + fmt("%.2f", te.autocorrelation[0]) + ")");

@@ -3,8 +3,9 @@
 ///        section 5.6, after Heeger and Bergen 1995), on a grid of overlapping cells, with a Laplacian
 ///        single-pass preview mode (section 6).
 ///
-/// Per frame and per colour channel (optionally decorrelated first by the target's colour PCA, as Heeger
-/// and Bergen do for colour synthesis; off by default, as it does not keep the RGB statistics):
+/// Per frame and per colour channel, in the target's colour PCA space (Heeger and Bergen's colour; with
+/// independent RGB channels, near-grey images get colour fringes), then the final pixel passes in RGB so
+/// that each channel's statistics are the target's:
 ///   match the pixel histogram; repeat `reps` times { build the steerable pyramid (SteerablePyramid.h),
 ///   match every sub-band's histogram (high-pass, oriented bands, low-pass residual) to the target's same
 ///   sub-band, collapse, match the pixel histogram }.
@@ -12,14 +13,14 @@
 /// preview: "we adopt the Laplacian pyramid ... apply histogram matching once").
 ///
 /// **Grid** (5.6). The image is split into cols x rows cells; every cell's statistics are taken over the
-/// cell (grown by `reach` x its size on each side, 0 by default). In every sub-band, each coefficient's
-/// matched value is the blend of its cells' matches with weights that are 1 in a cell's core and ramp
-/// linearly across zones reaching `overlap` x the cell size into each neighbour (a partition of unity):
-/// the paper's alpha-blended overlaps. The same cells, scaled by 2^-level, apply to every sub-band. The
-/// final pixel-domain match of each repetition is per cell without blending (`blendPixels` = false), so
-/// every cell's mean and standard deviation end up those of the target's same cell; the sub-bands have
-/// already been blended, and no seam was measured (docs/animate.md). Blending it as well, as the paper
-/// does, leaves a cell's statistics off by a few per cent where neighbouring cells differ.
+/// cell (grown by `reach` x its size on each side, 0 by default). Each value's match is the blend of its
+/// cells' matches with weights that are 1 in a cell's core and ramp linearly across zones reaching
+/// `overlap` x the cell size into each neighbour (a partition of unity): the paper's alpha-blended
+/// overlaps, in every sub-band (the cells scaled by 2^-level) and in the pixel domain. Blending leaves a
+/// cell's statistics a few per cent off where neighbours differ; the pixel-domain match is therefore run
+/// `pixelPasses` times at the end, which brings every cell to within about 1% of the target's
+/// (measured, docs/animate.md). Unblended pixel matches (`blendPixels` = false) are exact per cell
+/// but show seams at cell borders where cells differ strongly (a smoke edge next to background).
 /// The default grid is proportional to the resolution, cells of about `cellSize` pixels (the paper's
 /// Table 1 uses cells of 35..120 px, mostly about 60).
 ///
@@ -53,15 +54,16 @@ struct HistogramMatchSettings
     int gridRows = 0;         ///< HM Grid rows; 0 = from the resolution
     int cellSize = 64;        ///< the automatic grid's cell size in pixels, >= 16
     double overlap = 0.25;    ///< sub-band blend zones reach this fraction of a cell's size into each neighbour, [0, 0.5]
-    bool blendPixels = false; ///< also blend the pixel-domain matches (else each cell's is exact: measured seam-free, docs/animate.md)
+    bool blendPixels = true;  ///< blend the pixel-domain matches too (false: each cell's is exact, but seams show where cells differ)
+    int pixelPasses = 3;      ///< pixel-domain matches at the end (blended ones converge to each cell's statistics), >= 1
     double reach = 0.0;       ///< a cell's statistics also take this fraction of its size around it, [0, 1] (0 = the cell itself)
     HmPyramid pyramid = HmPyramid::Steerable;
     int levels = 4;           ///< pyramid levels (clamped so the coarsest band keeps >= 8 px), >= 1
     int orientations = 4;     ///< steerable orientations (Heeger-Bergen 4), 1..8
     int bins = 1024;          ///< source histogram bins (transfer functions are tabulated at their edges), >= 16
     int quantiles = 1024;     ///< target quantile table entries, >= 16
-    bool colorPca = false;    ///< decorrelate colour channels by the target's PCA first (Heeger-Bergen's colour; off: it
-                              ///< leaves the RGB statistics up to 6% off, measured in docs/animate.md)
+    bool colorPca = true;     ///< match in the target's colour PCA space (Heeger-Bergen's colour), then the pixel passes in
+                              ///< RGB; false: every RGB channel alone (colour fringes on near-grey images)
 };
 
 /// Throws ValueError naming the first setting out of range.

@@ -49,7 +49,7 @@ struct AnalysisStats
     int pairs = 0;              ///< consecutive pairs (N - 1)
     int pairsUsed = 0;          ///< pairs with >= 1 kept track (only these enter the average)
     double tracksPerPair = 0.0; ///< mean kept tracks per used pair
-    double meanSpeed = 0.0;     ///< mean |v| over the image, pixels per frame
+    double meanSpeed = 0.0;     ///< mean |v| where it moves (|v| >= 10% of its 99th percentile), pixels per frame
     double rmsDifference = 0.0; ///< rms of D_{i+1} - D_i over all pairs and channels
     double rmsResidual = 0.0;   ///< rms of R_i over all pairs and channels
     bool flowGiven = false;     ///< v came from the caller (e.g. a cache's projected velocity), not from tracking

@@ -23,6 +23,7 @@ void validate(const HistogramMatchSettings& s)
     if (s.levels < 1) throw ValueError("histogram matching: levels must be >= 1");
     if (s.orientations < 1 || s.orientations > 8) throw ValueError("histogram matching: orientations must be 1..8");
     if (s.bins < 16 || s.quantiles < 16) throw ValueError("histogram matching: bins and quantiles must be >= 16");
+    if (s.pixelPasses < 1 || s.pixelPasses > 20) throw ValueError("histogram matching: pixel passes must be 1..20");
 }
 
 MeanStd meanStd(const ChannelImage& img, int c, int x0, int y0, int x1, int y1)
@@ -189,6 +190,7 @@ struct HistogramMatcher::Impl
     // Laplacian: 1..levels = bands, then low-pass.
     std::vector<Geometry> geometry;
     std::vector<std::vector<std::vector<std::vector<float>>>> tables; // [channel][slot][cell]
+    std::vector<std::vector<std::vector<float>>> rgbTables;          // [channel][cell]: the target's own channels (with PCA)
 
     Geometry makeGeometry(int w, int h, double scale, double overlapScale = 1.0) const
     {
@@ -241,10 +243,11 @@ struct HistogramMatcher::Impl
         return t;
     }
 
-    void matchSlot(ChannelImage& band, size_t slot, int channel) const
+    void matchSlot(ChannelImage& band, size_t slot, int channel) const { matchTables(band, geometry[slot], tables[size_t(channel)][slot]); }
+
+    /// Matches a band to per-cell quantile tables under a geometry.
+    void matchTables(ChannelImage& band, const Geometry& g, const std::vector<std::vector<float>>& tab) const
     {
-        const Geometry& g = geometry[slot];
-        const auto& tab = tables[size_t(channel)][slot];
         std::vector<CellMap> maps(cells.size());
         parallelFor(cells.size(), 1, [&](size_t b, size_t e) {
             for (size_t k = b; k < e; ++k) maps[k] = cellMap(band, g, k, s.bins, tab[k]);
@@ -332,6 +335,9 @@ void HistogramMatcher::Impl::matchPlane(ChannelImage& p, int c) const
         }
         matchSlot(p, 0, c);
     }
+    // Blended cells leave each cell's statistics a little off where neighbours differ; matching the
+    // pixels again moves every cell's map towards the identity and its statistics to the target's.
+    for (int k = 1; k < s.pixelPasses; ++k) matchSlot(p, 0, c);
 }
 
 HistogramMatcher::HistogramMatcher(const ChannelImage& target, const HistogramMatchSettings& settings, const ChannelImage* matte)
@@ -402,6 +408,8 @@ HistogramMatcher::HistogramMatcher(const ChannelImage& target, const HistogramMa
         for (int l = 0; l < m.levels; ++l) m.geometry.push_back(m.makeGeometry(pyr.bands[size_t(l)].width(), pyr.bands[size_t(l)].height(), std::ldexp(1.0, -l)));
         m.geometry.push_back(m.makeGeometry(pyr.lowpass.width(), pyr.lowpass.height(), std::ldexp(1.0, -m.levels)));
     }
+    if (m.pca)
+        for (int c = 0; c < m.C; ++c) m.rgbTables.push_back(m.cellTables(channelRange(target, c, 1), m.geometry[0]));
     m.tables.resize(size_t(m.C));
     for (int c = 0; c < m.C; ++c) {
         const ChannelImage p = m.plane(target, c);
@@ -448,6 +456,16 @@ ChannelImage HistogramMatcher::match(const ChannelImage& frame) const
     });
     ChannelImage out(m.W, m.H, m.C);
     m.unplane(planes, out);
+    if (m.pca) {
+        // Matched in the decorrelated space; the target's own channels get the last word.
+        parallelFor(size_t(m.C), 1, [&](size_t b, size_t e) {
+            for (size_t c = b; c < e; ++c) {
+                ChannelImage p = channelRange(out, int(c), 1);
+                for (int k = 0; k < m.s.pixelPasses; ++k) m.matchTables(p, m.geometry[0], m.rgbTables[c]);
+                for (size_t i = 0; i < p.pixelCount(); ++i) out.pixel(i)[c] = p.pixel(i)[0];
+            }
+        });
+    }
     return out;
 }
 

@@ -171,11 +171,25 @@ ChannelImage trackedMeanFlow(const std::vector<ChannelImage>& diffs, const Analy
     return flow;
 }
 
+/// Mean |v| over the pixels that move: |v| >= 10% of the 99th percentile (a cache's background and a
+/// video's still parts would dilute the speed a stroke fetches).
 double meanSpeed(const ChannelImage& flow)
 {
-    double s = 0.0;
-    for (size_t i = 0; i < flow.pixelCount(); ++i) s += std::hypot(flow.pixel(i)[0], flow.pixel(i)[1]);
-    return flow.pixelCount() ? s / double(flow.pixelCount()) : 0.0;
+    std::vector<float> s(flow.pixelCount());
+    for (size_t i = 0; i < s.size(); ++i) s[i] = std::hypot(flow.pixel(i)[0], flow.pixel(i)[1]);
+    if (s.empty()) return 0.0;
+    std::vector<float> sorted = s;
+    const size_t k = std::min(sorted.size() - 1, size_t(0.99 * double(sorted.size())));
+    std::nth_element(sorted.begin(), sorted.begin() + std::ptrdiff_t(k), sorted.end());
+    const float floor = 0.1f * sorted[k];
+    double sum = 0.0;
+    size_t n = 0;
+    for (float v : s)
+        if (v >= floor && v > 0.0f) {
+            sum += v;
+            ++n;
+        }
+    return n ? sum / double(n) : 0.0;
 }
 
 } // namespace
