@@ -79,7 +79,7 @@ do_plume() {
     rm -rf "$P"
     # The still: the other plume (blender-plume-128), frame 30 from the side; its matte from the render's opacity.
     "$VDBTURB" preview "$DATA/blender-plume-128/fluid_data_####.vdb" --frames 30 --view side --width 256 --out "$P/still.####.png" -q
-    oiiotool "$P/still.0030.png" --subc 0.07,0.075,0.09 --abs --chsum --mulc 6 --clamp:min=0:max=1 -o "$P/matte.png"
+    oiiotool "$P/still.0030.png" --subc 0.07,0.075,0.09 --abs --chsum --subc 0.03 --mulc 6 --clamp:min=0:max=1 -o "$P/matte.png"
     "$VDBTURB" animate --example-cache "$DATA/blender-plume2-128/fluid_data_####.vdb" --camera front --width 256 \
         --target "$P/still.0030.png" --target-alpha "$P/matte.png" --flow-strokes "$STROKES/plume_strokes.json" --tau 8 \
         --out "$P/out/plume.####.png" --sheet "$P/sheet.png" --dump "$P/dump" --measure --json > "$P/run.jsonl"

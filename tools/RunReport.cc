@@ -46,11 +46,12 @@ nlohmann::json RunReport::finish(int failed, const nlohmann::json& extra)
     j["median_s_per_frame"] = median;
     j["total_s"] = secondsSince(mStart);
     j["peak_rss_mb"] = double(turbio::peakRssBytes()) / (1024.0 * 1024.0);
+    j["cpu_s"] = turbio::cpuSeconds();
     j["threads"] = threads;
     j["machine"] = turbio::machineDescription();
     char line[256];
-    std::snprintf(line, sizeof(line), "%s: %zu frame%s, median %.2f s/frame, total %.1f s, peak RSS %.0f MB, %d threads",
-        mCommand.c_str(), mSeconds.size(), mSeconds.size() == 1 ? "" : "s", median, j["total_s"].get<double>(),
+    std::snprintf(line, sizeof(line), "%s: %zu frame%s, median %.2f s/frame, total %.1f s (CPU %.1f s), peak RSS %.0f MB, %d threads",
+        mCommand.c_str(), mSeconds.size(), mSeconds.size() == 1 ? "" : "s", median, j["total_s"].get<double>(), j["cpu_s"].get<double>(),
         j["peak_rss_mb"].get<double>(), threads);
     logInfo(line);
     if (mJson) std::cout << j.dump() << std::endl;

@@ -366,7 +366,7 @@ void writeData(const std::string& path, const turb::ChannelImage& img, bool noCl
 /// What the contact sheet shows, gathered during the run.
 struct SheetParts
 {
-    std::vector<turb::Image> example;
+    std::vector<std::pair<int, turb::Image>> example; // example frame index, picture
     turb::ChannelImage A, v, R0, rough, refined, Aprime;
     std::vector<std::pair<int, turb::Image>> outputs;
 };
@@ -383,7 +383,7 @@ turb::Image contactSheet(const SheetParts& p, const turb::Image& target, const s
     float rr = 1e-6f;
     for (float v : p.R0.data()) rr = std::max(rr, std::abs(v));
     std::vector<std::vector<turb::SheetCell>> rows(3);
-    for (size_t i = 0; i < p.example.size(); ++i) rows[0].push_back({add(p.example[i]), "example " + std::to_string(i)});
+    for (const auto& [i, img] : p.example) rows[0].push_back({add(img), "example frame " + std::to_string(i)});
     rows[0].push_back({add(picture(p.A)), "average A"});
     rows[0].push_back({add(flowPicture(p.v)), "flow v"});
     rows[0].push_back({add(signedPicture(p.R0, 0.5f * rr)), "residual R0"});
@@ -506,7 +506,7 @@ int runAnimate(AnimateArgs& a)
     }
     SheetParts sheet;
     if (!a.sheet.empty())
-        for (int i : {0, N / 2, N - 1}) sheet.example.push_back(picture(example.frames[size_t(i)]));
+        for (int i : {0, N / 2, N - 1}) sheet.example.emplace_back(example.numbers[size_t(i)], picture(example.frames[size_t(i)]));
 
     turb::AnimateInput in;
     in.exampleFrames = std::move(example.frames);
@@ -650,6 +650,10 @@ Command animateCommand()
             ->check(CLI::IsMember({"steerable", "laplacian", "off"}));
         app->add_option("--hm-rep", s.hm.reps, "HM Rep: repetitions of the steerable matching (default 3, paper)")->check(CLI::Range(1, 10));
         app->add_option("--hm-grid", a.hmGrid, "HM Grid: COLSxROWS, auto (cells of about --hm-cell pixels) or off (one cell)");
+        app->add_flag("--hm-exact-cells", [&s](std::int64_t) { s.hm.blendPixels = false; },
+            "Pixel-domain matches per cell without blending: every cell's statistics exact, but seams can show where cells differ");
+        app->add_option("--hm-passes", s.hm.pixelPasses, "Final pixel-domain matching passes (blended cells converge to their statistics; default 3)")
+            ->check(CLI::Range(1, 20));
         app->add_option("--hm-cell", s.hm.cellSize, "Cell size of the automatic HM grid in pixels (default 64)")->check(CLI::Range(16, 100000));
         app->add_option("--out", a.out, "Output frames, e.g. anim/still.####.exr (EXR half, premultiplied) or .png; N - tau frames");
         app->add_option("--start", a.start, "Frame number of the first output frame (default 1)");

@@ -1,6 +1,8 @@
 #include <turbio/System.h>
 
 #include <fstream>
+
+#include <sys/resource.h>
 #include <thread>
 
 namespace turbio {
@@ -12,6 +14,13 @@ long long peakRssBytes()
     while (std::getline(in, line))
         if (line.rfind("VmHWM:", 0) == 0) return std::stoll(line.substr(6)) * 1024;
     return -1;
+}
+
+double cpuSeconds()
+{
+    rusage u{};
+    if (getrusage(RUSAGE_SELF, &u) != 0) return -1.0;
+    return double(u.ru_utime.tv_sec + u.ru_stime.tv_sec) + 1e-6 * double(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
 }
 
 std::string machineDescription()

@@ -9,6 +9,10 @@ namespace turbio {
 /// Peak resident set size of this process in bytes (VmHWM), or -1 if unknown.
 long long peakRssBytes();
 
+/// CPU time this process has used so far (user + system, all threads), seconds. On a shared machine it
+/// is the time a run needs, where the wall clock also counts other processes' load.
+double cpuSeconds();
+
 /// CPU model name and the number of hardware threads, e.g. "Intel Xeon ... (2 threads)".
 std::string machineDescription();
 
