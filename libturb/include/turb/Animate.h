@@ -116,8 +116,10 @@ AnimateStats animate(AnimateInput input, const AnimateSettings& settings, const 
     Progress* progress = nullptr, const InspectFn& inspect = {});
 
 /// A' (5.4): the target blurred along the flow over Sh frames of motion (Warp.h's line convolution),
-/// then by a Gaussian of standard deviation w_a.
-ChannelImage approximateAverage(const ChannelImage& target, const ChannelImage& flow, const AverageSettings& settings);
+/// then by a Gaussian of standard deviation w_a. With a `matte` (1 channel, target size) the blur is
+/// normalised, blur(m T) / blur(m), so still parts around the fluid do not bleed into its average.
+ChannelImage approximateAverage(const ChannelImage& target, const ChannelImage& flow, const AverageSettings& settings,
+    const ChannelImage* matte = nullptr);
 
 /// Eq. 7, incrementally: push R'_0, R'_1, ...; after R'_{i-1} it returns D'_i once i >= tau (else
 /// an empty image). Each push warps every live term once (at most tau - 1 warps).

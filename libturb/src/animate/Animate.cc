@@ -25,19 +25,45 @@ void validate(const AnimateSettings& s)
     if (s.batch < 1) throw ValueError("animate: batch must be >= 1");
 }
 
-ChannelImage approximateAverage(const ChannelImage& target, const ChannelImage& flow, const AverageSettings& s)
+namespace {
+
+ChannelImage blurAlong(const ChannelImage& img, const ChannelImage& flow, const AverageSettings& s)
 {
-    if (!flow.sameSize(target) || flow.channels() != 2) throw ValueError("approximateAverage: the flow must be a 2-channel image of the target's size");
-    ChannelImage a = target;
+    ChannelImage a = img;
     if (s.shutter > 0.0) {
         double vmax = 0.0;
         for (size_t i = 0; i < flow.pixelCount(); ++i) vmax = std::max(vmax, double(std::hypot(flow.pixel(i)[0], flow.pixel(i)[1])));
         MotionBlurSettings mb;
         mb.shutter = float(s.shutter);
         mb.maxSamples = std::clamp(int(std::ceil(s.shutter * vmax)) + 1, 3, 129);
-        a = motionBlur(target, flow, mb);
+        a = motionBlur(img, flow, mb);
     }
     if (s.wa > 0.0) a = cv::gaussian(a, 2 * int(std::ceil(3.0 * s.wa)) + 1, s.wa);
+    return a;
+}
+
+} // namespace
+
+ChannelImage approximateAverage(const ChannelImage& target, const ChannelImage& flow, const AverageSettings& s, const ChannelImage* matte)
+{
+    if (!flow.sameSize(target) || flow.channels() != 2) throw ValueError("approximateAverage: the flow must be a 2-channel image of the target's size");
+    if (!matte) return blurAlong(target, flow, s);
+    if (!matte->sameSize(target) || matte->channels() != 1) throw ValueError("approximateAverage: the matte must be a 1-channel image of the target's size");
+    // Normalised blur of the fluid alone: blur(m T) / blur(m), so the still parts around the fluid do not
+    // bleed into its average (pixels the blurred matte does not reach keep the target).
+    const int C = target.channels();
+    ChannelImage mt(target.width(), target.height(), C), m(target.width(), target.height(), 1);
+    for (size_t i = 0; i < target.pixelCount(); ++i) {
+        m.pixel(i)[0] = std::clamp(matte->pixel(i)[0], 0.0f, 1.0f);
+        for (int c = 0; c < C; ++c) mt.pixel(i)[c] = m.pixel(i)[0] * target.pixel(i)[c];
+    }
+    const ChannelImage b = blurAlong(mt, flow, s), bw = blurAlong(m, flow, s);
+    ChannelImage a = target;
+    for (size_t i = 0; i < a.pixelCount(); ++i) {
+        const float w = bw.pixel(i)[0];
+        if (w > 1e-4f)
+            for (int c = 0; c < C; ++c) a.pixel(i)[c] = b.pixel(i)[c] / w;
+    }
     return a;
 }
 
@@ -258,7 +284,7 @@ AnimateStats animate(AnimateInput in, const AnimateSettings& s, const std::funct
     // 4. A' (5.4).
     t0 = std::chrono::steady_clock::now();
     if (progress) progress->begin("average");
-    const ChannelImage Aprime = approximateAverage(target, flow, s.average);
+    const ChannelImage Aprime = approximateAverage(target, flow, s.average, matte);
     if (inspect) inspect("Aprime", -1, Aprime);
     ChannelImage cimg = target;
     for (size_t q = 0; q < cimg.data().size(); ++q) cimg.data()[q] -= Aprime.data()[q];
