@@ -29,7 +29,7 @@ RECORD=1
 PERF="$ROOT/docs/performance.md"
 
 CONFIGS="tiny measure-plume sim128 paper3d plume4x blender-paper3d blender-plume2 ratio2 blender-noise synth2d synth3d
- stylize1m stylize1m-full"
+ stylize1m stylize1m-full animate640 animate640-preview"
 
 describe() {
     case "$1" in
@@ -46,6 +46,8 @@ describe() {
     synth3d) echo "synth: 3D, coarse plume 64x64x16 -> 256x256x64 (factor 4), 30 frames (paper: about 1 h single-threaded)" ;;
     stylize1m) echo "stylize: 1024x1024 rotating blob (0.37 Mpix of fluid), 256^2 exemplar, 5 frames (paper: 5 min per 1-Mpix frame, 4 cores)" ;;
     stylize1m-full) echo "stylize: 1024x1024 all fluid (1.05 Mpix of patches), 256^2 exemplar, 3 frames (the worst case)" ;;
+    animate640) echo "animate: 640x480 still (built-in river, matte, scenes/animate strokes), 100-frame 640x480 example read from PNGs, HM steerable x3 on the auto grid (target: <= 60 s, <= 2 GiB)" ;;
+    animate640-preview) echo "animate: the same with the Laplacian single-pass preview matching" ;;
     *) return 1 ;;
     esac
 }
@@ -376,6 +378,36 @@ cfg_stylize1m_full() {
     # shellcheck disable=SC2086
     timed stylize1m-full "$VDBTURB" stylize $THREAD_ARGS --scene fill --scene-size 1024x1024 --frames "$n" \
         --exemplar builtin:fire:256 --out "$WORK/stylize1m_full_out/s.####.exr" --json
+}
+
+# animate640: the example (100 PNG frames) and the still are written once by an untimed preparation
+# step; the timed command reads them, as a TD's run would. N - tau = 84 frames come out.
+animate_inputs() {
+    a="$WORK/animate640_in"
+    prepare "example: built-in river 640x480x$1" "$a/river.$(printf '%04d' "$1").png" \
+        "$VDBTURB" animate --export-builtin "$a" --example "builtin:river:640x480x$1" --target builtin:river:640x480 -q
+}
+
+cfg_animate640() {
+    need_command animate --example --target --target-alpha --flow-strokes --out --json || return 1
+    n=$(frames_or 100)
+    animate_inputs "$n" || return 1
+    rm -rf "$WORK/animate640_out"
+    # shellcheck disable=SC2086
+    timed animate640 "$VDBTURB" animate $THREAD_ARGS --example "$WORK/animate640_in/river.####.png" --frames "1-$n" \
+        --target "$WORK/animate640_in/still.png" --target-alpha "$WORK/animate640_in/matte.png" \
+        --flow-strokes "$ROOT/scenes/animate/river_strokes.json" --out "$WORK/animate640_out/a.####.exr" --json
+}
+
+cfg_animate640_preview() {
+    need_command animate --example --target --target-alpha --flow-strokes --hm --out --json || return 1
+    n=$(frames_or 100)
+    animate_inputs "$n" || return 1
+    rm -rf "$WORK/animate640_preview_out"
+    # shellcheck disable=SC2086
+    timed animate640-preview "$VDBTURB" animate $THREAD_ARGS --example "$WORK/animate640_in/river.####.png" --frames "1-$n" \
+        --target "$WORK/animate640_in/still.png" --target-alpha "$WORK/animate640_in/matte.png" \
+        --flow-strokes "$ROOT/scenes/animate/river_strokes.json" --hm laplacian --out "$WORK/animate640_preview_out/a.####.exr" --json
 }
 
 # --- main -------------------------------------------------------------------------------------------

@@ -274,3 +274,101 @@ TEST(Cli, StylizeRefusesBadInputBeforeWritingAnything)
     // An unknown output format is a usage error.
     EXPECT_EQ(run("stylize" + flow + alpha + " --exemplar " + dir / "ex.png --out " + dir / "o/s.####.bmpx").code, 2);
 }
+
+// ---------------------------------------------------------------------------------------------
+// animate: outputs, dumps, the cache path, and bad input refused before anything is written
+
+namespace {
+
+std::string strokesPath() { return std::string(VDBTURB_SOURCE_DIR) + "/scenes/animate/river_strokes.json"; }
+
+size_t countFiles(const std::string& dir, const std::string& prefix)
+{
+    size_t n = 0;
+    if (!std::filesystem::exists(dir)) return 0;
+    for (const auto& e : std::filesystem::directory_iterator(dir))
+        if (e.path().filename().string().rfind(prefix, 0) == 0) ++n;
+    return n;
+}
+
+} // namespace
+
+TEST(Cli, AnimateWritesNMinusTauFramesJsonAndDumps)
+{
+    testutil::TempDir dir;
+    ASSERT_EQ(run("animate --export-builtin " + dir / "in" + " --example builtin:river:48x40x12 --target builtin:river:56x40").code, 0);
+    const std::string in = " --example " + dir / "in/river.####.png" + " --target " + dir / "in/still.png" + " --target-alpha " + dir / "in/matte.png" +
+                           " --flow-strokes " + strokesPath() + " --tau 4 --hm-cell 28";
+    const CmdResult dry = run("animate" + in + " --out " + dir / "o/a.####.exr --dry-run");
+    ASSERT_EQ(dry.code, 0) << dry.out;
+    EXPECT_NE(dry.out.find("-> 8 frames"), std::string::npos) << dry.out;
+    EXPECT_FALSE(std::filesystem::exists(dir / "o"));
+    const CmdResult r = run("animate" + in + " --out " + dir / "o/a.####.exr --json --dump " + dir / "d" + " --sheet " + dir / "sheet.png");
+    ASSERT_EQ(r.code, 0) << r.out;
+    EXPECT_EQ(countFiles(dir / "o", "a."), 8u) << "N - tau frames";
+    EXPECT_TRUE(std::filesystem::exists(dir / "o/a.0001.exr"));
+    EXPECT_TRUE(std::filesystem::exists(dir / "o/a.0008.exr"));
+    for (const char* f : {"A.exr", "v.exr", "rough.exr", "refined.exr", "Aprime.exr", "v.png"}) EXPECT_TRUE(std::filesystem::exists(dir / "d/" + f)) << f;
+    EXPECT_EQ(countFiles(dir / "d", "R."), 11u) << "N - 1 residuals";
+    EXPECT_EQ(countFiles(dir / "d", "Rprime."), 11u);
+    EXPECT_TRUE(std::filesystem::exists(dir / "sheet.png"));
+    size_t lines = 0, at = 0;
+    while ((at = r.out.find("\"cell_std_error\":", at)) != std::string::npos) {
+        at += 17;
+        ++lines;
+    }
+    EXPECT_EQ(lines, 8u) << r.out;
+    EXPECT_NE(r.out.find("\"stages_s\":"), std::string::npos) << r.out;
+    // The output keeps the still outside the matte: a corner pixel on the bank equals the still's.
+    const turb::RgbaImage still = turbio::readImage(dir / "in/still.png"), out = turbio::readImage(dir / "o/a.0005.exr");
+    ASSERT_TRUE(out.sameSize(still));
+    EXPECT_NEAR(out.at(1, 1)[1], still.at(1, 1)[1], 2e-3);
+}
+
+TEST(Cli, AnimateFromACacheThroughTheCamera)
+{
+    testutil::TempDir dir;
+    ASSERT_EQ(run("animate --export-builtin " + dir / "in" + " --example builtin:river:48x40x2 --target builtin:river:64x48").code, 0);
+    const CmdResult r = run("animate --example-cache " + lo() + " --camera front --width 48 --target " + dir / "in/still.png" + " --flow-strokes " +
+                            strokesPath() + " --tau 4 --hm laplacian --out " + dir / "o/a.####.png --json -q");
+    ASSERT_EQ(r.code, 0) << r.out;
+    EXPECT_EQ(countFiles(dir / "o", "a."), 6u) << "10 cache frames - tau";
+    EXPECT_NE(r.out.find("\"flow_given\":true"), std::string::npos) << r.out;
+}
+
+TEST(Cli, AnimateRefusesBadInputNamingTheFileAndWritesNothing)
+{
+    testutil::TempDir dir;
+    ASSERT_EQ(run("animate --export-builtin " + dir / "in" + " --example builtin:river:48x40x20 --target builtin:river:48x40").code, 0);
+    const std::string ex = dir / "in/river.####.png", still = dir / "in/still.png", out = " --out " + dir / "o/a.####.png";
+    const auto refused = [&](const std::string& args, const std::string& names, const std::string& also) {
+        const CmdResult r = run("animate " + args + out);
+        EXPECT_EQ(r.code, 1) << args << "\n" << r.out;
+        EXPECT_NE(r.out.find(names), std::string::npos) << r.out;
+        EXPECT_NE(r.out.find(also), std::string::npos) << r.out;
+        EXPECT_FALSE(std::filesystem::exists(dir / "o")) << args;
+    };
+    // An example shorter than tau + 2 frames.
+    refused("--example " + ex + " --frames 1-10 --target " + still + " --flow-strokes " + strokesPath(), ex, "tau + 2 = 18");
+    // A target without strokes or flow.
+    refused("--example " + ex + " --target " + still, still, "no flow design");
+    // A malformed strokes JSON: the line of the error.
+    {
+        std::ofstream f(dir / "bad.json");
+        f << "{\n  \"strokes\": [\n    {\"brush\": \"orientation\", \"points\": [[1, 2], [30, 2]]},\n    {\"brush\": \"speed\" \"speed\": 1}\n  ]\n}\n";
+    }
+    refused("--example " + ex + " --target " + still + " --flow-strokes " + dir / "bad.json", dir / "bad.json:4", "malformed JSON");
+    // A stroke outside the image: the stroke and its line.
+    {
+        std::ofstream f(dir / "out.json");
+        f << "{\n  \"strokes\": [\n    {\"brush\": \"orientation\", \"points\": [[1, 2], [30, 2]]},\n"
+             "    {\"brush\": \"speed\", \"speed\": 1,\n     \"points\": [[1, 2], [300, 4]]}\n  ]\n}\n";
+    }
+    refused("--example " + ex + " --target " + still + " --flow-strokes " + dir / "out.json", dir / "out.json:4", "stroke 1 (speed)");
+    // Example frames of different sizes (checked last: it replaces a frame).
+    {
+        turb::RgbaImage odd(50, 40, turb::Rgba(0.5f, 0.5f, 0.5f, 1.0f));
+        turbio::writeImage(dir / "in/river.0007.png", odd);
+    }
+    refused("--example " + ex + " --target " + still + " --flow-strokes " + strokesPath(), dir / "in/river.0007.png", "50x40");
+}

@@ -30,6 +30,7 @@ Command resampleCommand();
 Command measureCommand();
 Command synthCommand();
 Command stylizeCommand();
+Command animateCommand();
 
 /// All commands, in the order `vdbturb --help` lists them.
 std::vector<Command> allCommands();

@@ -32,13 +32,13 @@ void RunReport::frameDone(int frame, int index, int count, double seconds, const
     }
 }
 
-nlohmann::json RunReport::finish(int failed)
+nlohmann::json RunReport::finish(int failed, const nlohmann::json& extra)
 {
     std::vector<double> s = mSeconds;
     std::sort(s.begin(), s.end());
     const double median = s.empty() ? 0.0 : (s.size() % 2 ? s[s.size() / 2] : 0.5 * (s[s.size() / 2 - 1] + s[s.size() / 2]));
     const int threads = globals().threads > 0 ? globals().threads : tbb::info::default_concurrency();
-    nlohmann::json j;
+    nlohmann::json j = extra;
     j["summary"] = true;
     j["command"] = mCommand;
     j["frames"] = mSeconds.size();
@@ -46,11 +46,12 @@ nlohmann::json RunReport::finish(int failed)
     j["median_s_per_frame"] = median;
     j["total_s"] = secondsSince(mStart);
     j["peak_rss_mb"] = double(turbio::peakRssBytes()) / (1024.0 * 1024.0);
+    j["cpu_s"] = turbio::cpuSeconds();
     j["threads"] = threads;
     j["machine"] = turbio::machineDescription();
     char line[256];
-    std::snprintf(line, sizeof(line), "%s: %zu frame%s, median %.2f s/frame, total %.1f s, peak RSS %.0f MB, %d threads",
-        mCommand.c_str(), mSeconds.size(), mSeconds.size() == 1 ? "" : "s", median, j["total_s"].get<double>(),
+    std::snprintf(line, sizeof(line), "%s: %zu frame%s, median %.2f s/frame, total %.1f s (CPU %.1f s), peak RSS %.0f MB, %d threads",
+        mCommand.c_str(), mSeconds.size(), mSeconds.size() == 1 ? "" : "s", median, j["total_s"].get<double>(), j["cpu_s"].get<double>(),
         j["peak_rss_mb"].get<double>(), threads);
     logInfo(line);
     if (mJson) std::cout << j.dump() << std::endl;

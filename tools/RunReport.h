@@ -3,7 +3,7 @@
 ///
 /// stderr gets one human line per frame (the farm-log unit); with --json, stdout gets one JSON object
 /// per frame and a final summary line that the bench/ harness parses:
-///   {"summary":true,"frames":N,"median_s_per_frame":..,"total_s":..,"peak_rss_mb":..,"threads":..,"machine":".."}
+///   {"summary":true,"frames":N,"median_s_per_frame":..,"total_s":..,"peak_rss_mb":..,"cpu_s":..,"threads":..,"machine":".."}
 #pragma once
 
 #include <nlohmann/json.hpp>
@@ -23,8 +23,9 @@ public:
     /// `extra` is merged into the frame's JSON line.
     void frameDone(int frame, int index, int count, double seconds, const std::string& human,
         const nlohmann::json& extra = nlohmann::json::object());
-    /// Prints the summary (JSON on stdout when enabled, a human line on stderr). Returns it.
-    nlohmann::json finish(int failed = 0);
+    /// Prints the summary (JSON on stdout when enabled, a human line on stderr) with `extra` merged into
+    /// the JSON. Returns it.
+    nlohmann::json finish(int failed = 0, const nlohmann::json& extra = nlohmann::json::object());
 
 private:
     std::string mCommand;

@@ -8,6 +8,8 @@
 #include <cctype>
 #include <iostream>
 
+#include <malloc.h>
+
 using namespace vdbturb;
 
 namespace vdbturb {
@@ -64,7 +66,7 @@ void addWriteOptions(CLI::App* app, turbio::WriteOptions& opt)
     app->add_flag("--half", opt.halfFloat, "Store floats as half precision (smaller files)");
 }
 
-std::vector<Command> allCommands() { return {infoCommand(), transferCommand(), measureCommand(), simCommand(), previewCommand(), synthCommand(), stylizeCommand(), resampleCommand()}; }
+std::vector<Command> allCommands() { return {infoCommand(), transferCommand(), measureCommand(), simCommand(), previewCommand(), synthCommand(), stylizeCommand(), animateCommand(), resampleCommand()}; }
 
 } // namespace vdbturb
 
@@ -171,6 +173,11 @@ std::string checkSpelling(int argc, char** argv, CLI::App& app, const std::vecto
 
 int main(int argc, char** argv)
 {
+    // Image stages allocate and free many frame-sized buffers (a few MB each). Keep them in the heap
+    // instead of mapping fresh pages for each one: measured 0.70 -> 0.52 CPU-s per 640x480 frame of
+    // animate's histogram matching (docs/performance.md).
+    mallopt(M_MMAP_THRESHOLD, 64 << 20);
+    mallopt(M_TRIM_THRESHOLD, 256 << 20);
     CLI::App app{"vdbturb: turbulence up-res for smoke caches (VDB in, VDB out)"};
     app.require_subcommand(1);
     app.set_version_flag("--version", std::string("vdbturb ") + VDBTURB_VERSION_STRING);

@@ -7,7 +7,7 @@ set -eu
 PACKAGES="g++ cmake ninja-build ccache pkg-config make git
   libopenvdb-dev libboost-iostreams-dev libtbb-dev libeigen3-dev libflann-dev liblz4-dev libblosc-dev
   libgtest-dev libgmock-dev libcli11-dev nlohmann-json3-dev libfftw3-dev
-  libopenimageio-dev fonts-dejavu-core
+  libopenimageio-dev libopencv-dev fonts-dejavu-core
   clang-14 libfuzzer-14-dev"
 case "${1:-}" in
 --bench) PACKAGES="$PACKAGES blender" ;;

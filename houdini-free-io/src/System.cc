@@ -2,6 +2,8 @@
 
 #include <cstdio>
 #include <fstream>
+
+#include <sys/resource.h>
 #include <thread>
 #include <unistd.h>
 
@@ -42,6 +44,13 @@ std::string formatBytes(double bytes)
     else if (bytes >= 1e3) std::snprintf(b, sizeof(b), "%.0f kB", bytes / 1e3);
     else std::snprintf(b, sizeof(b), "%.0f B", bytes);
     return b;
+}
+
+double cpuSeconds()
+{
+    rusage u{};
+    if (getrusage(RUSAGE_SELF, &u) != 0) return -1.0;
+    return double(u.ru_utime.tv_sec + u.ru_stime.tv_sec) + 1e-6 * double(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
 }
 
 std::string machineDescription()

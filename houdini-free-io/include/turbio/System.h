@@ -16,6 +16,10 @@ long long usableMemoryBytes();
 /// Human form of a byte count: "512 MB", "3.2 GB".
 std::string formatBytes(double bytes);
 
+/// CPU time this process has used so far (user + system, all threads), seconds. On a shared machine it
+/// is the time a run needs, where the wall clock also counts other processes' load.
+double cpuSeconds();
+
 /// CPU model name and the number of hardware threads, e.g. "Intel Xeon ... (2 threads)".
 std::string machineDescription();
 

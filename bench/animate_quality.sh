@@ -1,0 +1,112 @@
+#!/bin/sh
+# The measurements behind docs/animate.md (seed 001, `vdbturb animate`). Not a test: it prints numbers
+# and writes pictures into $WORK; docs/animate.md quotes them.
+#
+#   bench/animate_quality.sh [--vdbturb PATH] [--work DIR] sweep|river|plume|modes|all
+#
+#   sweep  A' against the true average: a frame of the example is the target and the example's own flow
+#          the design, so the best A' is the example's average A; rms(A' - A) / rms(F - A) for Sh x w_a,
+#          on the built-in river and on renders of the Blender plume (blender-plume2-128).
+#   river  the built-in river: still, matte and strokes (scenes/animate), --measure, sheet, JSON
+#   plume  the Blender cache blender-plume2-128 through the front camera as the example, a render of
+#          the other plume (blender-plume-128, side view) as the still, --measure, sheet, JSON
+#   modes  steerable (HM Rep 1, 3) against the Laplacian preview on the river: time and errors
+# Needs POSIX sh, coreutils and oiiotool (Debian openimageio-tools).
+set -eu
+ROOT=$(cd "$(dirname "$0")/.." && pwd)
+DATA="$(cd "$ROOT/.." && pwd)/shared/data"
+VDBTURB="$ROOT/build/tools/vdbturb"
+WORK="${TMPDIR:-/tmp}/vdbturb-animate-quality"
+while [ $# -gt 0 ]; do
+    case "$1" in
+    --vdbturb) VDBTURB=$2; shift 2 ;;
+    --work) WORK=$2; shift 2 ;;
+    -h|--help) sed -n "2,15p" "$0" | sed "s/^# \{0,1\}//"; exit 0 ;;
+    *) break ;;
+    esac
+done
+[ $# -gt 0 ] || { echo "usage: $0 [--vdbturb PATH] [--work DIR] sweep|river|plume|modes|all" >&2; exit 2; }
+mkdir -p "$WORK"
+STROKES="$ROOT/scenes/animate"
+log() { printf 'animate-quality: %s\n' "$*" >&2; }
+rms() { oiiotool "$1" "$2" --diff 2>&1 | sed -n 's/.*RMS error = \([0-9.e+-]*\).*/\1/p' | head -1; }
+
+# A' error relative to the differences, for one example: $1 = name, $2 = example pattern, $3 = target
+# frame file, $4 = flow EXR (the example's v), $5 = A.exr (the example's average).
+sweep_one() {
+    base=$(rms "$5" "$3")
+    for sh in 0 4 8 16 32; do
+        for wa in 0 2 4 8 16; do
+            d="$WORK/sweep/${1}_${sh}_${wa}"
+            rm -rf "$d"
+            "$VDBTURB" animate --example "$2" --target "$3" --flow "$4" --tau 2 --hm off --shutter "$sh" --wa "$wa" \
+                --out "$d/o/o.####.png" --dump "$d/dump" -q
+            e=$(rms "$5" "$d/dump/Aprime.exr")
+            printf '%s %s %s %s\n' "$1" "$sh" "$wa" "$(echo "$e $base" | awk '{printf "%.3f", $1 / $2}')"
+            rm -rf "$d"
+        done
+    done
+}
+
+do_sweep() {
+    S="$WORK/sweep"
+    mkdir -p "$S"
+    "$VDBTURB" animate --export-builtin "$S/river" --example builtin:river:160x120x48 --target builtin:river:160x120 -q
+    "$VDBTURB" animate --example "$S/river/river.####.png" --target "$S/river/river.0024.png" --flow-strokes "$STROKES/river_strokes.json" \
+        --tau 2 --hm off --out "$S/r0/o.####.png" --dump "$S/river_dump" -q
+    "$VDBTURB" preview "$DATA/blender-plume2-128/fluid_data_####.vdb" --width 256 --out "$S/plume/p.####.png" -q
+    "$VDBTURB" animate --example-cache "$DATA/blender-plume2-128/fluid_data_####.vdb" --width 256 --target "$S/plume/p.0015.png" \
+        --flow-strokes "$STROKES/plume_strokes.json" --tau 2 --hm off --out "$S/p0/o.####.png" --dump "$S/plume_dump" -q
+    {
+        echo "example Sh w_a rel_rms"
+        sweep_one river "$S/river/river.####.png" "$S/river/river.0024.png" "$S/river_dump/v.exr" "$S/river_dump/A.exr"
+        sweep_one plume "$S/plume/p.####.png" "$S/plume/p.0015.png" "$S/plume_dump/v.exr" "$S/plume_dump/A.exr"
+    } | tee "$WORK/sweep.txt"
+}
+
+do_river() {
+    R="$WORK/river"
+    rm -rf "$R"
+    "$VDBTURB" animate --export-builtin "$R/in" --example builtin:river:320x240x60 --target builtin:river:320x240 -q
+    "$VDBTURB" animate --example "$R/in/river.####.png" --target "$R/in/still.png" --target-alpha "$R/in/matte.png" \
+        --flow-strokes "$STROKES/river_strokes.json" --out "$R/out/river.####.png" --sheet "$R/sheet.png" --dump "$R/dump" \
+        --measure --json > "$R/run.jsonl"
+    tail -1 "$R/run.jsonl"
+}
+
+do_plume() {
+    P="$WORK/plume"
+    rm -rf "$P"
+    # The still: the other plume (blender-plume-128), frame 30 from the side; its matte from the render's opacity.
+    "$VDBTURB" preview "$DATA/blender-plume-128/fluid_data_####.vdb" --frames 30 --view side --width 256 --out "$P/still.####.png" -q
+    oiiotool "$P/still.0030.png" --subc 0.07,0.075,0.09 --abs --chsum --subc 0.03 --mulc 6 --clamp:min=0:max=1 -o "$P/matte.png"
+    "$VDBTURB" animate --example-cache "$DATA/blender-plume2-128/fluid_data_####.vdb" --camera front --width 256 \
+        --target "$P/still.0030.png" --target-alpha "$P/matte.png" --flow-strokes "$STROKES/plume_strokes.json" --tau 8 \
+        --out "$P/out/plume.####.png" --sheet "$P/sheet.png" --dump "$P/dump" --measure --json > "$P/run.jsonl"
+    tail -1 "$P/run.jsonl"
+}
+
+do_modes() {
+    M="$WORK/modes"
+    rm -rf "$M"
+    "$VDBTURB" animate --export-builtin "$M/in" --example builtin:river:320x240x60 --target builtin:river:320x240 -q
+    for mode in "steerable --hm-rep 3" "steerable --hm-rep 1" "laplacian" "off"; do
+        tag=$(echo "$mode" | tr -d ' -')
+        # shellcheck disable=SC2086
+        "$VDBTURB" animate --example "$M/in/river.####.png" --target "$M/in/still.png" --target-alpha "$M/in/matte.png" \
+            --flow-strokes "$STROKES/river_strokes.json" --hm $mode --out "$M/$tag/o.####.png" --measure --json > "$M/$tag.jsonl"
+        printf '%s: ' "$mode"
+        tail -1 "$M/$tag.jsonl"
+    done
+}
+
+for what in "$@"; do
+    case "$what" in
+    sweep) do_sweep ;;
+    river) do_river ;;
+    plume) do_plume ;;
+    modes) do_modes ;;
+    all) do_sweep; do_river; do_plume; do_modes ;;
+    *) echo "unknown: $what" >&2; exit 2 ;;
+    esac
+done

@@ -1,0 +1,156 @@
+#include <turbio/Strokes.h>
+
+#include <turb/Error.h>
+
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <fstream>
+#include <regex>
+#include <sstream>
+
+namespace turbio {
+
+namespace {
+
+/// The line (1-based) on which each object of the top-level "strokes" array starts. A small scanner
+/// over the raw text: nlohmann's parser keeps no positions for values.
+std::vector<int> strokeLines(const std::string& text)
+{
+    std::vector<int> lines;
+    std::vector<char> stack;      // open containers
+    std::string lastKey;          // the last string seen as a key of the top-level object
+    bool inStrokes = false;       // inside the top-level "strokes" array
+    int line = 1;
+    for (size_t i = 0; i < text.size(); ++i) {
+        const char c = text[i];
+        if (c == '\n') {
+            ++line;
+        } else if (c == '"') {
+            std::string s;
+            for (++i; i < text.size() && text[i] != '"'; ++i) {
+                if (text[i] == '\\') ++i;
+                else if (text[i] == '\n') ++line;
+                else s += text[i];
+            }
+            if (stack.size() == 1 && stack.back() == '{') lastKey = s;
+        } else if (c == '{' || c == '[') {
+            if (c == '{' && inStrokes && stack.size() == 2) lines.push_back(line);
+            if (c == '[' && stack.size() == 1 && lastKey == "strokes") inStrokes = true;
+            stack.push_back(c);
+        } else if (c == '}' || c == ']') {
+            if (!stack.empty()) stack.pop_back();
+            if (c == ']' && stack.size() == 1) inStrokes = false;
+        }
+    }
+    return lines;
+}
+
+[[noreturn]] void fail(const std::string& name, int line, const std::string& what)
+{
+    throw turb::IoError(name + (line > 0 ? ":" + std::to_string(line) : "") + ": " + what);
+}
+
+double number(const nlohmann::json& j, const char* key, const std::string& name, int line, const std::string& who)
+{
+    if (!j.contains(key)) fail(name, line, who + ": missing \"" + key + "\"");
+    if (!j.at(key).is_number()) fail(name, line, who + ": \"" + key + "\" must be a number");
+    return j.at(key).get<double>();
+}
+
+} // namespace
+
+StrokeFile parseFlowStrokes(const std::string& text, const std::string& name, int width, int height)
+{
+    nlohmann::json doc;
+    try {
+        doc = nlohmann::json::parse(text);
+    } catch (const nlohmann::json::parse_error& e) {
+        // "[json.exception.parse_error.101] parse error at line 3, column 5: ..." -> "name:3: column 5: ..."
+        std::string msg = e.what();
+        std::smatch m;
+        if (std::regex_search(msg, m, std::regex("at line ([0-9]+), column ([0-9]+): (.*)")))
+            fail(name, std::stoi(m[1]), "column " + std::string(m[2]) + ": malformed JSON: " + std::string(m[3]));
+        fail(name, 0, "malformed JSON: " + msg);
+    }
+    if (!doc.is_object()) fail(name, 1, "expected a JSON object with \"strokes\"");
+    if (doc.contains("version") && (!doc["version"].is_number_integer() || doc["version"].get<int>() != 1))
+        fail(name, 0, "unsupported \"version\" (this reader knows 1)");
+    if (!doc.contains("strokes") || !doc["strokes"].is_array()) fail(name, 0, "missing the \"strokes\" array");
+    double sx = 1.0, sy = 1.0;
+    if (doc.contains("canvas")) {
+        const auto& c = doc["canvas"];
+        if (!c.is_array() || c.size() != 2 || !c[0].is_number() || !c[1].is_number() || !(c[0].get<double>() > 0) || !(c[1].get<double>() > 0))
+            fail(name, 0, "\"canvas\" must be [width, height] in pixels");
+        sx = double(width) / c[0].get<double>();
+        sy = double(height) / c[1].get<double>();
+    }
+    const std::vector<int> lines = strokeLines(text);
+    StrokeFile out;
+    const auto& arr = doc["strokes"];
+    for (size_t k = 0; k < arr.size(); ++k) {
+        const int line = k < lines.size() ? lines[k] : 0;
+        const std::string who = "stroke " + std::to_string(k);
+        const auto& j = arr[k];
+        if (!j.is_object()) fail(name, line, who + ": expected an object");
+        turb::FlowStroke s;
+        const std::string brush = j.value("brush", std::string());
+        if (brush == "orientation") s.kind = turb::StrokeKind::Orientation;
+        else if (brush == "speed") s.kind = turb::StrokeKind::Speed;
+        else fail(name, line, who + ": \"brush\" must be \"orientation\" or \"speed\"");
+        const std::string mode = j.contains("mode") && j["mode"].is_string() ? j["mode"].get<std::string>() : "global";
+        if (mode != "global" && mode != "local") fail(name, line, who + ": \"mode\" must be \"global\" or \"local\"");
+        s.local = mode == "local";
+        if (s.local) {
+            s.size = number(j, "size", name, line, who) * std::sqrt(sx * sy);
+            s.alpha = j.contains("alpha") ? number(j, "alpha", name, line, who) : 1.0;
+            if (!(s.size > 0.0)) fail(name, line, who + ": \"size\" must be > 0 pixels");
+            if (!(s.alpha >= 0.0 && s.alpha <= 1.0)) fail(name, line, who + ": \"alpha\" must be in [0, 1]");
+        }
+        if (s.kind == turb::StrokeKind::Speed) {
+            if (j.contains("speed") && j["speed"].is_string() && j["speed"].get<std::string>() == "example") {
+                s.exampleSpeed = true;
+            } else {
+                s.speed = number(j, "speed", name, line, who);
+                if (!(s.speed >= 0.0)) fail(name, line, who + ": \"speed\" must be >= 0 pixels per frame (or \"example\")");
+            }
+        }
+        if (!j.contains("points") || !j["points"].is_array()) fail(name, line, who + ": missing the \"points\" array");
+        for (const auto& p : j["points"]) {
+            if (!p.is_array() || p.size() != 2 || !p[0].is_number() || !p[1].is_number())
+                fail(name, line, who + ": every point must be [x, y]");
+            s.points.push_back({p[0].get<double>() * sx, p[1].get<double>() * sy});
+        }
+        try {
+            // One stroke alone, plus a dummy global orientation stroke so the set rule does not fire here.
+            turb::FlowStroke dummy;
+            dummy.points = {{0.0, 0.0}, {1.0, 0.0}};
+            const std::vector<turb::FlowStroke> one{s, dummy};
+            turb::validateStrokes(one, width, height);
+        } catch (const turb::ValueError& e) {
+            std::string m = e.what();
+            const std::string prefix = "stroke 0 ";
+            if (m.rfind(prefix, 0) == 0) m = who + " " + m.substr(prefix.size());
+            fail(name, line, m + (sx != 1.0 || sy != 1.0 ? " (after scaling from the canvas)" : ""));
+        }
+        out.strokes.push_back(std::move(s));
+        out.lines.push_back(line);
+    }
+    try {
+        turb::validateStrokes(out.strokes, width, height);
+    } catch (const turb::ValueError& e) {
+        fail(name, 0, e.what());
+    }
+    return out;
+}
+
+StrokeFile readFlowStrokes(const std::string& path, int width, int height)
+{
+    std::ifstream in(path);
+    if (!in) throw turb::IoError(path + ": cannot open the stroke file");
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return parseFlowStrokes(ss.str(), path, width, height);
+}
+
+} // namespace turbio

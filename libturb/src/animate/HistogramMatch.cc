@@ -1,0 +1,477 @@
+#include <turb/HistogramMatch.h>
+
+#include <turb/Error.h>
+#include <turb/Parallel.h>
+#include <turb/SteerablePyramid.h>
+
+#include <Eigen/Dense>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <string>
+
+namespace turb {
+
+void validate(const HistogramMatchSettings& s)
+{
+    if (s.reps < 1 || s.reps > 10) throw ValueError("histogram matching: HM Rep must be 1..10");
+    if (s.gridCols < 0 || s.gridRows < 0 || s.gridCols > 256 || s.gridRows > 256) throw ValueError("histogram matching: grid must be 0..256 cells per axis");
+    if (s.cellSize < 16) throw ValueError("histogram matching: the automatic cell size must be >= 16 pixels");
+    if (!(s.overlap >= 0.0 && s.overlap <= 0.5)) throw ValueError("histogram matching: overlap must be in [0, 0.5]");
+    if (!(s.reach >= 0.0 && s.reach <= 1.0)) throw ValueError("histogram matching: reach must be in [0, 1]");
+    if (s.levels < 1) throw ValueError("histogram matching: levels must be >= 1");
+    if (s.orientations < 1 || s.orientations > 8) throw ValueError("histogram matching: orientations must be 1..8");
+    if (s.bins < 16 || s.quantiles < 16) throw ValueError("histogram matching: bins and quantiles must be >= 16");
+    if (s.pixelPasses < 1 || s.pixelPasses > 20) throw ValueError("histogram matching: pixel passes must be 1..20");
+}
+
+MeanStd meanStd(const ChannelImage& img, int c, int x0, int y0, int x1, int y1)
+{
+    double s = 0.0, s2 = 0.0;
+    size_t n = 0;
+    for (int y = std::max(0, y0); y < std::min(img.height(), y1); ++y)
+        for (int x = std::max(0, x0); x < std::min(img.width(), x1); ++x) {
+            const double v = img.at(x, y, c);
+            s += v;
+            s2 += v * v;
+            ++n;
+        }
+    MeanStd m;
+    if (!n) return m;
+    m.mean = s / double(n);
+    m.std = std::sqrt(std::max(0.0, s2 / double(n) - m.mean * m.mean));
+    return m;
+}
+
+namespace {
+
+/// A pixel's two cells along one axis and the first one's weight (the second gets 1 - w).
+struct AxisTap
+{
+    int a = 0, b = 0;
+    float w = 1.0f;
+};
+
+/// The grid seen at one band's resolution.
+struct Geometry
+{
+    int w = 0, h = 0;                 // band size
+    std::vector<AxisTap> xs, ys;      // per column / row
+    std::vector<HmCell> regions;      // per cell, statistics region in band pixels (valid part only)
+    std::vector<std::uint8_t> mask;   // per band pixel: inside the matte (empty: no matte)
+    std::vector<std::uint8_t> masked; // per cell: its statistics use the mask (enough matte pixels in it)
+
+    /// Calls fn(value) for the pixels of cell k's statistics; `step` > 1 visits every step-th row and
+    /// column (a sample of large cells for the frame's histograms; the target's tables use every pixel).
+    template<typename Fn>
+    void forCell(const ChannelImage& band, size_t k, Fn&& fn, int step = 1) const
+    {
+        const HmCell& r = regions[k];
+        const bool useMask = !masked.empty() && masked[k];
+        for (int y = r.sy0; y < r.sy1; y += step) {
+            const float* row = band.pixel(0, y);
+            const std::uint8_t* m = useMask ? &mask[size_t(y) * size_t(w)] : nullptr;
+            for (int x = r.sx0; x < r.sx1; x += step)
+                if (!m || m[x]) fn(row[x]);
+        }
+    }
+};
+
+std::vector<AxisTap> axisTaps(int n, const std::vector<double>& edges, double o)
+{
+    const int cells = int(edges.size()) - 1;
+    std::vector<AxisTap> taps(static_cast<size_t>(n));
+    for (int x = 0; x < n; ++x) {
+        const double c = x + 0.5;
+        int i = 0;
+        while (i + 1 < cells && c >= edges[size_t(i + 1)]) ++i;
+        AxisTap t{i, i, 1.0f};
+        // Near the cell's lower edge the previous cell shares the pixel; near its upper edge the next one.
+        if (o > 0.0 && i > 0 && c < edges[size_t(i)] + o) {
+            const double u = (c - (edges[size_t(i)] - o)) / (2.0 * o);
+            t = AxisTap{i - 1, i, float(1.0 - std::clamp(u, 0.0, 1.0))};
+        } else if (o > 0.0 && i + 1 < cells && c > edges[size_t(i + 1)] - o) {
+            const double u = (c - (edges[size_t(i + 1)] - o)) / (2.0 * o);
+            t = AxisTap{i, i + 1, float(1.0 - std::clamp(u, 0.0, 1.0))};
+        }
+        taps[size_t(x)] = t;
+    }
+    return taps;
+}
+
+/// A cell's transfer function for one band: the source's cumulative histogram (`bins` bins over the
+/// cell's value range, linear within a bin) composed with the target's quantile table, tabulated at the
+/// bin edges; between edges it is linear (the composition is, to within the quantile table's steps).
+struct CellMap
+{
+    float lo = 0.0f, scale = 0.0f;  // bin coordinate t = (v - lo) * scale
+    std::vector<float> at;          // bins + 1 values at the bin edges
+    float operator()(float v) const
+    {
+        const int B = int(at.size()) - 1;
+        const float t = std::clamp((v - lo) * scale, 0.0f, float(B));
+        const int b = std::min(int(t), B - 1);
+        const float f = t - float(b);
+        return at[size_t(b)] + f * (at[size_t(b + 1)] - at[size_t(b)]);
+    }
+};
+
+/// The target's value at cumulative probability p in [0, 1].
+inline float quantileAt(const std::vector<float>& q, double p)
+{
+    const double at = std::clamp(p, 0.0, 1.0) * double(q.size() - 1);
+    const size_t i = std::min(size_t(at), q.size() - 2);
+    const double f = at - double(i);
+    return float((1.0 - f) * q[i] + f * q[i + 1]);
+}
+
+CellMap cellMap(const ChannelImage& band, const Geometry& g, size_t k, int bins, const std::vector<float>& q)
+{
+    // Cells of >= 4096 pixels are sampled on every other row and column (a quarter of the cost; the
+    // histogram of 1024+ samples is as good). Values beyond the sample's range map to the target's ends.
+    const HmCell& r = g.regions[k];
+    const int step = size_t(r.sx1 - r.sx0) * size_t(r.sy1 - r.sy0) >= 4096 ? 2 : 1;
+    float lo = 1e30f, hi = -1e30f;
+    g.forCell(band, k, [&](float v) {
+        lo = std::min(lo, v);
+        hi = std::max(hi, v);
+    }, step);
+    CellMap m;
+    m.lo = lo;
+    m.at.assign(size_t(bins) + 1, 0.0f);
+    if (!(hi > lo)) {
+        // A constant region: every value maps to the target's median.
+        std::fill(m.at.begin(), m.at.end(), quantileAt(q, 0.5));
+        return m;
+    }
+    m.scale = float(bins / (double(hi) - double(lo)));
+    std::vector<double> count(size_t(bins), 0.0);
+    double n = 0.0;
+    g.forCell(band, k, [&](float v) {
+        count[size_t(std::clamp(int((v - lo) * m.scale), 0, bins - 1))] += 1.0;
+        n += 1.0;
+    }, step);
+    double acc = 0.0;
+    for (int b = 0; b <= bins; ++b) {
+        m.at[size_t(b)] = quantileAt(q, acc / n);
+        if (b < bins) acc += count[size_t(b)];
+    }
+    return m;
+}
+
+std::vector<float> quantileTable(std::vector<float> values, int Q)
+{
+    std::vector<float> q(size_t(Q), 0.0f);
+    if (values.empty()) return q;
+    std::sort(values.begin(), values.end());
+    for (int j = 0; j < Q; ++j) {
+        const double at = double(j) / (Q - 1) * double(values.size() - 1);
+        const size_t i = std::min(size_t(at), values.size() - 1);
+        const size_t i1 = std::min(i + 1, values.size() - 1);
+        const double f = at - double(i);
+        q[size_t(j)] = float((1.0 - f) * values[i] + f * values[i1]);
+    }
+    return q;
+}
+
+} // namespace
+
+struct HistogramMatcher::Impl
+{
+    HistogramMatchSettings s;
+    int W = 0, H = 0, C = 0, levels = 1;
+    int cols = 1, rows = 1;
+    std::vector<HmCell> cells;
+    std::vector<double> xEdges, yEdges;
+    double ox = 0.0, oy = 0.0;
+    // Colour PCA: y = E^T (x - mu) over the first 3 channels.
+    bool pca = false;
+    const ChannelImage* matte = nullptr; // only during construction
+    Eigen::Matrix3d E = Eigen::Matrix3d::Identity();
+    Eigen::Vector3d mu = Eigen::Vector3d::Zero();
+    // Per band slot: geometry and, per channel, the target's quantile tables per cell.
+    // Slot 0 = pixels; steerable: 1 = high-pass, then level x orientation, then low-pass;
+    // Laplacian: 1..levels = bands, then low-pass.
+    std::vector<Geometry> geometry;
+    std::vector<std::vector<std::vector<std::vector<float>>>> tables; // [channel][slot][cell]
+    std::vector<std::vector<std::vector<float>>> rgbTables;          // [channel][cell]: the target's own channels (with PCA)
+
+    Geometry makeGeometry(int w, int h, double scale, double overlapScale = 1.0) const
+    {
+        Geometry g;
+        g.w = w;
+        g.h = h;
+        std::vector<double> xe, ye;
+        for (double e : xEdges) xe.push_back(e * scale);
+        for (double e : yEdges) ye.push_back(e * scale);
+        g.xs = axisTaps(w, xe, ox * scale * overlapScale);
+        g.ys = axisTaps(h, ye, oy * scale * overlapScale);
+        const int vw = std::min(w, int(std::ceil(W * scale))), vh = std::min(h, int(std::ceil(H * scale)));
+        for (const HmCell& c : cells) {
+            HmCell r;
+            r.sx0 = std::clamp(int(std::floor(c.sx0 * scale)), 0, vw - 1);
+            r.sy0 = std::clamp(int(std::floor(c.sy0 * scale)), 0, vh - 1);
+            r.sx1 = std::clamp(int(std::ceil(c.sx1 * scale)), r.sx0 + 1, vw);
+            r.sy1 = std::clamp(int(std::ceil(c.sy1 * scale)), r.sy0 + 1, vh);
+            g.regions.push_back(r);
+        }
+        if (matte) {
+            // The matte seen at this band's resolution (nearest sample); cells with too few fluid
+            // pixels keep all their pixels.
+            g.mask.assign(size_t(w) * size_t(h), 0);
+            for (int y = 0; y < vh; ++y)
+                for (int x = 0; x < vw; ++x) {
+                    const int mx = std::min(W - 1, int((x + 0.5) / scale)), my = std::min(H - 1, int((y + 0.5) / scale));
+                    g.mask[size_t(y) * size_t(w) + size_t(x)] = matte->at(mx, my, 0) >= 0.5f;
+                }
+            for (const HmCell& r : g.regions) {
+                size_t n = 0;
+                for (int y = r.sy0; y < r.sy1; ++y)
+                    for (int x = r.sx0; x < r.sx1; ++x) n += g.mask[size_t(y) * size_t(w) + size_t(x)];
+                g.masked.push_back(n >= 16);
+            }
+        }
+        return g;
+    }
+
+    std::vector<std::vector<float>> cellTables(const ChannelImage& band, const Geometry& g) const
+    {
+        std::vector<std::vector<float>> t(cells.size());
+        parallelFor(cells.size(), 1, [&](size_t b, size_t e) {
+            for (size_t k = b; k < e; ++k) {
+                std::vector<float> v;
+                g.forCell(band, k, [&](float x) { v.push_back(x); });
+                t[k] = quantileTable(std::move(v), s.quantiles);
+            }
+        });
+        return t;
+    }
+
+    void matchSlot(ChannelImage& band, size_t slot, int channel) const { matchTables(band, geometry[slot], tables[size_t(channel)][slot]); }
+
+    /// Matches a band to per-cell quantile tables under a geometry.
+    void matchTables(ChannelImage& band, const Geometry& g, const std::vector<std::vector<float>>& tab) const
+    {
+        std::vector<CellMap> maps(cells.size());
+        parallelFor(cells.size(), 1, [&](size_t b, size_t e) {
+            for (size_t k = b; k < e; ++k) maps[k] = cellMap(band, g, k, s.bins, tab[k]);
+        });
+        parallelFor(size_t(g.h), 8, [&](size_t y0, size_t y1) {
+            for (size_t y = y0; y < y1; ++y) {
+                const AxisTap ty = g.ys[y];
+                float* row = band.pixel(0, int(y));
+                for (int x = 0; x < g.w; ++x) {
+                    const AxisTap tx = g.xs[size_t(x)];
+                    const float v = row[x];
+                    if (ty.w >= 1.0f && tx.w >= 1.0f) { // a cell's core: its own map alone
+                        row[x] = maps[size_t(ty.a) * size_t(cols) + size_t(tx.a)](v);
+                        continue;
+                    }
+                    float out = 0.0f;
+                    const int ra[2] = {ty.a, ty.b}, ca[2] = {tx.a, tx.b};
+                    const float rw[2] = {ty.w, 1.0f - ty.w}, cw[2] = {tx.w, 1.0f - tx.w};
+                    for (int i = 0; i < 2; ++i)
+                        for (int j = 0; j < 2; ++j) {
+                            const float w = rw[i] * cw[j];
+                            if (w <= 0.0f) continue;
+                            out += w * maps[size_t(ra[i]) * size_t(cols) + size_t(ca[j])](v);
+                        }
+                    row[x] = out;
+                }
+            }
+        });
+    }
+
+    ChannelImage plane(const ChannelImage& img, int c) const;
+    void unplane(const std::vector<ChannelImage>& planes, ChannelImage& out) const;
+    void matchPlane(ChannelImage& p, int c) const;
+};
+
+ChannelImage HistogramMatcher::Impl::plane(const ChannelImage& img, int c) const
+{
+    ChannelImage p(W, H, 1);
+    for (size_t i = 0; i < p.pixelCount(); ++i) {
+        const float* v = img.pixel(i);
+        if (pca && c < 3) {
+            const Eigen::Vector3d x(v[0] - mu[0], v[1] - mu[1], v[2] - mu[2]);
+            p.pixel(i)[0] = float(E.col(c).dot(x));
+        } else {
+            p.pixel(i)[0] = v[c];
+        }
+    }
+    return p;
+}
+
+void HistogramMatcher::Impl::unplane(const std::vector<ChannelImage>& planes, ChannelImage& out) const
+{
+    for (size_t i = 0; i < out.pixelCount(); ++i) {
+        float* o = out.pixel(i);
+        if (pca) {
+            const Eigen::Vector3d y(planes[0].pixel(i)[0], planes[1].pixel(i)[0], planes[2].pixel(i)[0]);
+            const Eigen::Vector3d x = E * y + mu;
+            for (int c = 0; c < 3; ++c) o[c] = float(x[c]);
+            for (int c = 3; c < C; ++c) o[c] = planes[size_t(c)].pixel(i)[0];
+        } else {
+            for (int c = 0; c < C; ++c) o[c] = planes[size_t(c)].pixel(i)[0];
+        }
+    }
+}
+
+void HistogramMatcher::Impl::matchPlane(ChannelImage& p, int c) const
+{
+    matchSlot(p, 0, c);
+    const int reps = s.pyramid == HmPyramid::Laplacian ? 1 : s.reps;
+    for (int r = 0; r < reps; ++r) {
+        if (s.pyramid == HmPyramid::Steerable) {
+            SteerablePyramid pyr = buildSteerablePyramid(p, levels, s.orientations);
+            size_t slot = 1;
+            matchSlot(pyr.highpass, slot++, c);
+            for (auto& level : pyr.bands)
+                for (auto& band : level) matchSlot(band, slot++, c);
+            matchSlot(pyr.lowpass, slot, c);
+            p = collapse(pyr);
+        } else {
+            LaplacianPyramid pyr = buildLaplacianPyramid(p, levels);
+            size_t slot = 1;
+            for (auto& band : pyr.bands) matchSlot(band, slot++, c);
+            matchSlot(pyr.lowpass, slot, c);
+            p = collapse(pyr);
+        }
+        matchSlot(p, 0, c);
+    }
+    // Blended cells leave each cell's statistics a little off where neighbours differ; matching the
+    // pixels again moves every cell's map towards the identity and its statistics to the target's.
+    for (int k = 1; k < s.pixelPasses; ++k) matchSlot(p, 0, c);
+}
+
+HistogramMatcher::HistogramMatcher(const ChannelImage& target, const HistogramMatchSettings& settings, const ChannelImage* matte)
+    : mImpl(std::make_unique<Impl>())
+{
+    if (matte && (!matte->sameSize(target) || matte->channels() != 1))
+        throw ValueError("histogram matching: the matte must be a 1-channel image of the target's size");
+    validate(settings);
+    if (target.empty() || target.channels() < 1 || target.channels() > 4) throw ValueError("histogram matching: the target must be a non-empty 1..4 channel image");
+    Impl& m = *mImpl;
+    m.s = settings;
+    m.matte = matte;
+    m.W = target.width();
+    m.H = target.height();
+    m.C = target.channels();
+    m.levels = std::min(settings.levels, maxSteerableLevels(m.W, m.H));
+    m.cols = settings.gridCols > 0 ? settings.gridCols : std::max(1, int(std::lround(double(m.W) / settings.cellSize)));
+    m.rows = settings.gridRows > 0 ? settings.gridRows : std::max(1, int(std::lround(double(m.H) / settings.cellSize)));
+    m.cols = std::min(m.cols, std::max(1, m.W / 8));
+    m.rows = std::min(m.rows, std::max(1, m.H / 8));
+    for (int i = 0; i <= m.cols; ++i) m.xEdges.push_back(std::round(double(m.W) * i / m.cols));
+    for (int j = 0; j <= m.rows; ++j) m.yEdges.push_back(std::round(double(m.H) * j / m.rows));
+    m.ox = settings.overlap * double(m.W) / m.cols;
+    m.oy = settings.overlap * double(m.H) / m.rows;
+    for (int j = 0; j < m.rows; ++j)
+        for (int i = 0; i < m.cols; ++i) {
+            HmCell c;
+            c.x0 = int(m.xEdges[size_t(i)]);
+            c.x1 = int(m.xEdges[size_t(i + 1)]);
+            c.y0 = int(m.yEdges[size_t(j)]);
+            c.y1 = int(m.yEdges[size_t(j + 1)]);
+            const double rx = settings.reach * double(m.W) / m.cols, ry = settings.reach * double(m.H) / m.rows;
+            c.sx0 = std::max(0, int(std::floor(c.x0 - rx)));
+            c.sy0 = std::max(0, int(std::floor(c.y0 - ry)));
+            c.sx1 = std::min(m.W, int(std::ceil(c.x1 + rx)));
+            c.sy1 = std::min(m.H, int(std::ceil(c.y1 + ry)));
+            m.cells.push_back(c);
+        }
+
+    if (settings.colorPca && m.C >= 3) {
+        Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+        for (size_t i = 0; i < target.pixelCount(); ++i)
+            for (int c = 0; c < 3; ++c) mean[c] += target.pixel(i)[c];
+        mean /= double(target.pixelCount());
+        Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+        for (size_t i = 0; i < target.pixelCount(); ++i) {
+            const Eigen::Vector3d d(target.pixel(i)[0] - mean[0], target.pixel(i)[1] - mean[1], target.pixel(i)[2] - mean[2]);
+            cov += d * d.transpose();
+        }
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+        m.E = eig.eigenvectors();
+        m.mu = mean;
+        m.pca = true;
+    }
+
+    // Geometry of every slot, then the target's tables per channel.
+    m.geometry.push_back(m.makeGeometry(m.W, m.H, 1.0, settings.blendPixels ? 1.0 : 0.0));
+    const ChannelImage probe(m.W, m.H, 1);
+    if (settings.pyramid == HmPyramid::Steerable) {
+        const SteerablePyramid pyr = buildSteerablePyramid(probe, m.levels, settings.orientations);
+        m.geometry.push_back(m.makeGeometry(pyr.highpass.width(), pyr.highpass.height(), 1.0));
+        for (int l = 0; l < m.levels; ++l)
+            for (int k = 0; k < settings.orientations; ++k)
+                m.geometry.push_back(m.makeGeometry(pyr.bands[size_t(l)][size_t(k)].width(), pyr.bands[size_t(l)][size_t(k)].height(), std::ldexp(1.0, -l)));
+        m.geometry.push_back(m.makeGeometry(pyr.lowpass.width(), pyr.lowpass.height(), std::ldexp(1.0, -m.levels)));
+    } else {
+        const LaplacianPyramid pyr = buildLaplacianPyramid(probe, m.levels);
+        for (int l = 0; l < m.levels; ++l) m.geometry.push_back(m.makeGeometry(pyr.bands[size_t(l)].width(), pyr.bands[size_t(l)].height(), std::ldexp(1.0, -l)));
+        m.geometry.push_back(m.makeGeometry(pyr.lowpass.width(), pyr.lowpass.height(), std::ldexp(1.0, -m.levels)));
+    }
+    if (m.pca)
+        for (int c = 0; c < m.C; ++c) m.rgbTables.push_back(m.cellTables(channelRange(target, c, 1), m.geometry[0]));
+    m.tables.resize(size_t(m.C));
+    for (int c = 0; c < m.C; ++c) {
+        const ChannelImage p = m.plane(target, c);
+        auto& t = m.tables[size_t(c)];
+        t.push_back(m.cellTables(p, m.geometry[0]));
+        if (settings.pyramid == HmPyramid::Steerable) {
+            const SteerablePyramid pyr = buildSteerablePyramid(p, m.levels, settings.orientations);
+            size_t slot = 1;
+            t.push_back(m.cellTables(pyr.highpass, m.geometry[slot++]));
+            for (const auto& level : pyr.bands)
+                for (const auto& band : level) t.push_back(m.cellTables(band, m.geometry[slot++]));
+            t.push_back(m.cellTables(pyr.lowpass, m.geometry[slot]));
+        } else {
+            const LaplacianPyramid pyr = buildLaplacianPyramid(p, m.levels);
+            size_t slot = 1;
+            for (const auto& band : pyr.bands) t.push_back(m.cellTables(band, m.geometry[slot++]));
+            t.push_back(m.cellTables(pyr.lowpass, m.geometry[slot]));
+        }
+    }
+}
+
+HistogramMatcher::~HistogramMatcher() = default;
+HistogramMatcher::HistogramMatcher(HistogramMatcher&&) noexcept = default;
+HistogramMatcher& HistogramMatcher::operator=(HistogramMatcher&&) noexcept = default;
+
+int HistogramMatcher::gridCols() const { return mImpl->cols; }
+int HistogramMatcher::gridRows() const { return mImpl->rows; }
+const std::vector<HmCell>& HistogramMatcher::cells() const { return mImpl->cells; }
+int HistogramMatcher::levels() const { return mImpl->levels; }
+
+ChannelImage HistogramMatcher::match(const ChannelImage& frame) const
+{
+    const Impl& m = *mImpl;
+    if (frame.width() != m.W || frame.height() != m.H || frame.channels() != m.C)
+        throw ValueError("histogram matching: the frame is " + std::to_string(frame.width()) + "x" + std::to_string(frame.height()) + "x" +
+                         std::to_string(frame.channels()) + ", the target " + std::to_string(m.W) + "x" + std::to_string(m.H) + "x" +
+                         std::to_string(m.C));
+    std::vector<ChannelImage> planes(size_t(m.C));
+    parallelFor(size_t(m.C), 1, [&](size_t b, size_t e) {
+        for (size_t c = b; c < e; ++c) {
+            planes[c] = m.plane(frame, int(c));
+            m.matchPlane(planes[c], int(c));
+        }
+    });
+    ChannelImage out(m.W, m.H, m.C);
+    m.unplane(planes, out);
+    if (m.pca) {
+        // Matched in the decorrelated space; the target's own channels get the last word.
+        parallelFor(size_t(m.C), 1, [&](size_t b, size_t e) {
+            for (size_t c = b; c < e; ++c) {
+                ChannelImage p = channelRange(out, int(c), 1);
+                for (int k = 0; k < m.s.pixelPasses; ++k) m.matchTables(p, m.geometry[0], m.rgbTables[c]);
+                for (size_t i = 0; i < p.pixelCount(); ++i) out.pixel(i)[c] = p.pixel(i)[0];
+            }
+        });
+    }
+    return out;
+}
+
+} // namespace turb

@@ -1,0 +1,240 @@
+#include <turb/ResidualTransfer.h>
+
+#include <turb/Error.h>
+#include <turb/Parallel.h>
+#include <turb/PatchIndex.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <string>
+
+namespace turb {
+
+void validate(const TransferSettings& s)
+{
+    if (s.patchSize < 8 || s.patchSize > 64) throw ValueError("transfer: the patch size must be 8..64 pixels");
+    if (s.downsample != 1 && s.downsample != 2 && s.downsample != 4) throw ValueError("transfer: downsample must be 1, 2 or 4");
+    if (s.pcaComponents < 1) throw ValueError("transfer: PCA components must be >= 1");
+    if (!(s.feather >= 0.0 && s.feather <= 0.5)) throw ValueError("transfer: feather must be in [0, 0.5]");
+}
+
+TransferMap::TransferMap(int tw, int th, int ew, int eh)
+    : mWidth(tw), mHeight(th), mExWidth(ew), mExHeight(eh), mSource(size_t(tw) * size_t(th) * kTaps, 0u),
+      mWeight(size_t(tw) * size_t(th) * kTaps, 0.0f)
+{
+}
+
+void TransferMap::addTap(size_t i, std::uint32_t source, float w)
+{
+    float* wt = &mWeight[i * kTaps];
+    std::uint32_t* src = &mSource[i * kTaps];
+    int lightest = 0;
+    for (int k = 0; k < kTaps; ++k) {
+        if (wt[k] == 0.0f) {
+            wt[k] = w;
+            src[k] = source;
+            return;
+        }
+        if (wt[k] < wt[lightest]) lightest = k;
+    }
+    if (w > wt[lightest]) {
+        wt[lightest] = w;
+        src[lightest] = source;
+    }
+}
+
+void TransferMap::normalise()
+{
+    const size_t n = size_t(mWidth) * size_t(mHeight);
+    for (size_t i = 0; i < n; ++i) {
+        float s = 0.0f;
+        for (int k = 0; k < kTaps; ++k) s += mWeight[i * kTaps + size_t(k)];
+        if (s > 0.0f)
+            for (int k = 0; k < kTaps; ++k) mWeight[i * kTaps + size_t(k)] /= s;
+    }
+}
+
+ChannelImage TransferMap::apply(const ChannelImage& ex) const
+{
+    if (ex.width() != mExWidth || ex.height() != mExHeight)
+        throw ValueError("TransferMap: the image is " + std::to_string(ex.width()) + "x" + std::to_string(ex.height()) +
+                         ", the example is " + std::to_string(mExWidth) + "x" + std::to_string(mExHeight));
+    const int C = ex.channels();
+    ChannelImage out(mWidth, mHeight, C);
+    parallelFor(out.pixelCount(), 1 << 12, [&](size_t b, size_t e) {
+        for (size_t i = b; i < e; ++i) {
+            float* o = out.pixel(i);
+            for (int k = 0; k < kTaps; ++k) {
+                const float w = mWeight[i * kTaps + size_t(k)];
+                if (w == 0.0f) continue;
+                const float* s = ex.pixel(size_t(mSource[i * kTaps + size_t(k)]));
+                for (int c = 0; c < C; ++c) o[c] += w * s[c];
+            }
+        }
+    });
+    return out;
+}
+
+namespace {
+
+ChannelImage reduced(const ChannelImage& flow, int factor)
+{
+    ChannelImage r = flow;
+    for (int f = factor; f > 1; f /= 2) r = reduceByTwo(r);
+    return r;
+}
+
+/// The p x p x 2 descriptor of `flow` at (x0, y0), coordinates clamped into the image.
+void descriptor(const ChannelImage& flow, int x0, int y0, int p, float* out)
+{
+    for (int v = 0; v < p; ++v)
+        for (int u = 0; u < p; ++u) {
+            const int x = std::clamp(x0 + u, 0, flow.width() - 1), y = std::clamp(y0 + v, 0, flow.height() - 1);
+            const float* f = flow.pixel(x, y);
+            *out++ = f[0];
+            *out++ = f[1];
+        }
+}
+
+std::vector<int> patchStarts(int size, int patch)
+{
+    std::vector<int> at;
+    const int stride = std::max(1, patch / 2);
+    for (int v = 0; v + patch < size; v += stride) at.push_back(v);
+    at.push_back(std::max(0, size - patch));
+    return at;
+}
+
+struct Placed
+{
+    int tx = 0, ty = 0;     // target patch corner, full resolution
+    int ex = 0, ey = 0;     // example window corner, full resolution
+    double cost = 0.0;      // |s - e|^2 per pixel
+    size_t order = 0;       // position in the patch grid (tie-break)
+};
+
+/// Linear ramp of the patch alpha along one axis: 1 in the core, 0 at edges that lie inside the image.
+float ramp(int u, int patch, bool lowInside, bool highInside, double fw)
+{
+    if (fw <= 0.0) return 1.0f;
+    float r = 1.0f;
+    if (lowInside) r = std::min(r, float((u + 0.5) / fw));
+    if (highInside) r = std::min(r, float((patch - u - 0.5) / fw));
+    return std::clamp(r, 0.0f, 1.0f);
+}
+
+} // namespace
+
+TransferMap matchResiduals(const ChannelImage& exampleFlow, const ChannelImage& targetFlow, const TransferSettings& s,
+    const ChannelImage* matte, Progress* progress)
+{
+    validate(s);
+    if (exampleFlow.channels() != 2 || targetFlow.channels() != 2) throw ValueError("matchResiduals: flows must have 2 channels");
+    if (matte && (!matte->sameSize(targetFlow) || matte->channels() != 1))
+        throw ValueError("matchResiduals: the matte must be a 1-channel image of the target's size");
+    const int d = s.downsample, P = s.patchSize, p = std::max(2, int(std::lround(double(P) / d)));
+    const ChannelImage ex = reduced(exampleFlow, d), tg = reduced(targetFlow, d);
+    if (ex.width() < p || ex.height() < p)
+        throw ValueError("the video example (" + std::to_string(exampleFlow.width()) + "x" + std::to_string(exampleFlow.height()) +
+                         ") is smaller than one " + std::to_string(P) + " px patch");
+    if (progress) progress->begin("transfer: index");
+
+    // Every example window at the search resolution (a stride only when the descriptors would not fit
+    // in about 120 MB).
+    const size_t dim = size_t(2 * p * p);
+    int stride = 1;
+    while (size_t((ex.width() - p) / stride + 1) * size_t((ex.height() - p) / stride + 1) * dim > size_t(3e7)) ++stride;
+    const int nx = (ex.width() - p) / stride + 1, ny = (ex.height() - p) / stride + 1;
+    const size_t M = size_t(nx) * size_t(ny);
+    std::vector<float> rows(M * dim);
+    parallelFor(M, 1024, [&](size_t b, size_t e) {
+        for (size_t k = b; k < e; ++k) descriptor(ex, int(k % size_t(nx)) * stride, int(k / size_t(nx)) * stride, p, &rows[k * dim]);
+    });
+    PatchIndex index;
+    PcaSettings pca;
+    pca.components = s.pcaComponents;
+    index.build(std::move(rows), dim, pca);
+    checkCancelled(progress);
+
+    // Target patches touching the matte.
+    if (progress) progress->begin("transfer: match");
+    const int W = targetFlow.width(), H = targetFlow.height();
+    std::vector<Placed> placed;
+    const std::vector<int> xs = patchStarts(W, P), ys = patchStarts(H, P);
+    for (int ty : ys)
+        for (int tx : xs) {
+            bool touches = !matte;
+            for (int y = ty; !touches && y < std::min(H, ty + P); ++y)
+                for (int x = tx; x < std::min(W, tx + P); ++x)
+                    if (matte->at(x, y, 0) > 0.0f) {
+                        touches = true;
+                        break;
+                    }
+            if (touches) placed.push_back(Placed{tx, ty, 0, 0, 0.0, placed.size()});
+        }
+    std::vector<float> queries(placed.size() * dim);
+    parallelFor(placed.size(), 64, [&](size_t b, size_t e) {
+        for (size_t k = b; k < e; ++k) descriptor(tg, int(std::lround(double(placed[k].tx) / d)), int(std::lround(double(placed[k].ty) / d)), p, &queries[k * dim]);
+    });
+    std::vector<int> nearest;
+    std::vector<float> dist2;
+    index.queryMany(queries.data(), placed.size(), 1, nearest, dist2);
+    parallelFor(placed.size(), 64, [&](size_t b, size_t e) {
+        std::vector<float> win(dim);
+        for (size_t k = b; k < e; ++k) {
+            const int n = std::max(0, nearest[k]);
+            const int cx = (n % nx) * stride, cy = (n / nx) * stride;
+            descriptor(ex, cx, cy, p, win.data());
+            double c = 0.0;
+            for (size_t q = 0; q < dim; ++q) c += double(queries[k * dim + q] - win[q]) * double(queries[k * dim + q] - win[q]);
+            placed[k].cost = c / double(p * p);
+            placed[k].ex = cx * d;
+            placed[k].ey = cy * d;
+        }
+    });
+    checkCancelled(progress);
+
+    // Lapped pasting, most similar first, each patch under what is there.
+    if (progress) progress->begin("transfer: paste");
+    std::sort(placed.begin(), placed.end(), [](const Placed& a, const Placed& b) {
+        return a.cost != b.cost ? a.cost < b.cost : a.order < b.order;
+    });
+    TransferMap map(W, H, exampleFlow.width(), exampleFlow.height());
+    std::vector<float> cover(size_t(W) * size_t(H), 0.0f);
+    const double fw = s.feather * P;
+    const int EW = exampleFlow.width(), EH = exampleFlow.height();
+    double costSum = 0.0;
+    for (const Placed& pl : placed) {
+        const int x1 = std::min(W, pl.tx + P), y1 = std::min(H, pl.ty + P);
+        float open = 0.0f;
+        for (int y = pl.ty; y < y1; ++y)
+            for (int x = pl.tx; x < x1; ++x) open = std::max(open, 1.0f - cover[size_t(y) * size_t(W) + size_t(x)]);
+        if (open < 1e-3f) continue;
+        for (int y = pl.ty; y < y1; ++y) {
+            const float ry = ramp(y - pl.ty, P, pl.ty > 0, pl.ty + P < H, fw);
+            for (int x = pl.tx; x < x1; ++x) {
+                const float m = ry * ramp(x - pl.tx, P, pl.tx > 0, pl.tx + P < W, fw);
+                const size_t i = size_t(y) * size_t(W) + size_t(x);
+                if (matte && matte->at(x, y, 0) <= 0.0f) continue;
+                const float a = m * (1.0f - cover[i]);
+                if (a <= 1e-6f) continue;
+                const int sx = std::min(EW - 1, pl.ex + (x - pl.tx)), sy = std::min(EH - 1, pl.ey + (y - pl.ty));
+                map.addTap(i, std::uint32_t(size_t(sy) * size_t(EW) + size_t(sx)), a);
+                cover[i] += a;
+            }
+        }
+        ++map.stats.pasted;
+        costSum += pl.cost;
+        map.stats.maxCost = std::max(map.stats.maxCost, pl.cost);
+    }
+    map.normalise();
+    map.stats.patches = int(placed.size());
+    map.stats.meanCost = map.stats.pasted ? costSum / map.stats.pasted : 0.0;
+    size_t covered = 0;
+    for (float c : cover) covered += c > 0.0f;
+    map.stats.covered = cover.empty() ? 0.0 : double(covered) / double(cover.size());
+    return map;
+}
+
+} // namespace turb

@@ -1,0 +1,296 @@
+#include <turb/VideoAnalysis.h>
+
+#include "CvOps.h"
+#include "Rbf.h"
+
+#include <turb/Error.h>
+#include <turb/Parallel.h>
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+namespace turb {
+
+void validate(const AnalysisSettings& s)
+{
+    if (s.features < 1) throw ValueError("analysis: features must be >= 1");
+    if (s.window < 3 || s.window > 64) throw ValueError("analysis: the Lucas-Kanade window must be 3..64 pixels");
+    if (s.levels < 0 || s.levels > 6) throw ValueError("analysis: Lucas-Kanade levels must be 0..6");
+    if (!(s.maxRoundTrip > 0.0)) throw ValueError("analysis: the round-trip tolerance must be > 0");
+    if (s.rbfStep < 1 || s.rbfStep > 16) throw ValueError("analysis: the RBF evaluation step must be 1..16 pixels");
+}
+
+ChannelImage luminance(const ChannelImage& img)
+{
+    ChannelImage y(img.width(), img.height(), 1);
+    const int C = img.channels();
+    for (size_t i = 0; i < img.pixelCount(); ++i) {
+        const float* p = img.pixel(i);
+        y.pixel(i)[0] = C >= 3 ? 0.2126f * p[0] + 0.7152f * p[1] + 0.0722f * p[2] : p[0];
+    }
+    return y;
+}
+
+ChannelImage warpByFlow(const ChannelImage& image, const ChannelImage& flow)
+{
+    if (!flow.sameSize(image)) throw ValueError("warpByFlow: the flow and the image differ in size");
+    return cv::FlowWarp(flow).apply(image);
+}
+
+namespace {
+
+constexpr size_t kPairGrain = 8; // pairs summed per chunk; fixed, so the float sums do not depend on threads
+
+void checkFrames(const std::vector<ChannelImage>& frames)
+{
+    if (frames.size() < 2) throw ValueError("the video example needs at least 2 frames, got " + std::to_string(frames.size()));
+    const ChannelImage& f0 = frames.front();
+    if (f0.width() < 8 || f0.height() < 8) throw ValueError("the video example frames must be at least 8x8 pixels");
+    if (f0.channels() < 1 || f0.channels() > 4) throw ValueError("the video example frames must have 1 to 4 channels");
+    for (size_t i = 1; i < frames.size(); ++i)
+        if (!frames[i].sameSize(f0) || frames[i].channels() != f0.channels())
+            throw ValueError("video example frame " + std::to_string(i) + " is " + std::to_string(frames[i].width()) + "x" +
+                             std::to_string(frames[i].height()) + "x" + std::to_string(frames[i].channels()) + ", frame 0 is " +
+                             std::to_string(f0.width()) + "x" + std::to_string(f0.height()) + "x" + std::to_string(f0.channels()));
+}
+
+double medianOf(std::vector<double> v)
+{
+    if (v.empty()) return 0.0;
+    const size_t m = v.size() / 2;
+    std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(m), v.end());
+    return v[m];
+}
+
+/// Drops tracks that disagree with their neighbours: r = |d - median of the 8 nearest tracks' d|, kept
+/// when r <= max(0.5 px, 4 x the median r). Lucas-Kanade slides along edges (the aperture problem) and
+/// locks onto features that appear or vanish; one such track would spread over its neighbourhood.
+std::vector<cv::Track> consistentTracks(const std::vector<cv::Track>& t)
+{
+    if (t.size() < 5) return t;
+    const size_t k = std::min<size_t>(8, t.size() - 1);
+    std::vector<double> r(t.size());
+    std::vector<std::pair<double, size_t>> near(t.size());
+    for (size_t i = 0; i < t.size(); ++i) {
+        for (size_t j = 0; j < t.size(); ++j) near[j] = {std::hypot(t[j].x - t[i].x, t[j].y - t[i].y), j};
+        std::partial_sort(near.begin(), near.begin() + std::ptrdiff_t(k + 1), near.end());
+        std::vector<double> dx, dy;
+        for (size_t n = 1; n <= k; ++n) { // near[0] is the track itself
+            dx.push_back(t[near[n].second].dx);
+            dy.push_back(t[near[n].second].dy);
+        }
+        r[i] = std::hypot(t[i].dx - medianOf(dx), t[i].dy - medianOf(dy));
+    }
+    const double limit = std::max(0.5, 4.0 * medianOf(r));
+    std::vector<cv::Track> kept;
+    for (size_t i = 0; i < t.size(); ++i)
+        if (r[i] <= limit) kept.push_back(t[i]);
+    return kept;
+}
+
+/// The mean of the frames, in double per pixel.
+ChannelImage meanImage(const std::vector<ChannelImage>& frames)
+{
+    ChannelImage A(frames[0].width(), frames[0].height(), frames[0].channels());
+    const size_t n = A.data().size();
+    parallelFor(n, 4096, [&](size_t b, size_t e) {
+        for (size_t k = b; k < e; ++k) {
+            double s = 0.0;
+            for (const ChannelImage& f : frames) s += f.data()[k];
+            A.data()[k] = float(s / double(frames.size()));
+        }
+    });
+    return A;
+}
+
+/// Sparse Lucas-Kanade flow of each consecutive pair, interpolated with phi = r and averaged (4.2).
+ChannelImage trackedMeanFlow(const std::vector<ChannelImage>& diffs, const AnalysisSettings& s, AnalysisStats& stats,
+    Progress* progress)
+{
+    const int W = diffs[0].width(), H = diffs[0].height();
+    const size_t N = diffs.size();
+    std::vector<ChannelImage> gray(N);
+    parallelFor(N, 1, [&](size_t b, size_t e) {
+        for (size_t i = b; i < e; ++i) gray[i] = luminance(diffs[i]);
+    });
+    double sum2 = 0.0;
+    for (const ChannelImage& g : gray)
+        for (float v : g.data()) sum2 += double(v) * v;
+    const double sigma = std::sqrt(sum2 / (double(N) * double(W) * double(H)));
+    stats.pairs = int(N - 1);
+    if (!(sigma > 0.0)) return ChannelImage(W, H, 2); // a still example: nothing moves
+    const float scale = float(40.0 / sigma);           // +-3 sigma over +-120 grey levels
+    std::vector<cv::TrackFrame> track(N);
+    parallelFor(N, 1, [&](size_t b, size_t e) {
+        for (size_t i = b; i < e; ++i) track[i] = cv::toTrackFrame(gray[i], scale);
+    });
+    gray.clear();
+
+    cv::TrackSettings ts;
+    ts.features = s.features;
+    ts.window = s.window;
+    ts.levels = s.levels;
+    ts.maxRoundTrip = s.maxRoundTrip;
+    ts.minDistance = std::max(3.0, std::min(W, H) / 40.0);
+    const size_t pairs = N - 1, chunks = (pairs + kPairGrain - 1) / kPairGrain;
+    std::vector<ChannelImage> chunkSum(chunks);
+    std::vector<int> used(pairs, 0), tracks(pairs, 0);
+    if (progress) progress->begin("flow");
+    parallelFor(pairs, kPairGrain, [&](size_t b, size_t e) {
+        ChannelImage acc(W, H, 2);
+        for (size_t i = b; i < e; ++i) {
+            checkCancelled(progress);
+            const std::vector<cv::Track> t = consistentTracks(cv::trackFeatures(track[i], track[i + 1], ts));
+            if (t.empty()) continue;
+            std::vector<rbf::Sample> samples;
+            samples.reserve(t.size());
+            for (const cv::Track& k : t)
+                samples.push_back(rbf::Sample{k.x + 0.5 * k.dx, k.y + 0.5 * k.dy, {double(k.dx), double(k.dy)}});
+            rbf::Interpolant f;
+            f.fit(std::move(samples));
+            const ChannelImage v = f.render(W, H, s.rbfStep);
+            for (size_t q = 0; q < acc.data().size(); ++q) acc.data()[q] += v.data()[q];
+            used[i] = 1;
+            tracks[i] = int(t.size());
+        }
+        chunkSum[b / kPairGrain] = std::move(acc);
+    });
+    ChannelImage flow(W, H, 2);
+    for (const ChannelImage& c : chunkSum)
+        for (size_t q = 0; q < flow.data().size(); ++q) flow.data()[q] += c.data()[q];
+    int nUsed = 0, nTracks = 0;
+    for (size_t i = 0; i < pairs; ++i) {
+        nUsed += used[i];
+        nTracks += tracks[i];
+    }
+    stats.pairsUsed = nUsed;
+    stats.tracksPerPair = nUsed ? double(nTracks) / nUsed : 0.0;
+    if (nUsed > 0)
+        for (float& v : flow.data()) v /= float(nUsed);
+    return flow;
+}
+
+/// Mean |v| over the pixels that move: |v| >= 10% of the 99th percentile (a cache's background and a
+/// video's still parts would dilute the speed a stroke fetches).
+double meanSpeed(const ChannelImage& flow)
+{
+    std::vector<float> s(flow.pixelCount());
+    for (size_t i = 0; i < s.size(); ++i) s[i] = std::hypot(flow.pixel(i)[0], flow.pixel(i)[1]);
+    if (s.empty()) return 0.0;
+    std::vector<float> sorted = s;
+    const size_t k = std::min(sorted.size() - 1, size_t(0.99 * double(sorted.size())));
+    std::nth_element(sorted.begin(), sorted.begin() + std::ptrdiff_t(k), sorted.end());
+    const float floor = 0.1f * sorted[k];
+    double sum = 0.0;
+    size_t n = 0;
+    for (float v : s)
+        if (v >= floor && v > 0.0f) {
+            sum += v;
+            ++n;
+        }
+    return n ? sum / double(n) : 0.0;
+}
+
+} // namespace
+
+ChannelImage estimateMeanFlow(const std::vector<ChannelImage>& frames, const AnalysisSettings& settings, AnalysisStats* stats,
+    Progress* progress)
+{
+    validate(settings);
+    checkFrames(frames);
+    const ChannelImage A = meanImage(frames);
+    std::vector<ChannelImage> diffs(frames.size());
+    for (size_t i = 0; i < frames.size(); ++i) {
+        diffs[i] = frames[i];
+        for (size_t q = 0; q < A.data().size(); ++q) diffs[i].data()[q] -= A.data()[q];
+    }
+    AnalysisStats st;
+    ChannelImage v = trackedMeanFlow(diffs, settings, st, progress);
+    st.meanSpeed = meanSpeed(v);
+    if (stats) *stats = st;
+    return v;
+}
+
+ExampleDecomposition decomposeExample(std::vector<ChannelImage> frames, const AnalysisSettings& settings, Progress* progress,
+    const ChannelImage* givenFlow)
+{
+    validate(settings);
+    checkFrames(frames);
+    const int W = frames[0].width(), H = frames[0].height();
+    ExampleDecomposition ex;
+    if (progress) progress->begin("average");
+    ex.average = meanImage(frames);
+    for (ChannelImage& f : frames) {
+        float* d = f.data().data();
+        const float* a = ex.average.data().data();
+        parallelFor(f.data().size(), 1 << 14, [&](size_t b, size_t e) {
+            for (size_t q = b; q < e; ++q) d[q] -= a[q];
+        });
+    }
+    if (givenFlow) {
+        if (givenFlow->channels() != 2 || givenFlow->width() != W || givenFlow->height() != H)
+            throw ValueError("the given example flow must be a 2-channel " + std::to_string(W) + "x" + std::to_string(H) + " image");
+        ex.flow = *givenFlow;
+        ex.stats.flowGiven = true;
+        ex.stats.pairs = int(frames.size()) - 1;
+    } else {
+        ex.flow = trackedMeanFlow(frames, settings, ex.stats, progress);
+    }
+    ex.stats.meanSpeed = meanSpeed(ex.flow);
+
+    // Residuals (eq. 1), written over the differences they no longer need: R_i replaces D_i.
+    if (progress) progress->begin("residuals");
+    ex.first = frames[0];
+    const cv::FlowWarp warp(ex.flow);
+    ChannelImage moved;
+    double sumDiff = 0.0, sumRes = 0.0;
+    const size_t pairs = frames.size() - 1;
+    for (size_t i = 0; i < pairs; ++i) {
+        checkCancelled(progress);
+        if (progress) progress->update(double(i) / double(pairs));
+        warp.apply(frames[i], moved);
+        std::vector<float>& d = frames[i].data();
+        const std::vector<float>& next = frames[i + 1].data();
+        const size_t n = d.size();
+        sumDiff += parallelSum(n, 1 << 14, [&](size_t b, size_t e) {
+            double s = 0.0;
+            for (size_t q = b; q < e; ++q) s += double(next[q] - d[q]) * double(next[q] - d[q]);
+            return s;
+        });
+        sumRes += parallelSum(n, 1 << 14, [&](size_t b, size_t e) {
+            double s = 0.0;
+            for (size_t q = b; q < e; ++q) {
+                d[q] = next[q] - moved.data()[q];
+                s += double(d[q]) * double(d[q]);
+            }
+            return s;
+        });
+    }
+    frames.pop_back();
+    const double count = double(pairs) * double(ex.first.data().size());
+    ex.stats.rmsDifference = std::sqrt(sumDiff / count);
+    ex.stats.rmsResidual = std::sqrt(sumRes / count);
+    ex.residuals = std::move(frames);
+    return ex;
+}
+
+std::vector<ChannelImage> reconstructExample(const ExampleDecomposition& ex)
+{
+    std::vector<ChannelImage> out;
+    if (ex.first.empty()) return out;
+    const cv::FlowWarp warp(ex.flow);
+    ChannelImage d = ex.first, moved;
+    out.reserve(ex.residuals.size() + 1);
+    for (size_t i = 0;; ++i) {
+        ChannelImage f = d;
+        for (size_t q = 0; q < f.data().size(); ++q) f.data()[q] += ex.average.data()[q];
+        out.push_back(std::move(f));
+        if (i == ex.residuals.size()) break;
+        warp.apply(d, moved);
+        for (size_t q = 0; q < d.data().size(); ++q) d.data()[q] = moved.data()[q] + ex.residuals[i].data()[q];
+    }
+    return out;
+}
+
+} // namespace turb

@@ -1,0 +1,634 @@
+// animate (seed 001, Okabe et al.): decomposition, flow design, residual transfer, synthesis and
+// histogram matching against analytic answers.
+#include "TestUtil.h"
+
+#include <turb/Animate.h>
+#include <turb/AnimateQuality.h>
+#include <turb/Error.h>
+#include <turb/Parallel.h>
+#include <turb/SteerablePyramid.h>
+
+#include <algorithm>
+#include <cmath>
+#include <iostream>
+#include <random>
+
+using namespace turb;
+
+namespace {
+
+/// Band-limited waves translated by (sx, sy) pixels per frame: frame t is exactly the texture moved by
+/// t (sx, sy), at any sub-pixel shift. Three channels mix the waves differently.
+struct Waves
+{
+    struct Wave
+    {
+        double kx, ky, phase, amp[3];
+    };
+    std::vector<Wave> waves;
+    explicit Waves(unsigned seed, int count = 40, double minLambda = 5.0, double maxLambda = 24.0)
+    {
+        std::mt19937 rng(seed);
+        std::uniform_real_distribution<double> u(0.0, 1.0);
+        for (int i = 0; i < count; ++i) {
+            const double lambda = minLambda + (maxLambda - minLambda) * u(rng), a = 2.0 * M_PI * u(rng), k = 2.0 * M_PI / lambda;
+            waves.push_back({k * std::cos(a), k * std::sin(a), 2.0 * M_PI * u(rng), {0.05 + 0.05 * u(rng), 0.05 * u(rng), 0.05 * u(rng)}});
+        }
+    }
+    ChannelImage frame(int W, int H, double dx, double dy) const
+    {
+        ChannelImage img(W, H, 3);
+        for (int y = 0; y < H; ++y)
+            for (int x = 0; x < W; ++x) {
+                float* p = img.pixel(x, y);
+                p[0] = 0.5f;
+                p[1] = 0.4f;
+                p[2] = 0.3f;
+                for (const Wave& w : waves) {
+                    const double v = std::cos(w.kx * (x - dx) + w.ky * (y - dy) + w.phase);
+                    for (int c = 0; c < 3; ++c) p[c] += float(w.amp[c] * v);
+                }
+            }
+        return img;
+    }
+};
+
+std::vector<ChannelImage> translatedNoise(int W, int H, int N, double sx, double sy, unsigned seed = 7)
+{
+    const Waves waves(seed);
+    std::vector<ChannelImage> frames;
+    for (int t = 0; t < N; ++t) frames.push_back(waves.frame(W, H, sx * t, sy * t));
+    return frames;
+}
+
+double rms(const ChannelImage& a)
+{
+    double s = 0.0;
+    for (float v : a.data()) s += double(v) * v;
+    return std::sqrt(s / double(a.data().size()));
+}
+
+FlowStroke stroke(StrokeKind kind, std::vector<StrokePoint> pts, double speed = 0.0)
+{
+    FlowStroke s;
+    s.kind = kind;
+    s.points = std::move(pts);
+    s.speed = speed;
+    return s;
+}
+
+} // namespace
+
+// ---------------------------------------------------------------------------------------------
+// Decomposition (section 4)
+
+TEST(AnimateAnalysis, Eq4ReconstructsTheExampleExactly)
+{
+    // Translating waves plus blobs that appear and vanish: residuals that no flow explains.
+    std::vector<ChannelImage> frames = translatedNoise(64, 48, 12, 1.25, 0.5);
+    std::mt19937 rng(3);
+    for (ChannelImage& f : frames)
+        for (int b = 0; b < 3; ++b) {
+            const int cx = int(rng() % 64), cy = int(rng() % 48);
+            for (int y = 0; y < 48; ++y)
+                for (int x = 0; x < 64; ++x) f.at(x, y, b) += 0.3f * float(std::exp(-((x - cx) * (x - cx) + (y - cy) * (y - cy)) / 8.0));
+        }
+    const std::vector<ChannelImage> original = frames;
+    const ExampleDecomposition ex = decomposeExample(frames, AnalysisSettings{});
+    ASSERT_EQ(ex.frames(), 12);
+    const std::vector<ChannelImage> back = reconstructExample(ex);
+    ASSERT_EQ(back.size(), original.size());
+    double err = 0.0, norm = 0.0;
+    for (size_t i = 0; i < back.size(); ++i)
+        for (size_t q = 0; q < back[i].data().size(); ++q) {
+            err += std::pow(double(back[i].data()[q]) - original[i].data()[q], 2.0);
+            norm += std::pow(double(original[i].data()[q]) - ex.average.data()[q], 2.0);
+        }
+    EXPECT_LE(std::sqrt(err / norm), 1e-4) << "eq. 4 relative to the differences D";
+    std::cout << "[ measured ] eq. 4 relative error " << std::sqrt(err / norm) << std::endl;
+
+    // Eq. 4 literally (W^i(D_0) + sum W^{i-k-1}(R_k)) for i = 5 equals the incremental form.
+    const int i = 5;
+    ChannelImage lit = ex.first;
+    for (int n = 0; n < i; ++n) lit = warpByFlow(lit, ex.flow);
+    for (int k = 0; k < i; ++k) {
+        ChannelImage r = ex.residuals[size_t(k)];
+        for (int n = 0; n < i - k - 1; ++n) r = warpByFlow(r, ex.flow);
+        for (size_t q = 0; q < lit.data().size(); ++q) lit.data()[q] += r.data()[q];
+    }
+    double e5 = 0.0;
+    for (size_t q = 0; q < lit.data().size(); ++q) e5 = std::max(e5, std::abs(double(lit.data()[q]) + ex.average.data()[q] - original[size_t(i)].data()[q]));
+    EXPECT_LT(e5, 1e-5);
+}
+
+TEST(AnimateAnalysis, TranslatedNoiseGivesItsShiftAndSmallResiduals)
+{
+    const double sx = 1.5, sy = -0.5;
+    const ExampleDecomposition ex = decomposeExample(translatedNoise(96, 80, 24, sx, sy), AnalysisSettings{});
+    EXPECT_GE(ex.stats.pairsUsed, 20);
+    EXPECT_GE(ex.stats.tracksPerPair, 30.0);
+    std::vector<double> err;
+    for (int y = 10; y < 70; ++y)
+        for (int x = 10; x < 86; ++x) err.push_back(std::hypot(ex.flow.at(x, y, 0) - sx, ex.flow.at(x, y, 1) - sy));
+    std::sort(err.begin(), err.end());
+    EXPECT_LT(err[err.size() / 2], 0.05) << "median flow error";
+    EXPECT_LT(err[size_t(0.95 * double(err.size()))], 0.1) << "95th percentile flow error";
+    // The residuals are what the flow does not explain: far below the frame differences.
+    EXPECT_LT(ex.stats.rmsResidual, 0.2 * ex.stats.rmsDifference) << ex.stats.rmsResidual << " vs " << ex.stats.rmsDifference;
+    std::cout << "[ measured ] flow error median " << err[err.size() / 2] << " px, 95th percentile " << err[size_t(0.95 * double(err.size()))]
+              << " px; rms residual / rms difference " << ex.stats.rmsResidual / ex.stats.rmsDifference << std::endl;
+}
+
+TEST(AnimateAnalysis, RefusesShortOrMixedExamples)
+{
+    std::vector<ChannelImage> one{ChannelImage(16, 16, 3)};
+    EXPECT_THROW(decomposeExample(one, AnalysisSettings{}), ValueError);
+    std::vector<ChannelImage> mixed{ChannelImage(16, 16, 3), ChannelImage(16, 17, 3)};
+    EXPECT_THROW(decomposeExample(mixed, AnalysisSettings{}), ValueError);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Flow design (3.1, 5.1)
+
+TEST(AnimateDesign, TwoStrokesInterpolateToTheAnalyticField)
+{
+    // Two horizontal speed strokes, speed 1 at y = 10 and 3 at y = 50: phi = r with its linear part
+    // reproduces the linear field s = 1 + (y - 10) / 20 exactly, everywhere.
+    // Two vertical orientation strokes, down at x = 10 and up at x = 70: the raw y component is
+    // 1 - (x - 10) / 30, so the normalised orientation is (0, +1) left of x = 40 and (0, -1) right of it.
+    const int W = 80, H = 60;
+    std::vector<FlowStroke> s;
+    s.push_back(stroke(StrokeKind::Orientation, {{10, 5}, {10, 55}}));
+    s.push_back(stroke(StrokeKind::Orientation, {{70, 55}, {70, 5}}));
+    s.push_back(stroke(StrokeKind::Speed, {{5, 10}, {75, 10}}, 1.0));
+    s.push_back(stroke(StrokeKind::Speed, {{5, 50}, {75, 50}}, 3.0));
+    const RoughFlow r = interpolateStrokes(s, W, H, StrokeSettings{});
+    double maxErr = 0.0;
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) maxErr = std::max(maxErr, std::abs(r.speed.at(x, y, 0) - (1.0 + (y - 10) / 20.0)));
+    EXPECT_LT(maxErr, 1e-4);
+    for (int y = 0; y < H; y += 7)
+        for (int x : {0, 12, 30, 38, 42, 55, 79}) {
+            EXPECT_NEAR(r.orientation.at(x, y, 0), 0.0, 1e-4) << x << "," << y;
+            EXPECT_NEAR(r.orientation.at(x, y, 1), x < 40 ? 1.0 : -1.0, 1e-4) << x << "," << y;
+        }
+}
+
+TEST(AnimateDesign, LocalStrokesAreLayersWithTheirMatte)
+{
+    const int W = 80, H = 60;
+    std::vector<FlowStroke> s;
+    s.push_back(stroke(StrokeKind::Orientation, {{5, 30}, {75, 30}}));
+    s.push_back(stroke(StrokeKind::Speed, {{5, 30}, {75, 30}}, 2.0));
+    FlowStroke local = stroke(StrokeKind::Speed, {{40, 5}, {40, 55}}, 6.0);
+    local.local = true;
+    local.size = 10.0;
+    local.alpha = 0.5;
+    s.push_back(local);
+    FlowStroke turn = stroke(StrokeKind::Orientation, {{20, 50}, {20, 10}}); // up, full strength
+    turn.local = true;
+    turn.size = 8.0;
+    s.push_back(turn);
+    const RoughFlow r = interpolateStrokes(s, W, H, StrokeSettings{});
+    EXPECT_NEAR(r.speed.at(40, 30, 0), 0.5 * 6.0 + 0.5 * 2.0, 1e-4) << "on the stroke: alpha blend";
+    EXPECT_NEAR(r.speed.at(43, 30, 0), 4.0, 1e-4) << "inside size/2";
+    EXPECT_NEAR(r.speed.at(51, 30, 0), 2.0, 1e-4) << "beyond the brush size";
+    EXPECT_GT(r.speed.at(47, 30, 0), 2.0);
+    EXPECT_LT(r.speed.at(47, 30, 0), 4.0);
+    EXPECT_NEAR(r.orientation.at(20, 30, 1), -1.0, 1e-4);
+    EXPECT_NEAR(r.orientation.at(60, 30, 0), 1.0, 1e-4);
+}
+
+TEST(AnimateDesign, StrokeErrorsNameTheStroke)
+{
+    std::vector<FlowStroke> s{stroke(StrokeKind::Orientation, {{5, 5}, {95, 5}})};
+    try {
+        validateStrokes(s, 64, 64);
+        FAIL() << "a stroke outside the image must be refused";
+    } catch (const ValueError& e) {
+        EXPECT_NE(std::string(e.what()).find("stroke 0"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("outside"), std::string::npos) << e.what();
+    }
+    EXPECT_THROW(validateStrokes({stroke(StrokeKind::Speed, {{5, 5}, {9, 5}}, 1.0)}, 64, 64), ValueError) << "no orientation stroke";
+    EXPECT_THROW(validateStrokes({stroke(StrokeKind::Orientation, {{5, 5}, {5, 5}})}, 64, 64), ValueError) << "no direction";
+}
+
+TEST(AnimateDesign, RefinementFollowsTheGradientAndFallsBackWhereItVanishes)
+{
+    const int W = 64, H = 48;
+    ChannelImage ramp(W, H, 3);
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x)
+            for (int c = 0; c < 3; ++c) ramp.at(x, y, c) = 0.01f * float(x); // gradient along +x
+    RoughFlow rough;
+    rough.orientation = ChannelImage(W, H, 2);
+    rough.speed = ChannelImage(W, H, 1, 2.0f);
+    const double n = std::hypot(-1.0, 0.5);
+    for (size_t i = 0; i < rough.orientation.pixelCount(); ++i) {
+        rough.orientation.pixel(i)[0] = float(-1.0 / n);
+        rough.orientation.pixel(i)[1] = float(0.5 / n);
+    }
+    RefineSettings rs;
+    rs.gradientFloor = 0.0; // follow the gradient wherever it exists
+    rs.wf = 3.0;            // local: the borders (no gradient there) stay out of the centre
+    const RefinedFlow par = refineFlow(ramp, rough, rs);
+    // Parallel to G = (+x), signed to agree with Phi_o = (-1, 0.5): Psi_o = (-1, 0); Psi_s = (Psi_o . Phi_o) Phi_s.
+    EXPECT_NEAR(par.orientation.at(30, 20, 0), -1.0, 1e-3);
+    EXPECT_NEAR(par.orientation.at(30, 20, 1), 0.0, 1e-3);
+    EXPECT_NEAR(par.speed.at(30, 20, 0), 2.0 / n, 1e-3);
+    rs.orient = GradientOrientation::Perpendicular;
+    const RefinedFlow perp = refineFlow(ramp, rough, rs);
+    EXPECT_NEAR(perp.orientation.at(30, 20, 0), 0.0, 1e-3);
+    EXPECT_NEAR(perp.orientation.at(30, 20, 1), 1.0, 1e-3);
+    EXPECT_NEAR(perp.speed.at(30, 20, 0), 2.0 * 0.5 / n, 1e-3);
+    // A flat image has no gradient: the design is kept as it is.
+    const RefinedFlow flat = refineFlow(ChannelImage(W, H, 3, 0.5f), rough, RefineSettings{});
+    EXPECT_NEAR(flat.flow.at(30, 20, 0), -2.0 / n, 1e-4);
+    EXPECT_NEAR(flat.flow.at(30, 20, 1), 1.0 / n, 1e-4);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Residual transfer (5.2)
+
+TEST(AnimateTransfer, SameFlowsTransferTheResidualsInPlace)
+{
+    // A flow that differs at every position: each target patch's best window is itself, so R' = R.
+    const int W = 72, H = 56;
+    ChannelImage flow(W, H, 2);
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+            flow.at(x, y, 0) = float(0.05 * x + std::sin(0.3 * y));
+            flow.at(x, y, 1) = float(0.07 * y + std::cos(0.2 * x));
+        }
+    TransferSettings ts;
+    ts.downsample = 1;
+    ts.pcaComponents = 64;
+    const TransferMap map = matchResiduals(flow, flow, ts);
+    EXPECT_NEAR(map.stats.meanCost, 0.0, 1e-9);
+    EXPECT_DOUBLE_EQ(map.stats.covered, 1.0);
+    ChannelImage r(W, H, 3);
+    std::mt19937 rng(1);
+    for (float& v : r.data()) v = float(rng() % 1000) / 1000.0f;
+    const ChannelImage rp = map.apply(r);
+    double maxErr = 0.0;
+    for (size_t q = 0; q < r.data().size(); ++q) maxErr = std::max(maxErr, double(std::abs(rp.data()[q] - r.data()[q])));
+    EXPECT_LT(maxErr, 1e-5);
+}
+
+TEST(AnimateTransfer, LappedPastingCoversTheMatteWithUnitWeights)
+{
+    const int W = 64, H = 48;
+    ChannelImage ex(80, 60, 2), tg(W, H, 2), matte(W, H, 1);
+    for (int y = 0; y < 60; ++y)
+        for (int x = 0; x < 80; ++x) {
+            ex.at(x, y, 0) = float(std::sin(0.1 * x));
+            ex.at(x, y, 1) = float(std::cos(0.13 * y));
+        }
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+            tg.at(x, y, 0) = 0.5f;
+            matte.at(x, y, 0) = x < 40 ? 1.0f : 0.0f;
+        }
+    const TransferMap map = matchResiduals(ex, tg, TransferSettings{}, &matte);
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+            double s = 0.0;
+            for (int k = 0; k < TransferMap::kTaps; ++k) s += map.weight(size_t(y) * W + size_t(x), k);
+            EXPECT_NEAR(s, x < 40 ? 1.0 : 0.0, 1e-5) << x << "," << y;
+        }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Synthesis (5.4, 5.5)
+
+TEST(AnimateSynthesis, IncrementalEq7EqualsTheLiteralSum)
+{
+    const int W = 40, H = 32, tau = 4, N = 9;
+    ChannelImage flow(W, H, 2);
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+            flow.at(x, y, 0) = float(1.0 + 0.3 * std::sin(0.2 * y));
+            flow.at(x, y, 1) = float(0.4 * std::cos(0.15 * x));
+        }
+    std::vector<ChannelImage> R;
+    std::mt19937 rng(5);
+    for (int k = 0; k < N - 1; ++k) {
+        ChannelImage r(W, H, 3);
+        for (float& v : r.data()) v = float(int(rng() % 2001) - 1000) / 1000.0f;
+        R.push_back(r);
+    }
+    DifferenceSynthesizer synth(flow, tau);
+    int produced = 0;
+    for (int k = 0; k < N - 1; ++k) {
+        const ChannelImage d = synth.push(R[size_t(k)]);
+        const int i = k + 1;
+        if (i < tau) {
+            EXPECT_TRUE(d.empty());
+            continue;
+        }
+        ++produced;
+        ChannelImage lit(W, H, 3);
+        for (int j = i - tau; j <= i - 1; ++j) {
+            ChannelImage t = R[size_t(j)];
+            for (int n = 0; n < i - j - 1; ++n) t = warpByFlow(t, flow);
+            for (size_t q = 0; q < t.data().size(); ++q) lit.data()[q] += t.data()[q];
+        }
+        double e = 0.0;
+        for (size_t q = 0; q < lit.data().size(); ++q) e = std::max(e, double(std::abs(lit.data()[q] - d.data()[q])));
+        EXPECT_LT(e, 1e-5) << "frame " << i;
+    }
+    EXPECT_EQ(produced, N - tau);
+}
+
+TEST(AnimateSynthesis, Eq8GivesTheMeanAndStdOfC)
+{
+    const int W = 30, H = 20;
+    std::vector<ChannelImage> d(3, ChannelImage(W, H, 3));
+    ChannelImage c(W, H, 3);
+    std::mt19937 rng(9);
+    for (auto& img : d)
+        for (float& v : img.data()) v = 0.3f + float(rng() % 1000) / 300.0f;
+    for (float& v : c.data()) v = -0.2f + float(rng() % 1000) / 5000.0f;
+    const ContrastAdjustment a = contrastAdjustment(d, c);
+    for (auto& img : d) a.apply(img);
+    for (int ch = 0; ch < 3; ++ch) {
+        double s = 0.0, s2 = 0.0, n = 0.0;
+        for (const auto& img : d)
+            for (size_t i = 0; i < img.pixelCount(); ++i) {
+                s += img.pixel(i)[ch];
+                s2 += double(img.pixel(i)[ch]) * img.pixel(i)[ch];
+                n += 1.0;
+            }
+        const MeanStd cs = meanStd(c, ch, 0, 0, W, H);
+        EXPECT_NEAR(s / n, cs.mean, 1e-5);
+        EXPECT_NEAR(std::sqrt(s2 / n - (s / n) * (s / n)), cs.std, 1e-5);
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Pyramids and histogram matching (5.6)
+
+TEST(AnimatePyramids, SteerableAndLaplacianReconstruct)
+{
+    const ChannelImage img = luminance(Waves(11).frame(90, 70, 0.0, 0.0));
+    for (int L : {1, 3}) {
+        const SteerablePyramid p = buildSteerablePyramid(img, L, 4);
+        const ChannelImage back = collapse(p);
+        double e = 0.0;
+        for (size_t q = 0; q < img.data().size(); ++q) e = std::max(e, double(std::abs(back.data()[q] - img.data()[q])));
+        EXPECT_LT(e, 1e-4) << L << " levels";
+        const LaplacianPyramid lp = buildLaplacianPyramid(img, L);
+        const ChannelImage lback = collapse(lp);
+        for (size_t q = 0; q < img.data().size(); ++q) e = std::max(e, double(std::abs(lback.data()[q] - img.data()[q])));
+        EXPECT_LT(e, 1e-4) << L << " levels";
+    }
+    // A pattern varying along x only lands in orientation 0 (theta = 0) of the steerable bands.
+    ChannelImage stripes(96, 96, 1);
+    for (int y = 0; y < 96; ++y)
+        for (int x = 0; x < 96; ++x) stripes.at(x, y, 0) = float(std::sin(2.0 * M_PI * x / 6.0));
+    const SteerablePyramid p = buildSteerablePyramid(stripes, 2, 4);
+    double e0 = 0.0, e2 = 0.0;
+    for (float v : p.bands[0][0].data()) e0 += double(v) * v;
+    for (float v : p.bands[0][2].data()) e2 += double(v) * v;
+    EXPECT_GT(e0, 100.0 * e2);
+}
+
+TEST(AnimateHistogram, MatchesMeanAndStdPerFrameAndPerCell)
+{
+    // Target: waves with a level ramp across x and a contrast ramp down y (x 0.5 .. 1.3), so every cell
+    // differs; frame: finer waves. After matching: mean and std within 2% of the target's, on the whole
+    // frame and in every cell (means relative to max(|mean|, 0.05)).
+    const int W = 128, H = 96;
+    const auto waves = [](unsigned seed, double lmin, double lmax) {
+        Waves w(seed, 40, lmin, lmax);
+        for (auto& v : w.waves)
+            for (double& a : v.amp) a *= 0.4;
+        return w;
+    };
+    ChannelImage target = waves(21, 5.0, 24.0).frame(W, H, 0, 0), frame = waves(22, 3.0, 12.0).frame(W, H, 0, 0);
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x)
+            for (int c = 0; c < 3; ++c) {
+                float& v = target.at(x, y, c);
+                v = 0.2f + 0.3f * float(x) / W + (v - 0.4f) * (0.5f + 0.8f * float(y) / H);
+            }
+    double worstMean = 0.0, worstStd = 0.0;
+    const auto near = [&](const MeanStd& o, const MeanStd& t, const std::string& where) {
+        EXPECT_LE(std::abs(o.mean - t.mean), 0.02 * std::max(std::abs(t.mean), 0.05)) << where;
+        EXPECT_LE(std::abs(o.std - t.std), 0.02 * t.std) << where;
+        worstMean = std::max(worstMean, std::abs(o.mean - t.mean) / std::max(std::abs(t.mean), 0.05));
+        worstStd = std::max(worstStd, std::abs(o.std - t.std) / t.std);
+    };
+    for (HmPyramid mode : {HmPyramid::Steerable, HmPyramid::Laplacian}) {
+        HistogramMatchSettings s;
+        s.pyramid = mode;
+        s.cellSize = 32; // 4 x 3 cells
+        const HistogramMatcher hm(target, s);
+        EXPECT_EQ(hm.gridCols(), 4);
+        EXPECT_EQ(hm.gridRows(), 3);
+        const ChannelImage out = hm.match(frame);
+        for (int c = 0; c < 3; ++c) {
+            near(meanStd(out, c, 0, 0, W, H), meanStd(target, c, 0, 0, W, H), "frame");
+            for (const HmCell& cell : hm.cells())
+                near(meanStd(out, c, cell.x0, cell.y0, cell.x1, cell.y1), meanStd(target, c, cell.x0, cell.y0, cell.x1, cell.y1),
+                    "cell " + std::to_string(cell.x0) + "," + std::to_string(cell.y0));
+        }
+        // Before matching the frame is far from the target in some cell: the test can fail.
+        double worst = 0.0;
+        for (const HmCell& cell : hm.cells()) {
+            const MeanStd f = meanStd(frame, 0, cell.x0, cell.y0, cell.x1, cell.y1), t = meanStd(target, 0, cell.x0, cell.y0, cell.x1, cell.y1);
+            worst = std::max(worst, std::abs(f.std - t.std) / t.std);
+        }
+        EXPECT_GT(worst, 0.2);
+        std::cout << "[ measured ] " << (mode == HmPyramid::Steerable ? "steerable" : "laplacian") << ": worst relative mean error "
+                  << worstMean << ", std error " << worstStd << " (frame and 12 cells, 3 channels)" << std::endl;
+        worstMean = worstStd = 0.0;
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The pipeline
+
+namespace {
+
+/// A small run: translating noise as the example, another texture as the target, one diagonal stroke.
+struct SmallRun
+{
+    std::vector<AnimatedFrame> frames;
+    AnimateStats stats;
+    ChannelImage designed;
+};
+
+SmallRun runSmall(int threads, int N = 14, int tau = 4, bool hm = true)
+{
+    SmallRun run;
+    AnimateInput in;
+    in.exampleFrames = translatedNoise(64, 48, N, 1.0, 0.5);
+    in.target = Waves(31).frame(56, 40, 0, 0);
+    const std::vector<FlowStroke> strokes{stroke(StrokeKind::Orientation, {{5, 5}, {50, 30}}), stroke(StrokeKind::Speed, {{5, 20}, {50, 20}}, 1.2)};
+    in.strokes = &strokes;
+    AnimateSettings s;
+    s.tau = tau;
+    s.histogramMatch = hm;
+    s.hm.cellSize = 28;
+    withThreads(threads, [&] {
+        run.stats = animate(std::move(in), s, [&](const AnimatedFrame& f) { run.frames.push_back(f); }, nullptr,
+            [&](const std::string& name, int, const ChannelImage& img) {
+                if (name == "refined") run.designed = img;
+            });
+    });
+    return run;
+}
+
+} // namespace
+
+TEST(AnimatePipeline, WritesNMinusTauFramesBitIdenticalAtAnyThreadCount)
+{
+    const SmallRun a = runSmall(1), b = runSmall(2);
+    ASSERT_EQ(a.frames.size(), 10u) << "N - tau";
+    ASSERT_EQ(b.frames.size(), 10u);
+    for (size_t i = 0; i < a.frames.size(); ++i) {
+        EXPECT_EQ(a.frames[i].index, int(i));
+        EXPECT_EQ(a.frames[i].exampleIndex, int(i) + 4);
+        EXPECT_EQ(a.frames[i].image.data(), b.frames[i].image.data()) << "frame " << i;
+    }
+    EXPECT_EQ(a.stats.frames, 10);
+}
+
+TEST(AnimatePipeline, RefusesBadInput)
+{
+    AnimateInput in;
+    in.exampleFrames = translatedNoise(32, 32, 5, 1.0, 0.0);
+    in.target = ChannelImage(32, 32, 3, 0.5f);
+    ChannelImage flow(32, 32, 2, 1.0f);
+    in.designedFlow = &flow;
+    AnimateSettings s; // tau 16: 5 frames are too few
+    try {
+        animate(std::move(in), s, [](const AnimatedFrame&) {});
+        FAIL();
+    } catch (const ValueError& e) {
+        EXPECT_NE(std::string(e.what()).find("tau + 2"), std::string::npos) << e.what();
+    }
+    AnimateInput none;
+    none.exampleFrames = translatedNoise(32, 32, 20, 1.0, 0.0);
+    none.target = ChannelImage(32, 32, 3, 0.5f);
+    EXPECT_THROW(animate(std::move(none), s, [](const AnimatedFrame&) {}), ValueError);
+}
+
+TEST(AnimatePipeline, MotionFollowsTheDesign)
+{
+    // The output's own flow analysis, against the designed flow: median angle < 15 degrees, speed
+    // ratio 0.8..1.2 (docs/animate.md). 40 example frames, tau 8: 32 output frames.
+    AnimateInput in;
+    in.exampleFrames = translatedNoise(96, 80, 40, 1.5, -0.5);
+    in.target = Waves(41).frame(96, 80, 0, 0);
+    const std::vector<FlowStroke> strokes{stroke(StrokeKind::Orientation, {{10, 70}, {85, 20}}), stroke(StrokeKind::Speed, {{10, 40}, {85, 40}}, 1.5)};
+    in.strokes = &strokes;
+    AnimateSettings s;
+    s.tau = 8;
+    s.hm.cellSize = 48;
+    std::vector<ChannelImage> out;
+    ChannelImage designed;
+    animate(std::move(in), s, [&](const AnimatedFrame& f) { out.push_back(f.image); }, nullptr,
+        [&](const std::string& name, int, const ChannelImage& img) {
+            if (name == "refined") designed = img;
+        });
+    ASSERT_EQ(out.size(), 32u);
+    const ChannelImage measured = estimateMeanFlow(out, AnalysisSettings{});
+    const FlowAgreement a = compareFlows(measured, designed);
+    EXPECT_LT(a.medianAngleDeg, 15.0);
+    EXPECT_GT(a.medianSpeedRatio, 0.8);
+    EXPECT_LT(a.medianSpeedRatio, 1.2);
+    EXPECT_GT(a.pixels, 0.5);
+    std::cout << "[ measured ] output flow vs design: median angle " << a.medianAngleDeg << " deg, speed ratio " << a.medianSpeedRatio << std::endl;
+}
+
+TEST(AnimateQuality, TemporalStatsOfASinusoid)
+{
+    // Y(t) = sin(w t + phase(x)): temporal std 1/sqrt(2), autocorrelation cos(w L) (long series).
+    const double w = 0.3;
+    TemporalStats ts(5);
+    for (int t = 0; t < 400; ++t) {
+        ChannelImage f(8, 4, 1);
+        for (size_t i = 0; i < f.pixelCount(); ++i) f.pixel(i)[0] = float(std::sin(w * t + 0.7 * double(i)));
+        ts.add(f);
+    }
+    const TemporalSummary s = ts.summary();
+    EXPECT_NEAR(s.temporalStd, 1.0 / std::sqrt(2.0), 5e-3);
+    for (int L = 1; L <= 5; ++L) EXPECT_NEAR(s.autocorrelation[size_t(L - 1)], std::cos(w * L), 0.02) << "lag " << L;
+}
+
+namespace {
+
+/// A stationary dynamic texture, the model of section 4.5: D_{i+1} = rho shift(D_i) + sqrt(1 - rho^2) N_i,
+/// with shift a whole-pixel translation (wrapping) and N_i smooth noise, over a smooth average A.
+std::vector<ChannelImage> dynamicTexture(int W, int H, int N, double rho, unsigned seed)
+{
+    std::mt19937 rng(seed);
+    std::normal_distribution<float> g(0.0f, 1.0f);
+    const auto noise = [&] {
+        ChannelImage n(W, H, 3);
+        for (float& v : n.data()) v = g(rng);
+        n = gaussianBlur(n, 1.5);
+        for (float& v : n.data()) v *= 0.25f;
+        return n;
+    };
+    ChannelImage d = noise();
+    std::vector<ChannelImage> frames;
+    for (int i = 0; i < N; ++i) {
+        ChannelImage f(W, H, 3);
+        for (int y = 0; y < H; ++y)
+            for (int x = 0; x < W; ++x)
+                for (int c = 0; c < 3; ++c) f.at(x, y, c) = 0.3f + 0.2f * float(x) / W + 0.1f * float(c) + d.at(x, y, c);
+        frames.push_back(f);
+        const ChannelImage n = noise();
+        ChannelImage next(W, H, 3);
+        for (int y = 0; y < H; ++y)
+            for (int x = 0; x < W; ++x)
+                for (int c = 0; c < 3; ++c)
+                    next.at(x, y, c) = float(rho) * d.at((x - 1 + W) % W, y, c) + float(std::sqrt(1.0 - rho * rho)) * n.at(x, y, c);
+        d = next;
+    }
+    return frames;
+}
+
+} // namespace
+
+TEST(AnimateQuality, OutputFlickersLikeTheExample)
+{
+    // The example's own frame as the target and its own flow (1, 0) as the design: the output's temporal
+    // std and its autocorrelation at lags 1..tau should be close to the example's (docs/animate.md).
+    const int N = 48, tau = 16;
+    std::vector<ChannelImage> frames = dynamicTexture(80, 64, N, 0.8, 13); // memory ~ 1/(1 - rho) = 5 frames << tau
+    // Compared over the same number of frames (N - tau): sample autocorrelations of short series are
+    // biased low at large lags, by an amount that depends on the length.
+    TemporalStats exStats(tau);
+    for (int i = tau; i < N; ++i) exStats.add(frames[size_t(i)]);
+    ChannelImage v(80, 64, 2);
+    for (size_t i = 0; i < v.pixelCount(); ++i) v.pixel(i)[0] = 1.0f;
+    AnimateInput in;
+    in.target = frames[N / 2];
+    in.exampleFrames = frames;
+    in.designedFlow = &v;
+    AnimateSettings s;
+    s.tau = tau;
+    s.hm.cellSize = 40;
+    TemporalStats outStats(tau);
+    animate(std::move(in), s, [&](const AnimatedFrame& f) { outStats.add(f.image); });
+    const TemporalSummary e = exStats.summary(), o = outStats.summary();
+    std::string ac;
+    for (int L = 1; L <= tau; ++L) ac += " " + std::to_string(o.autocorrelation[size_t(L - 1)]) + "/" + std::to_string(e.autocorrelation[size_t(L - 1)]);
+    EXPECT_GT(o.temporalStd, 0.8 * e.temporalStd) << o.temporalStd << " vs " << e.temporalStd;
+    EXPECT_LT(o.temporalStd, 1.25 * e.temporalStd) << o.temporalStd << " vs " << e.temporalStd;
+    // Short lags carry the motion: close. Longer lags see the patch mosaic of the transfer (terms cross
+    // into patches with other offsets after about patch / speed frames): looser.
+    double sum = 0.0;
+    for (int L = 1; L <= tau; ++L) {
+        const double d = std::abs(o.autocorrelation[size_t(L - 1)] - e.autocorrelation[size_t(L - 1)]);
+        sum += d;
+        EXPECT_LT(d, L <= 3 ? 0.05 : 0.15) << "lag " << L << ":" << ac;
+    }
+    EXPECT_LT(sum / tau, 0.08) << ac;
+    std::cout << "[ measured ] temporal std output/example " << o.temporalStd / e.temporalStd << "; mean |autocorrelation difference| over lags 1.."
+              << tau << " " << sum / tau << "; lag 1 " << o.autocorrelation[0] << "/" << e.autocorrelation[0] << std::endl;
+}

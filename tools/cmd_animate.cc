@@ -1,0 +1,672 @@
+// vdbturb animate: animate a still picture of fluid from a video example (seed 001, Okabe et al.).
+#include "Commands.h"
+#include "Console.h"
+#include "RunReport.h"
+
+#include <scenes/Animate2D.h>
+#include <turb/Animate.h>
+#include <turb/AnimateQuality.h>
+#include <turb/CameraBridge.h>
+#include <turb/Error.h>
+#include <turb/Parallel.h>
+#include <turb/Render.h>
+#include <turbio/ImageIO.h>
+#include <turbio/Sequence.h>
+#include <turbio/Strokes.h>
+#include <turbio/Vdb.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <optional>
+#include <sstream>
+
+namespace vdbturb {
+
+namespace {
+
+struct AnimateArgs
+{
+    std::string example, exampleCache, frames;
+    std::string camera = "front", cameraPos, lookAt, cameraUp = "0,0,1";
+    double fov = 40.0;
+    int width = 0, height = 0;
+    float extinction = 6.0f, step = 0.5f;
+    std::string target, targetAlpha;
+    std::string strokes, flow;
+    bool flowYUp = false;
+    std::string refine = "auto", orient = "parallel", hm = "steerable", hmGrid = "auto";
+    std::string out, dump, sheet, exportBuiltin;
+    int start = 1;
+    bool json = false, noClobber = false, measure = false;
+    turbio::ReadOptions read;
+    turb::AnimateSettings settings;
+};
+
+std::string fmt(const char* f, double v)
+{
+    char b[64];
+    std::snprintf(b, sizeof(b), f, v);
+    return b;
+}
+
+std::vector<double> numbers(const std::string& s, char sep, size_t n, const std::string& what)
+{
+    std::vector<double> v;
+    std::stringstream ss(s);
+    std::string item;
+    while (std::getline(ss, item, sep)) {
+        try {
+            size_t pos = 0;
+            v.push_back(std::stod(item, &pos));
+            if (pos != item.size()) throw std::invalid_argument(item);
+        } catch (...) {
+            v.clear();
+            break;
+        }
+    }
+    if (v.size() != n) throw turb::ValueError(what + ": '" + s + "' is not " + std::to_string(n) + " numbers separated by '" + sep + "'");
+    return v;
+}
+
+turb::Vec3d vec3(const std::string& s, const std::string& what)
+{
+    const auto v = numbers(s, ',', 3, what);
+    return turb::Vec3d(v[0], v[1], v[2]);
+}
+
+/// "builtin:river[:WxH[xN]]" -> sizes; false when `text` is not a built-in.
+bool builtin(const std::string& text, int& w, int& h, int& n)
+{
+    if (text.rfind("builtin:river", 0) != 0) return false;
+    const size_t c = text.find(':', 8);
+    if (c == std::string::npos) return true;
+    const std::string spec = text.substr(c + 1);
+    const size_t x = std::count(spec.begin(), spec.end(), 'x');
+    const auto v = numbers(spec, 'x', x + 1, "built-in size");
+    if (v.size() < 2 || v.size() > 3) throw turb::ValueError(text + ": the size is WxH or WxHxN");
+    w = int(v[0]);
+    h = int(v[1]);
+    if (v.size() == 3) n = int(v[2]);
+    return true;
+}
+
+turb::ChannelImage rgbOfImage(const turb::RgbaImage& img)
+{
+    turb::ChannelImage c(img.width(), img.height(), 3);
+    for (size_t i = 0; i < img.size(); ++i)
+        for (int k = 0; k < 3; ++k) c.pixel(i)[k] = img.pixels()[i][k];
+    return c;
+}
+
+turb::ChannelImage fromPicture(const turb::Image& img)
+{
+    turb::ChannelImage c(img.width(), img.height(), 3);
+    for (int y = 0; y < img.height(); ++y)
+        for (int x = 0; x < img.width(); ++x)
+            for (int k = 0; k < 3; ++k) c.at(x, y, k) = img.at(x, y)[k];
+    return c;
+}
+
+// ---------------------------------------------------------------------------------------------
+// The example video: an image sequence, a VDB cache through a camera, or the built-in river.
+
+struct Example
+{
+    std::vector<turb::ChannelImage> frames;
+    std::optional<turb::ChannelImage> flow; // a cache's opacity-weighted projected motion
+    std::string label;
+    std::vector<int> numbers;
+};
+
+Example readExample(const AnimateArgs& a, int tau)
+{
+    Example ex;
+    const int sources = int(!a.example.empty()) + int(!a.exampleCache.empty());
+    if (sources != 1) throw turb::ValueError("give one video example: --example PATTERN (images) or --example-cache PATTERN (VDB through --camera)");
+    int bw = 320, bh = 240, bn = 60;
+    if (!a.example.empty() && builtin(a.example, bw, bh, bn)) {
+        ex.frames = turb::scenes::riverExample({bw, bh, bn, 1, 1.0});
+        ex.label = a.example;
+        for (int i = 0; i < bn; ++i) ex.numbers.push_back(i + 1);
+        return ex;
+    }
+    const turbio::Sequence seq = turbio::resolveSequence(a.example.empty() ? a.exampleCache : a.example, a.frames);
+    if (!seq.missing.empty()) throw turb::IoError(seq.path(seq.missing.front()) + ": missing (frames " + turbio::formatFrameList(seq.missing) + ")");
+    ex.label = seq.pattern.str();
+    ex.numbers = seq.frames;
+    if (int(seq.frames.size()) < tau + 2)
+        throw turb::IoError(seq.pattern.str() + ": the video example has " + std::to_string(seq.frames.size()) + " frame" +
+                            (seq.frames.size() == 1 ? "" : "s") + "; tau = " + std::to_string(tau) + " needs at least tau + 2 = " + std::to_string(tau + 2));
+    if (!a.example.empty()) {
+        // Headers first: a frame of another size stops the run before any pixel is read.
+        const turbio::ImageFileInfo first = turbio::inspectImage(seq.path(seq.frames.front()));
+        for (int f : seq.frames) {
+            const turbio::ImageFileInfo info = turbio::inspectImage(seq.path(f));
+            if (info.width != first.width || info.height != first.height)
+                throw turb::IoError(seq.path(f) + ": " + std::to_string(info.width) + "x" + std::to_string(info.height) + ", but " +
+                                    seq.path(seq.frames.front()) + " is " + std::to_string(first.width) + "x" + std::to_string(first.height) +
+                                    ": every example frame must have one size");
+        }
+        for (int f : seq.frames) ex.frames.push_back(rgbOfImage(turbio::readImage(seq.path(f))));
+        return ex;
+    }
+    // A cache: renders through the camera are the frames; the projected velocity gives v.
+    turb::BridgeSettings bridge;
+    turb::CameraSettings& c = bridge.camera;
+    if (a.camera == "perspective") {
+        if (a.cameraPos.empty() || a.lookAt.empty()) throw turb::ValueError("--camera perspective needs --camera-pos X,Y,Z and --look-at X,Y,Z");
+        c.perspective = true;
+        c.position = vec3(a.cameraPos, "--camera-pos");
+        c.lookAt = vec3(a.lookAt, "--look-at");
+        c.up = vec3(a.cameraUp, "--camera-up");
+        c.fovDegrees = a.fov;
+    } else {
+        c.view = a.camera == "side" ? turb::View::Side : a.camera == "top" ? turb::View::Top : turb::View::Front;
+    }
+    c.width = a.width;
+    c.height = a.height;
+    bridge.extinction = a.extinction;
+    bridge.stepVoxels = a.step;
+    turbio::ReadOptions ro = a.read;
+    ro.readExtras = false;
+    turb::ChannelImage num, den;
+    for (int f : seq.frames) {
+        const std::string path = seq.path(f);
+        const turb::Frame frame = turbio::readFrame(path, f, ro);
+        turb::CameraView view;
+        try {
+            view = turb::viewThroughCamera(frame, bridge);
+        } catch (const turb::ValueError& e) {
+            throw turb::IoError(path + ": " + e.what());
+        }
+        turb::DensityRenderSettings dr;
+        dr.camera = c;
+        dr.camera->width = view.alpha.width();
+        dr.camera->height = view.alpha.height();
+        dr.extinction = a.extinction;
+        dr.stepVoxels = a.step;
+        ex.frames.push_back(fromPicture(turb::renderDensity(frame.density, dr)));
+        if (num.empty()) {
+            num = turb::ChannelImage(view.alpha.width(), view.alpha.height(), 2);
+            den = turb::ChannelImage(view.alpha.width(), view.alpha.height(), 1);
+        } else if (!view.alpha.sameSize(den)) {
+            throw turb::IoError(path + ": the camera image changed size (the cache's box changed); give --width and --height");
+        }
+        for (size_t i = 0; i < den.pixelCount(); ++i) {
+            const float w = view.alpha.pixel(i)[0];
+            num.pixel(i)[0] += w * view.motion.pixel(i)[0];
+            num.pixel(i)[1] += w * view.motion.pixel(i)[1];
+            den.pixel(i)[0] += w;
+        }
+    }
+    for (size_t i = 0; i < den.pixelCount(); ++i) {
+        const float w = den.pixel(i)[0];
+        num.pixel(i)[0] = w > 1e-6f ? num.pixel(i)[0] / w : 0.0f;
+        num.pixel(i)[1] = w > 1e-6f ? num.pixel(i)[1] / w : 0.0f;
+    }
+    ex.flow = std::move(num);
+    ex.label += " (" + a.camera + " camera)";
+    return ex;
+}
+
+// ---------------------------------------------------------------------------------------------
+// The target and its flow design.
+
+struct Target
+{
+    turb::ChannelImage rgb;
+    std::vector<float> alpha;          // output alpha per pixel (the still's own, 1 without one)
+    std::optional<turb::ChannelImage> matte;
+    std::string colorSpace, label;
+    std::optional<turbio::StrokeFile> strokes;
+    std::optional<turb::ChannelImage> flow;
+};
+
+Target readTarget(const AnimateArgs& a)
+{
+    Target t;
+    if (a.target.empty()) throw turb::ValueError("give the still to animate: --target IMAGE");
+    int bw = 320, bh = 240, bn = 0;
+    if (builtin(a.target, bw, bh, bn)) {
+        t.rgb = turb::scenes::riverStill(bw, bh, 2);
+        t.matte = turb::scenes::riverMatte(bw, bh);
+        t.colorSpace = "sRGB";
+    } else {
+        turbio::ImageFileInfo info;
+        const turb::RgbaImage img = turbio::readImage(a.target, &info);
+        t.rgb = rgbOfImage(img);
+        t.colorSpace = img.colorSpace;
+        if (info.hasAlpha)
+            for (const auto& p : img.pixels()) t.alpha.push_back(p[3]);
+    }
+    t.label = a.target;
+    if (t.alpha.empty()) t.alpha.assign(t.rgb.pixelCount(), 1.0f);
+    const int W = t.rgb.width(), H = t.rgb.height();
+    if (!a.targetAlpha.empty()) {
+        const turb::RgbaImage m = turbio::readImage(a.targetAlpha);
+        if (m.width() != W || m.height() != H)
+            throw turb::IoError(a.targetAlpha + ": the matte is " + std::to_string(m.width()) + "x" + std::to_string(m.height()) + ", the target " +
+                                a.target + " is " + std::to_string(W) + "x" + std::to_string(H));
+        t.matte = turb::channelOf(m, 0);
+        float mx = 0.0f;
+        for (float v : t.matte->data()) mx = std::max(mx, v);
+        if (!(mx > 0.0f)) throw turb::IoError(a.targetAlpha + ": the matte is empty (zero everywhere): nothing would move");
+    }
+    if (a.strokes.empty() && a.flow.empty())
+        throw turb::IoError(a.target + ": no flow design for the target: give --flow-strokes FILE.json or --flow IMAGE");
+    if (!a.strokes.empty() && !a.flow.empty()) throw turb::ValueError("give --flow-strokes or --flow, not both");
+    if (!a.strokes.empty()) {
+        t.strokes = turbio::readFlowStrokes(a.strokes, W, H);
+    } else {
+        const turb::RgbaImage f = turbio::readImage(a.flow);
+        if (f.width() != W || f.height() != H)
+            throw turb::IoError(a.flow + ": the flow is " + std::to_string(f.width()) + "x" + std::to_string(f.height()) + ", the target " + a.target +
+                                " is " + std::to_string(W) + "x" + std::to_string(H));
+        turb::ChannelImage v(W, H, 2);
+        for (size_t i = 0; i < f.size(); ++i) {
+            v.pixel(i)[0] = f.pixels()[i][0];
+            v.pixel(i)[1] = a.flowYUp ? -f.pixels()[i][1] : f.pixels()[i][1];
+            if (!std::isfinite(v.pixel(i)[0]) || !std::isfinite(v.pixel(i)[1])) throw turb::IoError(a.flow + ": the flow holds NaN or Inf");
+        }
+        t.flow = std::move(v);
+    }
+    return t;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Pictures: --dump and --sheet.
+
+turb::Image picture(const turb::ChannelImage& img)
+{
+    turb::Image p(img.width(), img.height());
+    for (int y = 0; y < img.height(); ++y)
+        for (int x = 0; x < img.width(); ++x) {
+            const float* v = img.pixel(x, y);
+            const int C = img.channels();
+            p.at(x, y) = turb::Rgb(std::clamp(v[0], 0.0f, 1.0f), std::clamp(v[std::min(1, C - 1)], 0.0f, 1.0f), std::clamp(v[std::min(2, C - 1)], 0.0f, 1.0f));
+        }
+    return p;
+}
+
+/// A signed image as grey around 0.5 (+-range maps to 0..1), luminance of its channels.
+turb::Image signedPicture(const turb::ChannelImage& img, float range)
+{
+    const turb::ChannelImage y = turb::luminance(img);
+    turb::Image p(img.width(), img.height());
+    for (int yy = 0; yy < img.height(); ++yy)
+        for (int x = 0; x < img.width(); ++x) p.at(x, yy) = turb::Rgb(std::clamp(0.5f + 0.5f * y.at(x, yy, 0) / range, 0.0f, 1.0f));
+    return p;
+}
+
+/// A 2D flow as line integral convolution, tinted by speed (black..0.5 * max).
+turb::Image flowPicture(const turb::ChannelImage& m)
+{
+    const int W = m.width(), H = m.height();
+    turb::VectorField v(turb::CoordBBox(turb::Coord(0, 0, 0), turb::Coord(W - 1, H - 1, 0)), turb::Lattice{1.0, {0, 0, 0}});
+    float vmax = 1e-6f;
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+            v(x, H - 1 - y, 0) = turb::Vec3f(m.at(x, y, 0), -m.at(x, y, 1), 0.0f);
+            vmax = std::max(vmax, std::hypot(m.at(x, y, 0), m.at(x, y, 1)));
+        }
+    turb::LicSettings ls;
+    ls.view = turb::View::Top;
+    ls.width = W;
+    turb::Image lic = turb::renderLic(v, ls);
+    for (int y = 0; y < lic.height() && y < H; ++y)
+        for (int x = 0; x < lic.width() && x < W; ++x) {
+            const turb::Rgb c = turb::colormap(turb::Colormap::Viridis, std::hypot(m.at(x, y, 0), m.at(x, y, 1)) / vmax);
+            const float l = lic.at(x, y)[0];
+            lic.at(x, y) = turb::Rgb(c[0] * (0.35f + 0.65f * l), c[1] * (0.35f + 0.65f * l), c[2] * (0.35f + 0.65f * l));
+        }
+    return lic;
+}
+
+/// Halves a picture until it is at most `maxWidth` wide (box means), for sheets.
+turb::Image fit(const turb::Image& p, int maxWidth)
+{
+    turb::Image cur = p;
+    while (cur.width() > maxWidth) {
+        turb::Image h((cur.width() + 1) / 2, (cur.height() + 1) / 2);
+        for (int y = 0; y < h.height(); ++y)
+            for (int x = 0; x < h.width(); ++x) {
+                turb::Rgb s(0.0f);
+                int n = 0;
+                for (int j = 0; j < 2; ++j)
+                    for (int i = 0; i < 2; ++i)
+                        if (cur.inside(2 * x + i, 2 * y + j)) {
+                            s += cur.at(2 * x + i, 2 * y + j);
+                            ++n;
+                        }
+                h.at(x, y) = s / float(n);
+            }
+        cur = h;
+    }
+    return cur;
+}
+
+void writeData(const std::string& path, const turb::ChannelImage& img, bool noClobber)
+{
+    turb::RgbaImage out(img.width(), img.height());
+    const int C = img.channels();
+    for (size_t i = 0; i < out.size(); ++i) {
+        const float* v = img.pixel(i);
+        out.pixels()[i] = turb::Rgba(v[0], C > 1 ? v[1] : v[0], C > 2 ? v[2] : (C > 1 ? 0.0f : v[0]), 1.0f);
+    }
+    turbio::ImageWriteOptions o;
+    o.noClobber = noClobber;
+    o.alpha = false;
+    o.bits = turbio::PixelBits::Float;
+    turbio::ensureParentDirectory(path);
+    turbio::writeImage(path, out, o);
+}
+
+/// What the contact sheet shows, gathered during the run.
+struct SheetParts
+{
+    std::vector<std::pair<int, turb::Image>> example; // example frame index, picture
+    turb::ChannelImage A, v, R0, rough, refined, Aprime;
+    std::vector<std::pair<int, turb::Image>> outputs;
+};
+
+turb::Image contactSheet(const SheetParts& p, const turb::Image& target, const std::string& title)
+{
+    const int w = 240;
+    std::vector<turb::Image> pics; // owned, referenced by the cells
+    pics.reserve(32);
+    const auto add = [&](const turb::Image& img) -> const turb::Image* {
+        pics.push_back(fit(img, w));
+        return &pics.back();
+    };
+    float rr = 1e-6f;
+    for (float v : p.R0.data()) rr = std::max(rr, std::abs(v));
+    std::vector<std::vector<turb::SheetCell>> rows(3);
+    for (const auto& [i, img] : p.example) rows[0].push_back({add(img), "example frame " + std::to_string(i)});
+    rows[0].push_back({add(picture(p.A)), "average A"});
+    rows[0].push_back({add(flowPicture(p.v)), "flow v"});
+    rows[0].push_back({add(signedPicture(p.R0, 0.5f * rr)), "residual R0"});
+    rows[1].push_back({add(target), "target"});
+    rows[1].push_back({add(flowPicture(p.rough)), "rough flow"});
+    rows[1].push_back({add(flowPicture(p.refined)), "refined flow"});
+    rows[1].push_back({add(picture(p.Aprime)), "A'"});
+    for (const auto& [i, img] : p.outputs) rows[2].push_back({add(img), "output " + std::to_string(i)});
+    return turb::contactSheet(rows, {"example", "design", "output"}, title, 1);
+}
+
+// ---------------------------------------------------------------------------------------------
+
+nlohmann::json statsJson(const turb::AnimateStats& st)
+{
+    nlohmann::json j;
+    j["example"] = {{"pairs", st.analysis.pairs}, {"pairs_tracked", st.analysis.pairsUsed}, {"tracks_per_pair", st.analysis.tracksPerPair},
+        {"mean_speed", st.analysis.meanSpeed}, {"rms_difference", st.analysis.rmsDifference}, {"rms_residual", st.analysis.rmsResidual},
+        {"flow_given", st.analysis.flowGiven}};
+    j["design_mean_speed"] = st.designMeanSpeed;
+    j["transfer"] = {{"patches", st.transfer.patches}, {"pasted", st.transfer.pasted}, {"mean_cost", st.transfer.meanCost},
+        {"max_cost", st.transfer.maxCost}, {"covered", st.transfer.covered}};
+    j["eq8"] = {{"alpha", st.alpha}, {"beta", st.beta}, {"mean_d", st.meanD}, {"sigma_d", st.sigmaD}, {"sigma_c", st.sigmaC}};
+    j["hm_grid"] = {st.gridCols, st.gridRows};
+    j["stages_s"] = {{"analysis", st.secondsAnalysis}, {"design", st.secondsDesign}, {"transfer", st.secondsTransfer},
+        {"average", st.secondsAverage}, {"synthesis", st.secondsSynthesis}, {"matching", st.secondsMatching}};
+    return j;
+}
+
+void configure(AnimateArgs& a)
+{
+    turb::AnimateSettings& s = a.settings;
+    s.refine.orient = a.orient == "perpendicular" ? turb::GradientOrientation::Perpendicular : turb::GradientOrientation::Parallel;
+    s.refineFlow = a.refine == "on" || (a.refine == "auto" && a.flow.empty());
+    s.histogramMatch = a.hm != "off";
+    s.hm.pyramid = a.hm == "laplacian" ? turb::HmPyramid::Laplacian : turb::HmPyramid::Steerable;
+    if (a.hmGrid == "off") {
+        s.hm.gridCols = s.hm.gridRows = 1;
+    } else if (a.hmGrid != "auto") {
+        const auto v = numbers(a.hmGrid, 'x', 2, "--hm-grid");
+        if (v[0] < 1 || v[1] < 1) throw turb::ValueError("--hm-grid: cells per axis must be >= 1");
+        s.hm.gridCols = int(v[0]);
+        s.hm.gridRows = int(v[1]);
+    }
+    turb::validate(s);
+}
+
+int exportBuiltin(const AnimateArgs& a)
+{
+    int w = 320, h = 240, n = 60;
+    if (!builtin(a.example.empty() ? "builtin:river" : a.example, w, h, n)) throw turb::ValueError("--export-builtin needs --example builtin:river[:WxHxN] (or none)");
+    int tw = w, th = h, tn = 0;
+    if (!a.target.empty() && !builtin(a.target, tw, th, tn)) throw turb::ValueError("--export-builtin: --target must be builtin:river[:WxH] (or none)");
+    const std::string dir = a.exportBuiltin;
+    const auto frames = turb::scenes::riverExample({w, h, n, 1, 1.0});
+    turbio::ImageWriteOptions o;
+    o.alpha = false;
+    o.noClobber = a.noClobber;
+    const auto rgba = [](const turb::ChannelImage& c) {
+        turb::RgbaImage r(c.width(), c.height());
+        for (size_t i = 0; i < r.size(); ++i)
+            r.pixels()[i] = turb::Rgba(c.pixel(i)[0], c.pixel(i)[c.channels() > 1 ? 1 : 0], c.pixel(i)[c.channels() > 2 ? 2 : 0], 1.0f);
+        r.colorSpace = "sRGB";
+        return r;
+    };
+    const turbio::FramePattern pat = turbio::FramePattern::parse(dir + "/river.####.png");
+    turbio::ensureParentDirectory(pat.format(1));
+    for (int i = 0; i < n; ++i) turbio::writeImage(pat.format(i + 1), rgba(frames[size_t(i)]), o);
+    turbio::writeImage(dir + "/still.png", rgba(turb::scenes::riverStill(tw, th, 2)), o);
+    turbio::writeImage(dir + "/matte.png", rgba(turb::scenes::riverMatte(tw, th)), o);
+    logInfo("animate: wrote " + std::to_string(n) + " example frames " + pat.str() + ", " + dir + "/still.png and " + dir + "/matte.png");
+    return kOk;
+}
+
+int runAnimate(AnimateArgs& a)
+{
+    if (!a.exportBuiltin.empty()) return exportBuiltin(a);
+    configure(a);
+    if (a.out.empty()) {
+        logError("give --out PATTERN (.exr, .png or .tif with #### for the frame)");
+        return kUsage;
+    }
+    try {
+        turbio::outputFormatOf(a.out);
+    } catch (const turb::ValueError& e) {
+        logError(e.what());
+        return kUsage;
+    }
+    const turbio::FramePattern outPattern = turbio::FramePattern::parse(a.out);
+    if (!outPattern.numbered()) throw turb::ValueError("--out " + a.out + " has no frame token (####): animate writes a sequence");
+    const turb::AnimateSettings& s = a.settings;
+
+    // Everything is read and checked before the first file is written.
+    Target target = readTarget(a);
+    Example example = readExample(a, s.tau);
+    const int N = int(example.frames.size());
+    logInfo("animate: example " + example.label + " (" + std::to_string(N) + " frames, " + std::to_string(example.frames[0].width()) + "x" +
+            std::to_string(example.frames[0].height()) + "), target " + target.label + " (" + std::to_string(target.rgb.width()) + "x" +
+            std::to_string(target.rgb.height()) + (target.matte ? ", matte" : "") + "), " +
+            (target.strokes ? std::to_string(target.strokes->strokes.size()) + " strokes" : "dense flow " + a.flow) + ", tau " + std::to_string(s.tau) +
+            " -> " + std::to_string(N - s.tau) + " frames");
+    if (globals().dryRun) {
+        for (int j = 0; j < N - s.tau; ++j) logInfo("frame " + std::to_string(a.start + j) + " -> " + outPattern.format(a.start + j));
+        return kOk;
+    }
+
+    // Quality measures need the example before the library consumes it.
+    std::optional<turb::TemporalStats> exTemporal, outTemporal;
+    std::vector<turb::ChannelImage> outLuma;
+    std::optional<turb::FlowAgreement> exampleAgreement;
+    if (a.measure) {
+        exTemporal.emplace(s.tau);
+        for (int i = s.tau; i < N; ++i) exTemporal->add(example.frames[size_t(i)]);
+        outTemporal.emplace(s.tau, target.matte ? &*target.matte : nullptr);
+        // Calibration of the measurement: the same tracking on the example against the cache's own flow.
+        if (example.flow)
+            turb::withThreads(globals().threads, [&] {
+                exampleAgreement = turb::compareFlows(turb::estimateMeanFlow(example.frames, s.analysis), *example.flow, nullptr, 0.25);
+            });
+    }
+    SheetParts sheet;
+    if (!a.sheet.empty())
+        for (int i : {0, N / 2, N - 1}) sheet.example.emplace_back(example.numbers[size_t(i)], picture(example.frames[size_t(i)]));
+
+    turb::AnimateInput in;
+    in.exampleFrames = std::move(example.frames);
+    in.exampleFlow = example.flow ? &*example.flow : nullptr;
+    in.target = target.rgb;
+    in.matte = target.matte ? &*target.matte : nullptr;
+    if (target.strokes) in.strokes = &target.strokes->strokes;
+    if (target.flow) in.designedFlow = &*target.flow;
+
+    turb::ChannelImage designed;
+    const auto inspect = [&](const std::string& name, int index, const turb::ChannelImage& img) {
+        if (name == "refined") designed = img;
+        if (!a.sheet.empty()) {
+            if (name == "A") sheet.A = img;
+            else if (name == "v") sheet.v = img;
+            else if (name == "R" && index == 0) sheet.R0 = img;
+            else if (name == "rough") sheet.rough = img;
+            else if (name == "refined") sheet.refined = img;
+            else if (name == "Aprime") sheet.Aprime = img;
+        }
+        if (a.dump.empty() || name == "Dsecond" || name == "gradient") return;
+        const std::string file = index < 0 ? a.dump + "/" + name + ".exr" : turbio::FramePattern::parse(a.dump + "/" + name + ".####.exr").format(index);
+        writeData(file, img, a.noClobber);
+        if (name == "v" || name == "rough" || name == "refined") turbio::writeImage(a.dump + "/" + name + ".png", flowPicture(img));
+    };
+
+    int result = kOk;
+    turb::withThreads(globals().threads, [&] {
+        RunReport report("animate", a.json);
+        const int count = N - s.tau;
+        ConsoleProgress stages(0, count, a.start);
+        const std::vector<int> sheetFrames{0, count / 3, 2 * count / 3, count - 1};
+        const turb::AnimateStats st = turb::animate(
+            std::move(in), s,
+            [&](const turb::AnimatedFrame& f) {
+                stages.clear();
+                const auto tw = std::chrono::steady_clock::now();
+                const int number = a.start + f.index;
+                const std::string path = outPattern.format(number);
+                turb::RgbaImage img(f.image.width(), f.image.height());
+                for (size_t i = 0; i < img.size(); ++i) {
+                    const float* p = f.image.pixel(i);
+                    img.pixels()[i] = turb::Rgba(p[0], p[1], p[2], target.alpha[i]);
+                }
+                img.colorSpace = target.colorSpace;
+                turbio::ensureParentDirectory(path);
+                turbio::ImageWriteOptions wo;
+                wo.noClobber = a.noClobber;
+                turbio::writeImage(path, img, wo);
+                if (outTemporal) {
+                    outTemporal->add(f.image);
+                    outLuma.push_back(turb::luminance(f.image));
+                }
+                if (!a.sheet.empty() && std::find(sheetFrames.begin(), sheetFrames.end(), f.index) != sheetFrames.end())
+                    sheet.outputs.emplace_back(number, picture(f.image));
+                nlohmann::json extra{{"out", path}, {"example_index", f.exampleIndex}, {"mean_error", f.meanError}, {"std_error", f.stdError},
+                    {"cell_mean_error", f.cellMeanError}, {"cell_std_error", f.cellStdError}};
+                report.frameDone(number, f.index, count, f.seconds + secondsSince(tw),
+                    "mean/std vs target " + fmt("%.2f%%", 100 * f.meanError) + "/" + fmt("%.2f%%", 100 * f.stdError) + ", worst cell " +
+                        fmt("%.2f%%", 100 * f.cellMeanError) + "/" + fmt("%.2f%%", 100 * f.cellStdError) + " -> " + path,
+                    extra);
+            },
+            &stages, inspect);
+        nlohmann::json summary = statsJson(st);
+        logInfo("animate: example flow " + fmt("%.2f px/frame", st.analysis.meanSpeed) + (st.analysis.flowGiven ? " (from the cache)" : "") +
+                ", residual rms " + fmt("%.4f", st.analysis.rmsResidual) + " vs difference rms " + fmt("%.4f", st.analysis.rmsDifference) +
+                "; design " + fmt("%.2f px/frame", st.designMeanSpeed) + "; transfer cost " + fmt("%.3f", st.transfer.meanCost) + "; stages " +
+                fmt("%.1f", st.secondsAnalysis) + "/" + fmt("%.1f", st.secondsDesign) + "/" + fmt("%.1f", st.secondsTransfer) + "/" +
+                fmt("%.1f", st.secondsAverage) + "/" + fmt("%.1f", st.secondsSynthesis) + "/" + fmt("%.1f", st.secondsMatching) +
+                " s (analysis/design/transfer/A'/synthesis/matching)");
+        if (a.measure) {
+            turb::AnalysisSettings as = s.analysis;
+            const turb::ChannelImage measured = turb::estimateMeanFlow(outLuma, as);
+            const turb::FlowAgreement fa = turb::compareFlows(measured, designed, target.matte ? &*target.matte : nullptr);
+            const turb::TemporalSummary te = exTemporal->summary(), to = outTemporal->summary();
+            summary["quality"] = {{"flow_median_angle_deg", fa.medianAngleDeg}, {"flow_median_speed_ratio", fa.medianSpeedRatio},
+                {"flow_pixels", fa.pixels}, {"temporal_std", to.temporalStd}, {"temporal_std_example", te.temporalStd},
+                {"autocorrelation", to.autocorrelation}, {"autocorrelation_example", te.autocorrelation}};
+            if (exampleAgreement) {
+                summary["quality"]["example_flow_median_angle_deg"] = exampleAgreement->medianAngleDeg;
+                summary["quality"]["example_flow_median_speed_ratio"] = exampleAgreement->medianSpeedRatio;
+                logInfo("animate: the same tracking on the example against the cache's flow: median angle " +
+                        fmt("%.1f deg", exampleAgreement->medianAngleDeg) + ", speed ratio " + fmt("%.2f", exampleAgreement->medianSpeedRatio));
+            }
+            logInfo("animate: motion vs design: median angle " + fmt("%.1f deg", fa.medianAngleDeg) + ", speed ratio " +
+                    fmt("%.2f", fa.medianSpeedRatio) + "; temporal std " + fmt("%.4f", to.temporalStd) + " (example " + fmt("%.4f", te.temporalStd) +
+                    "); autocorrelation lag 1 " + fmt("%.2f", to.autocorrelation[0]) + " (example " + fmt("%.2f", te.autocorrelation[0]) + ")");
+            if (!a.dump.empty()) turbio::writeImage(a.dump + "/measured_flow.png", flowPicture(measured));
+        }
+        if (!a.sheet.empty()) {
+            turbio::ensureParentDirectory(a.sheet);
+            turbio::writeImage(a.sheet, contactSheet(sheet, picture(target.rgb), "animate: " + example.label + " -> " + target.label));
+            summary["sheet"] = a.sheet;
+        }
+        report.finish(0, summary);
+    });
+    return result;
+}
+
+} // namespace
+
+Command animateCommand()
+{
+    auto args = std::make_shared<AnimateArgs>();
+    Command c;
+    c.name = "animate";
+    c.help = "Animate a still picture of fluid from a video example (Okabe et al.): strokes or a flow design, residual transfer, histogram matching";
+    c.setup = [args](CLI::App* app) {
+        AnimateArgs& a = *args;
+        turb::AnimateSettings& s = a.settings;
+        app->add_option("--example", a.example, "Video example: an image sequence with #### (any format OpenImageIO reads), or builtin:river[:WxHxN]");
+        app->add_option("--example-cache", a.exampleCache, "Video example from a VDB cache through --camera: renders are the frames, the projected velocity is v");
+        app->add_option("--frames", a.frames, "Example frames to use (e.g. 1-100; default: every frame on disk)");
+        app->add_option("--camera", a.camera, "Cache camera: front, side, top or perspective (default front)")->check(CLI::IsMember({"front", "side", "top", "perspective"}));
+        app->add_option("--camera-pos", a.cameraPos, "Perspective camera position X,Y,Z (world units)");
+        app->add_option("--look-at", a.lookAt, "Perspective camera target X,Y,Z (world units)");
+        app->add_option("--camera-up", a.cameraUp, "Perspective camera up direction (default 0,0,1)");
+        app->add_option("--fov", a.fov, "Perspective horizontal field of view in degrees (default 40)")->check(CLI::Range(1.0, 170.0));
+        app->add_option("--width", a.width, "Cache camera image width (default: 4 pixels per voxel; perspective 512)")->check(CLI::Range(16, 16384));
+        app->add_option("--height", a.height, "Perspective image height (default: the width)")->check(CLI::Range(0, 16384));
+        app->add_option("--extinction", a.extinction, "Cache opacity: optical depth per unit density per world unit (default 6)")->check(CLI::PositiveNumber);
+        app->add_option("--step", a.step, "Cache ray-march step in voxels (default 0.5)")->check(CLI::Range(0.05, 1.0));
+        app->add_option("--target", a.target, "The still to animate (any image OpenImageIO reads; its alpha is kept in the output), or builtin:river[:WxH]");
+        app->add_option("--target-alpha", a.targetAlpha, "Matte of the fluid (grey image, target size): only the fluid moves, the rest stays the still");
+        app->add_option("--flow-strokes", a.strokes, "Flow design: orientation and speed strokes (JSON; schema in scenes/animate/README.md)");
+        app->add_option("--flow", a.flow, "Flow design: a dense flow image, R,G = x,y in pixels per frame (x right, y down)");
+        app->add_flag("--flow-y-up", a.flowYUp, "The --flow image's G channel points up");
+        app->add_option("--refine", a.refine, "Refine the design by the target's gradients: auto (strokes yes, --flow no), on, off")->check(CLI::IsMember({"auto", "on", "off"}));
+        app->add_option("--orient", a.orient, "Refined orientation: parallel to the image gradient (paper) or perpendicular (along edges)")
+            ->check(CLI::IsMember({"parallel", "perpendicular"}));
+        app->add_option("--wf", s.refine.wf, "w_f: blur of the refined orientation, Gaussian std in pixels (default 12, paper)")->check(CLI::Range(0.1, 500.0));
+        app->add_option("--tau", s.tau, "Lifetime of a residual in frames (default 16, paper); the output has N - tau frames")->check(CLI::Range(1, 10000));
+        app->add_option("--shutter", s.average.shutter, "Sh: motion blur of the target along the flow for A', in frames of motion (default 16, measured)")
+            ->check(CLI::Range(0.0, 200.0));
+        app->add_option("--wa", s.average.wa, "w_a: Gaussian std in pixels after the motion blur for A' (default 4, measured)")->check(CLI::Range(0.0, 500.0));
+        app->add_option("--patch", s.transfer.patchSize, "Residual transfer patch size in pixels (default 16; paper 8-32)")->check(CLI::Range(8, 64));
+        app->add_option("--search-downsample", s.transfer.downsample, "Match flows downsampled by 1, 2 or 4 (default 2)")->check(CLI::IsMember({1, 2, 4}));
+        app->add_option("--features", s.analysis.features, "Lucas-Kanade features per example frame pair (default 100, paper)")->check(CLI::Range(1, 100000));
+        app->add_option("--lk-window", s.analysis.window, "Lucas-Kanade window in pixels (default 10, paper)")->check(CLI::Range(3, 64));
+        app->add_option("--hm", a.hm, "Histogram matching: steerable (Heeger-Bergen, HM Rep times), laplacian (one pass, the fast preview) or off")
+            ->check(CLI::IsMember({"steerable", "laplacian", "off"}));
+        app->add_option("--hm-rep", s.hm.reps, "HM Rep: repetitions of the steerable matching (default 3, paper)")->check(CLI::Range(1, 10));
+        app->add_option("--hm-grid", a.hmGrid, "HM Grid: COLSxROWS, auto (cells of about --hm-cell pixels) or off (one cell)");
+        app->add_flag("--hm-exact-cells", [&s](std::int64_t) { s.hm.blendPixels = false; },
+            "Pixel-domain matches per cell without blending: every cell's statistics exact, but seams can show where cells differ");
+        app->add_option("--hm-passes", s.hm.pixelPasses, "Final pixel-domain matching passes (blended cells converge to their statistics; default 3)")
+            ->check(CLI::Range(1, 20));
+        app->add_option("--hm-cell", s.hm.cellSize, "Cell size of the automatic HM grid in pixels (default 64)")->check(CLI::Range(16, 100000));
+        app->add_option("--out", a.out, "Output frames, e.g. anim/still.####.exr (EXR half, premultiplied) or .png; N - tau frames");
+        app->add_option("--start", a.start, "Frame number of the first output frame (default 1)");
+        app->add_flag("--no-clobber", a.noClobber, "Never replace an existing output file");
+        app->add_option("--dump", a.dump, "Also write into DIR: A, v, R.####, rough, refined, Aprime, Rprime.#### (float EXR) and flow pictures (PNG)");
+        app->add_option("--sheet", a.sheet, "Write a contact sheet PNG: example frames, A, v, R0 | target, rough, refined, A' | output frames");
+        app->add_flag("--measure", a.measure, "Measure the output: its flow against the design (median angle, speed ratio), temporal std and autocorrelation against the example");
+        app->add_option("--export-builtin", a.exportBuiltin, "Write the built-in river example (--example builtin:river:WxHxN) and still (--target) into DIR and stop");
+        app->add_flag("--json", a.json, "One JSON line per frame (mean/std errors against the target) and a summary with stage times");
+        addReadOptions(app, a.read);
+    };
+    c.run = [args] { return runAnimate(*args); };
+    return c;
+}
+
+} // namespace vdbturb
