@@ -92,6 +92,16 @@ void sampleBilinear(const ChannelImage& img, double x, double y, float* out)
         out[k] = (1 - fy) * ((1 - fx) * a[k] + fx * b[k]) + fy * ((1 - fx) * c[k] + fx * d[k]);
 }
 
+ChannelImage enlarge(const ChannelImage& coarse, int W, int H)
+{
+    ChannelImage out(W, H, coarse.channels());
+    parallelFor(size_t(H), 16, [&](size_t y0, size_t y1) {
+        for (size_t y = y0; y < y1; ++y)
+            for (int x = 0; x < W; ++x) sampleBilinear(coarse, (x - 0.5) / 2.0, (double(y) - 0.5) / 2.0, out.pixel(x, int(y)));
+    });
+    return out;
+}
+
 ChannelImage channelRange(const ChannelImage& img, int first, int count)
 {
     ChannelImage out(img.width(), img.height(), count);
