@@ -345,7 +345,8 @@ void addFluidymationOptions(CLI::App* app, StylizeArgs& a)
     app->add_option("--fluidy-levels", s.levels, m + "Pyramid levels (default 0 = floor(log2(d_min / n)))")->check(CLI::Range(0, 8));
     app->add_option("--fluidy-iterations", s.iterations, m + "EM iterations on coarser levels (default 3)")->check(CLI::Range(1, 50));
     app->add_option("--fluidy-fine-iterations", s.fineIterations, m + "EM iterations on the finest level (default 2)")->check(CLI::Range(1, 50));
-    app->add_option("--fluidy-sweeps", s.sweeps, m + "PatchMatch sweeps per E-step (default 2)")->check(CLI::Range(1, 32));
+    app->add_option("--fluidy-sweeps", s.sweeps, m + "PatchMatch sweeps per E-step on coarser levels (default 2)")->check(CLI::Range(1, 32));
+    app->add_option("--fluidy-fine-sweeps", s.fineSweeps, m + "PatchMatch sweeps per E-step on the finest level (default 1)")->check(CLI::Range(1, 32));
     app->add_flag("--no-reuse", [&s](int64_t) { s.reusePrevious = false; }, m + "Start every frame from a random NNF (no reuse of the previous frame's)");
 }
 

@@ -83,7 +83,8 @@ struct FluidySettings
     int levels = 0;             ///< pyramid levels; 0 = floor(log2(d_min / n)) (section 3.6), 0..8
     int iterations = 3;         ///< EM iterations (FINDNNF + VOTE) on each coarser level, >= 1
     int fineIterations = 2;     ///< EM iterations on the finest level, >= 1
-    int sweeps = 2;             ///< PatchMatch sweeps per FINDNNF, >= 1
+    int sweeps = 2;             ///< PatchMatch sweeps per FINDNNF on coarser levels, >= 1
+    int fineSweeps = 1;         ///< PatchMatch sweeps per FINDNNF on the finest level, >= 1
     int randomCandidates = 2;   ///< uniform draws from all source centres per pixel and sweep, >= 0
     bool reusePrevious = true;  ///< start from the previous frame's shifted NNF (section 3.6); false = random each frame
     std::uint64_t seed = 1;     ///< same seed, same frames at any thread count

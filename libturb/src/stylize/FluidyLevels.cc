@@ -35,7 +35,7 @@ void directionChannels(const float* flow, float eps, float* out)
 
 } // namespace
 
-std::vector<float> patchMeanAngles(const ChannelImage& flow, int radius, float eps)
+std::vector<std::uint8_t> patchMeanSteps(const ChannelImage& flow, int radius, float eps)
 {
     const int W = flow.width(), H = flow.height();
     ChannelImage tmp(W, H, 2), box(W, H, 2);
@@ -54,10 +54,10 @@ std::vector<float> patchMeanAngles(const ChannelImage& flow, int radius, float e
                 box.at(x, y, 1) += s[1];
             }
     const float n = float((2 * radius + 1) * (2 * radius + 1));
-    std::vector<float> a(flow.pixelCount());
+    std::vector<std::uint8_t> a(flow.pixelCount());
     for (size_t i = 0; i < a.size(); ++i) {
         const float mx = box.pixel(i)[0] / n, my = box.pixel(i)[1] / n;
-        a[i] = std::hypot(mx, my) >= eps ? std::atan2(my, mx) : std::numeric_limits<float>::quiet_NaN();
+        a[i] = std::hypot(mx, my) >= eps ? std::uint8_t(rotationIndex(std::atan2(my, mx))) : kNoDirection;
     }
     return a;
 }
@@ -80,7 +80,7 @@ void fillExemplarFrame(ExemplarLevel& E, int i, const FrameImages& f, const Leve
     const int W = E.W, H = E.H;
     const ChannelImage mask = binary(f.mask);
     const ChannelImage phi = signedDistance(mask);
-    const std::vector<float> angles = patchMeanAngles(f.flow, rules.radius, rules.eps);
+    const std::vector<std::uint8_t> steps = patchMeanSteps(f.flow, rules.radius, rules.eps);
     ChannelImage vote(W, H, 4);
     for (int y = 0; y < H; ++y)
         for (int x = 0; x < W; ++x) {
@@ -91,7 +91,7 @@ void fillExemplarFrame(ExemplarLevel& E, int i, const FrameImages& f, const Leve
             o[4] = f.ext.pixel(p)[0];
             o[5] = f.ext.pixel(p)[1];
             directionChannels(f.flow.pixel(p), rules.eps, o + 6);
-            E.angle[v] = angles[p];
+            E.dirStep[v] = steps[p];
             const float ph = phi.pixel(p)[0];
             E.segment[v] = segmentOf(ph, rules.boundaryWidth);
             const bool centre = x >= rules.reach && y >= rules.reach && x < W - rules.reach && y < H - rules.reach && ph <= float(rules.radius);
@@ -112,7 +112,7 @@ TargetLevel makeTargetLevel(const FrameImages& f, const LevelRules& rules)
     const int W = T.W, H = T.H, P = T.pad;
     T.feat.assign(size_t(W + 2 * P) * size_t(H + 2 * P) * kT, 0.0f);
     const ChannelImage phi = signedDistance(binary(f.mask));
-    T.angle = patchMeanAngles(f.flow, rules.radius, rules.eps);
+    T.dirStep = patchMeanSteps(f.flow, rules.radius, rules.eps);
     T.label.assign(size_t(W) * size_t(H), -1);
     for (int y = -P; y < H + P; ++y)
         for (int x = -P; x < W + P; ++x) {

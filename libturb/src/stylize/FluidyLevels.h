@@ -19,13 +19,22 @@ constexpr int kS = 8;
 // per-pixel temporal weight w^temp m(q).
 constexpr int kT = 12;
 constexpr std::int8_t kBoundary = 0, kInterior = 1;
+constexpr std::uint8_t kNoDirection = 255;
+
+/// True when direction steps a (turned by `rotation`) and b point more than 90 degrees apart.
+inline bool oppositeSteps(std::uint8_t a, int rotation, std::uint8_t b)
+{
+    if (a == kNoDirection || b == kNoDirection) return false;
+    const int d = ((int(a) + rotation - int(b)) % kRotations + kRotations) % kRotations;
+    return d > kRotations / 4 && d < 3 * kRotations / 4;
+}
 
 /// One pyramid level of the exemplar: every frame, voxel v = (i H + y) W + x.
 struct ExemplarLevel
 {
     int W = 0, H = 0, F = 0;
     std::vector<float> feat;           // F H W kS
-    std::vector<float> angle;          // patch-mean flow angle (radians), NaN where slower than eps
+    std::vector<std::uint8_t> dirStep; // patch-mean flow direction as a rotation step, kNoDirection where slower than eps
     std::vector<std::int8_t> label;    // -1: not a patch centre; else its segment
     std::vector<std::int8_t> segment;  // every voxel's segment (Omega's normalisation)
     std::vector<std::int32_t> centres; // the voxels with label >= 0
@@ -33,6 +42,8 @@ struct ExemplarLevel
     std::vector<ChannelImage> vote;    // per frame: R, G, B, mask (voting)
     std::vector<std::int32_t> counts;  // Omega's 2D footprints per voxel
     std::vector<float> omega;          // Omega(p') = Omega*(p') / (n^2 omega*), per voxel
+    std::vector<float> omegaPatch;     // sum of Omega over the n x n window centred on each voxel
+    std::vector<float> scratch;        // per-voxel work space of the Omega rebuild
 
     size_t voxel(int i, int x, int y) const { return (size_t(i) * size_t(H) + size_t(y)) * size_t(W) + size_t(x); }
     bool isCentre(int i, int x, int y) const
@@ -57,7 +68,7 @@ struct TargetLevel
 {
     int W = 0, H = 0, pad = 0;
     std::vector<float> feat;        // (W + 2 pad)(H + 2 pad) kT
-    std::vector<float> angle;       // W H: patch-mean flow angle, NaN where slower than eps
+    std::vector<std::uint8_t> dirStep; // W H: patch-mean flow direction as a rotation step, or kNoDirection
     std::vector<std::int8_t> label; // W H: -1 not a centre, else its segment
     long long segCount[2] = {0, 0};
 
@@ -91,11 +102,17 @@ struct Evaluator
     }
 
     /// True when the rotated source flow and the target flow point opposite ways (patch means).
-    bool opposite(size_t q, size_t v, int rotation) const
+    bool opposite(size_t q, size_t v, int rotation) const { return oppositeSteps(E->dirStep[v], rotation, T->dirStep[q]); }
+
+    /// The extent part of D at the patch centres alone, unswapped or swapped: which of the two
+    /// D^dir-minimising rotations (aligned, opposite) fits the motion extent better.
+    float centreExtent(size_t q, int qx, int qy, size_t v, bool swap) const
     {
-        const float aS = E->angle[v], aT = T->angle[q];
-        if (std::isnan(aS) || std::isnan(aT)) return false;
-        return std::cos(double(aS) + rotationAngle(rotation) - double(aT)) < 0.0;
+        const float* sp = E->feat.data() + v * kS;
+        const float* tp = T->at(qx, qy);
+        const float a = sp[4] - tp[swap ? 5 : 4], b = sp[5] - tp[swap ? 4 : 5];
+        (void)q;
+        return a * a + b * b;
     }
 
     /// D for target centre (qx, qy) and source patch p; stops once the sum exceeds `cutoff`.
@@ -111,9 +128,11 @@ struct Evaluator
         const int plus = swap ? 5 : 4, minus = swap ? 4 : 5;
         const size_t frameBase = size_t(p.frame) * size_t(E->H) * size_t(E->W);
         const float* sf = E->feat.data();
-        const float* om = E->omega.data();
-        float acc = 0.0f;
-        double t0 = 0, t1 = 0, t2 = 0, t3 = 0, t4 = 0, t5 = 0;
+        // Omega summed over the patch: the axis-aligned n x n window of the centre (exact at theta = 0;
+        // rotated windows differ at the corners), one lookup instead of n^2.
+        const float uni = w.uni * E->omegaPatch[centre];
+        float acc = uni;
+        double t0 = 0, t1 = 0, t2 = 0, t3 = 0, t4 = 0;
         int t = 0;
         for (int dy = -r; dy <= r; ++dy) {
             const float* tp = T->at(qx - r, qy + dy);
@@ -133,21 +152,19 @@ struct Evaluator
                 const float cr = std::abs(rx * tp[7] - ry * tp[6]), dt = std::abs(rx * tp[6] + ry * tp[7]);
                 const float h = std::sqrt(cr * cr + dt * dt);
                 const float dir = cr >= w.clamp * dt ? w.clamp * h : h * cr / dt;
-                const float uni = om[v];
-                row += tex + temp + w.bound * db * db + w.ext * (ep * ep + em * em) + w.dir * dir + w.uni * uni;
+                row += tex + temp + w.bound * db * db + w.ext * (ep * ep + em * em) + w.dir * dir;
                 if (terms) {
                     t0 += tex;
                     t1 += w.bound * db * db;
                     t2 += w.dir * dir;
                     t3 += w.ext * (ep * ep + em * em);
                     t4 += temp;
-                    t5 += w.uni * uni;
                 }
             }
             acc += row;
             if (acc > cutoff && !terms) return acc;
         }
-        if (terms) *terms = FluidyTerms{t0, t1, t2, t3, t4, t5, swap};
+        if (terms) *terms = FluidyTerms{t0, t1, t2, t3, t4, uni, swap};
         return acc;
     }
 };
@@ -181,7 +198,8 @@ TargetLevel makeTargetLevel(const FrameImages& reduced, const LevelRules& rules)
 /// The images reduced once more (2x2 means).
 FrameImages reduced(const FrameImages& f);
 
-/// Box mean of a 2-channel flow over the patch, as an angle; NaN where its length is below eps.
-std::vector<float> patchMeanAngles(const ChannelImage& flow, int radius, float eps);
+/// Box mean of a 2-channel flow over the patch, as the nearest rotation step of its direction;
+/// kNoDirection where its length is below eps.
+std::vector<std::uint8_t> patchMeanSteps(const ChannelImage& flow, int radius, float eps);
 
 } // namespace turb::fluidy

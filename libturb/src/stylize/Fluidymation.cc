@@ -58,7 +58,7 @@ void validate(const FluidySettings& s)
     if (!(s.extentScale >= 0.0)) throw ValueError("fluidymation: the extent scale must be >= 0");
     if (s.boundaryWidth < 0 || s.boundaryWidth > 1000) throw ValueError("fluidymation: the boundary width must lie in 0..1000 pixels");
     if (s.levels < 0 || s.levels > 8) throw ValueError("fluidymation: levels must lie in 0..8");
-    if (s.iterations < 1 || s.fineIterations < 1 || s.sweeps < 1 || s.randomCandidates < 0)
+    if (s.iterations < 1 || s.fineIterations < 1 || s.sweeps < 1 || s.fineSweeps < 1 || s.randomCandidates < 0)
         throw ValueError("fluidymation: iterations and sweeps must be >= 1, random candidates >= 0");
 }
 
@@ -130,9 +130,9 @@ struct Fluidymator::Impl
     void repair(const ExemplarLevel& E, const TargetLevel& T, RotatedNnf& nnf, std::uint64_t key) const;
     void rebuildOmega(ExemplarLevel& E, const TargetLevel& T, const RotatedNnf& nnf) const;
     void distances(const Evaluator& ev, RotatedNnf& nnf) const;
-    void findNnf(ExemplarLevel& E, const TargetLevel& T, RotatedNnf& nnf, std::uint64_t key, Progress* progress) const;
+    void findNnf(ExemplarLevel& E, const TargetLevel& T, RotatedNnf& nnf, std::uint64_t key, bool finest, Progress* progress) const;
     void voteInto(const ExemplarLevel& E, const RotatedNnf& nnf, TargetLevel& T, ChannelImage* rgba) const;
-    RotatedNnf shiftPrevious(const ChannelImage& ext, const std::vector<float>& tAngle, const ChannelImage& phiT, ChannelImage& m,
+    RotatedNnf shiftPrevious(const ChannelImage& ext, const std::vector<std::uint8_t>& tSteps, const ChannelImage& phiT, ChannelImage& m,
         FluidyStats& st) const;
     void measure(const ExemplarLevel& E0, const TargetLevel& T0, RotatedNnf& nnf, const ChannelImage& rgba, const ChannelImage& mask,
         const ChannelImage& flow, const ChannelImage& ext, FluidyStats& st);
@@ -142,8 +142,8 @@ PatchRef Fluidymator::Impl::randomRef(const ExemplarLevel& E, const TargetLevel&
 {
     detail::Rng rng(detail::key(key, q, 0x5eed, 0));
     const size_t v = size_t(E.centres[rng.below(std::uint32_t(E.centres.size()))]);
-    const float aS = E.angle[v], aT = T.angle[q];
-    const int k = std::isnan(aS) || std::isnan(aT) ? int(rng.below(kRotations)) : rotationIndex(double(aT) - double(aS));
+    const std::uint8_t aS = E.dirStep[v], aT = T.dirStep[q];
+    const int k = aS == kNoDirection || aT == kNoDirection ? int(rng.below(kRotations)) : (int(aT) - int(aS) + kRotations) % kRotations;
     return E.refOf(v, std::uint8_t(k));
 }
 
@@ -196,6 +196,31 @@ void Fluidymator::Impl::rebuildOmega(ExemplarLevel& E, const TargetLevel& T, con
             }
         }
     });
+    // The n x n window sums of Omega per frame (separable box), read once per patch by D.
+    std::vector<float>& rows = E.scratch;
+    parallelFor(size_t(E.F) * size_t(E.H), 64, [&](size_t b, size_t e) {
+        for (size_t fy = b; fy < e; ++fy) {
+            const float* in = E.omega.data() + fy * size_t(E.W);
+            float* out = rows.data() + fy * size_t(E.W);
+            for (int x = 0; x < E.W; ++x) {
+                float s = 0.0f;
+                for (int d = std::max(0, x - r); d <= std::min(E.W - 1, x + r); ++d) s += in[d];
+                out[x] = s;
+            }
+        }
+    });
+    parallelFor(size_t(E.F) * size_t(E.H), 64, [&](size_t b, size_t e) {
+        for (size_t fy = b; fy < e; ++fy) {
+            const int y = int(fy % size_t(E.H));
+            const size_t base = fy - size_t(y);
+            float* out = E.omegaPatch.data() + fy * size_t(E.W);
+            for (int x = 0; x < E.W; ++x) {
+                float s = 0.0f;
+                for (int d = std::max(0, y - r); d <= std::min(E.H - 1, y + r); ++d) s += rows[(base + size_t(d)) * size_t(E.W) + size_t(x)];
+                out[x] = s;
+            }
+        }
+    });
 }
 
 void Fluidymator::Impl::distances(const Evaluator& ev, RotatedNnf& nnf) const
@@ -210,11 +235,15 @@ void Fluidymator::Impl::distances(const Evaluator& ev, RotatedNnf& nnf) const
     });
 }
 
-void Fluidymator::Impl::findNnf(ExemplarLevel& E, const TargetLevel& T, RotatedNnf& nnf, std::uint64_t key, Progress* progress) const
+void Fluidymator::Impl::findNnf(ExemplarLevel& E, const TargetLevel& T, RotatedNnf& nnf, std::uint64_t key, bool finest, Progress* progress) const
 {
     const Evaluator ev(E, T, table, weights());
-    const int maxDim = std::max(E.W, E.H);
-    for (int sweep = 0; sweep < s.sweeps; ++sweep) {
+    // The random search spans the whole exemplar on coarser levels; on the finest one, where the coarser
+    // levels and the previous frame have placed every patch, an eighth of it (and of its frames): far
+    // candidates there cost cache misses and are hardly ever taken. Uniform draws still reach everywhere.
+    const int maxDim = finest ? std::max(4, std::max(E.W, E.H) / 8) : std::max(E.W, E.H);
+    const int maxFrames = finest ? std::max(1, E.F / 8) : E.F;
+    for (int sweep = 0, sweeps = finest ? s.fineSweeps : s.sweeps; sweep < sweeps; ++sweep) {
         if (s.wUni > 0.0f) rebuildOmega(E, T, nnf);
         distances(ev, nnf);
         detail::tiledSweeps(T.W, T.H, 64, sweep, 1, nnf.match, progress,
@@ -235,16 +264,26 @@ void Fluidymator::Impl::findNnf(ExemplarLevel& E, const TargetLevel& T, RotatedN
                 const auto tryAligned = [&](int fi, int cx, int cy) {
                     if (!E.isCentre(fi, cx, cy)) return;
                     const size_t v = E.voxel(fi, cx, cy);
-                    const float aS = E.angle[v], aT = T.angle[q];
+                    const std::uint8_t aS = E.dirStep[v], aT = T.dirStep[q];
                     PatchRef c{std::int16_t(fi), std::int16_t(cx), std::int16_t(cy), m.rotation};
-                    if (std::isnan(aS) || std::isnan(aT)) {
+                    if (aS == kNoDirection || aT == kNoDirection) {
                         tryCandidate(c);
                         return;
                     }
-                    const int k = rotationIndex(double(aT) - double(aS));
-                    c.rotation = std::uint8_t(k);
+                    // Of the aligned and the opposite rotation, the one whose (swapped) extents fit better at
+                    // the centres; both when the extent term is off.
+                    const int k = (int(aT) - int(aS) + kRotations) % kRotations;
+                    const std::uint8_t aligned = std::uint8_t(k), flipped = std::uint8_t((k + kRotations / 2) % kRotations);
+                    if (s.wExt > 0.0f) {
+                        const float ea = ev.centreExtent(q, x, y, v, ev.opposite(q, v, aligned));
+                        const float ef = ev.centreExtent(q, x, y, v, ev.opposite(q, v, flipped));
+                        c.rotation = ea <= ef ? aligned : flipped;
+                        tryCandidate(c);
+                        return;
+                    }
+                    c.rotation = aligned;
                     tryCandidate(c);
-                    c.rotation = std::uint8_t((k + kRotations / 2) % kRotations);
+                    c.rotation = flipped;
                     tryCandidate(c);
                 };
                 // Propagation (generalized PatchMatch): the neighbour's patch moved back by the rotated offset.
@@ -268,7 +307,7 @@ void Fluidymator::Impl::findNnf(ExemplarLevel& E, const TargetLevel& T, RotatedN
                 }
                 // Random search in windows halving around the best so far, in x, y and i.
                 detail::Rng rng(detail::key(key, std::uint64_t(it), q, 0xf1d));
-                for (int w = maxDim, wf = E.F; w >= 1; w /= 2, wf /= 2) {
+                for (int w = maxDim, wf = maxFrames; w >= 1; w /= 2, wf /= 2) {
                     const int fi = std::clamp(m.frame - wf + int(rng.below(std::uint32_t(2 * wf + 1))), 0, E.F - 1);
                     const int cx = std::clamp(m.x - w + int(rng.below(std::uint32_t(2 * w + 1))), 0, E.W - 1);
                     const int cy = std::clamp(m.y - w + int(rng.below(std::uint32_t(2 * w + 1))), 0, E.H - 1);
@@ -298,7 +337,7 @@ void Fluidymator::Impl::voteInto(const ExemplarLevel& E, const RotatedNnf& nnf, 
     if (rgba) *rgba = std::move(out);
 }
 
-RotatedNnf Fluidymator::Impl::shiftPrevious(const ChannelImage& ext, const std::vector<float>& tAngle, const ChannelImage& phiT,
+RotatedNnf Fluidymator::Impl::shiftPrevious(const ChannelImage& ext, const std::vector<std::uint8_t>& tSteps, const ChannelImage& phiT,
     ChannelImage& m, FluidyStats& st) const
 {
     const ExemplarLevel& E = ex[0];
@@ -317,8 +356,7 @@ RotatedNnf Fluidymator::Impl::shiftPrevious(const ChannelImage& ext, const std::
                 // Delta i*: the source frame whose motion since p.frame matches the target's since j - 1.
                 const double inc = double(ext.pixel(q)[0]) - double(prevExt.pixel(q)[0]);
                 const size_t v = E.voxel(p.frame, p.x, p.y);
-                const float aS = E.angle[v], aT = tAngle[q];
-                const bool opposite = !std::isnan(aS) && !std::isnan(aT) && std::cos(double(aS) + rotationAngle(p.rotation) - double(aT)) < 0.0;
+                const bool opposite = oppositeSteps(E.dirStep[v], p.rotation, tSteps[q]);
                 const size_t col = size_t(p.y) * size_t(E.W) + size_t(p.x);
                 const int di = bestTimeShift(sExt.data() + 2 * col, sExt.data() + 2 * col + 1, 2 * plane, E.F, p.frame, inc, opposite);
                 PatchRef c = p;
@@ -423,12 +461,14 @@ Fluidymator::Fluidymator(const FluidySettings& settings, const std::vector<Chann
         E.F = I.F;
         const size_t v = size_t(E.W) * size_t(E.H) * size_t(E.F);
         E.feat.assign(v * kS, 0.0f);
-        E.angle.assign(v, 0.0f);
+        E.dirStep.assign(v, kNoDirection);
         E.label.assign(v, -1);
         E.segment.assign(v, kBoundary);
         E.vote.resize(size_t(E.F));
         E.counts.assign(v, 0);
         E.omega.assign(v, 0.0f);
+        E.omegaPatch.assign(v, 0.0f);
+        E.scratch.assign(v, 0.0f);
     }
     for (int i = 0; i < I.F; ++i) {
         checkCancelled(progress);
@@ -606,7 +646,7 @@ FluidyFrame Fluidymator::next(Progress* progress)
     if (I.havePrev) {
         // Section 3.4: the previous NNF shifted by Delta i*, voted into T^temp, weighted by w^temp m.
         ChannelImage m;
-        shifted = I.shiftPrevious(extRaw, patchMeanAngles(f.flow, I.r, I.s.flowEpsilon), signedDistance(f.mask), m, st);
+        shifted = I.shiftPrevious(extRaw, patchMeanSteps(f.flow, I.r, I.s.flowEpsilon), signedDistance(f.mask), m, st);
         std::vector<const ChannelImage*> frames;
         for (const ChannelImage& v : I.ex[0].vote) frames.push_back(&v);
         voteRotated(frames, shifted, I.r, 0, 0, 3, f.temp);
@@ -673,7 +713,7 @@ FluidyFrame Fluidymator::next(Progress* progress)
         for (int it = 0; it < iterations; ++it) {
             if (progress) progress->begin("level " + std::to_string(l) + " iteration " + std::to_string(it + 1));
             ts = Clock::now();
-            I.findNnf(E, TL, nnf, detail::key(key, std::uint64_t(it), 0x5ea, 0), progress);
+            I.findNnf(E, TL, nnf, detail::key(key, std::uint64_t(it), 0x5ea, 0), l == 0, progress);
             st.secondsSearch += since(ts);
             tv = Clock::now();
             I.voteInto(E, nnf, TL, &result);
