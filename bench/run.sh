@@ -26,7 +26,7 @@ FRAMES_OVERRIDE=""
 RECORD=1
 PERF="$ROOT/docs/performance.md"
 
-CONFIGS="tiny measure-plume sim128 paper3d plume4x synth2d synth3d stylize1m stylize1m-full"
+CONFIGS="tiny measure-plume sim128 paper3d plume4x synth2d synth3d stylize1m stylize1m-full fluidy12k fluidy123k"
 
 describe() {
     case "$1" in
@@ -39,6 +39,8 @@ describe() {
     synth3d) echo "synth: 3D, coarse plume 64x64x16 -> 256x256x64 (factor 4), 30 frames (paper: about 1 h single-threaded)" ;;
     stylize1m) echo "stylize: 1024x1024 rotating blob (0.37 Mpix of fluid), 256^2 exemplar, 5 frames (paper: 5 min per 1-Mpix frame, 4 cores)" ;;
     stylize1m-full) echo "stylize: 1024x1024 all fluid (1.05 Mpix of patches), 256^2 exemplar, 3 frames (the worst case)" ;;
+    fluidy12k) echo "stylize fluidymation: 12k masked pixels (rotate 204^2), builtin:ink 240x180x20, 10 frames (paper Table 2: 0.55 s/frame, 4 cores)" ;;
+    fluidy123k) echo "stylize fluidymation: 123k masked pixels (rotate 652^2), builtin:ink 400x300x30, 10 frames (paper Table 2: 3.48 s/frame, 4 cores)" ;;
     *) return 1 ;;
     esac
 }
@@ -262,6 +264,19 @@ cfg_stylize1m_full() {
     timed stylize1m-full "$VDBTURB" stylize $THREAD_ARGS --scene fill --scene-size 1024x1024 --frames "$n" \
         --exemplar builtin:fire:256 --out "$WORK/stylize1m_full_out/s.####.exr" --json
 }
+
+# stylize --method fluidymation: the masked-pixel counts of the paper's Table 2 (built-in target and
+# moving exemplar; no preparation).
+fluidy() {
+    need_command stylize --method --scene --scene-size --frames --exemplar --out --json || return 1
+    n=$(frames_or 10)
+    rm -rf "$WORK/$1_out"
+    # shellcheck disable=SC2086
+    timed "$1" "$VDBTURB" stylize $THREAD_ARGS --method fluidymation --scene rotate --scene-size "$2" --frames "$n" \
+        --exemplar "$3" --out "$WORK/$1_out/s.####.png" --json
+}
+cfg_fluidy12k() { fluidy fluidy12k 204x204 builtin:ink:240x180x20; }
+cfg_fluidy123k() { fluidy fluidy123k 652x652 builtin:ink:400x300x30; }
 
 # --- main -------------------------------------------------------------------------------------------
 

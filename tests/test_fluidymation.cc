@@ -2,6 +2,8 @@
 // operations, the time shift, each energy term against its optimum, determinism and bad input.
 #include "TestUtil.h"
 
+#include <scenes/Ink2D.h>
+
 #include <turb/ChannelImage.h>
 #include <turb/Error.h>
 #include <turb/Fluidymation.h>
@@ -150,6 +152,39 @@ TEST(MotionGuides, AppendixAOnAnExpandingDiscGivesTheRadialSpeed)
     const ChannelImage raw = maskFlow(seq.mask(4), seq.mask(5), true);
     const int rx = int(c + 20.0 + speed * 4 - 0.5);
     EXPECT_GT(raw.at(rx, int(c), 0), 0.5);
+}
+
+TEST(MotionGuides, AppendixAOnTheInkExemplarFollowsItsTrueRimMotion)
+{
+    // The built-in ink knows its velocity: on the rim, Appendix A's estimate from the masks alone must
+    // point the same way (it sees only the normal component, so the lengths agree less well).
+    scenes::InkSettings is;
+    is.width = 128;
+    is.height = 96;
+    is.frames = 12;
+    const scenes::InkSequence ink = scenes::inkExemplar(is);
+    MotionSequence est(is.width, is.height);
+    for (const ChannelImage& m : ink.mask) est.addFrame(m);
+    est.finish();
+    double cosSum = 0.0, n = 0.0, lenEst = 0.0, lenTrue = 0.0;
+    for (int i = 2; i < 10; ++i) {
+        const ChannelImage f = est.flow(i);
+        const std::vector<char> rim = boundaryPixels(ink.mask[size_t(i)]);
+        for (size_t p = 0; p < rim.size(); ++p) {
+            if (!rim[p]) continue;
+            const float* a = f.pixel(p);
+            const float* b = ink.flow[size_t(i)].pixel(p);
+            const double la = std::hypot(a[0], a[1]), lb = std::hypot(b[0], b[1]);
+            if (la < 1e-3 || lb < 0.3) continue;
+            cosSum += (a[0] * b[0] + a[1] * b[1]) / (la * lb);
+            lenEst += la;
+            lenTrue += lb;
+            n += 1.0;
+        }
+    }
+    ASSERT_GT(n, 200.0);
+    EXPECT_GT(cosSum / n, 0.8); // mean cosine of the angle between estimate and truth
+    EXPECT_NEAR(lenEst / lenTrue, 1.0, 0.5);
 }
 
 TEST(MotionGuides, ExtentsAccumulateForwardAndBackward)

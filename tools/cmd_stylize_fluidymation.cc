@@ -7,6 +7,7 @@
 #include <turb/Error.h>
 #include <turb/Fluidymation.h>
 #include <turb/Parallel.h>
+#include <turb/Render.h>
 #include <turbio/ImageIO.h>
 
 #include <algorithm>
@@ -240,15 +241,16 @@ std::string humanLine(const turb::FluidyStats& st)
 }
 
 turb::Image previewSheet(const turb::ChannelImage& mask, const turb::ChannelImage& flow, const turb::FluidyFrame& out, const ExemplarVideo& ex,
-    int frame)
+    int frame, const turb::Image* render)
 {
     const turb::Image m = turb::channelPicture(turb::toRgba(mask), 0);
     const turb::Image lic = motionPicture(flow);
     const turb::Image styl = turb::overBackground(out.image, turb::Rgb(0.95f));
     const turb::Image rot = rotationPicture(out.rotation);
     const turb::Image nnf = nnfPicture(out.nnf, ex.motion.width(), ex.motion.height(), ex.motion.frames());
-    const std::vector<turb::SheetCell> row{{&m, "target mask"}, {&lic, "flow (LIC)"}, {&styl, "stylized"}, {&rot, "T^rot (hue)"},
+    std::vector<turb::SheetCell> row{{&m, "target mask"}, {&lic, "flow (LIC)"}, {&styl, "stylized"}, {&rot, "T^rot (hue)"},
         {&nnf, "NNF (x, y, i)"}};
+    if (render) row.insert(row.begin(), {render, "cache render"});
     return turb::contactSheet({row}, {}, "fluidymation frame " + std::to_string(frame), 1);
 }
 
@@ -263,7 +265,7 @@ void writeFloat(const std::string& path, const turb::RgbaImage& img, bool noClob
 
 /// Writes everything a frame asked for.
 nlohmann::json writeFrame(const StylizeArgs& a, int fr, const turb::FluidyFrame& out, const ExemplarVideo& ex, const turb::MotionSequence& target,
-    int index)
+    int index, const TargetSource& source)
 {
     nlohmann::json extra = statsJson(out.stats);
     const std::string outPath = turbio::FramePattern::parse(a.out).format(fr);
@@ -306,7 +308,17 @@ nlohmann::json writeFrame(const StylizeArgs& a, int fr, const turb::FluidyFrame&
     if (!a.preview.empty()) {
         const std::string png = turbio::FramePattern::parse(a.preview + "/fluidymation.####.png").format(fr);
         turbio::ensureParentDirectory(png);
-        turbio::writeImage(png, previewSheet(target.mask(index), target.flow(index), out, ex, fr));
+        std::optional<turb::Image> render;
+        if (source.isCache()) { // the cache as preview renders it, through the same camera
+            const TargetFrame t = source.read(fr);
+            turb::DensityRenderSettings dr;
+            dr.camera = source.bridge().camera;
+            dr.camera->width = t.alpha.width();
+            dr.camera->height = t.alpha.height();
+            dr.extinction = source.bridge().extinction;
+            render = turb::renderDensity(t.cacheFrame->density, dr);
+        }
+        turbio::writeImage(png, previewSheet(target.mask(index), target.flow(index), out, ex, fr, render ? &*render : nullptr));
         extra["preview"] = png;
     }
     return extra;
@@ -340,7 +352,10 @@ void addFluidymationOptions(CLI::App* app, StylizeArgs& a)
     app->add_option("--m-lower", s.mLower, m + "m_l as a fraction of the target's larger side (default 0.01)")->check(CLI::Range(0.0, 10.0));
     app->add_option("--m-upper", s.mUpper, m + "m_u as a fraction of the target's larger side (default 0.1)")->check(CLI::Range(0.0, 10.0));
     app->add_option("--dir-clamp", s.dirClamp, m + "Clamp of |tan| in D^dir (default 10)")->check(CLI::PositiveNumber);
-    app->add_option("--extent-scale", s.extentScale, m + "D^ext unit in pixels (default 0 = the exemplar's 95th percentile extent)")
+    app->add_option("--extent-scale", s.extentScale, m + "The exemplar's D^ext unit in pixels (default 0 = its 95th percentile extent)")
+        ->check(CLI::NonNegativeNumber);
+    app->add_option("--target-extent-scale", s.targetExtentScale,
+           m + "The target's D^ext unit in pixels (default 0 = its own 95th percentile: relative extents; equal units: absolute)")
         ->check(CLI::NonNegativeNumber);
     app->add_option("--fluidy-levels", s.levels, m + "Pyramid levels (default 0 = floor(log2(d_min / n)))")->check(CLI::Range(0, 8));
     app->add_option("--fluidy-iterations", s.iterations, m + "EM iterations on coarser levels (default 3)")->check(CLI::Range(1, 50));
@@ -394,7 +409,8 @@ int runFluidymation(StylizeArgs& a)
         } catch (const turb::ValueError& e) {
             throw turb::ValueError("exemplar " + ex.label + ", target " + target.label() + ": " + e.what());
         }
-        logVerbose("levels " + std::to_string(fl->levels()) + ", extent unit " + fmt("%.2f px", fl->extentScale()));
+        logVerbose("levels " + std::to_string(fl->levels()) + ", extent units " + fmt("%.2f px", fl->extentScale()) + " (exemplar), " +
+                   fmt("%.2f px", fl->targetExtentScale()) + " (target)");
         if (globals().dryRun) {
             for (int fr : target.frames()) logInfo("frame " + std::to_string(fr) + " -> " + outPattern.format(fr));
             return;
@@ -407,7 +423,7 @@ int runFluidymation(StylizeArgs& a)
             ConsoleProgress progress(int(i), int(frames.size()), fr);
             const turb::FluidyFrame out = fl->next(&progress);
             progress.begin("writing");
-            const nlohmann::json extra = writeFrame(a, fr, out, ex, tgt, int(i));
+            const nlohmann::json extra = writeFrame(a, fr, out, ex, tgt, int(i), target);
             progress.clear();
             report.frameDone(fr, int(i), int(frames.size()), secondsSince(t0), humanLine(out.stats) + " -> " + extra["out"].get<std::string>(), extra);
         }

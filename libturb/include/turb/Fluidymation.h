@@ -14,8 +14,11 @@
 ///             antiparallel flows, the clamp for perpendicular ones. Rule for zero flow: c =
 ///             min(1, |S^flow| / eps) min(1, |T^flow| / eps), so a flow slower than eps has (nearly) no
 ///             direction and costs nothing;
-/// - D^ext   = (S+ext - T+ext)^2 + (S-ext - T-ext)^2 in units of `extentScale` pixels, with T+ and T-
-///             swapped when the rotated source flow and the target flow are opposite (patch means);
+/// - D^ext   = (S+ext - T+ext)^2 + (S-ext - T-ext)^2, each side's extents divided by its own unit
+///             (by default its 95th percentile: relative motion amounts, so a target that moves ten times
+///             more than the exemplar still maps its most-moving parts to the exemplar's; set both units
+///             to one value for absolute matching), with T+ and T- swapped when the rotated source flow and
+///             the target flow are opposite (patch means). Delta i* always uses absolute pixels;
 /// - D^temp  = |S^rgb(p') - T^temp(q')|^2, T^temp voted from the previous frame's NNF with every source
 ///             frame index shifted by Delta i* (section 3.4; `bestTimeShift`), modulated per pixel by
 ///             m = 0 where T^mask(j-1) = 0, else 1 - smoothstep(|T^dist - S^dist(i + Delta i, x, y)|, m_l, m_u).
@@ -78,7 +81,8 @@ struct FluidySettings
     double mUpper = 0.1;        ///< m_u as a fraction of d (Table 1: 0.1), > mLower
     float dirClamp = 10.0f;     ///< D^dir clamp of |tan| per pixel pair (10: 84 degrees apart), > 0
     float flowEpsilon = 0.05f;  ///< eps: pixels per frame below which a flow's direction fades out of D^dir, > 0
-    double extentScale = 0.0;   ///< pixels: D^ext compares extents in these units; 0 = the exemplar's 95th percentile, >= 0
+    double extentScale = 0.0;   ///< pixels: the exemplar's extents enter D^ext in these units; 0 = their 95th percentile, >= 0
+    double targetExtentScale = 0.0; ///< pixels: the target's extent unit; 0 = the target's 95th percentile, >= 0
     int boundaryWidth = 0;      ///< pixels of the boundary segment inside the mask, at each level; 0 = n, >= 0
     int levels = 0;             ///< pyramid levels; 0 = floor(log2(d_min / n)) (section 3.6), 0..8
     int iterations = 3;         ///< EM iterations (FINDNNF + VOTE) on each coarser level, >= 1
@@ -178,7 +182,8 @@ public:
 
     int levels() const;
     int frame() const;                 ///< frames synthesised so far
-    double extentScale() const;        ///< the D^ext unit in use, pixels
+    double extentScale() const;        ///< the exemplar's D^ext unit in use, pixels
+    double targetExtentScale() const;  ///< the target's D^ext unit in use, pixels
     const FluidySettings& settings() const;
 
 private:

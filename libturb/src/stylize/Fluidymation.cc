@@ -55,7 +55,7 @@ void validate(const FluidySettings& s)
         if (!(w >= 0.0f) || !std::isfinite(w)) throw ValueError("fluidymation: term weights must be finite and >= 0");
     if (!(s.mLower >= 0.0) || !(s.mUpper > s.mLower) || s.mUpper > 10.0) throw ValueError("fluidymation: thresholds need 0 <= m_l < m_u <= 10 (fractions of d)");
     if (!(s.dirClamp > 0.0f) || !(s.flowEpsilon > 0.0f)) throw ValueError("fluidymation: the direction clamp and eps must be > 0");
-    if (!(s.extentScale >= 0.0)) throw ValueError("fluidymation: the extent scale must be >= 0");
+    if (!(s.extentScale >= 0.0) || !(s.targetExtentScale >= 0.0)) throw ValueError("fluidymation: the extent scales must be >= 0");
     if (s.boundaryWidth < 0 || s.boundaryWidth > 1000) throw ValueError("fluidymation: the boundary width must lie in 0..1000 pixels");
     if (s.levels < 0 || s.levels > 8) throw ValueError("fluidymation: levels must lie in 0..8");
     if (s.iterations < 1 || s.fineIterations < 1 || s.sweeps < 1 || s.fineSweeps < 1 || s.randomCandidates < 0)
@@ -110,7 +110,7 @@ struct Fluidymator::Impl
     FluidySettings s;
     int r = 2, n = 5, L = 1, F = 0, bw = 5;
     RotationTable table{2};
-    double extScale = 1.0, mLower = 0.0, mUpper = 1.0;
+    double extScale = 1.0, targetExtScale = 1.0, mLower = 0.0, mUpper = 1.0;
     LevelRules rules;
     std::vector<ExemplarLevel> ex;
     std::vector<float> sExt, sPhi, sFlow; // level 0, per voxel: raw extents (2), signed distance, flow (2)
@@ -143,7 +143,8 @@ PatchRef Fluidymator::Impl::randomRef(const ExemplarLevel& E, const TargetLevel&
     detail::Rng rng(detail::key(key, q, 0x5eed, 0));
     const size_t v = size_t(E.centres[rng.below(std::uint32_t(E.centres.size()))]);
     const std::uint8_t aS = E.dirStep[v], aT = T.dirStep[q];
-    const int k = aS == kNoDirection || aT == kNoDirection ? int(rng.below(kRotations)) : (int(aT) - int(aS) + kRotations) % kRotations;
+    const bool free = aS == kNoDirection || aT == kNoDirection || s.wDir <= 0.0f;
+    const int k = free ? int(rng.below(kRotations)) : (int(aT) - int(aS) + kRotations) % kRotations;
     return E.refOf(v, std::uint8_t(k));
 }
 
@@ -261,11 +262,17 @@ void Fluidymator::Impl::findNnf(ExemplarLevel& E, const TargetLevel& T, RotatedN
                 };
                 // A sampled (i, x, y) is tried with the rotations that minimise D^dir: the patch-mean flows
                 // aligned, or opposite; where a flow has no direction, with the current rotation.
+                detail::Rng rng(detail::key(key, std::uint64_t(it), q, 0xf1d));
                 const auto tryAligned = [&](int fi, int cx, int cy) {
                     if (!E.isCentre(fi, cx, cy)) return;
                     const size_t v = E.voxel(fi, cx, cy);
                     const std::uint8_t aS = E.dirStep[v], aT = T.dirStep[q];
                     PatchRef c{std::int16_t(fi), std::int16_t(cx), std::int16_t(cy), m.rotation};
+                    if (s.wDir <= 0.0f) { // without D^dir every rotation minimises it: draw one
+                        c.rotation = std::uint8_t(rng.below(kRotations));
+                        tryCandidate(c);
+                        return;
+                    }
                     if (aS == kNoDirection || aT == kNoDirection) {
                         tryCandidate(c);
                         return;
@@ -306,7 +313,6 @@ void Fluidymator::Impl::findNnf(ExemplarLevel& E, const TargetLevel& T, RotatedN
                     tryCandidate(c);
                 }
                 // Random search in windows halving around the best so far, in x, y and i.
-                detail::Rng rng(detail::key(key, std::uint64_t(it), q, 0xf1d));
                 for (int w = maxDim, wf = maxFrames; w >= 1; w /= 2, wf /= 2) {
                     const int fi = std::clamp(m.frame - wf + int(rng.below(std::uint32_t(2 * wf + 1))), 0, E.F - 1);
                     const int cx = std::clamp(m.x - w + int(rng.below(std::uint32_t(2 * w + 1))), 0, E.W - 1);
@@ -446,6 +452,26 @@ Fluidymator::Fluidymator(const FluidySettings& settings, const std::vector<Chann
         }
     }
     I.extScale = settings.extentScale > 0.0 ? settings.extentScale : percentile95(std::move(extValues));
+    if (settings.targetExtentScale > 0.0) {
+        I.targetExtScale = settings.targetExtentScale;
+    } else {
+        // The target's own 95th percentile, from at most ~1M samples (every k-th frame and pixel).
+        std::vector<float> t;
+        long long total = 0;
+        for (int k = 0; k < target.frames(); ++k) total += target.maskedPixels(k);
+        const long long step = std::max(1LL, total / 1000000);
+        long long seen = 0;
+        for (int k = 0; k < target.frames(); ++k) {
+            if (target.maskedPixels(k) == 0) continue;
+            const ChannelImage e = target.extents(k), m = target.mask(k);
+            for (size_t p = 0; p < e.pixelCount(); ++p)
+                if (m.pixel(p)[0] >= 0.5f && seen++ % step == 0) {
+                    t.push_back(e.pixel(p)[0]);
+                    t.push_back(e.pixel(p)[1]);
+                }
+        }
+        I.targetExtScale = percentile95(std::move(t));
+    }
     I.exLumStd = ln > 1.0 ? std::sqrt(std::max(0.0, l2 / ln - (l1 / ln) * (l1 / ln))) : 0.0;
 
     // The exemplar's pyramid: every frame reduced level by level.
@@ -503,6 +529,7 @@ Fluidymator::~Fluidymator() = default;
 int Fluidymator::levels() const { return mImpl->L; }
 int Fluidymator::frame() const { return mImpl->j; }
 double Fluidymator::extentScale() const { return mImpl->extScale; }
+double Fluidymator::targetExtentScale() const { return mImpl->targetExtScale; }
 const FluidySettings& Fluidymator::settings() const { return mImpl->s; }
 
 FluidyTerms Fluidymator::terms(const PatchRef& p, int x, int y) const
@@ -638,7 +665,7 @@ FluidyFrame Fluidymator::next(Progress* progress)
     f.flow = tg.flow(j);
     const ChannelImage extRaw = tg.extents(j);
     f.ext = extRaw;
-    for (float& x : f.ext.data()) x = float(x / I.extScale);
+    for (float& x : f.ext.data()) x = float(x / I.targetExtScale);
     f.shape = gaussianBlur(f.mask, I.s.boundaryBlur / 3.0);
     f.temp = ChannelImage(W, H, 4);
     RotatedNnf shifted;
