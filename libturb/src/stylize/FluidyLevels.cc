@@ -38,27 +38,31 @@ void directionChannels(const float* flow, float eps, float* out)
 std::vector<std::uint8_t> patchMeanSteps(const ChannelImage& flow, int radius, float eps)
 {
     const int W = flow.width(), H = flow.height();
-    ChannelImage tmp(W, H, 2), box(W, H, 2);
-    for (int y = 0; y < H; ++y)
-        for (int x = 0; x < W; ++x)
-            for (int d = -radius; d <= radius; ++d) {
-                const float* s = flow.pixel(std::clamp(x + d, 0, W - 1), y);
-                tmp.at(x, y, 0) += s[0];
-                tmp.at(x, y, 1) += s[1];
-            }
-    for (int y = 0; y < H; ++y)
-        for (int x = 0; x < W; ++x)
-            for (int d = -radius; d <= radius; ++d) {
-                const float* s = tmp.pixel(x, std::clamp(y + d, 0, H - 1));
-                box.at(x, y, 0) += s[0];
-                box.at(x, y, 1) += s[1];
-            }
-    const float n = float((2 * radius + 1) * (2 * radius + 1));
+    ChannelImage tmp(W, H, 2);
     std::vector<std::uint8_t> a(flow.pixelCount());
-    for (size_t i = 0; i < a.size(); ++i) {
-        const float mx = box.pixel(i)[0] / n, my = box.pixel(i)[1] / n;
-        a[i] = std::hypot(mx, my) >= eps ? std::uint8_t(rotationIndex(std::atan2(my, mx))) : kNoDirection;
-    }
+    const float n = float((2 * radius + 1) * (2 * radius + 1));
+    parallelFor(size_t(H), 16, [&](size_t y0, size_t y1) {
+        for (size_t y = y0; y < y1; ++y)
+            for (int x = 0; x < W; ++x)
+                for (int d = -radius; d <= radius; ++d) {
+                    const float* s = flow.pixel(std::clamp(x + d, 0, W - 1), int(y));
+                    tmp.at(x, int(y), 0) += s[0];
+                    tmp.at(x, int(y), 1) += s[1];
+                }
+    });
+    parallelFor(size_t(H), 16, [&](size_t y0, size_t y1) {
+        for (size_t y = y0; y < y1; ++y)
+            for (int x = 0; x < W; ++x) {
+                float bx = 0.0f, by = 0.0f;
+                for (int d = -radius; d <= radius; ++d) {
+                    const float* s = tmp.pixel(x, std::clamp(int(y) + d, 0, H - 1));
+                    bx += s[0];
+                    by += s[1];
+                }
+                const float mx = bx / n, my = by / n;
+                a[flow.index(x, int(y))] = std::hypot(mx, my) >= eps ? std::uint8_t(rotationIndex(std::atan2(my, mx))) : kNoDirection;
+            }
+    });
     return a;
 }
 
@@ -114,17 +118,21 @@ TargetLevel makeTargetLevel(const FrameImages& f, const LevelRules& rules)
     const ChannelImage phi = signedDistance(binary(f.mask));
     T.dirStep = patchMeanSteps(f.flow, rules.radius, rules.eps);
     T.label.assign(size_t(W) * size_t(H), -1);
-    for (int y = -P; y < H + P; ++y)
-        for (int x = -P; x < W + P; ++x) {
-            const int cx = std::clamp(x, 0, W - 1), cy = std::clamp(y, 0, H - 1);
-            const size_t p = size_t(cy) * size_t(W) + size_t(cx);
-            float* o = T.at(x, y);
-            o[3] = f.shape.pixel(p)[0];
-            o[4] = f.ext.pixel(p)[0];
-            o[5] = f.ext.pixel(p)[1];
-            directionChannels(f.flow.pixel(p), rules.eps, o + 6);
-            std::copy(f.temp.pixel(p), f.temp.pixel(p) + 4, o + 8);
+    parallelFor(size_t(H + 2 * P), 16, [&](size_t r0, size_t r1) {
+        for (size_t row = r0; row < r1; ++row) {
+            const int y = int(row) - P;
+            for (int x = -P; x < W + P; ++x) {
+                const int cx = std::clamp(x, 0, W - 1), cy = std::clamp(y, 0, H - 1);
+                const size_t p = size_t(cy) * size_t(W) + size_t(cx);
+                float* o = T.at(x, y);
+                o[3] = f.shape.pixel(p)[0];
+                o[4] = f.ext.pixel(p)[0];
+                o[5] = f.ext.pixel(p)[1];
+                directionChannels(f.flow.pixel(p), rules.eps, o + 6);
+                std::copy(f.temp.pixel(p), f.temp.pixel(p) + 4, o + 8);
+            }
         }
+    });
     for (int y = 0; y < H; ++y)
         for (int x = 0; x < W; ++x) {
             const size_t p = size_t(y) * size_t(W) + size_t(x);

@@ -410,6 +410,8 @@ Fluidymator::Fluidymator(const FluidySettings& settings, const std::vector<Chann
     for (const ChannelImage& c : rgb)
         if (c.width() != sw || c.height() != sh || c.channels() < 3)
             throw ValueError("fluidymation: every exemplar frame must be RGB of the masks' size (" + std::to_string(sw) + "x" + std::to_string(sh) + ")");
+    if (sw > 32767 || sh > 32767 || I.F > 32767)
+        throw ValueError("fluidymation: the exemplar must be at most 32767 pixels and frames along each axis");
     const int minSide = 2 * (I.table.reach() + 1) + 1;
     if (std::min(sw, sh) < minSide || std::min(tw, th) < I.n)
         throw ValueError("fluidymation: the exemplar (" + std::to_string(sw) + "x" + std::to_string(sh) + ") or the target (" + std::to_string(tw) +
@@ -655,6 +657,7 @@ FluidyFrame Fluidymator::next(Progress* progress)
     if (st.maskedPixels == 0) { // nothing to paint: a transparent frame, and the next one starts a new shot
         out.image = RgbaImage(W, H);
         I.havePrev = false;
+        I.prevRgb = ChannelImage(); // no flicker measured across the cut
         ++I.j;
         return out;
     }
