@@ -29,7 +29,7 @@ RECORD=1
 PERF="$ROOT/docs/performance.md"
 
 CONFIGS="tiny measure-plume sim128 paper3d plume4x blender-paper3d blender-plume2 ratio2 blender-noise synth2d synth3d
- stylize1m stylize1m-full animate640 animate640-preview"
+ stylize1m stylize1m-full fluidy12k fluidy123k animate640 animate640-preview"
 
 describe() {
     case "$1" in
@@ -48,6 +48,8 @@ describe() {
     stylize1m-full) echo "stylize: 1024x1024 all fluid (1.05 Mpix of patches), 256^2 exemplar, 3 frames (the worst case)" ;;
     animate640) echo "animate: 640x480 still (built-in river, matte, scenes/animate strokes), 100-frame 640x480 example read from PNGs, HM steerable x3 on the auto grid (target: <= 60 s, <= 2 GiB)" ;;
     animate640-preview) echo "animate: the same with the Laplacian single-pass preview matching" ;;
+    fluidy12k) echo "stylize fluidymation: 12k masked pixels (rotate 204^2), builtin:ink 240x180x20, 10 frames (paper Table 2: 0.55 s/frame, 4 cores)" ;;
+    fluidy123k) echo "stylize fluidymation: 123k masked pixels (rotate 652^2), builtin:ink 400x300x30, 10 frames (paper Table 2: 3.48 s/frame, 4 cores)" ;;
     *) return 1 ;;
     esac
 }
@@ -409,6 +411,19 @@ cfg_animate640_preview() {
         --target "$WORK/animate640_in/still.png" --target-alpha "$WORK/animate640_in/matte.png" \
         --flow-strokes "$ROOT/scenes/animate/river_strokes.json" --hm laplacian --out "$WORK/animate640_preview_out/a.####.exr" --json
 }
+
+# stylize --method fluidymation: the masked-pixel counts of the paper's Table 2 (built-in target and
+# moving exemplar; no preparation).
+fluidy() {
+    need_command stylize --method --scene --scene-size --frames --exemplar --out --json || return 1
+    n=$(frames_or 10)
+    rm -rf "$WORK/$1_out"
+    # shellcheck disable=SC2086
+    timed "$1" "$VDBTURB" stylize $THREAD_ARGS --method fluidymation --scene rotate --scene-size "$2" --frames "$n" \
+        --exemplar "$3" --out "$WORK/$1_out/s.####.png" --json
+}
+cfg_fluidy12k() { fluidy fluidy12k 204x204 builtin:ink:240x180x20; }
+cfg_fluidy123k() { fluidy fluidy123k 652x652 builtin:ink:400x300x30; }
 
 # --- main -------------------------------------------------------------------------------------------
 

@@ -372,3 +372,100 @@ TEST(Cli, AnimateRefusesBadInputNamingTheFileAndWritesNothing)
     }
     refused("--example " + ex + " --target " + still + " --flow-strokes " + strokesPath(), dir / "in/river.0007.png", "50x40");
 }
+
+namespace {
+
+/// A growing disc as binary PNG masks m.001.png ... (no flow: fluidymation estimates it).
+void writeMasks(const std::string& dir, int frames, int W, int H, bool empty = false)
+{
+    std::filesystem::create_directories(dir);
+    turbio::ImageWriteOptions o;
+    o.alpha = false;
+    for (int f = 1; f <= frames; ++f) {
+        turb::RgbaImage m(W, H, turb::Rgba(0, 0, 0, 1));
+        const double R = 9.0 + 1.5 * f;
+        for (int y = 0; y < H; ++y)
+            for (int x = 0; x < W; ++x)
+                if (!empty && std::hypot(x - W / 2.0, y - H / 2.0) <= R) m.at(x, y) = turb::Rgba(1, 1, 1, 1);
+        char name[32];
+        std::snprintf(name, sizeof(name), "/m.%03d.png", f);
+        turbio::writeImage(dir + name, m, o);
+    }
+}
+
+} // namespace
+
+TEST(Cli, FluidymationWritesFramesRotationNnfAndJson)
+{
+    testutil::TempDir dir;
+    // The built-in moving exemplar on disk: frames, masks and flows.
+    const CmdResult sim = run("sim ink --res 64x48 --frames 12 --out " + dir / "ink/ink.####.png -q");
+    ASSERT_EQ(sim.code, 0) << sim.out;
+    EXPECT_EQ(testutil::countEntries(dir / "ink"), 36u);
+    EXPECT_TRUE(std::filesystem::exists(dir / "ink/ink_mask.0012.png"));
+    EXPECT_TRUE(std::filesystem::exists(dir / "ink/ink_flow.0001.exr"));
+    writeMasks(dir / "t", 4, 48, 48);
+    const std::string in = " --method fluidymation --exemplar " + dir / "ink/ink.####.png" + " --exemplar-mask " + dir / "ink/ink_mask.####.png" +
+                           " --target-mask " + dir / "t/m.###.png --b 8";
+    const CmdResult dry = run("stylize" + in + " --out " + dir / "o/s.####.png --dry-run");
+    EXPECT_EQ(dry.code, 0) << dry.out;
+    EXPECT_FALSE(std::filesystem::exists(dir / "o"));
+    const CmdResult r = run("stylize" + in + " --out " + dir / "o/s.####.png --out-rot " + dir / "o/rot.####.exr --debug-nnf " + dir / "o/nnf" +
+                            " --json -q --threads 2");
+    ASSERT_EQ(r.code, 0) << r.out;
+    for (const char* key : {"\"mean_abs_sin\":", "\"speed_correlation\":", "\"coverage\":", "\"stationary_change\":", "\"energy\":"})
+        EXPECT_NE(r.out.find(key), std::string::npos) << key << "\n" << r.out.substr(0, 600);
+    const turb::RgbaImage out = turbio::readImage(dir / "o/s.0004.png");
+    EXPECT_EQ(out.width(), 48);
+    // The centre is painted (alpha from the exemplar's masks), a corner is not.
+    EXPECT_GT(out.at(24, 24)[3], 0.5f);
+    EXPECT_LT(out.at(1, 1)[3], 0.01f);
+    // T^rot in radians where a patch is centred; the NNF names exemplar frames 0..11 and pixels inside it.
+    const turb::RgbaImage rot = turbio::readImage(dir / "o/rot.0004.exr"), nnf = turbio::readImage(dir / "o/nnf/nnf.0004.exr");
+    EXPECT_GE(rot.at(24, 24)[0], 0.0f);
+    EXPECT_LT(rot.at(24, 24)[0], 6.2832f);
+    EXPECT_NEAR(std::hypot(rot.at(24, 24)[1], rot.at(24, 24)[2]), 1.0f, 1e-3);
+    EXPECT_EQ(rot.at(1, 1)[1], 0.0f);
+    EXPECT_GE(nnf.at(24, 24)[0], 0.0f);
+    EXPECT_LE(nnf.at(24, 24)[0], 11.0f);
+    EXPECT_LT(nnf.at(24, 24)[1], 64.0f);
+    EXPECT_TRUE(std::filesystem::exists(dir / "o/nnf/nnf_vis.0004.png"));
+    // One thread gives the same pixels.
+    const CmdResult one = run("stylize" + in + " --out " + dir / "p/s.####.png -q --threads 1");
+    ASSERT_EQ(one.code, 0) << one.out;
+    EXPECT_EQ(turbio::readImage(dir / "p/s.0004.png").pixels(), out.pixels());
+    // A cache through a camera, with the built-in exemplar.
+    const CmdResult cache = run("stylize --method fluidymation --cache " + testutil::dataPath("blender-plume2-32/fluid_data_####.vdb") +
+                                " --frames 20-21 --camera front --width 64 --exemplar builtin:ink:64x48x11 --b 8 --out " + dir / "c/c.####.png -q --json");
+    ASSERT_EQ(cache.code, 0) << cache.out;
+    EXPECT_EQ(turbio::readImage(dir / "c/c.0021.png").width(), 64);
+    EXPECT_NE(cache.out.find("\"masked_pixels\":"), std::string::npos);
+}
+
+TEST(Cli, FluidymationRefusesBadInputBeforeWritingAnything)
+{
+    testutil::TempDir dir;
+    ASSERT_EQ(run("sim ink --res 48x40 --frames 11 --out " + dir / "ink/ink.####.png -q").code, 0);
+    ASSERT_EQ(run("sim ink --res 48x40 --frames 8 --out " + dir / "short/ink.####.png -q").code, 0);
+    writeMasks(dir / "t", 3, 40, 40);
+    writeMasks(dir / "e", 3, 40, 40, true);
+    const auto expectRefused = [&](const std::string& args, const std::string& names) {
+        const CmdResult r = run("stylize --method fluidymation " + args + " --out " + dir / "o/s.####.png");
+        EXPECT_EQ(r.code, 1) << args << "\n" << r.out;
+        EXPECT_NE(r.out.find(names), std::string::npos) << "the message must name " << names << ":\n" << r.out;
+        EXPECT_FALSE(std::filesystem::exists(dir / "o")) << "nothing may be written: " << args;
+    };
+    const std::string ex = " --exemplar " + dir / "ink/ink.####.png --exemplar-mask " + dir / "ink/ink_mask.####.png";
+    // An exemplar shorter than 2r + 1 frames (8 < 11).
+    expectRefused(" --exemplar " + dir / "short/ink.####.png --exemplar-mask " + dir / "short/ink_mask.####.png --target-mask " + dir / "t/m.###.png", "2r + 1");
+    // An empty target mask in every frame.
+    expectRefused(ex + " --target-mask " + dir / "e/m.###.png", "empty in every frame");
+    // Mask and frame counts that differ.
+    std::filesystem::remove(dir / "ink/ink_mask.0011.png");
+    expectRefused(ex + " --target-mask " + dir / "t/m.###.png", "ink_mask");
+    // LazyFluids' target options are refused.
+    expectRefused(" --exemplar builtin:ink:48x40x11 --alpha " + dir / "t/m.###.png", "--target-mask");
+    // A target flow of another size than its masks.
+    ASSERT_EQ(run("sim ink --res 48x40 --frames 11 --out " + dir / "ink/ink.####.png -q").code, 0);
+    expectRefused(ex + " --target-mask " + dir / "t/m.###.png --target-flow " + dir / "ink/ink_flow.####.exr --frames 1-3", "ink_flow.0001.exr");
+}

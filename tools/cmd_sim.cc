@@ -3,14 +3,17 @@
 #include "Console.h"
 #include "RunReport.h"
 
+#include <scenes/Ink2D.h>
 #include <scenes/Smoke.h>
 #include <turb/Error.h>
 #include <turb/Parallel.h>
+#include <turbio/ImageIO.h>
 #include <turbio/Sequence.h>
 #include <turbio/Vdb.h>
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cstdio>
 #include <iostream>
 #include <memory>
@@ -62,14 +65,72 @@ std::string resText(const turb::Coord& r)
     return std::to_string(r.x()) + "x" + std::to_string(r.y()) + "x" + std::to_string(r.z());
 }
 
+/// The sibling pattern of `p` for another sequence: "dir/ink.####.png" -> "dir/ink_mask.####.exr".
+turbio::FramePattern sibling(const turbio::FramePattern& p, const std::string& tag, const std::string& ext)
+{
+    std::string prefix = p.prefix(), sep = ".";
+    if (!prefix.empty() && (prefix.back() == '.' || prefix.back() == '_' || prefix.back() == '-')) {
+        sep = std::string(1, prefix.back());
+        prefix.pop_back();
+    }
+    return turbio::FramePattern::parse(prefix + "_" + tag + sep + std::string(size_t(std::max(1, p.width())), '#') + ext);
+}
+
+/// `sim ink`: the 2D moving exemplar of Fluidymation (scenes/Ink2D.h), as RGB, mask and flow images.
+int runInk(const SimArgs& a)
+{
+    turb::scenes::InkSettings s;
+    const std::string res = a.res == SimArgs{}.res ? "320x240" : a.res; // the 3D default means "not given"
+    int w = 0, h = 0;
+    char x = 0, extra = 0;
+    if (std::sscanf(res.c_str(), "%d%c%d%c", &w, &x, &h, &extra) != 3 || (x != 'x' && x != 'X'))
+        throw turb::ValueError("--res: the ink scene is 2D, expected WxH (e.g. 320x240), got '" + a.res + "'");
+    s.width = w;
+    s.height = h;
+    s.frames = a.frames;
+    s.seed = a.seed;
+    const std::string outText = a.out.empty() ? "sim/ink_" + res + "/ink.####.png" : a.out;
+    const turbio::FramePattern rgb = turbio::FramePattern::parse(outText);
+    if (!rgb.numbered() && a.frames > 1) throw turb::ValueError("--out '" + outText + "' has no frame token (####)");
+    turbio::outputFormatOf(outText);
+    const turbio::FramePattern mask = sibling(rgb, "mask", ".png"), flow = sibling(rgb, "flow", ".exr");
+    logInfo("scene ink at " + res + ", " + std::to_string(a.frames) + " frames, seed " + std::to_string(a.seed) + ": " + rgb.str() + ", " +
+            mask.str() + ", " + flow.str());
+    if (globals().dryRun) return kOk;
+    turb::scenes::InkSequence ink;
+    turb::withThreads(globals().threads, [&] { ink = turb::scenes::inkExemplar(s); });
+    RunReport report("sim ink " + res, a.json);
+    for (int i = 0; i < a.frames; ++i) {
+        const int number = a.start + i;
+        turbio::ensureParentDirectory(rgb.format(number));
+        turbio::ImageWriteOptions o;
+        o.noClobber = a.write.noClobber;
+        o.alpha = false;
+        turbio::writeImage(rgb.format(number), ink.rgb[size_t(i)], o);
+        turbio::writeImage(mask.format(number), turb::toRgba(ink.mask[size_t(i)]), o);
+        turb::RgbaImage f(s.width, s.height, turb::Rgba(0, 0, 0, 1));
+        for (size_t p = 0; p < f.size(); ++p) f.pixels()[p] = turb::Rgba(ink.flow[size_t(i)].pixel(p)[0], ink.flow[size_t(i)].pixel(p)[1], 0, 1);
+        o.bits = turbio::PixelBits::Float;
+        turbio::writeImage(flow.format(number), f, o);
+        nlohmann::json extra;
+        extra["out"] = rgb.format(number);
+        report.frameDone(number, i, a.frames, 0.0, "-> " + rgb.format(number), extra);
+    }
+    report.finish();
+    return kOk;
+}
+
 int runSim(const SimArgs& a)
 {
     if (a.list) {
         for (const auto& s : turb::scenes::sceneList())
             std::cout << s.name << "\t" << s.description << " (" << s.width << " units wide; pair "
                       << resText(s.pairLow) << " / " << resText(s.pairHigh) << ")\n";
+        std::cout << "ink\t2D: a drop of ink spreading on wet paper, painted like watercolour (PNG frames, masks and EXR flows: "
+                     "Fluidymation's moving exemplar; --res WxH, default 320x240)\n";
         return kOk;
     }
+    if (a.scene == "ink") return runInk(a);
     if (a.scene.empty()) throw turb::ValueError("no scene given (try --list)");
     if (a.frames < 1) throw turb::ValueError("--frames must be >= 1");
     const turb::Coord res = parseResolution(a.res);
@@ -159,12 +220,13 @@ Command simCommand()
     auto args = std::make_shared<SimArgs>();
     Command c;
     c.name = "sim";
-    c.help = "Simulate a built-in smoke scene (plume, swirl, obstacle, wind) into a VDB sequence";
+    c.help = "Simulate a built-in smoke scene (plume, swirl, obstacle, wind) into a VDB sequence, or the 2D ink exemplar into images";
     c.setup = [args](CLI::App* app) {
         SimArgs& a = *args;
         std::vector<std::string> names;
         for (const auto& s : turb::scenes::sceneList()) names.push_back(s.name);
-        app->add_option("scene", a.scene, "Scene: plume, swirl, obstacle or wind (see --list)")->check(CLI::IsMember(names));
+        names.push_back("ink");
+        app->add_option("scene", a.scene, "Scene: plume, swirl, obstacle, wind, or the 2D ink (see --list)")->check(CLI::IsMember(names));
         app->add_flag("--list", a.list, "List the scenes and exit");
         app->add_option("--res", a.res,
                "Cells NXxNYxNZ along x, y, z (z is up), or N for a cube (default 32x32x48). The world domain is fixed "
@@ -172,6 +234,7 @@ Command simCommand()
             ->check(CLI::Validator(
                 [](std::string& v) {
                     try {
+                        if (std::count(v.begin(), v.end(), 'x') + std::count(v.begin(), v.end(), 'X') == 1) return std::string(); // 2D (ink)
                         parseResolution(v);
                     } catch (const turb::ValueError& e) {
                         return std::string(e.what());

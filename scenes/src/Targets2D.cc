@@ -9,6 +9,8 @@ namespace turb::scenes {
 
 namespace {
 
+constexpr double kPi2 = 3.14159265358979323846;
+
 /// Three-lobed blob of mean radius R (pixels) in polar coordinates, soft edge of 2 pixels.
 float lobes(double r, double theta, double R)
 {
@@ -37,13 +39,61 @@ double valueNoise(double x, double y, double cell, std::uint64_t seed)
     return a + (b - a) * s(ty);
 }
 
+/// `grow` and `stroke`: shapes that spread and then rest, with regions that never move.
+Target2D growingTarget(const Target2DSettings& s, int frame)
+{
+    const int W = s.width, H = s.height;
+    const double m = std::min(W, H), cx = 0.5 * (W - 1), cy = 0.5 * (H - 1);
+    Target2D t{ChannelImage(W, H, 1), ChannelImage(W, H, 2)};
+    if (s.kind == "grow") {
+        // A wobbly disc whose radius grows at speed * min(W, H) pixels a frame from 0.12 to 0.42 of the
+        // short side, then rests: uniform dilation about the centre while it grows.
+        const double v = s.speed * m, R0 = 0.12 * m, R1 = 0.42 * m;
+        const double f = std::max(0, frame);
+        const double R = std::min(R1, R0 + v * f);
+        const double rate = R0 + v * f < R1 ? v / R : 0.0; // dR/dt / R
+        for (int y = 0; y < H; ++y)
+            for (int x = 0; x < W; ++x) {
+                const double dx = x - cx, dy = y - cy, phi = std::atan2(dy, dx);
+                const double edge = R * (1.0 + 0.12 * std::cos(3.0 * phi) + 0.06 * std::sin(5.0 * phi + 1.0));
+                t.alpha.at(x, y, 0) = float(std::clamp((edge - std::hypot(dx, dy)) / 2.0 + 0.5, 0.0, 1.0));
+                t.motion.at(x, y, 0) = float(rate * dx);
+                t.motion.at(x, y, 1) = float(rate * dy);
+            }
+        return t;
+    }
+    // A brush stroke along a gentle wave, its tip advancing speed * W pixels a frame from 0.1 W to 0.9 W:
+    // the body already painted rests, the tip moves along the path.
+    const double th = 0.07 * m, x0 = 0.1 * W, x1 = 0.9 * W;
+    const double tip = std::min(x1, x0 + th + s.speed * W * std::max(0, frame));
+    const bool moving = x0 + th + s.speed * W * std::max(0, frame) < x1;
+    const auto path = [&](double x) { return cy + 0.18 * H * std::sin(2.0 * kPi2 * (x - x0) / (x1 - x0) * 0.75); };
+    const auto slope = [&](double x) { return 0.18 * H * std::cos(2.0 * kPi2 * (x - x0) / (x1 - x0) * 0.75) * 2.0 * kPi2 * 0.75 / (x1 - x0); };
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+            // Distance to the path between x0 and the tip (the path is shallow: vertical distance
+            // scaled by the slope's cosine, round caps at both ends).
+            const double xc = std::clamp(double(x), x0, tip);
+            const double sl = slope(xc), dy = (y - path(xc)) / std::sqrt(1.0 + sl * sl);
+            const double d = std::hypot(x - xc, dy);
+            t.alpha.at(x, y, 0) = float(std::clamp((th - d) / 2.0 + 0.5, 0.0, 1.0));
+            if (!moving) continue;
+            const double w = std::clamp((x - (tip - 2.0 * th)) / (2.0 * th), 0.0, 1.0);
+            const double v = s.speed * W, n = std::sqrt(1.0 + slope(tip) * slope(tip));
+            t.motion.at(x, y, 0) = float(w * v / n);
+            t.motion.at(x, y, 1) = float(w * v * slope(tip) / n);
+        }
+    return t;
+}
+
 } // namespace
 
 Target2D target2D(const Target2DSettings& s, int frame)
 {
     if (s.width < 16 || s.height < 16) throw ValueError("target2D: size must be at least 16x16");
-    if (s.kind != "rotate" && s.kind != "swirl" && s.kind != "rise" && s.kind != "fill")
-        throw ValueError("target2D: unknown kind '" + s.kind + "' (rotate, swirl, rise, fill)");
+    if (s.kind != "rotate" && s.kind != "swirl" && s.kind != "rise" && s.kind != "fill" && s.kind != "grow" && s.kind != "stroke")
+        throw ValueError("target2D: unknown kind '" + s.kind + "' (rotate, swirl, rise, fill, grow, stroke)");
+    if (s.kind == "grow" || s.kind == "stroke") return growingTarget(s, frame);
     const int W = s.width, H = s.height;
     const double cx = (W - 1) / 2.0, cy = (H - 1) / 2.0, R = 0.3 * std::min(W, H);
     Target2D t{ChannelImage(W, H, 1), ChannelImage(W, H, 2)};

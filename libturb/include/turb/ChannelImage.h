@@ -61,6 +61,10 @@ ChannelImage gaussianBlur(const ChannelImage& img, double sigma);
 /// exist; the size is ceil(W/2) x ceil(H/2). Pixel (x, y) of the result covers fine pixel (2x, 2y).
 ChannelImage reduceByTwo(const ChannelImage& img);
 
+/// Bilinear 2x enlargement onto a width x height grid (about twice `coarse`): fine pixel x sits at
+/// coarse position (x - 0.5) / 2, the inverse of reduceByTwo's pixel layout. Constant extension.
+ChannelImage enlarge(const ChannelImage& coarse, int width, int height);
+
 /// Bilinear sample of all channels at the continuous position (x, y) with constant extension; writes
 /// channels() floats to `out`.
 void sampleBilinear(const ChannelImage& img, double x, double y, float* out);

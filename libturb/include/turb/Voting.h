@@ -6,6 +6,8 @@
 /// pixel p' + (q - q'). Gathering (each pixel reads its own votes) makes the result independent of the
 /// thread count. Pixels with no vote get `empty`.
 ///
+/// `voteRotated` is the same for the (i, x, y, theta) fields of Fluidymation (RotatedNnf.h).
+///
 /// @code
 /// turb::vote(exemplar, nnf, 2, 0, 4, target, turb::VoteSettings{});  // RGBA channels 0..3
 /// @endcode
@@ -13,6 +15,7 @@
 
 #include <turb/ChannelImage.h>
 #include <turb/PatchMatch.h>
+#include <turb/RotatedNnf.h>
 
 namespace turb {
 
@@ -26,5 +29,13 @@ struct VoteSettings
 /// the number of votes per target pixel (0 = uncovered). Throws ValueError on size or channel mismatch.
 std::vector<int> vote(const ChannelImage& source, const Nnf& nnf, int radius, int firstSource, int firstTarget, int count,
     ChannelImage& target, const VoteSettings& settings = {});
+
+/// Voting of rotated patches from a video (Fluidymation, seed 004): target pixel q gathers, from every
+/// centre q' = q - d with a match (i, x, y, theta), the source frame i sampled bilinearly at
+/// (x, y) + R_{-theta} d (RotatedNnf.h), and takes the mean. `frames[i]` is source frame i; channels
+/// [firstSource, firstSource + count) go to [firstTarget, ...) of `target`. Returns the votes per target
+/// pixel. Throws ValueError on size or channel mismatch or a match naming a missing frame.
+std::vector<int> voteRotated(const std::vector<const ChannelImage*>& frames, const RotatedNnf& nnf, int radius, int firstSource,
+    int firstTarget, int count, ChannelImage& target, const VoteSettings& settings = {});
 
 } // namespace turb

@@ -37,6 +37,12 @@ ChannelImage gaussianBlur(const ChannelImage& img, double sigma)
         for (size_t y = y0; y < y1; ++y)
             for (int x = 0; x < W; ++x) {
                 float* o = tmp.pixel(x, int(y));
+                if (x >= r && x < W - r) { // inside: no clamping, the same sums in the same order
+                    const float* s = img.pixel(x - r, int(y));
+                    for (int i = 0; i <= 2 * r; ++i, s += C)
+                        for (int c = 0; c < C; ++c) o[c] += k[size_t(i)] * s[c];
+                    continue;
+                }
                 for (int i = -r; i <= r; ++i) {
                     const float* s = img.pixel(std::min(W - 1, std::max(0, x + i)), int(y));
                     for (int c = 0; c < C; ++c) o[c] += k[size_t(i + r)] * s[c];
@@ -44,7 +50,16 @@ ChannelImage gaussianBlur(const ChannelImage& img, double sigma)
             }
     });
     parallelFor(size_t(H), 8, [&](size_t y0, size_t y1) {
-        for (size_t y = y0; y < y1; ++y)
+        for (size_t y = y0; y < y1; ++y) {
+            if (int(y) >= r && int(y) < H - r) { // inside: row by row, the same sums in the same order per pixel
+                for (int i = -r; i <= r; ++i) {
+                    const float* s = tmp.pixel(0, int(y) + i);
+                    float* o = out.pixel(0, int(y));
+                    const float w = k[size_t(i + r)];
+                    for (size_t j = 0; j < size_t(W) * size_t(C); ++j) o[j] += w * s[j];
+                }
+                continue;
+            }
             for (int x = 0; x < W; ++x) {
                 float* o = out.pixel(x, int(y));
                 for (int i = -r; i <= r; ++i) {
@@ -52,6 +67,7 @@ ChannelImage gaussianBlur(const ChannelImage& img, double sigma)
                     for (int c = 0; c < C; ++c) o[c] += k[size_t(i + r)] * s[c];
                 }
             }
+        }
     });
     return out;
 }
@@ -90,6 +106,16 @@ void sampleBilinear(const ChannelImage& img, double x, double y, float* out)
     const float *a = img.pixel(x0, y0), *b = img.pixel(x1, y0), *c = img.pixel(x0, y1), *d = img.pixel(x1, y1);
     for (int k = 0; k < C; ++k)
         out[k] = (1 - fy) * ((1 - fx) * a[k] + fx * b[k]) + fy * ((1 - fx) * c[k] + fx * d[k]);
+}
+
+ChannelImage enlarge(const ChannelImage& coarse, int W, int H)
+{
+    ChannelImage out(W, H, coarse.channels());
+    parallelFor(size_t(H), 16, [&](size_t y0, size_t y1) {
+        for (size_t y = y0; y < y1; ++y)
+            for (int x = 0; x < W; ++x) sampleBilinear(coarse, (x - 0.5) / 2.0, (double(y) - 0.5) / 2.0, out.pixel(x, int(y)));
+    });
+    return out;
 }
 
 ChannelImage channelRange(const ChannelImage& img, int first, int count)

@@ -67,17 +67,6 @@ ChannelImage premultiplied(const RgbaImage& img)
     return out;
 }
 
-/// Bilinear 2x enlargement onto a W x H grid: fine pixel x sits at coarse position (x - 0.5) / 2.
-ChannelImage enlarged(const ChannelImage& coarse, int W, int H)
-{
-    ChannelImage out(W, H, coarse.channels());
-    parallelFor(size_t(H), 16, [&](size_t y0, size_t y1) {
-        for (size_t y = y0; y < y1; ++y)
-            for (int x = 0; x < W; ++x) sampleBilinear(coarse, (x - 0.5) / 2.0, (double(y) - 0.5) / 2.0, out.pixel(x, int(y)));
-    });
-    return out;
-}
-
 ChannelImage reducedTimes(ChannelImage img, int n)
 {
     for (int i = 0; i < n; ++i) img = reduceByTwo(img);
@@ -331,7 +320,7 @@ StylizedFrame Stylizer::next(const StylizeFrame& frame, Progress* progress)
         const ExemplarLevel ex = exemplarLevel(exCur, exPrev, exBlur, level, r, s.rotations, s);
         TargetLevel tl = targetLevel(alpha, blur, first ? ChannelImage(W, H, 4) : prev, first ? ChannelImage(W, H, 1) : lambda, level, r, s, ex);
         if (!current.empty()) {
-            const ChannelImage init = padClamped(enlarged(current, tl.width, tl.height), r);
+            const ChannelImage init = padClamped(enlarge(current, tl.width, tl.height), r);
             for (size_t i = 0; i < init.pixelCount(); ++i) std::copy(init.pixel(i), init.pixel(i) + 4, tl.features.pixel(i));
         } else {
             // Kwatra et al.'s start: random exemplar patches of each target patch's segment, voted.

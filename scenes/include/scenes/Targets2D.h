@@ -8,7 +8,11 @@
 ///   rotation: the flow that exposes wash-out);
 /// - `swirl`: the same blob in a vortex whose angular speed falls off with the radius (it shears);
 /// - `rise`: a round blob moving up at constant speed, wrapping around the image;
-/// - `fill`: the whole image is fluid (alpha 1) in a rigid rotation: the benchmark's worst case.
+/// - `fill`: the whole image is fluid (alpha 1) in a rigid rotation: the benchmark's worst case;
+/// - `grow`: a wobbly disc spreading (uniform dilation at speed x the short side per frame) until it
+///   reaches 0.42 of the short side, then resting (Fluidymation's watercolour blot);
+/// - `stroke`: a brush stroke along a wave whose tip advances speed x W pixels a frame while the body
+///   already painted rests (stationary and moving regions in one frame).
 /// Motion is in pixels per frame, x right, y down (ChannelImage's convention).
 ///
 /// @code
@@ -28,10 +32,10 @@ namespace turb::scenes {
 
 struct Target2DSettings
 {
-    std::string kind = "rotate"; ///< rotate, swirl, rise or fill
+    std::string kind = "rotate"; ///< rotate, swirl, rise, fill, grow or stroke
     int width = 256;             ///< pixels, >= 16
     int height = 256;            ///< pixels, >= 16
-    double speed = 0.02;         ///< rotate/swirl: radians per frame at the centre; rise: pixels per frame / width
+    double speed = 0.02;         ///< rotate/swirl: radians per frame at the centre; rise, stroke: pixels per frame / width; grow: / short side
 };
 
 struct Target2D
