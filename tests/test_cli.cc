@@ -112,6 +112,64 @@ TEST(Cli, TransferWritesResumesAndNeverClobbers)
     EXPECT_EQ(testutil::countEntries(dir / "up"), 3u) << "no temporary files may remain";
 }
 
+TEST(Cli, PrerollMatchesALongerRunAndResumeRefusesOtherSettings)
+{
+    // Issue 20, item 4. A run asked for frame 2 starts its detail fresh there: it says so, and --preroll 1 runs
+    // frame 1 first without writing it, which gives exactly the frame of a run over 1-2.
+    testutil::TempDir dir;
+    const std::string base = "transfer --target " + lo() + " --source " + hi();
+    const CmdResult whole = run(base + " --out " + dir / "whole/t.####.vdb --frames 1-2 -q");
+    ASSERT_EQ(whole.code, 0) << whole.out;
+    const CmdResult fresh = run(base + " --out " + dir / "fresh/t.####.vdb --frames 2");
+    ASSERT_EQ(fresh.code, 0) << fresh.out;
+    EXPECT_NE(fresh.out.find("starts fresh at frame 2"), std::string::npos) << fresh.out;
+    const CmdResult pre = run(base + " --out " + dir / "pre/t.####.vdb --frames 2 --preroll 1");
+    ASSERT_EQ(pre.code, 0) << pre.out;
+    EXPECT_NE(pre.out.find("pre-roll frame 1"), std::string::npos) << pre.out;
+    EXPECT_FALSE(std::filesystem::exists(dir / "pre/t.0001.vdb")) << "pre-roll frames are not written";
+    const turb::Frame a = turbio::readFrame(dir / "whole/t.0002.vdb", 2, turbio::ReadOptions{});
+    const turb::Frame b = turbio::readFrame(dir / "pre/t.0002.vdb", 2, turbio::ReadOptions{});
+    const turb::Frame c = turbio::readFrame(dir / "fresh/t.0002.vdb", 2, turbio::ReadOptions{});
+    EXPECT_EQ(a.velocity.values(), b.velocity.values());
+    EXPECT_EQ(a.density.values(), b.density.values());
+    EXPECT_NE(a.velocity.values(), c.velocity.values()) << "without the pre-roll frame 2 differs";
+
+    // --resume with settings that change the output is refused, naming each setting; nothing is written.
+    const std::string out = dir / "whole/t.####.vdb";
+    const CmdResult other = run(base + " --out " + out + " --frames 1-3 --resume --temporal-blend 0.5 --gamma 0");
+    EXPECT_EQ(other.code, 1) << other.out;
+    EXPECT_NE(other.out.find("temporal-blend: 0.949999988 -> 0.5"), std::string::npos) << other.out;
+    EXPECT_NE(other.out.find("gamma: 10 -> 0"), std::string::npos) << other.out;
+    EXPECT_FALSE(std::filesystem::exists(dir / "whole/t.0003.vdb"));
+    // The same settings (threads do not count) continue.
+    const CmdResult same = run(base + " --out " + out + " --frames 1-3 --resume --threads 1");
+    EXPECT_EQ(same.code, 0) << same.out;
+    EXPECT_TRUE(std::filesystem::exists(dir / "whole/t.0003.vdb"));
+}
+
+TEST(Cli, PreviewFramesASequenceWithOneCamera)
+{
+    // Issue 20, item 5: smoke that grows over a sequence, written sparse (as vdbturb and Houdini write it). Every
+    // frame is drawn over the union of the frames' domains: the pictures keep one size and the smoke stays put.
+    testutil::TempDir dir;
+    const turb::Lattice lat{0.1, {0.0, 0.0, 0.0}};
+    turbio::WriteOptions w;
+    w.densityTolerance = 1e-6f;
+    std::filesystem::create_directories(dir / "in");
+    for (int fr = 1; fr <= 2; ++fr) {
+        const int top = fr == 1 ? 7 : 23;
+        const turb::Frame f = testutil::makeFrame(fr, turb::CoordBBox({0, 0, 0}, {15, 15, top}), lat,
+            [](const turb::Vec3d&) { return turb::Vec3f(0.0f); }, [](const turb::Coord&) { return 1.0f; });
+        turbio::writeFrame(dir / ("in/s." + std::to_string(fr) + ".vdb"), f, w);
+    }
+    const CmdResult r = run("preview " + dir / "in/s.#.vdb" + " --mode density --width 64 --out " + dir / "p/p.#.png");
+    ASSERT_EQ(r.code, 0) << r.out;
+    const turb::RgbaImage a = turbio::readImage(dir / "p/p.1.png"), b = turbio::readImage(dir / "p/p.2.png");
+    EXPECT_EQ(a.width(), b.width());
+    EXPECT_EQ(a.height(), b.height()) << "each frame framed to its own smoke";
+    EXPECT_EQ(a.height(), 96) << "the union of the domains is 16 x 24 voxels: 64 x 96 pixels";
+}
+
 TEST(Cli, MeasureCanReadTheSourceAsTransferReadsIt)
 {
     // Frame 1 of the Blender plume: the clipped source's edge step dominates its high-frequency energy;

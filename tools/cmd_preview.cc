@@ -9,6 +9,7 @@
 #include <turb/Operators.h>
 #include <turb/Parallel.h>
 #include <turb/Render.h>
+#include <turb/Resample.h>
 #include <turbio/ImageIO.h>
 #include <turbio/Sequence.h>
 #include <turbio/Vdb.h>
@@ -52,6 +53,7 @@ struct Input
     std::string label;
     turbio::Sequence seq;
     float speedMax = 0.0f, vorticityMax = 0.0f; // fixed colour ranges for the whole run
+    std::optional<turb::CoordBBox> frameBox;     // one camera for the whole run (see below)
 };
 
 std::string fmt(const char* f, double v)
@@ -228,10 +230,20 @@ int runPreview(PreviewArgs& a)
 
     // Every picture's frames, checked before the first is drawn; each frame is drawn on its own lattice.
     std::vector<std::string> outputs, inputPaths;
-    for (const auto& in : inputs) {
-        checkInput("preview", in.label, in.seq, frames, read, LatticePolicy::Report);
+    for (auto& in : inputs) {
+        const turbio::SequenceScan scan = checkInput("preview", in.label, in.seq, frames, read, LatticePolicy::Report);
         for (int f : frames)
             if (exists(in, f)) inputPaths.push_back(in.seq.path(f));
+        // One camera per input for the whole run: every frame is drawn over the union of the frames' domains
+        // (a Blender domain, else the union of the grids' active boxes), so a flipbook does not jump in size as
+        // the smoke grows and sheet columns stay in line. Frames on different lattices keep their own boxes.
+        if (scan.changes.empty()) {
+            for (const auto& fs : scan.frames) {
+                if (!fs.error.empty() || !fs.domainKnown || fs.domain.empty()) continue;
+                if (!in.frameBox) in.frameBox = fs.domain;
+                else in.frameBox->expand(fs.domain);
+            }
+        }
     }
     if (a.sheet.empty())
         for (int f : frames) outputs.push_back(turbio::FramePattern::parse(a.out).format(f));
@@ -278,6 +290,10 @@ int runPreview(PreviewArgs& a)
                 if (exists(in, frame)) {
                     progress.begin("reading " + in.label);
                     f = turbio::readFrame(in.seq.path(frame), frame, read);
+                    if (in.frameBox) {
+                        if (f->hasDensity()) f->density = turb::cropped(f->density, *in.frameBox);
+                        if (f->hasVelocity()) f->velocity = turb::cropped(f->velocity, *in.frameBox);
+                    }
                 } else {
                     logWarning(in.seq.path(frame) + ": missing, left empty");
                 }

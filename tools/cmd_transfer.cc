@@ -7,6 +7,7 @@
 #include <turb/Budget.h>
 #include <turb/Error.h>
 #include <turb/Resample.h>
+#include <turb/Metadata.h>
 #include <turb/Transfer.h>
 #include <turbio/Sequence.h>
 #include <turbio/System.h>
@@ -35,6 +36,7 @@ struct TransferArgs
     bool keepTargetDivergence = false;
     std::string energy = "source";
     int extendVelocity = 4;
+    int preroll = 0;
     turbio::ReadOptions targetRead, sourceRead;
     turbio::WriteOptions write;
     turb::TransferSettings settings;
@@ -195,7 +197,7 @@ int runTransfer(TransferArgs& a)
     // Only the source: its detail is what the extension cleans up. The target's velocity stays as stored,
     // since the output must keep the target's coarse motion exactly as the file has it.
     a.sourceRead.extendVelocity = a.extendVelocity;
-    const turbio::Sequence target = turbio::resolveSequence(a.target, a.frames);
+    turbio::Sequence target = turbio::resolveSequence(a.target, a.frames);
     const turbio::Sequence source = turbio::resolveSequence(a.source, a.sourceFrames);
     const turbio::FramePattern outPattern = turbio::FramePattern::parse(a.out);
     if (!target.missing.empty())
@@ -214,7 +216,34 @@ int runTransfer(TransferArgs& a)
     size_t first = 0;
     if (a.resume)
         while (first < target.frames.size() && std::filesystem::exists(outPattern.format(target.frames[first]))) ++first;
-    preflight(a, target, source, sourceFor, outPattern, first);
+    // The detail and the advected density are state: a run that starts at a later frame than the cache's first
+    // differs from a longer run's frames there. --preroll runs up to N earlier cache frames first, unwritten.
+    size_t writeFrom = first;
+    if (first == 0 && !target.frames.empty()) {
+        const turbio::Sequence whole = turbio::resolveSequence(a.target);
+        std::vector<int> earlier;
+        for (int t : whole.frames)
+            if (t < target.frames.front()) earlier.push_back(t);
+        if (a.preroll > 0) {
+            const size_t n = std::min(earlier.size(), size_t(a.preroll));
+            std::vector<int> pre(earlier.end() - std::ptrdiff_t(n), earlier.end());
+            if (n < size_t(a.preroll))
+                logWarning("--preroll " + std::to_string(a.preroll) + ": the target cache has only " + std::to_string(n) +
+                           " frames before frame " + std::to_string(target.frames.front()));
+            std::vector<int> preSource;
+            for (int t : pre) preSource.push_back(turbio::mapSourceFrame(t, source.frames, a.sourceOffset, wrap));
+            sourceFor.insert(sourceFor.begin(), preSource.begin(), preSource.end());
+            target.frames.insert(target.frames.begin(), pre.begin(), pre.end());
+            writeFrom = n;
+            if (n > 0)
+                logInfo("pre-roll: frames " + turbio::formatFrameList(pre) + " run first and are not written");
+        } else if (!earlier.empty()) {
+            logWarning("the detail starts fresh at frame " + std::to_string(target.frames.front()) + " while the cache begins at " +
+                       std::to_string(earlier.front()) + ": these frames differ from a run started earlier (--preroll " +
+                       std::to_string(std::min<size_t>(earlier.size(), 24)) + " runs earlier frames first without writing them)");
+        }
+    }
+    preflight(a, target, source, sourceFor, outPattern, writeFrom);
     if (globals().dryRun) return kOk;
 
     turb::TurbulenceTransfer transfer(s);
@@ -229,9 +258,22 @@ int runTransfer(TransferArgs& a)
             const std::string prevPath = outPattern.format(prev);
             turbio::ReadOptions ro;
             const turb::Frame prevOut = turbio::readFrame(prevPath, prev, ro);
-            const auto it = prevOut.metadata.find("vdbturb_state");
+            const auto it = prevOut.metadata.find(turb::meta::kState);
             if (it == prevOut.metadata.end())
                 throw turb::IoError(prevPath + ": no vdbturb_state metadata to resume from");
+            // Continuing with other settings would silently mix two looks in one shot.
+            const auto saved = prevOut.metadata.find(turb::meta::kSettings);
+            if (saved != prevOut.metadata.end()) {
+                const std::vector<std::string> diff = turb::settingsDifferences(saved->second, turb::outputSettingsText(s));
+                if (!diff.empty()) {
+                    std::string list;
+                    for (const std::string& d : diff) list += "\n  " + d;
+                    throw turb::ValueError(prevPath + " was made with other settings; --resume continues only the same run:" +
+                                           list + "\n  (use the saved values, or start again without --resume)");
+                }
+            } else {
+                logWarning(prevPath + ": no vdbturb_settings metadata (written by an older vdbturb): the settings cannot be checked");
+            }
             const turb::Frame prevTarget = turbio::readFrame(target.path(prev), prev, a.targetRead);
             try {
                 transfer.restore(it->second, prevOut, prevTarget);
@@ -261,9 +303,15 @@ int runTransfer(TransferArgs& a)
             throw turb::ValueError("frame " + std::to_string(t) + " (target " + target.path(t) + ", source " +
                                    source.path(sourceFor[i]) + "): " + e.what());
         }
-        r.frame.metadata["vdbturb_state"] = transfer.saveState();
-        r.frame.metadata["vdbturb_source_frame"] = std::to_string(sourceFor[i]);
-        r.frame.metadata["vdbturb_command"] = "transfer";
+        if (i < writeFrom) {
+            progress.clear();
+            logInfo("pre-roll frame " + std::to_string(t) + " done in " + fmt("%.2f s", secondsSince(t0)) + " (not written)");
+            continue;
+        }
+        r.frame.metadata[turb::meta::kState] = transfer.saveState();
+        r.frame.metadata[turb::meta::kSettings] = turb::outputSettingsText(s);
+        r.frame.metadata[turb::meta::kSourceFrame] = std::to_string(sourceFor[i]);
+        r.frame.metadata[turb::meta::kCommand] = "transfer";
         progress.begin("writing");
         const std::string outPath = outPattern.format(t);
         turbio::ensureParentDirectory(outPath);
@@ -436,6 +484,10 @@ Command transferCommand()
                "Continue the source's velocity this many voxels past its active region (Blender clips velocity to the "
                "smoke; the zeros beyond would read as turbulence at the smoke's edge). Default 4; 0 = off")
             ->check(CLI::Range(0, 64));
+        app->add_option("--preroll", a.preroll,
+               "Run up to N cache frames before the first requested one without writing them, so the detail and density "
+               "are established as in a longer run (default 0; a warning says when the run starts after the cache's first frame)")
+            ->check(CLI::NonNegativeNumber);
         app->add_flag("--resume", a.resume, "Skip frames already written and continue from the state saved in the last one");
         app->add_flag("--json", a.json, "One JSON line per frame and a summary on stdout");
         addReadOptions(app, a.targetRead, "target");

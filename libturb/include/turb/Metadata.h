@@ -19,6 +19,7 @@ inline constexpr const char* kAlpha = "vdbturb_alpha";
 inline constexpr const char* kBeta = "vdbturb_beta";
 inline constexpr const char* kGamma = "vdbturb_gamma";
 inline constexpr const char* kState = "vdbturb_state";             ///< what --resume needs (saveState)
+inline constexpr const char* kSettings = "vdbturb_settings";       ///< outputSettingsText(): what --resume compares
 inline constexpr const char* kSourceFrame = "vdbturb_source_frame"; ///< the source frame the output was made from
 
 // synth

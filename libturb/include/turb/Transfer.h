@@ -175,6 +175,18 @@ struct TransferResult
     bool empty = false;   ///< the target frame had no smoke: the frame is the upsampled target (defined no-op)
 };
 
+/// The settings that change a transfer's output, as (name, value) pairs in a fixed order; names are the command
+/// line's option names without dashes. `threads` is left out: results do not depend on it. Saved with every output
+/// frame (meta::kSettings) so that `--resume` can refuse to continue a run made with other settings, naming them.
+std::vector<std::pair<std::string, std::string>> outputSettings(const TransferSettings& s);
+
+/// Names of the settings whose values differ between two outputSettings() texts ("name=value;..."), each as
+/// "name: saved -> now"; a name present in only one text counts as differing. Empty when they agree.
+std::vector<std::string> settingsDifferences(const std::string& saved, const std::string& now);
+
+/// outputSettings() as one "name=value;name=value" text.
+std::string outputSettingsText(const TransferSettings& s);
+
 /// The resolution ratio a transfer runs at: target voxel / source voxel when that is an integer, else (with
 /// `resampleSource`) the nearest integer, the source then being resampled to it. Throws ValueError, saying
 /// why, for a ratio that rounds below 2 or, without `resampleSource`, is not an integer.

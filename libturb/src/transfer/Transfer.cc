@@ -11,6 +11,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <map>
+#include <cstdio>
 #include <sstream>
 
 namespace turb {
@@ -123,6 +125,69 @@ detail::PatchTracks TurbulenceTransfer::Impl::tracksFor(const detail::FrameSetup
         t.match[L.patchIndex(rel)] = Coord(int(std::lround(m.x())), int(std::lround(m.y())), int(std::lround(m.z())));
     }
     return t;
+}
+
+std::vector<std::pair<std::string, std::string>> outputSettings(const TransferSettings& s)
+{
+    // %.9g: every float round-trips, so equal settings give equal text.
+    const auto num = [](double v) {
+        char b[32];
+        std::snprintf(b, sizeof(b), "%.9g", v);
+        return std::string(b);
+    };
+    const auto flag = [](bool b) { return std::string(b ? "on" : "off"); };
+    const char* align[] = {"none", "normalize", "rotate", "both"};
+    const char* energy[] = {"none", "pasted", "source"};
+    return {{"alpha", num(s.alpha)}, {"beta", num(s.beta)}, {"density-threshold", num(s.densityThreshold)},
+        {"patch", num(s.localPatch)}, {"global-patch", num(s.globalPatch)}, {"pca", num(s.pcaComponents)},
+        {"stride", num(s.localStride)}, {"candidates", num(s.refineCandidates)}, {"tracking", flag(s.trackGlobalPatches)},
+        {"follow-source", flag(s.followSourceFlow)}, {"source-smoke", num(s.sourceSmoke)},
+        {"follow-tolerance", num(s.followTolerance)}, {"coherence", num(s.coherence)},
+        {"coherence-sweeps", num(s.coherenceSweeps)}, {"temporal-blend", num(s.temporalBlend)},
+        {"align", align[int(s.alignment)]}, {"resample-source", flag(s.resampleSource)},
+        {"seams", flag(s.seams.enabled)}, {"band", num(s.seams.bandWidth)}, {"boundary-patch", num(s.seams.boundaryPatch)},
+        {"gamma", num(s.seams.gamma)}, {"em-iterations", num(s.seams.maxEmIterations)},
+        {"em-tolerance", num(s.seams.emTolerance)}, {"cg-iterations", num(s.seams.maxCgIterations)},
+        {"cg-tolerance", num(s.seams.cgTolerance)}, {"box-weight", num(s.seams.boxWeight)},
+        {"box-keep", num(s.seams.boxKeep)}, {"value-weight", num(s.seams.valueWeight)},
+        {"target-divergence", flag(s.compensateTargetDivergence)}, {"whole-fresh-patches", flag(s.solveFreshPatchesWhole)},
+        {"coarse-detail-removed", flag(s.removeCoarseDetail)}, {"coarse-tolerance", num(s.coarseTolerance)},
+        {"detail-energy", energy[int(s.detailEnergy)]},
+        {"density", s.densityMode == DensityMode::LookBack ? "lookback" : "advect"},
+        {"density-guide", num(s.densityGuide.strength)}, {"density-guide-passes", num(s.densityGuide.passes)},
+        {"density-guide-threshold", num(s.densityGuide.threshold)}, {"density-guide-max-gain", num(s.densityGuide.maxGain)},
+        {"lookback", num(s.lookBackFrames)}};
+}
+
+std::string outputSettingsText(const TransferSettings& s)
+{
+    std::string text;
+    for (const auto& [name, value] : outputSettings(s)) text += (text.empty() ? "" : ";") + name + "=" + value;
+    return text;
+}
+
+std::vector<std::string> settingsDifferences(const std::string& saved, const std::string& now)
+{
+    const auto parse = [](const std::string& text) {
+        std::map<std::string, std::string> m;
+        std::stringstream ss(text);
+        std::string item;
+        while (std::getline(ss, item, ';')) {
+            const size_t eq = item.find('=');
+            if (eq != std::string::npos) m[item.substr(0, eq)] = item.substr(eq + 1);
+        }
+        return m;
+    };
+    const auto a = parse(saved), b = parse(now);
+    std::vector<std::string> out;
+    for (const auto& [name, value] : a) {
+        const auto it = b.find(name);
+        if (it == b.end()) out.push_back(name + ": " + value + " -> (unknown to this version)");
+        else if (it->second != value) out.push_back(name + ": " + value + " -> " + it->second);
+    }
+    for (const auto& [name, value] : b)
+        if (!a.count(name)) out.push_back(name + ": (not recorded) -> " + value);
+    return out;
 }
 
 int transferRatio(double targetVoxel, double sourceVoxel, bool resampleSource)
