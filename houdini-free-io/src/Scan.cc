@@ -85,7 +85,10 @@ void resolveFrame(FrameScan& fs, const FileInfo& info, const ReadOptions& option
             spans.emplace_back(g->name, turb::CoordBBox());
             continue;
         }
-        const turb::CoordBBox b = detail::boxOnLattice(g->activeBBox, latticeOf(*g), fs.lattice);
+        turb::CoordBBox b = detail::boxOnLattice(g->activeBBox, latticeOf(*g), fs.lattice);
+        // A staggered grid's faces on the domain's upper boundary are not voxels of the domain.
+        if (info.baseResolution && g->gridClass == "staggered")
+            b.intersect(turb::CoordBBox(turb::Coord(0), *info.baseResolution - turb::Coord(1)));
         spans.emplace_back(g->name, b);
         fs.domain.expand(b);
     }
