@@ -4,6 +4,7 @@
 #include "Console.h"
 #include "Preflight.h"
 
+#include <turb/Metadata.h>
 #include <turb/Error.h>
 #include <turb/Resample.h>
 #include <turb/Measure.h>
@@ -195,7 +196,7 @@ int runMeasure(MeasureArgs& a)
             if (src) {
                 // A transfer output names its source frame; otherwise the same frame number.
                 int sn = f;
-                if (auto it = o.metadata.find("vdbturb_source_frame"); it != o.metadata.end())
+                if (auto it = o.metadata.find(turb::meta::kSourceFrame); it != o.metadata.end())
                     sn = std::atoi(it->second.c_str());
                 if (has(*src, sn)) sf = turbio::readFrame(src->path(sn), sn, readSrc);
                 else logWarning("frame " + std::to_string(f) + ": source frame " + std::to_string(sn) + " missing");
@@ -224,7 +225,8 @@ int runMeasure(MeasureArgs& a)
             char head[96];
             std::snprintf(head, sizeof(head), "frame %d (%zu/%zu) %.2f s  ", f, i + 1, frames.size(), sec);
             logInfo(head + humanLine(m));
-            for (const auto& n : m.notes) logVerbose("frame " + std::to_string(f) + ": " + n);
+            for (const auto& n : m.notes)
+                logVerbose("frame " + std::to_string(f) + ": " + n + (n == "tcoh: unknown time step" ? " (give --dt)" : ""));
             nlohmann::json j = frameJson(m, a.spectraJson);
             j["frame"] = f;
             j["seconds"] = sec;

@@ -4,6 +4,7 @@
 #include "Preflight.h"
 #include "RunReport.h"
 
+#include <turb/Metadata.h>
 #include <turb/Error.h>
 #include <turb/Reorient.h>
 #include <turbio/Sequence.h>
@@ -59,7 +60,7 @@ int runResample(ResampleArgs& a)
         turb::Frame frame = turbio::readFrame(seq.path(f), f, a.read);
         if (a.down > 1) frame = turb::downsampleFrame(frame, a.down);
         if (!rot.isIdentity()) frame = turb::reorientFrame(frame, rot);
-        frame.metadata["vdbturb_command"] = "resample";
+        frame.metadata[turb::meta::kCommand] = "resample";
         const std::string path = outPattern.format(f);
         turbio::ensureParentDirectory(path);
         turbio::writeFrame(path, frame, a.write);

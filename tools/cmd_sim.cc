@@ -5,6 +5,7 @@
 
 #include <scenes/Ink2D.h>
 #include <scenes/Smoke.h>
+#include <turb/Metadata.h>
 #include <turb/Error.h>
 #include <turb/Parallel.h>
 #include <turbio/ImageIO.h>
@@ -175,7 +176,7 @@ int runSim(const SimArgs& a)
             progress.begin("writing");
             turb::Frame frame = sim.frame();
             frame.number = number;
-            frame.metadata["vdbturb_command"] = "sim";
+            frame.metadata[turb::meta::kCommand] = "sim";
             const std::string path = pattern.format(number);
             turbio::ensureParentDirectory(path);
             turbio::writeFrame(path, frame, a.write);

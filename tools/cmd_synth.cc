@@ -5,6 +5,7 @@
 #include "RunReport.h"
 
 #include <scenes/Smoke.h>
+#include <turb/Metadata.h>
 #include <turb/Budget.h>
 #include <turb/Error.h>
 #include <turb/Operators.h>
@@ -610,12 +611,12 @@ int runSynth(SynthArgs& a)
         }
         lap(3);
 
-        outFrame.metadata["vdbturb_command"] = "synth";
+        outFrame.metadata[turb::meta::kCommand] = "synth";
         std::string names;
         for (const auto& v : views) names += (names.empty() ? "" : ",") + v.exemplar.name;
-        outFrame.metadata["vdbturb_exemplars"] = names;
-        outFrame.metadata["vdbturb_omega"] = fmt("%g", a.combine.omega) + (a.combine.relative ? " x rms|L|" : "") + " " + a.omegaMode;
-        outFrame.metadata["vdbturb_seed"] = std::to_string(s.seed);
+        outFrame.metadata[turb::meta::kExemplars] = names;
+        outFrame.metadata[turb::meta::kOmega] = fmt("%g", a.combine.omega) + (a.combine.relative ? " x rms|L|" : "") + " " + a.omegaMode;
+        outFrame.metadata[turb::meta::kSeed] = std::to_string(s.seed);
         progress.begin("writing");
         const std::string outPath = outPattern.format(fr);
         turbio::ensureParentDirectory(outPath);

@@ -207,7 +207,11 @@ int runTransfer(TransferArgs& a)
                                std::to_string(target.frames.size()) + " frames are requested");
     const turbio::SourceWrap wrap = parseWrap(a.wrap);
     std::vector<int> sourceFor;
-    for (int t : target.frames) sourceFor.push_back(turbio::mapSourceFrame(t, source.frames, a.sourceOffset, wrap));
+    try {
+        for (int t : target.frames) sourceFor.push_back(turbio::mapSourceFrame(t, source.frames, a.sourceOffset, wrap));
+    } catch (const turb::ValueError& e) {
+        throw turb::ValueError(std::string(e.what()) + "; --source-offset or another --source-wrap maps it");
+    }
 
     logInfo("transfer: target " + target.pattern.str() + " frames " + turbio::formatFrameList(target.frames) +
             ", source " + source.pattern.str() + " frames " + turbio::formatFrameList(source.frames) +

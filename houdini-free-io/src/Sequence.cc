@@ -425,7 +425,7 @@ int mapSourceFrame(int targetFrame, const std::vector<int>& sourceFrames, int of
         case SourceWrap::Error:
             throw turb::ValueError("target frame " + std::to_string(targetFrame) + " needs source frame " +
                                    std::to_string(s) + ", outside the source's frames " + std::to_string(first) +
-                                   "-" + std::to_string(last) + " (use --source-offset or --source-wrap)");
+                                   "-" + std::to_string(last) + " (the wrap mode is error)");
         }
     }
     if (!std::binary_search(sourceFrames.begin(), sourceFrames.end(), int(s)))

@@ -4,6 +4,7 @@
 #include "GuardedRead.h"
 #include "ReadChecks.h"
 
+#include <turb/Metadata.h>
 #include <turb/Error.h>
 #include <turb/Operators.h>
 #include <turbio/System.h>
@@ -925,7 +926,7 @@ static turb::Frame readFrameUnchecked(const std::string& path, int frameNumber, 
                  << ")" << (std::abs(own.voxelSize / lattice.voxelSize - 2.0) < 1e-6 ? ": Houdini's velocity voxel scale 2" : "");
             rep.notes.push_back(note.str());
         }
-        frame.metadata["vdbturb_input_velocity_units"] = cells ? "cells" : "world";
+        frame.metadata[turb::meta::kInputVelocityUnits] = cells ? "cells" : "world";
     }
     const auto extra = [&](const openvdb::FloatGrid::Ptr& grid, std::optional<turb::ScalarField>& dst) {
         if (!grid) return;
@@ -950,7 +951,7 @@ static turb::Frame readFrameUnchecked(const std::string& path, int frameNumber, 
             frame.metadata[it->first] = it->second->str();
 
     // Time per frame and the units: explicit option > recorded by vdbturb > the writer's convention.
-    const ReadReport timing = resolveTiming(blenderVelocity, baseRes.has_value(), metaDouble(*r.meta, "vdbturb_dt", 0.0), options);
+    const ReadReport timing = resolveTiming(blenderVelocity, baseRes.has_value(), metaDouble(*r.meta, turb::meta::kDt, 0.0), options);
     frame.dt = timing.dt;
     if (report) {
         *report = timing;
@@ -1328,7 +1329,7 @@ void writeFrame(const std::string& path, const turb::Frame& frame, const WriteOp
         std::ostringstream os;
         os.precision(17);
         os << frame.dt;
-        meta.insertMeta("vdbturb_dt", openvdb::StringMetadata(os.str()));
+        meta.insertMeta(turb::meta::kDt, openvdb::StringMetadata(os.str()));
     }
 
     removeStaleTemporaries(path);
@@ -1406,7 +1407,7 @@ FileInfo inspectFile(const std::string& path, bool readValues)
     if (auto m = r.meta->getMetadata<openvdb::Int64Metadata>("__turb_file_version")) info.fileVersion = unsigned(m->value());
     if (auto m = r.meta->getMetadata<openvdb::StringMetadata>("__turb_lib_version")) info.libraryVersion = m->value();
     if (auto c = r.meta->getMetadata<openvdb::StringMetadata>("creator")) info.creator = c->value();
-    info.recordedDt = metaDouble(*r.meta, "vdbturb_dt", 0.0);
+    info.recordedDt = metaDouble(*r.meta, turb::meta::kDt, 0.0);
 
     std::vector<std::string> names;
     for (const auto& g : r.grids) {

@@ -1,3 +1,4 @@
+#include <turb/Metadata.h>
 #include <turb/Measure.h>
 
 #include <turb/Error.h>
@@ -505,8 +506,8 @@ FrameMeasures measureFrame(const MeasureInput& in, const MeasureSettings& s, Pro
         }
 
         // block: seams at the patch grid of the output's maker.
-        m.patchSize = s.patchSize > 0 ? s.patchSize : metadataInt(O, "vdbturb_patch_size", 0);
-        m.patchOrigin = s.patchOrigin ? *s.patchOrigin : metadataCoord(O, "vdbturb_patch_origin", Coord(0));
+        m.patchSize = s.patchSize > 0 ? s.patchSize : metadataInt(O, turb::meta::kPatchSize, 0);
+        m.patchOrigin = s.patchOrigin ? *s.patchOrigin : metadataCoord(O, turb::meta::kPatchOrigin, Coord(0));
         if (m.patchSize >= 2) {
             // U_h lives on the refined target lattice: move the origin there when whole voxels apart.
             Coord origin = m.patchOrigin;
@@ -530,7 +531,7 @@ FrameMeasures measureFrame(const MeasureInput& in, const MeasureSettings& s, Pro
             const int gap = T.number - Tp.number;
             const double dt = (s.dt > 0.0 ? s.dt : Tp.dt) * gap;
             if (gap <= 0) m.notes.push_back("tcoh: the previous frame is not earlier than this one");
-            else if (!(dt > 0.0)) m.notes.push_back("tcoh: unknown time step (give --dt)");
+            else if (!(dt > 0.0)) m.notes.push_back("tcoh: unknown time step");
             else if (!Tp.lattice().approxEqual(T.lattice()) || resolutionRatio(Tp, Op) != a.f)
                 m.notes.push_back("tcoh: the previous frame is on another lattice");
             else {

@@ -3,6 +3,7 @@
 
 #include "MacAdvect.h"
 
+#include <turb/Metadata.h>
 #include <turb/Error.h>
 #include <turb/Measure.h>
 #include <turb/Operators.h>
@@ -369,15 +370,15 @@ Frame SmokeSim::frame() const
     f.temperature = mTemperature;
     f.dt = mSettings.frameDt;
     const Coord& r = mSettings.resolution;
-    f.metadata["vdbturb_sim_resolution"] =
+    f.metadata[turb::meta::kSimResolution] =
         std::to_string(r.x()) + "x" + std::to_string(r.y()) + "x" + std::to_string(r.z());
-    f.metadata["vdbturb_sim_seed"] = std::to_string(mSettings.seed);
+    f.metadata[turb::meta::kSimSeed] = std::to_string(mSettings.seed);
     std::ostringstream os;
     os.precision(9);
     os << mTime;
-    f.metadata["vdbturb_sim_time"] = os.str();
-    f.metadata["vdbturb_up_axis"] = "z";
-    f.metadata["vdbturb_scene"] = mSettings.label;
+    f.metadata[turb::meta::kSimTime] = os.str();
+    f.metadata[turb::meta::kUpAxis] = "z";
+    f.metadata[turb::meta::kScene] = mSettings.label;
     return f;
 }
 

@@ -522,7 +522,7 @@ Fluidymator::Fluidymator(const FluidySettings& settings, const std::vector<Chann
             }
         if (E.centres.empty())
             throw ValueError("fluidymation: the exemplar has no patch centre at pyramid level " + std::to_string(l) +
-                             " (its masks are too small or too close to the border); use fewer --levels");
+                             " (its masks are too small or too close to the border); use fewer pyramid levels");
     }
 }
 
