@@ -79,6 +79,7 @@ void printData(const std::string& text, bool toStderr)
 {
     if (globals().verbosity < 1) return;
     std::lock_guard<std::mutex> lock(gLogMutex);
+    if (globals().json) toStderr = true;
     std::FILE* out = toStderr ? stderr : stdout;
     if (toStderr && stderrIsTty()) std::fputs("\r\033[K", stderr);
     std::fputs(text.c_str(), out);

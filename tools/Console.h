@@ -22,6 +22,7 @@ struct Globals
     int verbosity = 1;   ///< 0 = -q (errors only), 1 = normal, 2 = -v
     int threads = 0;     ///< 0 = all cores
     bool dryRun = false; ///< resolve inputs and print the plan, write nothing
+    bool json = false;   ///< stdout carries JSON lines only: printData's text goes to stderr
 };
 
 Globals& globals();

@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <fcntl.h>
 #include <unistd.h>
 
 namespace fs = std::filesystem;
@@ -109,6 +110,14 @@ void checkOutputs(const std::vector<std::string>& outputs, const std::vector<std
             throw turb::IoError(out + ": cannot create its directory: " + probe.string() + " is a file, not a directory");
         if (::access(probe.c_str(), W_OK | X_OK) != 0)
             throw turb::IoError(out + ": cannot write into " + probe.string() + " (" + std::strerror(errno) + ")");
+        // access() says yes to root on file systems that refuse new files (/sys, /proc, read-only mounts): create
+        // and remove a probe file, so the run stops here and not after its first frame.
+        const fs::path test = probe / (".vdbturb_probe_" + std::to_string(::getpid()));
+        const int fd = ::open(test.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
+        if (fd < 0)
+            throw turb::IoError(out + ": cannot write into " + probe.string() + " (" + std::strerror(errno) + ")");
+        ::close(fd);
+        ::unlink(test.c_str());
     }
 }
 

@@ -245,6 +245,11 @@ int runPreview(PreviewArgs& a)
             }
         }
     }
+    if (a.sheet.empty() && frames.size() > 1 && !turbio::FramePattern::parse(a.out).numbered()) {
+        logError("--out '" + a.out + "' has no frame token (####, %04d, $F4) but " + std::to_string(frames.size()) +
+                 " frames are requested; every frame would overwrite the last");
+        return kUsage;
+    }
     if (a.sheet.empty())
         for (int f : frames) outputs.push_back(turbio::FramePattern::parse(a.out).format(f));
     else

@@ -243,7 +243,14 @@ Command simCommand()
                     return std::string();
                 },
                 "NXxNYxNZ"));
-        app->add_option("--frames", a.frames, "Frames to simulate (default 60, 24 fps)")->check(CLI::PositiveNumber);
+        app->add_option("--frames", a.frames, "Number of frames to simulate, written as 1..N (default 60, 24 fps)")
+            ->check(CLI::Validator(
+                [](std::string& v) {
+                    return v.find_first_not_of("0123456789") == std::string::npos && !v.empty() && std::stoll(v.substr(0, 9)) > 0
+                               ? std::string()
+                               : "sim --frames is a number of frames (e.g. 24), not a frame list; got '" + v + "'";
+                },
+                "COUNT"));
         app->add_option("--start", a.start, "Number of the first frame written (default 1)");
         app->add_option("--seed", a.seed, "Emitter noise seed; the same seed gives identical caches (default 1)");
         app->add_option("--out", a.out, "Output pattern, e.g. sim/plume.####.vdb (default sim/SCENE_RES/SCENE.####.vdb)");

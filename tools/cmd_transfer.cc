@@ -179,10 +179,38 @@ void preflight(const TransferArgs& a, const turbio::Sequence& target, const turb
                 printData("  ... " + std::to_string(target.frames.size() - first - 5) + " more frames");
 }
 
+// An input sequence as recorded in outputs: the absolute pattern, so a relative spelling of the same cache matches.
+std::string inputId(const turbio::Sequence& seq)
+{
+    return std::filesystem::absolute(seq.pattern.str()).lexically_normal().string();
+}
+
+// Continuing with other settings or other inputs would silently mix two looks, or two shots, in one sequence.
+void checkResumable(const std::string& prevPath, const turb::Frame& prevOut, const turb::TransferSettings& s,
+    const turbio::Sequence& target, const turbio::Sequence& source)
+{
+    std::vector<std::string> diff;
+    const auto saved = prevOut.metadata.find(turb::meta::kSettings);
+    if (saved != prevOut.metadata.end()) diff = turb::settingsDifferences(saved->second, turb::outputSettingsText(s));
+    else logWarning(prevPath + ": no vdbturb_settings metadata (written by an older vdbturb): the settings cannot be checked");
+    for (const auto& [key, now] : {std::pair<const char*, std::string>{turb::meta::kTargetInput, inputId(target)},
+             std::pair<const char*, std::string>{turb::meta::kSourceInput, inputId(source)}}) {
+        const auto m = prevOut.metadata.find(key);
+        if (m != prevOut.metadata.end() && m->second != now)
+            diff.push_back(std::string(key == turb::meta::kTargetInput ? "target" : "source") + ": " + m->second + " -> " + now);
+    }
+    if (diff.empty()) return;
+    std::string list;
+    for (const std::string& d : diff) list += "\n  " + d;
+    throw turb::ValueError(prevPath + " was made with other settings or inputs; --resume continues only the same run:" +
+                           list + "\n  (use the saved values, or start again without --resume)");
+}
+
 int runTransfer(TransferArgs& a)
 {
     turb::TransferSettings& s = a.settings;
     s.threads = globals().threads;
+    globals().json = a.json;
     s.seams.enabled = !a.noSeams;
     s.trackGlobalPatches = !a.noTracking;
     s.followSourceFlow = !a.noFollow;
@@ -244,11 +272,18 @@ int runTransfer(TransferArgs& a)
         } else if (!earlier.empty()) {
             logWarning("the detail starts fresh at frame " + std::to_string(target.frames.front()) + " while the cache begins at " +
                        std::to_string(earlier.front()) + ": these frames differ from a run started earlier (--preroll " +
-                       std::to_string(std::min<size_t>(earlier.size(), 24)) + " runs earlier frames first without writing them)");
+                       std::to_string(earlier.size()) + " runs earlier frames first without writing them)");
         }
     }
     preflight(a, target, source, sourceFor, outPattern, writeFrom);
-    if (globals().dryRun) return kOk;
+    if (globals().dryRun) {
+        if (a.resume && first > 0) {
+            const std::string prevPath = outPattern.format(target.frames[first - 1]);
+            checkResumable(prevPath, turbio::readFrame(prevPath, target.frames[first - 1], turbio::ReadOptions{}), s, target,
+                source);
+        }
+        return kOk;
+    }
 
     turb::TurbulenceTransfer transfer(s);
     if (a.resume) {
@@ -265,19 +300,7 @@ int runTransfer(TransferArgs& a)
             const auto it = prevOut.metadata.find(turb::meta::kState);
             if (it == prevOut.metadata.end())
                 throw turb::IoError(prevPath + ": no vdbturb_state metadata to resume from");
-            // Continuing with other settings would silently mix two looks in one shot.
-            const auto saved = prevOut.metadata.find(turb::meta::kSettings);
-            if (saved != prevOut.metadata.end()) {
-                const std::vector<std::string> diff = turb::settingsDifferences(saved->second, turb::outputSettingsText(s));
-                if (!diff.empty()) {
-                    std::string list;
-                    for (const std::string& d : diff) list += "\n  " + d;
-                    throw turb::ValueError(prevPath + " was made with other settings; --resume continues only the same run:" +
-                                           list + "\n  (use the saved values, or start again without --resume)");
-                }
-            } else {
-                logWarning(prevPath + ": no vdbturb_settings metadata (written by an older vdbturb): the settings cannot be checked");
-            }
+            checkResumable(prevPath, prevOut, s, target, source);
             const turb::Frame prevTarget = turbio::readFrame(target.path(prev), prev, a.targetRead);
             try {
                 transfer.restore(it->second, prevOut, prevTarget);
@@ -314,9 +337,12 @@ int runTransfer(TransferArgs& a)
         }
         r.frame.metadata[turb::meta::kState] = transfer.saveState();
         r.frame.metadata[turb::meta::kSettings] = turb::outputSettingsText(s);
+        r.frame.metadata[turb::meta::kTargetInput] = inputId(target);
+        r.frame.metadata[turb::meta::kSourceInput] = inputId(source);
         r.frame.metadata[turb::meta::kSourceFrame] = std::to_string(sourceFor[i]);
         r.frame.metadata[turb::meta::kCommand] = "transfer";
         progress.begin("writing");
+        a.write.velocityKeep = r.detailBlocks;
         const std::string outPath = outPattern.format(t);
         turbio::ensureParentDirectory(outPath);
         turbio::writeFrame(outPath, r.frame, a.write);
@@ -488,6 +514,10 @@ Command transferCommand()
                "Continue the source's velocity this many voxels past its active region (Blender clips velocity to the "
                "smoke; the zeros beyond would read as turbulence at the smoke's edge). Default 4; 0 = off")
             ->check(CLI::Range(0, 64));
+        app->add_option("--velocity-margin", a.write.velocityMargin,
+               "Write velocity only within N voxels of the smoke and where the detail is (smaller files; the rest is "
+               "the up-sampled target's, which --resume restores); -1 = the whole box (default)")
+            ->check(CLI::Range(-1, 64));
         app->add_option("--preroll", a.preroll,
                "Run up to N cache frames before the first requested one without writing them, so the detail and density "
                "are established as in a longer run (default 0; a warning says when the run starts after the cache's first frame)")

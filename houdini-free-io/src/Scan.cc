@@ -92,6 +92,7 @@ void resolveFrame(FrameScan& fs, const FileInfo& info, const ReadOptions& option
         spans.emplace_back(g->name, b);
         fs.domain.expand(b);
     }
+    if (info.recordedDomain) fs.domain.expand(*info.recordedDomain);
     if (fs.domain.empty()) fs.domain = turb::CoordBBox(turb::Coord(0), turb::Coord(0));
     if (fs.domainKnown) {
         const std::string problem = detail::denseSizeProblem(fs.path, fs.domain, spans, bytesPerVoxel, options);

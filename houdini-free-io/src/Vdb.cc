@@ -10,6 +10,7 @@
 #include <turbio/System.h>
 
 #include <openvdb/openvdb.h>
+#include <openvdb/tools/Morphology.h>
 #include <openvdb/io/File.h>
 #include <openvdb/tools/Dense.h>
 
@@ -483,6 +484,19 @@ double metaDouble(const openvdb::MetaMap& m, const std::string& key, double fall
     return fallback;
 }
 
+std::optional<turb::CoordBBox> recordedDomain(const openvdb::MetaMap& m)
+{
+    const auto s = m.getMetadata<openvdb::StringMetadata>(turb::meta::kDomain);
+    if (!s) return std::nullopt;
+    std::istringstream is(s->value());
+    int v[6];
+    for (int& x : v)
+        if (!(is >> x) || std::abs(x) > (1 << 28)) return std::nullopt; // damaged: ignored, the grids' boxes rule
+    const turb::CoordBBox b(turb::Coord(v[0], v[1], v[2]), turb::Coord(v[3], v[4], v[5]));
+    if (b.empty()) return std::nullopt;
+    return b;
+}
+
 std::string roleOf(const openvdb::GridBase& g)
 {
     auto m = g.getMetadata<openvdb::StringMetadata>(kRoleKey);
@@ -872,6 +886,8 @@ static turb::Frame readFrameUnchecked(const std::string& path, int frameNumber, 
     for (const auto& grid : all)
         if (auto res = baseResolution(*grid)) baseRes = res;
     if (baseRes) domain = turb::CoordBBox(turb::Coord(0), *baseRes - turb::Coord(1));
+    // vdbturb's own outputs record the box they span; their grids may be sparse within it.
+    if (const auto recorded = recordedDomain(*r.meta)) domain.expand(*recorded);
     std::vector<turb::CoordBBox> spans;
     double bytesPerVoxel = 0.0;
     for (size_t i = 0; i < all.size(); ++i) {
@@ -1221,6 +1237,35 @@ openvdb::Vec3SGrid::Ptr centredToStaggered(const turb::VectorField& v, float sca
     return fieldToGrid<openvdb::Vec3SGrid>(mac, turb::Vec3f(-1.0f));
 }
 
+// Velocity only where it is needed: voxels within options.velocityMargin of smoke, plus options.velocityKeep.
+// Every voxel of that region is written active, zeros included, so a reader can tell "written as zero" from
+// "not written" only by value; transfer's restore treats an exact zero as not written (see TransferResult).
+openvdb::Vec3SGrid::Ptr velocityNearSmoke(const turb::Frame& frame, const WriteOptions& options)
+{
+    auto mask = openvdb::MaskGrid::create(false);
+    mask->setTransform(transformOf(frame.lattice()));
+    {
+        auto acc = mask->getAccessor();
+        const turb::ScalarField& d = frame.density;
+        for (size_t n = 0; n < d.size(); ++n)
+            if (d.data()[n] > options.smokeThreshold) acc.setValueOn(d.coordOf(n));
+    }
+    if (options.velocityMargin > 0)
+        openvdb::tools::dilateActiveValues(mask->tree(), options.velocityMargin, openvdb::tools::NN_FACE_EDGE_VERTEX,
+            openvdb::tools::EXPAND_TILES);
+    for (const turb::CoordBBox& b : options.velocityKeep) mask->tree().fill(b, true, true);
+    mask->tree().voxelizeActiveTiles();
+    auto g = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.0f));
+    g->setTransform(transformOf(frame.velocity.lattice()));
+    auto out = g->getAccessor();
+    const turb::CoordBBox& box = frame.velocity.bbox();
+    for (auto it = mask->cbeginValueOn(); it; ++it) {
+        const openvdb::Coord c = it.getCoord();
+        if (box.isInside(c)) out.setValueOn(c, frame.velocity[c]);
+    }
+    return g;
+}
+
 } // namespace
 
 void writeFileAtomic(const std::string& path, const std::string& bytes, bool noClobber)
@@ -1298,6 +1343,10 @@ void writeFrame(const std::string& path, const turb::Frame& frame, const WriteOp
             g->setName("velocity");
             g->setGridClass(openvdb::GRID_STAGGERED);
             addBlenderMeta(*g);
+        } else if (options.velocityMargin >= 0 && frame.hasDensity()) {
+            g = velocityNearSmoke(frame, options);
+            g->setName("vel");
+            g->setGridClass(openvdb::GRID_UNKNOWN);
         } else {
             g = fieldToGrid<openvdb::Vec3SGrid>(frame.velocity, turb::Vec3f(0.0f));
             g->setName("vel");
@@ -1408,6 +1457,7 @@ FileInfo inspectFile(const std::string& path, bool readValues)
     if (auto m = r.meta->getMetadata<openvdb::StringMetadata>("__turb_lib_version")) info.libraryVersion = m->value();
     if (auto c = r.meta->getMetadata<openvdb::StringMetadata>("creator")) info.creator = c->value();
     info.recordedDt = metaDouble(*r.meta, turb::meta::kDt, 0.0);
+    info.recordedDomain = recordedDomain(*r.meta);
 
     std::vector<std::string> names;
     for (const auto& g : r.grids) {

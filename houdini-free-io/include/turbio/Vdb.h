@@ -107,6 +107,12 @@ struct WriteOptions
     bool noClobber = false;   ///< refuse to replace an existing file
     bool halfFloat = false;   ///< store floats as half (smaller, ~3 significant digits)
     float densityTolerance = 0.0f;  ///< density at or below this is written inactive (sparse)
+    /// Velocity extent (Houdini style): -1 writes every non-zero voxel of the box; N >= 0 writes only voxels within
+    /// N voxels of smoke (density > smokeThreshold) or inside `velocityKeep`. A renderer's motion blur needs
+    /// velocity where there is smoke; re-advecting the density for a frame needs about its travel in voxels.
+    int velocityMargin = -1;
+    float smokeThreshold = 1e-3f;         ///< density above this is smoke for velocityMargin
+    std::vector<turb::CoordBBox> velocityKeep; ///< boxes always written (e.g. TransferResult::detailBlocks)
 };
 
 /// Writes a frame atomically: to a temporary file in the same directory, then renamed over `path`,
@@ -157,6 +163,7 @@ struct FileInfo
     std::string creator;          ///< file-level "creator" metadata, if any
     std::optional<turb::Coord> baseResolution; ///< Blender's file_base_resolution
     double recordedDt = 0.0;      ///< vdbturb_dt metadata, 0 if absent
+    std::optional<turb::CoordBBox> recordedDomain; ///< vdbturb_domain metadata: the box a vdbturb output spans
     std::vector<GridInfo> grids;  ///< in file order
 };
 

@@ -8,6 +8,8 @@ namespace turb::meta {
 // Written by every command.
 inline constexpr const char* kCommand = "vdbturb_command";         ///< the command that wrote the file
 inline constexpr const char* kDt = "vdbturb_dt";                   ///< time per frame of the velocity
+inline constexpr const char* kDomain = "vdbturb_domain";           ///< "x0 y0 z0 x1 y1 z1": the index box the frame spans
+                                                                  ///< (a reader holds it whole even where grids are sparse)
 inline constexpr const char* kInputVelocityUnits = "vdbturb_input_velocity_units"; ///< units the input had
 
 // transfer
@@ -20,6 +22,8 @@ inline constexpr const char* kBeta = "vdbturb_beta";
 inline constexpr const char* kGamma = "vdbturb_gamma";
 inline constexpr const char* kState = "vdbturb_state";             ///< what --resume needs (saveState)
 inline constexpr const char* kSettings = "vdbturb_settings";       ///< outputSettingsText(): what --resume compares
+inline constexpr const char* kTargetInput = "vdbturb_target";    ///< the target sequence a transfer read
+inline constexpr const char* kSourceInput = "vdbturb_source";    ///< the source sequence a transfer read
 inline constexpr const char* kSourceFrame = "vdbturb_source_frame"; ///< the source frame the output was made from
 
 // synth

@@ -173,6 +173,10 @@ struct TransferResult
     Frame frame;          ///< velocity (world units, source resolution), density, upsampled temperature/flame
     TransferStats stats;
     bool empty = false;   ///< the target frame had no smoke: the frame is the upsampled target (defined no-op)
+    /// Output boxes (local-patch blocks) holding every voxel where the velocity differs from up(u_t); outside them
+    /// it is up(u_t) exactly. A writer may store velocity only there and near the smoke: restore() puts up(u_t)
+    /// back where a previous output reads as exactly zero.
+    std::vector<CoordBBox> detailBlocks;
 };
 
 /// The settings that change a transfer's output, as (name, value) pairs in a fixed order; names are the command

@@ -39,6 +39,10 @@ Frame assembleOutput(const Frame& target, const TargetAtOutput& t, const VectorF
     if (target.flame) out.flame = upsample(*target.flame, fs.f);
     out.density = std::move(density);
     const Coord& o = fs.layout.origin;
+    const CoordBBox& fb = fs.fineBox;
+    out.metadata[meta::kDomain] = std::to_string(fb.min().x()) + " " + std::to_string(fb.min().y()) + " " +
+                                  std::to_string(fb.min().z()) + " " + std::to_string(fb.max().x()) + " " +
+                                  std::to_string(fb.max().y()) + " " + std::to_string(fb.max().z());
     out.metadata[meta::kPatchSize] = std::to_string(fs.B);
     out.metadata[meta::kRatio] = std::to_string(fs.f);
     out.metadata[meta::kGlobalPatch] = std::to_string(fs.globalPatch);
@@ -52,6 +56,24 @@ Frame assembleOutput(const Frame& target, const TargetAtOutput& t, const VectorF
     out.metadata[meta::kBeta] = number(s.beta);
     out.metadata[meta::kGamma] = number(s.seams.gamma);
     return out;
+}
+
+std::vector<CoordBBox> detailBlocks(const VectorField& detail, const FrameSetup& fs)
+{
+    std::vector<CoordBBox> blocks;
+    if (detail.empty()) return blocks;
+    const PatchLayout& L = fs.layout;
+    for (size_t p = 0; p < L.patchCount(); ++p) {
+        CoordBBox pb = L.patchBox(L.patchCoord(p));
+        pb.intersect(detail.bbox());
+        if (pb.empty()) continue;
+        for (auto it = pb.begin(); it; ++it)
+            if (detail[*it] != Vec3f(0.0f)) {
+                blocks.push_back(pb);
+                break;
+            }
+    }
+    return blocks;
 }
 
 } // namespace turb::detail
