@@ -469,3 +469,23 @@ TEST(Cli, FluidymationRefusesBadInputBeforeWritingAnything)
     ASSERT_EQ(run("sim ink --res 48x40 --frames 11 --out " + dir / "ink/ink.####.png -q").code, 0);
     expectRefused(ex + " --target-mask " + dir / "t/m.###.png --target-flow " + dir / "ink/ink_flow.####.exr --frames 1-3", "ink_flow.0001.exr");
 }
+
+TEST(Cli, SynthProjectionThatStopsShortWarnsNamingTheFrameAndFailsUnderStrict)
+{
+    // Issue 14 item 2: a projection that does not converge is a warning naming the frame (-v: the solver's numbers),
+    // and exit 1 under --strict. One CG iteration cannot converge; the default cap does, walls included.
+    testutil::TempDir dir;
+    const std::string base = "synth --flow vortex --flow-res 16x16x1 --factor 2 --walls x-,x+,y-,y+ --project --frames 2 --out '" +
+                             dir.path() + "/s.####.vdb'";
+    const CmdResult shortRun = run(base + " --project-iterations 1 -v");
+    EXPECT_EQ(shortRun.code, 0) << shortRun.out;
+    EXPECT_NE(shortRun.out.find("frame 1: the projection did not converge"), std::string::npos) << shortRun.out;
+    EXPECT_NE(shortRun.out.find("frame 2: the projection did not converge"), std::string::npos) << shortRun.out;
+    EXPECT_NE(shortRun.out.find("frame 1: projection max|div|"), std::string::npos) << shortRun.out; // -v details
+    const CmdResult strict = run(base + " --project-iterations 1 --strict");
+    EXPECT_EQ(strict.code, 1) << strict.out;
+    EXPECT_NE(strict.out.find("did not converge: 1, 2"), std::string::npos) << strict.out;
+    const CmdResult converged = run(base + " --strict");
+    EXPECT_EQ(converged.code, 0) << converged.out;
+    EXPECT_EQ(converged.out.find("did not converge"), std::string::npos) << converged.out;
+}

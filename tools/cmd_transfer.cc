@@ -115,8 +115,8 @@ void preflight(const TransferArgs& a, const turbio::Sequence& target, const turb
     const turb::CoordBBox tBox = tl ? tl->domain : t0.domain;
     const double tVoxels = double(tBox.volume());
     const double sVoxels = sl ? double(sl->domain.volume()) : 0.0;
-    const turb::Lattice outLattice = t0.lattice.refined(f);
-    const turb::Coord outDim(tBox.dim().x() * f, tBox.dim().y() * f, tBox.dim().z() * f);
+    const turb::Lattice outLattice = turb::refinedLattice(t0.lattice, tBox, f);
+    const turb::Coord outDim = turb::refineDomain(tBox, f).dim(); // a 2D target keeps its one z layer
     printData("ratio " + fmt("%.4g", tv / sv) + " (target voxel " + fmt("%g", tv) + ", source voxel " + fmt("%g", sv) + ")" +
               (resampled ? ": not an integer, the source is resampled trilinearly to ratio " + std::to_string(f) : ""));
     printData("output lattice: " + dims(outDim) + " voxels of " + fmt("%g", outLattice.voxelSize) + ", world " +
@@ -128,7 +128,7 @@ void preflight(const TransferArgs& a, const turbio::Sequence& target, const turb
     double outBytes = 0.0;
     for (const auto& fr : ts.frames) {
         const double dens = fr.densityActive > 0 ? double(fr.densityActive) : double(fr.domain.volume());
-        outBytes = std::max(outBytes, double(f) * f * f * (velocityBoxVoxels(fr) * 12.0 + dens * 8.0));
+        outBytes = std::max(outBytes, double(f) * f * (turb::isFlat(tBox) ? 1.0 : f) * (velocityBoxVoxels(fr) * 12.0 + dens * 8.0));
     }
     printData("output size: about " + turbio::formatBytes(outBytes) + " per frame, " +
               turbio::formatBytes(outBytes * double(targetFrames.size())) + " for " + std::to_string(targetFrames.size()) +
@@ -347,7 +347,7 @@ Command transferCommand()
     auto args = std::make_shared<TransferArgs>();
     Command c;
     c.name = "transfer";
-    c.help = "Turbulence style transfer: add a high-res source's detail to a low-res target's motion";
+    c.help = "Turbulence style transfer: add a high-res source's detail to a low-res target's motion (3D, or 2D: one-z-layer caches)";
     c.setup = [args](CLI::App* app) {
         TransferArgs& a = *args;
         turb::TransferSettings& s = a.settings;
