@@ -1094,6 +1094,7 @@ TEST(SeamSmoothing, TwoDSolveSmoothsSeamsAndKeepsTheFieldFlat)
     const std::vector<uint8_t> band = seamBand(box, layout, problem.active, 2);
     SeamSettings settings;
     settings.gamma = 1.0f;
+    settings.bandWidth2D = 2; // the band above
     const SeamStats st = smoothSeams(X, problem, settings);
     ASSERT_FALSE(st.iterations.empty());
     EXPECT_GT(st.boundaryPatches, 0u);
@@ -1108,7 +1109,7 @@ TEST(SeamSmoothing, TwoDSolveSmoothsSeamsAndKeepsTheFieldFlat)
 namespace {
 
 // The built-in 2D pair of issue 14: a plume at 24x32 (target) and a swirl at 192x256 (source), one voxel thick,
-// the same 4-unit-wide domain (voxel ratio 8). Simulated once for the whole suite.
+// the same 4-unit-wide domain (voxel ratio 8), frames 1-12. Simulated once for the whole suite.
 struct Pair2D
 {
     std::vector<Frame> targets, sources;
@@ -1116,10 +1117,9 @@ struct Pair2D
     {
         scenes::SmokeSim plume(scenes::sceneSettings("plume", Coord(24, 32, 1), 1));
         scenes::SmokeSim swirl(scenes::sceneSettings("swirl", Coord(192, 256, 1), 1));
-        for (int i = 1; i <= 10; ++i) {
+        for (int i = 1; i <= 12; ++i) {
             plume.advanceFrame();
             swirl.advanceFrame();
-            if (i < 7) continue;
             targets.push_back(plume.frame());
             sources.push_back(swirl.frame());
         }
@@ -1163,8 +1163,9 @@ TEST(Transfer2D, BuiltInPairEndToEndWithinTheQualityTargets)
         ASSERT_FALSE(r.stats.seams.iterations.empty());
         EXPECT_LT(r.stats.seams.iterations.back().energy, r.stats.seams.initialEnergy);
     }
-    // The quality targets of the 3D transfer (docs/transfer.md), measured by `measure`'s own code.
-    for (size_t i = 1; i < out.size(); ++i) {
+    // The quality targets of the 3D transfer (docs/transfer.md), measured by `measure`'s own code, on frames 8-12:
+    // like the 3D transfer, the first frames of a shot carry more divergence than the source's.
+    for (size_t i = 7; i < out.size(); ++i) {
         MeasureInput in;
         in.output = &out[i].frame;
         in.target = &pr.targets[i];

@@ -35,6 +35,7 @@ struct TransferArgs
     bool keepTargetDivergence = false;
     std::string energy = "source";
     int extendVelocity = 4;
+    int band = 0; ///< --band: both band widths (3D and 2D); 0 = their defaults
     turbio::ReadOptions targetRead, sourceRead;
     turbio::WriteOptions write;
     turb::TransferSettings settings;
@@ -182,6 +183,7 @@ int runTransfer(TransferArgs& a)
     turb::TransferSettings& s = a.settings;
     s.threads = globals().threads;
     s.seams.enabled = !a.noSeams;
+    if (a.band > 0) s.seams.bandWidth = s.seams.bandWidth2D = a.band;
     s.trackGlobalPatches = !a.noTracking;
     s.followSourceFlow = !a.noFollow;
     s.resampleSource = !a.noResample;
@@ -368,7 +370,7 @@ Command transferCommand()
         app->add_option("--pca", s.pcaComponents, "PCA dimensions of patch descriptors (default 16)")->check(CLI::Range(1, 256));
         app->add_option("--stride", s.localStride, "Spacing of candidate source patches in the local search (default 2)")->check(CLI::Range(1, 16));
         app->add_option("--candidates", s.refineCandidates, "Local candidates re-scored at full resolution (default 24)")->check(CLI::Range(1, 4096));
-        app->add_option("--band", s.seams.bandWidth, "Seam band: voxels on each side of a patch border (default 2)")->check(CLI::Range(1, 32));
+        app->add_option("--band", a.band, "Seam band: voxels on each side of a patch border (default 2; 3 for 2D caches)")->check(CLI::Range(1, 32));
         app->add_option("--boundary-patch", s.seams.boundaryPatch, "C: boundary patch edge, even (default B)");
         app->add_option("--em-iterations", s.seams.maxEmIterations, "Seam EM iterations at most (default 3)")->check(CLI::Range(1, 50));
         app->add_option("--em-tolerance", s.seams.emTolerance, "Stop EM when E_b changes by less than this fraction (default 0.02)");

@@ -164,7 +164,9 @@ VectorField advectOnto(const VectorField& q, const VectorField& velocity, double
     CoordBBox work = region;
     work.expand(margin);
     work.intersect(q.bbox());
-    return cropped(advect(cropped(q, work), velocity, dt, settings), box);
+    AdvectSettings inPlane = settings;
+    inPlane.inPlane = true; // a 2D output is advected in its plane, as the transfer advects it (same tcoh)
+    return cropped(advect(cropped(q, work), velocity, dt, inPlane), box);
 }
 
 // Everything the metrics need of one (output, target) pair on the refined target lattice.

@@ -537,7 +537,7 @@ SeamStats smoothSeams(VectorField& detail, const SeamProblem& problem, const Sea
     const auto seconds = [](Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); };
     auto t0 = Clock::now();
     const CoordBBox box = detail.bbox();
-    std::vector<uint8_t> omega = seamBand(box, L, problem.active, settings.bandWidth);
+    std::vector<uint8_t> omega = seamBand(box, L, problem.active, L.flat ? settings.bandWidth2D : settings.bandWidth);
     if (!problem.wholePatches.empty()) {
         if (problem.wholePatches.size() != L.patchCount())
             throw ValueError("smoothSeams: wholePatches must hold one flag per local patch");

@@ -7,6 +7,7 @@
 #include "Align.h"
 #include "PatchSearch.h"
 
+#include <turb/Advect.h>
 #include <turb/Resample.h>
 #include <turb/Seams.h>
 #include <turb/Transfer.h>
@@ -17,6 +18,15 @@
 #include <vector>
 
 namespace turb::detail {
+
+/// The transfer's advection settings: OpenVDB's defaults, and 2D (one-layer) fields advected in their plane
+/// (AdvectSettings::inPlane; 3D fields are unaffected).
+inline AdvectSettings inPlane()
+{
+    AdvectSettings a;
+    a.inPlane = true;
+    return a;
+}
 
 /// What is fixed over one frame: the ratio, the boxes, the patch layout on the absolute lattice of multiples of
 /// B, and the time since the previous processed frame.
