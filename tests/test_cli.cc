@@ -489,3 +489,30 @@ TEST(Cli, SynthProjectionThatStopsShortWarnsNamingTheFrameAndFailsUnderStrict)
     EXPECT_EQ(converged.code, 0) << converged.out;
     EXPECT_EQ(converged.out.find("did not converge"), std::string::npos) << converged.out;
 }
+
+TEST(Cli, TwoDCachesThroughSimTransferMeasureAndPreview)
+{
+    // Issue 14: the 2D path end to end through the commands: one-z-layer sims, a transfer, its measures and a
+    // picture sheet (small: a 12x16 plume and a 48x64 swirl, ratio 4).
+    testutil::TempDir dir;
+    const std::string d = dir.path();
+    const CmdResult t = run("sim plume --res 12x16x1 --frames 4 --out '" + d + "/t/p.####.vdb' -q");
+    ASSERT_EQ(t.code, 0) << t.out;
+    const CmdResult s = run("sim swirl --res 48x64x1 --frames 4 --out '" + d + "/s/s.####.vdb' -q");
+    ASSERT_EQ(s.code, 0) << s.out;
+    const CmdResult x = run("transfer --target '" + d + "/t/p.####.vdb' --source '" + d + "/s/s.####.vdb' --out '" + d +
+                            "/o/o.####.vdb' -q");
+    ASSERT_EQ(x.code, 0) << x.out;
+    const turb::Frame o = turbio::readFrame(d + "/o/o.0004.vdb", 4, turbio::ReadOptions{});
+    EXPECT_EQ(o.velocity.bbox(), turb::CoordBBox(turb::Coord(0), turb::Coord(47, 63, 0)));
+    for (const turb::Vec3f& v : o.velocity.values()) ASSERT_EQ(v.z(), 0.0f);
+    const CmdResult m = run("measure --output '" + d + "/o/o.####.vdb' --target '" + d + "/t/p.####.vdb' --source '" + d +
+                            "/s/s.####.vdb' --frames 3-4 --no-spectra");
+    ASSERT_EQ(m.code, 0) << m.out;
+    for (const char* key : {"\"lf_err\":", "\"hf_ratio\":", "\"div_rel\":", "\"block\":", "\"isotropy\":"})
+        EXPECT_NE(m.out.find(key), std::string::npos) << key << "\n" << m.out;
+    const CmdResult p = run("preview 'target=" + d + "/t/p.####.vdb' 'output=" + d + "/o/o.####.vdb' --mode density,vorticity --frames 4 --sheet '" +
+                            d + "/sheet.png' -q");
+    ASSERT_EQ(p.code, 0) << p.out;
+    EXPECT_TRUE(std::filesystem::exists(d + "/sheet.png"));
+}
