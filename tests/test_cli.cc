@@ -506,6 +506,14 @@ TEST(Cli, TwoDCachesThroughSimTransferMeasureAndPreview)
     const turb::Frame o = turbio::readFrame(d + "/o/o.0004.vdb", 4, turbio::ReadOptions{});
     EXPECT_EQ(o.velocity.bbox(), turb::CoordBBox(turb::Coord(0), turb::Coord(47, 63, 0)));
     for (const turb::Vec3f& v : o.velocity.values()) ASSERT_EQ(v.z(), 0.0f);
+    // A 2D sequence resumes bit-identically (the state and the one-layer lattice read back from the last output).
+    const std::string pair = "transfer --target '" + d + "/t/p.####.vdb' --source '" + d + "/s/s.####.vdb' --out '" + d + "/r/r.####.vdb' -q";
+    ASSERT_EQ(run(pair + " --frames 1-2").code, 0);
+    const CmdResult resumed = run(pair + " --frames 1-4 --resume");
+    ASSERT_EQ(resumed.code, 0) << resumed.out;
+    const turb::Frame r = turbio::readFrame(d + "/r/r.0004.vdb", 4, turbio::ReadOptions{});
+    EXPECT_EQ(r.velocity.values(), o.velocity.values());
+    EXPECT_EQ(r.density.values(), o.density.values());
     const CmdResult m = run("measure --output '" + d + "/o/o.####.vdb' --target '" + d + "/t/p.####.vdb' --source '" + d +
                             "/s/s.####.vdb' --frames 3-4 --no-spectra");
     ASSERT_EQ(m.code, 0) << m.out;
