@@ -28,7 +28,7 @@ FRAMES_OVERRIDE=""
 RECORD=1
 PERF="$ROOT/docs/performance.md"
 
-CONFIGS="tiny measure-plume sim128 paper3d plume4x blender-paper3d blender-plume2 ratio2 blender-noise synth2d synth3d
+CONFIGS="tiny measure-plume sim128 paper3d transfer2d plume4x blender-paper3d blender-plume2 ratio2 blender-noise synth2d synth3d
  stylize1m stylize1m-full fluidy12k fluidy123k animate640 animate640-preview"
 
 describe() {
@@ -37,6 +37,7 @@ describe() {
     measure-plume) echo "measure: blender-plume-128 (output and source) against blender-plume-32 (target), frames 1-10, with spectra" ;;
     sim128) echo "sim: built-in scene plume at 128x128x192, 30 frames (the paper's same-size simulation: 50 s/frame)" ;;
     paper3d) echo "transfer: plume 16x16x24 (target) -> swirl 128x128x192 (source), 30 frames (paper: 270 s/frame)" ;;
+    transfer2d) echo "transfer: 2D, plume 24x32 (target) -> swirl 192x256 (source), one z layer, 30 frames (paper: 0.7 s/frame; target <= 0.1)" ;;
     plume4x) echo "transfer: blender-plume-32 (target) -> blender-plume-128 (source), the 10 frames both hold" ;;
     blender-paper3d) echo "transfer: Blender plume 16x16x24 (target) -> Blender two-jet swirl 128x128x192 (source), 30 frames (baked by bench/blender_pairs.sh)" ;;
     blender-plume2) echo "transfer: blender-plume2-32 (target) -> blender-plume2-128 (source), 30 frames (ratio 4)" ;;
@@ -272,6 +273,26 @@ cfg_paper3d() {
     # shellcheck disable=SC2086
     timed paper3d "$VDBTURB" transfer $THREAD_ARGS --target "$t/plume.####.vdb" --source "$s/swirl.####.vdb" \
         --out "$WORK/paper3d_out/up.####.vdb" --json
+}
+
+# transfer2d: the paper's 2D configuration (seed 002: 24x32 target, 192x256 source, 0.7 s/frame) on the built-in
+# scenes simulated in 2D (issue 14).
+cfg_transfer2d() {
+    need_command sim --res --frames --seed --out && need_command transfer --target --source --out --json || return 1
+    n=$(frames_or 30)
+    t="$WORK/plume_24x32x1_s1_f$n"
+    s="$WORK/swirl_192x256x1_s1_f$n"
+    last=$(printf '%04d' "$n")
+    # shellcheck disable=SC2086
+    prepare "target: sim plume 24x32x1" "$t/plume.$last.vdb" \
+        "$VDBTURB" sim plume $THREAD_ARGS --res 24x32x1 --frames "$n" --seed 1 --out "$t/plume.####.vdb" -q || return 1
+    # shellcheck disable=SC2086
+    prepare "source: sim swirl 192x256x1" "$s/swirl.$last.vdb" \
+        "$VDBTURB" sim swirl $THREAD_ARGS --res 192x256x1 --frames "$n" --seed 1 --out "$s/swirl.####.vdb" -q || return 1
+    rm -rf "$WORK/transfer2d_out"
+    # shellcheck disable=SC2086
+    timed transfer2d "$VDBTURB" transfer $THREAD_ARGS --target "$t/plume.####.vdb" --source "$s/swirl.####.vdb" \
+        --out "$WORK/transfer2d_out/up.####.vdb" --json
 }
 
 cfg_plume4x() {

@@ -540,3 +540,58 @@ TEST(Cli, FluidymationRefusesBadInputBeforeWritingAnything)
     ASSERT_EQ(run("sim ink --res 48x40 --frames 11 --out " + dir / "ink/ink.####.png -q").code, 0);
     expectRefused(ex + " --target-mask " + dir / "t/m.###.png --target-flow " + dir / "ink/ink_flow.####.exr --frames 1-3", "ink_flow.0001.exr");
 }
+
+TEST(Cli, SynthProjectionThatStopsShortWarnsNamingTheFrameAndFailsUnderStrict)
+{
+    // Issue 14 item 2: a projection that does not converge is a warning naming the frame (-v: the solver's numbers),
+    // and exit 1 under --strict. One CG iteration cannot converge; the default cap does, walls included.
+    testutil::TempDir dir;
+    const std::string base = "synth --flow vortex --flow-res 16x16x1 --factor 2 --walls x-,x+,y-,y+ --project --frames 2 --out '" +
+                             dir.path() + "/s.####.vdb'";
+    const CmdResult shortRun = run(base + " --project-iterations 1 -v");
+    EXPECT_EQ(shortRun.code, 0) << shortRun.out;
+    EXPECT_NE(shortRun.out.find("frame 1: the projection did not converge"), std::string::npos) << shortRun.out;
+    EXPECT_NE(shortRun.out.find("frame 2: the projection did not converge"), std::string::npos) << shortRun.out;
+    EXPECT_NE(shortRun.out.find("frame 1: projection max|div|"), std::string::npos) << shortRun.out; // -v details
+    const CmdResult strict = run(base + " --project-iterations 1 --strict");
+    EXPECT_EQ(strict.code, 1) << strict.out;
+    EXPECT_NE(strict.out.find("did not converge: 1, 2"), std::string::npos) << strict.out;
+    const CmdResult converged = run(base + " --strict");
+    EXPECT_EQ(converged.code, 0) << converged.out;
+    EXPECT_EQ(converged.out.find("did not converge"), std::string::npos) << converged.out;
+}
+
+TEST(Cli, TwoDCachesThroughSimTransferMeasureAndPreview)
+{
+    // Issue 14: the 2D path end to end through the commands: one-z-layer sims, a transfer, its measures and a
+    // picture sheet (small: a 12x16 plume and a 48x64 swirl, ratio 4).
+    testutil::TempDir dir;
+    const std::string d = dir.path();
+    const CmdResult t = run("sim plume --res 12x16x1 --frames 4 --out '" + d + "/t/p.####.vdb' -q");
+    ASSERT_EQ(t.code, 0) << t.out;
+    const CmdResult s = run("sim swirl --res 48x64x1 --frames 4 --out '" + d + "/s/s.####.vdb' -q");
+    ASSERT_EQ(s.code, 0) << s.out;
+    const CmdResult x = run("transfer --target '" + d + "/t/p.####.vdb' --source '" + d + "/s/s.####.vdb' --out '" + d +
+                            "/o/o.####.vdb' -q");
+    ASSERT_EQ(x.code, 0) << x.out;
+    const turb::Frame o = turbio::readFrame(d + "/o/o.0004.vdb", 4, turbio::ReadOptions{});
+    EXPECT_EQ(o.velocity.bbox(), turb::CoordBBox(turb::Coord(0), turb::Coord(47, 63, 0)));
+    for (const turb::Vec3f& v : o.velocity.values()) ASSERT_EQ(v.z(), 0.0f);
+    // A 2D sequence resumes bit-identically (the state and the one-layer lattice read back from the last output).
+    const std::string pair = "transfer --target '" + d + "/t/p.####.vdb' --source '" + d + "/s/s.####.vdb' --out '" + d + "/r/r.####.vdb' -q";
+    ASSERT_EQ(run(pair + " --frames 1-2").code, 0);
+    const CmdResult resumed = run(pair + " --frames 1-4 --resume");
+    ASSERT_EQ(resumed.code, 0) << resumed.out;
+    const turb::Frame r = turbio::readFrame(d + "/r/r.0004.vdb", 4, turbio::ReadOptions{});
+    EXPECT_EQ(r.velocity.values(), o.velocity.values());
+    EXPECT_EQ(r.density.values(), o.density.values());
+    const CmdResult m = run("measure --output '" + d + "/o/o.####.vdb' --target '" + d + "/t/p.####.vdb' --source '" + d +
+                            "/s/s.####.vdb' --frames 3-4 --no-spectra");
+    ASSERT_EQ(m.code, 0) << m.out;
+    for (const char* key : {"\"lf_err\":", "\"hf_ratio\":", "\"div_rel\":", "\"block\":", "\"isotropy\":"})
+        EXPECT_NE(m.out.find(key), std::string::npos) << key << "\n" << m.out;
+    const CmdResult p = run("preview 'target=" + d + "/t/p.####.vdb' 'output=" + d + "/o/o.####.vdb' --mode density,vorticity --frames 4 --sheet '" +
+                            d + "/sheet.png' -q");
+    ASSERT_EQ(p.code, 0) << p.out;
+    EXPECT_TRUE(std::filesystem::exists(d + "/sheet.png"));
+}

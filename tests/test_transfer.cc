@@ -12,6 +12,8 @@
 #include <turb/Seams.h>
 #include <turb/Transfer.h>
 
+#include <scenes/Smoke.h>
+
 #include <algorithm>
 #include <cmath>
 #include <functional>
@@ -1034,4 +1036,233 @@ TEST(MeasureDensity, MassPeakAndCoarseErrorOfKnownFields)
         if (t2.coordOf(n).x() < 2) t2.data()[n] = 0.0f;
     EXPECT_NEAR(coarseDensityError(o, t2, f, 0.01f), 0.0, 1e-6);
     EXPECT_THROW(densityMeasures(o, t, t, f, 0.01f), ValueError);
+}
+
+// ---- 2D (issue 14): one-z-layer caches, B^2 patches, C^2 boundary patches, a 2D seam solve ------------------
+
+TEST(SeamBand, TwoDGeometryMatchesTheAnalyticCount)
+{
+    // A 2D box (one layer, at z = 5): patches are 8 x 8 x 1 and there are no borders along z.
+    const CoordBBox box({0, 0, 5}, {31, 31, 5});
+    const PatchLayout layout = PatchLayout::covering(box, 8);
+    ASSERT_TRUE(layout.flat);
+    ASSERT_EQ(layout.count, Coord(4, 4, 1));
+    EXPECT_EQ(layout.patchBox(Coord(1, 2, 0)), CoordBBox({8, 16, 5}, {15, 23, 5}));
+    EXPECT_EQ(layout.patchOf(Coord(9, 17, 5)), Coord(1, 2, 0));
+    // Every patch active: per axis 12 of 32 positions lie within 2 of an inner border, in x and y only.
+    std::vector<uint8_t> all(layout.patchCount(), 1);
+    auto band = seamBand(box, layout, all, 2);
+    EXPECT_EQ(std::count(band.begin(), band.end(), uint8_t(1)), 32 * 32 - 20 * 20);
+    // One interior active patch: its own ring (8^2 - 4^2) plus a 2-voxel strip in each of its 4 edge neighbours.
+    std::vector<uint8_t> one(layout.patchCount(), 0);
+    one[layout.patchIndex(Coord(1, 1, 0))] = 1;
+    band = seamBand(box, layout, one, 2);
+    EXPECT_EQ(std::count(band.begin(), band.end(), uint8_t(1)), (64 - 16) + 4 * 2 * 8);
+    // Band width 1 around a corner patch (0, 0): only its two inner sides have borders.
+    std::vector<uint8_t> corner(layout.patchCount(), 0);
+    corner[layout.patchIndex(Coord(0, 0, 0))] = 1;
+    band = seamBand(box, layout, corner, 1);
+    // Own: the last column and row (15 voxels); neighbours (1,0) and (0,1): one 8-voxel strip each.
+    EXPECT_EQ(std::count(band.begin(), band.end(), uint8_t(1)), 15 + 2 * 8);
+}
+
+TEST(SeamSmoothing, TwoDSolveSmoothsSeamsAndKeepsTheFieldFlat)
+{
+    // Two halves pasted from different parts of a smooth 2D field: the seam solve on the 2D band must lower the
+    // seam energy, write nothing along z, and touch only the band.
+    const CoordBBox box({0, 0, 0}, {31, 31, 0});
+    const Lattice lat{1.0, Vec3d(0.0)};
+    VectorField src(CoordBBox({0, 0, 0}, {95, 95, 0}), lat);
+    for (size_t n = 0; n < src.size(); ++n) {
+        const Vec3d x = src.coordOf(n).asVec3d();
+        src.data()[n] = Vec3f(float(std::sin(0.7 * x.y())), float(std::cos(0.6 * x.x())), 0.0f);
+    }
+    const PatchLayout layout = PatchLayout::covering(box, 8);
+    SeamProblem problem;
+    problem.sourceHigh = &src;
+    problem.layout = layout;
+    problem.active.assign(layout.patchCount(), 1);
+    problem.offset.assign(layout.patchCount(), Coord(0));
+    VectorField X(box, lat);
+    for (size_t p = 0; p < layout.patchCount(); ++p) {
+        const Coord P = layout.patchCoord(p);
+        problem.offset[p] = Coord(13 * P.x() + 7 * P.y(), 11 * P.y() + 3 * P.x(), 0);
+        const CoordBBox pb = layout.patchBox(P);
+        for (auto it = pb.begin(); it; ++it) X[*it] = src[*it + problem.offset[p]];
+    }
+    const VectorField before = X;
+    const std::vector<uint8_t> band = seamBand(box, layout, problem.active, 2);
+    SeamSettings settings;
+    settings.gamma = 1.0f;
+    settings.bandWidth2D = 2; // the band above
+    const SeamStats st = smoothSeams(X, problem, settings);
+    ASSERT_FALSE(st.iterations.empty());
+    EXPECT_GT(st.boundaryPatches, 0u);
+    EXPECT_LT(st.iterations.back().energy, st.initialEnergy);
+    EXPECT_EQ(st.bandVoxels, size_t(std::count(band.begin(), band.end(), uint8_t(1))));
+    for (size_t n = 0; n < X.size(); ++n) {
+        EXPECT_EQ(X.data()[n].z(), 0.0f);
+        if (!band[n]) EXPECT_EQ(X.data()[n], before.data()[n]);
+    }
+}
+
+namespace {
+
+// The built-in 2D pair of issue 14: a plume at 24x32 (target) and a swirl at 192x256 (source), one voxel thick,
+// the same 4-unit-wide domain (voxel ratio 8), frames 1-12. Simulated once for the whole suite.
+struct Pair2D
+{
+    std::vector<Frame> targets, sources;
+    Pair2D()
+    {
+        scenes::SmokeSim plume(scenes::sceneSettings("plume", Coord(24, 32, 1), 1));
+        scenes::SmokeSim swirl(scenes::sceneSettings("swirl", Coord(192, 256, 1), 1));
+        for (int i = 1; i <= 12; ++i) {
+            plume.advanceFrame();
+            swirl.advanceFrame();
+            targets.push_back(plume.frame());
+            sources.push_back(swirl.frame());
+        }
+    }
+};
+
+const Pair2D& pair2D()
+{
+    static const Pair2D p;
+    return p;
+}
+
+} // namespace
+
+TEST(Transfer2D, BuiltInPairEndToEndWithinTheQualityTargets)
+{
+    const Pair2D& pr = pair2D();
+    ASSERT_TRUE(isFlat(pr.targets[0].velocity.bbox()));
+    ASSERT_TRUE(isFlat(pr.sources[0].velocity.bbox()));
+    TransferSettings s;
+    s.threads = 2;
+    TurbulenceTransfer transfer(s);
+    std::vector<TransferResult> out;
+    for (size_t i = 0; i < pr.targets.size(); ++i) {
+        out.push_back(transfer.process(pr.targets[i], pr.sources[i]));
+        const TransferResult& r = out.back();
+        ASSERT_FALSE(r.empty);
+        EXPECT_EQ(r.stats.ratio, 8);
+        // One layer at the target's z index, the target's x-y extent times 8, and no z velocity at all.
+        const CoordBBox tb = pr.targets[i].velocity.bbox();
+        EXPECT_EQ(r.frame.velocity.bbox(), CoordBBox(Coord(tb.min().x() * 8, tb.min().y() * 8, tb.min().z()),
+                                               Coord(tb.max().x() * 8 + 7, tb.max().y() * 8 + 7, tb.max().z())));
+        EXPECT_EQ(r.frame.density.bbox(), r.frame.velocity.bbox());
+        // The layer sits at the target layer's world height.
+        EXPECT_NEAR(r.frame.velocity.lattice().indexToWorld(Vec3d(0, 0, tb.min().z())).z(),
+            pr.targets[i].velocity.lattice().indexToWorld(Vec3d(0, 0, tb.min().z())).z(), 1e-9);
+        for (const Vec3f& v : r.frame.velocity.values()) ASSERT_EQ(v.z(), 0.0f);
+        EXPECT_GT(r.stats.localPatches, 10);
+        EXPECT_GT(r.stats.seams.bandVoxels, 0u);
+        EXPECT_GT(r.stats.seams.boundaryPatches, 0u);
+        ASSERT_FALSE(r.stats.seams.iterations.empty());
+        EXPECT_LT(r.stats.seams.iterations.back().energy, r.stats.seams.initialEnergy);
+    }
+    // The quality targets of the 3D transfer (docs/transfer.md), measured by `measure`'s own code, on frames 8-12:
+    // like the 3D transfer, the first frames of a shot carry more divergence than the source's.
+    for (size_t i = 7; i < out.size(); ++i) {
+        MeasureInput in;
+        in.output = &out[i].frame;
+        in.target = &pr.targets[i];
+        in.source = &pr.sources[i];
+        in.previousOutput = &out[i - 1].frame;
+        in.previousTarget = &pr.targets[i - 1];
+        in.previousSource = &pr.sources[i - 1];
+        MeasureSettings ms;
+        ms.spectra = false;
+        const FrameMeasures m = measureFrame(in, ms);
+        ASSERT_TRUE(m.lfErr && m.hfRatio && m.divRel && m.divRelSource && m.block) << "frame " << i;
+        EXPECT_LE(*m.lfErr, 0.05) << "frame " << i;
+        EXPECT_GE(*m.hfRatio, 0.8) << "frame " << i;
+        EXPECT_LE(*m.hfRatio, 1.25) << "frame " << i;
+        EXPECT_LE(*m.divRel, *m.divRelSource) << "frame " << i;
+        EXPECT_LE(*m.block, 1.05) << "frame " << i;
+        // The structure measures work on one layer: defined, and isotropy is a ratio of eigenvalues in (0, 1].
+        ASSERT_TRUE(m.aniso && m.isotropy) << "frame " << i;
+        EXPECT_GT(*m.isotropy, 0.0);
+        EXPECT_LE(*m.isotropy, 1.0);
+    }
+}
+
+TEST(Transfer2D, IdenticalAtOneAndTwoThreads)
+{
+    const Pair2D& pr = pair2D();
+    std::vector<Frame> a, b;
+    for (int threads : {1, 2}) {
+        TransferSettings s;
+        s.threads = threads;
+        TurbulenceTransfer transfer(s);
+        // Frames 5-8: carried detail, tracks, continuations and the seam solve all run.
+        for (size_t i = 4; i < 8; ++i) (threads == 1 ? a : b).push_back(transfer.process(pr.targets[i], pr.sources[i]).frame);
+    }
+    for (size_t i = 0; i < a.size(); ++i) {
+        EXPECT_EQ(a[i].velocity.values(), b[i].velocity.values()) << "frame " << i;
+        EXPECT_EQ(a[i].density.values(), b[i].density.values()) << "frame " << i;
+    }
+}
+
+TEST(Transfer2D, MixingTwoDAndThreeDIsRefused)
+{
+    const Pair2D& pr = pair2D();
+    // A 3D source for a 2D target: the source copied into 8 layers (the workaround issue 14 reports).
+    Frame thick = pr.sources[0];
+    const CoordBBox sb = thick.velocity.bbox();
+    const CoordBBox tb(sb.min(), Coord(sb.max().x(), sb.max().y(), sb.min().z() + 7));
+    VectorField v(tb, thick.velocity.lattice());
+    ScalarField d(tb, thick.density.lattice());
+    for (auto it = tb.begin(); it; ++it) {
+        const Coord c = *it;
+        v[c] = thick.velocity(c.x(), c.y(), sb.min().z());
+        d[c] = thick.density(c.x(), c.y(), sb.min().z());
+    }
+    thick.velocity = v;
+    thick.density = d;
+    thick.temperature.reset();
+    TurbulenceTransfer transfer{TransferSettings{}};
+    EXPECT_THROW(transfer.process(pr.targets[0], thick), ValueError);
+}
+
+TEST(Advect2D, InPlaneAdvectionShiftsExactlyAndAgreesWithVolumeAdvection)
+{
+    // AdvectSettings::inPlane on one-layer fields: a uniform flow of exactly 2 voxels over dt moves a field by 2
+    // voxels (every scheme: the backtraces land on voxel centres), and on a smooth field under a smooth flow it
+    // agrees with OpenVDB's VolumeAdvection of the same layer.
+    const Lattice lat{0.5, Vec3d(0.0)};
+    const CoordBBox box({0, 0, 3}, {39, 29, 3});
+    ScalarField q(box, lat);
+    VectorField u(box, lat), swirl(box, lat);
+    for (size_t n = 0; n < q.size(); ++n) {
+        const Coord c = q.coordOf(n);
+        q.data()[n] = float(std::exp(-0.02 * ((c.x() - 15.0) * (c.x() - 15.0) + (c.y() - 14.0) * (c.y() - 14.0))));
+        u.data()[n] = Vec3f(1.0f, 0.0f, 0.0f); // 2 voxels of 0.5 per unit time
+        swirl.data()[n] = Vec3f(float(-0.05 * (c.y() - 14.5)), float(0.05 * (c.x() - 19.5)), 0.0f);
+    }
+    for (auto scheme : {AdvectSettings::Scheme::SemiLagrangian, AdvectSettings::Scheme::MacCormack, AdvectSettings::Scheme::BFECC}) {
+        AdvectSettings s;
+        s.scheme = scheme;
+        s.inPlane = true;
+        const ScalarField moved = advect(q, u, 1.0, s);
+        ASSERT_EQ(moved.bbox(), box);
+        // Exact inside; in the last two columns MacCormack's backward step reads values that left the box, and its
+        // limiter (the range of all four taps) lets a little of that through.
+        for (int i = 2; i <= 37; ++i)
+            for (int j = 0; j <= 29; ++j) EXPECT_NEAR(moved(i, j, 3), q(i - 2, j, 3), 1e-6) << i << "," << j;
+        // Values arriving from outside the box are zero.
+        for (int j = 0; j <= 29; ++j) EXPECT_EQ(moved(0, j, 3), 0.0f);
+        s.inPlane = false;
+        const ScalarField a = advect(q, swirl, 2.0, s);
+        s.inPlane = true;
+        const ScalarField b = advect(q, swirl, 2.0, s);
+        double diff = 0.0, norm = 0.0;
+        for (size_t n = 0; n < a.size(); ++n) {
+            diff += double(a.data()[n] - b.data()[n]) * double(a.data()[n] - b.data()[n]);
+            norm += double(a.data()[n]) * double(a.data()[n]);
+        }
+        EXPECT_LT(std::sqrt(diff / norm), 0.05) << int(scheme);
+    }
 }

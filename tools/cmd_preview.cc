@@ -122,9 +122,21 @@ void outline(turb::Image& img)
 
 turb::Image render(const turb::Frame& f, Mode m, const PreviewArgs& a, const Input& in)
 {
-    const turb::View view = parseView(a.view);
+    // A 2D cache (one z layer) is shown in its own plane, whatever --view says: a ray march through one voxel
+    // would show almost nothing, so its density is a colour-mapped slice too.
+    const bool flat = turb::isFlat(f.hasDensity() ? f.density.bbox() : f.velocity.bbox());
+    const turb::View view = flat ? turb::View::Top : parseView(a.view);
     switch (m) {
     case Mode::Density: {
+        if (flat) {
+            turb::SliceSettings s;
+            s.view = view;
+            s.width = a.width;
+            s.map = turb::Colormap::Viridis;
+            turb::Image img = turb::renderSlice(f.density, s);
+            outline(img);
+            return img;
+        }
         turb::DensityRenderSettings s;
         s.view = view;
         s.width = a.width;
@@ -358,7 +370,8 @@ Command previewCommand()
     Command c;
     c.globals = kVerbosity | kThreads;
     c.name = "preview";
-    c.help = "Pictures of caches (PNG, EXR, TIFF, JPEG): lit density, speed/vorticity slices, LIC, and labelled contact sheets";
+    c.help = "Pictures of caches (PNG, EXR, TIFF, JPEG): lit density, speed/vorticity slices, LIC, and labelled contact sheets "
+             "(a 2D cache, one z layer, is shown in its x-y plane)";
     c.setup = [args](CLI::App* app) {
         PreviewArgs& a = *args;
         app->add_option("caches", a.inputs,

@@ -157,7 +157,7 @@ int runSim(const SimArgs& a)
     const turb::Vec3d hi = lo + turb::Vec3d(res.x(), res.y(), res.z()) * h;
     std::ostringstream domain;
     domain << "scene " << a.scene << " at " << resText(res) << ", voxel " << h << ", domain (" << lo.x() << ","
-           << lo.y() << "," << lo.z() << ")-(" << hi.x() << "," << hi.y() << "," << hi.z() << "), z up, "
+           << lo.y() << "," << lo.z() << ")-(" << hi.x() << "," << hi.y() << "," << hi.z() << ")" << (sim.twoD() ? ", 2D, y up, " : ", z up, ")
            << a.frames << " frames at " << fmt("%.4g", 1.0 / s.frameDt) << " fps, seed " << a.seed;
     logInfo(domain.str());
     if (globals().dryRun) {
@@ -230,7 +230,7 @@ Command simCommand()
         app->add_option("scene", a.scene, "Scene: plume, swirl, obstacle, wind, or the 2D ink (see --list)")->check(CLI::IsMember(names));
         app->add_flag("--list", a.list, "List the scenes and exit");
         app->add_option("--res", a.res,
-               "Cells NXxNYxNZ along x, y, z (z is up), or N for a cube (default 32x32x48). The world domain is fixed "
+               "Cells NXxNYxNZ along x, y, z (z is up), or N for a cube (default 32x32x48); NZ = 1 is a 2D simulation in the x-y plane, y up, one voxel thick (e.g. 24x32x1). The world domain is fixed "
                "per scene: 4 units wide, voxel = 4/NX; 16x16x24 and 128x128x192 cover the same 4x4x6 domain")
             ->check(CLI::Validator(
                 [](std::string& v) {

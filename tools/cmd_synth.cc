@@ -47,6 +47,8 @@ struct SynthArgs
     std::string walls, obstacle;
     std::string omegaMode = "constant";
     bool omegaAbsolute = false, project = false, noDensity = false, json = false, stats = false;
+    bool strict = false; ///< a projection that does not converge fails the run (exit 1) after the last frame
+    int projectIterations = 2000; ///< conjugate-gradient cap of --project
     int lookback = 12;
     std::string output = "combined";
     std::string out = "synth/synth.####.vdb";
@@ -523,6 +525,7 @@ int runSynth(SynthArgs& a)
     turb::ScalarField previousDensity;
 
     const int count = int(frames.size());
+    std::vector<int> unconverged; // frames whose projection stopped short
     for (size_t i = 0; i < frames.size(); ++i) {
         const int fr = frames[i];
         const auto t0 = std::chrono::steady_clock::now();
@@ -566,6 +569,7 @@ int runSynth(SynthArgs& a)
         if (a.project) {
             progress.begin("projection");
             turb::ProjectionSettings ps;
+            ps.maxIterations = a.projectIterations;
             for (int k = 0; k < 6; ++k)
                 if (s.boundary.walls & (1u << k)) ps.faces[size_t(k)] = turb::Boundary::Closed;
             if (!volume) ps.faces[turb::kFaceZMin] = ps.faces[turb::kFaceZMax] = turb::Boundary::Closed; // stay 2D
@@ -580,6 +584,17 @@ int runSynth(SynthArgs& a)
             const turb::ProjectionResult pr = turb::project(F, ps, solid ? &*solid : nullptr, &progress);
             projJson = {{"converged", pr.converged}, {"iterations", pr.iterations}, {"div_max_before", pr.divMaxBefore},
                 {"div_max_after", pr.divMaxAfter}};
+            if (!pr.converged) {
+                // A solver that stops short is a result the user must hear about (issue 14), not only a JSON field.
+                unconverged.push_back(fr);
+                progress.clear();
+                logWarning("frame " + std::to_string(fr) + ": the projection did not converge (" +
+                           std::to_string(pr.iterations) + " iterations); the written velocity is not divergence-free" +
+                           (a.strict ? "" : " (--strict makes this an error)"));
+                logVerbose("frame " + std::to_string(fr) + ": projection max|div| " + fmt("%.3g", pr.divMaxBefore) + " -> " +
+                           fmt("%.3g", pr.divMaxAfter) + " (x" + fmt("%.2e", pr.relativeDivergence()) +
+                           "), solver residual " + fmt("%.2e", pr.relativeResidual));
+            }
         }
         lap(2);
 
@@ -700,6 +715,16 @@ int runSynth(SynthArgs& a)
         previousFrame = fr;
     }
     report.finish();
+    if (!unconverged.empty()) {
+        std::string list;
+        for (int fr : unconverged) list += (list.empty() ? "" : ", ") + std::to_string(fr);
+        const std::string msg = std::to_string(unconverged.size()) + " frame(s) with a projection that did not converge: " + list;
+        if (a.strict) {
+            logError(msg + " (--strict)");
+            return kFailed;
+        }
+        logWarning(msg);
+    }
     return kOk;
 }
 
@@ -774,6 +799,10 @@ Command synthCommand()
         app->add_option("--omega-mode", a.omegaMode, "Shape of omega: constant (default), energy (|L|^2), vorticity (|curl L|)")
             ->check(CLI::IsMember({"constant", "energy", "vorticity"}));
         app->add_flag("--project", a.project, "Make F divergence-free (Helmholtz-Hodge, OpenVDB Poisson solver); walls are closed faces");
+        app->add_flag("--strict", a.strict,
+            "Exit 1 when a projection does not converge (always a warning naming the frame; -v gives the solver's numbers)");
+        app->add_option("--project-iterations", a.projectIterations, "Conjugate-gradient iteration cap of --project (default 2000)")
+            ->check(CLI::Range(1, 100000));
         app->add_option("--output", a.output, "Velocity written: combined (F, default) or detail (F - up(L))")
             ->check(CLI::IsMember({"combined", "detail"}));
         app->add_option("--lookback", a.lookback, "Density: frames of look-back integration m (default 12, paper 10-20; 0 = naive)")

@@ -37,6 +37,7 @@ struct TransferArgs
     std::string energy = "source";
     int extendVelocity = 4;
     int preroll = 0;
+    int band = 0; ///< --band: both band widths (3D and 2D); 0 = their defaults
     turbio::ReadOptions targetRead, sourceRead;
     turbio::WriteOptions write;
     turb::TransferSettings settings;
@@ -117,8 +118,8 @@ void preflight(const TransferArgs& a, const turbio::Sequence& target, const turb
     const turb::CoordBBox tBox = tl ? tl->domain : t0.domain;
     const double tVoxels = double(tBox.volume());
     const double sVoxels = sl ? double(sl->domain.volume()) : 0.0;
-    const turb::Lattice outLattice = t0.lattice.refined(f);
-    const turb::Coord outDim(tBox.dim().x() * f, tBox.dim().y() * f, tBox.dim().z() * f);
+    const turb::Lattice outLattice = turb::refinedLattice(t0.lattice, tBox, f);
+    const turb::Coord outDim = turb::refineDomain(tBox, f).dim(); // a 2D target keeps its one z layer
     printData("ratio " + fmt("%.4g", tv / sv) + " (target voxel " + fmt("%g", tv) + ", source voxel " + fmt("%g", sv) + ")" +
               (resampled ? ": not an integer, the source is resampled trilinearly to ratio " + std::to_string(f) : ""));
     printData("output lattice: " + dims(outDim) + " voxels of " + fmt("%g", outLattice.voxelSize) + ", world " +
@@ -130,7 +131,7 @@ void preflight(const TransferArgs& a, const turbio::Sequence& target, const turb
     double outBytes = 0.0;
     for (const auto& fr : ts.frames) {
         const double dens = fr.densityActive > 0 ? double(fr.densityActive) : double(fr.domain.volume());
-        outBytes = std::max(outBytes, double(f) * f * f * (velocityBoxVoxels(fr) * 12.0 + dens * 8.0));
+        outBytes = std::max(outBytes, double(f) * f * (turb::isFlat(tBox) ? 1.0 : f) * (velocityBoxVoxels(fr) * 12.0 + dens * 8.0));
     }
     printData("output size: about " + turbio::formatBytes(outBytes) + " per frame, " +
               turbio::formatBytes(outBytes * double(targetFrames.size())) + " for " + std::to_string(targetFrames.size()) +
@@ -212,6 +213,7 @@ int runTransfer(TransferArgs& a)
     s.threads = globals().threads;
     globals().json = a.json;
     s.seams.enabled = !a.noSeams;
+    if (a.band > 0) s.seams.bandWidth = s.seams.bandWidth2D = a.band;
     s.trackGlobalPatches = !a.noTracking;
     s.followSourceFlow = !a.noFollow;
     s.resampleSource = !a.noResample;
@@ -425,7 +427,7 @@ Command transferCommand()
     auto args = std::make_shared<TransferArgs>();
     Command c;
     c.name = "transfer";
-    c.help = "Turbulence style transfer: add a high-res source's detail to a low-res target's motion";
+    c.help = "Turbulence style transfer: add a high-res source's detail to a low-res target's motion (3D, or 2D: one-z-layer caches)";
     c.setup = [args](CLI::App* app) {
         TransferArgs& a = *args;
         turb::TransferSettings& s = a.settings;
@@ -446,7 +448,7 @@ Command transferCommand()
         app->add_option("--pca", s.pcaComponents, "PCA dimensions of patch descriptors (default 16)")->check(CLI::Range(1, 256));
         app->add_option("--stride", s.localStride, "Spacing of candidate source patches in the local search (default 2)")->check(CLI::Range(1, 16));
         app->add_option("--candidates", s.refineCandidates, "Local candidates re-scored at full resolution (default 24)")->check(CLI::Range(1, 4096));
-        app->add_option("--band", s.seams.bandWidth, "Seam band: voxels on each side of a patch border (default 2)")->check(CLI::Range(1, 32));
+        app->add_option("--band", a.band, "Seam band: voxels on each side of a patch border (default 2; 3 for 2D caches)")->check(CLI::Range(1, 32));
         app->add_option("--boundary-patch", s.seams.boundaryPatch, "C: boundary patch edge, even (default B)");
         app->add_option("--em-iterations", s.seams.maxEmIterations, "Seam EM iterations at most (default 3)")->check(CLI::Range(1, 50));
         app->add_option("--em-tolerance", s.seams.emTolerance, "Stop EM when E_b changes by less than this fraction (default 0.02)");

@@ -2,6 +2,7 @@
 #include <turb/Advect.h>
 
 #include <turb/Error.h>
+#include <turb/Parallel.h>
 
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/Dense.h>
@@ -22,11 +23,117 @@ openvdb::math::Transform::Ptr transformOf(const Lattice& l)
     return xf;
 }
 
+// ---- 2D (one z layer) fields: dense, in the plane. OpenVDB's VolumeAdvection dilates the active voxels by the
+// travel distance along z too, so a one-layer field would be advected as a slab 2 * travel + 1 layers thick; the
+// same schemes on the layer alone cost a small fraction of that.
+
+inline float minOf(float a, float b) { return std::min(a, b); }
+inline float maxOf(float a, float b) { return std::max(a, b); }
+inline Vec3f minOf(const Vec3f& a, const Vec3f& b) { return Vec3f(std::min(a[0], b[0]), std::min(a[1], b[1]), std::min(a[2], b[2])); }
+inline Vec3f maxOf(const Vec3f& a, const Vec3f& b) { return Vec3f(std::max(a[0], b[0]), std::max(a[1], b[1]), std::max(a[2], b[2])); }
+inline float clampTo(float v, float lo, float hi) { return std::min(std::max(v, lo), hi); }
+inline Vec3f clampTo(const Vec3f& v, const Vec3f& lo, const Vec3f& hi)
+{
+    return Vec3f(clampTo(v[0], lo[0], hi[0]), clampTo(v[1], lo[1], hi[1]), clampTo(v[2], lo[2], hi[2]));
+}
+
+// Bilinear sample of a flat field at in-plane index (x, y); zero outside its box (OpenVDB's background). With
+// `range`, also the min and max of the (in-box) taps, for the clamp limiter.
+template<typename T>
+T sampleFlat(const Field<T>& f, double x, double y, T* lo = nullptr, T* hi = nullptr)
+{
+    const CoordBBox& b = f.bbox();
+    const int k = b.min().z();
+    const int i0 = int(std::floor(x)), j0 = int(std::floor(y));
+    const float wx = float(x - i0), wy = float(y - j0);
+    T acc = Field<T>::zeroValue();
+    bool first = true;
+    for (int dj = 0; dj < 2; ++dj)
+        for (int di = 0; di < 2; ++di) {
+            const int i = i0 + di, j = j0 + dj;
+            const bool in = i >= b.min().x() && i <= b.max().x() && j >= b.min().y() && j <= b.max().y();
+            const T v = in ? f(i, j, k) : Field<T>::zeroValue();
+            acc += v * ((di ? wx : 1.0f - wx) * (dj ? wy : 1.0f - wy));
+            if (lo) {
+                if (first) *lo = *hi = v;
+                else {
+                    *lo = minOf(*lo, v);
+                    *hi = maxOf(*hi, v);
+                }
+                first = false;
+            }
+        }
+    return acc;
+}
+
+
+template<typename T>
+Field<T> advectFlat(const Field<T>& q, const VectorField& velocity, double dt, const AdvectSettings& s)
+{
+    const Lattice& ql = q.lattice();
+    const Lattice& vl = velocity.lattice();
+    const CoordBBox& b = q.bbox();
+    const int k = b.min().z();
+    // Displacement per unit time of each voxel centre, in q's index units (first-order backtraces, as
+    // VolumeAdvection takes for its MacCormack and BFECC schemes); the velocity is sampled in world space.
+    std::vector<Vec3d> disp(q.size());
+    double fastest = 0.0;
+    for (size_t n = 0; n < q.size(); ++n) {
+        const Coord c = q.coordOf(n);
+        const Vec3d w = ql.indexToWorld(c.asVec3d());
+        const Vec3d vi = vl.worldToIndex(w);
+        const Vec3f v = sampleFlat(velocity, vi.x(), vi.y());
+        disp[n] = Vec3d(v.x(), v.y(), 0.0) / ql.voxelSize;
+        fastest = std::max(fastest, std::max(std::abs(disp[n].x()), std::abs(disp[n].y())));
+    }
+    int substeps = s.substeps;
+    if (substeps <= 0) substeps = std::max(1, int(std::ceil(fastest * std::abs(dt) / 3.0)));
+    const double h = dt / substeps;
+    // One semi-Lagrangian step of `from` over time `step`; with `lo`/`hi`, the range of the taps used.
+    const auto semi = [&](const Field<T>& from, double step, Field<T>& to, Field<T>* lo, Field<T>* hi) {
+        parallelFor(size_t(b.dim().x()), 1, [&](size_t x0, size_t x1) {
+            for (size_t xi = x0; xi < x1; ++xi)
+                for (int j = b.min().y(); j <= b.max().y(); ++j) {
+                    const int i = b.min().x() + int(xi);
+                    const size_t n = q.offset(i, j, k);
+                    const double x = i - disp[n].x() * step, y = j - disp[n].y() * step;
+                    to.data()[n] = lo ? sampleFlat(from, x, y, &lo->data()[n], &hi->data()[n]) : sampleFlat(from, x, y);
+                }
+        });
+    };
+    Field<T> phi = q, a(b, ql), c(b, ql), lo(b, ql), hi(b, ql);
+    const bool limit = s.clamp && s.scheme != AdvectSettings::Scheme::SemiLagrangian;
+    for (int step = 0; step < substeps; ++step) {
+        switch (s.scheme) {
+        case AdvectSettings::Scheme::SemiLagrangian: semi(phi, h, a, nullptr, nullptr); break;
+        case AdvectSettings::Scheme::MacCormack:
+            // a = A(phi), c = A^R(a); phi' = a + (phi - c) / 2
+            semi(phi, h, a, &lo, &hi);
+            semi(a, -h, c, nullptr, nullptr);
+            for (size_t n = 0; n < a.size(); ++n) a.data()[n] = a.data()[n] + (phi.data()[n] - c.data()[n]) * 0.5f;
+            break;
+        case AdvectSettings::Scheme::BFECC:
+            // a = A(phi), c = A^R(a); phi' = A(phi + (phi - c) / 2), clamped to the range of phi's taps at the same
+            // backtrace (the first pass's)
+            semi(phi, h, a, &lo, &hi);
+            semi(a, -h, c, nullptr, nullptr);
+            for (size_t n = 0; n < c.size(); ++n) c.data()[n] = phi.data()[n] + (phi.data()[n] - c.data()[n]) * 0.5f;
+            semi(c, h, a, nullptr, nullptr);
+            break;
+        }
+        if (limit)
+            for (size_t n = 0; n < a.size(); ++n) a.data()[n] = clampTo(a.data()[n], lo.data()[n], hi.data()[n]);
+        std::swap(phi, a);
+    }
+    return phi;
+}
+
 template<typename T, typename GridT>
 Field<T> advectImpl(const Field<T>& q, const VectorField& velocity, double dt, const AdvectSettings& s)
 {
     if (q.empty()) return q;
     if (velocity.empty()) throw ValueError("advect: empty velocity field");
+    if (s.inPlane && isFlat(q.bbox()) && isFlat(velocity.bbox())) return advectFlat(q, velocity, dt, s);
     openvdb::initialize();
     // Sparse: only non-zero voxels become active; VolumeAdvection dilates them by the travel distance,
     // so the cost follows the smoke, not the box.

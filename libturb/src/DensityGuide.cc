@@ -14,8 +14,9 @@ namespace turb {
 DensityGuideStats guideDensity(ScalarField& fine, const ScalarField& coarse, int f, const DensityGuideSettings& s)
 {
     if (f < 1) throw ValueError("density guide: ratio must be >= 1");
-    if (fine.bbox() != refineBox(coarse.bbox(), f))
-        throw ValueError("density guide: the fine density must cover refineBox(coarse box, f)");
+    if (fine.bbox() != refineDomain(coarse.bbox(), f))
+        throw ValueError("density guide: the fine density must cover refineDomain(coarse box, f)");
+    const int fz = domainFactors(coarse.bbox(), f).z(); // 1 for a 2D (one-layer) pair
     if (!(s.strength >= 0.0f && s.strength <= 1.0f)) throw ValueError("density guide: strength must lie in [0, 1]");
     if (s.passes < 1 || !(s.maxGain >= 1.0f) || !(s.threshold >= 0.0f))
         throw ValueError("density guide: passes >= 1, max gain >= 1 and threshold >= 0 required");
@@ -28,7 +29,7 @@ DensityGuideStats guideDensity(ScalarField& fine, const ScalarField& coarse, int
     for (float t : coarse.values()) peak = std::max(peak, t);
     const auto guided = [&](size_t n) {
         const Coord c = fine.coordOf(n);
-        return coarse(floorDiv(c.x(), f), floorDiv(c.y(), f), floorDiv(c.z(), f)) > s.threshold;
+        return coarse(floorDiv(c.x(), f), floorDiv(c.y(), f), floorDiv(c.z(), fz)) > s.threshold;
     };
     // Mass inside and outside the guided cells, summed in a fixed order (deterministic at any thread count).
     const auto masses = [&] {

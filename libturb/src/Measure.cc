@@ -165,7 +165,9 @@ VectorField advectOnto(const VectorField& q, const VectorField& velocity, double
     CoordBBox work = region;
     work.expand(margin);
     work.intersect(q.bbox());
-    return cropped(advect(cropped(q, work), velocity, dt, settings), box);
+    AdvectSettings inPlane = settings;
+    inPlane.inPlane = true; // a 2D output is advected in its plane, as the transfer advects it (same tcoh)
+    return cropped(advect(cropped(q, work), velocity, dt, inPlane), box);
 }
 
 // Everything the metrics need of one (output, target) pair on the refined target lattice.
@@ -186,8 +188,8 @@ Aligned alignPair(const Frame& out, const Frame& tgt, const MeasureSettings& s)
 {
     Aligned a;
     a.f = resolutionRatio(tgt, out);
-    a.refined = tgt.velocity.lattice().refined(a.f);
-    a.box = refineBox(tgt.velocity.bbox(), a.f);
+    a.refined = refinedLattice(tgt.velocity.lattice(), tgt.velocity.bbox(), a.f);
+    a.box = refineDomain(tgt.velocity.bbox(), a.f);
     a.alignment = resolveAlignment(s.alignment, out.velocity, a.refined, a.box);
     a.offset = (out.velocity.lattice().origin - a.refined.origin) / out.velocity.lattice().voxelSize;
     a.resampled = a.alignment == Alignment::World && !nestsExactly(out.velocity.lattice(), a.refined);
@@ -326,14 +328,14 @@ DensityMeasures densityMeasures(const ScalarField& output, const ScalarField& ou
     int f, float threshold)
 {
     if (f < 1) throw ValueError("densityMeasures: ratio must be >= 1");
-    if (outputOnRefined.bbox() != refineBox(target.bbox(), f))
-        throw ValueError("densityMeasures: the refined output must cover refineBox(target box, f)");
+    if (outputOnRefined.bbox() != refineDomain(target.bbox(), f))
+        throw ValueError("densityMeasures: the refined output must cover refineDomain(target box, f)");
     DensityMeasures d;
     const auto massOf = [](const ScalarField& q) {
         const double v = q.lattice().voxelSize;
         double sum = 0.0;
         for (float x : q.values()) sum += double(x);
-        return sum * v * v * v;
+        return sum * v * v * (isFlat(q.bbox()) ? 1.0 : v); // a 2D field's mass is per unit depth
     };
     const auto peakOf = [](const ScalarField& q) {
         float p = 0.0f;
@@ -351,8 +353,8 @@ DensityMeasures densityMeasures(const ScalarField& output, const ScalarField& ou
 double coarseDensityError(const ScalarField& fine, const ScalarField& coarse, int f, float threshold)
 {
     if (f < 1) throw ValueError("coarse density error: ratio must be >= 1");
-    if (fine.bbox() != refineBox(coarse.bbox(), f))
-        throw ValueError("coarse density error: the fine density must cover refineBox(coarse box, f)");
+    if (fine.bbox() != refineDomain(coarse.bbox(), f))
+        throw ValueError("coarse density error: the fine density must cover refineDomain(coarse box, f)");
     const ScalarField down = boxDownsample(fine, f);
     double err = 0.0, ref = 0.0;
     for (size_t n = 0; n < coarse.size(); ++n) {

@@ -45,7 +45,8 @@ std::optional<double> detailAnisotropy(const VectorField& u, const std::vector<u
         all += p[1];
         n += p[2];
     }
-    const double across = 0.5 * (all - along);
+    // Two directions across the flow in 3D, one in 2D (a flat field has no z derivatives).
+    const double across = isFlat(b) ? all - along : 0.5 * (all - along);
     if (n == 0.0 || !(across > 0.0)) return std::nullopt;
     return along / across;
 }
@@ -57,6 +58,7 @@ std::optional<double> detailIsotropy(const VectorField& u, const std::vector<uns
     const VectorField H = splitFrequencies(u, f).high;
     const CoordBBox& b = u.bbox();
     const Coord n((b.dim().x() + block - 1) / block, (b.dim().y() + block - 1) / block, (b.dim().z() + block - 1) / block);
+    const bool flat = isFlat(b);
     const size_t tiles = size_t(n.x()) * size_t(n.y()) * size_t(n.z());
     std::vector<std::array<double, 2>> part(tiles, {0.0, 0.0}); // weight * isotropy, weight
     parallelFor(tiles, 16, [&](size_t t0, size_t t1) {
@@ -81,6 +83,13 @@ std::optional<double> detailIsotropy(const VectorField& u, const std::vector<uns
             if (2 * in < tile.volume()) continue;
             const double trace = S.trace();
             if (!(trace > 0.0)) continue;
+            if (flat) {
+                // 2D: gradients lie in the x-y plane; its 2x2 tensor's eigenvalue ratio (the z row is zero).
+                Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(S.topLeftCorner<2, 2>(), Eigen::EigenvaluesOnly);
+                const Eigen::Vector2d ev = eig.eigenvalues(); // ascending
+                part[t] = {trace * std::max(0.0, ev(0)) / ev(1), trace};
+                continue;
+            }
             Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(S, Eigen::EigenvaluesOnly);
             const Eigen::Vector3d ev = eig.eigenvalues(); // ascending
             part[t] = {trace * std::max(0.0, ev(0)) / ev(2), trace};

@@ -49,11 +49,12 @@ Field<T> upsample(const Field<T>& coarse, int factor)
 {
     if (factor < 1) throw ValueError("upsample: factor must be >= 1");
     const CoordBBox cb = coarse.bbox();
-    const CoordBBox fb = refineBox(cb, factor);
-    Field<T> fine(fb, coarse.lattice().refined(factor));
+    const CoordBBox fb = refineDomain(cb, factor);
+    Field<T> fine(fb, refinedLattice(coarse.lattice(), cb, factor));
     if (coarse.empty()) return fine;
+    const Coord F = domainFactors(cb, factor); // z factor 1 keeps a 2D field's one layer
     AxisWeights ax[3];
-    for (int a = 0; a < 3; ++a) ax[a] = axisWeights(fb.min()[a], fb.max()[a], cb.min()[a], cb.max()[a], factor);
+    for (int a = 0; a < 3; ++a) ax[a] = axisWeights(fb.min()[a], fb.max()[a], cb.min()[a], cb.max()[a], F[a]);
     const Coord d = fb.dim();
     parallelFor(size_t(d.x()), 1, [&](size_t x0, size_t x1) {
         for (size_t x = x0; x < x1; ++x) {
@@ -83,10 +84,11 @@ Field<T> boxDownsample(const Field<T>& fine, int factor)
 {
     if (factor < 1) throw ValueError("boxDownsample: factor must be >= 1");
     const CoordBBox fb = fine.bbox();
-    const CoordBBox cb = coarsenBox(fb, factor);
-    Field<T> coarse(cb, fine.lattice().coarsened(factor));
+    const CoordBBox cb = coarsenDomain(fb, factor);
+    Field<T> coarse(cb, coarsenedLattice(fine.lattice(), fb, factor));
     if (fine.empty()) return coarse;
-    const float inv = 1.0f / float(factor * factor * factor);
+    const int fz = domainFactors(fb, factor).z(); // 1 for a 2D field: its one layer is its own coarse layer
+    const float inv = 1.0f / float(factor * factor * fz);
     const Coord d = cb.dim();
     parallelFor(size_t(d.x()), 1, [&](size_t x0, size_t x1) {
         for (size_t xi = x0; xi < x1; ++xi) {
@@ -100,8 +102,8 @@ Field<T> boxDownsample(const Field<T>& fine, int factor)
                         for (int b = 0; b < factor; ++b) {
                             const int j = cj * factor + b;
                             if (j < fb.min().y() || j > fb.max().y()) continue;
-                            for (int c = 0; c < factor; ++c) {
-                                const int k = ck * factor + c;
+                            for (int c = 0; c < fz; ++c) {
+                                const int k = ck * fz + c;
                                 if (k < fb.min().z() || k > fb.max().z()) continue;
                                 sum += fine(i, j, k);
                             }

@@ -74,6 +74,16 @@ SmokeSettings sceneSettings(const std::string& name, const Coord& resolution, st
         for (const auto& sc : sceneList()) names += (names.empty() ? "" : ", ") + sc.name;
         throw ValueError("unknown scene '" + name + "' (built-in scenes: " + names + ")");
     }
+    if (resolution.z() == 1) {
+        // 2D: the scene seen from the side, in the x-y plane with +y up. A position (x, y, z) goes to (x, z + y, 0),
+        // so the swirl's jets, which pass 0.5 apart in y in 3D, pass 0.5 apart in height; velocities likewise.
+        const auto flatten = [](const Vec3d& p) { return Vec3d(p.x(), p.z() + p.y(), 0.0); };
+        for (auto& e : s.emitters) {
+            e.shape.centre = flatten(e.shape.centre);
+            e.velocity = Vec3f(e.velocity.x(), e.velocity.z() + e.velocity.y(), 0.0f);
+        }
+        for (auto& o : s.obstacles) o.centre = flatten(o.centre);
+    }
     return s;
 }
 

@@ -80,7 +80,8 @@ void require(bool ok, const std::string& what)
 SmokeSim::SmokeSim(const SmokeSettings& s) : mSettings(s)
 {
     const Coord& r = s.resolution;
-    require(r.x() >= 4 && r.y() >= 4 && r.z() >= 4, "resolution must be at least 4 cells along each axis");
+    require(r.x() >= 4 && r.y() >= 4 && (r.z() >= 4 || r.z() == 1),
+        "resolution must be at least 4 cells along each axis, or 1 along z for a 2D simulation");
     require(double(r.x()) * r.y() * r.z() <= 2.0e8, "resolution above 2e8 cells");
     require(s.width > 0.0 && std::isfinite(s.width), "width must be > 0");
     require(s.frameDt > 0.0, "frameDt must be > 0");
@@ -99,7 +100,8 @@ SmokeSim::SmokeSim(const SmokeSettings& s) : mSettings(s)
     const double h = s.width / r.x();
     Vec3d corner = s.minCorner;
     if (!std::isfinite(corner.x()) || !std::isfinite(corner.y()) || !std::isfinite(corner.z()))
-        corner = Vec3d(-0.5 * s.width, -0.5 * r.y() * h, 0.0);
+        corner = twoD() ? Vec3d(-0.5 * s.width, 0.0, -0.5 * h) // 2D: y up from the floor, the layer's centre at z = 0
+                        : Vec3d(-0.5 * s.width, -0.5 * r.y() * h, 0.0);
     const Lattice lat{h, corner + Vec3d(0.5 * h)};
     const CoordBBox cells(Coord(0), r.offsetBy(-1));
 
@@ -117,6 +119,12 @@ SmokeSim::SmokeSim(const SmokeSettings& s) : mSettings(s)
     projection.tolerance = s.pressureTolerance;
     projection.maxIterations = s.pressureMaxIterations;
     projection.faces = s.faces;
+    if (twoD()) {
+        // One layer: the floor is y-, and the z faces are walls (a 2D flow has no z velocity).
+        projection.faces[2] = Boundary::Closed;
+        projection.faces[4] = projection.faces[5] = Boundary::Closed;
+        mSettings.faces = projection.faces;
+    }
     projection.incompleteCholesky = s.pressureIncompleteCholesky;
     mProjector.emplace(cells, projection, &mSolid);
 }
@@ -177,6 +185,7 @@ void SmokeSim::addForces(double dt)
     const Lattice& lat = lattice();
     const CoordBBox& cellsBox = cells();
     const float alpha = mSettings.buoyancyDensity, beta = mSettings.buoyancyTemperature;
+    const int up = upAxis();
 
     // Vorticity confinement (Fedkiw et al. 2001): f = eps * h * (N x omega), N = grad|omega| / |grad|omega||,
     // at cell centres, then averaged to the faces with the buoyancy.
@@ -219,14 +228,14 @@ void SmokeSim::addForces(double dt)
                 return inLo && inHi ? 0.5f * (f[lo] + f[hi]) : (inLo ? f[lo] : f[hi]);
             };
             float acc = 0.0f;
-            if (a == 2) acc += beta * face(mTemperature) - alpha * face(mDensity);
+            if (a == up) acc += beta * face(mTemperature) - alpha * face(mDensity);
             if (!confinement.empty()) {
                 const Vec3f f = inLo && inHi ? 0.5f * (confinement[lo] + confinement[hi])
                                              : (inLo ? confinement[lo] : confinement[hi]);
                 acc += f[a];
             }
             u[a] += float(dt) * acc;
-            if (a < 2 && mSettings.windRate > 0.0f) u[a] = wind[a] + (u[a] - wind[a]) * windKeep;
+            if (a != up && mSettings.windRate > 0.0f) u[a] = wind[a] + (u[a] - wind[a]) * windKeep;
         }
     });
 }
@@ -377,7 +386,7 @@ Frame SmokeSim::frame() const
     os.precision(9);
     os << mTime;
     f.metadata[turb::meta::kSimTime] = os.str();
-    f.metadata[turb::meta::kUpAxis] = "z";
+    f.metadata[turb::meta::kUpAxis] = twoD() ? "y" : "z";
     f.metadata[turb::meta::kScene] = mSettings.label;
     return f;
 }

@@ -21,6 +21,10 @@ struct AdvectSettings
     Scheme scheme = Scheme::BFECC; ///< integration scheme (BFECC: 2nd order, 3 backtraces)
     bool clamp = true;             ///< clamp to the range of the sampled neighbourhood (no new extrema)
     int substeps = 0;              ///< 0 = from the CFL number: at most 3 voxels of travel per substep
+    /// 2D fields (q and velocity one z layer, isFlat): advect densely in the x-y plane, with the same schemes
+    /// (first-order backtraces, bilinear, zero outside the box) instead of OpenVDB's VolumeAdvection, which
+    /// dilates the one layer by the travel distance along z and so costs 2 * travel + 1 layers. Off: unchanged.
+    bool inPlane = false;
 };
 
 /// q advected by `velocity` over `dt` (velocity * dt is a world-space displacement). The result lives

@@ -41,7 +41,7 @@ struct DensityGuideStats
 
 /// Moves the f^3 block means of `fine` toward `coarse` where the target has smoke. Mass the guide adds there is
 /// taken first from the smoke outside those cells (scaled down evenly), so guiding moves smoke into the target's
-/// cells before it makes any. `fine` must cover exactly refineBox(coarse.bbox(), f); values stay >= 0 and never
+/// cells before it makes any. `fine` must cover exactly refineDomain(coarse.bbox(), f) (one layer for a 2D pair); values stay >= 0 and never
 /// rise above max(their old value, the target's peak).
 /// Throws ValueError on a box mismatch, f < 1 or settings out of range.
 DensityGuideStats guideDensity(ScalarField& fine, const ScalarField& coarse, int f, const DensityGuideSettings& s = {});

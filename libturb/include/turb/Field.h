@@ -166,4 +166,57 @@ inline CoordBBox refineBox(const CoordBBox& coarse, int factor)
         Coord(b.x() * factor + factor - 1, b.y() * factor + factor - 1, b.z() * factor + factor - 1));
 }
 
+/// A 2D field: one voxel thick in z, the way Houdini and Blender write 2D simulations. Refining or coarsening a
+/// flat field's box (refineDomain, coarsenDomain, upsample, boxDownsample) keeps its one layer at the same z index.
+inline bool isFlat(const CoordBBox& box) { return !box.empty() && box.dim().z() == 1; }
+
+/// The per-axis factors refineDomain and coarsenDomain apply: (f, f, 1) for a flat box, (f, f, f) otherwise.
+inline Coord domainFactors(const CoordBBox& box, int factor)
+{
+    return isFlat(box) ? Coord(factor, factor, 1) : Coord(factor);
+}
+
+/// refineBox, except that a flat (2D) box keeps its one z layer at the same index.
+inline CoordBBox refineDomain(const CoordBBox& coarse, int factor)
+{
+    CoordBBox b = refineBox(coarse, factor);
+    if (isFlat(coarse)) b = CoordBBox(Coord(b.min().x(), b.min().y(), coarse.min().z()), Coord(b.max().x(), b.max().y(), coarse.max().z()));
+    return b;
+}
+
+/// coarsenBox, except that a flat (2D) box keeps its one z layer at the same index.
+inline CoordBBox coarsenDomain(const CoordBBox& fine, int factor)
+{
+    CoordBBox b = coarsenBox(fine, factor);
+    if (isFlat(fine)) b = CoordBBox(Coord(b.min().x(), b.min().y(), fine.min().z()), Coord(b.max().x(), b.max().y(), fine.max().z()));
+    return b;
+}
+
+/// The lattice of refineDomain(box, factor): lattice.refined(factor), except that for a flat box its z origin puts
+/// the one layer at the coarse layer's world height (synth's 2D convention, FineDomain).
+inline Lattice refinedLattice(const Lattice& coarse, const CoordBBox& box, int factor)
+{
+    Lattice l = coarse.refined(factor);
+    if (isFlat(box)) {
+        const int k0 = box.min().z();
+        Vec3d o = l.origin;
+        o[2] = coarse.origin.z() + k0 * coarse.voxelSize - k0 * l.voxelSize;
+        l.origin = o;
+    }
+    return l;
+}
+
+/// The lattice of coarsenDomain(box, factor); the inverse of refinedLattice.
+inline Lattice coarsenedLattice(const Lattice& fine, const CoordBBox& box, int factor)
+{
+    Lattice l = fine.coarsened(factor);
+    if (isFlat(box)) {
+        const int k0 = box.min().z();
+        Vec3d o = l.origin;
+        o[2] = fine.origin.z() + k0 * fine.voxelSize - k0 * l.voxelSize;
+        l.origin = o;
+    }
+    return l;
+}
+
 } // namespace turb

@@ -4,7 +4,7 @@
 ///
 /// Terms used throughout:
 /// - f: the resolution ratio target voxel / output voxel (an integer; integerRatio throws otherwise).
-/// - the refined target lattice: Lattice::refined(f) of the target over refineBox(target box, f). The
+/// - the refined target lattice: Lattice::refined(f) of the target over refineBox(target box, f) (refineDomain, refinedLattice: one layer for a 2D target). The
 ///   output is brought onto it first (see Alignment), so fine voxel I lies in coarse voxel floor(I / f).
 /// - up_f: cell-centred trilinear upsample; boxdown_f: mean over f^3 blocks (Resample.h).
 /// - U_h = U_out - up_f(U_target) on the refined target lattice: the detail an up-res added.
@@ -168,7 +168,7 @@ struct DensityMeasures
 DensityMeasures densityMeasures(const ScalarField& output, const ScalarField& outputOnRefined, const ScalarField& target,
     int f, float threshold);
 /// rms(boxdown_f(fine) - coarse) / rms(coarse) over the coarse cells where `coarse` exceeds `threshold` (0 when
-/// there are none): density_err. `fine` must cover refineBox(coarse box, f); throws ValueError otherwise.
+/// there are none): density_err. `fine` must cover refineDomain(coarse box, f); throws ValueError otherwise.
 double coarseDensityError(const ScalarField& fine, const ScalarField& coarse, int f, float threshold);
 
 /// Anisotropy of the detail H = U - up_f(boxdown_f(U)) along a unit direction d, over the mask:

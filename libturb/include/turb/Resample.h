@@ -7,6 +7,8 @@
 ///   beyond the coarse box are extended constantly from the edge.
 /// - boxDownsample: the mean over each coarse voxel's f^3 fine voxels; fine voxels outside the fine box
 ///   count as zero (sparse-grid background).
+/// - A 2D field (one voxel thick in z, isFlat) stays 2D: both act in x and y only, and its one layer keeps its z
+///   index (refineDomain, coarsenDomain; world height as refinedLattice places it).
 ///
 /// @code
 /// turb::VectorField low = turb::upsample(turb::boxDownsample(u, 4), 4); // U_sl
@@ -19,11 +21,11 @@
 
 namespace turb {
 
-/// Cell-centred trilinear upsampling by an integer factor >= 1; the result covers refineBox(bbox).
+/// Cell-centred trilinear upsampling by an integer factor >= 1; the result covers refineDomain(bbox).
 template<typename T>
 Field<T> upsample(const Field<T>& coarse, int factor);
 
-/// Mean over factor^3 blocks; the result covers coarsenBox(fine.bbox()).
+/// Mean over factor^3 blocks (factor^2 for a 2D field); the result covers coarsenDomain(fine.bbox()).
 template<typename T>
 Field<T> boxDownsample(const Field<T>& fine, int factor);
 

@@ -18,6 +18,11 @@
 /// Velocities are compared in "coarse cells per frame" (u * dt / dx of each sequence), the grid units
 /// the paper's alpha/beta/gamma were tuned in, so world-unit conventions of the caches do not matter.
 ///
+/// 2D: a target one voxel thick in z (isFlat) is a 2D transfer, and its source must be 2D too. Patches are then
+/// B x B x 1 (local), b x b x 1 (global) and C x C x 1 (boundary), the seam band has no z borders (width
+/// SeamSettings::bandWidth2D), fields are advected in their plane, and the output is one layer at the target
+/// layer's index and world height (refineDomain, refinedLattice) with zero z velocity. 3D is unchanged.
+///
 /// @code
 /// turb::TransferSettings s;                  // paper defaults: alpha 0.004, beta 0.5, gamma 10
 /// turb::TurbulenceTransfer transfer(s);

@@ -180,7 +180,8 @@ VectorField applyBU(const VectorField& c, int f)
     wp /= f;
     VectorField a = c, b(c.bbox(), c.lattice());
     const CoordBBox box = c.bbox();
-    for (int axis = 0; axis < 3; ++axis) {
+    // A 2D field is refined in x and y only: BU is the identity along z.
+    for (int axis = 0; axis < (isFlat(box) ? 2 : 3); ++axis) {
         for (size_t n = 0; n < a.size(); ++n) {
             const Coord p = a.coordOf(n);
             Coord lo = p, hi = p;

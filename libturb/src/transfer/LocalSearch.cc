@@ -1,4 +1,4 @@
-// Eq. 2: the local search for B^3 fine patches inside each patch's global region: PCA-reduced candidates on the
+// Eq. 2: the local search for B^3 fine patches (B^2 in 2D) inside each patch's global region: PCA-reduced candidates on the
 // stride lattice, the best few re-scored with the full-resolution E_h (with the beta term on U^_h).
 #include "Stages.h"
 
@@ -15,11 +15,11 @@ namespace turb::detail {
 double PatchEnergy::operator()(const Coord& tCorner, const Coord& sCorner, bool temporal) const
 {
     const TransferSettings& s = *fs.s;
-    const int B = fs.B;
+    const Coord& P = fs.patch;
     double e = 0.0;
-    for (int x = 0; x < B; ++x)
-        for (int y = 0; y < B; ++y)
-            for (int z = 0; z < B; ++z) {
+    for (int x = 0; x < P.x(); ++x)
+        for (int y = 0; y < P.y(); ++y)
+            for (int z = 0; z < P.z(); ++z) {
                 const Coord tv = tCorner + Coord(x, y, z);
                 if (!fs.fineBox.isInside(tv)) continue;
                 const Coord sv = sCorner + Coord(x, y, z);
@@ -39,11 +39,11 @@ double PatchEnergy::at(const Coord& tCorner, const Vec3d& sCorner, bool temporal
     const Coord base(int(std::floor(sCorner.x())), int(std::floor(sCorner.y())), int(std::floor(sCorner.z())));
     if (base.asVec3d() == sCorner) return (*this)(tCorner, base, temporal);
     const TransferSettings& s = *fs.s;
-    const int B = fs.B;
+    const Coord& P = fs.patch;
     double e = 0.0;
-    for (int x = 0; x < B; ++x)
-        for (int y = 0; y < B; ++y)
-            for (int z = 0; z < B; ++z) {
+    for (int x = 0; x < P.x(); ++x)
+        for (int y = 0; y < P.y(); ++y)
+            for (int z = 0; z < P.z(); ++z) {
                 const Coord tv = tCorner + Coord(x, y, z);
                 if (!fs.fineBox.isInside(tv)) continue;
                 const Vec3d sv = sCorner + Vec3d(x, y, z);
@@ -67,21 +67,22 @@ double LocalSearchResult::meanEnergy() const
 
 namespace {
 
-// Voxels of the B^3 patch at `corner` (rounded) whose density exceeds the threshold; outside the box counts none.
-int smokeVoxels(const ScalarField& D, const Vec3d& corner, int B, float threshold)
+// Voxels of the patch (extent P) at `corner` (rounded) whose density exceeds the threshold; outside the box counts
+// none.
+int smokeVoxels(const ScalarField& D, const Vec3d& corner, const Coord& P, float threshold)
 {
     const Coord c(int(std::lround(corner.x())), int(std::lround(corner.y())), int(std::lround(corner.z())));
     int n = 0;
-    for (int x = 0; x < B; ++x)
-        for (int y = 0; y < B; ++y)
-            for (int z = 0; z < B; ++z) n += D.valueOr(c.x() + x, c.y() + y, c.z() + z, 0.0f) > threshold;
+    for (int x = 0; x < P.x(); ++x)
+        for (int y = 0; y < P.y(); ++y)
+            for (int z = 0; z < P.z(); ++z) n += D.valueOr(c.x() + x, c.y() + y, c.z() + z, 0.0f) > threshold;
     return n;
 }
 
 // The PCA distances of the candidates within `radius` of a patch's region centre on the stride lattice (widened
 // when the region holds no smoke-bearing candidate, e.g. at the edge of the source's smoke; the whole lattice as a
 // last resort for tiny sources).
-void regionCandidates(const LocalCandidates& cands, const Coord& centre, int B, int radius, int grow,
+void regionCandidates(const LocalCandidates& cands, const Coord& centre, const Coord& half, int radius, int grow,
     const std::vector<float>& red, std::vector<std::pair<float, Coord>>& best)
 {
     const size_t rk = cands.pca().outputDim();
@@ -96,7 +97,9 @@ void regionCandidates(const LocalCandidates& cands, const Coord& centre, int B, 
     };
     for (int g = 0; g < 4 && best.empty(); ++g) {
         const int rad = radius + g * grow;
-        const Coord lo = centre - Coord(B / 2) - Coord(rad), hi = centre - Coord(B / 2) + Coord(rad);
+        // A 2D patch's region is its one layer: no radius along z.
+        const Coord r(rad, rad, half.z() > 0 ? rad : 0);
+        const Coord lo = centre - half - r, hi = centre - half + r;
         Coord c0, c1;
         for (int a = 0; a < 3; ++a) {
             const int base = corners.min()[a];
@@ -123,10 +126,11 @@ LocalSearchResult localSearch(const PatchEnergy& energy, const std::vector<uint8
     const TransferSettings& s = *fs.s;
     const int B = fs.B;
     LocalCandidates cands;
-    cands.build(energy.src.split.low, energy.src.Ds, B, s.localStride, energy.src.ks, w, s.pcaComponents, s.sourceSmoke);
+    cands.build(energy.src.split.low, energy.src.Ds, fs.patch, s.localStride, energy.src.ks, w, s.pcaComponents,
+        s.sourceSmoke);
     if (cands.count() == 0) throw ValueError("the source has no local patch holding smoke");
     const int radius = std::max(0, (fs.globalPatch * fs.f - B) / 2);
-    const size_t rk = cands.pca().outputDim(), ldim = localDescriptorSize(B);
+    const size_t rk = cands.pca().outputDim(), ldim = localDescriptorSize(fs.patch);
     LocalSearchResult out;
     out.corners = cands.cornerBox();
     out.chosen.assign(fs.layout.patchCount(), Coord(0));
@@ -142,10 +146,10 @@ LocalSearchResult localSearch(const PatchEnergy& energy, const std::vector<uint8
         for (size_t i = b; i < e; ++i) {
             const size_t p = out.activeList[i];
             const Coord tCorner = fs.layout.patchBox(fs.layout.patchCoord(p)).min();
-            localDescriptor(energy.t.Ut, energy.t.Dt, tCorner, B, energy.src.kt, w, desc.data());
+            localDescriptor(energy.t.Ut, energy.t.Dt, tCorner, fs.patch, energy.src.kt, w, desc.data());
             cands.pca().project(desc.data(), red.data());
             best.clear();
-            regionCandidates(cands, global.regionCentre[p], B, radius, fs.globalPatch * fs.f, red, best);
+            regionCandidates(cands, global.regionCentre[p], fs.half, radius, fs.globalPatch * fs.f, red, best);
             const size_t m = std::min(best.size(), size_t(s.refineCandidates));
             std::partial_sort(best.begin(), best.begin() + long(m), best.end(), [](const auto& a, const auto& c) {
                 if (a.first != c.first) return a.first < c.first;
@@ -169,7 +173,7 @@ LocalSearchResult localSearch(const PatchEnergy& energy, const std::vector<uint8
             out.energy[p] = std::max(0.0, bestE);
             // The continuation in the source's flow wins while it matches nearly as well as the best found.
             if (!tracks.following.empty() && tracks.following[p] &&
-                smokeVoxels(energy.src.Ds, tracks.follow[p], B, s.densityThreshold) >= cands.minSmokeVoxels()) {
+                smokeVoxels(energy.src.Ds, tracks.follow[p], fs.patch, s.densityThreshold) >= cands.minSmokeVoxels()) {
                 const double ef = energy.at(tCorner, tracks.follow[p], temporal);
                 if (ef <= (1.0 + double(s.followTolerance)) * out.energy[p]) {
                     const Vec3d& c = tracks.follow[p];

@@ -8,15 +8,15 @@
 
 namespace turb::detail {
 
-void globalDescriptor(const VectorField& u, const ScalarField& d, const Coord& centre, int b, float k,
+void globalDescriptor(const VectorField& u, const ScalarField& d, const Coord& centre, int b, int depth, float k,
     const MatchWeights& w, float* out)
 {
-    const int r = b / 2;
+    const int r = b / 2, rz = depth / 2;
     const float sa = std::sqrt(w.alpha);
     size_t n = 0;
     for (int x = -r; x <= r; ++x)
         for (int y = -r; y <= r; ++y)
-            for (int z = -r; z <= r; ++z) {
+            for (int z = -rz; z <= rz; ++z) {
                 const Coord c = centre + Coord(x, y, z);
                 const Vec3f v = u.clamped(c.x(), c.y(), c.z()) * k;
                 out[n++] = v.x();
@@ -26,19 +26,19 @@ void globalDescriptor(const VectorField& u, const ScalarField& d, const Coord& c
             }
 }
 
-void GlobalIndex::build(const VectorField& us, const ScalarField& ds, int b, float k, const MatchWeights& w,
+void GlobalIndex::build(const VectorField& us, const ScalarField& ds, int b, int depth, float k, const MatchWeights& w,
     int pcaComponents)
 {
     mCells.clear();
     const CoordBBox box = us.bbox();
-    const int r = b / 2;
+    const int r = b / 2, rz = depth / 2;
     // Candidate centres: cells with smoke within the patch radius.
     for (size_t n = 0; n < ds.size(); ++n) {
         const Coord c = ds.coordOf(n);
         bool smoke = false;
         for (int x = -r; x <= r && !smoke; ++x)
             for (int y = -r; y <= r && !smoke; ++y)
-                for (int z = -r; z <= r && !smoke; ++z) {
+                for (int z = -rz; z <= rz && !smoke; ++z) {
                     const Coord q = c + Coord(x, y, z);
                     smoke = box.isInside(q) && ds[q] > w.threshold;
                 }
@@ -47,7 +47,7 @@ void GlobalIndex::build(const VectorField& us, const ScalarField& ds, int b, flo
     if (mCells.empty()) return;
     // Fit the PCA on an even sample, then project the cells in fixed chunks: at ratio 2 a descriptor has 2916
     // floats, and holding all of them for a 64^3 source would take gigabytes.
-    const size_t dim = globalDescriptorSize(b);
+    const size_t dim = globalDescriptorSize(b, depth);
     const PcaSettings ps{pcaComponents};
     const size_t sample = std::min(mCells.size(), ps.maxSamples);
     const double step = double(mCells.size()) / double(sample);
@@ -55,7 +55,7 @@ void GlobalIndex::build(const VectorField& us, const ScalarField& ds, int b, flo
     {
         std::vector<float> rows(sample * dim);
         parallelFor(sample, 64, [&](size_t s, size_t e) {
-            for (size_t i = s; i < e; ++i) globalDescriptor(us, ds, mCells[size_t(i * step)], b, k, w, &rows[i * dim]);
+            for (size_t i = s; i < e; ++i) globalDescriptor(us, ds, mCells[size_t(i * step)], b, depth, k, w, &rows[i * dim]);
         });
         pca.fit(rows.data(), sample, dim, ps);
     }
@@ -65,7 +65,7 @@ void GlobalIndex::build(const VectorField& us, const ScalarField& ds, int b, flo
         const size_t c1 = std::min(mCells.size(), c0 + chunk);
         rows.resize((c1 - c0) * dim);
         parallelFor(c1 - c0, 64, [&](size_t s, size_t e) {
-            for (size_t i = s; i < e; ++i) globalDescriptor(us, ds, mCells[c0 + i], b, k, w, &rows[i * dim]);
+            for (size_t i = s; i < e; ++i) globalDescriptor(us, ds, mCells[c0 + i], b, depth, k, w, &rows[i * dim]);
         });
         pca.projectRows(rows.data(), c1 - c0, &reduced[c0 * rk]);
     }
@@ -80,15 +80,16 @@ Coord GlobalIndex::nearest(const float* descriptor) const
     return idx >= 0 ? mCells[size_t(idx)] : Coord(0);
 }
 
-void localDescriptor(const VectorField& U, const ScalarField& D, const Coord& corner, int B, float k,
+void localDescriptor(const VectorField& U, const ScalarField& D, const Coord& corner, const Coord& patch, float k,
     const MatchWeights& w, float* out)
 {
     const float sa = std::sqrt(w.alpha);
     size_t n = 0;
-    // Samples at odd offsets 1, 3, 5, ... sit symmetrically inside an even-sized patch.
-    for (int x = 1 % B; x < B; x += 2)
-        for (int y = 1 % B; y < B; y += 2)
-            for (int z = 1 % B; z < B; z += 2) {
+    // Samples at odd offsets 1, 3, 5, ... sit symmetrically inside an even-sized patch (offset 0 of a 2D patch's
+    // one layer).
+    for (int x = 1 % patch.x(); x < patch.x(); x += 2)
+        for (int y = 1 % patch.y(); y < patch.y(); y += 2)
+            for (int z = 1 % patch.z(); z < patch.z(); z += 2) {
                 const Coord c = corner + Coord(x, y, z);
                 const Vec3f v = U.clamped(c.x(), c.y(), c.z()) * k;
                 out[n++] = v.x();
@@ -98,13 +99,13 @@ void localDescriptor(const VectorField& U, const ScalarField& D, const Coord& co
             }
 }
 
-void LocalCandidates::build(const VectorField& Usl, const ScalarField& Ds, int B, int stride, float k,
+void LocalCandidates::build(const VectorField& Usl, const ScalarField& Ds, const Coord& patch, int stride, float k,
     const MatchWeights& w, int pcaComponents, double minSmoke)
 {
-    mB = B;
+    mPatch = patch;
     mStride = std::max(1, stride);
     const CoordBBox box = Usl.bbox();
-    mCorners = CoordBBox(box.min(), box.max() - Coord(B - 1));
+    mCorners = CoordBBox(box.min(), box.max() - (patch - Coord(1)));
     mReduced.clear();
     mSlot.clear();
     mCount = 0;
@@ -130,7 +131,7 @@ void LocalCandidates::build(const VectorField& Usl, const ScalarField& Ds, int B
             }
     const auto smokeIn = [&](const Coord& lo) {
         const int x0 = lo.x() - box.min().x(), y0 = lo.y() - box.min().y(), z0 = lo.z() - box.min().z();
-        const int x1 = x0 + B, y1 = y0 + B, z1 = z0 + B;
+        const int x1 = x0 + patch.x(), y1 = y0 + patch.y(), z1 = z0 + patch.z();
         return sum[at(x1, y1, z1)] - sum[at(x0, y1, z1)] - sum[at(x1, y0, z1)] - sum[at(x1, y1, z0)] +
                sum[at(x0, y0, z1)] + sum[at(x0, y1, z0)] + sum[at(x1, y0, z0)] - sum[at(x0, y0, z0)];
     };
@@ -141,7 +142,8 @@ void LocalCandidates::build(const VectorField& Usl, const ScalarField& Ds, int B
         for (int y = 0; y < mLattice.y(); ++y)
             for (int z = 0; z < mLattice.z(); ++z)
                 most = std::max(most, smokeIn(mCorners.min() + Coord(x * mStride, y * mStride, z * mStride)));
-    mMinSmoke = std::max(1, int(std::ceil(std::min(minSmoke * double(B) * double(B) * double(B), 0.5 * most))));
+    mMinSmoke = std::max(1,
+        int(std::ceil(std::min(minSmoke * double(patch.x()) * double(patch.y()) * double(patch.z()), 0.5 * most))));
     mSlot.assign(cells, -1);
     std::vector<Coord> corners;
     for (int x = 0; x < mLattice.x(); ++x)
@@ -155,14 +157,14 @@ void LocalCandidates::build(const VectorField& Usl, const ScalarField& Ds, int B
     mCount = corners.size();
     if (mCount == 0) return;
 
-    const size_t dim = localDescriptorSize(B);
+    const size_t dim = localDescriptorSize(patch);
     // Fit the PCA on an even subset; then project everything in fixed chunks (memory stays bounded).
     {
         const size_t sample = std::min<size_t>(mCount, 12000);
         std::vector<float> rows(sample * dim);
         const double step = double(mCount) / double(sample);
         parallelFor(sample, 256, [&](size_t s, size_t e) {
-            for (size_t i = s; i < e; ++i) localDescriptor(Usl, Ds, corners[size_t(i * step)], B, k, w, &rows[i * dim]);
+            for (size_t i = s; i < e; ++i) localDescriptor(Usl, Ds, corners[size_t(i * step)], patch, k, w, &rows[i * dim]);
         });
         mPca.fit(rows.data(), sample, dim, PcaSettings{pcaComponents, sample});
     }
@@ -174,7 +176,7 @@ void LocalCandidates::build(const VectorField& Usl, const ScalarField& Ds, int B
         const size_t e = std::min(mCount, b + chunk);
         rows.resize((e - b) * dim);
         parallelFor(e - b, 256, [&](size_t s, size_t t) {
-            for (size_t i = s; i < t; ++i) localDescriptor(Usl, Ds, corners[b + i], B, k, w, &rows[i * dim]);
+            for (size_t i = s; i < t; ++i) localDescriptor(Usl, Ds, corners[b + i], patch, k, w, &rows[i * dim]);
         });
         mPca.projectRows(rows.data(), e - b, &mReduced[b * rk]);
     }

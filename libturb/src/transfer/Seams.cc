@@ -16,6 +16,7 @@ PatchLayout PatchLayout::covering(const CoordBBox& box, int size)
     PatchLayout l;
     l.origin = box.min();
     l.size = size;
+    l.flat = isFlat(box);
     const Coord d = box.dim();
     l.count = Coord((d.x() + size - 1) / size, (d.y() + size - 1) / size, (d.z() + size - 1) / size);
     return l;
@@ -333,12 +334,14 @@ public:
     void enableBoxRows(const VectorField& X, int factor, float weight, float keep)
     {
         mBoxF = factor;
-        mBoxCoef = std::sqrt(std::max(0.0f, weight) * float(factor * factor * factor)) / float(factor * factor * factor);
+        const int cell = factor * factor * (isFlat(mBox) ? 1 : factor); // voxels per coarse cell (f^2 in 2D)
+        mBoxCoef = std::sqrt(std::max(0.0f, weight) * float(cell)) / float(cell);
         std::vector<std::pair<Coord, int>> keyed;
         keyed.reserve(mUnknowns.size());
+        const int flatZ = isFlat(mBox) ? 1 : factor;
         for (size_t u = 0; u < mUnknowns.size(); ++u) {
             const Coord c = coordOfLinear(mLinear[size_t(mUnknowns[u])]);
-            keyed.emplace_back(Coord(floorDiv(c.x(), factor), floorDiv(c.y(), factor), floorDiv(c.z(), factor)), int(u));
+            keyed.emplace_back(Coord(floorDiv(c.x(), factor), floorDiv(c.y(), factor), floorDiv(c.z(), flatZ)), int(u));
         }
         std::sort(keyed.begin(), keyed.end(), [](const auto& a, const auto& b) {
             if (a.first != b.first) return a.first < b.first;
@@ -369,6 +372,7 @@ public:
     Vec3f cellSum(const VectorField& X, size_t c) const
     {
         CoordBBox cb = refineBox(CoordBBox(mCells[c], mCells[c]), mBoxF);
+        if (isFlat(mBox)) cb = CoordBBox(Coord(cb.min().x(), cb.min().y(), mCells[c].z()), Coord(cb.max().x(), cb.max().y(), mCells[c].z()));
         cb.intersect(mBox);
         Vec3f sum(0.0f);
         for (int i = cb.min().x(); i <= cb.max().x(); ++i)
@@ -533,7 +537,7 @@ SeamStats smoothSeams(VectorField& detail, const SeamProblem& problem, const Sea
     const auto seconds = [](Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); };
     auto t0 = Clock::now();
     const CoordBBox box = detail.bbox();
-    std::vector<uint8_t> omega = seamBand(box, L, problem.active, settings.bandWidth);
+    std::vector<uint8_t> omega = seamBand(box, L, problem.active, L.flat ? settings.bandWidth2D : settings.bandWidth);
     if (!problem.wholePatches.empty()) {
         if (problem.wholePatches.size() != L.patchCount())
             throw ValueError("smoothSeams: wholePatches must hold one flag per local patch");
@@ -563,7 +567,9 @@ SeamStats smoothSeams(VectorField& detail, const SeamProblem& problem, const Sea
 
     // Boundary patches: centres on the lattice origin + k*(C/2), on at least one patch border, that
     // overlap an active patch.
-    const Coord kCount(L.count.x() * B / h + 1, L.count.y() * B / h + 1, L.count.z() * B / h + 1);
+    // In 2D (a flat layout) boundary patches are C x C x 1 on the one layer: one row of centres in z.
+    const Coord kCount(L.count.x() * B / h + 1, L.count.y() * B / h + 1, L.flat ? 1 : L.count.z() * B / h + 1);
+    const Coord hLo = L.flat ? Coord(h, h, 0) : Coord(h), hHi = L.flat ? Coord(h - 1, h - 1, 0) : Coord(h - 1);
     std::vector<int> patchId(size_t(kCount.x()) * size_t(kCount.y()) * size_t(kCount.z()), -1);
     const auto kIndex = [&](const Coord& k) {
         return (size_t(k.x()) * size_t(kCount.y()) + size_t(k.y())) * size_t(kCount.z()) + size_t(k.z());
@@ -581,7 +587,7 @@ SeamStats smoothSeams(VectorField& detail, const SeamProblem& problem, const Sea
                 }
                 if (!onBorder) continue;
                 bool anyActive = false;
-                const CoordBBox region(c - Coord(h), c + Coord(h - 1));
+                const CoordBBox region(c - hLo, c + hHi);
                 const Coord P0 = L.patchOf(region.min()), P1 = L.patchOf(region.max());
                 for (int px = std::max(0, P0.x()); px <= std::min(L.count.x() - 1, P1.x()); ++px)
                     for (int py = std::max(0, P0.y()); py <= std::min(L.count.y() - 1, P1.y()); ++py)
@@ -603,7 +609,7 @@ SeamStats smoothSeams(VectorField& detail, const SeamProblem& problem, const Sea
             std::vector<std::pair<int, Coord>> cands; // (isZero, offset)
             for (size_t i = b; i < e; ++i) {
                 BoundaryPatch& bp = patches[i];
-                const CoordBBox region(bp.centre - Coord(h), bp.centre + Coord(h - 1));
+                const CoordBBox region(bp.centre - hLo, bp.centre + hHi);
                 cands.clear();
                 const Coord P0 = L.patchOf(region.min()), P1 = L.patchOf(region.max());
                 for (int px = std::max(0, P0.x()); px <= std::min(L.count.x() - 1, P1.x()); ++px)
@@ -657,6 +663,10 @@ SeamStats smoothSeams(VectorField& detail, const SeamProblem& problem, const Sea
                     // Centres c with p and q in [c - h, c + h - 1]: per axis k*h in [max(p,q) - h + 1, min(p,q) + h].
                     int kLo[3], kHi[3];
                     for (int s = 0; s < 3; ++s) {
+                        if (s == 2 && L.flat) {
+                            kLo[s] = kHi[s] = 0;
+                            continue;
+                        }
                         const int lo = std::max(p[s], q[s]) - h + 1 - L.origin[s];
                         const int hi = std::min(p[s], q[s]) + h - L.origin[s];
                         kLo[s] = std::max(0, -floorDiv(-lo, h)); // ceil(lo / h)
@@ -675,7 +685,7 @@ SeamStats smoothSeams(VectorField& detail, const SeamProblem& problem, const Sea
                                 if (id < 0) continue;
                                 const BoundaryPatch& bp = patches[size_t(id)];
                                 float wgt = 1.0f;
-                                for (int t = 0; t < 3; ++t)
+                                for (int t = 0; t < (L.flat ? 2 : 3); ++t)
                                     wgt *= std::max(0.0f, 1.0f - float(std::abs(mid[t] - (bp.centre[t] - 0.5))) / (0.6f * float(h)));
                                 if (wgt <= 0.0f) continue;
                                 if (!bp.zero) sum += (sourceAt(Ush, q + bp.offset) - sourceAt(Ush, p + bp.offset)) * (scale * wgt);

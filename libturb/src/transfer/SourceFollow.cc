@@ -27,13 +27,15 @@ void followSourceFlow(PatchTracks& tracks, const CarriedState& c, const TargetAt
     const double sourceElapsed = 0.5 * (c.prevSourceDt + source.dt) * sourceGap;
     const int B = fs.B;
     const double h = fs.fineLattice.voxelSize;
-    const double half = 0.5 * (B - 1);
+    // Centre of a patch from its corner; a 2D patch's one layer is its centre in z.
+    const Vec3d half(0.5 * (fs.patch.x() - 1), 0.5 * (fs.patch.y() - 1), 0.5 * (fs.patch.z() - 1));
+    const Coord origin = L.origin;
     const CoordBBox& sb = src.split.low.bbox();
     parallelFor(L.patchCount(), 64, [&](size_t b, size_t e) {
         for (size_t p = b; p < e; ++p) {
             if (!active[p]) continue;
             CoordBBox pb = L.patchBox(L.patchCoord(p));
-            const Vec3d centre = pb.min().asVec3d() + Vec3d(half);
+            const Vec3d centre = pb.min().asVec3d() + half;
             pb.intersect(fs.fineBox);
             Vec3d vt(0.0);
             for (auto it = pb.begin(); it; ++it) {
@@ -43,19 +45,21 @@ void followSourceFlow(PatchTracks& tracks, const CarriedState& c, const TargetAt
             vt /= double(pb.volume());
             const Vec3d y = centre - vt * (fs.elapsed / h);
             const Coord Q(floorDiv(int(std::lround(y.x())), B), floorDiv(int(std::lround(y.y())), B),
-                floorDiv(int(std::lround(y.z())), B));
+                fs.flat ? 0 : floorDiv(int(std::lround(y.z())), B));
             const auto it = c.tracks.find(Q);
             if (it == c.tracks.end()) continue;
             // s: where the source held, last frame, the detail now upstream of this patch's centre; carried on by the
             // source's flow it becomes the centre of this patch's continuation.
-            const Vec3d s = it->second + (y - Vec3d(Q.x() * B, Q.y() * B, Q.z() * B));
+            const Vec3d s = it->second + (y - Vec3d(Q.x() * B, Q.y() * B, fs.flat ? origin.z() : Q.z() * B));
             const Vec3f vs = sampleTrilinear(src.split.low, s);
-            const Vec3d moved = s + Vec3d(vs.x(), vs.y(), vs.z()) * (sourceElapsed / h) - Vec3d(half);
+            const Vec3d moved = s + Vec3d(vs.x(), vs.y(), vs.z()) * (sourceElapsed / h) - half;
             // The tricubic paste reads one voxel before and two after the patch (whether it still holds enough smoke
             // is the local search's to judge).
             bool inside = true;
-            for (int a = 0; a < 3; ++a)
+            for (int a = 0; a < (fs.flat ? 2 : 3); ++a)
                 inside &= moved[a] >= sb.min()[a] + 1 && moved[a] + B + 1 <= sb.max()[a];
+            // In 2D the continuation stays on the source's layer (its flow has no z component).
+            if (fs.flat && moved.z() != double(sb.min().z())) inside = false;
             if (!inside) continue;
             tracks.following[p] = 1;
             tracks.follow[p] = moved;

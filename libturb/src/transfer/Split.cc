@@ -15,7 +15,7 @@ TargetAtOutput splitTarget(const Frame& target, const CarriedState& c, const Fra
     t.emission = ScalarField(target.density.bbox(), fs.targetLattice);
     if (c.havePrevious) {
         const ScalarField previous = cropped(c.prevTargetDensity, target.density.bbox());
-        t.emission = estimateSources(&previous, target.density, c.prevTargetVelocity, fs.elapsed);
+        t.emission = estimateSources(&previous, target.density, c.prevTargetVelocity, fs.elapsed, inPlane());
     }
     return t;
 }

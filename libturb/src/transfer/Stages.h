@@ -7,6 +7,7 @@
 #include "Align.h"
 #include "PatchSearch.h"
 
+#include <turb/Advect.h>
 #include <turb/Resample.h>
 #include <turb/Seams.h>
 #include <turb/Transfer.h>
@@ -18,6 +19,15 @@
 
 namespace turb::detail {
 
+/// The transfer's advection settings: OpenVDB's defaults, and 2D (one-layer) fields advected in their plane
+/// (AdvectSettings::inPlane; 3D fields are unaffected).
+inline AdvectSettings inPlane()
+{
+    AdvectSettings a;
+    a.inPlane = true;
+    return a;
+}
+
 /// What is fixed over one frame: the ratio, the boxes, the patch layout on the absolute lattice of multiples of
 /// B, and the time since the previous processed frame.
 struct FrameSetup
@@ -26,6 +36,16 @@ struct FrameSetup
     int f = 0;               ///< resolution ratio
     int B = 8;               ///< local patch edge (fine voxels)
     int globalPatch = 3;     ///< b (coarse voxels)
+    bool flat = false;       ///< 2D: the target is one z layer (isFlat), and so are the source and the output
+    Coord patch{8};          ///< local patch extent per axis: (B, B, B), or (B, B, 1) in 2D
+    Coord half{4};           ///< offset of a local patch's centre voxel from its corner: patch / 2 per axis
+    int globalDepth = 3;     ///< global patch extent along z (coarse voxels): b, or 1 in 2D
+    /// Key of layout patch P in the absolute patch lattice (CarriedState::tracks): P + origin / B per axis; a 2D
+    /// layout's one layer of patches is layer 0.
+    Coord absolutePatch(const Coord& P) const
+    {
+        return P + Coord(layout.origin.x() / B, layout.origin.y() / B, flat ? 0 : layout.origin.z() / B);
+    }
     Lattice targetLattice, fineLattice;
     CoordBBox targetBox, fineBox;
     PatchLayout layout;

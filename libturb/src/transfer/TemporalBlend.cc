@@ -14,7 +14,7 @@ VectorField advectPreviousDetail(const CarriedState& c, const FrameSetup& fs)
 {
     const TransferSettings& s = *fs.s;
     if (!c.havePrevious || !(s.beta > 0.0f || s.temporalBlend > 0.0f)) return VectorField();
-    AdvectSettings a;
+    AdvectSettings a = inPlane();
     // BFECC: with temporal blending this detail is most of the next frame's, and first-order advection would blur
     // it a little more every frame.
     a.scheme = s.temporalBlend > 0.0f ? AdvectSettings::Scheme::BFECC : AdvectSettings::Scheme::SemiLagrangian;

@@ -61,6 +61,7 @@ struct TurbulenceTransfer::Impl
     // Fixed once the first frame arrives.
     bool started = false;
     int ratio = 0, globalPatch = 3;
+    bool flat = false; ///< the sequence is 2D (its first target frame is one z layer)
     Lattice targetLattice;
     detail::AlignmentState align;
     detail::CarriedState carried;
@@ -92,13 +93,18 @@ detail::FrameSetup TurbulenceTransfer::Impl::setup(const Frame& target) const
     fs.B = s.localPatch;
     fs.globalPatch = globalPatch;
     fs.targetLattice = targetLattice;
-    fs.fineLattice = targetLattice.refined(ratio);
     fs.targetBox = target.velocity.bbox();
-    fs.fineBox = refineBox(fs.targetBox, ratio);
-    // Patches sit on the absolute lattice of multiples of B, whatever the frame's box.
+    // 2D (a target one voxel thick in z): the output keeps that one layer, and patches are B x B x 1.
+    fs.flat = isFlat(fs.targetBox);
+    fs.fineLattice = refinedLattice(targetLattice, fs.targetBox, ratio);
+    fs.fineBox = refineDomain(fs.targetBox, ratio);
     const int B = fs.B;
+    fs.patch = fs.flat ? Coord(B, B, 1) : Coord(B);
+    fs.half = Coord(fs.patch.x() / 2, fs.patch.y() / 2, fs.patch.z() / 2);
+    fs.globalDepth = fs.flat ? 1 : globalPatch;
+    // Patches sit on the absolute lattice of multiples of B, whatever the frame's box (in z too, in 3D).
     const Coord lo(floorDiv(fs.fineBox.min().x(), B) * B, floorDiv(fs.fineBox.min().y(), B) * B,
-        floorDiv(fs.fineBox.min().z(), B) * B);
+        fs.flat ? fs.fineBox.min().z() : floorDiv(fs.fineBox.min().z(), B) * B);
     fs.layout = PatchLayout::covering(CoordBBox(lo, fs.fineBox.max()), B);
     // Every temporal step (density and detail advection, the emission estimate, the temporal blend) spans the real
     // time since the previous processed frame, not one frame's.
@@ -115,7 +121,7 @@ detail::PatchTracks TurbulenceTransfer::Impl::tracksFor(const detail::FrameSetup
     const PatchLayout& L = fs.layout;
     t.tracked.assign(L.patchCount(), 0);
     t.match.assign(L.patchCount(), Coord(0));
-    const Coord lo(L.origin.x() / fs.B, L.origin.y() / fs.B, L.origin.z() / fs.B);
+    const Coord lo = fs.absolutePatch(Coord(0));
     for (const auto& [P, m] : carried.tracks) {
         const Coord rel = P - lo;
         if (rel.x() < 0 || rel.y() < 0 || rel.z() < 0 || rel.x() >= L.count.x() || rel.y() >= L.count.y() ||
@@ -251,9 +257,20 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
     const bool resampleSource = !isIntegerRatio(tv, sv);
     const Frame source = resampleSource ? resampledToVoxel(sourceArg, tv / f) : Frame();
     const Frame& src = resampleSource ? source : sourceArg;
-    if (!started) start(target.velocity.lattice(), f);
+    if (!started) {
+        start(target.velocity.lattice(), f);
+        flat = isFlat(target.velocity.bbox());
+    }
     if (f != ratio || !target.velocity.lattice().approxEqual(targetLattice))
         throw ValueError("target frame " + std::to_string(target.number) + " changed voxel size or transform within the sequence");
+    if (isFlat(target.velocity.bbox()) != flat)
+        throw ValueError("target frame " + std::to_string(target.number) + " is " + (flat ? "3D" : "2D (one z layer)") +
+                         " but the sequence started " + (flat ? "2D" : "3D"));
+    if (isFlat(src.velocity.bbox()) != flat)
+        throw ValueError(flat ? "the target is 2D (one z layer) but the source is not: give a 2D source"
+                              : "the target is 3D but the source is 2D (one z layer)");
+    if (flat && s.alignment != FlowAlignment::None && s.alignment != FlowAlignment::Normalize)
+        throw ValueError("flow alignment by rotation is for 3D only; a 2D pair takes none or normalize");
     const FrameSetup fs = setup(target);
     if (!carried.history.empty()) carried.history.back().elapsed = fs.elapsed;
     PatchTracks tracks = tracksFor(fs);
@@ -327,8 +344,7 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
         time.seams = lap(t0);
         carried.tracks.clear();
         for (size_t p = 0; p < active.size(); ++p)
-            if (active[p]) carried.tracks[fs.layout.patchCoord(p) + Coord(fs.layout.origin.x() / fs.B, fs.layout.origin.y() / fs.B,
-                                                          fs.layout.origin.z() / fs.B)] = local.chosenExact[p];
+            if (active[p]) carried.tracks[fs.absolutePatch(fs.layout.patchCoord(p))] = local.chosenExact[p];
 
         // 3.4: the detail's coarse part and energy, then U = up(u_t) + U_h.
         calibrateDetail(detail, t, target, smoke, referenceEnergy, fs, st);
@@ -361,7 +377,8 @@ void TurbulenceTransfer::restore(const std::string& state, const Frame& previous
     if (!previousOutput.hasVelocity() || !previousOutput.hasDensity())
         throw ValueError("the previous output frame has no velocity or density to resume from");
     const detail::SavedState saved = detail::parseStateText(state);
-    if (!previousOutput.velocity.lattice().approxEqual(previousTarget.velocity.lattice().refined(saved.f)))
+    if (!previousOutput.velocity.lattice().approxEqual(
+            refinedLattice(previousTarget.velocity.lattice(), previousTarget.velocity.bbox(), saved.f)))
         throw ValueError("the previous output's voxel is not the target's / " + std::to_string(saved.f) + " as its state says");
     if (saved.B != m.s.localPatch)
         throw ValueError("the previous output used local patch " + std::to_string(saved.B) + ", not " +
@@ -370,6 +387,7 @@ void TurbulenceTransfer::restore(const std::string& state, const Frame& previous
     m.carried = detail::CarriedState();
     m.carried.tracks = saved.tracks;
     m.start(previousTarget.velocity.lattice(), saved.f);
+    m.flat = isFlat(previousTarget.velocity.bbox());
     const detail::FrameSetup fs = m.setup(previousTarget);
     // What process() would have carried out of the previous frame, rebuilt from the written file.
     Frame out = previousOutput;

@@ -65,7 +65,7 @@ struct Emitter
 struct SmokeSettings
 {
     std::string label = "smoke";  ///< scene name, written into each frame's metadata
-    Coord resolution{32, 32, 48}; ///< cells along x, y, z; each >= 4
+    Coord resolution{32, 32, 48}; ///< cells along x, y, z; each >= 4, or z = 1 for a 2D simulation (+y up)
     double width = 4.0;           ///< domain extent along x, world units (> 0); voxel = width / resolution.x
     /// World position of the domain's min corner; (nan) = centred in x and y with the floor at z = 0.
     Vec3d minCorner{std::numeric_limits<double>::quiet_NaN()};
@@ -132,6 +132,12 @@ public:
 
     const SmokeSettings& settings() const { return mSettings; }
     const Lattice& lattice() const { return mDensity.lattice(); }
+    /// A 2D simulation: resolution z == 1. It runs in the x-y plane with +y up, the floor at y = 0, closed z
+    /// faces (no z velocity) and a 2D pressure projection; frames are one voxel thick in z, as Houdini and
+    /// Blender write 2D simulations.
+    bool twoD() const { return mSettings.resolution.z() == 1; }
+    /// The axis buoyancy pushes along: 2 (z) in 3D, 1 (y) in 2D.
+    int upAxis() const { return twoD() ? 1 : 2; }
     const CoordBBox& cells() const { return mDensity.bbox(); }
     int frameCount() const { return mFrame; }
     double time() const { return mTime; }
