@@ -66,7 +66,7 @@ void addWriteOptions(CLI::App* app, turbio::WriteOptions& opt)
     app->add_flag("--half", opt.halfFloat, "Store floats as half precision (smaller files)");
 }
 
-std::vector<Command> allCommands() { return {infoCommand(), transferCommand(), measureCommand(), simCommand(), previewCommand(), synthCommand(), stylizeCommand(), animateCommand(), resampleCommand()}; }
+std::vector<Command> allCommands() { return {infoCommand(), transferCommand(), measureCommand(), simCommand(), previewCommand(), synthCommand(), stylizeCommand(), animateCommand(), resampleCommand(), farmCommand()}; }
 
 } // namespace vdbturb
 
@@ -144,20 +144,32 @@ std::string checkSpelling(int argc, char** argv, CLI::App& app, const std::vecto
         return "unknown command '" + first + "'" + (near.empty() ? "" : "; did you mean '" + near + "'?") +
                " Commands: " + all + ".";
     }
-    for (int i = 2; i < argc; ++i) {
+    // A command with its own subcommands (farm plan): check the options against the one named, which also
+    // takes the command's own (fallthrough).
+    int from = 2;
+    CLI::App* parent = nullptr;
+    if (argc > 2 && !sub->get_subcommands({}).empty())
+        for (CLI::App* s : sub->get_subcommands({}))
+            if (s->get_name() == argv[2]) {
+                parent = sub;
+                sub = s;
+                from = 3;
+            }
+    for (int i = from; i < argc; ++i) {
         const std::string arg = argv[i];
         if (arg == "--") break;
         if (arg.size() < 2 || arg[0] != '-' || std::isdigit(static_cast<unsigned char>(arg[1])) || arg[1] == '.') continue;
         if (arg[1] == '-') {
             const std::string name = arg.substr(0, arg.find('='));
-            if (name == "--help" || name == "--version" || isLongOption(sub, name)) continue;
+            if (name == "--help" || name == "--version" || isLongOption(sub, name) || (parent && isLongOption(parent, name))) continue;
             const std::string near = nearest(name, longOptions(sub));
             return "'" + first + "' has no option " + name + (near.empty() ? "." : "; did you mean " + near + "?") +
                    " See vdbturb " + first + " --help.";
         }
         // "-target": a long option with one dash (unless every letter is a short flag, as in -vq).
         bool allShort = true;
-        for (size_t k = 1; k < arg.size(); ++k) allShort = allShort && isShortOption(sub, arg[k]);
+        for (size_t k = 1; k < arg.size(); ++k)
+            allShort = allShort && (isShortOption(sub, arg[k]) || (parent && isShortOption(parent, arg[k])));
         if (arg.size() > 2 && !allShort) {
             const std::string dashed = "-" + arg.substr(0, arg.find('='));
             if (isLongOption(sub, dashed)) return "'" + arg + "' has one dash; long options take two: " + dashed;
