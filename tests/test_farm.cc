@@ -110,14 +110,43 @@ TEST(FarmBlend, IndependentDetailsKeepTheirEnergyAndTheCoarseMotionIsExact)
     EXPECT_NEAR(st.energyOut / 3.0, 1.0, 0.02);
     // Density: linear, mass-preserving.
     for (size_t n = 0; n < out.density.size(); ++n) ASSERT_NEAR(out.density.data()[n], 0.4f, 1e-6f);
-    // The detail is exactly w_a H_a + w_b H_b on top of up(u_t).
+    // The detail is w_a H_a + w_b H_b on top of up(u_t), times a factor that is 1 for uncorrelated details (here
+    // the samples' own correlation, ~1/sqrt(3 * 32^3), leaves it within 1%).
+    EXPECT_NEAR(st.energyScale, 1.0, 0.01);
+    const float s = float(st.energyScale);
     for (size_t n = 0; n < out.velocity.size(); n += 97) {
-        const Vec3f h = float(w.detailA) * (a.velocity.data()[n] - up.data()[n]) + float(w.detailB) * (b.velocity.data()[n] - up.data()[n]);
+        const Vec3f h = s * float(w.detailA) * (a.velocity.data()[n] - up.data()[n]) + s * float(w.detailB) * (b.velocity.data()[n] - up.data()[n]);
         EXPECT_NEAR((out.velocity.data()[n] - up.data()[n] - h).length(), 0.0f, 1e-5f);
     }
     // b's resume state is not the blend's: it must not be resumable.
     EXPECT_EQ(out.metadata.count(meta::kState), 0u);
     EXPECT_EQ(out.metadata.at(meta::kRatio), "4");
+}
+
+TEST(FarmBlend, CorrelatedDetailsAreScaledBackToTheInterpolatedEnergy)
+{
+    const Lattice l{0.1, {0.0, 0.0, 0.0}};
+    const CoordBBox box({0, 0, 0}, {15, 15, 15});
+    const VectorField up(box, l, Vec3f(1.0f, 0.0f, 0.5f));
+    const Frame a = noiseFrame(box, l, up, 3, 0.5f);
+    // The same detail in both chunks (rho = 1): w_a + w_b = 1.41 would raise its energy by 2x at t = 1/2; the blend
+    // must give the detail back unchanged.
+    const CrossFade w = crossFade(0, 1);
+    BlendStats st;
+    const Frame out = blendOverlap(a, a, up, w, 0.01f, &st);
+    EXPECT_NEAR(st.correlation, 1.0, 1e-9);
+    EXPECT_NEAR(st.energyScale, 1.0 / (w.detailA + w.detailB), 1e-6);
+    EXPECT_NEAR(st.energyOut / st.energyA, 1.0, 1e-5);
+    for (size_t n = 0; n < out.velocity.size(); n += 31)
+        EXPECT_NEAR((out.velocity.data()[n] - a.velocity.data()[n]).length(), 0.0f, 1e-5f);
+    // Half correlated: b = (a's detail + independent detail) / sqrt(2), rho = 1/sqrt(2).
+    const Frame c = noiseFrame(box, l, up, 4, 0.5f);
+    Frame b = c;
+    for (size_t n = 0; n < b.velocity.size(); ++n)
+        b.velocity.data()[n] = up.data()[n] + (a.velocity.data()[n] - up.data()[n] + c.velocity.data()[n] - up.data()[n]) * float(M_SQRT1_2);
+    blendOverlap(a, b, up, w, 0.01f, &st);
+    EXPECT_NEAR(st.correlation, M_SQRT1_2, 0.02);
+    EXPECT_NEAR(st.energyOut / (0.5 * st.energyA + 0.5 * st.energyB), 1.0, 1e-5);
 }
 
 TEST(FarmBlend, RefusesFramesOfDifferentBoxes)

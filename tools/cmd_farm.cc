@@ -342,12 +342,12 @@ int runJoin(FarmArgs& a)
             turbio::writeFrame(dst, blended, a.write);
             const double expected = w.detailA * w.detailA * st.energyA + w.detailB * w.detailB * st.energyB;
             char human[200];
-            std::snprintf(human, sizeof(human), "blend chunks %d+%d, w_detail %.3f/%.3f, w_density %.3f/%.3f, correlation %.3f -> ",
-                c.index, chunks[k + 1].index, w.detailA, w.detailB, w.densityA, w.densityB, st.correlation);
+            std::snprintf(human, sizeof(human), "blend chunks %d+%d, w_detail %.3f/%.3f x %.3f (correlation %.3f), w_density %.3f/%.3f -> ",
+                c.index, chunks[k + 1].index, w.detailA, w.detailB, st.energyScale, st.correlation, w.densityA, w.densityB);
             report.frameDone(t, int(i), count, secondsSince(t0), std::string(human) + dst,
                 {{"chunks", {c.index, chunks[k + 1].index}}, {"out", dst}, {"detail_a", w.detailA}, {"detail_b", w.detailB},
                     {"density_a", w.densityA}, {"density_b", w.densityB}, {"correlation", st.correlation},
-                    {"energy_ratio", expected > 0.0 ? st.energyOut / expected : 1.0}});
+                    {"energy_scale", st.energyScale}, {"energy_ratio", expected > 0.0 ? st.energyOut / expected : 1.0}});
         }
     }
     report.finish();

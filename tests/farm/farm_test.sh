@@ -113,6 +113,10 @@ CONF
   while squeue -h -j "$JOIN" 2>/dev/null | grep -q .; do
     i=$((i + 1))
     if [ $i -gt 600 ]; then echo "FAIL: the join did not finish in 5 minutes"; squeue; exit 1; fi
+    # Slurm holds a requeued job about two minutes before it is eligible again; an operator may release it at once.
+    squeue -h -t PD -o "%i %r" | while read -r id why; do
+      if [ "$why" = BeginTime ]; then scontrol update jobid="$id" StartTime=now && echo "released requeued task $id"; fi
+    done
     sleep 0.5
   done
   state=$(scontrol -o show job "$JOIN" | sed -n 's/.*JobState=\([A-Z_]*\).*/\1/p')

@@ -8,7 +8,8 @@
 /// frames, which the join cross-fades:
 ///   - detail U_h = U - up(u_t): U_h = w_a U_h,a + w_b U_h,b with w_a = cos(pi t / 2), w_b = sin(pi t / 2),
 ///     so w_a^2 + w_b^2 = 1 and two uncorrelated details keep their energy (a linear fade would lose up to
-///     half of it at t = 1/2);
+///     half of it at t = 1/2); where the two details correlate (rho, over the smoke), both weights are scaled by
+///     one factor per frame so the blend still has w_a^2 E_a + w_b^2 E_b (the factor is 1 at rho = 0);
 ///   - density: linear, (1 - t) d_a + t d_b. Density is a conserved amount, not a random phase: weights
 ///     that sum to 1 keep its mass and the coarse means the density guide put on both chunks;
 ///   - temperature and flame are up-sampled from the target in both chunks (identical): taken from b.
@@ -56,11 +57,13 @@ struct BlendStats
     double correlation = 0.0; ///< <U_h,a, U_h,b> / (|U_h,a| |U_h,b|): 0 for independent details
     double energyA = 0.0;     ///< mean |U_h,a|^2
     double energyB = 0.0;     ///< mean |U_h,b|^2
-    double energyOut = 0.0;   ///< mean |U_h|^2 of the blend (= w_a^2 E_a + w_b^2 E_b when correlation is 0)
+    double energyOut = 0.0;   ///< mean |U_h|^2 of the blend: w_a^2 E_a + w_b^2 E_b
+    double energyScale = 1.0; ///< factor on both detail weights that made it so: 1 / sqrt(1 + 2 w_a w_b rho sqrt(E_a E_b) / (w_a^2 E_a + w_b^2 E_b))
 };
 
 /// Cross-fades one overlap frame. `a` and `b` are the two chunks' outputs of the same target frame (same box and
-/// lattice); `upTarget` is up(u_t) on that box (the coarse motion both share). Returns b's frame with the blended
+/// lattice); `upTarget` is up(u_t) on that box (the coarse motion both share). The smoke (for rho and the
+/// energies) is where either density exceeds `densityThreshold`. Returns b's frame with the blended
 /// velocity and density; b's metadata is kept except the resume state, which belongs to b's own sequence.
 /// Throws ValueError when the boxes or lattices differ.
 Frame blendOverlap(const Frame& a, const Frame& b, const VectorField& upTarget, const CrossFade& w,
