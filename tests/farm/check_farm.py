@@ -57,6 +57,18 @@ def main(argv):
         i = name.index("#"); n = name.count("#")
         return os.path.join(d, name[:i] + str(f).zfill(n) + name[i + n:])
     ok = True
+    # The JSON plan is the interface for other schedulers (docs/farm.md): N chunk tasks with argv commands, a join
+    # that depends on all of them, and every overlap frame listed with weights w_a^2 + w_b^2 = 1.
+    chunks = [t for t in plan["tasks"] if t["name"].startswith("chunk")]
+    join = [t for t in plan["tasks"] if t["name"] == "join"]
+    good = (len(chunks) == plan["chunks"] and len(join) == 1 and sorted(join[0]["depends_on"]) == sorted(t["name"] for t in chunks)
+            and all(isinstance(t["command"], list) and "--resume" in t["command"] and t["depends_on"] == [] for t in chunks)
+            and len(plan["overlaps"]) == (plan["chunks"] - 1) * plan["overlap"]
+            and all(abs(o["detail_a"] ** 2 + o["detail_b"] ** 2 - 1) < 1e-9 and abs(o["density_a"] + o["density_b"] - 1) < 1e-9
+                    for o in plan["overlaps"]))
+    print("plan.json: %d chunk tasks, join after %s, %d overlap frames: %s" % (len(chunks), join[0]["depends_on"] if join else None,
+          len(plan["overlaps"]), "ok" if good else "FAIL"))
+    ok &= good
     missing = [f for f in frames if not os.path.exists(path(joined_dir, f))]
     print("frames present: %d/%d%s" % (len(frames) - len(missing), len(frames), " missing %s" % missing if missing else ""))
     ok &= not missing

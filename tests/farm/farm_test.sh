@@ -53,6 +53,10 @@ WRAP
 chmod +x "$W/vdbturb-wrapper"
 
 if [ "$MODE" = local ]; then
+  # A join before the chunks ran must refuse, naming the chunk to rerun, and write nothing.
+  if "$BIN" farm join --dir "$W/farm" -q 2>"$W/early_join.err"; then echo "FAIL: join of missing chunks succeeded"; exit 1; fi
+  grep -q "chunk 0 is not complete" "$W/early_join.err" || { echo "FAIL: early join said:"; cat "$W/early_join.err"; exit 1; }
+  [ ! -d "$W/joined" ] || { echo "FAIL: early join wrote output"; exit 1; }
   for k in 0 1 2; do SLURM_ARRAY_TASK_ID=$k sh "$W/farm/chunks.sbatch" 2>>"$W/farm/logs/chunk_$k.log"; done
   sh "$W/farm/join.sbatch" 2>>"$W/farm/logs/join.log"
 else
