@@ -148,13 +148,27 @@ std::string checkSpelling(int argc, char** argv, CLI::App& app, const std::vecto
     // takes the command's own (fallthrough).
     int from = 2;
     CLI::App* parent = nullptr;
-    if (argc > 2 && !sub->get_subcommands({}).empty())
-        for (CLI::App* s : sub->get_subcommands({}))
+    std::string label = first; // "farm plan" in messages about a nested subcommand's options
+    if (argc > 2 && !sub->get_subcommands({}).empty()) {
+        std::vector<std::string> nested;
+        for (CLI::App* s : sub->get_subcommands({})) {
+            nested.push_back(s->get_name());
             if (s->get_name() == argv[2]) {
                 parent = sub;
                 sub = s;
                 from = 3;
+                label = first + " " + argv[2];
             }
+        }
+        const std::string second = argv[2];
+        if (!parent && !second.empty() && second[0] != '-') {
+            const std::string near = nearest(second, nested);
+            std::string all;
+            for (const auto& n : nested) all += (all.empty() ? "" : ", ") + n;
+            return "'" + first + "' has no subcommand '" + second + "'" + (near.empty() ? "" : "; did you mean '" + near + "'?") +
+                   " Subcommands: " + all + ".";
+        }
+    }
     for (int i = from; i < argc; ++i) {
         const std::string arg = argv[i];
         if (arg == "--") break;
@@ -163,8 +177,8 @@ std::string checkSpelling(int argc, char** argv, CLI::App& app, const std::vecto
             const std::string name = arg.substr(0, arg.find('='));
             if (name == "--help" || name == "--version" || isLongOption(sub, name) || (parent && isLongOption(parent, name))) continue;
             const std::string near = nearest(name, longOptions(sub));
-            return "'" + first + "' has no option " + name + (near.empty() ? "." : "; did you mean " + near + "?") +
-                   " See vdbturb " + first + " --help.";
+            return "'" + label + "' has no option " + name + (near.empty() ? "." : "; did you mean " + near + "?") +
+                   " See vdbturb " + label + " --help.";
         }
         // "-target": a long option with one dash (unless every letter is a short flag, as in -vq).
         bool allShort = true;
@@ -174,7 +188,7 @@ std::string checkSpelling(int argc, char** argv, CLI::App& app, const std::vecto
             const std::string dashed = "-" + arg.substr(0, arg.find('='));
             if (isLongOption(sub, dashed)) return "'" + arg + "' has one dash; long options take two: " + dashed;
             const std::string near = nearest(dashed, longOptions(sub));
-            return "'" + first + "' has no option " + arg + (near.empty() ? "." : "; did you mean " + near + "?");
+            return "'" + label + "' has no option " + arg + (near.empty() ? "." : "; did you mean " + near + "?");
         }
     }
     (void)app;
