@@ -15,6 +15,15 @@
 ///   - temperature and flame are up-sampled from the target in both chunks (identical): taken from b.
 /// t = (j + 1) / (overlap + 1) on the j-th overlap frame (j = 0 .. overlap - 1), so neither chunk's weight
 /// is 0 or 1 inside the overlap.
+///
+/// @code
+/// const auto chunks = turb::planTimeChunks(frames.size(), 10, 8, 10); // 10 chunks, P = 8, O = 10
+/// // ... each chunk k runs transfer over frames[chunks[k].computeBegin .. chunks[k].end) ...
+/// // the j-th frame chunks k and k+1 share, i = chunks[k + 1].keepBegin + j:
+/// turb::BlendStats st;
+/// turb::Frame out = turb::blendOverlap(fromA, fromB, cropped(upsample(target.velocity, f), fromB.velocity.bbox()),
+///                                      turb::crossFade(j, 10), 0.01f, &st);
+/// @endcode
 #pragma once
 
 #include <turb/Frame.h>
