@@ -97,14 +97,17 @@ std::string chunkPattern(const std::string& dir, int k, const std::string& out)
     return (fs::path(dir) / sub / fs::path(out).filename()).string();
 }
 
-// Read options of the target, passed through from the transfer's arguments, so the join reads u_t as the chunks did.
-std::vector<std::string> targetReadArgs(const std::vector<std::string>& args)
+// The transfer's options the join needs too: the target's read options (it reads u_t as the chunks did) and the
+// output style (blended frames are written like the chunks' own).
+std::vector<std::string> joinArgs(const std::vector<std::string>& args)
 {
     std::vector<std::string> out;
     for (size_t i = 0; i < args.size(); ++i)
-        if (args[i].rfind("--target-", 0) == 0) {
+        if (args[i].rfind("--target-", 0) == 0 || args[i].rfind("--style", 0) == 0) {
             out.push_back(args[i]);
             if (args[i].find('=') == std::string::npos && i + 1 < args.size()) out.push_back(args[++i]);
+        } else if (args[i] == "--half") {
+            out.push_back(args[i]);
         }
     return out;
 }
@@ -165,7 +168,7 @@ int runPlan(FarmArgs& a)
         cases += "  " + std::to_string(c.index) + ") set -- " + joinCommand(argv) + " ;;\n";
     }
     std::vector<std::string> joinArgv = {exe, "farm", "join", "--dir", dir, "--threads", std::to_string(a.cpus)};
-    for (const auto& r : targetReadArgs(a.transferArgs)) joinArgv.push_back(r);
+    for (const auto& r : joinArgs(a.transferArgs)) joinArgv.push_back(r);
     nlohmann::json join;
     join["name"] = "join";
     join["frames"] = turbio::formatFrameList(frames);
