@@ -3,10 +3,8 @@
 # the same transfer as N chunks (each array task's script run here in turn, no Slurm needed), the join, `measure`
 # on both, and tests/farm/check_farm.py (which prints the seam frames' tcoh against the sequential median and the
 # hf_ratio range).
-#   bench/farm_quality.sh [CHUNKS] [PREROLL] [OVERLAP]     defaults 2 8 10; about 25 minutes on 2 cores
+#   bench/farm_quality.sh [CHUNKS] [PREROLL] [OVERLAP]     defaults 2 8 10; 12 minutes on 2 cores plus the sequential run
 # Environment: BIN (default build/tools/vdbturb), WORK (default /tmp/vdbturb-farm-quality), DATA (../shared/data).
-# docs/farm.md's P = 8 / P = 0 rows took the sequential run's frames 1-20 as chunk 0 (bit-identical to it, as
-# farm_chunks_local checks) and ran chunk 1 alone; this script runs every chunk.
 set -eu
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
 BIN=${BIN:-$ROOT/build/tools/vdbturb}
