@@ -234,6 +234,13 @@ TEST(CliReliability, TyposAndNearMissesGetTheFix)
     EXPECT_EQ(dash.code, 2);
     EXPECT_NE(dash.out.find("long options take two: --target"), std::string::npos) << dash.out;
     EXPECT_EQ(dash.out.find("--target is required"), std::string::npos) << dash.out;
+    // A command with subcommands (farm plan/submit/join): the subcommand and its options get the same help.
+    const auto sub = run("farm plna --dir x");
+    EXPECT_EQ(sub.code, 2);
+    EXPECT_NE(sub.out.find("did you mean 'plan'?"), std::string::npos) << sub.out;
+    const auto subFlag = run("farm plan --chunk 3 --target a --source b --out c");
+    EXPECT_EQ(subFlag.code, 2);
+    EXPECT_NE(subFlag.out.find("'farm plan' has no option --chunk; did you mean --chunks?"), std::string::npos) << subFlag.out;
     // Options that mean nothing for a command are not accepted.
     EXPECT_EQ(run("info --threads 2 " + loFrame(1)).code, 2);
     EXPECT_EQ(run("preview --dry-run " + loFrame(1) + " --out x.png").code, 2);

@@ -31,6 +31,7 @@ Command measureCommand();
 Command synthCommand();
 Command stylizeCommand();
 Command animateCommand();
+Command farmCommand();
 
 /// All commands, in the order `vdbturb --help` lists them.
 std::vector<Command> allCommands();

@@ -66,7 +66,7 @@ void addWriteOptions(CLI::App* app, turbio::WriteOptions& opt)
     app->add_flag("--half", opt.halfFloat, "Store floats as half precision (smaller files)");
 }
 
-std::vector<Command> allCommands() { return {infoCommand(), transferCommand(), measureCommand(), simCommand(), previewCommand(), synthCommand(), stylizeCommand(), animateCommand(), resampleCommand()}; }
+std::vector<Command> allCommands() { return {infoCommand(), transferCommand(), measureCommand(), simCommand(), previewCommand(), synthCommand(), stylizeCommand(), animateCommand(), resampleCommand(), farmCommand()}; }
 
 } // namespace vdbturb
 
@@ -144,25 +144,51 @@ std::string checkSpelling(int argc, char** argv, CLI::App& app, const std::vecto
         return "unknown command '" + first + "'" + (near.empty() ? "" : "; did you mean '" + near + "'?") +
                " Commands: " + all + ".";
     }
-    for (int i = 2; i < argc; ++i) {
+    // A command with its own subcommands (farm plan): check the options against the one named, which also
+    // takes the command's own (fallthrough).
+    int from = 2;
+    CLI::App* parent = nullptr;
+    std::string label = first; // "farm plan" in messages about a nested subcommand's options
+    if (argc > 2 && !sub->get_subcommands({}).empty()) {
+        std::vector<std::string> nested;
+        for (CLI::App* s : sub->get_subcommands({})) {
+            nested.push_back(s->get_name());
+            if (s->get_name() == argv[2]) {
+                parent = sub;
+                sub = s;
+                from = 3;
+                label = first + " " + argv[2];
+            }
+        }
+        const std::string second = argv[2];
+        if (!parent && !second.empty() && second[0] != '-') {
+            const std::string near = nearest(second, nested);
+            std::string all;
+            for (const auto& n : nested) all += (all.empty() ? "" : ", ") + n;
+            return "'" + first + "' has no subcommand '" + second + "'" + (near.empty() ? "" : "; did you mean '" + near + "'?") +
+                   " Subcommands: " + all + ".";
+        }
+    }
+    for (int i = from; i < argc; ++i) {
         const std::string arg = argv[i];
         if (arg == "--") break;
         if (arg.size() < 2 || arg[0] != '-' || std::isdigit(static_cast<unsigned char>(arg[1])) || arg[1] == '.') continue;
         if (arg[1] == '-') {
             const std::string name = arg.substr(0, arg.find('='));
-            if (name == "--help" || name == "--version" || isLongOption(sub, name)) continue;
+            if (name == "--help" || name == "--version" || isLongOption(sub, name) || (parent && isLongOption(parent, name))) continue;
             const std::string near = nearest(name, longOptions(sub));
-            return "'" + first + "' has no option " + name + (near.empty() ? "." : "; did you mean " + near + "?") +
-                   " See vdbturb " + first + " --help.";
+            return "'" + label + "' has no option " + name + (near.empty() ? "." : "; did you mean " + near + "?") +
+                   " See vdbturb " + label + " --help.";
         }
         // "-target": a long option with one dash (unless every letter is a short flag, as in -vq).
         bool allShort = true;
-        for (size_t k = 1; k < arg.size(); ++k) allShort = allShort && isShortOption(sub, arg[k]);
+        for (size_t k = 1; k < arg.size(); ++k)
+            allShort = allShort && (isShortOption(sub, arg[k]) || (parent && isShortOption(parent, arg[k])));
         if (arg.size() > 2 && !allShort) {
             const std::string dashed = "-" + arg.substr(0, arg.find('='));
             if (isLongOption(sub, dashed)) return "'" + arg + "' has one dash; long options take two: " + dashed;
             const std::string near = nearest(dashed, longOptions(sub));
-            return "'" + first + "' has no option " + arg + (near.empty() ? "." : "; did you mean " + near + "?");
+            return "'" + label + "' has no option " + arg + (near.empty() ? "." : "; did you mean " + near + "?");
         }
     }
     (void)app;

@@ -23,3 +23,19 @@ execute_process(COMMAND "${WORK_DIR}/build/consumer" RESULT_VARIABLE rc)
 if(NOT rc EQUAL 0)
   message(FATAL_ERROR "consumer run failed (${rc})")
 endif()
+# Farm nodes run the installed binary straight from the prefix: it must find libturb*.so through its RPATH,
+# with no LD_LIBRARY_PATH, and do real work (simulate two frames and read them back).
+set(exe "${WORK_DIR}/prefix/bin/vdbturb")
+if(NOT EXISTS "${exe}")
+  message(FATAL_ERROR "install gave no ${exe}")
+endif()
+execute_process(COMMAND ${CMAKE_COMMAND} -E env --unset=LD_LIBRARY_PATH "${exe}" sim plume --res 8x8x12 --frames 2 -q
+  --out "${WORK_DIR}/sim/plume.####.vdb" RESULT_VARIABLE rc ERROR_VARIABLE err)
+if(NOT rc EQUAL 0)
+  message(FATAL_ERROR "installed vdbturb sim failed (${rc}): ${err}")
+endif()
+execute_process(COMMAND ${CMAKE_COMMAND} -E env --unset=LD_LIBRARY_PATH "${exe}" info "${WORK_DIR}/sim/plume.0002.vdb"
+  RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+if(NOT rc EQUAL 0 OR NOT out MATCHES "density")
+  message(FATAL_ERROR "installed vdbturb info failed (${rc}): ${out}${err}")
+endif()
