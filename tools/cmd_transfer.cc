@@ -228,6 +228,7 @@ int runTransfer(TransferArgs& a)
             const int prev = target.frames[first - 1];
             const std::string prevPath = outPattern.format(prev);
             turbio::ReadOptions ro;
+            ro.cropToSmoke = false; // the file holds the box the run held (written cropped); restore needs all of it
             const turb::Frame prevOut = turbio::readFrame(prevPath, prev, ro);
             const auto it = prevOut.metadata.find("vdbturb_state");
             if (it == prevOut.metadata.end())
