@@ -160,14 +160,15 @@ int runInfo(const InfoArgs& a)
         head += "\nlattice: voxel " + fmtNum("%g", first->lattice.voxelSize) + ", origin " + fmtVec(first->lattice.origin) +
                 (scan.changes.empty() ? std::string(", the same in every frame")
                                       : "; CHANGES within the sequence: " + scan.describeChanges());
-        const auto wb = worldBounds(first->domain, first->lattice.voxelSize, first->lattice.origin);
-        const turb::Coord d = first->domain.dim();
+        // The domain as the cache spans it; what a read holds (the smoke and its margin) after it.
+        const auto wb = worldBounds(first->span, first->lattice.voxelSize, first->lattice.origin);
+        const turb::Coord d = first->span.dim();
         head += "\ndomain (frame " + std::to_string(first->frame) + "): " + std::to_string(d.x()) + "x" + std::to_string(d.y()) +
                 "x" + std::to_string(d.z()) + " voxels, world " + fmtVec(wb.first) + "-" + fmtVec(wb.second);
         if (first->span != first->domain) {
-            const turb::Coord e = first->span.dim();
-            head += " (held in memory; the grids span " + std::to_string(e.x()) + "x" + std::to_string(e.y()) + "x" +
-                    std::to_string(e.z()) + ")";
+            const turb::Coord e = first->domain.dim();
+            head += "; held in memory: " + std::to_string(e.x()) + "x" + std::to_string(e.y()) + "x" + std::to_string(e.z()) +
+                    " voxels (the smoke and a " + std::to_string(ro.cropMargin) + "-voxel margin)";
         }
         head += "\ndt: " + fmtNum("%.6g", t.dt) + " per frame (" + t.dtSource + ")";
         if (t.fpsSource != "not used") head += "; fps " + fmtNum("%g", t.fps) + " (" + t.fpsSource + ")";
