@@ -168,7 +168,7 @@ int runInfo(const InfoArgs& a)
         if (first->span != first->domain) {
             const turb::Coord e = first->domain.dim();
             head += "; held in memory: " + std::to_string(e.x()) + "x" + std::to_string(e.y()) + "x" + std::to_string(e.z()) +
-                    " voxels (the smoke and a " + std::to_string(ro.cropMargin) + "-voxel margin)";
+                    " voxels (the smoke and a margin of " + std::to_string(ro.cropMargin) + " voxels)";
         }
         head += "\ndt: " + fmtNum("%.6g", t.dt) + " per frame (" + t.dtSource + ")";
         if (t.fpsSource != "not used") head += "; fps " + fmtNum("%g", t.fps) + " (" + t.fpsSource + ")";
@@ -251,7 +251,7 @@ int runInfo(const InfoArgs& a)
                         const turb::Coord d = held.dim();
                         strayLine = (strayLine.empty() ? "" : strayLine + "\n") + "held in memory: " + std::to_string(d.x()) + "x" +
                                     std::to_string(d.y()) + "x" + std::to_string(d.z()) + " voxels " +
-                                    "(the smoke and a " + std::to_string(ro.cropMargin) + "-voxel margin)";
+                                    "(the smoke and a margin of " + std::to_string(ro.cropMargin) + " voxels)";
                     }
                 }
             }

@@ -171,6 +171,7 @@ turb::Exemplar loadExemplar(const std::string& spec, const SynthArgs& a)
         }
         turbio::ReadOptions ro = a.read;
         ro.requireDensity = false;
+        ro.cropToSmoke = false; // an exemplar is its motion, wherever the smoke is
         const turb::Frame f = turbio::readFrame(path, 0, ro);
         if (kind == "vdb3") {
             // A volume exemplar costs (voxels x 375) floats of descriptors: keep the central N^3 only.
@@ -457,6 +458,7 @@ int runSynth(SynthArgs& a)
         ro.requireVelocity = false;
         ro.readExtras = false;
         ro.checkFinite = false;
+        ro.cropToSmoke = false; // a level set, not smoke: its "density" is a distance
         std::string path = a.obstacle;
         ro.densityGrid = "surface";
         if (c != std::string::npos && a.obstacle.find(".vdb") < c) {

@@ -120,7 +120,7 @@ void preflight(const TransferArgs& a, const turbio::Sequence& target, const turb
     printData("ratio " + fmt("%.4g", tv / sv) + " (target voxel " + fmt("%g", tv) + ", source voxel " + fmt("%g", sv) + ")" +
               (resampled ? ": not an integer, the source is resampled trilinearly to ratio " + std::to_string(f) : ""));
     printData("output lattice: " + dims(outDim) + " voxels of " + fmt("%g", outLattice.voxelSize) + ", world " +
-              worldBox(tBox, t0.lattice) + " (the target's domain" + (tl && tl->frame != t0.frame ? " at frame " +
+              worldBox(tBox, t0.lattice) + " (the target's held box: its smoke and margin" + (tl && tl->frame != t0.frame ? " at frame " +
               std::to_string(tl->frame) + ", its largest" : "") + ")");
 
     // Output size: the target's velocity box padded by two target voxels and its density, at f^3 voxels each
