@@ -322,3 +322,30 @@ TEST_F(SparseTransfer, BoxGrowingEveryFrameAndEmptyFramesBetweenSmokyOnes)
         prevHeld = tf.velocity.bbox();
     }
 }
+
+TEST_F(SparseTransfer, SourceWhoseSmokeIsTwoPuffsFarApart)
+{
+    // The source's smoke: the plume's puff and a second one 100 source voxels along x. Both hold half the mass,
+    // so both are held (no strays), and the transfer matches patches from either.
+    const Puff near{kPlume.centre, kPlume.radius * 1.2}, far{kPlume.centre + Vec3d(5.0, 0.0, 0.0), kPlume.radius * 1.2};
+    const std::string two = writeSource(dir, "two.vdb", {near, far}, CoordBBox({12, 12, 12}, {151, 51, 51}));
+    turbio::ReadOptions so = readOptions();
+    so.extendVelocity = 4;
+    turbio::ReadReport rep;
+    const Frame sf = turbio::readFrame(two, 1, so, &rep);
+    EXPECT_TRUE(rep.region.strays.empty()) << rep.region.describeStrays();
+    EXPECT_TRUE(sf.density.bbox().isInside(Coord(32, 32, 32)));
+    EXPECT_TRUE(sf.density.bbox().isInside(Coord(132, 32, 32)));
+
+    CacheSpec s;
+    s.puffs = {kPlume};
+    s.velBox = kSmallBox;
+    writeCache(dir / "t.vdb", s);
+    TurbulenceTransfer transfer(fastSettings());
+    const TransferResult r = transfer.process(turbio::readFrame(dir / "t.vdb", 1, readOptions()), sf);
+    ASSERT_FALSE(r.empty);
+    EXPECT_GT(r.stats.localPatches, 0);
+    EXPECT_GT(r.stats.meanLocalEnergy, 0.0);
+    for (const auto& v : r.frame.velocity.values()) ASSERT_TRUE(std::isfinite(v.x() + v.y() + v.z()));
+    EXPECT_GT(rms(r.frame.velocity), 0.5);
+}
