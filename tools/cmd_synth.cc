@@ -399,6 +399,13 @@ int runSynth(SynthArgs& a)
             ro.requireDensity = false;
             scan = checkInput("synth", "target", *seq, frames, ro, LatticePolicy::Refuse);
             reportTiming("target", *scan, true);
+            // Synth's density sources and look-back need one box over the sequence: the union of the frames'
+            // held boxes (each the smoke and its margin, strays left out), not the cache's domain.
+            if (a.read.cropToSmoke) {
+                turb::CoordBBox all;
+                for (const auto& fs : scan->frames) all.expand(fs.domain);
+                a.read.holdBox = all;
+            }
             for (int fr : frames) inputs.push_back(seq->path(fr));
         }
         checkOutputs(outputs, inputs, a.write.noClobber, false);

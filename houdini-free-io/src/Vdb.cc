@@ -1074,6 +1074,7 @@ static turb::Frame readFrameUnchecked(const std::string& path, int frameNumber, 
         for (size_t i = 0; i < all.size(); ++i)
             if (all[i] != openvdb::GridBase::ConstPtr(g.density) && !spans[i].empty()) reach.expand(spans[i]);
         domain = heldRegion(rep.region, reach.empty() ? domain : reach, options);
+        if (!options.holdBox.empty()) domain = options.holdBox;
         if (!rep.region.strays.empty()) rep.notes.push_back(rep.region.describeStrays(g.density->getName()));
     }
     rep.held = domain;
