@@ -53,9 +53,15 @@ TEST(RealCaches, BlenderC42Frame10)
     ASSERT_TRUE(fi.baseResolution.has_value());
     EXPECT_EQ(*fi.baseResolution, turb::Coord(125, 125, 60));
 
-    // The flags grid is ignored; the frame covers Blender's whole domain.
+    // The flags grid is ignored; held whole (--no-crop) the frame covers Blender's whole domain, by default
+    // the smoke and its margin inside it, which holds every smoke voxel (counted below).
+    ReadOptions whole;
+    whole.cropToSmoke = false;
+    const turb::CoordBBox domain(turb::Coord(0), turb::Coord(124, 124, 59));
+    EXPECT_EQ(readFrame(dataPath("blender-c42/fluid_data_0010.vdb"), 10, whole).bbox(), domain);
     const turb::Frame f = readFrame(dataPath("blender-c42/fluid_data_0010.vdb"), 10, ReadOptions{});
-    EXPECT_EQ(f.bbox(), turb::CoordBBox(turb::Coord(0), turb::Coord(124, 124, 59)));
+    EXPECT_TRUE(domain.isInside(f.bbox()));
+    EXPECT_LT(f.bbox().volume(), domain.volume() / 2);
     size_t smoke = 0;
     for (float d : f.density.values()) smoke += d != 0.0f;
     EXPECT_LE(smoke, 39375u);
@@ -125,11 +131,24 @@ TEST(RealCaches, BlenderPlumePairIsAFactorFourPair)
     EXPECT_EQ(lo.frames, turbio::parseFrameList("1-10"));
     EXPECT_EQ(hi.frames, turbio::parseFrameList("1-30"));
     EXPECT_TRUE(lo.missing.empty());
-    const turb::Frame a = readFrame(lo.path(10), 10, ReadOptions{});
-    const turb::Frame b = readFrame(hi.path(10), 10, ReadOptions{});
+    ReadOptions whole;
+    whole.cropToSmoke = false;
+    const turb::Frame a = readFrame(lo.path(10), 10, whole);
+    const turb::Frame b = readFrame(hi.path(10), 10, whole);
     EXPECT_NEAR(a.lattice().voxelSize / b.lattice().voxelSize, 4.0, 1e-9);
     EXPECT_EQ(a.bbox().dim(), turb::Coord(32, 32, 32));
     EXPECT_EQ(b.bbox().dim(), turb::Coord(128, 128, 128));
+    // Cropped to the smoke (the default), the same smoke, voxel for voxel.
+    for (const turb::Frame* full : {&a, &b}) {
+        const turb::Frame c = readFrame(full == &a ? lo.path(10) : hi.path(10), 10, ReadOptions{});
+        EXPECT_TRUE(full->bbox().isInside(c.bbox()));
+        double inFull = 0.0, inCrop = 0.0;
+        for (float d : full->density.values()) inFull += d;
+        for (float d : c.density.values()) inCrop += d;
+        EXPECT_EQ(inFull, inCrop);
+        for (size_t n = 0; n < c.velocity.size(); n += 7)
+            ASSERT_EQ(c.velocity.data()[n], full->velocity[c.velocity.coordOf(n)]) << "the held box reads the same voxels";
+    }
     // A buoyant plume: mean vertical (z) velocity of the smoke is upward.
     double w = 0.0;
     for (size_t n = 0; n < a.density.size(); ++n)

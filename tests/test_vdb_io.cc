@@ -560,8 +560,16 @@ TEST(BadInput, AFrameTooLargeToLoadNamesTheGridAndItsSpan)
     d->tree().setValue(openvdb::Coord(20000, 20000, 20000), 1.0f);
     auto v = linearMac(openvdb::CoordBBox({0, 0, 0}, {3, 3, 3}), "vel", 0.1);
     writeGrids(dir / "sparse.vdb", {d, v});
-    const std::string e = errorOf([&] { readFrame(dir / "sparse.vdb", 1, ReadOptions{}); });
+    // Held whole (--no-crop), as every read was before issue 16; by default the stray is left out.
+    ReadOptions whole;
+    whole.cropToSmoke = false;
+    const std::string e = errorOf([&] { readFrame(dir / "sparse.vdb", 1, whole); });
     EXPECT_NE(e.find("sparse.vdb: not enough memory to load the frame"), std::string::npos) << e;
     EXPECT_NE(e.find("grid 'density' [0, 0, 0]-[20000, 20000, 20000] (20001x20001x20001 voxels)"), std::string::npos) << e;
     EXPECT_NE(e.find("grid 'vel' [0, 0, 0]-[3, 3, 3] (4x4x4 voxels)"), std::string::npos) << e;
+    ReadReport rep;
+    const turb::Frame f = readFrame(dir / "sparse.vdb", 1, ReadOptions{}, &rep);
+    EXPECT_EQ(f.density.bbox(), openvdb::CoordBBox({0, 0, 0}, {3, 3, 3})) << "the smoke, its margin clipped to the span";
+    EXPECT_NE(rep.region.describeStrays().find("1 active voxel 19997 voxels away"), std::string::npos)
+        << rep.region.describeStrays();
 }

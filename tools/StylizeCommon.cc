@@ -140,6 +140,7 @@ TargetFrame TargetSource::read(int frame) const
         const std::string path = mCache->path(frame);
         turbio::ReadOptions ro = mArgs.read;
         ro.readExtras = false;
+        ro.cropToSmoke = false; // the camera frames the cache's box: it must not change with the smoke
         turb::Frame f = turbio::readFrame(path, frame, ro);
         turb::CameraView v;
         try {
@@ -206,6 +207,7 @@ turb::ChannelImage TargetSource::readMotion(const std::string& path, int frame) 
         turbio::ReadOptions ro = mArgs.read;
         ro.requireDensity = false;
         ro.readExtras = false;
+        ro.cropToSmoke = false; // a 2D motion VDB is an image: every pixel, one size for every frame
         const turb::Frame f = turbio::readFrame(path, frame, ro);
         const turb::CoordBBox b = f.velocity.bbox();
         if (b.dim().z() != 1) throw turb::IoError(path + ": a 2D motion VDB has one z layer, this one has " + std::to_string(b.dim().z()));

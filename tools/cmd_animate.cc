@@ -171,6 +171,7 @@ Example readExample(const AnimateArgs& a, int tau)
     bridge.stepVoxels = a.step;
     turbio::ReadOptions ro = a.read;
     ro.readExtras = false;
+    ro.cropToSmoke = false; // the camera frames the cache's box: it must not change with the smoke
     turb::ChannelImage num, den;
     for (int f : seq.frames) {
         const std::string path = seq.path(f);

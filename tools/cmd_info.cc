@@ -160,10 +160,16 @@ int runInfo(const InfoArgs& a)
         head += "\nlattice: voxel " + fmtNum("%g", first->lattice.voxelSize) + ", origin " + fmtVec(first->lattice.origin) +
                 (scan.changes.empty() ? std::string(", the same in every frame")
                                       : "; CHANGES within the sequence: " + scan.describeChanges());
-        const auto wb = worldBounds(first->domain, first->lattice.voxelSize, first->lattice.origin);
-        const turb::Coord d = first->domain.dim();
+        // The domain as the cache spans it; what a read holds (the smoke and its margin) after it.
+        const auto wb = worldBounds(first->span, first->lattice.voxelSize, first->lattice.origin);
+        const turb::Coord d = first->span.dim();
         head += "\ndomain (frame " + std::to_string(first->frame) + "): " + std::to_string(d.x()) + "x" + std::to_string(d.y()) +
                 "x" + std::to_string(d.z()) + " voxels, world " + fmtVec(wb.first) + "-" + fmtVec(wb.second);
+        if (first->span != first->domain) {
+            const turb::Coord e = first->domain.dim();
+            head += "; held in memory: " + std::to_string(e.x()) + "x" + std::to_string(e.y()) + "x" + std::to_string(e.z()) +
+                    " voxels (the smoke and a margin of " + std::to_string(ro.cropMargin) + " voxels)";
+        }
         head += "\ndt: " + fmtNum("%.6g", t.dt) + " per frame (" + t.dtSource + ")";
         if (t.fpsSource != "not used") head += "; fps " + fmtNum("%g", t.fps) + " (" + t.fpsSource + ")";
         if (!first->velocityGrid.empty())
@@ -222,11 +228,38 @@ int runInfo(const InfoArgs& a)
                 fj["blender_base_resolution"] = {fi.baseResolution->x(), fi.baseResolution->y(), fi.baseResolution->z()};
             fj["grids"] = nlohmann::json::array();
             for (const auto& g : fi.grids) fj["grids"].push_back(gridJson(g));
+            // Where the smoke is (with the voxels only): strays far from it are left out of every read.
+            std::string strayLine;
+            if (values && ro.cropToSmoke) {
+                const turbio::SmokeRegion region = turbio::smokeRegion(path, ro);
+                if (region.hasDensity) {
+                    turb::CoordBBox reach = region.smoke;
+                    for (const auto& f : scan.frames)
+                        if (f.frame == frame) reach.expand(f.others);
+                    const turb::CoordBBox held = turbio::heldRegion(region, reach, ro);
+                    fj["smoke_voxels"] = region.smokeVoxels;
+                    if (!held.empty())
+                        fj["held_box"] = {{held.min().x(), held.min().y(), held.min().z()}, {held.max().x(), held.max().y(), held.max().z()}};
+                    nlohmann::json strays = nlohmann::json::array();
+                    for (const auto& c : region.strays)
+                        strays.push_back({{"voxels", c.voxels}, {"distance", c.distance}, {"mass_share", c.massShare},
+                            {"min", {c.box.min().x(), c.box.min().y(), c.box.min().z()}},
+                            {"max", {c.box.max().x(), c.box.max().y(), c.box.max().z()}}});
+                    fj["strays"] = strays;
+                    strayLine = region.describeStrays();
+                    if (!held.empty()) {
+                        const turb::Coord d = held.dim();
+                        strayLine = (strayLine.empty() ? "" : strayLine + "\n") + "held in memory: " + std::to_string(d.x()) + "x" +
+                                    std::to_string(d.y()) + "x" + std::to_string(d.z()) + " voxels " +
+                                    "(the smoke and a margin of " + std::to_string(ro.cropMargin) + " voxels)";
+                    }
+                }
+            }
             bool changed = false;
             for (const auto& c : scan.changes) changed = changed || c.toFrame == frame;
             if (i == 0 || a.allValues || changed || globals().verbosity >= 2) {
                 printData("frame " + std::to_string(frame) + ": " + path + (changed ? "  (lattice changes here)" : "") + "\n" +
-                              gridTable(fi),
+                              gridTable(fi) + (strayLine.empty() ? "" : "\n" + strayLine),
                     toStderr);
             } else {
                 std::string s = "frame " + std::to_string(frame) + ":";

@@ -174,6 +174,7 @@ turb::Exemplar loadExemplar(const std::string& spec, const SynthArgs& a)
         }
         turbio::ReadOptions ro = a.read;
         ro.requireDensity = false;
+        ro.cropToSmoke = false; // an exemplar is its motion, wherever the smoke is
         const turb::Frame f = turbio::readFrame(path, 0, ro);
         if (kind == "vdb3") {
             // A volume exemplar costs (voxels x 375) floats of descriptors: keep the central N^3 only.
@@ -401,6 +402,13 @@ int runSynth(SynthArgs& a)
             ro.requireDensity = false;
             scan = checkInput("synth", "target", *seq, frames, ro, LatticePolicy::Refuse);
             reportTiming("target", *scan, true);
+            // Synth's density sources and look-back need one box over the sequence: the union of the frames'
+            // held boxes (each the smoke and its margin, strays left out), not the cache's domain.
+            if (a.read.cropToSmoke) {
+                turb::CoordBBox all;
+                for (const auto& fs : scan->frames) all.expand(fs.domain);
+                a.read.holdBox = all;
+            }
             for (int fr : frames) inputs.push_back(seq->path(fr));
         }
         checkOutputs(outputs, inputs, a.write.noClobber, false);
@@ -460,6 +468,7 @@ int runSynth(SynthArgs& a)
         ro.requireVelocity = false;
         ro.readExtras = false;
         ro.checkFinite = false;
+        ro.cropToSmoke = false; // a level set, not smoke: its "density" is a distance
         std::string path = a.obstacle;
         ro.densityGrid = "surface";
         if (c != std::string::npos && a.obstacle.find(".vdb") < c) {

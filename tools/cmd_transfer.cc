@@ -123,7 +123,7 @@ void preflight(const TransferArgs& a, const turbio::Sequence& target, const turb
     printData("ratio " + fmt("%.4g", tv / sv) + " (target voxel " + fmt("%g", tv) + ", source voxel " + fmt("%g", sv) + ")" +
               (resampled ? ": not an integer, the source is resampled trilinearly to ratio " + std::to_string(f) : ""));
     printData("output lattice: " + dims(outDim) + " voxels of " + fmt("%g", outLattice.voxelSize) + ", world " +
-              worldBox(tBox, t0.lattice) + " (the target's domain" + (tl && tl->frame != t0.frame ? " at frame " +
+              worldBox(tBox, t0.lattice) + " (the target's held box: its smoke and margin" + (tl && tl->frame != t0.frame ? " at frame " +
               std::to_string(tl->frame) + ", its largest" : "") + ")");
 
     // Output size: the target's velocity box padded by two target voxels and its density, at f^3 voxels each
@@ -298,6 +298,7 @@ int runTransfer(TransferArgs& a)
             const int prev = target.frames[first - 1];
             const std::string prevPath = outPattern.format(prev);
             turbio::ReadOptions ro;
+            ro.cropToSmoke = false; // the file holds the box the run held (written cropped); restore needs all of it
             const turb::Frame prevOut = turbio::readFrame(prevPath, prev, ro);
             const auto it = prevOut.metadata.find(turb::meta::kState);
             if (it == prevOut.metadata.end())

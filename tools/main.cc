@@ -47,6 +47,12 @@ void addReadOptions(CLI::App* app, turbio::ReadOptions& opt, const std::string& 
     app->add_option(p + "dt", opt.dt,
            "Time per frame in the velocity's time unit (default: vdbturb_dt metadata; Blender 0.1*25/fps; else 1/fps)")
         ->check(CLI::PositiveNumber);
+    app->add_flag_function(p + "no-crop", [&opt](int64_t) { opt.cropToSmoke = false; },
+        "Hold the union of the grids' active boxes densely, stray voxels included (default: only the density's smoke "
+        "and a margin; clusters of stray voxels far from the smoke are left out and reported)");
+    app->add_option(p + "crop-margin", opt.cropMargin,
+           "Voxels kept around the smoke when cropping (default 8)")
+        ->check(CLI::NonNegativeNumber);
     app->add_option(p + "fps", opt.fps,
            "Frames per second of the shot, for the default time per frame (default: 24 assumed, with a warning; "
            "Blender's and Houdini's caches do not record it)")

@@ -94,6 +94,31 @@ void resolveFrame(FrameScan& fs, const FileInfo& info, const ReadOptions& option
     }
     if (info.recordedDomain) fs.domain.expand(*info.recordedDomain);
     if (fs.domain.empty()) fs.domain = turb::CoordBBox(turb::Coord(0), turb::Coord(0));
+    fs.span = fs.domain;
+    if (fs.domainKnown && d && options.cropToSmoke) {
+        // The density's header box bounds the smoke; a box far larger than its voxels (stray voxels) is
+        // worth one read of the density alone, which is what readFrame will hold.
+        fs.region.hasDensity = true;
+        if (d->hasBBox && d->activeVoxels != 0) fs.region.smoke = d->activeBBox;
+        // As readFrame: the margin reaches as far as the other grids (or Blender's domain), not the strays.
+        turb::CoordBBox& others = fs.others;
+        if (info.baseResolution) others = turb::CoordBBox(turb::Coord(0), *info.baseResolution - turb::Coord(1));
+        for (size_t i = 0; i < used.size(); ++i)
+            if (used[i] != d) others.expand(spans[i].second);
+        const auto reach = [&] {
+            turb::CoordBBox r = others;
+            r.expand(fs.region.smoke);
+            return r.empty() ? fs.span : r;
+        };
+        fs.domain = heldRegion(fs.region, reach(), options);
+        const double held = double(fs.domain.volume());
+        const bool tooBig = !detail::denseSizeProblem(fs.path, fs.domain, spans, bytesPerVoxel, options).empty();
+        if (tooBig || (held > 1.0e6 && d->activeVoxels >= 0 && held > 64.0 * double(d->activeVoxels))) {
+            fs.region = smokeRegion(fs.path, options);
+            fs.regionFromVoxels = true;
+            fs.domain = heldRegion(fs.region, reach(), options);
+        }
+    }
     if (fs.domainKnown) {
         const std::string problem = detail::denseSizeProblem(fs.path, fs.domain, spans, bytesPerVoxel, options);
         if (!problem.empty()) throw turb::IoError(problem);

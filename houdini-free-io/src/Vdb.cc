@@ -25,7 +25,9 @@
 #include <fcntl.h>
 #include <fstream>
 #include <functional>
+#include <map>
 #include <mutex>
+#include <unordered_map>
 #include <sstream>
 #include <dirent.h>
 #include <sys/stat.h>
@@ -811,6 +813,7 @@ turb::VectorField velocityField(const std::string& path, const RoleGrids& g, con
             const CoordBBoxCallback cb = [&](const openvdb::CoordBBox& b) {
                 openvdb::CoordBBox c = b;
                 c.intersect(box);
+                if (c.empty()) return; // outside the held box (an empty box's iterator would not stop)
                 for (auto it = c.begin(); it; ++it) known[v.offset((*it).x(), (*it).y(), (*it).z())] = 1;
             };
             forEachActiveBox(grid, cb);
@@ -833,6 +836,184 @@ turb::ScalarField scalarField(const std::string& path, const openvdb::FloatGrid&
 }
 
 } // namespace
+
+namespace {
+
+// Largest per-axis gap between two boxes (0 when they touch or overlap).
+int boxGap(const turb::CoordBBox& a, const turb::CoordBBox& b)
+{
+    int g = 0;
+    for (int k = 0; k < 3; ++k) g = std::max({g, b.min()[k] - a.max()[k], a.min()[k] - b.max()[k]});
+    return std::max(g, 0);
+}
+
+// Clusters the smoke of `grid` at leaf-node granularity: a leaf's smoke joins that of its 26 neighbour leaves,
+// an active tile that of every node within one leaf of it. Serial and ordered, so the answer never depends on
+// threads; a pass over the active voxels, far cheaper than the dense copy it saves.
+SmokeRegion findSmoke(const openvdb::FloatGrid& grid, const ReadOptions& o)
+{
+    struct Node
+    {
+        turb::CoordBBox box;
+        long long voxels = 0;
+        double mass = 0.0;
+    };
+    std::vector<Node> nodes;
+    std::unordered_map<uint64_t, size_t> leafIndex;
+    const auto key = [](const openvdb::Coord& c) {
+        return (uint64_t(uint32_t(c.x() >> 3) & 0x1fffff) << 42) | (uint64_t(uint32_t(c.y() >> 3) & 0x1fffff) << 21) |
+               uint64_t(uint32_t(c.z() >> 3) & 0x1fffff);
+    };
+    const float thr = o.smokeThreshold;
+    std::vector<turb::CoordBBox> tiles;
+    for (auto leaf = grid.tree().cbeginLeaf(); leaf; ++leaf) {
+        Node n;
+        for (auto v = leaf->cbeginValueOn(); v; ++v)
+            if (*v > thr) {
+                n.box.expand(v.getCoord());
+                ++n.voxels;
+                n.mass += double(*v);
+            }
+        if (n.voxels == 0) continue;
+        leafIndex.emplace(key(leaf->origin()), nodes.size());
+        nodes.push_back(n);
+    }
+    const size_t leafCount = nodes.size();
+    {
+        auto it = grid.tree().cbeginValueOn();
+        it.setMaxDepth(openvdb::FloatTree::ValueOnCIter::LEAF_DEPTH - 1); // tiles only
+        for (; it; ++it)
+            if (*it > thr) {
+                Node n;
+                n.box = it.getBoundingBox();
+                n.voxels = (long long)n.box.volume();
+                n.mass = double(*it) * double(n.voxels);
+                nodes.push_back(n);
+            }
+    }
+    std::vector<size_t> parent(nodes.size());
+    for (size_t i = 0; i < parent.size(); ++i) parent[i] = i;
+    const std::function<size_t(size_t)> root = [&](size_t i) {
+        while (parent[i] != i) i = parent[i] = parent[parent[i]];
+        return i;
+    };
+    const auto join = [&](size_t a, size_t b) {
+        a = root(a);
+        b = root(b);
+        if (a != b) parent[std::max(a, b)] = std::min(a, b);
+    };
+    for (auto leaf = grid.tree().cbeginLeaf(); leaf; ++leaf) {
+        const auto me = leafIndex.find(key(leaf->origin()));
+        if (me == leafIndex.end()) continue;
+        for (int dx = -8; dx <= 8; dx += 8)
+            for (int dy = -8; dy <= 8; dy += 8)
+                for (int dz = -8; dz <= 8; dz += 8) {
+                    const auto nb = leafIndex.find(key(leaf->origin().offsetBy(dx, dy, dz)));
+                    if (nb != leafIndex.end()) join(me->second, nb->second);
+                }
+    }
+    for (size_t t = leafCount; t < nodes.size(); ++t)
+        for (size_t i = 0; i < nodes.size(); ++i)
+            if (i != t && boxGap(nodes[t].box, nodes[i].box) <= 8) join(t, i);
+
+    std::map<size_t, Node> clusters; // by root: the lowest node index, so the order is the tree's
+    double total = 0.0;
+    for (size_t i = 0; i < nodes.size(); ++i) {
+        Node& c = clusters[root(i)];
+        c.box.expand(nodes[i].box);
+        c.voxels += nodes[i].voxels;
+        c.mass += nodes[i].mass;
+        total += nodes[i].mass;
+    }
+    std::vector<Node> list;
+    for (auto& kv : clusters) list.push_back(kv.second);
+    std::stable_sort(list.begin(), list.end(), [](const Node& a, const Node& b) { return a.mass > b.mass; });
+
+    SmokeRegion r;
+    r.hasDensity = true;
+    std::vector<bool> kept(list.size(), false);
+    for (size_t i = 0; i < list.size(); ++i)
+        if (i == 0 || (list[i].mass >= o.strayShare * total && list[i].voxels >= o.strayVoxels)) {
+            kept[i] = true;
+            r.smoke.expand(list[i].box);
+        }
+    // Small clusters near the smoke cost little and may be real (a wisp): keep them, growing the box.
+    for (bool grew = true; grew;) {
+        grew = false;
+        for (size_t i = 0; i < list.size(); ++i)
+            if (!kept[i] && boxGap(r.smoke, list[i].box) <= o.strayDistance) {
+                kept[i] = grew = true;
+                r.smoke.expand(list[i].box);
+            }
+    }
+    for (size_t i = 0; i < list.size(); ++i) {
+        if (kept[i]) {
+            r.smokeVoxels += list[i].voxels;
+            continue;
+        }
+        StrayCluster s;
+        s.box = list[i].box;
+        s.voxels = list[i].voxels;
+        s.massShare = total > 0.0 ? list[i].mass / total : 0.0;
+        s.distance = boxGap(r.smoke, list[i].box);
+        r.strays.push_back(s);
+    }
+    return r;
+}
+
+} // namespace
+
+std::string SmokeRegion::describeStrays(const std::string& grid) const
+{
+    if (strays.empty()) return "";
+    long long voxels = 0;
+    int lo = strays.front().distance, hi = lo;
+    double share = 0.0;
+    for (const auto& s : strays) {
+        voxels += s.voxels;
+        lo = std::min(lo, s.distance);
+        hi = std::max(hi, s.distance);
+        share += s.massShare;
+    }
+    std::ostringstream os;
+    os << grid << " has " << voxels << " active voxel" << (voxels == 1 ? "" : "s");
+    if (strays.size() > 1) os << " in " << strays.size() << " clusters";
+    os << " " << (lo == hi ? std::to_string(lo) : std::to_string(lo) + "-" + std::to_string(hi))
+       << " voxels away from the rest";
+    os.precision(2);
+    os << " (" << (share * 100.0) << "% of its mass, first at " << strays.front().box.min()
+       << "): left out of the region held in memory";
+    return os.str();
+}
+
+turb::CoordBBox heldRegion(const SmokeRegion& region, const turb::CoordBBox& span, const ReadOptions& options)
+{
+    if (!options.cropToSmoke || !region.hasDensity || span.empty()) return span;
+    if (region.smoke.empty()) {
+        // No smoke: one voxel keeps the frame's lattice and place without holding the velocity box.
+        const turb::Coord c((span.min().x() + span.max().x()) / 2, (span.min().y() + span.max().y()) / 2,
+            (span.min().z() + span.max().z()) / 2);
+        return turb::CoordBBox(c, c);
+    }
+    turb::CoordBBox b = region.smoke;
+    b.expand(std::max(options.cropMargin, 0));
+    b.intersect(span);
+    return b.empty() ? region.smoke : b;
+}
+
+SmokeRegion smokeRegion(const std::string& path, const ReadOptions& options)
+{
+    const detail::GuardedResult r = guarded(path,
+        [&](openvdb::io::File& file, const std::vector<Descriptor>& order, openvdb::GridPtrVec& out, openvdb::MetaMap&) {
+            const std::vector<GridEntry> entries = listGrids(file, order);
+            const auto name = resolveGrid(uniqueNames(entries), GridRole::Density, options.densityGrid);
+            if (name.empty() && !options.densityGrid.empty())
+                throw IoError(detail::missingGridMessage(path, GridRole::Density, options, describeEntries(entries)));
+            if (!name.empty()) out.push_back(readGridNamed(file, path, name[0]));
+        });
+    if (r.grids.empty()) return SmokeRegion{};
+    return findSmoke(*asFloatGrid(path, r.grids.front(), "density"), options);
+}
 
 static turb::Frame readFrameUnchecked(const std::string& path, int frameNumber, const ReadOptions& options,
     ReadReport* report, std::string& stage);
@@ -902,6 +1083,22 @@ static turb::Frame readFrameUnchecked(const std::string& path, int frameNumber, 
         bytesPerVoxel += vector ? 12.0 : 4.0;
     }
     if (domain.empty()) domain = turb::CoordBBox(turb::Coord(0), turb::Coord(0)); // every grid is empty
+    // Hold the smoke, not the span: stray voxels and a large velocity box around a small plume cost nothing.
+    ReadReport rep;
+    rep.span = domain;
+    if (g.density && options.cropToSmoke) {
+        stage = "finding the smoke in grid " + quoted(g.density->getName());
+        rep.region = findSmoke(*g.density, options);
+        // The margin reaches as far as the other grids (or Blender's domain) do, never toward the strays.
+        turb::CoordBBox reach = rep.region.smoke;
+        if (baseRes) reach.expand(turb::CoordBBox(turb::Coord(0), *baseRes - turb::Coord(1)));
+        for (size_t i = 0; i < all.size(); ++i)
+            if (all[i] != openvdb::GridBase::ConstPtr(g.density) && !spans[i].empty()) reach.expand(spans[i]);
+        domain = heldRegion(rep.region, reach.empty() ? domain : reach, options);
+        if (!options.holdBox.empty()) domain = options.holdBox;
+        if (!rep.region.strays.empty()) rep.notes.push_back(rep.region.describeStrays(g.density->getName()));
+    }
+    rep.held = domain;
     {
         std::vector<std::pair<std::string, turb::CoordBBox>> named;
         for (size_t i = 0; i < all.size(); ++i) named.emplace_back(all[i]->getName(), spans[i]);
@@ -911,7 +1108,6 @@ static turb::Frame readFrameUnchecked(const std::string& path, int frameNumber, 
 
     turb::Frame frame;
     frame.number = frameNumber;
-    ReadReport rep;
     const auto onOwnLattice = [&](const openvdb::GridBase& grid) { return latticeOf(path, grid).approxEqual(lattice); };
     if (g.density) {
         stage = "grid " + quoted(g.density->getName()) + " over " + spanText(domain);
@@ -929,9 +1125,13 @@ static turb::Frame readFrameUnchecked(const std::string& path, int frameNumber, 
         } else {
             // Read on its own lattice over its own active box (plus the extension), then resample.
             const turb::Lattice own = latticeOf(path, vg);
+            // Only the part the held box samples (trilinear: one voxel around), plus the extension's reach.
             turb::CoordBBox box = vg.evalActiveVoxelBoundingBox();
-            if (box.empty()) box = turb::CoordBBox(turb::Coord(0), turb::Coord(0));
             box.expand(options.extendVelocity);
+            turb::CoordBBox need = detail::boxOnLattice(domain, lattice, own);
+            need.expand(2 + options.extendVelocity);
+            box.intersect(need);
+            if (box.empty()) box = turb::CoordBBox(turb::Coord(0), turb::Coord(0));
             stage = "grid " + quoted(vg.getName()) + " over " + spanText(box) + " before resampling";
             const turb::VectorField native = velocityField(path, g, box, own, cells, options);
             stage = "grid " + quoted(vg.getName()) + " resampled over " + spanText(domain);
@@ -951,7 +1151,10 @@ static turb::Frame readFrameUnchecked(const std::string& path, int frameNumber, 
             dst = scalarField(path, *grid, domain, lattice, options.checkFinite);
             return;
         }
-        const turb::CoordBBox box = grid->evalActiveVoxelBoundingBox();
+        turb::CoordBBox box = grid->evalActiveVoxelBoundingBox();
+        turb::CoordBBox need = detail::boxOnLattice(domain, lattice, latticeOf(path, *grid));
+        need.expand(2);
+        box.intersect(need);
         const turb::ScalarField native = scalarField(path, *grid,
             box.empty() ? turb::CoordBBox(turb::Coord(0), turb::Coord(0)) : box, latticeOf(path, *grid), options.checkFinite);
         dst = resampledOnto(native, domain, lattice);
@@ -972,6 +1175,9 @@ static turb::Frame readFrameUnchecked(const std::string& path, int frameNumber, 
     if (report) {
         *report = timing;
         report->notes = rep.notes;
+        report->span = rep.span;
+        report->held = rep.held;
+        report->region = rep.region;
     }
     return frame;
 }

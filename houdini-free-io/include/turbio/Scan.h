@@ -27,7 +27,13 @@ struct FrameScan
     std::string path;
     std::string error;            ///< non-empty: reading this frame will fail; the message names the file and grid
     turb::Lattice lattice;        ///< the frame's lattice (the density's, else the velocity's)
-    turb::CoordBBox domain;       ///< index box of the dense frame: Blender's domain, else the union of active boxes
+    turb::CoordBBox domain;       ///< index box of the dense frame: `span` cropped to the smoke and its margin
+                                  ///< (ReadOptions::cropToSmoke); from the density's header box, or from its voxels
+                                  ///< when that box is far larger than its voxels (strays), so it bounds the read's
+    turb::CoordBBox span;         ///< Blender's domain, else the union of the grids' active boxes
+    turb::CoordBBox others;       ///< Blender's domain and the non-density grids' boxes: how far a margin may reach
+    SmokeRegion region;           ///< the smoke (strays only when the voxels were read: regionFromVoxels)
+    bool regionFromVoxels = false;///< the density's voxels were read to find the smoke
     bool domainKnown = false;     ///< the headers held the active boxes (or the voxels were read for them)
     std::string densityGrid;      ///< selector of the density grid a read uses; empty if none
     std::string velocityGrid;     ///< selector of the velocity grid (or the x component); empty if none

@@ -56,7 +56,49 @@ struct ReadOptions
                                   ///< that clip velocity to the smoke, as Blender's do); 0 = inactive reads as zero
     std::string optionPrefix;     ///< how the command line spells these options ("" = --vel-grid, "target-" =
                                   ///< --target-vel-grid), so messages name the option the user must give
+
+    // The region held densely (see SmokeRegion). Without a density grid the frame covers every grid's span.
+    bool cropToSmoke = true;      ///< hold only the smoke (plus cropMargin), not the union of the grids' active boxes
+    int cropMargin = 8;           ///< voxels of the frame's lattice kept around the smoke, >= 0: patch radius,
+                                  ///< advection reach and the seam band of the stages that read the frame
+    float smokeThreshold = 0.0f;  ///< active density above this is smoke
+    double strayShare = 0.01;     ///< a cluster of smoke holding less than this share of the density mass, and
+                                  ///< farther than strayDistance from the rest, is a stray: reported, not held, in [0, 1)
+    int strayVoxels = 8;          ///< a far cluster of fewer active smoke voxels than this is a stray whatever its mass
+    int strayDistance = 32;       ///< voxels; clusters nearer the kept smoke than this are kept, >= 0
+    turb::CoordBBox holdBox;      ///< non-empty (with cropToSmoke): hold this box instead of the frame's own, for
+                                  ///< stages that need one box over a sequence (synth: the union of the scans' boxes)
 };
+
+/// A cluster of smoke left out of the region: stray voxels far from the main smoke (particles, sourcing,
+/// a dilation), which would otherwise stretch the dense box over the whole gap.
+struct StrayCluster
+{
+    turb::CoordBBox box;       ///< its active smoke voxels' bounding box
+    long long voxels = 0;      ///< active voxels above the threshold
+    double massShare = 0.0;    ///< its share of the density mass
+    int distance = 0;          ///< voxels between its box and the kept smoke's box (largest axis gap)
+};
+
+/// Where a frame's smoke is: density voxels above ReadOptions::smokeThreshold, clustered by leaf node (8^3)
+/// with their neighbours; clusters holding a real share of the mass, and those near them, are kept.
+struct SmokeRegion
+{
+    bool hasDensity = false;      ///< a density grid was found
+    turb::CoordBBox smoke;        ///< bounding box of the kept clusters (empty: no smoke)
+    long long smokeVoxels = 0;    ///< active smoke voxels in the kept clusters
+    std::vector<StrayCluster> strays; ///< left out, largest mass first
+
+    /// "density has 1 active voxel 580 voxels away from the rest" (one line, "" without strays).
+    std::string describeStrays(const std::string& grid = "density") const;
+};
+
+/// The smoke region of one file's density grid (reads that grid only). Throws IoError as readFrame does.
+SmokeRegion smokeRegion(const std::string& path, const ReadOptions& options);
+
+/// The box a frame is held over: the smoke dilated by the margin, within `span` (the grids' union or Blender's
+/// domain); a single voxel at span's centre when there is no smoke; `span` itself without a density grid.
+turb::CoordBBox heldRegion(const SmokeRegion& region, const turb::CoordBBox& span, const ReadOptions& options);
 
 /// How a read interpreted the cache: the time step and velocity units, and where each came from (a flag,
 /// metadata, or a writer's convention). Filled by readFrame and scanFrame for logs and dry runs.
@@ -70,6 +112,9 @@ struct ReadReport
     std::string unitsSource;   ///< why the units were taken as they were
     bool conventionAssumed = false; ///< dt rests on an assumed frame rate / time scale (warn the user once)
     std::vector<std::string> notes; ///< conversions worth one log line (e.g. velocity resampled onto density)
+    turb::CoordBBox span;      ///< readFrame: the union of the grids' active boxes (or Blender's domain)
+    turb::CoordBBox held;      ///< readFrame: the box the frame's fields cover (span cropped to the smoke)
+    SmokeRegion region;        ///< readFrame: the smoke and its strays
 };
 
 /// The time step and units rules, shared by readFrame and header scans. `blenderVelocity`: the velocity

@@ -7,7 +7,7 @@
 /// estimates"); they err on the high side by up to about 1.3x. They do not depend on thread count.
 ///
 /// @code
-/// double need = turb::transferPeakBytes(32 * 32 * 32, 4, 128 * 128 * 128); // about 0.47 GB
+/// double need = turb::transferPeakBytes(32 * 32 * 32, 4, 128 * 128 * 128); // about 0.61 GB
 /// @endcode
 #pragma once
 
@@ -15,7 +15,7 @@ namespace turb {
 
 /// Peak bytes of `transfer` at resolution ratio `ratio` (>= 1) over a target domain of `targetVoxels` voxels, with
 /// a source of `sourceVoxels` voxels as matched (after resampling to the ratio, when it was not an integer):
-/// 60 MB + 664 B x sourceVoxels / ratio + 30 B x targetVoxels x ratio^3. The source term (patch descriptors and
+/// 200 MB + 664 B x sourceVoxels / ratio + 30 B x targetVoxels x ratio^3 (voxels of the held boxes: the smoke and its margin). The source term (patch descriptors and
 /// search structures) dominates on this project's caches; the last is the output's dense fields.
 double transferPeakBytes(double targetVoxels, int ratio, double sourceVoxels);
 

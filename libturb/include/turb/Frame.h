@@ -3,7 +3,8 @@
 ///
 /// Conventions, enforced by the IO layer when it loads a cache:
 /// - velocity is cell-centred (staggered MAC grids are converted) and in world units per time unit;
-/// - all fields share one Lattice and cover the frame's domain box;
+/// - all fields share one Lattice and cover one box: the region of the cache that matters (the IO layer crops
+///   a cache to its smoke and a margin, so a small plume in a large domain costs what the plume costs);
 /// - `dt` is the time between consecutive frames in the velocity's time unit, so a voxel moves
 ///   `velocity * dt / voxelSize` voxels per frame. 0 means "unknown" and a stage needing it must ask.
 #pragma once
