@@ -151,7 +151,10 @@ int runPlan(FarmArgs& a)
     for (const auto& c : chunks) {
         const std::string pattern = chunkPattern(dir, c.index, a.out);
         std::vector<std::string> argv = {exe, "transfer", "--target", targetAbs, "--source", sourceAbs, "--out", pattern,
-            "--frames", turbio::formatFrameList(sub(c.computeBegin, c.end)), "--resume", "--threads", std::to_string(a.cpus)};
+            "--frames", turbio::formatFrameList(sub(c.computeBegin, c.end)), "--resume", "--threads", std::to_string(a.cpus),
+            // Every chunk holds the target's whole domain: held over the smoke of its own frames only, chunks would
+            // get different output boxes and the join could not blend them.
+            "--target-no-crop", "--source-no-crop"};
         argv.insert(argv.end(), a.transferArgs.begin(), a.transferArgs.end());
         nlohmann::json t;
         t["name"] = "chunk" + std::to_string(c.index);
@@ -329,9 +332,12 @@ int runJoin(FarmArgs& a)
             const int t = frames[i];
             const auto t0 = std::chrono::steady_clock::now();
             turbio::ReadOptions ro;
+            ro.cropToSmoke = false; // the chunks' whole (shared) domain
             const turb::Frame fa = turbio::readFrame(p.format(t), t, ro);
             const turb::Frame fb = turbio::readFrame(pb.format(t), t, ro);
-            const turb::Frame ft = turbio::readFrame(target.path(t), t, a.targetRead);
+            turbio::ReadOptions tro = a.targetRead;
+            tro.cropToSmoke = false;
+            const turb::Frame ft = turbio::readFrame(target.path(t), t, tro);
             const auto r = fb.metadata.find(turb::meta::kRatio);
             if (r == fb.metadata.end()) throw turb::IoError(pb.format(t) + ": no " + std::string(turb::meta::kRatio) + " metadata: not a transfer output");
             const turb::VectorField up = turb::cropped(turb::upsample(ft.velocity, std::stoi(r->second)), fb.velocity.bbox());

@@ -192,12 +192,6 @@ int runPreview(PreviewArgs& a)
         logError("several caches go side by side into a contact sheet: add --sheet FILE.png");
         return kUsage;
     }
-    try {
-        turbio::outputFormatOf(a.sheet.empty() ? a.out : a.sheet); // an unknown extension fails before any work
-    } catch (const turb::ValueError& e) {
-        logError(e.what());
-        return kUsage;
-    }
 
     std::vector<Input> inputs;
     for (const auto& text : a.inputs) {
@@ -267,6 +261,12 @@ int runPreview(PreviewArgs& a)
     else
         outputs.push_back(a.sheet);
     checkOutputs(outputs, inputPaths, false, false);
+    try {
+        turbio::outputFormatOf(a.sheet.empty() ? a.out : a.sheet); // an unknown extension fails before any drawing (after "out is an input", the worse mistake)
+    } catch (const turb::ValueError& e) {
+        logError(e.what());
+        return kUsage;
+    }
 
     int result = kOk;
     turb::withThreads(globals().threads, [&] {

@@ -990,10 +990,14 @@ turb::CoordBBox heldRegion(const SmokeRegion& region, const turb::CoordBBox& spa
 {
     if (!options.cropToSmoke || !region.hasDensity || span.empty()) return span;
     if (region.smoke.empty()) {
-        // No smoke: one voxel keeps the frame's lattice and place without holding the velocity box.
+        // No smoke: two voxels a side keep the frame's lattice and place without holding the velocity box. Not
+        // one: a box one voxel thick in z reads as a 2D cache (turb::isFlat), so a 3D sequence's empty frame
+        // would switch the dimension; clipped to the span, a 2D cache's stays one layer.
         const turb::Coord c((span.min().x() + span.max().x()) / 2, (span.min().y() + span.max().y()) / 2,
             (span.min().z() + span.max().z()) / 2);
-        return turb::CoordBBox(c, c);
+        turb::CoordBBox b(c, c.offsetBy(1));
+        b.intersect(span);
+        return b;
     }
     turb::CoordBBox b = region.smoke;
     b.expand(std::max(options.cropMargin, 0));

@@ -249,6 +249,13 @@ Alignment resolveAlignment(Alignment requested, const Field<Vec3f>& output, cons
     const Vec3d off = (output.lattice().origin - refined.origin) / refined.voxelSize;
     const bool nests = off.length() < 1e-3;
     if (!nests && output.bbox() == refinedBox) return Alignment::Index;
+    // Two resolutions of one Blender domain put index 0 at the same world point (a shared corner, not nested
+    // cells): the output's origin then sits (f - 1) / 2 fine voxels from the refined target's on every axis. Held
+    // over their smoke, the boxes no longer tell this apart by their extent, the origins still do.
+    const double k = 2.0 * off.x() + 1.0;
+    if (!nests && k >= 2.5 && std::abs(k - std::round(k)) < 1e-3 && std::abs(off.x() - off.y()) < 1e-3 &&
+        std::abs(off.x() - off.z()) < 1e-3)
+        return Alignment::Index;
     return Alignment::World;
 }
 

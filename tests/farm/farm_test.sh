@@ -36,7 +36,7 @@ W=$(readlink -f "$W")
 
 "$BIN" sim plume --res 16x16x24 --frames $FRAMES --seed 1 --out "$W/t/plume.####.vdb" -q
 "$BIN" sim swirl --res 64x64x96 --frames $FRAMES --seed 2 --out "$W/s/swirl.####.vdb" -q
-"$BIN" transfer --target "$W/t/plume.####.vdb" --source "$W/s/swirl.####.vdb" --out "$W/seq/turb.####.vdb" -q --threads 2
+"$BIN" transfer --target "$W/t/plume.####.vdb" --source "$W/s/swirl.####.vdb" --out "$W/seq/turb.####.vdb" -q --threads 2 --target-no-crop --source-no-crop
 "$BIN" farm plan --dir "$W/farm" --target "$W/t/plume.####.vdb" --source "$W/s/swirl.####.vdb" \
   --out "$W/joined/turb.####.vdb" --chunks 3 --preroll 2 --overlap 2 --cpus 1 --vdbturb "$W/vdbturb-wrapper" -q
 

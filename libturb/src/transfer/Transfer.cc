@@ -61,7 +61,8 @@ struct TurbulenceTransfer::Impl
     // Fixed once the first frame arrives.
     bool started = false;
     int ratio = 0, globalPatch = 3;
-    bool flat = false; ///< the sequence is 2D (its first target frame is one z layer)
+    bool flat = false;      ///< the sequence is 2D (its first target frame with smoke is one z layer)
+    bool flatKnown = false; ///< a frame with smoke has decided `flat`
     Lattice targetLattice;
     detail::AlignmentState align;
     detail::CarriedState carried;
@@ -257,16 +258,26 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
     const bool resampleSource = !isIntegerRatio(tv, sv);
     const Frame source = resampleSource ? resampledToVoxel(sourceArg, tv / f) : Frame();
     const Frame& src = resampleSource ? source : sourceArg;
-    if (!started) {
-        start(target.velocity.lattice(), f);
+    // 2D or 3D is decided by the first frame with smoke and checked on every frame with smoke: a frame held over
+    // its smoke alone (an empty one is held as one voxel) says nothing about the sequence's dimension.
+    const auto smoky = [&](const Frame& fr) {
+        if (!fr.hasDensity()) return true;
+        for (float v : fr.density.values())
+            if (v > s.densityThreshold) return true;
+        return false;
+    };
+    if (!started) start(target.velocity.lattice(), f);
+    const bool targetSmoky = smoky(target);
+    if (targetSmoky && !flatKnown) {
         flat = isFlat(target.velocity.bbox());
+        flatKnown = true;
     }
     if (f != ratio || !target.velocity.lattice().approxEqual(targetLattice))
         throw ValueError("target frame " + std::to_string(target.number) + " changed voxel size or transform within the sequence");
-    if (isFlat(target.velocity.bbox()) != flat)
+    if (targetSmoky && isFlat(target.velocity.bbox()) != flat)
         throw ValueError("target frame " + std::to_string(target.number) + " is " + (flat ? "3D" : "2D (one z layer)") +
                          " but the sequence started " + (flat ? "2D" : "3D"));
-    if (isFlat(src.velocity.bbox()) != flat)
+    if (targetSmoky && smoky(src) && isFlat(src.velocity.bbox()) != flat)
         throw ValueError(flat ? "the target is 2D (one z layer) but the source is not: give a 2D source"
                               : "the target is 3D but the source is 2D (one z layer)");
     if (flat && s.alignment != FlowAlignment::None && s.alignment != FlowAlignment::Normalize)
@@ -388,6 +399,9 @@ void TurbulenceTransfer::restore(const std::string& state, const Frame& previous
     m.carried.tracks = saved.tracks;
     m.start(previousTarget.velocity.lattice(), saved.f);
     m.flat = isFlat(previousTarget.velocity.bbox());
+    m.flatKnown = !previousTarget.hasDensity() ||
+                  std::any_of(previousTarget.density.values().begin(), previousTarget.density.values().end(),
+                      [&](float v) { return v > m.s.densityThreshold; });
     const detail::FrameSetup fs = m.setup(previousTarget);
     // What process() would have carried out of the previous frame, rebuilt from the written file.
     Frame out = previousOutput;
