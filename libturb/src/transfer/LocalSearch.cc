@@ -12,50 +12,46 @@
 
 namespace turb::detail {
 
-double PatchEnergy::operator()(const Coord& tCorner, const Coord& sCorner, bool temporal) const
+namespace {
+
+// E_h over a patch (eq. 2), the source read through `at(field, k)` for the patch's k-th voxel offset: by index at
+// an integer corner, trilinearly at a sub-voxel one. One body, so the two cannot drift apart.
+template<typename SourceAt>
+double patchEnergy(const PatchEnergy& pe, const Coord& tCorner, bool temporal, const SourceAt& at)
 {
+    const FrameSetup& fs = pe.fs;
     const TransferSettings& s = *fs.s;
     const Coord& P = fs.patch;
     double e = 0.0;
     for (int x = 0; x < P.x(); ++x)
         for (int y = 0; y < P.y(); ++y)
             for (int z = 0; z < P.z(); ++z) {
-                const Coord tv = tCorner + Coord(x, y, z);
+                const Coord k(x, y, z), tv = tCorner + k;
                 if (!fs.fineBox.isInside(tv)) continue;
-                const Coord sv = sCorner + Coord(x, y, z);
-                const Vec3f du = t.Ut[tv] * src.kt - src.split.low[sv] * src.ks;
-                const float dm = float(t.Dt[tv] > s.densityThreshold) - float(src.Ds[sv] > s.densityThreshold);
+                const Vec3f du = pe.t.Ut[tv] * pe.src.kt - at(pe.src.split.low, k) * pe.src.ks;
+                const float dm = float(pe.t.Dt[tv] > s.densityThreshold) - float(at(pe.src.Ds, k) > s.densityThreshold);
                 e += double(du.lengthSqr()) + double(s.alpha) * double(dm * dm);
                 if (temporal) {
-                    const Vec3f dh = advectedDetail[tv] * src.kt - src.split.high[sv] * src.ks;
+                    const Vec3f dh = pe.advectedDetail[tv] * pe.src.kt - at(pe.src.split.high, k) * pe.src.ks;
                     e += double(s.beta) * double(dh.lengthSqr());
                 }
             }
     return e;
 }
 
+} // namespace
+
+double PatchEnergy::operator()(const Coord& tCorner, const Coord& sCorner, bool temporal) const
+{
+    return patchEnergy(*this, tCorner, temporal, [&](const auto& field, const Coord& k) { return field[sCorner + k]; });
+}
+
 double PatchEnergy::at(const Coord& tCorner, const Vec3d& sCorner, bool temporal) const
 {
     const Coord base(int(std::floor(sCorner.x())), int(std::floor(sCorner.y())), int(std::floor(sCorner.z())));
     if (base.asVec3d() == sCorner) return (*this)(tCorner, base, temporal);
-    const TransferSettings& s = *fs.s;
-    const Coord& P = fs.patch;
-    double e = 0.0;
-    for (int x = 0; x < P.x(); ++x)
-        for (int y = 0; y < P.y(); ++y)
-            for (int z = 0; z < P.z(); ++z) {
-                const Coord tv = tCorner + Coord(x, y, z);
-                if (!fs.fineBox.isInside(tv)) continue;
-                const Vec3d sv = sCorner + Vec3d(x, y, z);
-                const Vec3f du = t.Ut[tv] * src.kt - sampleTrilinear(src.split.low, sv) * src.ks;
-                const float dm = float(t.Dt[tv] > s.densityThreshold) - float(sampleTrilinear(src.Ds, sv) > s.densityThreshold);
-                e += double(du.lengthSqr()) + double(s.alpha) * double(dm * dm);
-                if (temporal) {
-                    const Vec3f dh = advectedDetail[tv] * src.kt - sampleTrilinear(src.split.high, sv) * src.ks;
-                    e += double(s.beta) * double(dh.lengthSqr());
-                }
-            }
-    return e;
+    return patchEnergy(*this, tCorner, temporal,
+        [&](const auto& field, const Coord& k) { return sampleTrilinear(field, sCorner + k.asVec3d()); });
 }
 
 double LocalSearchResult::meanEnergy() const
