@@ -94,7 +94,8 @@ inline const std::vector<Case>& cases()
         {"reader_crash", "Houdini vel file with the bit that crashes OpenVDB 10 (byte 71344)", Subject::Target, 1,
             {1, 1, 1, 1, 1, 1}, "", kNone},
         {"reader_hang", "Blender 128^3 frame with the bit that makes OpenVDB 10 loop (byte 172654; some runs read "
-            "uninitialised memory and fail instead)", Subject::Source, 1, {1, 1, 1, 1, 1, 1}, "did not finish|could not be read", kNone},
+            "uninitialised memory and fail instead, as a damaged header)", Subject::Source, 1, {1, 1, 1, 1, 1, 1},
+            "did not finish|could not be read|damaged header", kNone},
         // Grids and values.
         {"int32_density", "'density' is an Int32 grid", Subject::Target, 2, {1, 1, 1, 1, 1, 1}, "'density';int32", kNone},
         {"float_vel", "'vel' is a float grid", Subject::Target, 2, {1, 1, 1, 1, 1, 1}, "'vel';vec3s", kNone},
