@@ -42,9 +42,30 @@ TEST(Cli, UsageErrorsExitTwoAndMissingInputsExitOne)
     EXPECT_EQ(run("").code, 2);
     EXPECT_EQ(run("transfer --target x").code, 2);
     EXPECT_EQ(run("info --frames 1-3 --no-such-flag x").code, 2);
+    // A malformed frame list is a usage error on every command that takes one, naming the bad piece, before
+    // any file is looked at.
+    for (const std::string cmd : {"info " + lo(), "measure --output o.####.vdb --target " + lo(), "resample " + lo() + " --out r.####.vdb",
+             "transfer --target " + lo() + " --source " + hi() + " --out o.####.vdb", "preview " + lo()}) {
+        const CmdResult bad = run(cmd + " --frames 10-1");
+        EXPECT_EQ(bad.code, 2) << cmd << "\n" << bad.out;
+        EXPECT_NE(bad.out.find("'10-1'"), std::string::npos) << bad.out;
+    }
+    EXPECT_EQ(run("transfer --target " + lo() + " --source " + hi() + " --out o.####.vdb --source-frames 1-4x0").code, 2);
     const CmdResult missing = run("info /nonexistent/cache.vdb");
     EXPECT_EQ(missing.code, 1);
     EXPECT_NE(missing.out.find("/nonexistent/cache.vdb"), std::string::npos) << missing.out;
+}
+
+TEST(Cli, TransferKeepsEightTargetVoxelsAroundTheSourcesSmoke)
+{
+    // Ratio 4: 8 target voxels are 32 source voxels (docs/design.md: 8 source voxels moved block and tcoh at
+    // ratio 8); an explicit margin wins.
+    const std::string args = "transfer --target " + lo() + " --source " + hi() + " --out /tmp/unused/o.####.vdb --frames 1 --dry-run -v";
+    const CmdResult byRatio = run(args);
+    EXPECT_EQ(byRatio.code, 0) << byRatio.out;
+    EXPECT_NE(byRatio.out.find("source crop margin: 32 source voxels"), std::string::npos) << byRatio.out;
+    const CmdResult given = run(args + " --source-crop-margin 5");
+    EXPECT_NE(given.out.find("source crop margin: 5 source voxels"), std::string::npos) << given.out;
 }
 
 TEST(Cli, InfoJsonGoesToStdoutAndReportsMissingFrames)

@@ -5,6 +5,7 @@
 #include <turbio/Sequence.h>
 
 #include <fstream>
+#include <tuple>
 
 using turbio::FramePattern;
 
@@ -49,20 +50,29 @@ TEST(FramePattern, MatchInvertsFormat)
 
 TEST(FramePattern, DetectsFrameNumberFromRealNames)
 {
-    auto a = FramePattern::fromFileName("/x/blender-c42/fluid_data_0001.vdb");
-    ASSERT_TRUE(a);
-    EXPECT_EQ(a->second, 1);
-    EXPECT_EQ(a->first.str(), "/x/blender-c42/fluid_data_####.vdb");
-    auto b = FramePattern::fromFileName("pyro.1001.vdb");
-    ASSERT_TRUE(b);
-    EXPECT_EQ(b->second, 1001);
-    EXPECT_EQ(b->first.format(1002), "pyro.1002.vdb");
-    // Digits in the directory are not the frame number, nor digits inside the stem.
-    EXPECT_FALSE(FramePattern::fromFileName("/cache42/smoke.vdb"));
-    EXPECT_FALSE(FramePattern::fromFileName("smoke2_final.vdb"));
-    auto c = FramePattern::fromFileName("cache/pyro.0042.bgeo.sc");
-    ASSERT_TRUE(c);
-    EXPECT_EQ(c->second, 42);
+    // (name, frame, the sequence's pattern); frame -1: the name holds no frame number.
+    const std::vector<std::tuple<std::string, int, std::string>> cases = {
+        {"/x/blender-c42/fluid_data_0001.vdb", 1, "/x/blender-c42/fluid_data_####.vdb"},
+        {"pyro.1001.vdb", 1001, "pyro.####.vdb"},
+        {"cache/pyro.0042.bgeo.sc", 42, "cache/pyro.####.bgeo.sc"},
+        // Digits in the directory are not the frame number, nor digits inside the stem.
+        {"/cache42/smoke.vdb", -1, ""},
+        {"smoke2_final.vdb", -1, ""},
+        // Version tokens are not frames; a frame after the version still is, and so is a 'v' inside a word.
+        {"/x/houdini-vel/vel_VDB_bound_v02.vdb", -1, ""},
+        {"smoke.v3.vdb", -1, ""},
+        {"V12.vdb", -1, ""},
+        {"shot_v02.1001.vdb", 1001, "shot_v02.####.vdb"},
+        {"dev42.vdb", 42, "dev##.vdb"},
+    };
+    for (const auto& [name, frame, pattern] : cases) {
+        const auto d = FramePattern::fromFileName(name);
+        ASSERT_EQ(bool(d), frame >= 0) << name;
+        if (!d) continue;
+        EXPECT_EQ(d->second, frame) << name;
+        EXPECT_EQ(d->first.str(), pattern) << name;
+    }
+    EXPECT_EQ(FramePattern::fromFileName("pyro.1001.vdb")->first.format(1002), "pyro.1002.vdb");
 }
 
 TEST(FrameList, RangesStepsAndSingles)

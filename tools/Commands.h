@@ -39,6 +39,10 @@ std::vector<Command> allCommands();
 /// Adds --density-grid, --vel-grid, --vel-units, --dt, --fps for reading caches.
 void addReadOptions(CLI::App* app, turbio::ReadOptions& opt, const std::string& prefix = "");
 
+/// Checks a frame list ("1001-1100x2,1200") when the command line is parsed, so a bad one is a usage error
+/// (exit 2) naming the bad piece, like any other malformed option.
+CLI::Validator frameListCheck();
+
 /// Adds --style and --no-clobber for writing caches.
 void addWriteOptions(CLI::App* app, turbio::WriteOptions& opt);
 

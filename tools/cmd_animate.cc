@@ -620,7 +620,7 @@ Command animateCommand()
         turb::AnimateSettings& s = a.settings;
         app->add_option("--example", a.example, "Video example: an image sequence with #### (any format OpenImageIO reads), or builtin:river[:WxHxN]");
         app->add_option("--example-cache", a.exampleCache, "Video example from a VDB cache through --camera: renders are the frames, the projected velocity is v");
-        app->add_option("--frames", a.frames, "Example frames to use (e.g. 1-100; default: every frame on disk)");
+        app->add_option("--frames", a.frames, "Example frames to use (e.g. 1-100; default: every frame on disk)")->check(frameListCheck());
         app->add_option("--camera", a.camera, "Cache camera: front, side, top or perspective (default front)")->check(CLI::IsMember({"front", "side", "top", "perspective"}));
         app->add_option("--camera-pos", a.cameraPos, "Perspective camera position X,Y,Z (world units)");
         app->add_option("--look-at", a.lookAt, "Perspective camera target X,Y,Z (world units)");

@@ -383,7 +383,7 @@ Command farmCommand()
         plan->add_option("--target", a.target, "Low-res target cache, as for transfer")->required();
         plan->add_option("--source", a.source, "High-res source cache, as for transfer")->required();
         plan->add_option("--out", a.out, "Final output pattern, as for transfer")->required();
-        plan->add_option("--frames", a.frames, "Target frames (default: all on disk)");
+        plan->add_option("--frames", a.frames, "Target frames (default: all on disk)")->check(frameListCheck());
         plan->add_option("--chunks", a.chunks, "Number of time chunks (array tasks; default 2)")->check(CLI::Range(1, 100000));
         plan->add_option("--preroll", a.preroll, "P: frames computed before a chunk's first kept frame (default 8)")->check(CLI::Range(0, 10000));
         plan->add_option("--overlap", a.overlap, "O: frames two consecutive chunks share and the join cross-fades (default 10)")

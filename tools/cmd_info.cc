@@ -298,7 +298,7 @@ Command infoCommand()
         app->add_option("pattern", args->pattern,
                "Cache: a pattern (####, @, %04d, $F4, ${F4}; quote $ patterns in the shell) or one real file name")
             ->required();
-        app->add_option("--frames", args->frames, "Frames to inspect, e.g. 1001-1100x2,1200 (default: all on disk)");
+        app->add_option("--frames", args->frames, "Frames to inspect, e.g. 1001-1100x2,1200 (default: all on disk)")->check(frameListCheck());
         app->add_flag("--json", args->json, "Print a JSON report on stdout (the tables then go to stderr)");
         app->add_flag("--all-values", args->allValues, "Read every frame's voxels for value ranges (slower)");
         app->add_flag("--headers-only", args->noValues, "Read no voxels at all (no value ranges)");

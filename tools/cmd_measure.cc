@@ -297,7 +297,7 @@ Command measureCommand()
         app->add_option("--source", args->source,
             "The high-res source cache, for hf_ratio and div_rel_source (frame from the output's vdbturb_source_frame, "
             "else the same number)");
-        app->add_option("--frames", args->frames, "Frames to measure, e.g. 1-30x2 (default: those output and target both hold)");
+        app->add_option("--frames", args->frames, "Frames to measure, e.g. 1-30x2 (default: those output and target both hold)")->check(frameListCheck());
         app->add_option("--threshold", s.densityThreshold, "Smoke region: density above this (default 0.01)")
             ->check(CLI::NonNegativeNumber);
         app->add_option("--patch-size", s.patchSize,

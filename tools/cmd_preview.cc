@@ -389,7 +389,7 @@ Command previewCommand()
                     return std::string();
                 },
                 "MODES"));
-        app->add_option("--frames", a.frames, "Frames, e.g. 10,30,60 or 1-60 (default: all; a sheet: three spread frames)");
+        app->add_option("--frames", a.frames, "Frames, e.g. 10,30,60 or 1-60 (default: all; a sheet: three spread frames)")->check(frameListCheck());
         app->add_option("--out", a.out, "One picture per frame, e.g. pics/plume.####.png (.exr: linear half float)");
         app->add_option("--sheet", a.sheet, "Write one contact sheet: rows = frames, columns = caches x modes");
         app->add_option("--title", a.title, "Title of the contact sheet (default: the labels)");

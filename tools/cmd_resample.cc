@@ -82,7 +82,7 @@ Command resampleCommand()
     c.setup = [args](CLI::App* app) {
         app->add_option("input", args->in, "Cache: a pattern or one real file name")->required();
         app->add_option("--out", args->out, "Output pattern, e.g. proxy/plume.####.vdb")->required();
-        app->add_option("--frames", args->frames, "Frames, e.g. 1-30 (default: all on disk)");
+        app->add_option("--frames", args->frames, "Frames, e.g. 1-30 (default: all on disk)")->check(frameListCheck());
         app->add_option("--down", args->down, "Mean over NxNxN blocks onto an N times coarser lattice")->check(CLI::Range(1, 64));
         app->add_option("--rotate", args->rotate, "AXIS:TURNS quarter turns about x, y or z (e.g. y:1), grids and vectors");
         addReadOptions(app, args->read);

@@ -309,7 +309,7 @@ Command stylizeCommand()
             ->check(CLI::IsMember({"rotate", "swirl", "rise", "fill", "grow", "stroke"}));
         app->add_option("--scene-size", a.sceneSize, "Built-in target size WxH (default 256x256)");
         app->add_option("--scene-speed", a.sceneSpeed, "Built-in target: radians per frame at the centre (rise: image widths per frame) (default 0.02)");
-        app->add_option("--frames", a.frames, "Frames (e.g. 1-150); a scene: a count N or a list (default: every frame on disk; scene 1)");
+        app->add_option("--frames", a.frames, "Frames (e.g. 1-150); a scene: a count N or a list (default: every frame on disk; scene 1)")->check(frameListCheck());
         app->add_option("--camera", a.camera, "Cache camera: front (along +y), side (along +x), top (down -z), or perspective (default front)")
             ->check(CLI::IsMember({"front", "side", "top", "perspective"}));
         app->add_option("--camera-pos", a.cameraPos, "Perspective camera position X,Y,Z (world units)");

@@ -757,7 +757,7 @@ Command synthCommand()
         app->add_option("--flow-res", a.flowRes, "Analytic flow cells NXxNYxNZ along x, y, z; NZ = 1 is 2D (default 64x64x1)");
         app->add_option("--flow-speed", a.flowSpeed, "Analytic flow speed, world units/s (default 1; domain 4 units wide)");
         app->add_option("--flow-angle", a.flowAngle, "Uniform flow direction in the xy plane, degrees from +x (default 0)");
-        app->add_option("--frames", a.frames, "Cache: frames to use (default all). Scene/flow: a count N or a list (default 1)");
+        app->add_option("--frames", a.frames, "Cache: frames to use (default all). Scene/flow: a count N or a list (default 1)")->check(frameListCheck());
         app->add_option("--slice-z", a.sliceZ, "Synthesise in 2D on coarse layer K of a 3D input")->check(CLI::NonNegativeNumber);
         app->add_option("--factor", a.factor, "Up-res factor: output voxel = coarse voxel / factor (default 4)")->check(CLI::Range(1, 32));
         app->add_option("--exemplar", a.exemplars,
@@ -804,6 +804,8 @@ Command synthCommand()
         app->add_option("--obstacle", a.obstacle, "Obstacle signed distance: FILE.vdb[:GRID] in world units (default grid 'surface')");
         app->add_option("--omega", a.combine.omega, "Detail strength: times rms|L| (default 0.5), or velocity units with --omega-absolute")
             ->check(CLI::NonNegativeNumber);
+        app->add_flag_function("--keep-coarse", [args](int64_t) { args->combine.removeCoarsePart = false; },
+            "Keep the detail's coarse part (the paper's F = up(L) + omega H'); default: taken out, so the coarse motion stays L's");
         app->add_flag("--omega-absolute", a.omegaAbsolute, "--omega is in velocity units (H' has unit rms)");
         app->add_option("--omega-mode", a.omegaMode, "Shape of omega: constant (default), energy (|L|^2), vorticity (|curl L|)")
             ->check(CLI::IsMember({"constant", "energy", "vorticity"}));

@@ -9,6 +9,7 @@
 #include <turb/Resample.h>
 #include <turb/Metadata.h>
 #include <turb/Transfer.h>
+#include <turbio/Scan.h>
 #include <turbio/Sequence.h>
 #include <turbio/System.h>
 #include <turbio/Vdb.h>
@@ -39,9 +40,28 @@ struct TransferArgs
     int preroll = 0;
     int band = 0; ///< --band: both band widths (3D and 2D); 0 = their defaults
     turbio::ReadOptions targetRead, sourceRead;
+    const CLI::Option* sourceCropMargin = nullptr; ///< given or not: its default depends on the ratio
     turbio::WriteOptions write;
     turb::TransferSettings settings;
 };
+
+// The source's frequency split and its candidate patches near the smoke's edge reach a few *coarse* voxels past
+// the smoke; a margin of 8 source voxels is one coarse voxel at ratio 8 and moved block by 5% and tcoh by 14%
+// on the ratio-8 pair (docs/design.md). The default margin is therefore 8 target voxels.
+constexpr int kSourceMarginCoarseVoxels = 8;
+
+void defaultSourceMargin(TransferArgs& a, const turbio::Sequence& target, const turbio::Sequence& source,
+    const std::vector<int>& sourceFor)
+{
+    if (a.sourceCropMargin->count() > 0 || target.frames.empty() || !a.sourceRead.cropToSmoke) return;
+    try {
+        const double tv = turbio::scanFrame(target.path(target.frames.front()), target.frames.front(), a.targetRead).lattice.voxelSize;
+        const double sv = turbio::scanFrame(source.path(sourceFor.front()), sourceFor.front(), a.sourceRead).lattice.voxelSize;
+        a.sourceRead.cropMargin = std::max(a.sourceRead.cropMargin, kSourceMarginCoarseVoxels * turb::transferRatio(tv, sv, !a.noResample));
+    } catch (const std::exception&) {
+        // The preflight reports an unreadable frame or a bad ratio with its own message.
+    }
+}
 
 turbio::SourceWrap parseWrap(const std::string& s)
 {
@@ -277,6 +297,8 @@ int runTransfer(TransferArgs& a)
                        std::to_string(earlier.size()) + " runs earlier frames first without writing them)");
         }
     }
+    defaultSourceMargin(a, target, source, sourceFor);
+    logVerbose("source crop margin: " + std::to_string(a.sourceRead.cropMargin) + " source voxels");
     preflight(a, target, source, sourceFor, outPattern, writeFrom);
     if (globals().dryRun) {
         if (a.resume && first > 0) {
@@ -365,6 +387,7 @@ int runTransfer(TransferArgs& a)
         extra["global_searches"] = st.globalSearches;
         extra["tracked"] = st.trackedPatches;
         extra["followed"] = st.followedPatches;
+        extra["regenerated"] = st.regeneratedPatches;
         extra["continuations"] = st.continuations;
         extra["mean_local_energy"] = st.meanLocalEnergy;
         extra["energy_scale"] = st.energyScale;
@@ -435,8 +458,8 @@ Command transferCommand()
         app->add_option("--target", a.target, "Low-res target cache (velocity + density): pattern or one file")->required();
         app->add_option("--source", a.source, "High-res source cache whose turbulence is transferred")->required();
         app->add_option("--out", a.out, "Output pattern, e.g. up/turb.####.vdb (directories are created)")->required();
-        app->add_option("--frames", a.frames, "Target frames, e.g. 1001-1100x2 (default: all on disk)");
-        app->add_option("--source-frames", a.sourceFrames, "Restrict the source to these frames");
+        app->add_option("--frames", a.frames, "Target frames, e.g. 1001-1100x2 (default: all on disk)")->check(frameListCheck());
+        app->add_option("--source-frames", a.sourceFrames, "Restrict the source to these frames")->check(frameListCheck());
         app->add_option("--source-offset", a.sourceOffset, "Source frame = target frame + offset (default 0)");
         app->add_option("--source-wrap", a.wrap, "When the source runs out: loop (default), pingpong, clamp, error")
             ->check(CLI::IsMember({"loop", "pingpong", "clamp", "error"}));
@@ -504,6 +527,14 @@ Command transferCommand()
         app->add_option("--temporal-blend", s.temporalBlend,
             "Weight of last frame's detail advected through the target, mixed into the patches it reaches (default 0.95; 0 = paper)")
             ->check(CLI::Range(0.0, 0.999));
+        app->add_option("--regenerate", s.regenerate,
+            "Regenerate carried detail that the flow has stretched: where its gradient energy along the flow over across "
+            "it falls below this fraction of the fresh patches', it is blended at --regenerate-blend instead "
+            "(default 0.6; 0 = off)")
+            ->check(CLI::Range(0.0, 1.0));
+        app->add_option_function<float>("--regenerate-blend", [args](float v) { args->settings.regenerateBlend = args->settings.regenerateBlend2D = v; },
+            "Weight of the carried detail per frame in a regenerated patch (default 0.5; 0.6 in 2D)")
+            ->check(CLI::Range(0.0, 0.999));
         app->add_option("--align", a.align, "Match after aligning flows: none (paper), normalize, rotate, both")
             ->check(CLI::IsMember({"none", "normalize", "rotate", "both"}));
         app->add_option("--density", a.density, "Output density: advect (default) or lookback (seed 003 supplement)")
@@ -529,6 +560,9 @@ Command transferCommand()
         app->add_flag("--json", a.json, "One JSON line per frame and a summary on stdout");
         addReadOptions(app, a.targetRead, "target");
         addReadOptions(app, a.sourceRead, "source");
+        a.sourceCropMargin = app->get_option("--source-crop-margin");
+        app->get_option("--source-crop-margin")
+            ->description("Source voxels kept around the source's smoke (default: 8 target voxels, 8 x the ratio)");
         addWriteOptions(app, a.write);
     };
     c.run = [args] { return runTransfer(*args); };

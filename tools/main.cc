@@ -3,6 +3,7 @@
 #include "Console.h"
 
 #include <turb/Error.h>
+#include <turbio/Sequence.h>
 
 #include <algorithm>
 #include <cctype>
@@ -13,6 +14,20 @@
 using namespace vdbturb;
 
 namespace vdbturb {
+
+CLI::Validator frameListCheck()
+{
+    return CLI::Validator(
+        [](std::string& v) {
+            try {
+                turbio::parseFrameList(v);
+            } catch (const turb::Error& e) {
+                return std::string(e.what());
+            }
+            return std::string();
+        },
+        "FRAMES");
+}
 
 void addReadOptions(CLI::App* app, turbio::ReadOptions& opt, const std::string& prefix)
 {

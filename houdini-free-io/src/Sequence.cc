@@ -143,6 +143,11 @@ std::optional<std::pair<FramePattern, int>> FramePattern::fromFileName(const std
     while (begin > nameStart && std::isdigit(static_cast<unsigned char>(path[begin - 1]))) --begin;
     const std::string digits = path.substr(begin, end - begin);
     if (digits.size() > 9) return std::nullopt; // not a frame number an int holds
+    // A version token ("_v02", ".v3", "-V12" at the end of the stem) is not a frame: pipelines version caches
+    // that way, and reading vel_bound_v02.vdb as frame 2 would take frame 1 for a missing frame.
+    if (begin > nameStart && (path[begin - 1] == 'v' || path[begin - 1] == 'V') &&
+        (begin - 1 == nameStart || !std::isalnum(static_cast<unsigned char>(path[begin - 2]))))
+        return std::nullopt;
     FramePattern p;
     p.mPrefix = path.substr(0, begin);
     p.mSuffix = path.substr(end);

@@ -92,8 +92,25 @@ VectorField combineMotion(const VectorField& coarse, const VectorField& detail, 
         scale *= cnt ? std::sqrt(s2 / double(cnt)) : 0.0;
     }
     const ScalarField omega = upsampleCoarse(shape, factor);
+    VectorField D(F.bbox(), F.lattice());
     parallelFor(F.size(), 4096, [&](size_t b, size_t e) {
-        for (size_t n = b; n < e; ++n) F.data()[n] += detail.data()[n] * float(scale * omega.data()[n]);
+        for (size_t n = b; n < e; ++n) D.data()[n] = detail.data()[n] * float(scale * omega.data()[n]);
+    });
+    if (s.removeCoarsePart) {
+        // The detail's coarse-cell means, spread trilinearly as up(L) is, are motion at L's scale: they would
+        // change the coarse flow (lf_err). Trilinear spreading does not keep a cell's mean exactly: each pass
+        // leaves about half of the means in the worst case (a wavelength of two coarse cells), so five passes
+        // leave a few percent (docs/synth.md: three left lf_err 0.047-0.072 on the Blender plume2 cache).
+        for (int pass = 0; pass < 5; ++pass) {
+            const VectorField coarsePart = upsampleImpl(boxDownsample(D, factor), factor);
+            if (coarsePart.bbox() != D.bbox()) throw ValueError("combine: the detail's coarse part does not cover its box");
+            parallelFor(D.size(), 4096, [&](size_t b, size_t e) {
+                for (size_t n = b; n < e; ++n) D.data()[n] -= coarsePart.data()[n];
+            });
+        }
+    }
+    parallelFor(F.size(), 4096, [&](size_t b, size_t e) {
+        for (size_t n = b; n < e; ++n) F.data()[n] += D.data()[n];
     });
     return F;
 }

@@ -192,9 +192,14 @@ struct CombineSettings
     Weighting weighting = Weighting::Constant; ///< spatial shape of omega (section 3.5); means are over moving voxels (|L| > 5% of max)
     double omega = 0.5;   ///< detail strength, >= 0; relative: times rms|L| over moving voxels (|L| > 5% of max); else world units per time
     bool relative = true; ///< omega relative to the rms speed of L (true) or absolute velocity units (false)
+    bool removeCoarsePart = true; ///< beyond the paper (issue 12): take omega * H''s coarse-cell means (spread
+                                  ///< trilinearly, five passes) out of the detail, so F keeps L's coarse motion;
+                                  ///< false = the paper's F = up(L) + omega * H'
 };
 
-/// F = up(L) + omega * H' on H's box and lattice (section 3.5).
+/// F = up(L) + omega * H' on H's box and lattice (section 3.5), less the detail's coarse part unless
+/// settings.removeCoarsePart is off. Throws ValueError on empty fields, a negative omega, or a detail that does not
+/// cover the refined coarse box.
 VectorField combineMotion(const VectorField& coarse, const VectorField& detailWorld, const CombineSettings& settings);
 
 struct LookbackSettings

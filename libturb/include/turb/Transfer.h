@@ -99,6 +99,17 @@ struct TransferSettings
     int coherenceSweeps = 2;      ///< red-black sweeps of the coherence pass, >= 1
     float temporalBlend = 0.95f;  ///< beyond the paper: weight of last frame's detail (advected through the target)
                                   ///< mixed into patches that had detail, in [0, 0.999]; 0 = the paper
+    float regenerate = 0.6f;      ///< beyond the paper (issue 12): carried detail that the flow has stretched is
+                                  ///< regenerated from the freshly pasted patch faster. A patch's structure ratio is the
+                                  ///< gradient energy of U_h along up(u_t)'s mean direction over the mean across it;
+                                  ///< where the carried detail's is below this fraction of the fresh detail's (the
+                                  ///< smaller of the patch's own and all pasted patches' pooled), the patch takes
+                                  ///< regenerateBlend instead of temporalBlend. In [0, 1]; 0 = off (carried detail
+                                  ///< stretches into streaks over a long shot)
+    float regenerateBlend = 0.5f; ///< carried weight per frame in a regenerated patch, in [0, 0.999] (at most
+                                  ///< temporalBlend is used)
+    float regenerateBlend2D = 0.6f; ///< the same for a 2D sequence (0.5 put block over 1.05 on 6 of 30 frames of
+                                  ///< the built-in 2D pair, 0.6 on 4)
     FlowAlignment alignment = FlowAlignment::None; ///< see FlowAlignment
     bool resampleSource = true;   ///< beyond the paper: a source at a non-integer ratio is resampled trilinearly to
                                   ///< the nearest integer ratio; false = such a source is an error
@@ -156,6 +167,7 @@ struct TransferStats
     int trackedPatches = 0;        ///< patches whose global patch followed the previous frame
     int continuations = 0;         ///< patches with a continuation in the source's flow this frame
     int followedPatches = 0;       ///< patches that took it (followSourceFlow, followTolerance)
+    int regeneratedPatches = 0;    ///< patches whose stretched carried detail was regenerated (regenerate)
     double meanLocalEnergy = 0.0;  ///< mean E_h of the chosen local patches
     double energyScale = 1.0;      ///< factor applied to U_h to meet TransferSettings::detailEnergy
     double coarseKept = 0.0;       ///< fraction of U_h's coarse part left in (coarseTolerance): 0 = removed exactly,

@@ -200,10 +200,15 @@ struct PasteResult
 PasteResult pastePatches(const LocalSearchResult& local, const SourceBands& src, const FrameSetup& fs);
 
 /// Beyond eq. 2's beta term: mixes last frame's advected detail into the patches it reaches, lambda^gap where the
-/// patch carried detail, and as much as flowed in where smoke just arrived. Returns the per-patch weights (empty
-/// without carried detail).
-std::vector<float> blendTemporal(VectorField& detail, const VectorField& advectedDetail, const LocalSearchResult& local,
-    const PatchTracks& tracks, const FrameSetup& fs);
+/// patch carried detail (regenerateBlend^gap where the flow has stretched it: TransferSettings::regenerate), and as
+/// much as flowed in where smoke just arrived.
+struct TemporalBlend
+{
+    std::vector<float> weight; ///< per layout patch; empty without carried detail
+    int regenerated = 0;       ///< patches that took the regeneration weight
+};
+TemporalBlend blendTemporal(VectorField& detail, const TargetAtOutput& t, const VectorField& advectedDetail,
+    const LocalSearchResult& local, const PatchTracks& tracks, const FrameSetup& fs);
 
 /// What the seam stage is given besides the detail.
 struct SeamInputs

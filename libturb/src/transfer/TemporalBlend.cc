@@ -1,5 +1,6 @@
 // The temporal terms: U_h(i-1) advected through the target (eq. 2's U^_h), and, beyond the paper, the blend that
-// carries it into the patches it reaches so the turbulence moves with the flow instead of being re-pasted.
+// carries it into the patches it reaches so the turbulence moves with the flow instead of being re-pasted, and
+// regenerates it from the fresh patches where the flow has stretched it.
 #include "Stages.h"
 
 #include <turb/Advect.h>
@@ -21,41 +22,145 @@ VectorField advectPreviousDetail(const CarriedState& c, const FrameSetup& fs)
     return cropped(advect(c.prevDetail, c.prevTargetVelocity, fs.elapsed, a), fs.fineBox);
 }
 
-std::vector<float> blendTemporal(VectorField& detail, const VectorField& advected, const LocalSearchResult& local,
-    const PatchTracks& tracks, const FrameSetup& fs)
+namespace {
+
+/// Gradient energy of H along d and the mean across d (one direction across in 2D), summed over `box` less one
+/// voxel at its faces (central differences): the parts of `measure`'s anisotropy, for one patch.
+struct StructureSums
 {
+    double along = 0.0, across = 0.0;
+    double ratio() const { return across > 0.0 ? along / across : 1.0; }
+};
+
+StructureSums structureSums(const VectorField& H, const CoordBBox& box, const Vec3d& d, const FrameSetup& fs)
+{
+    const int axes = fs.flat ? 2 : 3;
+    CoordBBox in = box;
+    for (int a = 0; a < axes; ++a) {
+        in.min()[a] += 1;
+        in.max()[a] -= 1;
+    }
+    double along = 0.0, all = 0.0;
+    for (auto it = in.begin(); it; ++it) {
+        Vec3d g[3] = {Vec3d(0.0), Vec3d(0.0), Vec3d(0.0)}; // g[a] = dH/dx_a
+        for (int a = 0; a < axes; ++a) {
+            Coord lo = *it, hi = *it;
+            lo[a] -= 1;
+            hi[a] += 1;
+            g[a] = 0.5 * (Vec3d(H[hi]) - Vec3d(H[lo]));
+        }
+        along += (g[0] * d.x() + g[1] * d.y() + g[2] * d.z()).lengthSqr();
+        all += g[0].lengthSqr() + g[1].lengthSqr() + g[2].lengthSqr();
+    }
+    return {along, (all - along) / double(axes - 1)};
+}
+
+/// The target's mean flow direction over a patch (up(u_t)); zero where it is at rest.
+Vec3d patchFlow(const VectorField& Ut, const CoordBBox& pb)
+{
+    Vec3d d(0.0);
+    for (auto it = pb.begin(); it; ++it) d += Vec3d(Ut[*it]);
+    return d.lengthSqr() > 0.0 ? d.unit() : Vec3d(0.0);
+}
+
+} // namespace
+
+TemporalBlend blendTemporal(VectorField& detail, const TargetAtOutput& t, const VectorField& advected,
+    const LocalSearchResult& local, const PatchTracks& tracks, const FrameSetup& fs)
+{
+    const TransferSettings& s = *fs.s;
+    TemporalBlend out;
     // The blend's memory is in frames: over a gap of k frames the carried detail keeps lambda^k.
-    const float lambda = advected.empty() ? 0.0f : float(std::pow(double(fs.s->temporalBlend), fs.frameGap));
-    if (!(lambda > 0.0f)) return {};
+    const float lambda = advected.empty() ? 0.0f : float(std::pow(double(s.temporalBlend), fs.frameGap));
+    if (!(lambda > 0.0f)) return out;
     const PatchLayout& L = fs.layout;
-    // Per-patch weights: lambda where the patch carried detail last frame; where smoke has just arrived, only as
-    // much as the detail advected into it (its rms against the pasted detail's), so detail that flowed in keeps
-    // moving instead of being replaced.
-    std::vector<float> weight(L.patchCount(), 0.0f);
-    parallelFor(local.activeList.size(), 16, [&](size_t b, size_t e) {
+    const std::vector<size_t>& act = local.activeList;
+    const auto boxOf = [&](size_t p) {
+        CoordBBox pb = L.patchBox(L.patchCoord(p));
+        pb.intersect(fs.fineBox);
+        return pb;
+    };
+
+    // Regeneration: carried detail that the flow has stretched (its structure ratio along/across the local flow
+    // below `regenerate` times the fresh detail's) is replaced faster. The fresh reference is the smaller of the
+    // patch's own pasted detail and all pasted detail pooled: where the source's patches are themselves streaky
+    // (a young source's jets), regenerating would only trade one streak for another.
+    std::vector<StructureSums> fresh(act.size()), carried(act.size());
+    std::vector<Vec3d> flow(act.size(), Vec3d(0.0));
+    double pooled = 1.0;
+    if (s.regenerate > 0.0f) {
+        parallelFor(act.size(), 16, [&](size_t b, size_t e) {
+            for (size_t i = b; i < e; ++i) {
+                if (!tracks.tracked[act[i]]) continue;
+                const CoordBBox pb = boxOf(act[i]);
+                flow[i] = patchFlow(t.Ut, pb);
+                if (flow[i].lengthSqr() == 0.0) continue;
+                fresh[i] = structureSums(detail, pb, flow[i], fs);
+                carried[i] = structureSums(advected, pb, flow[i], fs);
+            }
+        });
+        StructureSums all; // summed in patch order: the same at any thread count
+        for (const StructureSums& f : fresh) all.along += f.along, all.across += f.across;
+        pooled = all.ratio();
+    }
+    const float blendOfRegenerated = fs.flat ? s.regenerateBlend2D : s.regenerateBlend;
+    const float regenerated = float(std::pow(double(std::min(blendOfRegenerated, s.temporalBlend)), fs.frameGap));
+
+    // Per-patch weights: lambda where the patch carried detail last frame (or the regeneration weight); where
+    // smoke has just arrived, only as much as the detail advected into it (its rms against the pasted detail's),
+    // so detail that flowed in keeps moving instead of being replaced.
+    out.weight.assign(L.patchCount(), 0.0f);
+    std::vector<uint8_t> regen(act.size(), 0);
+    parallelFor(act.size(), 16, [&](size_t b, size_t e) {
         for (size_t i = b; i < e; ++i) {
-            const size_t p = local.activeList[i];
+            const size_t p = act[i];
             if (tracks.tracked[p]) {
-                weight[p] = lambda;
+                const bool stretched = s.regenerate > 0.0f && flow[i].lengthSqr() > 0.0 &&
+                                       carried[i].ratio() < double(s.regenerate) * std::min(pooled, fresh[i].ratio());
+                regen[i] = stretched;
+                out.weight[p] = stretched ? regenerated : lambda;
                 continue;
             }
-            CoordBBox pb = L.patchBox(L.patchCoord(p));
-            pb.intersect(fs.fineBox);
             double ea = 0.0, ep = 0.0;
+            const CoordBBox pb = boxOf(p);
             for (auto it = pb.begin(); it; ++it) {
                 ea += double(advected[*it].lengthSqr());
                 ep += double(detail[*it].lengthSqr());
             }
-            weight[p] = ep > 0.0 ? float(lambda * std::min(1.0, std::sqrt(ea / ep))) : lambda;
+            out.weight[p] = ep > 0.0 ? float(lambda * std::min(1.0, std::sqrt(ea / ep))) : lambda;
+        }
+    });
+    out.regenerated = int(std::count(regen.begin(), regen.end(), uint8_t(1)));
+    // A regenerated patch mixes two nearly unrelated fields at comparable weights, and such a mix has less energy
+    // than either (0.5 of it at weight 0.5); the frame's one energy factor would then lift every other patch to
+    // make up for it (hf 1.27 against 1.25 without this on the analytic pair's second frame). The patch keeps the
+    // energy its two parts had, interpolated by the weight.
+    std::vector<uint8_t> done(L.patchCount(), 0);
+    parallelFor(act.size(), 16, [&](size_t b, size_t e) {
+        for (size_t i = b; i < e; ++i) {
+            if (!regen[i]) continue;
+            const size_t p = act[i];
+            const float w = out.weight[p];
+            const CoordBBox pb = boxOf(p);
+            double ef = 0.0, ea = 0.0, em = 0.0;
+            for (auto it = pb.begin(); it; ++it) {
+                ef += double(detail[*it].lengthSqr());
+                ea += double(advected[*it].lengthSqr());
+                em += double((detail[*it] * (1.0f - w) + advected[*it] * w).lengthSqr());
+            }
+            const float k = em > 0.0 ? float(std::sqrt(((1.0 - w) * ef + w * ea) / em)) : 1.0f;
+            for (auto it = pb.begin(); it; ++it) detail[*it] = (detail[*it] * (1.0f - w) + advected[*it] * w) * k;
+            done[p] = 1;
         }
     });
     parallelFor(detail.size(), 1 << 14, [&](size_t b, size_t e) {
         for (size_t n = b; n < e; ++n) {
-            const float w = weight[L.patchIndex(L.patchOf(detail.coordOf(n)))];
-            if (w > 0.0f) detail.data()[n] = detail.data()[n] * (1.0f - w) + advected.data()[n] * w;
+            const size_t p = L.patchIndex(L.patchOf(detail.coordOf(n)));
+            const float w = out.weight[p];
+            if (w > 0.0f && !done[p]) detail.data()[n] = detail.data()[n] * (1.0f - w) + advected.data()[n] * w;
         }
     });
-    return weight;
+    return out;
 }
 
 } // namespace turb::detail

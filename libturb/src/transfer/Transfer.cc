@@ -151,6 +151,8 @@ std::vector<std::pair<std::string, std::string>> outputSettings(const TransferSe
         {"follow-source", flag(s.followSourceFlow)}, {"source-smoke", num(s.sourceSmoke)},
         {"follow-tolerance", num(s.followTolerance)}, {"coherence", num(s.coherence)},
         {"coherence-sweeps", num(s.coherenceSweeps)}, {"temporal-blend", num(s.temporalBlend)},
+        {"regenerate", num(s.regenerate)}, {"regenerate-blend", num(s.regenerateBlend)},
+        {"regenerate-blend-2d", num(s.regenerateBlend2D)},
         {"align", align[int(s.alignment)]}, {"resample-source", flag(s.resampleSource)},
         {"seams", flag(s.seams.enabled)}, {"band", num(s.seams.bandWidth)}, {"boundary-patch", num(s.seams.boundaryPatch)},
         {"gamma", num(s.seams.gamma)}, {"em-iterations", num(s.seams.maxEmIterations)},
@@ -223,6 +225,9 @@ TurbulenceTransfer::TurbulenceTransfer(const TransferSettings& settings) : mImpl
     if (s.densityMode == DensityMode::LookBack && s.lookBackFrames < 1)
         throw ValueError("look-back needs at least one frame");
     if (!(s.temporalBlend >= 0.0f && s.temporalBlend <= 0.999f)) throw ValueError("temporal blend must lie in [0, 0.999]");
+    if (!(s.regenerate >= 0.0f && s.regenerate <= 1.0f)) throw ValueError("regenerate must lie in [0, 1]");
+    if (!(s.regenerateBlend >= 0.0f && s.regenerateBlend <= 0.999f && s.regenerateBlend2D >= 0.0f && s.regenerateBlend2D <= 0.999f))
+        throw ValueError("regenerate blend must lie in [0, 0.999]");
     if (!(s.coarseTolerance >= 0.0f)) throw ValueError("coarse tolerance must be >= 0");
     if (!(s.seams.boxKeep >= 0.0f && s.seams.boxKeep <= 1.0f)) throw ValueError("box keep must lie in [0, 1]");
     if (!(s.followTolerance >= 0.0f)) throw ValueError("follow tolerance must be >= 0");
@@ -348,10 +353,11 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
 
         // Beyond the paper: last frame's detail carried into the patches it reaches; then 3.3's seam smoothing.
         if (progress) progress->begin("seams");
-        const std::vector<float> blendWeight = blendTemporal(detail, advectedDetail, local, tracks, fs);
+        TemporalBlend blend = blendTemporal(detail, t, advectedDetail, local, tracks, fs);
+        st.regeneratedPatches = blend.regenerated;
         const double scaleEstimate = reduceCoarsePartBeforeSeams(detail, t, target, smoke, referenceEnergy, fs);
         st.seams = smoothPatchSeams(detail,
-            SeamInputs{t, bands, active, pasted.offsets, advectedDetail, blendWeight, scaleEstimate}, fs, progress);
+            SeamInputs{t, bands, active, pasted.offsets, advectedDetail, blend.weight, scaleEstimate}, fs, progress);
         time.seams = lap(t0);
         carried.tracks.clear();
         for (size_t p = 0; p < active.size(); ++p)
