@@ -258,43 +258,32 @@ cfg_sim128() {
     timed sim128 "$VDBTURB" sim plume $THREAD_ARGS --res 128x128x192 --frames "$n" --seed 1 --out "$d/plume.####.vdb" --json
 }
 
-cfg_paper3d() {
+# A transfer between two built-in scenes: plume at TRES (target) and swirl at SRES (source), seed 1, simulated once
+# by untimed preparation steps and reused; the timed command is the transfer into WORK/NAME_out.
+transfer_sim_pair() {
+    name=$1; tres=$2; sres=$3
     need_command sim --res --frames --seed --out && need_command transfer --target --source --out --json || return 1
     n=$(frames_or 30)
-    t="$WORK/plume_16x16x24_s1_f$n"
-    s="$WORK/swirl_128x128x192_s1_f$n"
+    t="$WORK/plume_${tres}_s1_f$n"
+    s="$WORK/swirl_${sres}_s1_f$n"
     last=$(printf '%04d' "$n")
     # shellcheck disable=SC2086
-    prepare "target: sim plume 16x16x24" "$t/plume.$last.vdb" \
-        "$VDBTURB" sim plume $THREAD_ARGS --res 16x16x24 --frames "$n" --seed 1 --out "$t/plume.####.vdb" -q || return 1
+    prepare "target: sim plume $tres" "$t/plume.$last.vdb" \
+        "$VDBTURB" sim plume $THREAD_ARGS --res "$tres" --frames "$n" --seed 1 --out "$t/plume.####.vdb" -q || return 1
     # shellcheck disable=SC2086
-    prepare "source: sim swirl 128x128x192" "$s/swirl.$last.vdb" \
-        "$VDBTURB" sim swirl $THREAD_ARGS --res 128x128x192 --frames "$n" --seed 1 --out "$s/swirl.####.vdb" -q || return 1
-    rm -rf "$WORK/paper3d_out"
+    prepare "source: sim swirl $sres" "$s/swirl.$last.vdb" \
+        "$VDBTURB" sim swirl $THREAD_ARGS --res "$sres" --frames "$n" --seed 1 --out "$s/swirl.####.vdb" -q || return 1
+    rm -rf "$WORK/${name}_out"
     # shellcheck disable=SC2086
-    timed paper3d "$VDBTURB" transfer $THREAD_ARGS --target "$t/plume.####.vdb" --source "$s/swirl.####.vdb" \
-        --out "$WORK/paper3d_out/up.####.vdb" --json
+    timed "$name" "$VDBTURB" transfer $THREAD_ARGS --target "$t/plume.####.vdb" --source "$s/swirl.####.vdb" \
+        --out "$WORK/${name}_out/up.####.vdb" --json
 }
+
+cfg_paper3d() { transfer_sim_pair paper3d 16x16x24 128x128x192; }
 
 # transfer2d: the paper's 2D configuration (seed 002: 24x32 target, 192x256 source, 0.7 s/frame) on the built-in
 # scenes simulated in 2D (issue 14).
-cfg_transfer2d() {
-    need_command sim --res --frames --seed --out && need_command transfer --target --source --out --json || return 1
-    n=$(frames_or 30)
-    t="$WORK/plume_24x32x1_s1_f$n"
-    s="$WORK/swirl_192x256x1_s1_f$n"
-    last=$(printf '%04d' "$n")
-    # shellcheck disable=SC2086
-    prepare "target: sim plume 24x32x1" "$t/plume.$last.vdb" \
-        "$VDBTURB" sim plume $THREAD_ARGS --res 24x32x1 --frames "$n" --seed 1 --out "$t/plume.####.vdb" -q || return 1
-    # shellcheck disable=SC2086
-    prepare "source: sim swirl 192x256x1" "$s/swirl.$last.vdb" \
-        "$VDBTURB" sim swirl $THREAD_ARGS --res 192x256x1 --frames "$n" --seed 1 --out "$s/swirl.####.vdb" -q || return 1
-    rm -rf "$WORK/transfer2d_out"
-    # shellcheck disable=SC2086
-    timed transfer2d "$VDBTURB" transfer $THREAD_ARGS --target "$t/plume.####.vdb" --source "$s/swirl.####.vdb" \
-        --out "$WORK/transfer2d_out/up.####.vdb" --json
-}
+cfg_transfer2d() { transfer_sim_pair transfer2d 24x32x1 192x256x1; }
 
 cfg_plume4x() {
     need_command transfer --target --source --out --frames --json && need_data blender-plume-32 blender-plume-128 || return 1
