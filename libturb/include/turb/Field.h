@@ -192,31 +192,29 @@ inline CoordBBox coarsenDomain(const CoordBBox& fine, int factor)
     return b;
 }
 
-/// The lattice of refineDomain(box, factor): lattice.refined(factor), except that for a flat box its z origin puts
-/// the one layer at the coarse layer's world height (synth's 2D convention, FineDomain).
-inline Lattice refinedLattice(const Lattice& coarse, const CoordBBox& box, int factor)
+/// `l` (a refinement or coarsening of `from`) with its z origin moved, for a flat (2D) box, so that the box's one
+/// layer keeps its index and its world height (synth's 2D convention, FineDomain); other boxes keep `l`.
+inline Lattice keepFlatLayer(Lattice l, const Lattice& from, const CoordBBox& box)
 {
-    Lattice l = coarse.refined(factor);
     if (isFlat(box)) {
         const int k0 = box.min().z();
         Vec3d o = l.origin;
-        o[2] = coarse.origin.z() + k0 * coarse.voxelSize - k0 * l.voxelSize;
+        o[2] = from.origin.z() + k0 * from.voxelSize - k0 * l.voxelSize;
         l.origin = o;
     }
     return l;
 }
 
+/// The lattice of refineDomain(box, factor): lattice.refined(factor), its flat layer kept (keepFlatLayer).
+inline Lattice refinedLattice(const Lattice& coarse, const CoordBBox& box, int factor)
+{
+    return keepFlatLayer(coarse.refined(factor), coarse, box);
+}
+
 /// The lattice of coarsenDomain(box, factor); the inverse of refinedLattice.
 inline Lattice coarsenedLattice(const Lattice& fine, const CoordBBox& box, int factor)
 {
-    Lattice l = fine.coarsened(factor);
-    if (isFlat(box)) {
-        const int k0 = box.min().z();
-        Vec3d o = l.origin;
-        o[2] = fine.origin.z() + k0 * fine.voxelSize - k0 * l.voxelSize;
-        l.origin = o;
-    }
-    return l;
+    return keepFlatLayer(fine.coarsened(factor), fine, box);
 }
 
 } // namespace turb
