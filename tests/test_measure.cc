@@ -735,3 +735,41 @@ TEST(MeasureStructure, IsotropyIsHighForNoiseAndLowForStreaksAlongAnyAxis)
     // Tiles need half their voxels in the mask.
     EXPECT_FALSE(detailIsotropy(iso, std::vector<unsigned char>(all.size(), 0), 4));
 }
+
+// ---------------------------------------------------------------------------------------------
+// air_detail: detail that leaks into still air
+
+TEST(Measure, AirDetailSeesDetailFarFromTheSmokeOnly)
+{
+    // Smoke in a slab x <= 3 of a 16-cell-wide box: coarse cells with x >= 8 are more than kAirCells away.
+    const Lattice lat{0.5, {0.0, 0.0, 0.0}};
+    const CoordBBox box({0, 0, 0}, {15, 5, 5});
+    const Frame target = makeFrame(1, box, lat, smoothFlow, [](const Coord& c) { return c.x() <= 3 ? 1.0f : 0.0f; });
+    const int f = 2;
+    const auto g = noiseDetail(1.0f, 5);
+    MeasureInput in;
+    in.target = &target;
+    // The same detail everywhere: the ratio of two rms of one noise, near 1.
+    const Frame everywhere = upFrame(target, f, g);
+    in.output = &everywhere;
+    const FrameMeasures a = measureFrame(in);
+    ASSERT_TRUE(a.airDetail);
+    EXPECT_NEAR(*a.airDetail, 1.0, 0.05);
+    // Detail only within 4 coarse cells of the smoke: none in still air.
+    const Frame nearSmoke = upFrame(target, f, [&](const Coord& c) { return c.x() / f <= 7 ? g(c) : Vec3f(0.0f); });
+    in.output = &nearSmoke;
+    const FrameMeasures b = measureFrame(in);
+    ASSERT_TRUE(b.airDetail);
+    EXPECT_EQ(*b.airDetail, 0.0);
+    // Half the amplitude in air: exactly 0.5 on the same noise pattern.
+    const Frame half = upFrame(target, f, [&](const Coord& c) { return c.x() / f >= 8 ? g(c) * 0.5f : g(c); });
+    in.output = &half;
+    const FrameMeasures c = measureFrame(in);
+    ASSERT_TRUE(c.airDetail);
+    EXPECT_NEAR(*c.airDetail, 0.5 * *a.airDetail, 1e-6);
+    // No still air (smoke everywhere): no figure, and a note.
+    const Frame full = makeFrame(1, box, lat, smoothFlow, kAll);
+    in.target = &full;
+    in.output = &everywhere;
+    EXPECT_FALSE(measureFrame(in).airDetail);
+}

@@ -2,6 +2,7 @@
 #include "TestUtil.h"
 
 #include <turb/Error.h>
+#include <turb/Metadata.h>
 #include <turbio/Vdb.h>
 
 #include <openvdb/openvdb.h>
@@ -281,6 +282,44 @@ TEST(RoundTrip, BlenderStyleGivesBackTheCentredVelocityWithItsFinestDetail)
         // Faces are up to about twice the centred values; a half float keeps 11 significant bits.
         EXPECT_LT(worst, (half ? 4.0 * 2.0 * peak / 2048.0 : 1e-5 * peak)) << (half ? "half" : "float");
     }
+}
+
+TEST(RoundTrip, BlenderStyleUpResSitsWhereBlendersOwnCacheOfTheDomainDoes)
+{
+    // Issue 20, item 5: a 4x up-res of Blender's 32^3 domain (voxel 0.125, translation 0) written Blender-style has
+    // translation 0, as Blender's own 128^3 cache of the domain has, not the refined lattice's -0.046875. vdbturb
+    // reads it back on the lattice it was written from (info and readFrame alike).
+    testutil::TempDir dir;
+    const turb::Lattice fine{0.03125, {-0.046875, -0.046875, -0.046875}};
+    const turb::CoordBBox box({0, 0, 0}, {7, 5, 9});
+    turb::Frame f;
+    f.number = 1;
+    f.dt = 1.0 / 24.0;
+    f.velocity = turb::VectorField(box, fine, turb::Vec3f(0.5f, -0.25f, 1.0f));
+    f.density = turb::ScalarField(box, fine, 1.0f);
+    f.metadata[turb::meta::kRatio] = "4";
+    WriteOptions w;
+    w.style = WriteStyle::Blender;
+    const std::string path = dir / "b.vdb";
+    writeFrame(path, f, w);
+    openvdb::initialize();
+    openvdb::io::File file(path);
+    file.open();
+    const openvdb::GridPtrVecPtr headers = file.readAllGridMetadata();
+    for (const auto& g : *headers)
+        EXPECT_LT(g->transform().indexToWorld(openvdb::Vec3d(0.0)).length(), 1e-12) << g->getName();
+    file.close();
+    ReadOptions r;
+    r.dt = f.dt;
+    const turb::Frame g = readFrame(path, 1, r);
+    EXPECT_TRUE(g.lattice().approxEqual(fine)) << g.lattice().origin;
+    EXPECT_EQ(g.metadata.count(turb::meta::kBlenderOffset), 0u);
+    const FileInfo info = inspectFile(path, false);
+    for (const GridInfo& gi : info.grids) EXPECT_NEAR(gi.origin.x(), -0.046875, 1e-12) << gi.name;
+    // Without a recorded ratio (a frame on its own lattice, e.g. sim --style blender) nothing moves.
+    f.metadata.erase(turb::meta::kRatio);
+    writeFrame(dir / "s.vdb", f, w);
+    EXPECT_TRUE(readFrame(dir / "s.vdb", 1, r).lattice().approxEqual(fine));
 }
 
 TEST(RoundTrip, HalfFloatAndDoubleInputsAreRead)

@@ -9,6 +9,7 @@
 #include <turb/Reorient.h>
 #include <turbio/Sequence.h>
 
+#include <cstdlib>
 #include <memory>
 
 namespace vdbturb {
@@ -60,6 +61,12 @@ int runResample(ResampleArgs& a)
         turb::Frame frame = turbio::readFrame(seq.path(f), f, a.read);
         if (a.down > 1) frame = turb::downsampleFrame(frame, a.down);
         if (!rot.isIdentity()) frame = turb::reorientFrame(frame, rot);
+        // An up-res's ratio to its target places it Blender's way in --style blender; keep it true or drop it.
+        if (const auto r = frame.metadata.find(turb::meta::kRatio); r != frame.metadata.end()) {
+            const int f = std::atoi(r->second.c_str());
+            if (rot.isIdentity() && f > 0 && f % a.down == 0) r->second = std::to_string(f / a.down);
+            else frame.metadata.erase(r);
+        }
         frame.metadata[turb::meta::kCommand] = "resample";
         const std::string path = outPattern.format(f);
         turbio::ensureParentDirectory(path);

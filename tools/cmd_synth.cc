@@ -47,6 +47,7 @@ struct SynthArgs
     std::string walls, obstacle;
     std::string omegaMode = "constant";
     bool omegaAbsolute = false, project = false, noDensity = false, json = false, stats = false;
+    bool detailEverywhere = false; ///< the paper: omega over the whole box, still air included
     bool strict = false; ///< a projection that does not converge fails the run (exit 1) after the last frame
     int projectIterations = 2000; ///< conjugate-gradient cap of --project
     int lookback = 12;
@@ -367,6 +368,7 @@ int runSynth(SynthArgs& a)
         if (p.size() != 3 || !parseNumber(p[0], v[0]) || !parseNumber(p[1], v[1]) || !parseNumber(p[2], v[2]))
             throw turb::ValueError("--secondary: 'density' or a vector X,Y,Z");
         s.orientation.densitySecondary = false;
+        s.orientation.autoSecondary = false;
         s.orientation.secondary = turb::Vec3d(v[0], v[1], v[2]);
     }
     // "SMALL" or "LARGE,SMALL" (the two neighbourhood passes per level).
@@ -573,7 +575,19 @@ int runSynth(SynthArgs& a)
         lap(1);
 
         progress.begin("combine");
-        turb::VectorField F = turb::combineMotion(cf.velocity, H.world, a.combine);
+        // Detail near the smoke only (issue 20): the smoke on L's box, zero where the density grid stops short.
+        turb::CombineSettings combine = a.combine;
+        turb::ScalarField smoke;
+        if (!a.detailEverywhere && cf.hasDensity()) {
+            smoke = turb::ScalarField(cf.velocity.bbox(), cf.velocity.lattice(), 0.0f);
+            turb::CoordBBox both = cf.velocity.bbox();
+            both.intersect(cf.density.bbox());
+            for (int x = both.min().x(); x <= both.max().x(); ++x)
+                for (int y = both.min().y(); y <= both.max().y(); ++y)
+                    for (int z = both.min().z(); z <= both.max().z(); ++z) smoke(x, y, z) = cf.density(x, y, z);
+            combine.smoke = &smoke;
+        }
+        turb::VectorField F = turb::combineMotion(cf.velocity, H.world, combine);
         nlohmann::json projJson;
         if (a.project) {
             progress.begin("projection");
@@ -641,6 +655,7 @@ int runSynth(SynthArgs& a)
         outFrame.metadata[turb::meta::kExemplars] = names;
         outFrame.metadata[turb::meta::kOmega] = fmt("%g", a.combine.omega) + (a.combine.relative ? " x rms|L|" : "") + " " + a.omegaMode;
         outFrame.metadata[turb::meta::kSeed] = std::to_string(s.seed);
+        outFrame.metadata[turb::meta::kRatio] = std::to_string(a.factor); // Blender-style placement (io.md)
         progress.begin("writing");
         const std::string outPath = outPattern.format(fr);
         turbio::ensureParentDirectory(outPath);
@@ -659,6 +674,7 @@ int runSynth(SynthArgs& a)
         double h2 = 0.0;
         for (const auto& v : H.world.values()) h2 += v.lengthSqr();
         extra["detail_rms"] = std::sqrt(h2 / double(std::max<size_t>(1, H.world.size())));
+        extra["detail_region"] = combine.smoke ? "smoke" : "everywhere";
         if (a.project) extra["projection"] = projJson;
         if (densityMass >= 0.0) extra["density_mass"] = densityMass;
         extra["steps_s"] = {{"read", seconds[0]}, {"synthesis", seconds[1]}, {"combine", seconds[2]}, {"density", seconds[3]},
@@ -790,7 +806,7 @@ Command synthCommand()
             ->check(CLI::Range(0.01, 2.0));
         app->add_flag("--no-variance-match", a.noVarianceMatch, "3D: plain average of the views (paper) instead of matching their spread");
         app->add_flag("--no-orient", a.noOrient, "Do not follow L: neighbourhoods and vectors in world axes");
-        app->add_option("--secondary", a.secondary, "3D second local axis: density (gradient; default) or a vector X,Y,Z");
+        app->add_option("--secondary", a.secondary, "3D second local axis: density (its gradient, else the direction the coarse flow has least of; default) or a fixed vector X,Y,Z");
         app->add_option("--seed", s.seed, "Random seed: the same seed gives the same output (default 1)");
         app->add_option("--continue-iterations", s.continueIterations, "Later frames: iterations from the advected detail (default 3)")
             ->check(CLI::Range(1, 100));
@@ -806,6 +822,18 @@ Command synthCommand()
             ->check(CLI::NonNegativeNumber);
         app->add_flag_function("--keep-coarse", [args](int64_t) { args->combine.removeCoarsePart = false; },
             "Keep the detail's coarse part (the paper's F = up(L) + omega H'); default: taken out, so the coarse motion stays L's");
+        app->add_option("--face-padding", s.facePadding,
+               "Coarse cells synthesised beyond each box face that is not a wall and then cut off, so faces show no seams "
+               "(default 2; 0 = the box alone, the paper)")
+            ->check(CLI::Range(0, 16));
+        app->add_option("--detail-margin", a.combine.smokeMargin,
+               "Coarse cells of full detail around the smoke (default 2); the detail then fades out over --detail-falloff")
+            ->check(CLI::NonNegativeNumber);
+        app->add_option("--detail-falloff", a.combine.smokeFalloff,
+               "Coarse cells over which the detail fades to zero beyond --detail-margin (default 2)")
+            ->check(CLI::PositiveNumber);
+        app->add_flag("--detail-everywhere", a.detailEverywhere,
+               "Detail over the whole box, still air included (the paper); default: near the smoke only, when L has density");
         app->add_flag("--omega-absolute", a.omegaAbsolute, "--omega is in velocity units (H' has unit rms)");
         app->add_option("--omega-mode", a.omegaMode, "Shape of omega: constant (default), energy (|L|^2), vorticity (|curl L|)")
             ->check(CLI::IsMember({"constant", "energy", "vorticity"}));

@@ -333,6 +333,18 @@ bool isBlenderVelocity(const openvdb::GridBase& g)
     return g.getName() == "velocity" && g.getGridClass() == openvdb::GRID_STAGGERED && baseResolution(g).has_value();
 }
 
+/// kBlenderOffset of a file written in Blender's style by vdbturb, or zero.
+openvdb::Vec3d blenderOffset(const openvdb::MetaMap& meta)
+{
+    openvdb::Vec3d o(0.0);
+    if (auto m = meta.getMetadata<openvdb::StringMetadata>(turb::meta::kBlenderOffset)) {
+        std::istringstream in(m->value());
+        in >> o[0] >> o[1] >> o[2];
+        if (!in) o = openvdb::Vec3d(0.0);
+    }
+    return o;
+}
+
 openvdb::FloatGrid::Ptr asFloatGrid(const std::string& path, const openvdb::GridBase::Ptr& g, const char* role)
 {
     if (auto fg = openvdb::gridPtrCast<openvdb::FloatGrid>(g)) return fg;
@@ -1040,6 +1052,10 @@ static turb::Frame readFrameUnchecked(const std::string& path, int frameNumber, 
             readRoles(file, order, out, meta, path, options);
         });
 
+    // A Blender-style file places index 0 where Blender does; the frame keeps the lattice it was written from.
+    const openvdb::Vec3d offset = blenderOffset(*r.meta);
+    if (offset != openvdb::Vec3d(0.0))
+        for (const auto& grid : r.grids) grid->transform().postTranslate(-offset);
     RoleGrids g;
     for (const auto& grid : r.grids) {
         const std::string role = roleOf(*grid);
@@ -1170,7 +1186,8 @@ static turb::Frame readFrameUnchecked(const std::string& path, int frameNumber, 
 
     // File-level string metadata (vdbturb parameters, creator) travels with the frame.
     for (auto it = r.meta->beginMeta(); it != r.meta->endMeta(); ++it)
-        if (it->second && it->second->typeName() == openvdb::StringMetadata::staticTypeName() && it->first.rfind("__turb", 0) != 0)
+        if (it->second && it->second->typeName() == openvdb::StringMetadata::staticTypeName() && it->first.rfind("__turb", 0) != 0 &&
+            it->first != turb::meta::kBlenderOffset)
             frame.metadata[it->first] = it->second->str();
 
     // Time per frame and the units: explicit option > recorded by vdbturb > the writer's convention.
@@ -1581,8 +1598,24 @@ void writeFrame(const std::string& path, const turb::Frame& frame, const WriteOp
     openvdb::MetaMap meta;
     meta.insertMeta("creator", openvdb::StringMetadata("vdbturb " VDBTURB_VERSION_STRING));
     for (const auto& kv : frame.metadata) {
-        if (kv.first == "creator") continue;
+        if (kv.first == "creator" || kv.first == turb::meta::kBlenderOffset) continue;
         meta.insertMeta(kv.first, openvdb::StringMetadata(kv.second));
+    }
+    if (blender) {
+        // Blender puts index 0 of every resolution of a domain at one point (its own 32^3 and 128^3 caches both
+        // have translation 0), where a cell-centred refinement by f puts it (f - 1) / 2 fine voxels lower. An
+        // up-res written for Blender takes Blender's placement; the offset is recorded so readers take it off.
+        const auto ratio = frame.metadata.find(turb::meta::kRatio);
+        const int f = ratio == frame.metadata.end() ? 1 : std::atoi(ratio->second.c_str());
+        if (f > 1) {
+            const double shift = 0.5 * (f - 1) * lat.voxelSize;
+            const openvdb::Vec3d offset(shift, shift, frame.bbox().dim().z() == 1 ? 0.0 : shift);
+            for (auto& g : grids) g->transform().postTranslate(offset);
+            std::ostringstream os;
+            os.precision(17);
+            os << offset[0] << " " << offset[1] << " " << offset[2];
+            meta.insertMeta(turb::meta::kBlenderOffset, openvdb::StringMetadata(os.str()));
+        }
     }
     if (frame.dt > 0.0) {
         std::ostringstream os;
@@ -1692,6 +1725,7 @@ FileInfo inspectFile(const std::string& path, bool readValues)
         gi.role = roleOfName(names[i]);
         if (auto h = g->getMetadata<openvdb::BoolMetadata>(kHalfKey)) gi.halfFloat = h->value();
         gi.mapType = g->transform().mapType();
+        g->transform().postTranslate(-blenderOffset(*r.meta));
         gi.supportedTransform = uniformTransform(g->transform(), gi.voxelSize, gi.origin);
         if (!gi.supportedTransform) {
             gi.voxelSize = g->transform().voxelSize()[0];

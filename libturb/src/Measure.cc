@@ -1,6 +1,7 @@
 #include <turb/Metadata.h>
 #include <turb/Measure.h>
 
+#include <turb/Distance.h>
 #include <turb/Error.h>
 #include <turb/Operators.h>
 #include <turb/Parallel.h>
@@ -375,13 +376,46 @@ double coarseDensityError(const ScalarField& fine, const ScalarField& coarse, in
 }
 
 
+// air_detail: U_h's rms over coarse cells more than kAirCells from the smoke cells, over its rms in the smoke
+// cells, both where `covered` (the output's own box on the refined lattice) is 1. `uh` lies on the refined target lattice: fine voxel I in coarse cell floor(I / f) (a 2D target's one
+// layer keeps its index).
+static std::optional<double> airDetail(const VectorField& uh, const ScalarField& covered, const VectorField& coarse,
+    const Mask& coarseMask, int f)
+{
+    const CoordBBox cb = coarse.bbox();
+    ScalarField smoke(cb, coarse.lattice(), 0.0f);
+    for (size_t n = 0; n < smoke.size(); ++n) smoke.data()[n] = coarseMask[n] ? 1.0f : 0.0f;
+    const ScalarField dist = distanceToSmoke(smoke, 0.5f);
+    const bool flat = cb.dim().z() == 1;
+    const CoordBBox fb = uh.bbox();
+    const auto sums = slabSums<4>(fb, [&](int i, std::array<double, 4>& acc) {
+        for (int j = fb.min().y(); j <= fb.max().y(); ++j)
+            for (int k = fb.min().z(); k <= fb.max().z(); ++k) {
+                const Coord c(floorDiv(i, f), floorDiv(j, f), flat ? cb.min().z() : floorDiv(k, f));
+                if (!cb.isInside(c) || covered(i, j, k) < 0.5f) continue;
+                const float d = dist[c];
+                const double e = double(uh(i, j, k).lengthSqr());
+                if (d == 0.0f) {
+                    acc[0] += e;
+                    acc[1] += 1.0;
+                } else if (d > kAirCells) {
+                    acc[2] += e;
+                    acc[3] += 1.0;
+                }
+            }
+    });
+    if (!(sums[0] > 0.0) || sums[3] == 0.0) return std::nullopt;
+    return std::sqrt((sums[2] / sums[3]) / (sums[0] / sums[1]));
+}
+
 std::vector<std::pair<std::string, std::optional<double>>> FrameMeasures::scalars() const
 {
     return {{"lf_err", lfErr}, {"hf_ratio", hfRatio}, {"hf_energy", hfEnergy}, {"hf_energy_source", hfEnergySource},
         {"div_rel", divRel}, {"div_rel_source", divRelSource}, {"block", block}, {"tcoh", tcoh},
         {"tcoh_source", tcohSource}, {"mass_ratio", massRatio}, {"peak_density", peakDensity},
         {"peak_ratio", peakRatio}, {"density_err", densityErr}, {"aniso", aniso}, {"aniso_source", anisoSource},
-        {"aniso_ratio", anisoRatio}, {"isotropy", isotropy}, {"isotropy_source", isotropySource}};
+        {"aniso_ratio", anisoRatio}, {"isotropy", isotropy}, {"isotropy_source", isotropySource},
+        {"air_detail", airDetail}};
 }
 
 FrameMeasures measureFrame(const MeasureInput& in, const MeasureSettings& s, Progress* progress)
@@ -452,6 +486,13 @@ FrameMeasures measureFrame(const MeasureInput& in, const MeasureSettings& s, Pro
             else if (!(sums[1] > 0.0)) m.notes.push_back("lf_err: the target does not move");
             else m.lfErr = std::sqrt(sums[0] / sums[1]);
         }
+        if (m.smokeCells > 0) {
+            // Only where the output holds values: beyond the box it was read on, U_h would be -up(U_t).
+            const ScalarField covered = realign(ScalarField(O.velocity.bbox(), O.velocity.lattice(), 1.0f), a.refined,
+                a.box, a.alignment);
+            m.airDetail = airDetail(uh, covered, T.velocity, coarseMask, a.f);
+        }
+        if (m.smokeCells > 0 && !m.airDetail) m.notes.push_back("air_detail: no still air or no detail in the smoke");
         checkCancelled(progress);
 
         // Intrinsic numbers of the output on its own lattice: no alignment can blur them.

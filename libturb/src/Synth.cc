@@ -17,6 +17,9 @@
 #include <turb/Operators.h>
 #include <turb/Parallel.h>
 #include <turb/PatchIndex.h>
+#include <turb/Resample.h>
+
+#include <Eigen/Dense>
 
 #include <algorithm>
 #include <array>
@@ -265,6 +268,25 @@ void buildNeigh(Neigh& N, const PreparedView& pv, const Exemplar& ex, int radius
 // ---------------------------------------------------------------------------------------------
 // Output side
 
+/// The unit direction L has least of: the eigenvector of the smallest eigenvalue of sum L L^T, its sign chosen
+/// so that its largest component is positive (deterministic). `fallback` when L is zero everywhere.
+Vec3f leastPresentDirection(const VectorField& L, const Vec3f& fallback)
+{
+    Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
+    for (const Vec3f& v : L.values()) {
+        const Eigen::Vector3d e(v[0], v[1], v[2]);
+        M += e * e.transpose();
+    }
+    if (!(M.trace() > 0.0)) return fallback;
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(M);
+    Eigen::Vector3d d = es.eigenvectors().col(0); // eigenvalues ascending
+    int big = 0;
+    for (int a = 1; a < 3; ++a)
+        if (std::abs(d[a]) > std::abs(d[big]) + 1e-9) big = a;
+    if (d[big] < 0.0) d = -d;
+    return Vec3f(float(d[0]), float(d[1]), float(d[2]));
+}
+
 /// Local frames from the coarse flow (sections 3.1, 3.3).
 class FrameGuide
 {
@@ -277,6 +299,10 @@ public:
         if (mFallback.length() < 1e-6f) mFallback = Vec3f(1, 0, 0);
         mFallback.normalize();
         mSecondary = Vec3f(float(o.secondary.x()), float(o.secondary.y()), float(o.secondary.z()));
+        if (!mTwoD && o.autoSecondary) {
+            mNormal = leastPresentDirection(*mL, Vec3f(0, 0, 1));
+            mUseNormal = true;
+        }
         if (mSecondary.length() < 1e-6f) mSecondary = Vec3f(0, 1, 0);
         mSecondary.normalize();
         if (!mFollow) return;
@@ -330,8 +356,11 @@ public:
             f.e[2] = Vec3f(0, 0, 1);
             return f;
         }
-        Vec3f s = mSecondary;
-        if (mUseGrad) s = sampleWorld(mGrad, world) + mSecondary * 0.05f;
+        // With the direction n that L has least of, the secondary is n x e1: for a flow in a plane with normal n
+        // this is 2D's frame (e2 = z x e1), continuous wherever L does not point along n.
+        const Vec3f secondary = mUseNormal ? mNormal.cross(e1) : mSecondary;
+        Vec3f s = secondary;
+        if (mUseGrad) s = sampleWorld(mGrad, world) + secondary * 0.05f;
         Vec3f e2 = s - e1 * e1.dot(s);
         if (e2.length() < 1e-3f * std::max(1e-12f, s.length())) {
             // Degenerate: the axis least aligned with e1.
@@ -352,9 +381,9 @@ public:
 private:
     const VectorField* mL;
     VectorField mGrad;
-    bool mFollow, mTwoD, mUseGrad = false;
+    bool mFollow, mTwoD, mUseGrad = false, mUseNormal = false;
     float mEps = 0.0f;
-    Vec3f mFallback, mSecondary;
+    Vec3f mFallback, mSecondary, mNormal{0.0f, 0.0f, 1.0f};
 };
 
 /// One pyramid level of the output: geometry and the local-frame detail H.
@@ -1027,7 +1056,72 @@ FineDomain fineDomain(const CoordBBox& cb, const Lattice& coarseLattice, int fac
     return d;
 }
 
+namespace {
+
+/// `f` on `box` (a superset of its own), each voxel outside taking the value of the nearest face voxel.
+template<typename T>
+Field<T> extendedByFaces(const Field<T>& f, const CoordBBox& box)
+{
+    Field<T> out(box, f.lattice());
+    const CoordBBox& b = f.bbox();
+    parallelFor(size_t(box.dim().x()), 1, [&](size_t i0, size_t i1) {
+        for (size_t di = i0; di < i1; ++di) {
+            const int i = std::clamp(box.min().x() + int(di), b.min().x(), b.max().x());
+            for (int j = box.min().y(); j <= box.max().y(); ++j)
+                for (int k = box.min().z(); k <= box.max().z(); ++k)
+                    out(box.min().x() + int(di), j, k) =
+                        f(i, std::clamp(j, b.min().y(), b.max().y()), std::clamp(k, b.min().z(), b.max().z()));
+        }
+    });
+    return out;
+}
+
+DetailField synthesizeOnBox(const SynthExemplars& exemplars, const SynthInput& in, const SynthSettings& s, Progress* progress);
+
+} // namespace
+
 DetailField synthesizeDetail(const SynthExemplars& exemplars, const SynthInput& in, const SynthSettings& s, Progress* progress)
+{
+    if (s.facePadding < 0) throw ValueError("synth: face padding must be >= 0 cells");
+    if (!in.coarse || in.coarse->empty() || s.facePadding == 0) return synthesizeOnBox(exemplars, in, s, progress);
+    if (in.coarseDensity && !in.coarseDensity->empty() && in.coarseDensity->bbox() != in.coarse->bbox())
+        throw ValueError("synth: the coarse density and velocity must cover the same box");
+    const CoordBBox box = in.coarse->bbox();
+    const bool flat = box.dim().z() == 1; // as fineDomain: a 2D synthesis stays one layer
+    CoordBBox grown = box;
+    for (int a = 0; a < (flat ? 2 : 3); ++a) {
+        if (!(s.boundary.walls & (1u << (2 * a)))) grown.min()[a] -= s.facePadding;
+        if (!(s.boundary.walls & (1u << (2 * a + 1)))) grown.max()[a] += s.facePadding;
+    }
+    if (grown == box) return synthesizeOnBox(exemplars, in, s, progress);
+
+    const VectorField coarse = extendedByFaces(*in.coarse, grown);
+    ScalarField density;
+    SynthInput grownIn = in;
+    grownIn.coarse = &coarse;
+    if (in.coarseDensity && !in.coarseDensity->empty()) {
+        density = extendedByFaces(*in.coarseDensity, grown);
+        grownIn.coarseDensity = &density;
+    }
+    DetailField previous;
+    if (in.previous && !in.previous->padded.empty()) {
+        previous.world = in.previous->padded;
+        grownIn.previous = &previous;
+    }
+    DetailField d = synthesizeOnBox(exemplars, grownIn, s, progress);
+    const CoordBBox fine = fineDomain(*in.coarse, in.factor).box;
+    DetailField out;
+    out.world = cropped(d.world, fine);
+    out.local = cropped(d.local, fine);
+    out.levels = std::move(d.levels);
+    out.fromPrevious = d.fromPrevious;
+    out.padded = std::move(d.world);
+    return out;
+}
+
+namespace {
+
+DetailField synthesizeOnBox(const SynthExemplars& exemplars, const SynthInput& in, const SynthSettings& s, Progress* progress)
 {
     if (!in.coarse || in.coarse->empty()) throw ValueError("synth: no coarse motion L");
     for (const Vec3f& v : in.coarse->values())
@@ -1196,5 +1290,7 @@ DetailField synthesizeDetail(const SynthExemplars& exemplars, const SynthInput& 
     });
     return out;
 }
+
+} // namespace
 
 } // namespace turb

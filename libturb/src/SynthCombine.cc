@@ -2,6 +2,7 @@
 // look-back integration, the texture-match statistic, analytic coarse flows.
 #include <turb/Synth.h>
 
+#include <turb/Distance.h>
 #include <turb/Error.h>
 #include <turb/Operators.h>
 #include <turb/Parallel.h>
@@ -48,6 +49,19 @@ ScalarField upsampleCoarse(const ScalarField& coarse, int factor)
     return upsampleImpl(coarse, factor); // fineDomain rejects factor < 1
 }
 
+ScalarField smokeDetailWeight(const ScalarField& density, float threshold, double margin, double falloff)
+{
+    if (!(threshold >= 0.0f)) throw ValueError("combine: the smoke threshold must be >= 0");
+    if (!(margin >= 0.0)) throw ValueError("combine: the smoke margin must be >= 0 cells");
+    if (!(falloff > 0.0)) throw ValueError("combine: the smoke falloff must be > 0 cells");
+    ScalarField w = distanceToSmoke(density, threshold);
+    for (float& v : w.values()) {
+        const double t = (double(v) - margin) / falloff;
+        v = t <= 0.0 ? 1.0f : t >= 1.0 ? 0.0f : float(0.5 * (1.0 + std::cos(M_PI * t)));
+    }
+    return w;
+}
+
 VectorField combineMotion(const VectorField& coarse, const VectorField& detail, const CombineSettings& s)
 {
     if (coarse.empty() || detail.empty()) throw ValueError("combine: empty coarse or detail field");
@@ -90,6 +104,13 @@ VectorField combineMotion(const VectorField& coarse, const VectorField& detail, 
                 ++cnt;
             }
         scale *= cnt ? std::sqrt(s2 / double(cnt)) : 0.0;
+    }
+    if (s.smoke) {
+        if (s.smoke->bbox() != coarse.bbox())
+            throw ValueError("combine: the smoke density does not cover L's box (" + std::to_string(s.smoke->bbox().dim().x()) +
+                             " cells along x against " + std::to_string(coarse.bbox().dim().x()) + ")");
+        const ScalarField w = smokeDetailWeight(*s.smoke, s.smokeThreshold, s.smokeMargin, s.smokeFalloff);
+        for (size_t n = 0; n < shape.size(); ++n) shape.data()[n] *= w.data()[n];
     }
     const ScalarField omega = upsampleCoarse(shape, factor);
     VectorField D(F.bbox(), F.lattice());

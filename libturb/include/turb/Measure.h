@@ -51,6 +51,10 @@ enum class Alignment
 const char* alignmentName(Alignment a);
 
 
+/// air_detail's still air: coarse cells more than this many cells (Euclidean, centre to centre) from the
+/// target's smoke cells.
+constexpr double kAirCells = 4.0;
+
 struct MeasureSettings
 {
     float densityThreshold = 0.01f; ///< smoke region is density > this (quality.md: 0.01); >= 0
@@ -117,6 +121,10 @@ struct FrameMeasures
     std::optional<double> anisoRatio;   ///< aniso / anisoSource: 0.8-1.25 keeps the source's structure
     std::optional<double> isotropy;     ///< detailIsotropy of the output: direction-free, catches streaks along any axis
     std::optional<double> isotropySource; ///< the same of the source
+    std::optional<double> airDetail;    ///< rms(U_h) over still air (refined voxels whose coarse cell lies more than
+                                        ///< kAirCells cells from the target's smoke cells) / rms(U_h) over the smoke
+                                        ///< cells, both within the output's box as read: detail that leaks into
+                                        ///< air far from the smoke (<= 0.1)
 
     double targetNyquist = 0.0;         ///< pi / target voxel size, radians per world unit
     Spectrum spectrumOutput, spectrumTarget, spectrumSource; ///< empty when not computed

@@ -69,7 +69,14 @@ struct OrientationSettings
 {
     bool follow = true;        ///< sample neighbourhoods in the local frame of L and rotate H into it (3.1, 3.3); false = world axes
     bool densitySecondary = true; ///< 3D: e2 from the coarse density gradient where there is one, else `secondary`
-    Vec3d secondary{0, 1, 0};  ///< 3D: the given secondary direction (world), default world up (+y)
+    Vec3d secondary{0, 1, 0};  ///< 3D: the given secondary direction (world) when autoSecondary is off
+    /// 3D (beyond the paper, issue 14): the secondary direction is n x e1, with n the direction L has least of
+    /// (the eigenvector of the smallest eigenvalue of sum L L^T over the box: the normal of a planar vortex, a
+    /// horizontal axis for a rising plume). For a flow in a plane this is 2D's frame (e2 = z x e1). A fixed axis s
+    /// that L crosses turns the frame 180 degrees there (e2 = s - (s.e1) e1 changes sign where e1 passes s),
+    /// which mirrors the texture's sense of rotation across a plane. With a density gradient, n x e1 replaces
+    /// `secondary` as the gradient's fallback.
+    bool autoSecondary = true;
     Vec3d fallback{1, 0, 0};   ///< direction of e1 where L is (nearly) still
     double stillFraction = 0.05; ///< |L| below about this fraction of rms|L| blends e1 toward `fallback`, in (0, 1]
 };
@@ -102,6 +109,11 @@ struct SynthSettings
     int threads = 0;           ///< worker threads, 0 = all; results do not depend on it
     OrientationSettings orientation; ///< local frames (sections 3.1, 3.3)
     BoundarySettings boundary; ///< soft wall constraint (section 3.6, Eq. 3)
+    /// Beyond the paper (issue 20): coarse cells synthesised around L's box on every face that is not a wall
+    /// (L and its density extended by their face values), then cut off. A voxel at a face otherwise gets votes
+    /// from fewer neighbourhoods than an interior one, and the texture shows straight lines along the faces.
+    /// 0 = the box alone (the paper); >= 0. Costs about (1 + 2 pad / cells)^3 in time.
+    int facePadding = 2;
     AdvectSettings advect;     ///< advection of the previous frame's detail
 };
 
@@ -157,6 +169,8 @@ struct DetailField
 {
     VectorField world;  ///< H' = R H: detail in world axes on the fine lattice, about unit rms speed
     VectorField local;  ///< H: the same in each voxel's local frame (what the synthesis matched)
+    VectorField padded; ///< H' over the box grown by SynthSettings::facePadding: what the next frame continues
+                        ///< from (empty without padding; `world` is its crop to the output box)
     std::vector<SynthLevelStats> levels; ///< per level, coarsest first
     bool fromPrevious = false;           ///< initialised by advecting the previous frame
     double finalEnergy() const { return levels.empty() || levels.back().energy.empty() ? 0.0 : levels.back().energy.back(); }
@@ -195,7 +209,21 @@ struct CombineSettings
     bool removeCoarsePart = true; ///< beyond the paper (issue 12): take omega * H''s coarse-cell means (spread
                                   ///< trilinearly, five passes) out of the detail, so F keeps L's coarse motion;
                                   ///< false = the paper's F = up(L) + omega * H'
+    /// Beyond the paper (issue 20): where the detail goes. With a coarse density (L's box and lattice), omega is
+    /// multiplied by a weight that is 1 within `smokeMargin` coarse cells of the smoke (density >
+    /// `smokeThreshold`), falls as a half cosine to 0 over the next `smokeFalloff` cells, and is 0 beyond: still
+    /// air far from the smoke keeps L's motion. nullptr = detail everywhere (the paper).
+    const ScalarField* smoke = nullptr;
+    float smokeThreshold = 0.01f; ///< smoke is coarse density > this, >= 0
+    double smokeMargin = 2.0;     ///< coarse cells of full detail around the smoke, >= 0
+    double smokeFalloff = 2.0;    ///< coarse cells over which the detail fades to zero beyond the margin, > 0
 };
+
+/// The weight CombineSettings::smoke applies, on the coarse density's box and lattice: 1 within `margin` cells of
+/// a cell with density > threshold, 0.5 (1 + cos(pi (d - margin) / falloff)) out to margin + falloff, 0 beyond
+/// (d: Euclidean distance between cell centres, distanceToSmoke). All zeros when no cell is smoke. Throws
+/// ValueError on a negative threshold or margin, or a falloff <= 0.
+ScalarField smokeDetailWeight(const ScalarField& coarseDensity, float threshold, double margin, double falloff);
 
 /// F = up(L) + omega * H' on H's box and lattice (section 3.5), less the detail's coarse part unless
 /// settings.removeCoarsePart is off. Throws ValueError on empty fields, a negative omega, or a detail that does not

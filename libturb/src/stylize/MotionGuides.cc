@@ -1,6 +1,7 @@
 // Masks, flows from masks (Fluidymation Appendix A), signed distances and motion extents (section 3.3).
 #include <turb/MotionGuides.h>
 
+#include <turb/Distance.h>
 #include <turb/Error.h>
 #include <turb/Parallel.h>
 
@@ -13,38 +14,7 @@ namespace turb {
 
 namespace {
 
-constexpr double kFar = 1e20; // "no site": the squared distance of a pixel with no feature in reach
-
-/// Felzenszwalb & Huttenlocher's 1D squared-distance transform of the sampled function f (length n).
-void edt1d(const double* f, int n, double* d, int* v, double* z)
-{
-    int k = 0;
-    v[0] = 0;
-    z[0] = -kFar;
-    z[1] = kFar;
-    for (int q = 1; q < n; ++q) {
-        double s = ((f[q] + double(q) * q) - (f[v[k]] + double(v[k]) * v[k])) / (2.0 * q - 2.0 * v[k]);
-        while (s <= z[k] && k > 0) {
-            --k;
-            s = ((f[q] + double(q) * q) - (f[v[k]] + double(v[k]) * v[k])) / (2.0 * q - 2.0 * v[k]);
-        }
-        if (s <= z[k]) { // k == 0: the new parabola lies below the first everywhere left of it
-            v[0] = q;
-            z[0] = -kFar;
-            z[1] = kFar;
-            continue;
-        }
-        ++k;
-        v[k] = q;
-        z[k] = s;
-        z[k + 1] = kFar;
-    }
-    k = 0;
-    for (int q = 0; q < n; ++q) {
-        while (z[k + 1] < q) ++k;
-        d[q] = double(q - v[k]) * double(q - v[k]) + f[v[k]];
-    }
-}
+constexpr double kFar = kNoSiteSquaredDistance; // "no site": the squared distance of a pixel with no feature in reach
 
 /// Squared Euclidean distance from every pixel to the nearest pixel with site[i] (kFar-ish if none).
 std::vector<double> squaredDistance(const std::vector<char>& site, int W, int H)
@@ -55,7 +25,7 @@ std::vector<double> squaredDistance(const std::vector<char>& site, int W, int H)
         std::vector<int> v(static_cast<size_t>(H));
         for (size_t x = x0; x < x1; ++x) {
             for (int y = 0; y < H; ++y) f[size_t(y)] = site[size_t(y) * size_t(W) + x] ? 0.0 : kFar;
-            edt1d(f.data(), H, d.data(), v.data(), z.data());
+            squaredDistance1D(f.data(), H, d.data(), v.data(), z.data());
             for (int y = 0; y < H; ++y) g[size_t(y) * size_t(W) + x] = d[size_t(y)];
         }
     });
@@ -64,7 +34,7 @@ std::vector<double> squaredDistance(const std::vector<char>& site, int W, int H)
         std::vector<int> v(static_cast<size_t>(W));
         for (size_t y = y0; y < y1; ++y) {
             double* row = g.data() + y * size_t(W);
-            edt1d(row, W, d.data(), v.data(), z.data());
+            squaredDistance1D(row, W, d.data(), v.data(), z.data());
             std::copy(d.begin(), d.end(), row);
         }
     });
