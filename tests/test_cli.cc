@@ -176,6 +176,9 @@ TEST(Cli, PrerollMatchesALongerRunAndResumeRefusesOtherSettings)
     EXPECT_EQ(other.code, 1) << other.out;
     EXPECT_NE(other.out.find("temporal-blend: 0.949999988 -> 0.5"), std::string::npos) << other.out;
     EXPECT_NE(other.out.find("gamma: 10 -> 0"), std::string::npos) << other.out;
+    const CmdResult scheme = run(base + " --out " + out + " --frames 1-3 --resume --density-scheme maccormack");
+    EXPECT_EQ(scheme.code, 1) << scheme.out;
+    EXPECT_NE(scheme.out.find("density-scheme: bfecc -> maccormack"), std::string::npos) << scheme.out;
     EXPECT_FALSE(std::filesystem::exists(dir / "whole/t.0003.vdb"));
     // The same settings (threads do not count) continue.
     const CmdResult same = run(base + " --out " + out + " --frames 1-3 --resume --threads 1");

@@ -943,8 +943,13 @@ TEST(TransferDensity, InflowThatSetsDensityDoesNotPileUp)
         return r < 0.25 && x.z() >= 0.15 && x.z() <= 0.4 + speed * dt * frame;
     };
     const CoordBBox coarseBox({0, 0, 0}, {7, 7, 15});
+    // The default scheme and semi-Lagrangian hold the bounds. (MacCormack does not: mass 1.13x the target's by
+    // frame 4 and coarse error 0.201, which is why it is only an option; docs/performance.md.)
+    for (const auto scheme : {AdvectSettings::Scheme::BFECC, AdvectSettings::Scheme::SemiLagrangian}) {
+    SCOPED_TRACE(schemeName(scheme));
     TransferSettings s;
     s.threads = 2;
+    s.densityScheme = scheme;
     TurbulenceTransfer transfer(s);
     for (int fr = 1; fr <= 8; ++fr) {
         const Frame t = makeFrame(coarseBox, lat, [&](const Vec3d&) { return Vec3f(0.0f, 0.0f, float(speed)); },
@@ -961,6 +966,7 @@ TEST(TransferDensity, InflowThatSetsDensityDoesNotPileUp)
         // A binary column cannot be met exactly: its border cells would need every fine voxel at the peak.
         ASSERT_TRUE(m.coarseErr);
         EXPECT_LT(*m.coarseErr, 0.2) << "frame " << fr;
+    }
     }
 }
 

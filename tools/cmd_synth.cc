@@ -667,8 +667,11 @@ int runSynth(SynthArgs& a)
         extra["size"] = {F.bbox().dim().x(), F.bbox().dim().y(), F.bbox().dim().z()};
         extra["continued"] = H.fromPrevious;
         nlohmann::json lv = nlohmann::json::array();
-        for (const auto& l : H.levels)
-            lv.push_back({{"level", l.level}, {"size", {l.dim.x(), l.dim.y(), l.dim.z()}}, {"radius", l.radius}, {"energy", l.energy}});
+        for (const auto& l : H.levels) {
+            nlohmann::json lj = {{"level", l.level}, {"size", {l.dim.x(), l.dim.y(), l.dim.z()}}, {"radius", l.radius}, {"energy", l.energy}};
+            if (!l.descent.empty()) lj["descent"] = l.descent; // [at search, after the average, after all terms]
+            lv.push_back(lj);
+        }
         extra["levels"] = lv;
         extra["energy"] = H.finalEnergy();
         double h2 = 0.0;
@@ -826,6 +829,9 @@ Command synthCommand()
                "Coarse cells synthesised beyond each box face that is not a wall and then cut off, so faces show no seams "
                "(default 2; 0 = the box alone, the paper)")
             ->check(CLI::Range(0, 16));
+        app->add_flag("--trace-descent", s.traceDescent,
+               "JSON: per iteration, Kwatra's objective of its centres and matches at the search, after the weighted "
+               "average and after the moment match and temporal/wall terms (levels[].descent; slower)");
         app->add_option("--detail-margin", a.combine.smokeMargin,
                "Coarse cells of full detail around the smoke (default 2); the detail then fades out over --detail-falloff")
             ->check(CLI::NonNegativeNumber);

@@ -33,6 +33,7 @@ struct TransferArgs
     std::string wrap = "loop";
     std::string align = "none";
     std::string density = "advect";
+    std::string densityScheme = "bfecc"; ///< --density-scheme
     bool noSeams = false, noTracking = false, noFollow = false, keepCoarse = false, resume = false, json = false, noResample = false;
     bool keepTargetDivergence = false;
     std::string energy = "source";
@@ -243,6 +244,9 @@ int runTransfer(TransferArgs& a)
     s.compensateTargetDivergence = !a.keepTargetDivergence;
     s.alignment = parseAlign(a.align);
     s.densityMode = a.density == "lookback" ? turb::DensityMode::LookBack : turb::DensityMode::Advect;
+    for (const auto sc : {turb::AdvectSettings::Scheme::BFECC, turb::AdvectSettings::Scheme::MacCormack,
+             turb::AdvectSettings::Scheme::SemiLagrangian})
+        if (a.densityScheme == turb::schemeName(sc)) s.densityScheme = sc;
 
     // Only the source: its detail is what the extension cleans up. The target's velocity stays as stored,
     // since the output must keep the target's coarse motion exactly as the file has it.
@@ -540,6 +544,10 @@ Command transferCommand()
         app->add_option("--density", a.density, "Output density: advect (default) or lookback (seed 003 supplement)")
             ->check(CLI::IsMember({"advect", "lookback"}));
         app->add_option("--lookback", s.lookBackFrames, "m for --density lookback (default 12)")->check(CLI::Range(1, 100));
+        app->add_option("--density-scheme", a.densityScheme,
+               "Advection scheme of the output density: bfecc (default), maccormack (one backtrace fewer, faster; more "
+               "mass at a sharp inflow) or semi-lagrangian (fastest, shows the coarse cells at the smoke's edge)")
+            ->check(CLI::IsMember({"bfecc", "maccormack", "semi-lagrangian"}));
         app->add_option("--density-guide", s.densityGuide.strength,
                "Move the output density's coarse cell means this fraction of the way onto the target's each frame "
                "(default 1; 0 = off: the high-res density drifts from the target's)")

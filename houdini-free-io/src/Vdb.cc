@@ -187,7 +187,7 @@ std::vector<Descriptor> walkDescriptors(const std::string& path)
 using OrderedBody = std::function<void(openvdb::io::File&, const std::vector<Descriptor>&, openvdb::GridPtrVec&,
     openvdb::MetaMap&)>;
 
-detail::GuardedResult guarded(const std::string& path, const OrderedBody& body)
+detail::GuardedResult guarded(const std::string& path, const OrderedBody& body, double baseTimeout = 0.0)
 {
     initOpenVdb();
     struct stat st;
@@ -202,7 +202,7 @@ detail::GuardedResult guarded(const std::string& path, const OrderedBody& body)
         const double v = e ? std::atof(e) : 0.0;
         return v > 0.0 ? v : 10.0;
     }();
-    const double timeout = base + double(std::max<int64_t>(fileSize(path), 0)) / 5.0e6;
+    const double timeout = (baseTimeout > 0.0 ? baseTimeout : base) + double(std::max<int64_t>(fileSize(path), 0)) / 5.0e6;
     return detail::guardedRead(path,
         [&](openvdb::io::File& file, openvdb::GridPtrVec& grids, openvdb::MetaMap& meta) { body(file, order, grids, meta); },
         timeout);
@@ -1026,7 +1026,8 @@ SmokeRegion smokeRegion(const std::string& path, const ReadOptions& options)
             if (name.empty() && !options.densityGrid.empty())
                 throw IoError(detail::missingGridMessage(path, GridRole::Density, options, describeEntries(entries)));
             if (!name.empty()) out.push_back(readGridNamed(file, path, name[0]));
-        });
+        },
+        options.readTimeout);
     if (r.grids.empty()) return SmokeRegion{};
     return findSmoke(*asFloatGrid(path, r.grids.front(), "density"), options);
 }
@@ -1050,7 +1051,8 @@ static turb::Frame readFrameUnchecked(const std::string& path, int frameNumber, 
     const detail::GuardedResult r = guarded(path,
         [&](openvdb::io::File& file, const std::vector<Descriptor>& order, openvdb::GridPtrVec& out, openvdb::MetaMap& meta) {
             readRoles(file, order, out, meta, path, options);
-        });
+        },
+        options.readTimeout);
 
     // A Blender-style file places index 0 where Blender does; the frame keeps the lattice it was written from.
     const openvdb::Vec3d offset = blenderOffset(*r.meta);

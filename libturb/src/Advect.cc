@@ -174,6 +174,16 @@ Field<T> advectImpl(const Field<T>& q, const VectorField& velocity, double dt, c
 
 } // namespace
 
+const char* schemeName(AdvectSettings::Scheme scheme)
+{
+    switch (scheme) {
+    case AdvectSettings::Scheme::SemiLagrangian: return "semi-lagrangian";
+    case AdvectSettings::Scheme::MacCormack: return "maccormack";
+    case AdvectSettings::Scheme::BFECC: return "bfecc";
+    }
+    return "?";
+}
+
 ScalarField advect(const ScalarField& q, const VectorField& velocity, double dt, const AdvectSettings& s)
 {
     return advectImpl<float, openvdb::FloatGrid>(q, velocity, dt, s);

@@ -589,11 +589,19 @@ struct Engine
         }
     }
 
+    /// Kwatra's objective of one iteration's centres and matches: at the search, after the weighted average
+    /// (the M-step proper), and after everything that follows it (moment match, temporal and wall terms).
+    struct Descent
+    {
+        double before = 0.0, averaged = 0.0, updated = 0.0;
+    };
+
     /// One search + assignment iteration. `which`: 0 small radius, 1 large. `randomMatches`: the
     /// initialisation (random exemplar neighbourhoods blended by the assignment, section 3.4).
-    /// Returns the mean squared neighbourhood distance per channel before the assignment.
+    /// Returns the mean squared neighbourhood distance per channel before the assignment; fills `trace`
+    /// when given (two more neighbourhood passes).
     double iterate(Level& L, int level, int which, bool useTree, bool randomMatches, std::uint64_t salt,
-        const std::vector<Vec3f>* advected, const std::vector<Constraint>& constraints)
+        const std::vector<Vec3f>* advected, const std::vector<Constraint>& constraints, Descent* trace = nullptr)
     {
         const size_t nv = ex.prepared.size();
         int radius = 0;
@@ -616,19 +624,13 @@ struct Engine
                     const PreparedView& pv = ex.prepared[v];
                     const ViewLevel& vl = pv.levels[size_t(level)];
                     const Neigh& N = vl.neigh[which];
-                    const size_t taps = N.local.size(), dim = taps * size_t(pv.nc);
                     Match& m = match[ci * nv + v];
                     if (randomMatches) {
                         m.row = int(hash4(s.seed, salt, ci, v) % std::uint64_t(N.rows));
                         m.weight = pv.view.weight;
                         continue;
                     }
-                    d.resize(dim);
-                    for (size_t t = 0; t < taps; ++t) {
-                        const Vec3f off = c.f.toWorld(N.local[t]);
-                        const Vec3f h = L.sample(float(c.p[0]) + off[0], float(c.p[1]) + off[1], float(c.p[2]) + off[2]);
-                        for (int ch = 0; ch < pv.nc; ++ch) d[t * size_t(pv.nc) + size_t(ch)] = h[pv.comps[ch]];
-                    }
+                    gather(L, c, pv, N, d);
                     const Pca& pca = N.index.pca();
                     red.resize(pca.outputDim());
                     pca.project(d.data(), red.data());
@@ -640,16 +642,7 @@ struct Engine
                         row = kcoherenceSearch(L, c, vl, N, v, red, cand);
                     }
                     m.row = row;
-                    const auto pos = posOf(N, vl.ex, size_t(row));
-                    double s2 = 0.0;
-                    for (size_t t = 0; t < taps; ++t) {
-                        const float* z = exValue(vl.ex, pos, N.ex[t]);
-                        for (int ch = 0; ch < pv.nc; ++ch) {
-                            const double q = double(d[t * size_t(pv.nc) + size_t(ch)]) - z[ch];
-                            s2 += q * q;
-                        }
-                    }
-                    s2 /= double(dim);
+                    const double s2 = distanceTo(vl, N, pv.nc, row, d);
                     dist[ci * nv + v] = s2;
                     // Kwatra's robust weight |x_p - z_p|^(r - 2); the floor keeps exact matches finite.
                     m.weight = float(pv.view.weight * std::pow(s2 + 1e-4, 0.5 * (r - 2.0)));
@@ -659,6 +652,35 @@ struct Engine
         double energy = 0.0;
         for (double x : dist) energy += x;
         energy /= double(std::max<size_t>(1, dist.size()));
+        // Kwatra's objective for these centres and matches: the weighted mean of the distances (weights fixed).
+        const auto objective = [&](std::vector<Vec3f>& h) {
+            std::swap(L.h, h);
+            const double sums = parallelSum(nc, 32, [&](size_t b, size_t e) {
+                std::vector<float> d;
+                double acc = 0.0;
+                for (size_t ci = b; ci < e; ++ci)
+                    for (size_t v = 0; v < nv; ++v) {
+                        const PreparedView& pv = ex.prepared[v];
+                        const Neigh& N = pv.levels[size_t(level)].neigh[which];
+                        const Match& m = match[ci * nv + v];
+                        gather(L, cs[ci], pv, N, d);
+                        acc += double(m.weight) * distanceTo(pv.levels[size_t(level)], N, pv.nc, m.row, d);
+                    }
+                return acc;
+            });
+            std::swap(L.h, h);
+            double w = 0.0;
+            for (const Match& m : match) w += m.weight;
+            return w > 0.0 ? sums / w : 0.0;
+        };
+        if (trace && !randomMatches) {
+            double w = 0.0, wd = 0.0;
+            for (size_t i = 0; i < match.size(); ++i) {
+                w += match[i].weight;
+                wd += double(match[i].weight) * dist[i];
+            }
+            trace->before = w > 0.0 ? wd / w : 0.0;
+        }
 
         // --- assignment: splat every match's exemplar neighbourhood
         float reach = 0.0f;
@@ -698,6 +720,7 @@ struct Engine
                     if (o[3 + c] > 0.0f) avg[i][c] = o[c] / o[3 + c];
             }
         });
+        if (trace && !randomMatches) trace->averaged = objective(avg);
         if (kcoh) discreteAssign(L, level, which, cs, slabAxis, reach, match, spacing, avg);
         if (s.matchVariance) matchMoments(L, level, acc, avg);
 
@@ -716,8 +739,35 @@ struct Engine
             Vec3f& x = avg[k.voxel];
             x -= k.normalLocal * (k.normalLocal.dot(x) * (k.lambda / (1.0f + k.lambda)));
         }
+        if (trace && !randomMatches) trace->updated = objective(avg);
         L.h.swap(avg);
         return energy;
+    }
+
+    /// The neighbourhood of view `pv` around centre `c` on L, as the search sees it (taps in c's frame).
+    void gather(const Level& L, const Centre& c, const PreparedView& pv, const Neigh& N, std::vector<float>& d) const
+    {
+        d.resize(N.local.size() * size_t(pv.nc));
+        for (size_t t = 0; t < N.local.size(); ++t) {
+            const Vec3f off = c.f.toWorld(N.local[t]);
+            const Vec3f h = L.sample(float(c.p[0]) + off[0], float(c.p[1]) + off[1], float(c.p[2]) + off[2]);
+            for (int ch = 0; ch < pv.nc; ++ch) d[t * size_t(pv.nc) + size_t(ch)] = h[pv.comps[ch]];
+        }
+    }
+
+    /// Mean squared difference per value between a gathered neighbourhood and exemplar row `row`.
+    static double distanceTo(const ViewLevel& vl, const Neigh& N, int nc, int row, const std::vector<float>& d)
+    {
+        const auto pos = posOf(N, vl.ex, size_t(row));
+        double s2 = 0.0;
+        for (size_t t = 0; t < N.ex.size(); ++t) {
+            const float* z = exValue(vl.ex, pos, N.ex[t]);
+            for (int ch = 0; ch < nc; ++ch) {
+                const double q = double(d[t * size_t(nc) + size_t(ch)]) - z[ch];
+                s2 += q * q;
+            }
+        }
+        return s2 / double(std::max<size_t>(1, d.size()));
     }
 
     /// Components that two or more views share are averages of views that do not fully agree, and
@@ -1223,13 +1273,15 @@ DetailField synthesizeOnBox(const SynthExemplars& exemplars, const SynthInput& i
                 const auto run = [&](int which, int count) {
                     for (int i = 0; i < count; ++i, ++it) {
                         const bool tree = !eng.kcoh || it < s.treeIterationsPerLevel;
+                        Engine::Descent d;
                         const double e = eng.iterate(L, level, which, tree, false, hash4(1, std::uint64_t(level), std::uint64_t(it), 0),
-                            nullptr, cons);
+                            nullptr, cons, s.traceDescent ? &d : nullptr);
                         int radius = 0;
                         for (const auto& pv : ex.prepared) radius = std::max(radius, pv.levels[size_t(level)].neigh[which].radius);
                         st.radius.push_back(radius);
                         st.tree.push_back(tree);
                         st.energy.push_back(e);
+                        if (s.traceDescent) st.descent.push_back({d.before, d.averaged, d.updated});
                         tick();
                     }
                 };
@@ -1263,7 +1315,10 @@ DetailField synthesizeOnBox(const SynthExemplars& exemplars, const SynthInput& i
             for (int it = 0; it < std::max(1, s.continueIterations); ++it) {
                 // k-coherence has no source map yet on a continued frame: its first iteration searches the tree.
                 const bool tree = !eng.kcoh || it < std::max(1, s.treeIterationsPerLevel);
-                const double e = eng.iterate(L, nL - 1, 0, tree, false, hash4(2, std::uint64_t(it), 0, 0), &adv, cons);
+                Engine::Descent d;
+                const double e = eng.iterate(L, nL - 1, 0, tree, false, hash4(2, std::uint64_t(it), 0, 0), &adv, cons,
+                    s.traceDescent ? &d : nullptr);
+                if (s.traceDescent) st.descent.push_back({d.before, d.averaged, d.updated});
                 int radius = 0;
                 for (const auto& pv : ex.prepared) radius = std::max(radius, pv.levels.back().neigh[0].radius);
                 st.radius.push_back(radius);

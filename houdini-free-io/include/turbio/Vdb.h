@@ -59,6 +59,8 @@ struct ReadOptions
 
     // The region held densely (see SmokeRegion). Without a density grid the frame covers every grid's span.
     bool cropToSmoke = true;      ///< hold only the smoke (plus cropMargin), not the union of the grids' active boxes
+    double readTimeout = 0.0;     ///< seconds the guarded reader may take before the file counts as one that hangs
+                                  ///< OpenVDB, plus 1 s per 5 MB; 0 = VDBTURB_READ_TIMEOUT_S, else 10
     int cropMargin = 8;           ///< voxels of the frame's lattice kept around the smoke, >= 0: patch radius,
                                   ///< advection reach and the seam band of the stages that read the frame
     float smokeThreshold = 0.0f;  ///< active density above this is smoke

@@ -27,6 +27,9 @@ struct AdvectSettings
     bool inPlane = false;
 };
 
+/// The scheme's command-line name: "bfecc", "maccormack" or "semi-lagrangian".
+const char* schemeName(AdvectSettings::Scheme scheme);
+
 /// q advected by `velocity` over `dt` (velocity * dt is a world-space displacement). The result lives
 /// on q's lattice and box; values arriving from outside the box are zero.
 ScalarField advect(const ScalarField& q, const VectorField& velocity, double dt, const AdvectSettings& s = {});

@@ -45,6 +45,7 @@
 
 #include <cstdint>
 #include <deque>
+#include <array>
 #include <memory>
 #include <string>
 #include <vector>
@@ -114,6 +115,7 @@ struct SynthSettings
     /// from fewer neighbourhoods than an interior one, and the texture shows straight lines along the faces.
     /// 0 = the box alone (the paper); >= 0. Costs about (1 + 2 pad / cells)^3 in time.
     int facePadding = 2;
+    bool traceDescent = false; ///< fill SynthLevelStats::descent (costs two more neighbourhood passes per iteration)
     AdvectSettings advect;     ///< advection of the previous frame's detail
 };
 
@@ -162,6 +164,10 @@ struct SynthLevelStats
     std::vector<int> radius;     ///< neighbourhood radius of each iteration
     std::vector<bool> tree;      ///< each iteration searched the tree (else k-coherence)
     std::vector<double> energy;  ///< mean squared neighbourhood distance per channel after each search
+    /// With SynthSettings::traceDescent, per iteration: Kwatra's objective (the robust-weighted mean distance) of
+    /// that iteration's centres and matches at the search, after the weighted average (the M-step proper) and
+    /// after the moment match, temporal and wall terms. Empty otherwise.
+    std::vector<std::array<double, 3>> descent;
 };
 
 /// The synthesised detail motion of one frame.

@@ -33,11 +33,13 @@ DensityStep advanceDensity(const Frame& target, const TargetAtOutput& t, const C
     const int f = fs.f;
     DensityStep out;
     ScalarField& d = out.density;
+    AdvectSettings scheme = inPlane();
+    scheme.scheme = s.densityScheme;
     if (s.densityMode == DensityMode::Advect) {
         if (!c.havePrevious) {
             d = t.Dt;
         } else {
-            d = cropped(advect(c.prevDensity, c.prevVelocity, fs.elapsed, inPlane()), fs.fineBox);
+            d = cropped(advect(c.prevDensity, c.prevVelocity, fs.elapsed, scheme), fs.fineBox);
             addBoundedEmission(d, upsample(t.emission, f), t.Dt);
         }
     } else if (c.history.empty()) {
@@ -47,7 +49,7 @@ DensityStep advanceDensity(const Frame& target, const TargetAtOutput& t, const C
         // the output velocities since, injecting the target's emission on the way.
         d = cropped(upsample(c.history.front().targetDensity, f), fs.fineBox);
         for (size_t j = 0; j < c.history.size(); ++j) {
-            d = advect(d, c.history[j].velocity, c.history[j].elapsed, inPlane());
+            d = advect(d, c.history[j].velocity, c.history[j].elapsed, scheme);
             const bool last = j + 1 == c.history.size();
             const ScalarField& em = last ? t.emission : c.history[j + 1].emission;
             addBoundedEmission(d, cropped(upsample(em, f), fs.fineBox),

@@ -163,6 +163,7 @@ std::vector<std::pair<std::string, std::string>> outputSettings(const TransferSe
         {"coarse-detail-removed", flag(s.removeCoarseDetail)}, {"coarse-tolerance", num(s.coarseTolerance)},
         {"detail-energy", energy[int(s.detailEnergy)]},
         {"density", s.densityMode == DensityMode::LookBack ? "lookback" : "advect"},
+        {"density-scheme", schemeName(s.densityScheme)},
         {"density-guide", num(s.densityGuide.strength)}, {"density-guide-passes", num(s.densityGuide.passes)},
         {"density-guide-threshold", num(s.densityGuide.threshold)}, {"density-guide-max-gain", num(s.densityGuide.maxGain)},
         {"lookback", num(s.lookBackFrames)}};
