@@ -3,6 +3,7 @@
 // that point at the fix, and info's data on stdout.
 #include "CliUtil.h"
 
+#include <turb/Metadata.h>
 #include <turbio/Vdb.h>
 
 #include <openvdb/openvdb.h>
@@ -337,4 +338,57 @@ TEST(CliReliability, SynthDetailStaysNearTheSmoke)
     EXPECT_GE(a, 0.0);
     EXPECT_LT(a, 0.1);
     EXPECT_GT(b, 0.5);
+}
+
+TEST(CliReliability, SynthRefusesNonsenseOrientationAndMarginsAndSaysWhatItSkips)
+{
+    // Found by a fresh user: a non-finite --secondary crashed the synthesis, NaN margins ran the whole synthesis
+    // before failing, and --trace-descent without --json did nothing without a word.
+    testutil::TempDir dir;
+    const std::string base = "synth --flow vortex --flow-res 8x8x4 --factor 2 --frames 1 --out '" + dir / "s.####.vdb'";
+    for (const char* v : {"nan,0,1", "inf,0,1", "1e300,0,1", "0,0,0"}) {
+        const auto r = run(base + " --secondary " + v);
+        EXPECT_EQ(r.code, 1) << v << "\n" << r.out;
+        EXPECT_NE(r.out.find("--secondary: X,Y,Z must be finite and not zero"), std::string::npos) << r.out;
+    }
+    for (const char* o : {"--detail-margin nan", "--detail-margin -1", "--detail-falloff 0", "--detail-falloff inf"}) {
+        const auto r = run(base + " " + o);
+        EXPECT_EQ(r.code, 2) << o << "\n" << r.out;
+        EXPECT_NE(r.out.find("must be a number of coarse cells"), std::string::npos) << r.out;
+        EXPECT_LT(r.out.size(), 400u) << "a short message, not CLI11's infinite bound: " << r.out;
+    }
+    const auto trace = run(base + " --trace-descent");
+    EXPECT_EQ(trace.code, 0) << trace.out;
+    EXPECT_NE(trace.out.find("--trace-descent reports in the JSON lines only"), std::string::npos) << trace.out;
+    EXPECT_FALSE(std::filesystem::exists(dir / "s.0002.vdb"));
+}
+
+TEST(CliReliability, ResampleKeepsTheRecordedDomainRatioAndPatchLatticeTrue)
+{
+    // Found by a fresh user: resample --down 2 of an up-res kept its domain and patch size in output voxels of the
+    // old lattice, so info framed it twice too big and measure's block looked for seams at the wrong spacing.
+    testutil::TempDir dir;
+    turb::Frame f;
+    f.number = 1;
+    f.dt = 1.0 / 24.0;
+    const turb::Lattice lat{0.25, {0.0, 0.0, 0.0}};
+    f.velocity = turb::VectorField(turb::CoordBBox({0, 0, 0}, {31, 31, 31}), lat, turb::Vec3f(0.0f, 0.0f, 1.0f));
+    f.density = turb::ScalarField(f.velocity.bbox(), lat, 0.5f);
+    f.metadata[turb::meta::kRatio] = "4";
+    f.metadata[turb::meta::kDomain] = "0 0 0 31 31 31";
+    f.metadata[turb::meta::kPatchSize] = "8";
+    f.metadata[turb::meta::kPatchOrigin] = "4,4,4";
+    turbio::writeFrame(dir / "u.0001.vdb", f, turbio::WriteOptions{});
+    const auto meta = [&](const std::string& path) { return turbio::readFrame(path, 1, turbio::ReadOptions{}).metadata; };
+    ASSERT_EQ(run("resample " + dir / "u.0001.vdb" + " --down 2 --out " + dir / "h.0001.vdb -q").code, 0);
+    const auto h = meta(dir / "h.0001.vdb");
+    EXPECT_EQ(h.at(turb::meta::kRatio), "2");
+    EXPECT_EQ(h.at(turb::meta::kDomain), "0 0 0 15 15 15");
+    EXPECT_EQ(h.at(turb::meta::kPatchSize), "4");
+    EXPECT_EQ(h.at(turb::meta::kPatchOrigin), "2,2,2");
+    // By 3 only the domain divides; the rest is dropped rather than kept wrong.
+    ASSERT_EQ(run("resample " + dir / "u.0001.vdb" + " --down 3 --out " + dir / "t.0001.vdb -q").code, 0);
+    const auto t = meta(dir / "t.0001.vdb");
+    EXPECT_EQ(t.at(turb::meta::kDomain), "0 0 0 10 10 10");
+    EXPECT_EQ(t.count(turb::meta::kRatio) + t.count(turb::meta::kPatchSize) + t.count(turb::meta::kPatchOrigin), 0u);
 }

@@ -85,7 +85,8 @@ std::string humanLine(const turb::FrameMeasures& m)
     return "lf_err " + f(m.lfErr) + "  hf_ratio " + f(m.hfRatio) + "  div_rel " + f(m.divRel) + " (source " +
            f(m.divRelSource) + ")  block " + f(m.block) + "  tcoh " + f(m.tcoh) + " (source " + f(m.tcohSource) + ")  mass " +
            f(m.massRatio) + "  peak " + f(m.peakRatio) + "  density_err " + f(m.densityErr) + "  aniso " + f(m.aniso) +
-           " (source " + f(m.anisoSource) + ")  isotropy " + f(m.isotropy) + " (source " + f(m.isotropySource) + ")";
+           " (source " + f(m.anisoSource) + ")  isotropy " + f(m.isotropy) + " (source " + f(m.isotropySource) + ")  air_detail " +
+           f(m.airDetail);
 }
 
 std::optional<turb::Coord> parseCoord(const std::string& text)
@@ -288,7 +289,8 @@ Command measureCommand()
     auto args = std::make_shared<MeasureArgs>();
     Command c;
     c.name = "measure";
-    c.help = "Quality numbers of an up-res (lf_err, hf_ratio, div_rel, block, tcoh, spectra): JSON lines on stdout";
+    c.help = "Quality numbers of an up-res (lf_err, hf_ratio, div_rel, block, tcoh, density, structure, air_detail, "
+             "spectra): JSON lines on stdout";
     c.setup = [args](CLI::App* app) {
         auto& s = args->settings;
         app->add_option("--output", args->output, "The up-res cache (pattern or one file): velocity, density optional")

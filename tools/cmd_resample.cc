@@ -9,7 +9,10 @@
 #include <turb/Reorient.h>
 #include <turbio/Sequence.h>
 
+#include <cstdio>
 #include <cstdlib>
+#include <map>
+#include <sstream>
 #include <memory>
 
 namespace vdbturb {
@@ -24,6 +27,46 @@ struct ResampleArgs
     turbio::ReadOptions read;
     turbio::WriteOptions write;
 };
+
+// Metadata in output voxels (the up-res ratio, the recorded domain, the patch lattice) kept true after a box
+// down-sample by `down`, or dropped where it cannot be: after a reorientation, or a patch size `down` does not divide.
+void rescaleIndexMetadata(std::map<std::string, std::string>& meta, int down, bool reoriented)
+{
+    namespace m = turb::meta;
+    const auto divide = [&](const char* key) {
+        const auto it = meta.find(key);
+        if (it == meta.end()) return;
+        const int v = std::atoi(it->second.c_str());
+        if (!reoriented && v > 0 && v % down == 0) it->second = std::to_string(v / down);
+        else meta.erase(it);
+    };
+    divide(m::kRatio);
+    divide(m::kPatchSize);
+    if (down == 1 && !reoriented) return;
+    if (reoriented) {
+        meta.erase(m::kDomain);
+        meta.erase(m::kPatchOrigin);
+        return;
+    }
+    if (const auto it = meta.find(m::kDomain); it != meta.end()) {
+        std::istringstream in(it->second);
+        int b[6];
+        if (in >> b[0] >> b[1] >> b[2] >> b[3] >> b[4] >> b[5]) {
+            std::ostringstream out;
+            for (int k = 0; k < 6; ++k) out << (k ? " " : "") << turb::floorDiv(b[k], down);
+            it->second = out.str();
+        } else {
+            meta.erase(it);
+        }
+    }
+    if (const auto it = meta.find(m::kPatchOrigin); it != meta.end()) {
+        int x = 0, y = 0, z = 0;
+        if (std::sscanf(it->second.c_str(), "%d,%d,%d", &x, &y, &z) == 3 && x % down == 0 && y % down == 0 && z % down == 0)
+            it->second = std::to_string(x / down) + "," + std::to_string(y / down) + "," + std::to_string(z / down);
+        else
+            meta.erase(it);
+    }
+}
 
 int runResample(ResampleArgs& a)
 {
@@ -61,12 +104,7 @@ int runResample(ResampleArgs& a)
         turb::Frame frame = turbio::readFrame(seq.path(f), f, a.read);
         if (a.down > 1) frame = turb::downsampleFrame(frame, a.down);
         if (!rot.isIdentity()) frame = turb::reorientFrame(frame, rot);
-        // An up-res's ratio to its target places it Blender's way in --style blender; keep it true or drop it.
-        if (const auto r = frame.metadata.find(turb::meta::kRatio); r != frame.metadata.end()) {
-            const int f = std::atoi(r->second.c_str());
-            if (rot.isIdentity() && f > 0 && f % a.down == 0) r->second = std::to_string(f / a.down);
-            else frame.metadata.erase(r);
-        }
+        rescaleIndexMetadata(frame.metadata, a.down, !rot.isIdentity());
         frame.metadata[turb::meta::kCommand] = "resample";
         const std::string path = outPattern.format(f);
         turbio::ensureParentDirectory(path);

@@ -17,6 +17,7 @@
 #include <turbio/System.h>
 #include <turbio/Vdb.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -367,6 +368,10 @@ int runSynth(SynthArgs& a)
         double v[3];
         if (p.size() != 3 || !parseNumber(p[0], v[0]) || !parseNumber(p[1], v[1]) || !parseNumber(p[2], v[2]))
             throw turb::ValueError("--secondary: 'density' or a vector X,Y,Z");
+        const double len = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+        if (!std::isfinite(float(v[0])) || !std::isfinite(float(v[1])) || !std::isfinite(float(v[2])) || !std::isfinite(len) ||
+            !(len > 1e-6))
+            throw turb::ValueError("--secondary: X,Y,Z must be finite and not zero (got '" + a.secondary + "')");
         s.orientation.densitySecondary = false;
         s.orientation.autoSecondary = false;
         s.orientation.secondary = turb::Vec3d(v[0], v[1], v[2]);
@@ -518,6 +523,7 @@ int runSynth(SynthArgs& a)
         return kOk;
     }
 
+    if (s.traceDescent && !a.json) logWarning("--trace-descent reports in the JSON lines only: add --json");
     // The report's clock starts here, so its total includes building the exemplar indices.
     RunReport report("synth", a.json);
     const auto tPrep = std::chrono::steady_clock::now();
@@ -586,6 +592,11 @@ int runSynth(SynthArgs& a)
                 for (int y = both.min().y(); y <= both.max().y(); ++y)
                     for (int z = both.min().z(); z <= both.max().z(); ++z) smoke(x, y, z) = cf.density(x, y, z);
             combine.smoke = &smoke;
+            if (std::none_of(smoke.values().begin(), smoke.values().end(), [&](float v) { return v > combine.smokeThreshold; })) {
+                progress.clear();
+                logWarning("frame " + std::to_string(fr) + ": the density has no smoke (nothing above " +
+                           fmt("%g", combine.smokeThreshold) + "), so no detail is written; --detail-everywhere puts it everywhere");
+            }
         }
         turb::VectorField F = turb::combineMotion(cf.velocity, H.world, combine);
         nlohmann::json projJson;
@@ -832,12 +843,23 @@ Command synthCommand()
         app->add_flag("--trace-descent", s.traceDescent,
                "JSON: per iteration, Kwatra's objective of its centres and matches at the search, after the weighted "
                "average and after the moment match and temporal/wall terms (levels[].descent; slower)");
+        // CLI11's number ranges let NaN through and print their infinite bound in full.
+        const auto cells = [](bool zeroOk) {
+            return CLI::Validator(
+                [zeroOk](std::string& text) -> std::string {
+                    double v = 0.0;
+                    if (!parseNumber(text, v) || !std::isfinite(v) || v > 1e6 || (zeroOk ? v < 0.0 : v <= 0.0))
+                        return std::string("must be a number of coarse cells ") + (zeroOk ? ">= 0" : "> 0") + " (up to 1e6)";
+                    return {};
+                },
+                zeroOk ? "CELLS>=0" : "CELLS>0");
+        };
         app->add_option("--detail-margin", a.combine.smokeMargin,
                "Coarse cells of full detail around the smoke (default 2); the detail then fades out over --detail-falloff")
-            ->check(CLI::NonNegativeNumber);
+            ->check(cells(true));
         app->add_option("--detail-falloff", a.combine.smokeFalloff,
                "Coarse cells over which the detail fades to zero beyond --detail-margin (default 2)")
-            ->check(CLI::PositiveNumber);
+            ->check(cells(false));
         app->add_flag("--detail-everywhere", a.detailEverywhere,
                "Detail over the whole box, still air included (the paper); default: near the smoke only, when L has density");
         app->add_flag("--omega-absolute", a.omegaAbsolute, "--omega is in velocity units (H' has unit rms)");

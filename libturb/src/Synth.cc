@@ -1133,6 +1133,9 @@ DetailField synthesizeOnBox(const SynthExemplars& exemplars, const SynthInput& i
 DetailField synthesizeDetail(const SynthExemplars& exemplars, const SynthInput& in, const SynthSettings& s, Progress* progress)
 {
     if (s.facePadding < 0) throw ValueError("synth: face padding must be >= 0 cells");
+    for (const Vec3d* v : {&s.orientation.secondary, &s.orientation.fallback})
+        if (!std::isfinite(float(v->x())) || !std::isfinite(float(v->y())) || !std::isfinite(float(v->z())))
+            throw ValueError("synth: the secondary and fallback directions must be finite");
     if (!in.coarse || in.coarse->empty() || s.facePadding == 0) return synthesizeOnBox(exemplars, in, s, progress);
     if (in.coarseDensity && !in.coarseDensity->empty() && in.coarseDensity->bbox() != in.coarse->bbox())
         throw ValueError("synth: the coarse density and velocity must cover the same box");

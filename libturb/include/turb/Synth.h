@@ -182,7 +182,8 @@ struct DetailField
     double finalEnergy() const { return levels.empty() || levels.back().energy.empty() ? 0.0 : levels.back().energy.back(); }
 };
 
-/// Synthesises the detail field H of one frame on the lattice refined `factor` times from L's.
+/// Synthesises the detail field H of one frame on the lattice refined `factor` times from L's. Throws ValueError
+/// on a missing or non-finite L, a density on another box, a negative face padding or non-finite directions.
 DetailField synthesizeDetail(const SynthExemplars& exemplars, const SynthInput& input, const SynthSettings& settings,
     Progress* progress = nullptr);
 
