@@ -510,7 +510,13 @@ int runSynth(SynthArgs& a)
                       fmt("%.4g", lo.z()) + ")-(" + fmt("%.4g", hi.x()) + "," + fmt("%.4g", hi.y()) + "," + fmt("%.4g", hi.z()) +
                       "); output size about " + turbio::formatBytes(outVoxels * 16.0) + " per frame");
         const int lb = cf0HasDensity(f0, a) ? a.lookback : 0;
-        const double coarseVoxels = volume ? double(coarse.volume()) : double(coarse.volume()) / a.factor;
+        // The synthesis runs on the box grown by --face-padding on its open faces (walls not grown).
+        double grown = 1.0;
+        for (int ax = 0; ax < (volume ? 3 : 2); ++ax) {
+            const int open = !(s.boundary.walls & (1u << (2 * ax))) + !(s.boundary.walls & (1u << (2 * ax + 1)));
+            grown *= double(coarse.dim()[ax] + open * s.facePadding) / double(coarse.dim()[ax]);
+        }
+        const double coarseVoxels = (volume ? double(coarse.volume()) : double(coarse.volume()) / a.factor) * grown;
         const double need = turb::synthPeakBytes(coarseVoxels, a.factor, int(frames.size()), lb);
         const long long usable = turbio::usableMemoryBytes();
         const int fMax = usable > 0 ? turb::largestSynthFactor(0.9 * double(usable), coarseVoxels, int(frames.size()), lb) : 0;
