@@ -63,8 +63,10 @@ void rescaleIndexMetadata(std::map<std::string, std::string>& meta, int down, bo
         int x = 0, y = 0, z = 0;
         if (std::sscanf(it->second.c_str(), "%d,%d,%d", &x, &y, &z) == 3 && x % down == 0 && y % down == 0 && z % down == 0)
             it->second = std::to_string(x / down) + "," + std::to_string(y / down) + "," + std::to_string(z / down);
-        else
-            meta.erase(it);
+        else {
+            meta.erase(it); // the seams no longer fall on voxel faces: no patch lattice at all
+            meta.erase(m::kPatchSize);
+        }
     }
 }
 
