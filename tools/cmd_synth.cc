@@ -11,6 +11,7 @@
 #include <turb/Operators.h>
 #include <turb/Projection.h>
 #include <turb/Render.h>
+#include <turb/Resample.h>
 #include <turb/Synth.h>
 #include <turbio/ImageIO.h>
 #include <turbio/Sequence.h>
@@ -591,12 +592,7 @@ int runSynth(SynthArgs& a)
         turb::CombineSettings combine = a.combine;
         turb::ScalarField smoke;
         if (!a.detailEverywhere && cf.hasDensity()) {
-            smoke = turb::ScalarField(cf.velocity.bbox(), cf.velocity.lattice(), 0.0f);
-            turb::CoordBBox both = cf.velocity.bbox();
-            both.intersect(cf.density.bbox());
-            for (int x = both.min().x(); x <= both.max().x(); ++x)
-                for (int y = both.min().y(); y <= both.max().y(); ++y)
-                    for (int z = both.min().z(); z <= both.max().z(); ++z) smoke(x, y, z) = cf.density(x, y, z);
+            smoke = turb::cropped(cf.density, cf.velocity.bbox());
             combine.smoke = &smoke;
             if (std::none_of(smoke.values().begin(), smoke.values().end(), [&](float v) { return v > combine.smokeThreshold; })) {
                 progress.clear();
