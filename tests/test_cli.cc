@@ -94,8 +94,8 @@ TEST(Cli, TransferWritesResumesAndNeverClobbers)
     EXPECT_FALSE(std::filesystem::exists(dir / "up"));
 
     // Frames 1-2, then --resume to 3; compare with an uninterrupted 1-3 run.
-    // The resumed run writes velocity only near the smoke and the detail (--velocity-margin); the reference writes
-    // the whole box. The resume restores the rest as the up-sampled target, so frame 3 must still agree.
+    // The resumed run writes velocity only near the smoke (--velocity-margin) and keeps the last frame's full state
+    // beside the outputs; the reference writes the whole box. Where both wrote velocity, frame 3 must agree.
     const CmdResult a = run("transfer --target " + lo() + " --source " + hi() + " --out " + out + " --frames 1-2 -q --velocity-margin 2");
     ASSERT_EQ(a.code, 0) << a.out;
     const CmdResult b = run("transfer --target " + lo() + " --source " + hi() + " --out " + out +
@@ -145,7 +145,62 @@ TEST(Cli, TransferWritesResumesAndNeverClobbers)
     EXPECT_EQ(c.code, 1);
     EXPECT_NE(c.out.find("no-clobber"), std::string::npos) << c.out;
     EXPECT_EQ(std::filesystem::last_write_time(dir / "up/turb.0001.vdb"), before);
-    EXPECT_EQ(testutil::countEntries(dir / "up"), 3u) << "no temporary files may remain";
+    // Three frames and the trimmed run's resume state (.turb.resume.vdb); no temporary files.
+    EXPECT_EQ(testutil::countEntries(dir / "up"), 4u) << "no temporary files may remain";
+    EXPECT_TRUE(std::filesystem::exists(dir / "up/.turb.resume.vdb"));
+}
+
+TEST(Cli, TrimmedHalfFramesResumeExactlyFromTheStateKeptBesideThem)
+{
+    // Issue 20, item 5: frames written small (velocity, temperature and flame near the smoke, half floats, density
+    // clipped) still resume bit-identically, from the full-precision state of the last frame kept beside them.
+    testutil::TempDir dir;
+    const std::string base = "transfer --target " + lo() + " --source " + hi() + " --velocity-margin 1 --half --clipping 1e-3";
+    ASSERT_EQ(run(base + " --out " + dir / "a/t.####.vdb --frames 1-3 -q").code, 0);
+    ASSERT_EQ(run(base + " --out " + dir / "b/t.####.vdb --frames 1-2 -q").code, 0);
+    const CmdResult resumed = run(base + " --out " + dir / "b/t.####.vdb --frames 1-3 --resume");
+    ASSERT_EQ(resumed.code, 0) << resumed.out;
+    EXPECT_EQ(resumed.out.find("cannot be used"), std::string::npos) << resumed.out;
+    turbio::ReadOptions whole;
+    whole.cropToSmoke = false;
+    const auto read = [&](const std::string& rel, int frame) { return turbio::readFrame(dir / rel, frame, whole); };
+    const turb::Frame a3 = read("a/t.0003.vdb", 3), b3 = read("b/t.0003.vdb", 3);
+    EXPECT_EQ(a3.velocity.values(), b3.velocity.values());
+    EXPECT_EQ(a3.density.values(), b3.density.values());
+    EXPECT_EQ(read("a/.t.resume.vdb", 3).velocity.values(), read("b/.t.resume.vdb", 3).velocity.values());
+
+    // What the small file holds: half floats, velocity and temperature only near the smoke, no faint density.
+    const turbio::FileInfo info = turbio::inspectFile(dir / "a/t.0003.vdb", true);
+    long long densityVoxels = -1, velocityVoxels = -1, temperatureVoxels = -1;
+    for (const turbio::GridInfo& g : info.grids) {
+        EXPECT_TRUE(g.halfFloat) << g.name;
+        if (g.name == "density") {
+            densityVoxels = g.activeVoxels;
+            EXPECT_GT(g.minValue, 1e-3) << "density at or below --clipping is written";
+        }
+        if (g.name == "vel") velocityVoxels = g.activeVoxels;
+        if (g.name == "temperature") temperatureVoxels = g.activeVoxels;
+    }
+    const turb::Frame state = read("a/.t.resume.vdb", 3);
+    ASSERT_GT(densityVoxels, 0);
+    EXPECT_LT(velocityVoxels, (long long)(state.velocity.size()) / 2) << "velocity written over (nearly) the whole box";
+    EXPECT_GE(velocityVoxels, densityVoxels);
+    EXPECT_LE(temperatureVoxels, velocityVoxels);
+
+    // Without the state (deleted, or one frame ahead of the outputs) the run goes on from the small file, says so,
+    // and the frame is no longer the uninterrupted run's.
+    std::filesystem::remove(dir / "b/t.0003.vdb");
+    std::filesystem::remove(dir / "b/.t.resume.vdb");
+    const CmdResult lost = run(base + " --out " + dir / "b/t.####.vdb --frames 1-3 --resume");
+    ASSERT_EQ(lost.code, 0) << lost.out;
+    EXPECT_NE(lost.out.find("b/.t.resume.vdb cannot be used (it is missing)"), std::string::npos) << lost.out;
+    EXPECT_NE(read("b/t.0003.vdb", 3).velocity.values(), a3.velocity.values());
+    std::filesystem::remove(dir / "b/t.0003.vdb");
+    const CmdResult ahead = run(base + " --out " + dir / "b/t.####.vdb --frames 1-3 --resume");
+    ASSERT_EQ(ahead.code, 0) << ahead.out;
+    EXPECT_NE(ahead.out.find("it holds frame 3, not 2"), std::string::npos) << ahead.out;
+
+    EXPECT_EQ(run(base + " --out " + dir / "c/t.####.vdb --frames 1 --clipping nan").code, 2);
 }
 
 TEST(Cli, PrerollMatchesALongerRunAndResumeRefusesOtherSettings)

@@ -4,6 +4,7 @@
 
 #include <turb/Error.h>
 #include <turb/Measure.h>
+#include <turb/Metadata.h>
 #include <turb/Parallel.h>
 #include <turb/Plot.h>
 #include <turb/Resample.h>
@@ -168,6 +169,42 @@ TEST(Measure, DetailWithZeroBlockMeansLeavesCoarseMotionAlone)
     const FrameMeasures c = measureFrame(in);
     ASSERT_TRUE(c.hfRatio);
     EXPECT_DOUBLE_EQ(*c.hfRatio, 1.0);
+}
+
+TEST(Measure, AFrameWrittenNearTheSmokeOnlyMeasuresAsTheWholeFrame)
+{
+    // transfer --velocity-margin writes velocity only near the smoke (meta::kVelocityMargin); the rest of the box is
+    // the up-sampled target's. Read so, the trimmed frame measures exactly as the whole one; read as zeros, the
+    // edge of the written region would count as detail.
+    const Lattice lat{0.5, {0.0, 0.0, 0.0}};
+    const CoordBBox box({0, 0, 0}, {5, 6, 9});
+    const auto smoke = [](const Coord& c) { return c.z() >= 3 && c.z() <= 6 ? 1.0f : 0.0f; };
+    const Frame target = makeFrame(1, box, lat, smoothFlow, smoke);
+    const int f = 4;
+    const auto g = noiseDetail(0.5f, 11);
+    const Frame whole = upFrame(target, f, [&](const Coord& c) {
+        const int k = floorDiv(c.z(), f);
+        return k >= 3 && k <= 6 ? g(c) : Vec3f(0.0f);
+    });
+    Frame trimmed = whole;
+    // Written: the fine smoke (up-sampled, z 10-29) and nothing more, which cuts coarse cells 2 and 7 in half.
+    for (size_t n = 0; n < trimmed.velocity.size(); ++n) {
+        const int z = trimmed.velocity.coordOf(n).z();
+        if (z < 10 || z > 29) trimmed.velocity.data()[n] = Vec3f(0.0f);
+    }
+    MeasureInput in;
+    in.target = &target;
+    in.output = &whole;
+    const FrameMeasures a = measureFrame(in);
+    in.output = &trimmed;
+    const FrameMeasures zeros = measureFrame(in);
+    trimmed.metadata[meta::kVelocityMargin] = "4";
+    const FrameMeasures b = measureFrame(in);
+    ASSERT_TRUE(a.lfErr && a.hfEnergy && a.divRel && b.lfErr && b.hfEnergy && b.divRel && zeros.hfEnergy);
+    EXPECT_DOUBLE_EQ(*b.lfErr, *a.lfErr);
+    EXPECT_DOUBLE_EQ(*b.hfEnergy, *a.hfEnergy);
+    EXPECT_DOUBLE_EQ(*b.divRel, *a.divRel);
+    EXPECT_GT(*zeros.hfEnergy, 1.1 * *a.hfEnergy) << "the zeros outside do not matter: the test shows nothing";
 }
 
 TEST(Measure, PreconditionsThrowValueError)

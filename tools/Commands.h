@@ -43,7 +43,10 @@ void addReadOptions(CLI::App* app, turbio::ReadOptions& opt, const std::string& 
 /// (exit 2) naming the bad piece, like any other malformed option.
 CLI::Validator frameListCheck();
 
-/// Adds --style and --no-clobber for writing caches.
+/// Reads the whole of `s` as a number (NaN and inf included); false when it is not one.
+bool parseNumber(const std::string& s, double& v);
+
+/// Adds --style, --no-clobber, --half and --clipping for writing caches.
 void addWriteOptions(CLI::App* app, turbio::WriteOptions& opt);
 
 } // namespace vdbturb

@@ -98,12 +98,13 @@ std::string chunkPattern(const std::string& dir, int k, const std::string& out)
 }
 
 // The transfer's options the join needs too: the target's read options (it reads u_t as the chunks did) and the
-// output style (blended frames are written like the chunks' own).
+// output options (blended frames are written like the chunks' own).
 std::vector<std::string> joinArgs(const std::vector<std::string>& args)
 {
     std::vector<std::string> out;
     for (size_t i = 0; i < args.size(); ++i)
-        if (args[i].rfind("--target-", 0) == 0 || args[i].rfind("--style", 0) == 0) {
+        if (args[i].rfind("--target-", 0) == 0 || args[i].rfind("--style", 0) == 0 ||
+            args[i].rfind("--velocity-margin", 0) == 0 || args[i].rfind("--clipping", 0) == 0) {
             out.push_back(args[i]);
             if (args[i].find('=') == std::string::npos && i + 1 < args.size()) out.push_back(args[++i]);
         } else if (args[i] == "--half") {
@@ -333,14 +334,17 @@ int runJoin(FarmArgs& a)
             const auto t0 = std::chrono::steady_clock::now();
             turbio::ReadOptions ro;
             ro.cropToSmoke = false; // the chunks' whole (shared) domain
-            const turb::Frame fa = turbio::readFrame(p.format(t), t, ro);
-            const turb::Frame fb = turbio::readFrame(pb.format(t), t, ro);
+            turb::Frame fa = turbio::readFrame(p.format(t), t, ro);
+            turb::Frame fb = turbio::readFrame(pb.format(t), t, ro);
             turbio::ReadOptions tro = a.targetRead;
             tro.cropToSmoke = false;
             const turb::Frame ft = turbio::readFrame(target.path(t), t, tro);
             const auto r = fb.metadata.find(turb::meta::kRatio);
             if (r == fb.metadata.end()) throw turb::IoError(pb.format(t) + ": no " + std::string(turb::meta::kRatio) + " metadata: not a transfer output");
             const turb::VectorField up = turb::cropped(turb::upsample(ft.velocity, std::stoi(r->second)), fb.velocity.bbox());
+            // Chunks written with --velocity-margin hold up(u_t) where no velocity was written: blend what they mean.
+            for (turb::Frame* fr : {&fa, &fb})
+                if (fr->metadata.count(turb::meta::kVelocityMargin)) turb::fillUnwrittenVelocity(fr->velocity, up);
             const turb::CrossFade w = turb::crossFade(j, O);
             turb::BlendStats st;
             turb::Frame blended = turb::blendOverlap(fa, fb, up, w, threshold, &st);
@@ -404,6 +408,10 @@ Command farmCommand()
         join->add_flag("--json", a.json, "One JSON line per frame and a summary on stdout");
         addReadOptions(join, a.targetRead, "target");
         addWriteOptions(join, a.write);
+        join->add_option("--velocity-margin", a.write.velocityMargin,
+                "Write the blended frames' velocity only within N voxels of the smoke, as transfer does (default -1: "
+                "the whole box; farm plan passes the chunks' value)")
+            ->check(CLI::Range(-1, 64));
         (*subs)[0] = plan;
         (*subs)[1] = submit;
         (*subs)[2] = join;

@@ -82,17 +82,6 @@ std::vector<std::string> split(const std::string& s, char sep)
     return out;
 }
 
-bool parseNumber(const std::string& s, double& v)
-{
-    try {
-        size_t pos = 0;
-        v = std::stod(s, &pos);
-        return pos == s.size();
-    } catch (...) {
-        return false;
-    }
-}
-
 int toInt(const std::string& s, const std::string& what)
 {
     double v;

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cmath>
 #include <iostream>
 
 #include <malloc.h>
@@ -14,6 +15,17 @@
 using namespace vdbturb;
 
 namespace vdbturb {
+
+bool parseNumber(const std::string& s, double& v)
+{
+    try {
+        size_t pos = 0;
+        v = std::stod(s, &pos);
+        return pos == s.size();
+    } catch (...) {
+        return false;
+    }
+}
 
 CLI::Validator frameListCheck()
 {
@@ -85,6 +97,15 @@ void addWriteOptions(CLI::App* app, turbio::WriteOptions& opt)
         ->check(CLI::IsMember({"houdini", "blender"}));
     app->add_flag("--no-clobber", opt.noClobber, "Never replace an existing output file");
     app->add_flag("--half", opt.halfFloat, "Store floats as half precision (smaller files)");
+    app->add_option("--clipping", opt.densityTolerance,
+           "Write density at or below this value as empty space (inactive voxels), as Blender's cache Clipping "
+           "does (smaller files; default 0: every non-zero voxel)")
+        ->check(CLI::Validator(
+            [](std::string& text) -> std::string {
+                double v = 0.0; // CLI11's number checks let NaN through
+                return parseNumber(text, v) && std::isfinite(v) && v >= 0.0 ? std::string() : "must be a density >= 0";
+            },
+            "DENSITY>=0"));
 }
 
 std::vector<Command> allCommands() { return {infoCommand(), transferCommand(), measureCommand(), simCommand(), previewCommand(), synthCommand(), stylizeCommand(), animateCommand(), resampleCommand(), farmCommand()}; }

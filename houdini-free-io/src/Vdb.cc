@@ -1466,31 +1466,39 @@ openvdb::Vec3SGrid::Ptr centredToStaggered(const turb::VectorField& v, float sca
     return fieldToGrid<openvdb::Vec3SGrid>(mac, turb::Vec3f(-1.0f));
 }
 
-// Velocity only where it is needed: voxels within options.velocityMargin of smoke, plus options.velocityKeep.
-// Every voxel of that region is written active, zeros included, so a reader can tell "written as zero" from
-// "not written" only by value; transfer's restore treats an exact zero as not written (see TransferResult).
-openvdb::Vec3SGrid::Ptr velocityNearSmoke(const turb::Frame& frame, const WriteOptions& options)
+// Where a trimmed frame writes its velocity, temperature and flame: voxels within options.velocityMargin of smoke
+// (density or flame above options.smokeThreshold). Flame counts so a fire's hot core is kept where it holds no soot.
+openvdb::MaskGrid::Ptr nearSmokeMask(const turb::Frame& frame, const WriteOptions& options)
 {
     auto mask = openvdb::MaskGrid::create(false);
     mask->setTransform(transformOf(frame.lattice()));
     {
         auto acc = mask->getAccessor();
-        const turb::ScalarField& d = frame.density;
-        for (size_t n = 0; n < d.size(); ++n)
-            if (d.data()[n] > options.smokeThreshold) acc.setValueOn(d.coordOf(n));
+        for (const turb::ScalarField* f : {&frame.density, frame.flame ? &*frame.flame : nullptr}) {
+            if (!f) continue;
+            for (size_t n = 0; n < f->size(); ++n)
+                if (f->data()[n] > options.smokeThreshold) acc.setValueOn(f->coordOf(n));
+        }
     }
     if (options.velocityMargin > 0)
         openvdb::tools::dilateActiveValues(mask->tree(), options.velocityMargin, openvdb::tools::NN_FACE_EDGE_VERTEX,
             openvdb::tools::EXPAND_TILES);
-    for (const turb::CoordBBox& b : options.velocityKeep) mask->tree().fill(b, true, true);
     mask->tree().voxelizeActiveTiles();
-    auto g = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.0f));
-    g->setTransform(transformOf(frame.velocity.lattice()));
+    return mask;
+}
+
+// The field's non-zero values at the mask's voxels (a zero is the background either way; transfer's restore reads a
+// zero velocity as "not written").
+template<typename GridT, typename T>
+typename GridT::Ptr maskedGrid(const turb::Field<T>& field, const openvdb::MaskGrid& mask)
+{
+    auto g = GridT::create(turb::Field<T>::zeroValue());
+    g->setTransform(transformOf(field.lattice()));
     auto out = g->getAccessor();
-    const turb::CoordBBox& box = frame.velocity.bbox();
-    for (auto it = mask->cbeginValueOn(); it; ++it) {
+    const turb::CoordBBox& box = field.bbox();
+    for (auto it = mask.cbeginValueOn(); it; ++it) {
         const openvdb::Coord c = it.getCoord();
-        if (box.isInside(c)) out.setValueOn(c, frame.velocity[c]);
+        if (box.isInside(c) && field[c] != turb::Field<T>::zeroValue()) out.setValueOn(c, field[c]);
     }
     return g;
 }
@@ -1557,6 +1565,9 @@ void writeFrame(const std::string& path, const turb::Frame& frame, const WriteOp
         g.insertMeta("file_voxel_size", openvdb::FloatMetadata(float(lat.voxelSize)));
     };
 
+    // Trimmed (Houdini style only: Blender's staggered faces need whole lines for the exact inverse).
+    const openvdb::MaskGrid::Ptr near =
+        !blender && options.velocityMargin >= 0 && frame.hasDensity() ? nearSmokeMask(frame, options) : nullptr;
     if (frame.hasDensity()) {
         auto g = fieldToGrid<openvdb::FloatGrid>(frame.density, options.densityTolerance);
         g->setName("density");
@@ -1572,8 +1583,8 @@ void writeFrame(const std::string& path, const turb::Frame& frame, const WriteOp
             g->setName("velocity");
             g->setGridClass(openvdb::GRID_STAGGERED);
             addBlenderMeta(*g);
-        } else if (options.velocityMargin >= 0 && frame.hasDensity()) {
-            g = velocityNearSmoke(frame, options);
+        } else if (near) {
+            g = maskedGrid<openvdb::Vec3SGrid>(frame.velocity, *near);
             g->setName("vel");
             g->setGridClass(openvdb::GRID_UNKNOWN);
         } else {
@@ -1587,7 +1598,7 @@ void writeFrame(const std::string& path, const turb::Frame& frame, const WriteOp
     }
     const auto addScalar = [&](const std::optional<turb::ScalarField>& f, const char* name) {
         if (!f || f->empty()) return;
-        auto g = fieldToGrid<openvdb::FloatGrid>(*f, 0.0f);
+        auto g = near ? maskedGrid<openvdb::FloatGrid>(*f, *near) : fieldToGrid<openvdb::FloatGrid>(*f, 0.0f);
         g->setName(name);
         g->setGridClass(openvdb::GRID_FOG_VOLUME);
         g->setSaveFloatAsHalf(options.halfFloat);
@@ -1619,6 +1630,7 @@ void writeFrame(const std::string& path, const turb::Frame& frame, const WriteOp
             meta.insertMeta(turb::meta::kBlenderOffset, openvdb::StringMetadata(os.str()));
         }
     }
+    if (near) meta.insertMeta(turb::meta::kVelocityMargin, openvdb::StringMetadata(std::to_string(options.velocityMargin)));
     if (frame.dt > 0.0) {
         std::ostringstream os;
         os.precision(17);

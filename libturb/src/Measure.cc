@@ -204,6 +204,21 @@ Aligned alignPair(const Frame& out, const Frame& tgt, const MeasureSettings& s)
     return a;
 }
 
+// A frame written trimmed to the smoke (meta::kVelocityMargin) holds the up-sampled target's velocity where nothing
+// was written (an exact zero): read it so, or the edge of the written region would count as detail. Returns `out`
+// itself when it was written whole, else `storage` filled in.
+const Frame& fillUnwritten(const Frame& out, const Frame& tgt, const MeasureSettings& s, Frame& storage)
+{
+    if (!out.metadata.count(meta::kVelocityMargin) || !out.hasVelocity() || !tgt.hasVelocity()) return out;
+    storage = out;
+    const int f = resolutionRatio(tgt, out);
+    const Lattice refined = refinedLattice(tgt.velocity.lattice(), tgt.velocity.bbox(), f);
+    const CoordBBox box = refineDomain(tgt.velocity.bbox(), f);
+    fillUnwrittenVelocity(storage.velocity, realign(upsample(tgt.velocity, f), out.velocity.lattice(),
+        out.velocity.bbox(), resolveAlignment(s.alignment, out.velocity, refined, box)));
+    return storage;
+}
+
 } // namespace
 
 const char* alignmentName(Alignment a)
@@ -428,8 +443,9 @@ FrameMeasures measureFrame(const MeasureInput& in, const MeasureSettings& s, Pro
         requireDensity(*in.source, "source");
     }
     if (!(s.densityThreshold >= 0.0f)) throw ValueError("measure: density threshold must be >= 0");
-    const Frame& O = *in.output;
     const Frame& T = *in.target;
+    Frame filled, previousFilled;
+    const Frame& O = fillUnwritten(*in.output, T, s, filled);
     // A source at a non-integer ratio is measured at the nearest integer one, resampled as the transfer
     // resamples it, so hf_ratio compares the output with the detail the transfer actually had.
     const Frame* src = in.source;
@@ -575,8 +591,8 @@ FrameMeasures measureFrame(const MeasureInput& in, const MeasureSettings& s, Pro
             if (progress) progress->begin("tcoh");
             requireVelocity(in.previousOutput, "previous output");
             requireVelocity(in.previousTarget, "previous target");
-            const Frame& Op = *in.previousOutput;
             const Frame& Tp = *in.previousTarget;
+            const Frame& Op = fillUnwritten(*in.previousOutput, Tp, s, previousFilled);
             // The real time between the two frames: frames measured two apart are two frames' time apart.
             const int gap = T.number - Tp.number;
             const double dt = (s.dt > 0.0 ? s.dt : Tp.dt) * gap;

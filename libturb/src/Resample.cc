@@ -129,6 +129,16 @@ Field<T> cropped(const Field<T>& f, const CoordBBox& box)
     return out;
 }
 
+void fillUnwrittenVelocity(VectorField& velocity, const VectorField& up)
+{
+    for (size_t n = 0; n < velocity.size(); ++n) {
+        Vec3f& v = velocity.data()[n];
+        if (v != Vec3f(0.0f)) continue;
+        const Coord c = velocity.coordOf(n);
+        v = up.valueOr(c.x(), c.y(), c.z(), Vec3f(0.0f));
+    }
+}
+
 FrequencySplit splitFrequencies(const VectorField& fine, int factor)
 {
     FrequencySplit s;

@@ -153,13 +153,14 @@ struct WriteOptions
     WriteStyle style = WriteStyle::Houdini; ///< naming and unit convention of the written grids
     bool noClobber = false;   ///< refuse to replace an existing file
     bool halfFloat = false;   ///< store floats as half (smaller, ~3 significant digits)
-    float densityTolerance = 0.0f;  ///< density at or below this is written inactive (sparse)
-    /// Velocity extent (Houdini style): -1 writes every non-zero voxel of the box; N >= 0 writes only voxels within
-    /// N voxels of smoke (density > smokeThreshold) or inside `velocityKeep`. A renderer's motion blur needs
-    /// velocity where there is smoke; re-advecting the density for a frame needs about its travel in voxels.
+    /// Density at or below this is written inactive (sparse), as Blender's cache "Clipping" does. >= 0.
+    float densityTolerance = 0.0f;
+    /// Extent of velocity, temperature and flame (Houdini style): -1 writes the whole box (every non-zero voxel);
+    /// N >= 0 writes only voxels within N voxels of smoke (density or flame > smokeThreshold). A renderer's motion
+    /// blur needs velocity where there is smoke (N = 1 covers its trilinear lookups); re-advecting the density
+    /// for a frame needs about its travel per frame in voxels. The Blender style always writes the whole box.
     int velocityMargin = -1;
     float smokeThreshold = 1e-3f;         ///< density above this is smoke for velocityMargin
-    std::vector<turb::CoordBBox> velocityKeep; ///< boxes always written (e.g. TransferResult::detailBlocks)
 };
 
 /// Writes a frame atomically: to a temporary file in the same directory, then renamed over `path`,

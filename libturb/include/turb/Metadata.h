@@ -24,6 +24,13 @@ inline constexpr const char* kBeta = "vdbturb_beta";
 inline constexpr const char* kGamma = "vdbturb_gamma";
 inline constexpr const char* kState = "vdbturb_state";             ///< what --resume needs (saveState)
 inline constexpr const char* kSettings = "vdbturb_settings";       ///< outputSettingsText(): what --resume compares
+/// In a frame written trimmed, in half floats or Blender style: the file name (same directory) of the exact
+/// resume state that transfer keeps beside the outputs, a full-precision copy of the last frame written.
+inline constexpr const char* kResumeStateFile = "vdbturb_resume_state_file";
+/// In a frame whose velocity was written only within N voxels of the smoke: N. Elsewhere its velocity is the
+/// up-sampled target's (restore and measure read an unwritten, exactly zero voxel so).
+inline constexpr const char* kVelocityMargin = "vdbturb_velocity_margin";
+inline constexpr const char* kResumeFrame = "vdbturb_resume_frame"; ///< in that file: the frame it is the state of
 inline constexpr const char* kTargetInput = "vdbturb_target";    ///< the target sequence a transfer read
 inline constexpr const char* kSourceInput = "vdbturb_source";    ///< the source sequence a transfer read
 inline constexpr const char* kSourceFrame = "vdbturb_source_frame"; ///< the source frame the output was made from

@@ -42,6 +42,12 @@ FrequencySplit splitFrequencies(const VectorField& fine, int factor);
 template<typename T>
 Field<T> cropped(const Field<T>& f, const CoordBBox& box);
 
+/// A velocity written only near the smoke (the IO layer's velocity margin, meta::kVelocityMargin) is the
+/// up-sampled target's wherever it was not written, and reads there as an exact zero: sets each exactly zero voxel
+/// of `velocity` to `up` at the same index (zero where `up`'s box does not reach). Used by transfer's restore,
+/// measure and the farm's join, so all three read a trimmed frame as the file means it.
+void fillUnwrittenVelocity(VectorField& velocity, const VectorField& up);
+
 /// The integer ratio coarse/fine of two voxel sizes; throws ValueError naming both when the ratio is
 /// below 1 or not within `tol` of an integer.
 int integerRatio(double coarseVoxel, double fineVoxel, double tol = 1e-3);

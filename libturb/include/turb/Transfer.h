@@ -196,10 +196,6 @@ struct TransferResult
     Frame frame;          ///< velocity (world units, source resolution), density, upsampled temperature/flame
     TransferStats stats;
     bool empty = false;   ///< the target frame had no smoke: the frame is the upsampled target (defined no-op)
-    /// Output boxes (local-patch blocks) holding every voxel where the velocity differs from up(u_t); outside them
-    /// it is up(u_t) exactly. A writer may store velocity only there and near the smoke: restore() puts up(u_t)
-    /// back where a previous output reads as exactly zero.
-    std::vector<CoordBBox> detailBlocks;
 };
 
 /// The settings that change a transfer's output, as (name, value) pairs in a fixed order; names are the command
@@ -237,7 +233,11 @@ public:
     /// to store in the output file's metadata. The previous detail and density come from that file.
     std::string saveState() const;
     /// Restores a sequence: `state` from saveState(), `previousOutput` the frame written last and
-    /// `previousTarget` the target frame it was made from.
+    /// `previousTarget` the target frame it was made from. Exact (the next frame is bit-identical to an
+    /// uninterrupted run's) when `previousOutput` holds process()'s velocity and density in full over the box.
+    /// A velocity voxel that is exactly zero counts as not written and becomes up(u_t), i.e. no detail there:
+    /// a file trimmed to the smoke (WriteOptions::velocityMargin) resumes approximately. Throws ValueError
+    /// when the lattice or local patch size does not match the state.
     void restore(const std::string& state, const Frame& previousOutput, const Frame& previousTarget);
 
     const TransferSettings& settings() const;

@@ -59,6 +59,7 @@ Frame blendOverlap(const Frame& a, const Frame& b, const VectorField& upTarget, 
         throw ValueError("overlap frame " + std::to_string(b.number) + ": the chunks' lattices differ");
     Frame out = b;
     out.metadata.erase(meta::kState);
+    out.metadata.erase(meta::kResumeStateFile);
     const bool dens = a.hasDensity() && b.hasDensity() && a.density.bbox() == b.density.bbox();
     if (a.hasDensity() != b.hasDensity() || (a.hasDensity() && !dens))
         throw ValueError("overlap frame " + std::to_string(b.number) + ": the chunks' densities differ in extent");

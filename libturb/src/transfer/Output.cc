@@ -58,22 +58,4 @@ Frame assembleOutput(const Frame& target, const TargetAtOutput& t, const VectorF
     return out;
 }
 
-std::vector<CoordBBox> detailBlocks(const VectorField& detail, const FrameSetup& fs)
-{
-    std::vector<CoordBBox> blocks;
-    if (detail.empty()) return blocks;
-    const PatchLayout& L = fs.layout;
-    for (size_t p = 0; p < L.patchCount(); ++p) {
-        CoordBBox pb = L.patchBox(L.patchCoord(p));
-        pb.intersect(detail.bbox());
-        if (pb.empty()) continue;
-        for (auto it = pb.begin(); it; ++it)
-            if (detail[*it] != Vec3f(0.0f)) {
-                blocks.push_back(pb);
-                break;
-            }
-    }
-    return blocks;
-}
-
 } // namespace turb::detail

@@ -260,9 +260,6 @@ void detailChange(const VectorField& detail, const VectorField& advectedDetail, 
 Frame assembleOutput(const Frame& target, const TargetAtOutput& t, const VectorField& detail, ScalarField density,
     const FrameSetup& fs);
 
-/// The local-patch blocks (clipped to the output box) that hold a non-zero detail voxel: outside them the output
-/// velocity is up(u_t) exactly, so a writer may leave it out and a reader restore it (TurbulenceTransfer::restore).
-std::vector<CoordBBox> detailBlocks(const VectorField& detail, const FrameSetup& fs);
 
 /// Carries this frame into `c` for the next one: the detail is recomputed from the output velocity exactly as
 /// restoreState must do from the written file, so a --resume continues bit-identically.

@@ -369,7 +369,6 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
         detailChange(detail, advectedDetail, density.density, s.densityThreshold, st);
     }
     result.frame = assembleOutput(target, t, detail, std::move(density.density), fs);
-    result.detailBlocks = detailBlocks(detail, fs);
     carryState(carried, target, src, result.frame, t, t.emission, fs);
     time.output = lap(t0);
     time.total = std::chrono::duration<double>(Clock::now() - tStart).count();
@@ -416,10 +415,8 @@ void TurbulenceTransfer::restore(const std::string& state, const Frame& previous
     out.density = cropped(previousOutput.density, fs.fineBox);
     detail::TargetAtOutput t;
     t.Ut = upsample(previousTarget.velocity, saved.f);
-    // An output written only near the smoke and the detail (TransferResult::detailBlocks) reads as zero elsewhere,
-    // where the velocity was up(u_t) exactly.
-    for (size_t n = 0; n < out.velocity.size(); ++n)
-        if (out.velocity.data()[n] == Vec3f(0.0f)) out.velocity.data()[n] = t.Ut[out.velocity.coordOf(n)];
+    // An output written only near the smoke reads as zero elsewhere: no detail there (an approximate resume).
+    fillUnwrittenVelocity(out.velocity, t.Ut);
     Frame previousSource;
     previousSource.number = saved.sourceNumber;
     previousSource.dt = saved.sourceDt;
