@@ -152,7 +152,7 @@ TEST(Cli, TransferWritesResumesAndNeverClobbers)
 
 TEST(Cli, TrimmedHalfFramesResumeExactlyFromTheStateKeptBesideThem)
 {
-    // Issue 20, item 5: frames written small (velocity, temperature and flame near the smoke, half floats, density
+    // Issue 20, item 5: frames written small (velocity near the smoke, temperature and flame at it, half floats, density
     // clipped) still resume bit-identically, from the full-precision state of the last frame kept beside them.
     testutil::TempDir dir;
     const std::string base = "transfer --target " + lo() + " --source " + hi() + " --velocity-margin 1 --half --clipping 1e-3";
@@ -169,7 +169,7 @@ TEST(Cli, TrimmedHalfFramesResumeExactlyFromTheStateKeptBesideThem)
     EXPECT_EQ(a3.density.values(), b3.density.values());
     EXPECT_EQ(read("a/.t.resume.vdb", 3).velocity.values(), read("b/.t.resume.vdb", 3).velocity.values());
 
-    // What the small file holds: half floats, velocity and temperature only near the smoke, no faint density.
+    // What the small file holds: half floats, velocity near the smoke, temperature at it, no faint density.
     const turbio::FileInfo info = turbio::inspectFile(dir / "a/t.0003.vdb", true);
     long long densityVoxels = -1, velocityVoxels = -1, temperatureVoxels = -1;
     for (const turbio::GridInfo& g : info.grids) {
@@ -185,7 +185,8 @@ TEST(Cli, TrimmedHalfFramesResumeExactlyFromTheStateKeptBesideThem)
     ASSERT_GT(densityVoxels, 0);
     EXPECT_LT(velocityVoxels, (long long)(state.velocity.size()) / 2) << "velocity written over (nearly) the whole box";
     EXPECT_GE(velocityVoxels, densityVoxels);
-    EXPECT_LE(temperatureVoxels, velocityVoxels);
+    EXPECT_GT(temperatureVoxels, 0);
+    EXPECT_LE(temperatureVoxels, densityVoxels) << "temperature is written at the smoke only, as Blender writes it";
 
     // Without the state (deleted, or one frame ahead of the outputs) the run goes on from the small file, says so,
     // and the frame is no longer the uninterrupted run's.

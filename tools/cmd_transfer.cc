@@ -625,7 +625,7 @@ Command transferCommand()
                "smoke; the zeros beyond would read as turbulence at the smoke's edge). Default 4; 0 = off")
             ->check(CLI::Range(0, 64));
         app->add_option("--velocity-margin", a.write.velocityMargin,
-               "Write velocity, temperature and flame only within N voxels of the smoke (smaller files; 1 covers a "
+               "Write velocity only within N voxels of the smoke, and temperature and flame only at it (smaller files; 1 covers a "
                "renderer's motion blur, re-advection needs the smoke's travel per frame in voxels); -1 = the whole "
                "box (default; --style blender always writes the whole box). --resume stays exact through a full-precision "
                "copy of the last frame kept beside the outputs")

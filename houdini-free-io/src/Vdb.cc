@@ -1466,9 +1466,10 @@ openvdb::Vec3SGrid::Ptr centredToStaggered(const turb::VectorField& v, float sca
     return fieldToGrid<openvdb::Vec3SGrid>(mac, turb::Vec3f(-1.0f));
 }
 
-// Where a trimmed frame writes its velocity, temperature and flame: voxels within options.velocityMargin of smoke
-// (density or flame above options.smokeThreshold). Flame counts so a fire's hot core is kept where it holds no soot.
-openvdb::MaskGrid::Ptr nearSmokeMask(const turb::Frame& frame, const WriteOptions& options)
+// Where a trimmed frame writes its velocity (margin = options.velocityMargin) and its temperature and flame (margin 0,
+// as Blender writes them): voxels within `margin` of smoke (density or flame above options.smokeThreshold). Flame
+// counts so a fire's hot core is kept where it holds no soot.
+openvdb::MaskGrid::Ptr nearSmokeMask(const turb::Frame& frame, const WriteOptions& options, int margin)
 {
     auto mask = openvdb::MaskGrid::create(false);
     mask->setTransform(transformOf(frame.lattice()));
@@ -1480,8 +1481,8 @@ openvdb::MaskGrid::Ptr nearSmokeMask(const turb::Frame& frame, const WriteOption
                 if (f->data()[n] > options.smokeThreshold) acc.setValueOn(f->coordOf(n));
         }
     }
-    if (options.velocityMargin > 0)
-        openvdb::tools::dilateActiveValues(mask->tree(), options.velocityMargin, openvdb::tools::NN_FACE_EDGE_VERTEX,
+    if (margin > 0)
+        openvdb::tools::dilateActiveValues(mask->tree(), margin, openvdb::tools::NN_FACE_EDGE_VERTEX,
             openvdb::tools::EXPAND_TILES);
     mask->tree().voxelizeActiveTiles();
     return mask;
@@ -1566,8 +1567,9 @@ void writeFrame(const std::string& path, const turb::Frame& frame, const WriteOp
     };
 
     // Trimmed (Houdini style only: Blender's staggered faces need whole lines for the exact inverse).
-    const openvdb::MaskGrid::Ptr near =
-        !blender && options.velocityMargin >= 0 && frame.hasDensity() ? nearSmokeMask(frame, options) : nullptr;
+    const bool trim = !blender && options.velocityMargin >= 0 && frame.hasDensity();
+    const openvdb::MaskGrid::Ptr near = trim ? nearSmokeMask(frame, options, options.velocityMargin) : nullptr;
+    const openvdb::MaskGrid::Ptr inSmoke = trim ? nearSmokeMask(frame, options, 0) : nullptr;
     if (frame.hasDensity()) {
         auto g = fieldToGrid<openvdb::FloatGrid>(frame.density, options.densityTolerance);
         g->setName("density");
@@ -1598,7 +1600,7 @@ void writeFrame(const std::string& path, const turb::Frame& frame, const WriteOp
     }
     const auto addScalar = [&](const std::optional<turb::ScalarField>& f, const char* name) {
         if (!f || f->empty()) return;
-        auto g = near ? maskedGrid<openvdb::FloatGrid>(*f, *near) : fieldToGrid<openvdb::FloatGrid>(*f, 0.0f);
+        auto g = inSmoke ? maskedGrid<openvdb::FloatGrid>(*f, *inSmoke) : fieldToGrid<openvdb::FloatGrid>(*f, 0.0f);
         g->setName(name);
         g->setGridClass(openvdb::GRID_FOG_VOLUME);
         g->setSaveFloatAsHalf(options.halfFloat);

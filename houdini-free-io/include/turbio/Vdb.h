@@ -155,10 +155,11 @@ struct WriteOptions
     bool halfFloat = false;   ///< store floats as half (smaller, ~3 significant digits)
     /// Density at or below this is written inactive (sparse), as Blender's cache "Clipping" does. >= 0.
     float densityTolerance = 0.0f;
-    /// Extent of velocity, temperature and flame (Houdini style): -1 writes the whole box (every non-zero voxel);
-    /// N >= 0 writes only voxels within N voxels of smoke (density or flame > smokeThreshold). A renderer's motion
-    /// blur needs velocity where there is smoke (N = 1 covers its trilinear lookups); re-advecting the density
-    /// for a frame needs about its travel per frame in voxels. The Blender style always writes the whole box.
+    /// Extent of velocity (Houdini style): -1 writes the whole box (every non-zero voxel), as it does temperature
+    /// and flame; N >= 0 writes velocity only within N voxels of smoke (density or flame > smokeThreshold), and
+    /// temperature and flame only at the smoke, as Blender does. A renderer's motion blur needs velocity where
+    /// there is smoke (N = 1 covers its trilinear lookups); re-advecting the density for a frame needs about its
+    /// travel per frame in voxels. The Blender style always writes the whole box.
     int velocityMargin = -1;
     float smokeThreshold = 1e-3f;         ///< density above this is smoke for velocityMargin
 };
