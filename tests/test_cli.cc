@@ -168,6 +168,13 @@ TEST(Cli, TrimmedHalfFramesResumeExactlyFromTheStateKeptBesideThem)
     EXPECT_EQ(a3.velocity.values(), b3.velocity.values());
     EXPECT_EQ(a3.density.values(), b3.density.values());
     EXPECT_EQ(read("a/.t.resume.vdb", 3).velocity.values(), read("b/.t.resume.vdb", 3).velocity.values());
+    // Written otherwise, the sequence would hold two formats: refused, naming each write setting that differs.
+    const CmdResult other = run("transfer --target " + lo() + " --source " + hi() + " --velocity-margin 2 --clipping 1e-3 --out " +
+                                dir / "b/t.####.vdb --frames 1-4 --resume");
+    EXPECT_EQ(other.code, 1) << other.out;
+    EXPECT_NE(other.out.find("half: 1 -> 0"), std::string::npos) << other.out;
+    EXPECT_NE(other.out.find("velocity-margin: 1 -> 2"), std::string::npos) << other.out;
+    EXPECT_FALSE(std::filesystem::exists(dir / "b/t.0004.vdb"));
 
     // What the small file holds: half floats, velocity near the smoke, temperature at it, no faint density.
     const turbio::FileInfo info = turbio::inspectFile(dir / "a/t.0003.vdb", true);
@@ -187,6 +194,8 @@ TEST(Cli, TrimmedHalfFramesResumeExactlyFromTheStateKeptBesideThem)
     EXPECT_GE(velocityVoxels, densityVoxels);
     EXPECT_GT(temperatureVoxels, 0);
     EXPECT_LE(temperatureVoxels, densityVoxels) << "temperature is written at the smoke only, as Blender writes it";
+    const CmdResult shown = run("info " + dir / "a/t.0003.vdb");
+    EXPECT_NE(shown.out.find("velocity written only within 1 voxel of the smoke, 16-bit floats"), std::string::npos) << shown.out;
 
     // Without the state (deleted, or one frame ahead of the outputs) the run goes on from the small file, says so,
     // and the frame is no longer the uninterrupted run's.
@@ -194,7 +203,7 @@ TEST(Cli, TrimmedHalfFramesResumeExactlyFromTheStateKeptBesideThem)
     std::filesystem::remove(dir / "b/.t.resume.vdb");
     const CmdResult lost = run(base + " --out " + dir / "b/t.####.vdb --frames 1-3 --resume");
     ASSERT_EQ(lost.code, 0) << lost.out;
-    EXPECT_NE(lost.out.find("b/.t.resume.vdb cannot be used (it is missing)"), std::string::npos) << lost.out;
+    EXPECT_NE(lost.out.find("b/.t.resume.vdb cannot be used: it is missing"), std::string::npos) << lost.out;
     EXPECT_NE(read("b/t.0003.vdb", 3).velocity.values(), a3.velocity.values());
     std::filesystem::remove(dir / "b/t.0003.vdb");
     const CmdResult ahead = run(base + " --out " + dir / "b/t.####.vdb --frames 1-3 --resume");

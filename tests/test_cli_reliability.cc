@@ -184,7 +184,7 @@ TEST(CliReliability, DryRunPrintsTheLatticeRatioTimingAndEstimatesThatHold)
         std::string::npos) << dry.out;
     const double estimateMb = numberAfter(dry.out, "memory: about ");
     ASSERT_GT(estimateMb, 0.0) << dry.out;
-    const double sizeMb = numberAfter(dry.out, "output size: up to about ");
+    const double sizeMb = numberAfter(dry.out, "output size: about ");
     ASSERT_GT(sizeMb, 0.0) << dry.out;
     EXPECT_FALSE(std::filesystem::exists(dir / "o"));
 

@@ -9,6 +9,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cstdio>
 #include <iostream>
 #include <memory>
@@ -98,6 +99,11 @@ std::string gridTable(const turbio::FileInfo& fi)
         const turb::Coord r = *fi.baseResolution;
         out += ", Blender domain " + std::to_string(r.x()) + "x" + std::to_string(r.y()) + "x" + std::to_string(r.z());
     }
+    if (fi.velocityMargin >= 0)
+        out += ", velocity written only within " + std::to_string(fi.velocityMargin) + " voxel" +
+               (fi.velocityMargin == 1 ? "" : "s") + " of the smoke";
+    if (std::any_of(fi.grids.begin(), fi.grids.end(), [](const turbio::GridInfo& g) { return g.halfFloat; }))
+        out += ", 16-bit floats";
     out += "\n";
     std::vector<std::vector<std::string>> rows{
         {"#", "grid", "type", "class", "role", "voxel", "origin", "active box (index)", "world bounds", "active", "values"}};
@@ -224,6 +230,7 @@ int runInfo(const InfoArgs& a)
             fj["file_version"] = fi.fileVersion;
             fj["library_version"] = fi.libraryVersion;
             fj["creator"] = fi.creator;
+            fj["velocity_margin"] = fi.velocityMargin >= 0 ? nlohmann::json(fi.velocityMargin) : nlohmann::json(nullptr);
             if (fi.baseResolution)
                 fj["blender_base_resolution"] = {fi.baseResolution->x(), fi.baseResolution->y(), fi.baseResolution->z()};
             fj["grids"] = nlohmann::json::array();

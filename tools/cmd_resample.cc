@@ -100,6 +100,7 @@ int runResample(ResampleArgs& a)
         return kOk;
     }
     RunReport report("resample", false);
+    bool warnedClipping = false;
     for (size_t i = 0; i < seq.frames.size(); ++i) {
         const int f = seq.frames[i];
         const auto t0 = std::chrono::steady_clock::now();
@@ -110,6 +111,7 @@ int runResample(ResampleArgs& a)
         frame.metadata[turb::meta::kCommand] = "resample";
         const std::string path = outPattern.format(f);
         turbio::ensureParentDirectory(path);
+        warnIfClippedAway(frame, a.write, path, warnedClipping);
         turbio::writeFrame(path, frame, a.write);
         report.frameDone(f, int(i), int(seq.frames.size()), secondsSince(t0), "-> " + path);
     }

@@ -167,6 +167,7 @@ int runSim(const SimArgs& a)
 
     RunReport report("sim " + a.scene + " " + resText(res), a.json);
     int unconverged = 0;
+    bool warnedClipping = false;
     turb::withThreads(globals().threads, [&] {
         for (int i = 0; i < a.frames; ++i) {
             const int number = a.start + i;
@@ -179,6 +180,7 @@ int runSim(const SimArgs& a)
             frame.metadata[turb::meta::kCommand] = "sim";
             const std::string path = pattern.format(number);
             turbio::ensureParentDirectory(path);
+            warnIfClippedAway(frame, a.write, path, warnedClipping);
             turbio::writeFrame(path, frame, a.write);
             progress.clear();
             if (!st.converged) {

@@ -539,6 +539,7 @@ int runSynth(SynthArgs& a)
 
     const int count = int(frames.size());
     std::vector<int> unconverged; // frames whose projection stopped short
+    bool warnedClipping = false;
     for (size_t i = 0; i < frames.size(); ++i) {
         const int fr = frames[i];
         const auto t0 = std::chrono::steady_clock::now();
@@ -661,6 +662,7 @@ int runSynth(SynthArgs& a)
         progress.begin("writing");
         const std::string outPath = outPattern.format(fr);
         turbio::ensureParentDirectory(outPath);
+        warnIfClippedAway(outFrame, a.write, outPath, warnedClipping);
         turbio::writeFrame(outPath, outFrame, a.write);
         lap(4);
 

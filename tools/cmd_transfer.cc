@@ -114,8 +114,6 @@ double velocityBoxVoxels(const turbio::FrameScan& fr)
     return double(fr.domain.volume());
 }
 
-// Everything the run needs, checked before its first frame (and all a dry run does): every target and source
-// frame's headers, one lattice per sequence, the ratio, the output paths, the memory.
 // A frame written trimmed to the smoke, in half floats or Blender style is not the state the next frame starts
 // from. The exact state is then kept beside the outputs in one file, rewritten after every frame: one frame's
 // disk, not the sequence's. "up/turb.####.vdb" keeps "up/.turb.resume.vdb". None for a single unnumbered file.
@@ -127,6 +125,8 @@ std::string resumeStatePath(const turbio::FramePattern& out, const turbio::Write
     return (p.parent_path() / ("." + p.filename().string())).string();
 }
 
+// Everything the run needs, checked before its first frame (and all a dry run does): every target and source
+// frame's headers, one lattice per sequence, the ratio, the output paths, the memory.
 void preflight(const TransferArgs& a, const turbio::Sequence& target, const turbio::Sequence& source,
     const std::vector<int>& sourceFor, const turbio::FramePattern& outPattern, size_t first)
 {
@@ -158,21 +158,24 @@ void preflight(const TransferArgs& a, const turbio::Sequence& target, const turb
               worldBox(tBox, t0.lattice) + " (the target's held box: its smoke and margin" + (tl && tl->frame != t0.frame ? " at frame " +
               std::to_string(tl->frame) + ", its largest" : "") + ")");
 
-    // Output size: the target's velocity box padded by two target voxels and its density, at f^3 voxels each
-    // (velocity 12 B, density and temperature 4 B a voxel; Blosc gains little on noisy floats). Trimmed to the
-    // smoke, velocity and temperature cover the density's voxels and the margin's shell: 1.2x at margin 1, 1.45x
-    // at 2 on the Blender plume2 pair at 128^3.
+    // Output size (Blosc gains little on noisy floats). Velocity covers the target velocity's box padded by two
+    // voxels, at f^3 voxels each (zero beyond it: not written), or trimmed, the smoke and the margin's shell
+    // (1.2x the smoke at margin 1, 1.45x at 2 on the Blender plume2 pair at 128^3).
+    // The smoke, where density and temperature are written, is the target's smoke voxels x f^3 and the up-sampling's
+    // spread (1.6x: 53 k fine voxels from 532 coarse ones at plume2's frame 1).
     const bool trimmed = a.write.velocityMargin >= 0 && a.write.style == turbio::WriteStyle::Houdini;
     const double floatBytes = a.write.halfFloat ? 2.0 : 4.0;
+    const double box = double(outDim.x()) * outDim.y() * outDim.z();
     double outBytes = 0.0, stateBytes = 0.0;
     for (const auto& fr : ts.frames) {
         const double cells = double(f) * f * (turb::isFlat(tBox) ? 1.0 : f);
-        const double dens = cells * (fr.densityActive > 0 ? double(fr.densityActive) : double(fr.domain.volume()));
-        const double vel = trimmed ? dens * (1.0 + 0.25 * a.write.velocityMargin) : cells * velocityBoxVoxels(fr);
-        outBytes = std::max(outBytes, floatBytes * (vel * 4.0 + dens));
-        stateBytes = std::max(stateBytes, cells * velocityBoxVoxels(fr) * 12.0 + dens * 4.0);
+        const double smoke = std::min(box, 1.6 * cells * (fr.densityActive > 0 ? double(fr.densityActive) : double(fr.domain.volume())));
+        const double whole = std::min(box, cells * velocityBoxVoxels(fr));
+        const double vel = trimmed ? std::min(whole, smoke * (1.0 + 0.25 * a.write.velocityMargin)) : whole;
+        outBytes = std::max(outBytes, floatBytes * (3.0 * vel + 2.0 * smoke));
+        stateBytes = std::max(stateBytes, 12.0 * whole + 4.0 * smoke);
     }
-    printData("output size: up to about " + turbio::formatBytes(outBytes) + " per frame, " +
+    printData("output size: about " + turbio::formatBytes(outBytes) + " per frame, " +
               turbio::formatBytes(outBytes * double(targetFrames.size())) + " for " + std::to_string(targetFrames.size()) +
               " frame" + (targetFrames.size() == 1 ? "" : "s"));
     if (!resumeStatePath(outPattern, a.write).empty())
@@ -229,13 +232,26 @@ std::string inputId(const turbio::Sequence& seq)
 }
 
 // Continuing with other settings or other inputs would silently mix two looks, or two shots, in one sequence.
+// How the frames are written ("style=houdini;half=1;..."): a resume that wrote them otherwise would leave one
+// sequence in two formats.
+std::string writeSettingsText(const turbio::WriteOptions& w)
+{
+    std::ostringstream os;
+    os << "style=" << (w.style == turbio::WriteStyle::Blender ? "blender" : "houdini") << ";half=" << (w.halfFloat ? 1 : 0)
+       << ";clipping=" << w.densityTolerance << ";velocity-margin=" << w.velocityMargin;
+    return os.str();
+}
+
 void checkResumable(const std::string& prevPath, const turb::Frame& prevOut, const turb::TransferSettings& s,
-    const turbio::Sequence& target, const turbio::Sequence& source)
+    const turbio::WriteOptions& w, const turbio::Sequence& target, const turbio::Sequence& source)
 {
     std::vector<std::string> diff;
     const auto saved = prevOut.metadata.find(turb::meta::kSettings);
     if (saved != prevOut.metadata.end()) diff = turb::settingsDifferences(saved->second, turb::outputSettingsText(s));
     else logWarning(prevPath + ": no vdbturb_settings metadata (written by an older vdbturb): the settings cannot be checked");
+    // Older outputs carry no write settings: nothing to compare them with.
+    if (const auto written = prevOut.metadata.find(turb::meta::kWriteSettings); written != prevOut.metadata.end())
+        for (const std::string& d : turb::settingsDifferences(written->second, writeSettingsText(w))) diff.push_back(d);
     for (const auto& [key, now] : {std::pair<const char*, std::string>{turb::meta::kTargetInput, inputId(target)},
              std::pair<const char*, std::string>{turb::meta::kSourceInput, inputId(source)}}) {
         const auto m = prevOut.metadata.find(key);
@@ -267,7 +283,7 @@ turb::Frame resumeFrame(const std::string& prevPath, int prev, turb::Frame prevO
             const auto frame = st.metadata.find(turb::meta::kResumeFrame);
             if (frame == st.metadata.end() || frame->second != std::to_string(prev))
                 why = "it holds frame " + (frame == st.metadata.end() ? std::string("?") : frame->second) + ", not " +
-                      std::to_string(prev) + " (a run stopped between the two writes, or frames were removed)";
+                      std::to_string(prev) + ": a run stopped between the two writes, or frames were removed";
             else if (st.metadata[turb::meta::kState] != prevOut.metadata[turb::meta::kState])
                 why = "it is another run's";
             else
@@ -276,9 +292,9 @@ turb::Frame resumeFrame(const std::string& prevPath, int prev, turb::Frame prevO
             why = e.what();
         }
     }
-    logWarning("resume: the exact state " + side + " cannot be used (" + why + "); continuing from " + prevPath +
-               " as written, so the detail outside its velocity margin starts again and the frames after differ "
-               "slightly from an uninterrupted run");
+    logWarning("resume: the exact state " + side + " cannot be used: " + why + ". Continuing from " + prevPath +
+               " as written: the detail outside its velocity margin starts again, and the frames after differ "
+               "slightly from an uninterrupted run's");
     return prevOut;
 }
 
@@ -361,7 +377,7 @@ int runTransfer(TransferArgs& a)
     if (globals().dryRun) {
         if (a.resume && first > 0) {
             const std::string prevPath = outPattern.format(target.frames[first - 1]);
-            checkResumable(prevPath, turbio::readFrame(prevPath, target.frames[first - 1], turbio::ReadOptions{}), s, target,
+            checkResumable(prevPath, turbio::readFrame(prevPath, target.frames[first - 1], turbio::ReadOptions{}), s, a.write, target,
                 source);
         }
         return kOk;
@@ -383,7 +399,7 @@ int runTransfer(TransferArgs& a)
             const auto it = prevOut.metadata.find(turb::meta::kState);
             if (it == prevOut.metadata.end())
                 throw turb::IoError(prevPath + ": no vdbturb_state metadata to resume from");
-            checkResumable(prevPath, prevOut, s, target, source);
+            checkResumable(prevPath, prevOut, s, a.write, target, source);
             const turb::Frame prevTarget = turbio::readFrame(target.path(prev), prev, a.targetRead);
             try {
                 transfer.restore(it->second, resumeFrame(prevPath, prev, prevOut), prevTarget);
@@ -396,8 +412,12 @@ int runTransfer(TransferArgs& a)
         }
     }
 
+    if (a.write.style == turbio::WriteStyle::Blender && a.write.velocityMargin >= 0)
+        logWarning("--velocity-margin " + std::to_string(a.write.velocityMargin) +
+                   " is ignored with --style blender: Blender's staggered velocity is written over the whole box");
     RunReport report("transfer", a.json);
     const std::string statePath = resumeStatePath(outPattern, a.write);
+    bool warnedClipping = false;
     if (!statePath.empty()) logVerbose("resume state: " + statePath + " (the last frame in full precision)");
     const int count = int(target.frames.size());
     for (size_t i = first; i < target.frames.size(); ++i) {
@@ -422,6 +442,7 @@ int runTransfer(TransferArgs& a)
         }
         r.frame.metadata[turb::meta::kState] = transfer.saveState();
         r.frame.metadata[turb::meta::kSettings] = turb::outputSettingsText(s);
+        r.frame.metadata[turb::meta::kWriteSettings] = writeSettingsText(a.write);
         r.frame.metadata[turb::meta::kTargetInput] = inputId(target);
         r.frame.metadata[turb::meta::kSourceInput] = inputId(source);
         r.frame.metadata[turb::meta::kSourceFrame] = std::to_string(sourceFor[i]);
@@ -429,6 +450,7 @@ int runTransfer(TransferArgs& a)
         progress.begin("writing");
         const std::string outPath = outPattern.format(t);
         turbio::ensureParentDirectory(outPath);
+        warnIfClippedAway(r.frame, a.write, outPath, warnedClipping);
         if (!statePath.empty())
             r.frame.metadata[turb::meta::kResumeStateFile] = std::filesystem::path(statePath).filename().string();
         turbio::writeFrame(outPath, r.frame, a.write);

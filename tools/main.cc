@@ -9,12 +9,26 @@
 #include <cctype>
 #include <cmath>
 #include <iostream>
+#include <sstream>
 
 #include <malloc.h>
 
 using namespace vdbturb;
 
 namespace vdbturb {
+
+void warnIfClippedAway(const turb::Frame& frame, const turbio::WriteOptions& options, const std::string& path, bool& warned)
+{
+    if (warned || !(options.densityTolerance > 0.0f) || !frame.hasDensity()) return;
+    const auto& v = frame.density.values();
+    const float peak = v.empty() ? 0.0f : *std::max_element(v.begin(), v.end());
+    if (!(peak > 0.0f) || peak > options.densityTolerance) return;
+    warned = true;
+    std::ostringstream os;
+    os << path << ": --clipping " << options.densityTolerance << " is at or above every density value (peak " << peak
+       << "): the density grid is written empty";
+    logWarning(os.str());
+}
 
 bool parseNumber(const std::string& s, double& v)
 {
@@ -103,7 +117,7 @@ void addWriteOptions(CLI::App* app, turbio::WriteOptions& opt)
         ->check(CLI::Validator(
             [](std::string& text) -> std::string {
                 double v = 0.0; // CLI11's number checks let NaN through
-                return parseNumber(text, v) && std::isfinite(v) && v >= 0.0 ? std::string() : "must be a density >= 0";
+                return parseNumber(text, v) && std::isfinite(v) && v >= 0.0 ? std::string() : "must be a finite density >= 0";
             },
             "DENSITY>=0"));
 }

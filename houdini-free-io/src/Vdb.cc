@@ -1717,6 +1717,7 @@ FileInfo inspectFile(const std::string& path, bool readValues)
     if (auto c = r.meta->getMetadata<openvdb::StringMetadata>("creator")) info.creator = c->value();
     info.recordedDt = metaDouble(*r.meta, turb::meta::kDt, 0.0);
     info.recordedDomain = recordedDomain(*r.meta);
+    info.velocityMargin = int(metaDouble(*r.meta, turb::meta::kVelocityMargin, -1.0));
 
     std::vector<std::string> names;
     for (const auto& g : r.grids) {

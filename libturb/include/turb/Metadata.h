@@ -24,6 +24,8 @@ inline constexpr const char* kBeta = "vdbturb_beta";
 inline constexpr const char* kGamma = "vdbturb_gamma";
 inline constexpr const char* kState = "vdbturb_state";             ///< what --resume needs (saveState)
 inline constexpr const char* kSettings = "vdbturb_settings";       ///< outputSettingsText(): what --resume compares
+/// "style=houdini;half=1;clipping=0;velocity-margin=1": how transfer wrote the frame (--resume keeps it).
+inline constexpr const char* kWriteSettings = "vdbturb_write_settings";
 /// In a frame written trimmed, in half floats or Blender style: the file name (same directory) of the exact
 /// resume state that transfer keeps beside the outputs, a full-precision copy of the last frame written.
 inline constexpr const char* kResumeStateFile = "vdbturb_resume_state_file";
