@@ -108,8 +108,12 @@ std::string cleanMessage(const std::string& m)
     return out;
 }
 
-GuardedResult guardedRead(const std::string& path, const ReadBody& body, double timeoutSeconds)
+namespace {
+
+// One forked reader. On a timeout sets `timedOut` and returns nothing; every other failure throws.
+GuardedResult readInChild(const std::string& path, const ReadBody& body, double timeoutSeconds, bool& timedOut)
 {
+    timedOut = false;
     int fds[2];
     if (::pipe(fds) != 0) throw turb::IoError(path + ": cannot create pipe (" + std::strerror(errno) + ")");
     const pid_t pid = ::fork();
@@ -126,7 +130,6 @@ GuardedResult guardedRead(const std::string& path, const ReadBody& body, double 
 
     std::string data;
     char buf[1 << 16];
-    bool timedOut = false;
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeoutSeconds);
     for (;;) {
         const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
@@ -153,11 +156,7 @@ GuardedResult guardedRead(const std::string& path, const ReadBody& body, double 
     while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
     }
 
-    if (timedOut) {
-        std::ostringstream os;
-        os << path << ": corrupt file: OpenVDB's reader did not finish within " << int(timeoutSeconds + 0.5) << " s";
-        throw turb::IoError(os.str());
-    }
+    if (timedOut) return {};
     if (WIFSIGNALED(status)) {
         const int sig = WTERMSIG(status);
         throw turb::IoError(path + ": corrupt file: OpenVDB's reader crashed on it (" + ::strsignal(sig) +
@@ -178,6 +177,23 @@ GuardedResult guardedRead(const std::string& path, const ReadBody& body, double 
     }
     if (!result.meta) result.meta = std::make_shared<openvdb::MetaMap>();
     return result;
+}
+
+} // namespace
+
+GuardedResult guardedRead(const std::string& path, const ReadBody& body, double timeoutSeconds)
+{
+    bool timedOut = false;
+    GuardedResult r = readInChild(path, body, timeoutSeconds, timedOut);
+    if (!timedOut) return r;
+    // The child is a fork of a threaded process: it can inherit a lock that a pool thread held at that instant
+    // (the pool winding down after parallel work) and wait on it forever. That is a race; a damaged file that
+    // makes OpenVDB loop loops every time. A second reader tells the two apart.
+    r = readInChild(path, body, timeoutSeconds, timedOut);
+    if (!timedOut) return r;
+    std::ostringstream os;
+    os << path << ": corrupt file: OpenVDB's reader did not finish within " << int(timeoutSeconds + 0.5) << " s (twice)";
+    throw turb::IoError(os.str());
 }
 
 } // namespace turbio::detail

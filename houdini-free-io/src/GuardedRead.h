@@ -30,8 +30,8 @@ using ReadBody = std::function<void(openvdb::io::File& file, openvdb::GridPtrVec
 std::string cleanMessage(const std::string& message);
 
 /// Opens `path` in a child process and runs `body` there. turb::Error thrown by the body is rethrown
-/// here with its message; a crash, a hang longer than `timeoutSeconds` or a memory blow-up becomes a
-/// turb::IoError naming the file.
+/// here with its message; a crash, a hang longer than `timeoutSeconds` in two readers in a row (the first
+/// may have inherited a lock held at the fork) or a memory blow-up becomes a turb::IoError naming the file.
 GuardedResult guardedRead(const std::string& path, const ReadBody& body, double timeoutSeconds);
 
 } // namespace turbio::detail
