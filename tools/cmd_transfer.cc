@@ -231,7 +231,6 @@ std::string inputId(const turbio::Sequence& seq)
     return std::filesystem::absolute(seq.pattern.str()).lexically_normal().string();
 }
 
-// Continuing with other settings or other inputs would silently mix two looks, or two shots, in one sequence.
 // How the frames are written ("style=houdini;half=1;..."): a resume that wrote them otherwise would leave one
 // sequence in two formats.
 std::string writeSettingsText(const turbio::WriteOptions& w)
@@ -242,6 +241,7 @@ std::string writeSettingsText(const turbio::WriteOptions& w)
     return os.str();
 }
 
+// Continuing with other settings or other inputs would silently mix two looks, or two shots, in one sequence.
 void checkResumable(const std::string& prevPath, const turb::Frame& prevOut, const turb::TransferSettings& s,
     const turbio::WriteOptions& w, const turbio::Sequence& target, const turbio::Sequence& source)
 {
