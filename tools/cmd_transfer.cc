@@ -19,6 +19,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <sstream>
 
 namespace vdbturb {
@@ -178,8 +179,8 @@ void preflight(const TransferArgs& a, const turbio::Sequence& target, const turb
     printData("output size: about " + turbio::formatBytes(outBytes) + " per frame, " +
               turbio::formatBytes(outBytes * double(targetFrames.size())) + " for " + std::to_string(targetFrames.size()) +
               " frame" + (targetFrames.size() == 1 ? "" : "s"));
-    if (!resumeStatePath(outPattern, a.write).empty())
-        printData("resume state: " + resumeStatePath(outPattern, a.write) + ", about " + turbio::formatBytes(stateBytes) +
+    if (const std::string state = resumeStatePath(outPattern, a.write); !state.empty())
+        printData("resume state: " + state + ", about " + turbio::formatBytes(stateBytes) +
                   " (the last frame in full precision, rewritten every frame)");
 
     // The source is matched at the ratio's voxel: a non-integer ratio resamples it first.
@@ -265,12 +266,12 @@ void checkResumable(const std::string& prevPath, const turb::Frame& prevOut, con
                            list + "\n  (use the saved values, or start again without --resume)");
 }
 
-// The frame restore() starts from: the state file beside the outputs when the last output names it and it is that
-// frame's, else the output itself (exact when it was written whole, approximate when trimmed: said once).
-turb::Frame resumeFrame(const std::string& prevPath, int prev, turb::Frame prevOut)
+// The state file beside the outputs, when the last output names it and it is that frame's. Without it restore()
+// starts from the output itself: exact when it was written whole, approximate when trimmed (said once, here).
+std::optional<turb::Frame> resumeStateFrame(const std::string& prevPath, int prev, const turb::Frame& prevOut)
 {
     const auto named = prevOut.metadata.find(turb::meta::kResumeStateFile);
-    if (named == prevOut.metadata.end()) return prevOut;
+    if (named == prevOut.metadata.end()) return std::nullopt;
     const std::string side = (std::filesystem::path(prevPath).parent_path() / named->second).string();
     std::string why;
     if (!std::filesystem::exists(side)) {
@@ -284,7 +285,7 @@ turb::Frame resumeFrame(const std::string& prevPath, int prev, turb::Frame prevO
             if (frame == st.metadata.end() || frame->second != std::to_string(prev))
                 why = "it holds frame " + (frame == st.metadata.end() ? std::string("?") : frame->second) + ", not " +
                       std::to_string(prev) + ": a run stopped between the two writes, or frames were removed";
-            else if (st.metadata[turb::meta::kState] != prevOut.metadata[turb::meta::kState])
+            else if (st.metadata[turb::meta::kState] != prevOut.metadata.at(turb::meta::kState))
                 why = "it is another run's";
             else
                 return st;
@@ -295,7 +296,7 @@ turb::Frame resumeFrame(const std::string& prevPath, int prev, turb::Frame prevO
     logWarning("resume: the exact state " + side + " cannot be used: " + why + ". Continuing from " + prevPath +
                " as written: the detail outside its velocity margin starts again, and the frames after differ "
                "slightly from an uninterrupted run's");
-    return prevOut;
+    return std::nullopt;
 }
 
 int runTransfer(TransferArgs& a)
@@ -402,7 +403,8 @@ int runTransfer(TransferArgs& a)
             checkResumable(prevPath, prevOut, s, a.write, target, source);
             const turb::Frame prevTarget = turbio::readFrame(target.path(prev), prev, a.targetRead);
             try {
-                transfer.restore(it->second, resumeFrame(prevPath, prev, prevOut), prevTarget);
+                const std::optional<turb::Frame> state = resumeStateFrame(prevPath, prev, prevOut);
+                transfer.restore(it->second, state ? *state : prevOut, prevTarget);
             } catch (const turb::Error& e) {
                 throw turb::IoError(prevPath + ": cannot resume from this frame: " + e.what());
             } catch (const std::exception& e) {
@@ -456,12 +458,13 @@ int runTransfer(TransferArgs& a)
         turbio::writeFrame(outPath, r.frame, a.write);
         if (!statePath.empty()) {
             // After the output: a run stopped between the two leaves a state one frame behind, which resume detects.
+            // The written frame is not needed any more: its fields move into the state.
             turb::Frame st;
             st.number = t;
             st.dt = r.frame.dt;
-            st.velocity = r.frame.velocity;
-            st.density = r.frame.density;
-            st.metadata = r.frame.metadata;
+            st.velocity = std::move(r.frame.velocity);
+            st.density = std::move(r.frame.density);
+            st.metadata = std::move(r.frame.metadata);
             st.metadata[turb::meta::kResumeFrame] = std::to_string(t);
             turbio::writeFrame(statePath, st, turbio::WriteOptions{});
         }

@@ -1466,10 +1466,10 @@ openvdb::Vec3SGrid::Ptr centredToStaggered(const turb::VectorField& v, float sca
     return fieldToGrid<openvdb::Vec3SGrid>(mac, turb::Vec3f(-1.0f));
 }
 
-// Where a trimmed frame writes its velocity (margin = options.velocityMargin) and its temperature and flame (margin 0,
-// as Blender writes them): voxels within `margin` of smoke (density or flame above options.smokeThreshold). Flame
-// counts so a fire's hot core is kept where it holds no soot.
-openvdb::MaskGrid::Ptr nearSmokeMask(const turb::Frame& frame, const WriteOptions& options, int margin)
+// Where a trimmed frame writes its temperature and flame, as Blender writes them: the smoke (density or flame above
+// options.smokeThreshold; flame counts so a fire's hot core is kept where it holds no soot). Its velocity goes on
+// this mask dilated by options.velocityMargin.
+openvdb::MaskGrid::Ptr smokeMask(const turb::Frame& frame, const WriteOptions& options)
 {
     auto mask = openvdb::MaskGrid::create(false);
     mask->setTransform(transformOf(frame.lattice()));
@@ -1481,10 +1481,6 @@ openvdb::MaskGrid::Ptr nearSmokeMask(const turb::Frame& frame, const WriteOption
                 if (f->data()[n] > options.smokeThreshold) acc.setValueOn(f->coordOf(n));
         }
     }
-    if (margin > 0)
-        openvdb::tools::dilateActiveValues(mask->tree(), margin, openvdb::tools::NN_FACE_EDGE_VERTEX,
-            openvdb::tools::EXPAND_TILES);
-    mask->tree().voxelizeActiveTiles();
     return mask;
 }
 
@@ -1568,8 +1564,15 @@ void writeFrame(const std::string& path, const turb::Frame& frame, const WriteOp
 
     // Trimmed (Houdini style only: Blender's staggered faces need whole lines for the exact inverse).
     const bool trim = !blender && options.velocityMargin >= 0 && frame.hasDensity();
-    const openvdb::MaskGrid::Ptr near = trim ? nearSmokeMask(frame, options, options.velocityMargin) : nullptr;
-    const openvdb::MaskGrid::Ptr inSmoke = trim ? nearSmokeMask(frame, options, 0) : nullptr;
+    const openvdb::MaskGrid::Ptr inSmoke = trim ? smokeMask(frame, options) : nullptr;
+    openvdb::MaskGrid::Ptr near;
+    if (trim) {
+        near = inSmoke->deepCopy();
+        if (options.velocityMargin > 0)
+            openvdb::tools::dilateActiveValues(near->tree(), options.velocityMargin, openvdb::tools::NN_FACE_EDGE_VERTEX,
+                openvdb::tools::EXPAND_TILES);
+        near->tree().voxelizeActiveTiles();
+    }
     if (frame.hasDensity()) {
         auto g = fieldToGrid<openvdb::FloatGrid>(frame.density, options.densityTolerance);
         g->setName("density");
