@@ -963,9 +963,11 @@ TEST(TransferDensity, InflowThatSetsDensityDoesNotPileUp)
         EXPECT_LE(*m.peakRatio, 1.05) << "frame " << fr;
         EXPECT_GT(*m.massRatio, 0.9) << "frame " << fr;
         EXPECT_LT(*m.massRatio, 1.1) << "frame " << fr;
-        // A binary column cannot be met exactly: its border cells would need every fine voxel at the peak.
+        // A binary column cannot be met exactly: its border cells would need every fine voxel at the peak, and the
+        // guide keeps the edge smooth (no coarse cell faces) rather than exact (measured 0.18-0.22; the Blender pair
+        // and the demo, whose targets have soft edges, stay below 0.09).
         ASSERT_TRUE(m.coarseErr);
-        EXPECT_LT(*m.coarseErr, 0.2) << "frame " << fr;
+        EXPECT_LT(*m.coarseErr, 0.25) << "frame " << fr;
     }
     }
 }
@@ -996,24 +998,27 @@ TEST(DensityGuide, MovesCellMeansOntoTheTargetAndKeepsTheFineStructure)
     s.threshold = 0.01f;
     const DensityGuideStats st = guideDensity(fine, coarse, f, s);
     EXPECT_NEAR(st.errorBefore, err0, 1e-12);
-    EXPECT_LT(st.errorAfter, 0.1 * err0);
+    // The ball's edge is sharp (0.2 to 0 across one cell): the guide's smooth border weights leave part of the
+    // border cells' error (measured 0.20 x err0; per-cell weights reached 0.1 x, drawing the cells into the edge).
+    EXPECT_LT(st.errorAfter, 0.3 * err0);
     EXPECT_NEAR(coarseDensityError(fine, coarse, f, 0.01f), st.errorAfter, 1e-12);
     // The fine pattern (+-30% between neighbours) survives: away from the drift's step the gain is smooth, so
-    // neighbouring voxels keep their ratio to within a third of the pattern's amplitude (measured: 6.6%).
+    // neighbouring voxels keep their ratio to within two thirds of the pattern's amplitude (measured: 14%, the
+    // border cells' smooth share of the mass taken back).
     double worst = 0.0;
     for (const Coord c : {Coord(5, 12, 14), Coord(25, 14, 13), Coord(6, 20, 15)}) {
         const Coord d = c + Coord(1, 0, 0);
         const double r0 = before[d] / before[c], r1 = fine[d] / fine[c];
         worst = std::max(worst, std::abs(r1 / r0 - 1.0));
     }
-    EXPECT_LT(worst, 0.1);
+    EXPECT_LT(worst, 0.2);
     // The guide added mass on the thin side; the wisp outside paid for it first.
     EXPECT_LT(fine(0, 0, 0), before(0, 0, 0));
     float peak = 0.0f;
     for (float v : coarse.values()) peak = std::max(peak, v);
     for (size_t n = 0; n < fine.size(); ++n) {
         EXPECT_GE(fine.data()[n], 0.0f);
-        if (fine.data()[n] > before.data()[n]) EXPECT_LE(fine.data()[n], std::max(before.data()[n], peak) + 1e-6f);
+        EXPECT_LE(fine.data()[n], peak);
     }
     // Strength 0 changes nothing; a wrong box is refused.
     ScalarField again = before;
@@ -1021,6 +1026,66 @@ TEST(DensityGuide, MovesCellMeansOntoTheTargetAndKeepsTheFineStructure)
     guideDensity(again, coarse, f, s);
     EXPECT_EQ(again.values(), before.values());
     EXPECT_THROW(guideDensity(again, coarse, 2, s), ValueError);
+}
+
+TEST(DensityGuide, LeavesNoCoarseCellStepsAtTheSmokesEdge)
+{
+    // A coarse target with a wide, soft halo (numerical diffusion) and a fine density with a sharp core: the guide
+    // fills the halo's cells and takes mass back outside them without drawing the cells into the edge (measured
+    // density_imprint 1.04), and caps every value at the target's peak. The real-cache check of the imprint, which
+    // the per-cell guide failed, is Cli.TransferWritesResumesAndNeverClobbers.
+    const int f = 4;
+    const Lattice lat{0.25, {0.0, 0.0, 0.0}};
+    ScalarField coarse(CoordBBox({0, 0, 0}, {19, 19, 19}), lat); // the target's smoke (> 0.01) ends inside the box
+    for (size_t n = 0; n < coarse.size(); ++n) {
+        const double r = (coarse.coordOf(n).asVec3d() - Vec3d(9.5)).length();
+        coarse.data()[n] = float(std::exp(-0.5 * r * r / 6.0));
+    }
+    ScalarField fine(refineBox(coarse.bbox(), f), lat.refined(f));
+    for (size_t n = 0; n < fine.size(); ++n) {
+        const Coord c = fine.coordOf(n);
+        const double r = ((c.asVec3d() + Vec3d(0.5)) / f - Vec3d(10.0)).length();
+        fine.data()[n] = r < 3.0 ? float(0.9 * (1.0 + 0.2 * std::sin(1.3 * c.x() + 0.7 * c.y() + 2.1 * c.z()))) : 0.0f;
+    }
+    const double before = coarseDensityError(fine, coarse, f, 0.01f);
+    DensityGuideSettings s;
+    s.threshold = 0.01f;
+    guideDensity(fine, coarse, f, s);
+    EXPECT_LT(coarseDensityError(fine, coarse, f, 0.01f), 0.5 * before);
+    const std::optional<double> imprint = densityImprint(fine, f, 0.01f);
+    ASSERT_TRUE(imprint);
+    EXPECT_LT(*imprint, 1.15);
+    float peak = 0.0f;
+    for (float v : coarse.values()) peak = std::max(peak, v);
+    for (float v : fine.values()) ASSERT_LE(v, peak) << "values are capped at the target's peak";
+}
+
+TEST(MeasureDensity, ImprintIsOneWithoutCellsAndLargeForCellSteps)
+{
+    // A trilinear up(coarse) has its kinks at the cell centres: no imprint. The same field replicated per cell (plus
+    // a fine pattern, so the pairs inside cells differ too) jumps only at the cell faces.
+    const int f = 4;
+    const Lattice lat{0.5, {0.0, 0.0, 0.0}};
+    // Smoke that fades out before the box's faces (where the up-sampling holds values constant).
+    ScalarField coarse(CoordBBox({0, 0, 0}, {11, 11, 11}), lat);
+    for (size_t n = 0; n < coarse.size(); ++n) {
+        const Vec3d p = coarse.coordOf(n).asVec3d();
+        const double fade = std::max(0.0, 1.0 - (p - Vec3d(5.5)).length() / 4.5);
+        coarse.data()[n] = float(fade * (0.6 + 0.3 * std::sin(0.9 * p.x() + 0.4 * p.y()) * std::cos(0.7 * p.z())));
+    }
+    const ScalarField smooth = upsample(coarse, f);
+    const std::optional<double> a = densityImprint(smooth, f, 0.01f);
+    ASSERT_TRUE(a);
+    EXPECT_NEAR(*a, 1.0, 0.15);
+    ScalarField blocky(smooth.bbox(), smooth.lattice());
+    for (size_t n = 0; n < blocky.size(); ++n) {
+        const Coord c = blocky.coordOf(n);
+        blocky.data()[n] = coarse(c.x() / f, c.y() / f, c.z() / f) * (1.0f + 0.01f * float(std::sin(2.0 * c.x() + c.y())));
+    }
+    const std::optional<double> b = densityImprint(blocky, f, 0.01f);
+    ASSERT_TRUE(b);
+    EXPECT_GT(*b, 3.0);
+    EXPECT_FALSE(densityImprint(smooth, 1, 0.01f)) << "no coarse cells at ratio 1";
 }
 
 TEST(MeasureDensity, MassPeakAndCoarseErrorOfKnownFields)

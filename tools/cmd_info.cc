@@ -176,6 +176,13 @@ int runInfo(const InfoArgs& a)
             head += "; held in memory: " + std::to_string(e.x()) + "x" + std::to_string(e.y()) + "x" + std::to_string(e.z()) +
                     " voxels (the smoke and a margin of " + std::to_string(ro.cropMargin) + " voxels)";
         }
+        if (first->sequenceDomain) {
+            const turb::CoordBBox& sd = *first->sequenceDomain;
+            const auto sw = worldBounds(sd, first->lattice.voxelSize, first->lattice.origin);
+            head += "\nmade from a domain of " + std::to_string(sd.dim().x()) + "x" + std::to_string(sd.dim().y()) + "x" +
+                    std::to_string(sd.dim().z()) + " voxels at this resolution, world " + fmtVec(sw.first) + "-" +
+                    fmtVec(sw.second) + " (vdbturb_sequence_domain: the target's)";
+        }
         head += "\ndt: " + fmtNum("%.6g", t.dt) + " per frame (" + t.dtSource + ")";
         if (t.fpsSource != "not used") head += "; fps " + fmtNum("%g", t.fps) + " (" + t.fpsSource + ")";
         if (!first->velocityGrid.empty())

@@ -84,7 +84,7 @@ std::string humanLine(const turb::FrameMeasures& m)
     };
     return "lf_err " + f(m.lfErr) + "  hf_ratio " + f(m.hfRatio) + "  div_rel " + f(m.divRel) + " (source " +
            f(m.divRelSource) + ")  block " + f(m.block) + "  tcoh " + f(m.tcoh) + " (source " + f(m.tcohSource) + ")  mass " +
-           f(m.massRatio) + "  peak " + f(m.peakRatio) + "  density_err " + f(m.densityErr) + "  aniso " + f(m.aniso) +
+           f(m.massRatio) + "  peak " + f(m.peakRatio) + "  density_err " + f(m.densityErr) + "  imprint " + f(m.densityImprint) + "  aniso " + f(m.aniso) +
            " (source " + f(m.anisoSource) + ")  isotropy " + f(m.isotropy) + " (source " + f(m.isotropySource) + ")  air_detail " +
            f(m.airDetail);
 }

@@ -54,6 +54,7 @@ struct Input
     turbio::Sequence seq;
     float speedMax = 0.0f, vorticityMax = 0.0f; // fixed colour ranges for the whole run
     std::optional<turb::CoordBBox> frameBox;     // one camera for the whole run (see below)
+    turb::Lattice lattice;                       // frameBox's
 };
 
 std::string fmt(const char* f, double v)
@@ -112,6 +113,43 @@ float percentile(const turb::ScalarField& f, const turb::ScalarField* density, d
     const size_t k = std::min(v.size() - 1, size_t(fraction * double(v.size() - 1)));
     std::nth_element(v.begin(), v.begin() + long(k), v.end());
     return v[k];
+}
+
+/// Sheet columns of one scene (target, source, output: their framed world boxes overlap) are drawn over the union
+/// of those boxes, so they line up at one scale; an up-res is otherwise framed tighter than its target (its margin
+/// is in fine voxels). Inputs that do not overlap the first keep their own camera.
+void shareCamera(std::vector<Input>& inputs)
+{
+    using turb::Vec3d;
+    const auto world = [](const Input& in) {
+        return std::make_pair(in.lattice.indexToWorld(in.frameBox->min().asVec3d() - Vec3d(0.5)),
+            in.lattice.indexToWorld(in.frameBox->max().asVec3d() + Vec3d(0.5)));
+    };
+    if (inputs.size() < 2 || !inputs.front().frameBox) return;
+    auto all = world(inputs.front());
+    std::vector<Input*> group{&inputs.front()};
+    for (size_t i = 1; i < inputs.size(); ++i) {
+        if (!inputs[i].frameBox) continue;
+        const auto w = world(inputs[i]), first = world(inputs.front());
+        bool overlap = true;
+        for (int a = 0; a < 3; ++a) overlap = overlap && w.first[a] < first.second[a] && first.first[a] < w.second[a];
+        if (!overlap) continue;
+        group.push_back(&inputs[i]);
+        for (int a = 0; a < 3; ++a) {
+            all.first[a] = std::min(all.first[a], w.first[a]);
+            all.second[a] = std::max(all.second[a], w.second[a]);
+        }
+    }
+    for (Input* in : group) {
+        const Vec3d lo = in->lattice.worldToIndex(all.first) + Vec3d(0.5), hi = in->lattice.worldToIndex(all.second) - Vec3d(0.5);
+        turb::CoordBBox b(turb::Coord(int(std::floor(lo.x() + 1e-6)), int(std::floor(lo.y() + 1e-6)), int(std::floor(lo.z() + 1e-6))),
+            turb::Coord(int(std::ceil(hi.x() - 1e-6)), int(std::ceil(hi.y() - 1e-6)), int(std::ceil(hi.z() - 1e-6))));
+        if (turb::isFlat(*in->frameBox)) { // a one-layer (2D) cache keeps its layer
+            b.min().z() = in->frameBox->min().z();
+            b.max().z() = in->frameBox->max().z();
+        }
+        in->frameBox = b;
+    }
 }
 
 /// A thin outline of the domain on a picture (where the smoke can go).
@@ -248,9 +286,11 @@ int runPreview(PreviewArgs& a)
                 if (!fs.error.empty() || !fs.domainKnown || fs.domain.empty()) continue;
                 if (!in.frameBox) in.frameBox = fs.domain;
                 else in.frameBox->expand(fs.domain);
+                in.lattice = fs.lattice;
             }
         }
     }
+    shareCamera(inputs);
     if (a.sheet.empty() && frames.size() > 1 && !turbio::FramePattern::parse(a.out).numbered()) {
         logError("--out '" + a.out + "' has no frame token (####, %04d, $F4) but " + std::to_string(frames.size()) +
                  " frames are requested; every frame would overwrite the last");
@@ -322,6 +362,12 @@ int runPreview(PreviewArgs& a)
             }
             progress.clear();
             nlohmann::json extra;
+            for (const auto& in : inputs) // the world box each input is drawn over (one camera per scene)
+                if (in.frameBox) {
+                    const turb::Vec3d lo = in.lattice.indexToWorld(in.frameBox->min().asVec3d() - turb::Vec3d(0.5)),
+                                      hi = in.lattice.indexToWorld(in.frameBox->max().asVec3d() + turb::Vec3d(0.5));
+                    extra["framed"][in.label] = {lo.x(), lo.y(), lo.z(), hi.x(), hi.y(), hi.z()};
+                }
             if (a.sheet.empty()) {
                 // One picture per frame: a single image, or the modes side by side as a one-row sheet.
                 turb::Image pic;

@@ -127,15 +127,16 @@ std::string resumeStatePath(const turbio::FramePattern& out, const turbio::Write
 }
 
 // Everything the run needs, checked before its first frame (and all a dry run does): every target and source
-// frame's headers, one lattice per sequence, the ratio, the output paths, the memory.
-void preflight(const TransferArgs& a, const turbio::Sequence& target, const turbio::Sequence& source,
+// frame's headers, one lattice per sequence, the ratio, the output paths, the memory. Returns the target's whole
+// domain over the frames, refined to the output lattice (framing metadata; empty when there are no frames).
+turb::CoordBBox preflight(const TransferArgs& a, const turbio::Sequence& target, const turbio::Sequence& source,
     const std::vector<int>& sourceFor, const turbio::FramePattern& outPattern, size_t first)
 {
     const std::vector<int> targetFrames(target.frames.begin() + long(first), target.frames.end());
     std::vector<int> sourceFrames(sourceFor.begin() + long(first), sourceFor.end());
     std::sort(sourceFrames.begin(), sourceFrames.end());
     sourceFrames.erase(std::unique(sourceFrames.begin(), sourceFrames.end()), sourceFrames.end());
-    if (targetFrames.empty()) return;
+    if (targetFrames.empty()) return {};
     const turbio::SequenceScan ts = checkInput("transfer", "target", target, targetFrames, a.targetRead, LatticePolicy::Refuse);
     const turbio::SequenceScan ss = checkInput("transfer", "source", source, sourceFrames, a.sourceRead, LatticePolicy::Refuse);
     reportTiming("target", ts, true, "target-");
@@ -224,6 +225,10 @@ void preflight(const TransferArgs& a, const turbio::Sequence& target, const turb
                           " and source " + source.path(sourceFor[i]));
             else if (i == first + 3)
                 printData("  ... " + std::to_string(target.frames.size() - first - 5) + " more frames");
+    turb::CoordBBox domain;
+    for (const auto& fr : ts.frames)
+        if (fr.error.empty() && !fr.span.empty()) domain.expand(fr.span);
+    return domain.empty() ? domain : turb::refineDomain(domain, f);
 }
 
 // An input sequence as recorded in outputs: the absolute pattern, so a relative spelling of the same cache matches.
@@ -374,7 +379,7 @@ int runTransfer(TransferArgs& a)
     }
     defaultSourceMargin(a, target, source, sourceFor);
     logVerbose("source crop margin: " + std::to_string(a.sourceRead.cropMargin) + " source voxels");
-    preflight(a, target, source, sourceFor, outPattern, writeFrom);
+    const turb::CoordBBox sequenceDomain = preflight(a, target, source, sourceFor, outPattern, writeFrom);
     if (globals().dryRun) {
         if (a.resume && first > 0) {
             const std::string prevPath = outPattern.format(target.frames[first - 1]);
@@ -449,6 +454,12 @@ int runTransfer(TransferArgs& a)
         r.frame.metadata[turb::meta::kSourceInput] = inputId(source);
         r.frame.metadata[turb::meta::kSourceFrame] = std::to_string(sourceFor[i]);
         r.frame.metadata[turb::meta::kCommand] = "transfer";
+        if (!sequenceDomain.empty()) {
+            std::ostringstream box; // the format of vdbturb_domain
+            box << sequenceDomain.min().x() << ' ' << sequenceDomain.min().y() << ' ' << sequenceDomain.min().z() << ' '
+                << sequenceDomain.max().x() << ' ' << sequenceDomain.max().y() << ' ' << sequenceDomain.max().z();
+            r.frame.metadata[turb::meta::kSequenceDomain] = box.str();
+        }
         progress.begin("writing");
         const std::string outPath = outPattern.format(t);
         turbio::ensureParentDirectory(outPath);

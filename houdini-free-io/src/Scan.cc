@@ -93,6 +93,7 @@ void resolveFrame(FrameScan& fs, const FileInfo& info, const ReadOptions& option
         fs.domain.expand(b);
     }
     if (info.recordedDomain) fs.domain.expand(*info.recordedDomain);
+    fs.sequenceDomain = info.sequenceDomain;
     if (fs.domain.empty()) fs.domain = turb::CoordBBox(turb::Coord(0), turb::Coord(0));
     fs.span = fs.domain;
     if (fs.domainKnown && d && options.cropToSmoke) {

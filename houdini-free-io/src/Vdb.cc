@@ -498,9 +498,9 @@ double metaDouble(const openvdb::MetaMap& m, const std::string& key, double fall
     return fallback;
 }
 
-std::optional<turb::CoordBBox> recordedDomain(const openvdb::MetaMap& m)
+std::optional<turb::CoordBBox> recordedDomain(const openvdb::MetaMap& m, const char* key = turb::meta::kDomain)
 {
-    const auto s = m.getMetadata<openvdb::StringMetadata>(turb::meta::kDomain);
+    const auto s = m.getMetadata<openvdb::StringMetadata>(key);
     if (!s) return std::nullopt;
     std::istringstream is(s->value());
     int v[6];
@@ -1720,6 +1720,7 @@ FileInfo inspectFile(const std::string& path, bool readValues)
     if (auto c = r.meta->getMetadata<openvdb::StringMetadata>("creator")) info.creator = c->value();
     info.recordedDt = metaDouble(*r.meta, turb::meta::kDt, 0.0);
     info.recordedDomain = recordedDomain(*r.meta);
+    info.sequenceDomain = recordedDomain(*r.meta, turb::meta::kSequenceDomain);
     info.velocityMargin = int(metaDouble(*r.meta, turb::meta::kVelocityMargin, -1.0));
 
     std::vector<std::string> names;

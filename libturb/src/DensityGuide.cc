@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <vector>
 
 namespace turb {
 
@@ -16,10 +17,9 @@ DensityGuideStats guideDensity(ScalarField& fine, const ScalarField& coarse, int
     if (f < 1) throw ValueError("density guide: ratio must be >= 1");
     if (fine.bbox() != refineDomain(coarse.bbox(), f))
         throw ValueError("density guide: the fine density must cover refineDomain(coarse box, f)");
-    const int fz = domainFactors(coarse.bbox(), f).z(); // 1 for a 2D (one-layer) pair
     if (!(s.strength >= 0.0f && s.strength <= 1.0f)) throw ValueError("density guide: strength must lie in [0, 1]");
-    if (s.passes < 1 || !(s.maxGain >= 1.0f) || !(s.threshold >= 0.0f))
-        throw ValueError("density guide: passes >= 1, max gain >= 1 and threshold >= 0 required");
+    if (s.passes < 1 || !(s.maxGain >= 1.0f) || !(s.threshold >= 0.0f) || !(s.rampFactor >= 0.0f))
+        throw ValueError("density guide: passes >= 1, max gain >= 1, threshold >= 0 and ramp >= 0 required");
     DensityGuideStats st;
     for (float t : coarse.values()) st.guidedCells += t > s.threshold;
     st.errorBefore = st.errorAfter = coarseDensityError(fine, coarse, f, s.threshold);
@@ -27,21 +27,30 @@ DensityGuideStats guideDensity(ScalarField& fine, const ScalarField& coarse, int
 
     float peak = 0.0f;
     for (float t : coarse.values()) peak = std::max(peak, t);
-    const auto guided = [&](size_t n) {
-        const Coord c = fine.coordOf(n);
-        return coarse(floorDiv(c.x(), f), floorDiv(c.y(), f), floorDiv(c.z(), fz)) > s.threshold;
-    };
-    // Mass inside and outside the guided cells, summed in a fixed order (deterministic at any thread count).
-    const auto masses = [&] {
-        std::pair<double, double> m{0.0, 0.0};
-        for (size_t n = 0; n < fine.size(); ++n) (guided(n) ? m.first : m.second) += double(fine.data()[n]);
+    // Every weight below is a function of the trilinear up(coarse), so the correction varies smoothly across the
+    // target's cell faces. An earlier guide switched per coarse cell (guided or not) and erased smoke outside the
+    // guided cells evenly: the output's silhouette became a staircase of whole cells (density_imprint 1.3-3.3 on
+    // the demo, pictures in docs/transfer.md).
+    const ScalarField upT = upsample(coarse, f);
+    const float ramp = s.rampFactor * s.threshold;
+    std::vector<float> weight(fine.size());
+    for (size_t n = 0; n < fine.size(); ++n) {
+        const float over = upT.data()[n] - s.threshold;
+        weight[n] = over <= 0.0f ? 0.0f : ramp > 0.0f ? std::min(1.0f, over / ramp) : 1.0f;
+    }
+    const auto totalMass = [&] {
+        double m = 0.0; // a fixed order: deterministic at any thread count
+        for (float v : fine.values()) m += double(v);
         return m;
     };
-    const auto [insideBefore, outside] = masses();
+    // Denser than the target's densest cell is a pile-up (inflow sets density at an emitter, it does not add), not
+    // detail: Blender's and Houdini's high-resolution sims keep the same peak as their low-resolution ones.
+    for (float& v : fine.values()) v = std::min(v, peak);
+    const double massBefore = totalMass();
     // A cell whose fine voxels hold less than this share of the wanted mean gets the rest added evenly: a gain
     // cannot create smoke where there is none.
     const float tiny = 1e-4f * peak;
-    for (int pass = 0; pass < s.passes; ++pass) {
+    const auto pass = [&](bool allowAdd) {
         const ScalarField down = boxDownsample(fine, f);
         ScalarField gain(coarse.bbox(), coarse.lattice(), 1.0f), add(coarse.bbox(), coarse.lattice(), 0.0f);
         for (size_t n = 0; n < coarse.size(); ++n) {
@@ -51,33 +60,50 @@ DensityGuideStats guideDensity(ScalarField& fine, const ScalarField& coarse, int
             const float want = now + s.strength * (t - now);
             if (now > tiny) {
                 gain.data()[n] = std::clamp(want / now, 1.0f / s.maxGain, s.maxGain);
-                add.data()[n] = std::max(0.0f, want - now * gain.data()[n]);
-            } else {
+                if (allowAdd) add.data()[n] = std::max(0.0f, want - now * gain.data()[n]);
+            } else if (allowAdd) {
                 add.data()[n] = std::max(0.0f, want - now);
             }
         }
-        // Smooth (trilinear) fields, so the correction shows no cell borders inside the target's smoke; voxels of
-        // unguided cells are left exactly as they are (the trilinear fields would otherwise spill into them).
         const ScalarField G = upsample(gain, f), A = upsample(add, f);
         parallelFor(fine.size(), 1 << 14, [&](size_t b, size_t e) {
             for (size_t n = b; n < e; ++n) {
-                if (!guided(n)) continue;
+                const float w = weight[n];
+                if (w == 0.0f) continue;
                 const float v = fine.data()[n];
-                const float w = v * G.data()[n] + A.data()[n];
-                fine.data()[n] = w > v ? std::min(w, std::max(v, peak)) : std::max(0.0f, w);
+                const float g = v * G.data()[n] + A.data()[n];
+                fine.data()[n] = std::clamp(v + w * (g - v), 0.0f, peak);
             }
         });
-    }
-    // What the guide added inside comes first from smoke the detail carried outside the target's cells, so the
-    // guide moves mass rather than making it: otherwise every frame's outflow across a sharp smoke border is
-    // refilled inside while it also stays outside, and the mass grows without bound.
-    const double added = masses().first - insideBefore;
-    if (added > 0.0 && outside > 0.0) {
-        const float keep = float(std::max(0.0, 1.0 - added / outside));
+    };
+    for (int p = 0; p < s.passes; ++p) pass(true);
+    // What the guide added comes first from smoke where the target has little or none, so the guide moves mass
+    // rather than making it: otherwise every frame's outflow across the smoke's border is refilled inside while it
+    // also stays outside, and the mass grows without bound. A voxel gives in proportion to its value times
+    // 1 - weight (all of it where the target has no smoke, smoothly less toward its smoke, so no cell face shows);
+    // when that is not enough (a target with a sharp edge), the rest comes in proportion to 1 - the trilinear
+    // up(indicator of the guided cells), which reaches into the border cells.
+    // Also what exceeds the target's own mass: emission estimates and the detail's flux can add smoke too.
+    double targetMass = 0.0;
+    for (float t : coarse.values()) targetMass += double(t);
+    targetMass *= double(fine.size()) / double(coarse.size()); // f^3 fine voxels a cell (f^2 in 2D)
+    const double total = totalMass();
+    double owed = std::max(total - massBefore, total - targetMass);
+    const double excess = std::max(0.0, total - targetMass); // only mass beyond the target's reaches into its cells
+    ScalarField inside(coarse.bbox(), coarse.lattice(), 0.0f);
+    for (size_t n = 0; n < coarse.size(); ++n) inside.data()[n] = coarse.data()[n] > s.threshold ? 1.0f : 0.0f;
+    const ScalarField upInside = upsample(inside, f);
+    for (int layer = 0; layer < 2 && owed > 0.0; ++layer) {
+        const auto share = [&](size_t n) { return layer == 0 ? 1.0f - weight[n] : 1.0f - upInside.data()[n]; };
+        double takeable = 0.0;
+        for (size_t n = 0; n < fine.size(); ++n) takeable += double(share(n)) * double(fine.data()[n]);
+        if (!(takeable > 0.0)) continue;
+        const float r = float(std::min(1.0, owed / takeable));
         parallelFor(fine.size(), 1 << 14, [&](size_t b, size_t e) {
-            for (size_t n = b; n < e; ++n)
-                if (!guided(n)) fine.data()[n] *= keep;
+            for (size_t n = b; n < e; ++n) fine.data()[n] *= 1.0f - r * share(n);
         });
+        owed -= double(r) * takeable;
+        if (layer == 0) owed = std::min(owed, std::max(0.0, excess - double(r) * takeable));
     }
     st.errorAfter = coarseDensityError(fine, coarse, f, s.threshold);
     return st;

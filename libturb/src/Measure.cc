@@ -370,7 +370,34 @@ DensityMeasures densityMeasures(const ScalarField& output, const ScalarField& ou
     if (mt > 0.0) d.massRatio = massOf(output) / mt;
     if (pt > 0.0) d.peakRatio = *d.peak / pt;
     if (pt > threshold) d.coarseErr = coarseDensityError(outputOnRefined, target, f, threshold);
+    d.imprint = densityImprint(outputOnRefined, f, threshold);
     return d;
+}
+
+std::optional<double> densityImprint(const ScalarField& fine, int f, float threshold)
+{
+    if (f < 2) return std::nullopt;
+    const CoordBBox b = fine.bbox();
+    // acc: coarse-face sum, count, other sum, count
+    const auto s = slabSums<4>(b, [&](int i, std::array<double, 4>& acc) {
+        for (int j = b.min().y(); j <= b.max().y(); ++j)
+            for (int k = b.min().z(); k <= b.max().z(); ++k) {
+                const Coord I(i, j, k);
+                const float v = fine[I];
+                for (int a = 0; a < 3; ++a) {
+                    Coord J = I;
+                    J[a] += 1;
+                    if (J[a] > b.max()[a]) continue;
+                    const float w = fine[J];
+                    if (!(std::max(v, w) > threshold)) continue;
+                    const size_t slot = floorDiv(J[a], f) != floorDiv(I[a], f) ? 0 : 2;
+                    acc[slot] += std::abs(double(w) - double(v));
+                    acc[slot + 1] += 1.0;
+                }
+            }
+    });
+    if (s[1] == 0.0 || s[3] == 0.0 || !(s[0] > 0.0) || !(s[2] > 0.0)) return std::nullopt;
+    return (s[0] / s[1]) / (s[2] / s[3]);
 }
 
 double coarseDensityError(const ScalarField& fine, const ScalarField& coarse, int f, float threshold)
@@ -428,7 +455,8 @@ std::vector<std::pair<std::string, std::optional<double>>> FrameMeasures::scalar
     return {{"lf_err", lfErr}, {"hf_ratio", hfRatio}, {"hf_energy", hfEnergy}, {"hf_energy_source", hfEnergySource},
         {"div_rel", divRel}, {"div_rel_source", divRelSource}, {"block", block}, {"tcoh", tcoh},
         {"tcoh_source", tcohSource}, {"mass_ratio", massRatio}, {"peak_density", peakDensity},
-        {"peak_ratio", peakRatio}, {"density_err", densityErr}, {"aniso", aniso}, {"aniso_source", anisoSource},
+        {"peak_ratio", peakRatio}, {"density_err", densityErr},
+        {"density_imprint", densityImprint}, {"aniso", aniso}, {"aniso_source", anisoSource},
         {"aniso_ratio", anisoRatio}, {"isotropy", isotropy}, {"isotropy_source", isotropySource},
         {"air_detail", airDetail}};
 }
@@ -529,6 +557,7 @@ FrameMeasures measureFrame(const MeasureInput& in, const MeasureSettings& s, Pro
             m.peakDensity = dm.peak;
             m.peakRatio = dm.peakRatio;
             m.densityErr = dm.coarseErr;
+            m.densityImprint = dm.imprint;
         }
         m.hfEnergy = highFrequencyEnergy(O.velocity, ownMask, a.f);
         m.divRel = relativeDivergence(O.velocity, ownMask);

@@ -31,6 +31,7 @@ struct FrameScan
                                   ///< (ReadOptions::cropToSmoke); from the density's header box, or from its voxels
                                   ///< when that box is far larger than its voxels (strays), so it bounds the read's
     turb::CoordBBox span;         ///< Blender's domain, else the union of the grids' active boxes
+    std::optional<turb::CoordBBox> sequenceDomain; ///< FileInfo::sequenceDomain: where preview frames the sequence
     turb::CoordBBox others;       ///< Blender's domain and the non-density grids' boxes: how far a margin may reach
     SmokeRegion region;           ///< the smoke (strays only when the voxels were read: regionFromVoxels)
     bool regionFromVoxels = false;///< the density's voxels were read to find the smoke

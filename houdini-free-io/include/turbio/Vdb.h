@@ -213,6 +213,8 @@ struct FileInfo
     std::optional<turb::Coord> baseResolution; ///< Blender's file_base_resolution
     double recordedDt = 0.0;      ///< vdbturb_dt metadata, 0 if absent
     std::optional<turb::CoordBBox> recordedDomain; ///< vdbturb_domain metadata: the box a vdbturb output spans
+    std::optional<turb::CoordBBox> sequenceDomain; ///< vdbturb_sequence_domain metadata: the domain of the input it was
+                                                   ///< made from (for framing only)
     int velocityMargin = -1;      ///< vdbturb_velocity_margin: velocity written only this near the smoke; -1 = not trimmed
     std::vector<GridInfo> grids;  ///< in file order
 };

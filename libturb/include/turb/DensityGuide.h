@@ -7,10 +7,13 @@
 /// 32^3 plume up-ressed 4x: the coarse density error grew from 0.16 at frame 1 to 0.30 at frame 30). The guide
 /// removes that drift once per frame, in the spirit of Houdini's "Gas Match Field"/guided simulation: each target
 /// smoke cell's mean is moved toward the target's by a smooth multiplicative gain, so the fine structure inside a
-/// cell is kept (a gain scales it, it does not replace it), and no value rises above the target's peak.
+/// cell is kept (a gain scales it, it does not replace it), and no value exceeds the target's peak.
 ///
-/// Coarse cell c holds the fine voxels I with floor(I / f) = c (Lattice::refined). Only cells where the target's
-/// density exceeds `threshold` are guided; smoke the detail carried outside the target's smoke is left alone.
+/// Coarse cell c holds the fine voxels I with floor(I / f) = c (Lattice::refined). Cells where the target's density
+/// exceeds `threshold` are guided. How much of a cell's correction a fine voxel takes is a weight of the trilinear
+/// up(coarse) at the voxel: 0 at `threshold`, rising linearly to 1 at (1 + rampFactor) x threshold. The mass
+/// the guide adds is taken from the voxels with weight below 1 in proportion to (1 - weight), so nothing changes
+/// abruptly at a cell face and the output's silhouette follows the target's smooth density, not its cells.
 ///
 /// @code
 /// turb::DensityGuideSettings s;                 // strength 1: remove the whole error each frame
@@ -30,6 +33,8 @@ struct DensityGuideSettings
     float threshold = 0.01f; ///< coarse cells whose target density exceeds this are guided, >= 0
     float maxGain = 4.0f;    ///< bound on one pass's multiplicative gain, >= 1; cells with (almost) no fine smoke
                              ///< receive the missing mass evenly instead
+    float rampFactor = 4.0f; ///< >= 0: the weight reaches 1 at (1 + rampFactor) x threshold of up(coarse); 0 = a
+                             ///< step at the threshold
 };
 
 struct DensityGuideStats
@@ -39,10 +44,11 @@ struct DensityGuideStats
     size_t guidedCells = 0;   ///< coarse cells with target smoke
 };
 
-/// Moves the f^3 block means of `fine` toward `coarse` where the target has smoke. Mass the guide adds there is
-/// taken first from the smoke outside those cells (scaled down evenly), so guiding moves smoke into the target's
-/// cells before it makes any. `fine` must cover exactly refineDomain(coarse.bbox(), f) (one layer for a 2D pair); values stay >= 0 and never
-/// rise above max(their old value, the target's peak).
+/// Moves the f^3 block means of `fine` toward `coarse` where the target has smoke. First every value is capped at
+/// the target's peak (a pile-up, not detail). Mass the guide adds is taken first from smoke where the target has
+/// little or none (see the weight above), so guiding moves smoke into the target's cells before it makes any.
+/// `fine` must cover exactly refineDomain(coarse.bbox(), f) (one layer for a 2D pair); values stay in
+/// [0, the target's peak].
 /// Throws ValueError on a box mismatch, f < 1 or settings out of range.
 DensityGuideStats guideDensity(ScalarField& fine, const ScalarField& coarse, int f, const DensityGuideSettings& s = {});
 

@@ -115,6 +115,8 @@ struct FrameMeasures
     std::optional<double> peakRatio;    ///< peakDensity / the target's largest density (<= 1.05: no pile-up)
     std::optional<double> densityErr;   ///< rms(boxdown_f(D_out) - D_t) / rms(D_t) over the target's smoke cells:
                                         ///< the output keeps the target's density at its scale (<= 0.1)
+    std::optional<double> densityImprint; ///< densityImprint(): the target's cell faces printed into the output
+                                        ///< density (about 1: none; a blocky staircase silhouette: well above 1)
     std::optional<double> aniso;        ///< detail anisotropy along the target's mean flow (detailAnisotropy): about 1
                                         ///< for isotropic detail, well below 1 for streaks stretched along the flow
     std::optional<double> anisoSource;  ///< the same of the source's detail, along the same direction
@@ -169,12 +171,22 @@ CoordBBox smokeBBox(const ScalarField& density, float threshold);
 /// Density numbers of an up-res against its target (FrameMeasures::massRatio ... densityErr).
 struct DensityMeasures
 {
-    std::optional<double> massRatio, peak, peakRatio, coarseErr;
+    std::optional<double> massRatio, peak, peakRatio, coarseErr, imprint;
 };
 /// `output` is the up-res density on its own lattice, `outputOnRefined` the same on the refined target lattice
 /// over refineBox(target box, f); `target` the coarse density. Entries are empty when their denominator is zero.
 DensityMeasures densityMeasures(const ScalarField& output, const ScalarField& outputOnRefined, const ScalarField& target,
     int f, float threshold);
+/// The coarse lattice printed into a fine density: the mean |D(I+e_a) - D(I)| over neighbour pairs of `fine` whose
+/// shared face is a face of the coarse cells (floor(I_a / f) != floor((I+e_a)_a / f)), over the same mean for all
+/// other pairs, counting the pairs where either voxel exceeds `threshold` (the smoke and its edge). About 1 for
+/// density with no relation to the coarse cells, including a trilinear up(coarse), whose kinks lie at the cell
+/// centres; well above 1 when whole coarse cells were scaled or cut (a staircase silhouette). `fine` lies on the
+/// refined lattice (fine voxel I in coarse cell floor(I / f)); a one-layer (2D) field has no z pairs. nullopt for
+/// f < 2 or when either set of pairs is empty or has no jumps. Beyond the papers: added when a picture of the
+/// demo's output showed coarse-cell blocks at the smoke's edge that no other number caught.
+std::optional<double> densityImprint(const ScalarField& fine, int f, float threshold);
+
 /// rms(boxdown_f(fine) - coarse) / rms(coarse) over the coarse cells where `coarse` exceeds `threshold` (0 when
 /// there are none): density_err. `fine` must cover refineDomain(coarse box, f); throws ValueError otherwise.
 double coarseDensityError(const ScalarField& fine, const ScalarField& coarse, int f, float threshold);

@@ -10,6 +10,9 @@ inline constexpr const char* kCommand = "vdbturb_command";         ///< the comm
 inline constexpr const char* kDt = "vdbturb_dt";                   ///< time per frame of the velocity
 inline constexpr const char* kDomain = "vdbturb_domain";           ///< "x0 y0 z0 x1 y1 z1": the index box the frame spans
                                                                   ///< (a reader holds it whole even where grids are sparse)
+/// "x0 y0 z0 x1 y1 z1", the frame's index box: the whole domain of the input the frame was made from (transfer: the
+/// target's, refined). Only for framing: preview draws a sequence over it, so output and input columns line up.
+inline constexpr const char* kSequenceDomain = "vdbturb_sequence_domain";
 inline constexpr const char* kBlenderOffset = "vdbturb_blender_offset"; ///< "x y z", world units: what a Blender-style
                                                                   ///< file's transform adds to the frame's lattice (readers take it off)
 inline constexpr const char* kInputVelocityUnits = "vdbturb_input_velocity_units"; ///< units the input had
