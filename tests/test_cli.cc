@@ -54,6 +54,9 @@ TEST(Cli, UsageErrorsExitTwoAndMissingInputsExitOne)
         EXPECT_NE(bad.out.find("'10-1'"), std::string::npos) << bad.out;
     }
     EXPECT_EQ(run("transfer --target " + lo() + " --source " + hi() + " --out o.####.vdb --source-frames 1-4x0").code, 2);
+    // Numbers the library would refuse only at frame 1 (NaN passes CLI11's own range checks) are usage errors.
+    for (const std::string bad : {"--density-threshold -1", "--density-guide nan", "--alpha inf", "--beta -0.5"})
+        EXPECT_EQ(run("transfer --target " + lo() + " --source " + hi() + " --out o.####.vdb --dry-run " + bad).code, 2) << bad;
     const CmdResult missing = run("info /nonexistent/cache.vdb");
     EXPECT_EQ(missing.code, 1);
     EXPECT_NE(missing.out.find("/nonexistent/cache.vdb"), std::string::npos) << missing.out;
@@ -298,9 +301,10 @@ TEST(Cli, PreviewFramesASequenceWithOneCamera)
 
 TEST(Cli, SheetColumnsOfOneSceneShareOneCamera)
 {
-    // A coarse cache (voxel 0.4, its smoke everywhere) and a fine one (voxel 0.1) with smoke in one corner of the
-    // same world: each alone is framed to its smoke and margin, so an up-res came out zoomed beside its target. In
-    // one sheet both are drawn over the union of their world boxes; a cache elsewhere in the world keeps its own.
+    // A coarse cache (voxel 0.4, its smoke everywhere) and a fine one (voxel 0.1) with smoke in half of the same
+    // world: each alone is framed to its smoke and margin, so an up-res came out zoomed beside its target. In one
+    // sheet both are drawn over the union of their world boxes; a cache elsewhere in the world, or one of another
+    // scale around the same origin, keeps its own.
     testutil::TempDir dir;
     const auto write = [&](const std::string& name, double voxel, double shift, turb::CoordBBox box) {
         std::filesystem::create_directories(dir / name);
@@ -309,10 +313,12 @@ TEST(Cli, SheetColumnsOfOneSceneShareOneCamera)
         turbio::writeFrame(dir / (name + "/c.1.vdb"), f, turbio::WriteOptions{});
     };
     write("coarse", 0.4, 0.2, turb::CoordBBox({0, 0, 0}, {7, 7, 7}));      // world 0 - 3.2
-    write("fine", 0.1, 0.05, turb::CoordBBox({0, 0, 0}, {3, 3, 3}));       // world 0 - 0.4, held with 8 voxels more
+    write("fine", 0.1, 0.05, turb::CoordBBox({0, 0, 0}, {15, 15, 15}));    // world 0 - 1.6
     write("far", 0.1, 100.05, turb::CoordBBox({0, 0, 0}, {3, 3, 3}));      // world 100 - 100.4
+    write("tiny", 0.01, 0.005, turb::CoordBBox({0, 0, 0}, {3, 3, 3}));     // world 0 - 0.04: another scale
     const CmdResult r = run("preview a=" + dir / "coarse/c.#.vdb" + " b=" + dir / "fine/c.#.vdb" + " c=" +
-                            dir / "far/c.#.vdb" + " --mode density --width 32 --sheet " + dir / "s.png" + " --json -q");
+                            dir / "far/c.#.vdb" + " d=" + dir / "tiny/c.#.vdb" + " --mode density,speed --width 32 --sheet " +
+                            dir / "s.png" + " --json -q");
     ASSERT_EQ(r.code, 0) << r.out;
     const auto at = r.out.find("{\"");
     ASSERT_NE(at, std::string::npos) << r.out;
@@ -321,6 +327,15 @@ TEST(Cli, SheetColumnsOfOneSceneShareOneCamera)
     for (int k = 0; k < 6; ++k) EXPECT_NEAR(framed.at("a")[k].get<double>(), framed.at("b")[k].get<double>(), 1e-6) << r.out;
     EXPECT_NEAR(framed.at("b")[3].get<double>(), 3.2, 1e-6) << "the coarse cache's whole box: " << r.out;
     EXPECT_NEAR(framed.at("c")[0].get<double>(), 100.0, 1e-6) << "a cache elsewhere keeps its own camera: " << r.out;
+    EXPECT_NEAR(framed.at("d")[3].get<double>(), 0.04, 1e-6) << "a cache of another scale keeps its own: " << r.out;
+    // A single unnumbered file beside a sequence is drawn in every row, and the rows are the sequence's frames.
+    std::filesystem::copy_file(dir / "coarse/c.1.vdb", dir / "still.vdb");
+    std::filesystem::copy_file(dir / "fine/c.1.vdb", dir / "fine/c.2.vdb");
+    const CmdResult still = run("preview s=" + dir / "still.vdb" + " b=" + dir / "fine/c.#.vdb" +
+                                " --mode density --width 32 --sheet " + dir / "s2.png" + " --json -q");
+    ASSERT_EQ(still.code, 0) << still.out;
+    EXPECT_EQ(still.out.find("missing"), std::string::npos) << still.out;
+    EXPECT_NE(still.out.find("\"frame\":2"), std::string::npos) << "rows from the sequence: " << still.out;
 }
 
 TEST(Cli, MeasureCanReadTheSourceAsTransferReadsIt)

@@ -49,6 +49,8 @@ void warnIfClippedAway(const turb::Frame& frame, const turbio::WriteOptions& opt
 
 /// Reads the whole of `s` as a number (NaN and inf included); false when it is not one.
 bool parseNumber(const std::string& s, double& v);
+/// A CLI check for a finite number in [lo, hi] (CLI11's own number checks let NaN through).
+CLI::Validator finiteIn(double lo, double hi = 1e30);
 
 /// Adds --style, --no-clobber, --half and --clipping for writing caches.
 void addWriteOptions(CLI::App* app, turbio::WriteOptions& opt);

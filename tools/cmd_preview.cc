@@ -55,6 +55,9 @@ struct Input
     float speedMax = 0.0f, vorticityMax = 0.0f; // fixed colour ranges for the whole run
     std::optional<turb::CoordBBox> frameBox;     // one camera for the whole run (see below)
     turb::Lattice lattice;                       // frameBox's
+    turb::CoordBBox held;                        // the union of the frames' held boxes (before shareCamera)
+    int extraMargin = 0;                         // voxels more than the read margin, so a read covers frameBox
+    bool still = false;                          // one unnumbered file: drawn in every row
 };
 
 std::string fmt(const char* f, double v)
@@ -115,9 +118,10 @@ float percentile(const turb::ScalarField& f, const turb::ScalarField* density, d
     return v[k];
 }
 
-/// Sheet columns of one scene (target, source, output: their framed world boxes overlap) are drawn over the union
-/// of those boxes, so they line up at one scale; an up-res is otherwise framed tighter than its target (its margin
-/// is in fine voxels). Inputs that do not overlap the first keep their own camera.
+/// Sheet columns of one scene (target, source, output) are drawn over the union of their framed world boxes, so they
+/// line up at one scale; an up-res is otherwise framed tighter than its target (its margin is in fine voxels). One
+/// scene: the box overlaps the first input's and, along every axis, their union is at most twice the shorter of
+/// the two. Other inputs (another scene that happens to share the origin) keep their own camera.
 void shareCamera(std::vector<Input>& inputs)
 {
     using turb::Vec3d;
@@ -131,9 +135,13 @@ void shareCamera(std::vector<Input>& inputs)
     for (size_t i = 1; i < inputs.size(); ++i) {
         if (!inputs[i].frameBox) continue;
         const auto w = world(inputs[i]), first = world(inputs.front());
-        bool overlap = true;
-        for (int a = 0; a < 3; ++a) overlap = overlap && w.first[a] < first.second[a] && first.first[a] < w.second[a];
-        if (!overlap) continue;
+        bool sameScene = true;
+        for (int a = 0; a < 3; ++a) {
+            const double lo = std::min(w.first[a], first.first[a]), hi = std::max(w.second[a], first.second[a]);
+            const double shorter = std::min(w.second[a] - w.first[a], first.second[a] - first.first[a]);
+            sameScene = sameScene && w.first[a] < first.second[a] && first.first[a] < w.second[a] && hi - lo <= 2.0 * shorter;
+        }
+        if (!sameScene) continue;
         group.push_back(&inputs[i]);
         for (int a = 0; a < 3; ++a) {
             all.first[a] = std::min(all.first[a], w.first[a]);
@@ -242,6 +250,7 @@ int runPreview(PreviewArgs& a)
         }
         // A sheet picks its rows from the frames asked for; missing frames show as empty cells.
         in.seq = turbio::resolveSequence(pattern, a.sheet.empty() ? a.frames : "");
+        in.still = !in.seq.pattern.numbered();
         if (in.label.empty()) {
             const std::string p = in.seq.pattern.str();
             const auto slash = p.find_last_of('/');
@@ -254,13 +263,27 @@ int runPreview(PreviewArgs& a)
     std::vector<int> frames;
     if (!a.frames.empty()) frames = turbio::parseFrameList(a.frames);
     else if (!a.sheet.empty()) {
-        const auto& f = inputs.front().seq.frames;
-        if (f.empty()) throw turb::IoError(inputs.front().seq.pattern.str() + ": no frames on disk");
+        // The first sequence's frames; a single file has one "frame" and is drawn in every row.
+        const Input* first = &inputs.front();
+        for (const auto& in : inputs)
+            if (!in.still) {
+                first = &in;
+                break;
+            }
+        const auto& f = first->seq.frames;
+        if (f.empty()) throw turb::IoError(first->seq.pattern.str() + ": no frames on disk");
         for (double t : {1.0 / 3.0, 2.0 / 3.0, 1.0}) {
             const int n = f[size_t(std::lround(t * double(f.size() - 1)))];
             if (frames.empty() || frames.back() != n) frames.push_back(n);
         }
-    } else frames = inputs.front().seq.frames;
+    } else {
+        frames = inputs.front().seq.frames;
+        for (const auto& in : inputs)
+            if (!in.still) {
+                frames = in.seq.frames;
+                break;
+            }
+    }
     if (frames.empty()) throw turb::IoError("no frames to preview");
 
     turbio::ReadOptions read = a.read;
@@ -269,15 +292,18 @@ int runPreview(PreviewArgs& a)
     read.readExtras = false;
 
     const auto exists = [](const Input& in, int frame) {
-        return std::find(in.seq.frames.begin(), in.seq.frames.end(), frame) != in.seq.frames.end();
+        return in.still || std::find(in.seq.frames.begin(), in.seq.frames.end(), frame) != in.seq.frames.end();
     };
+    // A still's one file is read as its own frame number, whatever the row.
+    const auto fileFrame = [](const Input& in, int frame) { return in.still && !in.seq.frames.empty() ? in.seq.frames.front() : frame; };
 
     // Every picture's frames, checked before the first is drawn; each frame is drawn on its own lattice.
     std::vector<std::string> outputs, inputPaths;
     for (auto& in : inputs) {
-        const turbio::SequenceScan scan = checkInput("preview", in.label, in.seq, frames, read, LatticePolicy::Report);
+        const turbio::SequenceScan scan =
+            checkInput("preview", in.label, in.seq, in.still ? in.seq.frames : frames, read, LatticePolicy::Report);
         for (int f : frames)
-            if (exists(in, f)) inputPaths.push_back(in.seq.path(f));
+            if (exists(in, f)) inputPaths.push_back(in.seq.path(fileFrame(in, f)));
         // One camera per input for the whole run: every frame is drawn over the union of the frames' domains
         // (a Blender domain, else the union of the grids' active boxes), so a flipbook does not jump in size as
         // the smoke grows and sheet columns stay in line. Frames on different lattices keep their own boxes.
@@ -289,8 +315,16 @@ int runPreview(PreviewArgs& a)
                 in.lattice = fs.lattice;
             }
         }
+        if (in.frameBox) in.held = *in.frameBox;
     }
     shareCamera(inputs);
+    // A shared camera can reach past what a read holds (the smoke and its margin): read that much more, so the
+    // velocity there is the cache's and not a zero-filled rim (a false box in speed and vorticity slices).
+    for (auto& in : inputs)
+        if (in.frameBox && !in.held.empty())
+            for (int ax = 0; ax < 3; ++ax)
+                in.extraMargin = std::max({in.extraMargin, in.held.min()[ax] - in.frameBox->min()[ax],
+                    in.frameBox->max()[ax] - in.held.max()[ax]});
     if (a.sheet.empty() && frames.size() > 1 && !turbio::FramePattern::parse(a.out).numbered()) {
         logError("--out '" + a.out + "' has no frame token (####, %04d, $F4) but " + std::to_string(frames.size()) +
                  " frames are requested; every frame would overwrite the last");
@@ -322,7 +356,8 @@ int runPreview(PreviewArgs& a)
                 if (ref < 0) continue;
                 turbio::ReadOptions ro = read;
                 ro.requireDensity = false;
-                const turb::Frame f = turbio::readFrame(in.seq.path(ref), ref, ro);
+                ro.cropMargin += in.extraMargin;
+                const turb::Frame f = turbio::readFrame(in.seq.path(fileFrame(in, ref)), fileFrame(in, ref), ro);
                 const turb::ScalarField* d = f.hasDensity() ? &f.density : nullptr;
                 in.speedMax = a.speedMax > 0.0f ? a.speedMax : percentile(turb::magnitude(f.velocity), d, 0.995);
                 in.vorticityMax = a.vorticityMax > 0.0f ? a.vorticityMax
@@ -346,7 +381,9 @@ int runPreview(PreviewArgs& a)
                 std::optional<turb::Frame> f;
                 if (exists(in, frame)) {
                     progress.begin("reading " + in.label);
-                    f = turbio::readFrame(in.seq.path(frame), frame, read);
+                    turbio::ReadOptions ro = read;
+                    ro.cropMargin += in.extraMargin;
+                    f = turbio::readFrame(in.seq.path(fileFrame(in, frame)), fileFrame(in, frame), ro);
                     if (in.frameBox) {
                         if (f->hasDensity()) f->density = turb::cropped(f->density, *in.frameBox);
                         if (f->hasVelocity()) f->velocity = turb::cropped(f->velocity, *in.frameBox);

@@ -571,10 +571,11 @@ Command transferCommand()
         app->add_option("--source-offset", a.sourceOffset, "Source frame = target frame + offset (default 0)");
         app->add_option("--source-wrap", a.wrap, "When the source runs out: loop (default), pingpong, clamp, error")
             ->check(CLI::IsMember({"loop", "pingpong", "clamp", "error"}));
-        app->add_option("--alpha", s.alpha, "Weight of the density-mask term in matching (paper 0.004)")->check(CLI::NonNegativeNumber);
-        app->add_option("--beta", s.beta, "Weight of the temporal term: previous detail advected (paper 0.5)")->check(CLI::NonNegativeNumber);
-        app->add_option("--gamma", s.seams.gamma, "Weight of divergence in seam smoothing (paper 10)")->check(CLI::NonNegativeNumber);
-        app->add_option("--density-threshold", s.densityThreshold, "D_th: smoke where density > this (default 0.01)");
+        app->add_option("--alpha", s.alpha, "Weight of the density-mask term in matching (paper 0.004)")->check(finiteIn(0.0));
+        app->add_option("--beta", s.beta, "Weight of the temporal term: previous detail advected (paper 0.5)")->check(finiteIn(0.0));
+        app->add_option("--gamma", s.seams.gamma, "Weight of divergence in seam smoothing (paper 10)")->check(finiteIn(0.0));
+        app->add_option("--density-threshold", s.densityThreshold, "D_th: smoke where density > this (default 0.01)")
+            ->check(finiteIn(0.0));
         app->add_option("--patch", s.localPatch, "B: local patch edge in output voxels (default 8)")->check(CLI::Range(2, 64));
         app->add_option("--global-patch", s.globalPatch, "b: global patch edge in target voxels, odd (default 2*ceil(B/f)+1)");
         app->add_option("--pca", s.pcaComponents, "PCA dimensions of patch descriptors (default 16)")->check(CLI::Range(1, 256));
@@ -655,7 +656,7 @@ Command transferCommand()
         app->add_option("--density-guide", s.densityGuide.strength,
                "Move the output density's coarse cell means this fraction of the way onto the target's each frame "
                "(default 1; 0 = off: the high-res density drifts from the target's)")
-            ->check(CLI::Range(0.0, 1.0));
+            ->check(finiteIn(0.0, 1.0));
         app->add_option("--extend-velocity", a.extendVelocity,
                "Continue the source's velocity this many voxels past its active region (Blender clips velocity to the "
                "smoke; the zeros beyond would read as turbulence at the smoke's edge). Default 4; 0 = off")

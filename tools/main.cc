@@ -122,6 +122,25 @@ void addWriteOptions(CLI::App* app, turbio::WriteOptions& opt)
             "DENSITY>=0"));
 }
 
+CLI::Validator finiteIn(double lo, double hi)
+{
+    const auto trimmed = [](std::string s) { // "0.000000" -> "0"
+        if (s.find('.') != std::string::npos) {
+            while (!s.empty() && s.back() == '0') s.pop_back();
+            if (!s.empty() && s.back() == '.') s.pop_back();
+        }
+        return s;
+    };
+    std::string text = hi >= 1e30 ? "NUMBER>=" + trimmed(std::to_string(lo))
+                                   : "NUMBER in [" + trimmed(std::to_string(lo)) + ", " + trimmed(std::to_string(hi)) + "]";
+    return CLI::Validator(
+        [lo, hi, text](std::string& s) -> std::string {
+            double v = 0.0;
+            return parseNumber(s, v) && std::isfinite(v) && v >= lo && v <= hi ? std::string() : "must be a finite " + text;
+        },
+        text);
+}
+
 std::vector<Command> allCommands() { return {infoCommand(), transferCommand(), measureCommand(), simCommand(), previewCommand(), synthCommand(), stylizeCommand(), animateCommand(), resampleCommand(), farmCommand()}; }
 
 } // namespace vdbturb
