@@ -29,7 +29,7 @@ DensityGuideStats guideDensity(ScalarField& fine, const ScalarField& coarse, int
     for (float t : coarse.values()) peak = std::max(peak, t);
     // Every weight below is a function of the trilinear up(coarse), so the correction varies smoothly across the
     // target's cell faces. An earlier guide switched per coarse cell (guided or not) and erased smoke outside the
-    // guided cells evenly: the output's silhouette became a staircase of whole cells (density_imprint 1.3-3.3 on
+    // guided cells evenly: the output's silhouette became a staircase of whole cells (density_imprint 1.1-3.3 on
     // the demo, pictures in docs/transfer.md).
     const ScalarField upT = upsample(coarse, f);
     const float ramp = s.rampFactor * s.threshold;
@@ -43,8 +43,8 @@ DensityGuideStats guideDensity(ScalarField& fine, const ScalarField& coarse, int
         for (float v : fine.values()) m += double(v);
         return m;
     };
-    // Denser than the target's densest cell is a pile-up (inflow sets density at an emitter, it does not add), not
-    // detail: Blender's and Houdini's high-resolution sims keep the same peak as their low-resolution ones.
+    // Denser than the target's densest cell is taken as a pile-up, not detail: an inflow emitter sets the same
+    // density at every resolution (Blender plume2 at frame 1: 0.999 at 128^3, 0.965 at 32^3).
     for (float& v : fine.values()) v = std::min(v, peak);
     const double massBefore = totalMass();
     // A cell whose fine voxels hold less than this share of the wanted mean gets the rest added evenly: a gain
@@ -77,13 +77,13 @@ DensityGuideStats guideDensity(ScalarField& fine, const ScalarField& coarse, int
         });
     };
     for (int p = 0; p < s.passes; ++p) pass(true);
-    // What the guide added comes first from smoke where the target has little or none, so the guide moves mass
-    // rather than making it: otherwise every frame's outflow across the smoke's border is refilled inside while it
-    // also stays outside, and the mass grows without bound. A voxel gives in proportion to its value times
-    // 1 - weight (all of it where the target has no smoke, smoothly less toward its smoke, so no cell face shows);
-    // when that is not enough (a target with a sharp edge), the rest comes in proportion to 1 - the trilinear
-    // up(indicator of the guided cells), which reaches into the border cells.
-    // Also what exceeds the target's own mass: emission estimates and the detail's flux can add smoke too.
+    // The guide moves mass rather than making it: what the passes added, or what exceeds the target's own mass if
+    // that is more (emission estimates and the detail's flux add smoke too), is taken back. Otherwise every frame's
+    // outflow across the smoke's border is refilled inside while it also stays outside, and the mass grows without
+    // bound. First layer: a voxel gives in proportion to its value times 1 - weight (all of it where the target has
+    // no smoke, smoothly less toward its smoke, so no cell face shows). Second layer, only for mass still beyond
+    // the target's (a target with a sharp edge, whose border cells the passes overfill through the gain's spill):
+    // in proportion to 1 - the trilinear up(indicator of the guided cells), which reaches into the border cells.
     double targetMass = 0.0;
     for (float t : coarse.values()) targetMass += double(t);
     targetMass *= double(fine.size()) / double(coarse.size()); // f^3 fine voxels a cell (f^2 in 2D)

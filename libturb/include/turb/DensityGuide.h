@@ -12,8 +12,11 @@
 /// Coarse cell c holds the fine voxels I with floor(I / f) = c (Lattice::refined). Cells where the target's density
 /// exceeds `threshold` are guided. How much of a cell's correction a fine voxel takes is a weight of the trilinear
 /// up(coarse) at the voxel: 0 at `threshold`, rising linearly to 1 at (1 + rampFactor) x threshold. The mass
-/// the guide adds is taken from the voxels with weight below 1 in proportion to (1 - weight), so nothing changes
-/// abruptly at a cell face and the output's silhouette follows the target's smooth density, not its cells.
+/// the guide adds (or, if more, the mass beyond the target's) is taken from the voxels with weight below 1 in
+/// proportion to (1 - weight); what is still beyond the target's mass then comes in proportion to
+/// 1 - up(indicator of the guided cells). Nothing changes abruptly at a cell face, so the output's silhouette
+/// follows the target's smooth density, not its cells (measure's density_imprint). The cost: a target with a hard
+/// edge keeps more coarse error in its border cells (the trilinear weights cannot fill them without spilling).
 ///
 /// @code
 /// turb::DensityGuideSettings s;                 // strength 1: remove the whole error each frame
