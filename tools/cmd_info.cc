@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <iostream>
 #include <memory>
@@ -40,7 +41,8 @@ std::string fmtCoord(const turb::Coord& c)
 std::string fmtVec(const turb::Vec3d& v)
 {
     char buf[96];
-    std::snprintf(buf, sizeof(buf), "(%.4g,%.4g,%.4g)", v.x(), v.y(), v.z());
+    const auto clean = [](double x) { return std::abs(x) < 1e-9 ? 0.0 : x; }; // 4e-17 is rounding, not a place
+    std::snprintf(buf, sizeof(buf), "(%.4g,%.4g,%.4g)", clean(v.x()), clean(v.y()), clean(v.z()));
     return buf;
 }
 

@@ -17,6 +17,7 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <map>
 #include <memory>
@@ -403,7 +404,8 @@ int runPreview(PreviewArgs& a)
                 if (in.frameBox) {
                     const turb::Vec3d lo = in.lattice.indexToWorld(in.frameBox->min().asVec3d() - turb::Vec3d(0.5)),
                                       hi = in.lattice.indexToWorld(in.frameBox->max().asVec3d() + turb::Vec3d(0.5));
-                    extra["framed"][in.label] = {lo.x(), lo.y(), lo.z(), hi.x(), hi.y(), hi.z()};
+                    const auto clean = [](double x) { return std::round(x * 1e9) / 1e9; }; // no 1.9999999999999858
+                    extra["framed"][in.label] = {clean(lo.x()), clean(lo.y()), clean(lo.z()), clean(hi.x()), clean(hi.y()), clean(hi.z())};
                 }
             if (a.sheet.empty()) {
                 // One picture per frame: a single image, or the modes side by side as a one-row sheet.
@@ -433,7 +435,9 @@ int runPreview(PreviewArgs& a)
             std::string title = a.title;
             if (title.empty()) {
                 for (const auto& in : inputs) title += (title.empty() ? "" : " | ") + in.label;
-                title += "  (" + a.view + " view)";
+                bool allFlat = true; // 2D caches are drawn in their own x-y plane whatever --view says
+                for (const auto& in : inputs) allFlat = allFlat && in.frameBox && turb::isFlat(*in.frameBox);
+                title += allFlat ? std::string("  (x-y plane)") : "  (" + a.view + " view)";
             }
             const turb::Image sheet = turb::contactSheet(rows, rowLabels, title, 2);
             turbio::ensureParentDirectory(a.sheet);

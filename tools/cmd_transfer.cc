@@ -98,7 +98,9 @@ std::string worldBox(const turb::CoordBBox& b, const turb::Lattice& l)
     const turb::Vec3d lo = l.indexToWorld(b.min().asVec3d() - turb::Vec3d(0.5));
     const turb::Vec3d hi = l.indexToWorld(b.max().asVec3d() + turb::Vec3d(0.5));
     char buf[160];
-    std::snprintf(buf, sizeof(buf), "(%.4g,%.4g,%.4g)-(%.4g,%.4g,%.4g)", lo.x(), lo.y(), lo.z(), hi.x(), hi.y(), hi.z());
+    const auto clean = [](double x) { return std::abs(x) < 1e-9 ? 0.0 : x; }; // 4e-17 is rounding, not a place
+    std::snprintf(buf, sizeof(buf), "(%.4g,%.4g,%.4g)-(%.4g,%.4g,%.4g)", clean(lo.x()), clean(lo.y()), clean(lo.z()),
+        clean(hi.x()), clean(hi.y()), clean(hi.z()));
     return buf;
 }
 
