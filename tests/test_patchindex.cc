@@ -85,6 +85,32 @@ TEST(Pca, RandomizedAxesMatchTheExactOnesForLargeDescriptors)
     EXPECT_LT(std::sqrt(err / ref), 1e-2);
 }
 
+TEST(Pca, RandomizedAxesAreIdenticalAtAnyThreadCount)
+{
+    // The randomized passes split the sample into row chunks run on all threads (3 chunks here); the basis must not
+    // depend on how many threads ran them.
+    const size_t n = 2500, dim = 700, k = 6;
+    std::mt19937 rng(5);
+    std::normal_distribution<float> g(0.0f, 1.0f);
+    std::vector<float> rows(n * dim);
+    for (size_t i = 0; i < n; ++i) {
+        const float c = 2.0f * g(rng);
+        for (size_t d = 0; d < dim; ++d) rows[i * dim + d] = g(rng) + c * std::sin(0.01f * float(d));
+    }
+    PcaSettings settings{int(k)};
+    settings.exactMaxDim = 64;
+    std::vector<std::vector<float>> coeffs;
+    for (int threads : {1, 2, 3}) {
+        Pca pca;
+        withThreads(threads, [&] { pca.fit(rows.data(), n, dim, settings); });
+        std::vector<float> c(k * 20);
+        for (size_t i = 0; i < 20; ++i) pca.project(&rows[i * dim], &c[i * k]);
+        coeffs.push_back(c);
+    }
+    EXPECT_EQ(coeffs[0], coeffs[1]);
+    EXPECT_EQ(coeffs[0], coeffs[2]);
+}
+
 TEST(PatchIndex, AgreesWithBruteForce)
 {
     const size_t n = 2000, dim = 12;

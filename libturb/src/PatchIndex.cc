@@ -16,27 +16,60 @@ using RowMatrix = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::Ro
 
 namespace {
 
+// X * M and X^T * M for a tall sample X (n x dim) in fixed chunks of rows: the same GEMM shapes, hence the same
+// rounding, at any thread count, with X^T M's partial sums added in chunk order. Eigen alone runs one thread.
+constexpr Eigen::Index kRowChunk = 1024;
+
+Eigen::MatrixXf tallTimes(const RowMatrix& X, const Eigen::MatrixXf& M)
+{
+    Eigen::MatrixXf out(X.rows(), M.cols());
+    const size_t chunks = size_t((X.rows() + kRowChunk - 1) / kRowChunk);
+    parallelFor(chunks, 1, [&](size_t c0, size_t c1) {
+        for (size_t c = c0; c < c1; ++c) {
+            const Eigen::Index r0 = Eigen::Index(c) * kRowChunk, rn = std::min(kRowChunk, X.rows() - r0);
+            out.middleRows(r0, rn).noalias() = X.middleRows(r0, rn) * M;
+        }
+    });
+    return out;
+}
+
+Eigen::MatrixXf tallTransposeTimes(const RowMatrix& X, const Eigen::MatrixXf& M)
+{
+    const size_t chunks = size_t((X.rows() + kRowChunk - 1) / kRowChunk);
+    std::vector<Eigen::MatrixXf> partial(chunks);
+    parallelFor(chunks, 1, [&](size_t c0, size_t c1) {
+        for (size_t c = c0; c < c1; ++c) {
+            const Eigen::Index r0 = Eigen::Index(c) * kRowChunk, rn = std::min(kRowChunk, X.rows() - r0);
+            partial[c].noalias() = X.middleRows(r0, rn).transpose() * M.middleRows(r0, rn);
+        }
+    });
+    Eigen::MatrixXf out = Eigen::MatrixXf::Zero(X.cols(), M.cols());
+    for (const Eigen::MatrixXf& p : partial) out += p;
+    return out;
+}
+
 // The top k principal axes of the centred sample X (n x dim) by randomized subspace iteration (Halko, Martinsson
 // and Tropp 2011, "Finding structure with randomness", algorithm 4.4): O(n dim (k + p)) per pass instead of the
 // O(n dim^2 + dim^3) of the covariance and its full eigendecomposition, which took tens of seconds for the 2916
-// dimensions of a 9^3 global patch at ratio 2. A fixed seed keeps it deterministic. Returns the axes as columns
-// (dim x k) and their variances (descending).
-void randomizedAxes(const Eigen::MatrixXd& X, size_t k, Eigen::MatrixXd& axes, Eigen::VectorXd& variances)
+// dimensions of a 9^3 global patch at ratio 2. The passes over X run in float on all threads (they were 3 s of
+// every ratio-2 frame that searched globally in double on one); the small factorisations stay in double. A fixed
+// seed keeps it deterministic. Returns the axes as columns (dim x k) and their variances (descending).
+void randomizedAxes(const RowMatrix& X, size_t k, Eigen::MatrixXd& axes, Eigen::VectorXd& variances)
 {
     const Eigen::Index dim = X.cols(), l = Eigen::Index(std::min<size_t>(size_t(dim), k + 10));
     std::mt19937_64 rng(0x5eed);
     std::normal_distribution<double> normal;
-    Eigen::MatrixXd omega(dim, l);
+    Eigen::MatrixXf omega(dim, l);
     for (Eigen::Index c = 0; c < l; ++c)
-        for (Eigen::Index r = 0; r < dim; ++r) omega(r, c) = normal(rng);
-    const auto orthonormal = [](const Eigen::MatrixXd& m) {
-        Eigen::HouseholderQR<Eigen::MatrixXd> qr(m);
-        return Eigen::MatrixXd(qr.householderQ() * Eigen::MatrixXd::Identity(m.rows(), m.cols()));
+        for (Eigen::Index r = 0; r < dim; ++r) omega(r, c) = float(normal(rng));
+    const auto orthonormal = [](const Eigen::MatrixXf& m) {
+        Eigen::HouseholderQR<Eigen::MatrixXd> qr(m.cast<double>());
+        return Eigen::MatrixXf((qr.householderQ() * Eigen::MatrixXd::Identity(m.rows(), m.cols())).cast<float>());
     };
-    Eigen::MatrixXd Q = orthonormal(X * omega);
+    Eigen::MatrixXf Q = orthonormal(tallTimes(X, omega));
     // Power iterations sharpen the spectrum's decay; re-orthonormalising each half-step keeps them stable.
-    for (int it = 0; it < 3; ++it) Q = orthonormal(X * orthonormal(X.transpose() * Q));
-    const Eigen::MatrixXd B = Q.transpose() * X; // l x dim
+    for (int it = 0; it < 3; ++it) Q = orthonormal(tallTimes(X, orthonormal(tallTransposeTimes(X, Q))));
+    const Eigen::MatrixXd B = tallTransposeTimes(X, Q).transpose().cast<double>(); // l x dim
     Eigen::JacobiSVD<Eigen::MatrixXd> svd(B, Eigen::ComputeThinV);
     axes = svd.matrixV().leftCols(Eigen::Index(k));
     const double norm = double(std::max<Eigen::Index>(X.rows() - 1, 1));
@@ -54,22 +87,37 @@ void Pca::fit(const float* rows, size_t count, size_t dim, const PcaSettings& se
     const size_t n = std::min(count, std::max<size_t>(settings.maxSamples, 1));
     const double stride = double(count) / double(n);
     Eigen::Map<const RowMatrix> all(rows, Eigen::Index(count), Eigen::Index(dim));
-    Eigen::MatrixXd sample(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(dim));
-    for (size_t i = 0; i < n; ++i) sample.row(Eigen::Index(i)) = all.row(Eigen::Index(size_t(i * stride))).cast<double>();
-    const Eigen::VectorXd mean = sample.colwise().mean();
-    sample.rowwise() -= mean.transpose();
     mMean.assign(dim, 0.0f);
-    for (size_t d = 0; d < dim; ++d) mMean[d] = float(mean(Eigen::Index(d)));
     mBasis.assign(dim * mK, 0.0f);
-    const double total = sample.squaredNorm() / double(std::max<size_t>(n - 1, 1));
+    double total = 0.0;      // the sample's total variance
     Eigen::MatrixXd axes;    // dim x mK, strongest first
     Eigen::VectorXd values;  // their variances
+    const auto sampleRow = [&](size_t i) { return all.row(Eigen::Index(size_t(double(i) * stride))); };
     if (dim <= settings.exactMaxDim) {
+        Eigen::MatrixXd sample(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(dim));
+        for (size_t i = 0; i < n; ++i) sample.row(Eigen::Index(i)) = sampleRow(i).cast<double>();
+        const Eigen::VectorXd mean = sample.colwise().mean();
+        sample.rowwise() -= mean.transpose();
+        for (size_t d = 0; d < dim; ++d) mMean[d] = float(mean(Eigen::Index(d)));
+        total = sample.squaredNorm() / double(std::max<size_t>(n - 1, 1));
         const Eigen::MatrixXd cov = (sample.transpose() * sample) / double(std::max<size_t>(n - 1, 1));
         Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(cov); // ascending
         axes = eig.eigenvectors().rightCols(Eigen::Index(mK)).rowwise().reverse();
         values = eig.eigenvalues().tail(Eigen::Index(mK)).reverse();
     } else {
+        // Thousands of dimensions: a float sample (half the memory) for the randomized passes, the mean and the
+        // total variance summed in double.
+        Eigen::VectorXd mean = Eigen::VectorXd::Zero(Eigen::Index(dim));
+        for (size_t i = 0; i < n; ++i) mean += sampleRow(i).cast<double>().transpose();
+        mean /= double(n);
+        const Eigen::RowVectorXf meanF = mean.transpose().cast<float>();
+        RowMatrix sample(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(dim));
+        for (size_t i = 0; i < n; ++i) {
+            sample.row(Eigen::Index(i)) = sampleRow(i) - meanF;
+            total += sample.row(Eigen::Index(i)).cast<double>().squaredNorm();
+        }
+        for (size_t d = 0; d < dim; ++d) mMean[d] = meanF(Eigen::Index(d));
+        total /= double(std::max<size_t>(n - 1, 1));
         randomizedAxes(sample, mK, axes, values);
     }
     double kept = 0.0;
