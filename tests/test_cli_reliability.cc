@@ -362,6 +362,26 @@ TEST(CliReliability, SynthRefusesNonsenseOrientationAndMarginsAndSaysWhatItSkips
     EXPECT_FALSE(std::filesystem::exists(dir / "s.0002.vdb"));
 }
 
+TEST(CliReliability, ResampleCarriesTheOtherGridsUnlessAskedNotTo)
+{
+    // Issue 16: the 20 grids of a Blender cache that are not density, velocity, temperature or flame were dropped.
+    testutil::TempDir dir;
+    const std::string in = testutil::dataPath("blender-c42/fluid_data_0001.vdb");
+    const auto gridCount = [](const std::string& path) { return turbio::inspectFile(path, false).grids.size(); };
+    const auto all = run("resample " + in + " --frames 1 --down 5 --out " + dir / "all.####.vdb");
+    ASSERT_EQ(all.code, 0) << all.out;
+    EXPECT_EQ(gridCount(dir / "all.0001.vdb"), gridCount(in)); // 24
+    // What is not exact is said: the staggered previous velocity is moved as cell values.
+    EXPECT_NE(all.out.find("'velocity_previous' is staggered"), std::string::npos) << all.out;
+    const auto four = run("resample " + in + " --frames 1 --down 5 --drop-other-grids --out " + dir / "four.####.vdb -q");
+    ASSERT_EQ(four.code, 0) << four.out;
+    EXPECT_EQ(gridCount(dir / "four.0001.vdb"), 4u);
+    // The frame's own grids are the same either way.
+    const turb::Frame a = turbio::readFrame(dir / "all.0001.vdb", 1, turbio::ReadOptions{});
+    const turb::Frame b = turbio::readFrame(dir / "four.0001.vdb", 1, turbio::ReadOptions{});
+    EXPECT_EQ(a.density.values(), b.density.values());
+}
+
 TEST(CliReliability, ResampleKeepsTheRecordedDomainRatioAndPatchLatticeTrue)
 {
     // Found by a fresh user: resample --down 2 of an up-res kept its domain and patch size in output voxels of the

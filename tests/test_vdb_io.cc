@@ -8,6 +8,7 @@
 #include <openvdb/openvdb.h>
 #include <openvdb/io/File.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <csignal>
@@ -611,4 +612,103 @@ TEST(BadInput, AFrameTooLargeToLoadNamesTheGridAndItsSpan)
     EXPECT_EQ(f.density.bbox(), openvdb::CoordBBox({0, 0, 0}, {3, 3, 3})) << "the smoke, its margin clipped to the span";
     EXPECT_NE(rep.region.describeStrays().find("1 active voxel 19997 voxels away"), std::string::npos)
         << rep.region.describeStrays();
+}
+
+namespace {
+
+openvdb::GridBase::Ptr readGridFrom(const std::string& path, const std::string& name)
+{
+    openvdb::io::File f(path);
+    f.open();
+    auto g = f.readGrid(name);
+    f.close();
+    return g;
+}
+
+} // namespace
+
+TEST(OtherGrids, ResampleCarriesEveryGridOfABlenderCacheWithTheFrame)
+{
+    // Issue 16: resample wrote density, velocity, temperature and flame and silently dropped the other 20 grids of
+    // a Blender cache (flags, level sets, colour, shadow, previous velocity, inflow fields).
+    if (!testutil::haveData()) GTEST_SKIP() << "no ../shared/data";
+    const std::string in = testutil::dataPath("blender-c42/fluid_data_0001.vdb");
+    testutil::TempDir dir;
+    const turbio::ReadOptions ro;
+    const turb::Frame frame = turbio::readFrame(in, 1, ro);
+    turbio::OtherGrids others = turbio::OtherGrids::read(in, ro, frame.lattice());
+    ASSERT_EQ(others.size(), 20u);
+    EXPECT_TRUE(others.unchanged().empty());
+    const std::vector<std::string> names = others.names();
+    for (const char* n : {"flags", "phi_obstacle", "color_r", "shadow", "velocity_previous", "density_inflow"})
+        EXPECT_NE(std::find(names.begin(), names.end(), n), names.end()) << n;
+    EXPECT_EQ(others.staggered(), std::vector<std::string>{"velocity_previous"});
+
+    // Down by 5: colour is the block mean (background 0), flags and level sets the block's centre voxel.
+    const int f = 5;
+    others.downsample(turb::Coord(f));
+    const turb::Frame down = turb::downsampleFrame(frame, f);
+    const std::string outDown = dir / "down.vdb";
+    turbio::writeFrame(outDown, down, turbio::WriteOptions{}, &others);
+    const auto flagsIn = openvdb::gridPtrCast<openvdb::Int32Grid>(readGridFrom(in, "flags"));
+    const auto flagsOut = openvdb::gridPtrCast<openvdb::Int32Grid>(readGridFrom(outDown, "flags"));
+    ASSERT_TRUE(flagsIn && flagsOut);
+    EXPECT_EQ(flagsOut->activeVoxelCount(), openvdb::Index64(25 * 25 * 12)); // Blender's 125x125x60 domain / 5
+    auto inAcc = flagsIn->getConstAccessor();
+    size_t mismatched = 0;
+    for (auto it = flagsOut->cbeginValueOn(); it; ++it)
+        mismatched += *it != inAcc.getValue(openvdb::Coord(it.getCoord().asVec3i() * f + openvdb::Vec3i(f / 2)));
+    EXPECT_EQ(mismatched, 0u);
+    const auto res = flagsOut->getMetadata<openvdb::Vec3IMetadata>("file_base_resolution");
+    ASSERT_TRUE(res);
+    EXPECT_EQ(res->value(), openvdb::Vec3i(25, 25, 12));
+    // On the frame's output lattice: the same transform as the written density.
+    EXPECT_EQ(flagsOut->transform(), readGridFrom(outDown, "density")->transform());
+
+    const auto colourIn = openvdb::gridPtrCast<openvdb::FloatGrid>(readGridFrom(in, "color_r"));
+    const auto colourOut = openvdb::gridPtrCast<openvdb::FloatGrid>(readGridFrom(outDown, "color_r"));
+    ASSERT_TRUE(colourIn && colourOut);
+    ASSERT_GT(colourOut->activeVoxelCount(), 0u);
+    auto cAcc = colourIn->getConstAccessor();
+    double worst = 0.0, peak = 0.0;
+    for (auto it = colourOut->cbeginValueOn(); it; ++it) {
+        double sum = 0.0;
+        const openvdb::Coord o(it.getCoord().asVec3i() * f);
+        for (int x = 0; x < f; ++x)
+            for (int y = 0; y < f; ++y)
+                for (int z = 0; z < f; ++z) sum += cAcc.getValue(o + openvdb::Coord(x, y, z));
+        worst = std::max(worst, std::abs(double(*it) - sum / (f * f * f)));
+        peak = std::max(peak, double(*it));
+    }
+    EXPECT_GT(peak, 0.01);
+    EXPECT_LT(worst, 1e-3 * peak); // half floats on disk: 3 significant digits
+
+    // A quarter turn about z moves every voxel as reorientFrame does and turns vectors, not colours.
+    const turb::AxisRotation r = turb::AxisRotation::quarterTurns(2, 1);
+    turbio::OtherGrids turned = turbio::OtherGrids::read(in, ro, frame.lattice());
+    turned.rotate(r);
+    const std::string outTurned = dir / "turned.vdb";
+    turbio::writeFrame(outTurned, turb::reorientFrame(frame, r), turbio::WriteOptions{}, &turned);
+    const auto rotatedIndex = [&](const openvdb::Coord& o) {
+        openvdb::Coord c;
+        for (int i = 0; i < 3; ++i) c[i] = r.sign[size_t(i)] * o[r.perm[size_t(i)]];
+        return c;
+    };
+    const auto flagsTurned = openvdb::gridPtrCast<openvdb::Int32Grid>(readGridFrom(outTurned, "flags"));
+    auto tAcc = flagsTurned->getConstAccessor();
+    EXPECT_EQ(flagsTurned->activeVoxelCount(), flagsIn->activeVoxelCount());
+    mismatched = 0;
+    for (auto it = flagsIn->cbeginValueOn(); it; ++it) mismatched += tAcc.getValue(rotatedIndex(it.getCoord())) != *it;
+    EXPECT_EQ(mismatched, 0u);
+    const auto prevIn = openvdb::gridPtrCast<openvdb::Vec3SGrid>(readGridFrom(in, "velocity_previous"));
+    const auto prevTurned = openvdb::gridPtrCast<openvdb::Vec3SGrid>(readGridFrom(outTurned, "velocity_previous"));
+    ASSERT_TRUE(prevIn && prevTurned && prevIn->activeVoxelCount() > 0);
+    auto pAcc = prevTurned->getConstAccessor();
+    double vecErr = 0.0;
+    for (auto it = prevIn->cbeginValueOn(); it; ++it) {
+        const turb::Vec3f want = r.apply(turb::Vec3f((*it)[0], (*it)[1], (*it)[2]));
+        const openvdb::Vec3s got = pAcc.getValue(rotatedIndex(it.getCoord()));
+        vecErr = std::max(vecErr, double((openvdb::Vec3s(want.x(), want.y(), want.z()) - got).length()));
+    }
+    EXPECT_EQ(vecErr, 0.0); // a permutation and signs of half floats: exact
 }

@@ -8,12 +8,14 @@
 #include <turb/Error.h>
 #include <turb/Reorient.h>
 #include <turbio/Sequence.h>
+#include <turbio/Vdb.h>
 
 #include <cstdio>
 #include <cstdlib>
 #include <map>
 #include <sstream>
 #include <memory>
+#include <optional>
 
 namespace vdbturb {
 
@@ -24,6 +26,7 @@ struct ResampleArgs
     std::string in, out, frames;
     int down = 1;
     std::string rotate;
+    bool dropOtherGrids = false;
     turbio::ReadOptions read;
     turbio::WriteOptions write;
 };
@@ -70,6 +73,26 @@ void rescaleIndexMetadata(std::map<std::string, std::string>& meta, int down, bo
     }
 }
 
+std::string joined(const std::vector<std::string>& names)
+{
+    std::string s;
+    for (const auto& n : names) s += (s.empty() ? "'" : ", '") + n + "'";
+    return s;
+}
+
+// The other grids carried, once per sequence at -v; what is not exact, as warnings, once.
+void reportOtherGrids(const turbio::OtherGrids& others, const std::string& path, bool first)
+{
+    if (!first || others.size() == 0) return;
+    logVerbose(path + ": also carrying " + joined(others.names()));
+    if (const auto u = others.unchanged(); !u.empty())
+        logWarning(path + ": " + joined(u) + (u.size() == 1 ? " lies" : " lie") +
+                   " on another lattice than the frame's: written unchanged (--drop-other-grids leaves them out)");
+    if (const auto st = others.staggered(); !st.empty())
+        logWarning(path + ": " + joined(st) + (st.size() == 1 ? " is" : " are") +
+                   " staggered (face-sampled): resampled as cell values, so the faces may be off by up to a voxel");
+}
+
 int runResample(ResampleArgs& a)
 {
     turb::AxisRotation rot;
@@ -105,6 +128,14 @@ int runResample(ResampleArgs& a)
         const int f = seq.frames[i];
         const auto t0 = std::chrono::steady_clock::now();
         turb::Frame frame = turbio::readFrame(seq.path(f), f, a.read);
+        // Everything else the file holds goes along (issue 16): a proxy keeps Blender's flags, colours, level sets.
+        std::optional<turbio::OtherGrids> others;
+        if (!a.dropOtherGrids) {
+            others = turbio::OtherGrids::read(seq.path(f), a.read, frame.lattice());
+            if (a.down > 1) others->downsample(turb::domainFactors(frame.bbox(), a.down));
+            others->rotate(rot);
+            reportOtherGrids(*others, seq.path(f), i == 0);
+        }
         if (a.down > 1) frame = turb::downsampleFrame(frame, a.down);
         if (!rot.isIdentity()) frame = turb::reorientFrame(frame, rot);
         rescaleIndexMetadata(frame.metadata, a.down, !rot.isIdentity());
@@ -112,7 +143,7 @@ int runResample(ResampleArgs& a)
         const std::string path = outPattern.format(f);
         turbio::ensureParentDirectory(path);
         warnIfClippedAway(frame, a.write, path, warnedClipping);
-        turbio::writeFrame(path, frame, a.write);
+        turbio::writeFrame(path, frame, a.write, others ? &*others : nullptr);
         report.frameDone(f, int(i), int(seq.frames.size()), secondsSince(t0), "-> " + path);
     }
     report.finish();
@@ -134,6 +165,9 @@ Command resampleCommand()
         app->add_option("--frames", args->frames, "Frames, e.g. 1-30 (default: all on disk)")->check(frameListCheck());
         app->add_option("--down", args->down, "Mean over NxNxN blocks onto an N times coarser lattice")->check(CLI::Range(1, 64));
         app->add_option("--rotate", args->rotate, "AXIS:TURNS quarter turns about x, y or z (e.g. y:1), grids and vectors");
+        app->add_flag("--drop-other-grids", args->dropOtherGrids,
+            "Write only density, velocity, temperature and flame (default: every other grid of the file goes along, "
+            "resampled with the frame: mean over blocks, labels such as Blender's flags by the block's centre voxel)");
         addReadOptions(app, args->read);
         addWriteOptions(app, args->write);
     };

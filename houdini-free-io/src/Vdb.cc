@@ -2,6 +2,7 @@
 #include <turbio/Vdb.h>
 
 #include "GuardedRead.h"
+#include "OtherGrids.h"
 #include "ReadChecks.h"
 
 #include <turb/Metadata.h>
@@ -742,6 +743,17 @@ void readRoles(openvdb::io::File& file, const std::vector<Descriptor>& order, op
     meta.insertMeta("__turb_grid_list", openvdb::StringMetadata(describeEntries(entries)));
     if (auto fm = file.getMetadata())
         for (auto it = fm->beginMeta(); it != fm->endMeta(); ++it) meta.insertMeta(it->first, *it->second);
+}
+
+// The unique names readRoles takes with these options (none of its errors: OtherGrids reads after readFrame).
+std::vector<std::string> takenNames(const std::vector<std::string>& names, const ReadOptions& options)
+{
+    std::vector<std::string> taken = resolveGrid(names, GridRole::Density, options.densityGrid);
+    for (const auto& n : resolveGrid(names, GridRole::Velocity, options.velocityGrid)) taken.push_back(n);
+    if (options.readExtras)
+        for (GridRole role : {GridRole::Temperature, GridRole::Flame})
+            if (auto n = resolveGrid(names, role); !n.empty()) taken.push_back(n[0]);
+    return taken;
 }
 
 // The grids of one frame, from the trusted stream, by role.
@@ -1546,7 +1558,7 @@ void writeAtomically(const std::string& path, bool noClobber, const std::functio
     commitTemp(tmp, path, noClobber);
 }
 
-void writeFrame(const std::string& path, const turb::Frame& frame, const WriteOptions& options)
+void writeFrame(const std::string& path, const turb::Frame& frame, const WriteOptions& options, const OtherGrids* others)
 {
     initOpenVdb();
     if (options.noClobber && fileExists(path)) throw IoError(path + ": exists, not replaced (--no-clobber)");
@@ -1612,6 +1624,23 @@ void writeFrame(const std::string& path, const turb::Frame& frame, const WriteOp
     };
     addScalar(frame.temperature, "temperature");
     addScalar(frame.flame, "flame");
+    std::vector<openvdb::GridBase::Ptr> passedAsRead; // not moved by Blender's placement below
+    if (others) {
+        for (size_t i = 0; i < others->mImpl->grids.size(); ++i) {
+            // A shallow copy: the caller's grids keep their transform and metadata.
+            openvdb::GridBase::Ptr g = others->mImpl->grids[i]->copyGrid();
+            if (auto half = g->getMetadata<openvdb::BoolMetadata>(kHalfKey)) {
+                g->setSaveFloatAsHalf(half->value() || options.halfFloat);
+                g->removeMeta(kHalfKey);
+            }
+            if (others->mImpl->followFrame[i]) {
+                g->setTransform(transformOf(lat));
+            } else {
+                passedAsRead.push_back(g);
+            }
+            grids.push_back(g);
+        }
+    }
 
     openvdb::MetaMap meta;
     meta.insertMeta("creator", openvdb::StringMetadata("vdbturb " VDBTURB_VERSION_STRING));
@@ -1628,7 +1657,9 @@ void writeFrame(const std::string& path, const turb::Frame& frame, const WriteOp
         if (f > 1) {
             const double shift = 0.5 * (f - 1) * lat.voxelSize;
             const openvdb::Vec3d offset(shift, shift, frame.bbox().dim().z() == 1 ? 0.0 : shift);
-            for (auto& g : grids) g->transform().postTranslate(offset);
+            for (auto& g : grids)
+                if (std::find(passedAsRead.begin(), passedAsRead.end(), g) == passedAsRead.end())
+                    g->transform().postTranslate(offset);
             std::ostringstream os;
             os.precision(17);
             os << offset[0] << " " << offset[1] << " " << offset[2];
@@ -1647,6 +1678,32 @@ void writeFrame(const std::string& path, const turb::Frame& frame, const WriteOp
     const std::string tmp = tempPathFor(path);
     writeVdbChecked(tmp, path, grids, meta);
     commitTemp(tmp, path, options.noClobber);
+}
+
+OtherGrids OtherGrids::read(const std::string& path, const ReadOptions& options, const turb::Lattice& frameLattice)
+{
+    const detail::GuardedResult r = guarded(path,
+        [&](openvdb::io::File& file, const std::vector<Descriptor>& order, openvdb::GridPtrVec& out, openvdb::MetaMap& meta) {
+            const std::vector<std::string> names = uniqueNames(listGrids(file, order));
+            const std::vector<std::string> taken = takenNames(names, options);
+            for (const auto& n : names)
+                if (!hasName(taken, n)) out.push_back(readGridNamed(file, path, n));
+            if (auto fm = file.getMetadata())
+                for (auto it = fm->beginMeta(); it != fm->endMeta(); ++it) meta.insertMeta(it->first, *it->second);
+        },
+        options.readTimeout);
+    OtherGrids o;
+    const openvdb::Vec3d offset = blenderOffset(*r.meta); // taken off as readFrame takes it off
+    for (const auto& g : r.grids) {
+        if (offset != openvdb::Vec3d(0.0)) g->transform().postTranslate(-offset);
+        double vs = 0.0;
+        turb::Vec3d origin(0.0);
+        const bool follows = uniformTransform(g->transform(), vs, origin) && turb::Lattice{vs, origin}.approxEqual(frameLattice);
+        o.mImpl->grids.push_back(g);
+        o.mImpl->followFrame.push_back(follows);
+        if (!follows && offset != openvdb::Vec3d(0.0)) g->transform().postTranslate(offset); // written as read
+    }
+    return o;
 }
 
 // ---------------------------------------------------------------------------------------------

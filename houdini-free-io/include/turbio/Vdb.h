@@ -19,8 +19,10 @@
 #pragma once
 
 #include <turb/Frame.h>
+#include <turb/Reorient.h>
 
 #include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -164,10 +166,59 @@ struct WriteOptions
     float smokeThreshold = 1e-3f;         ///< density above this is smoke for velocityMargin
 };
 
+/// The grids of a file that readFrame does not take: Blender's flags, colour, shadow, level sets and previous
+/// velocity, a Houdini cache's extra fields. Held sparse, as the file stores them, for a command that passes a
+/// file's other grids through (resample): nothing a cache holds is dropped without a word.
+///
+/// A grid on the frame's lattice (readFrame's, Blender's placement offset taken off as readFrame does) follows
+/// the frame: down-sampled and turned with it and written on its output lattice. A grid on another lattice, or
+/// with a transform that is not a uniform scale and translation, is written unchanged (`unchanged()`).
+class OtherGrids
+{
+public:
+    OtherGrids();
+    ~OtherGrids();
+    OtherGrids(OtherGrids&&) noexcept;
+    OtherGrids& operator=(OtherGrids&&) noexcept;
+
+    /// Reads them, guarded like readFrame (a file that crashes or hangs OpenVDB is an IoError naming it).
+    /// `options` selects the grids readFrame takes (the same selectors and readExtras); `frameLattice` is the
+    /// lattice readFrame gave the frame.
+    static OtherGrids read(const std::string& path, const ReadOptions& options, const turb::Lattice& frameLattice);
+
+    /// Down-samples the grids that follow the frame by `factors` (turb::domainFactors of the frame's box: a 2D
+    /// frame keeps its z layer), each >= 1. Float, double and vector grids take the mean over each block, inactive
+    /// voxels counting as the background (turb::boxDownsample's rule). Level sets, and integer and boolean grids
+    /// (Blender's flags), take the block's centre voxel (for an even factor the one just above the centre): their
+    /// values are distances with far markers (Blender writes 1e4) and labels, which a mean would mix. Blender's
+    /// file_base_resolution and file_voxel_size metadata are scaled with the lattice. Throws ValueError for a
+    /// factor < 1.
+    void downsample(const turb::Coord& factors);
+    /// Turns the grids that follow the frame as turb::reorientFrame turns its fields: voxel I moves to the rotated
+    /// index, and vector values are rotated, except colours (a grid named Cd, or with "color" or "colour" in its
+    /// name: OpenVDB's vector type defaults to "invariant" on velocities too, so it cannot tell).
+    void rotate(const turb::AxisRotation& r);
+
+    size_t size() const;
+    std::vector<std::string> names() const;     ///< every grid held, in file order
+    std::vector<std::string> unchanged() const; ///< those on another lattice, written as they were read
+    std::vector<std::string> staggered() const; ///< those of class staggered among the ones that follow the frame:
+                                                ///< moved as cell values, so their faces are off by up to a voxel
+
+    struct Impl;
+private:
+    std::unique_ptr<Impl> mImpl;
+    friend void writeFrame(const std::string&, const turb::Frame&, const WriteOptions&, const OtherGrids*);
+};
+
 /// Writes a frame atomically: to a temporary file in the same directory, then renamed over `path`,
 /// so readers never see a partial file and a failed write leaves any previous file untouched.
-/// Frame metadata becomes grid metadata; "vdbturb_dt" records dt.
-void writeFrame(const std::string& path, const turb::Frame& frame, const WriteOptions& options);
+/// Frame metadata becomes grid metadata; "vdbturb_dt" records dt. `others` (optional) are written after the
+/// frame's grids: those that follow the frame on its lattice (and with Blender's placement in the Blender style),
+/// the rest as read. A name the frame's grids also use is kept: OpenVDB files allow it, and readers that look a
+/// name up find the frame's grid, written first.
+void writeFrame(const std::string& path, const turb::Frame& frame, const WriteOptions& options,
+    const OtherGrids* others = nullptr);
 
 /// Writes `bytes` to `path` atomically (used for images and reports too).
 void writeFileAtomic(const std::string& path, const std::string& bytes, bool noClobber = false);
