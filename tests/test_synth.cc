@@ -11,6 +11,7 @@
 #include <turb/Parallel.h>
 #include <turb/Resample.h>
 #include <turb/Synth.h>
+#include <turb/SynthSequence.h>
 
 #include <array>
 #include <cmath>
@@ -835,4 +836,55 @@ TEST(Synth, EachThreeDIterationDescendsOnItsOwnCentres)
     const DetailField plain = synthesizeDetail(SynthExemplars(views, s, true), in, s);
     for (const SynthLevelStats& st : plain.levels) EXPECT_TRUE(st.descent.empty());
     EXPECT_TRUE(bitEqual(plain.world, H.world)); // tracing does not change the result
+}
+
+TEST(SynthSequence, IsTheStagesComposedAndContinuesOverTheRealTimeBetweenFrames)
+{
+    // The streaming class must be exactly the paper's stages run in order (synthesise H', F = up(L) + omega H',
+    // continue the next frame from H advected by L over the time since the last frame processed).
+    const Exemplar ex = procedural(ProceduralPattern::Swirls, 24, 8);
+    const VectorField L = uniformFlow(12, 1, 30.0, 2.0);
+    SynthSequenceSettings ss;
+    ss.synth.seed = 3;
+    ss.factor = 2;
+    ss.density = false;
+    const SynthExemplars prepared({SynthView{ex, 2, 1.0f}}, ss.synth, false);
+    SynthSequence seq(prepared, ss);
+    EXPECT_THROW(seq.lastDetail(), ValueError);
+    SynthFrameInput in;
+    in.coarse = &L;
+    in.dt = 0.25;
+    in.frame = 1;
+    const SynthFrameResult r1 = seq.next(in);
+    const DetailField H1 = seq.lastDetail();
+
+    SynthInput si;
+    si.coarse = &L;
+    si.factor = 2;
+    si.dt = 0.25;
+    const DetailField h1 = synthesizeDetail(prepared, si, ss.synth);
+    const VectorField f1 = combineMotion(L, h1.world, ss.combine);
+    ASSERT_EQ(r1.frame.velocity.size(), f1.size());
+    EXPECT_EQ(0, std::memcmp(r1.frame.velocity.data(), f1.data(), f1.size() * sizeof(Vec3f)));
+    EXPECT_EQ(r1.frame.number, 1);
+    EXPECT_FALSE(r1.projection);
+    EXPECT_LT(r1.densityMass, 0.0);
+
+    // Frame 3 after frame 1: continued over two frames' time, as synthesizeDetail with dt = 0.5 from H1.
+    in.frame = 3;
+    const SynthFrameResult r3 = seq.next(in);
+    si.previous = &H1;
+    si.dt = 0.5;
+    const DetailField h3 = synthesizeDetail(prepared, si, ss.synth);
+    const VectorField f3 = combineMotion(L, h3.world, ss.combine);
+    EXPECT_TRUE(seq.lastDetail().fromPrevious);
+    EXPECT_EQ(0, std::memcmp(r3.frame.velocity.data(), f3.data(), f3.size() * sizeof(Vec3f)));
+    // Had it advected by one frame's time, the result would differ.
+    si.dt = 0.25;
+    const VectorField wrong = combineMotion(L, synthesizeDetail(prepared, si, ss.synth).world, ss.combine);
+    EXPECT_NE(0, std::memcmp(r3.frame.velocity.data(), wrong.data(), wrong.size() * sizeof(Vec3f)));
+
+    SynthFrameInput bad = in;
+    bad.dt = 0.0;
+    EXPECT_THROW(seq.next(bad), ValueError);
 }

@@ -13,6 +13,7 @@
 #include <turb/Render.h>
 #include <turb/Resample.h>
 #include <turb/Synth.h>
+#include <turb/SynthSequence.h>
 #include <turbio/ImageIO.h>
 #include <turbio/Sequence.h>
 #include <turbio/System.h>
@@ -530,12 +531,17 @@ int runSynth(SynthArgs& a)
     logVerbose("exemplar pyramids and indices: " + fmt("%.2f s", secondsSince(tPrep)) + ", " + std::to_string(prepared.levels()) +
                " levels");
 
-    turb::LookbackSettings lbs;
-    lbs.frames = a.lookback;
-    turb::LookbackDensity lookback(lbs);
-    std::optional<turb::DetailField> previous;
-    int previousFrame = std::numeric_limits<int>::min();
-    turb::ScalarField previousDensity;
+    turb::SynthSequenceSettings seqSettings;
+    seqSettings.synth = s;
+    seqSettings.combine = a.combine;
+    seqSettings.factor = a.factor;
+    seqSettings.detailNearSmoke = !a.detailEverywhere;
+    seqSettings.project = a.project;
+    seqSettings.projectIterations = a.projectIterations;
+    seqSettings.density = !a.noDensity;
+    seqSettings.lookback = a.lookback;
+    seqSettings.detailOnly = a.output == "detail";
+    turb::SynthSequence sequence(prepared, seqSettings);
 
     const int count = int(frames.size());
     std::vector<int> unconverged; // frames whose projection stopped short
@@ -547,67 +553,36 @@ int runSynth(SynthArgs& a)
         progress.begin("reading");
         turb::Frame cf = i == 0 ? std::move(f0) : source.read(fr, &progress);
         if (!cf.hasVelocity()) throw turb::ValueError(source.label() + ": frame " + std::to_string(fr) + " has no velocity");
-        const double dt = cf.dt > 0.0 ? cf.dt : a.flowDt;
-        double seconds[5] = {0, 0, 0, 0, 0};
-        auto tk = std::chrono::steady_clock::now();
-        const auto lap = [&](int k) {
-            seconds[k] = secondsSince(tk);
-            tk = std::chrono::steady_clock::now();
-        };
-        lap(0);
+        const double readSeconds = secondsSince(t0);
 
-        turb::SynthInput in;
+        turb::SynthFrameInput in;
         in.coarse = &cf.velocity;
         in.coarseDensity = cf.hasDensity() ? &cf.density : nullptr;
         in.obstacle = obstacle ? &*obstacle : nullptr;
-        in.factor = a.factor;
-        // Continue from the previous *processed* frame over the real time between the two: frames two apart
-        // (--frames 1-30x2, a cache written every second frame) advect by two frames' time.
-        const bool continuing = bool(previous);
-        const double elapsed = continuing ? dt * double(fr - previousFrame) : dt;
-        in.previous = continuing ? &*previous : nullptr;
-        in.dt = elapsed;
-        turb::DetailField H;
+        in.frame = fr;
+        in.dt = cf.dt > 0.0 ? cf.dt : a.flowDt;
+        const std::optional<turb::ScalarField> emitters =
+            cf.hasDensity() && !a.noDensity ? source.sceneEmitters(cf.density, fr) : std::nullopt;
+        in.emitters = emitters ? &*emitters : nullptr;
+        turb::SynthFrameResult r;
         try {
-            H = turb::synthesizeDetail(prepared, in, s, &progress);
+            r = sequence.next(in, &progress);
         } catch (const turb::ValueError& e) {
             const auto& seq = source.sequence();
             throw turb::ValueError("frame " + std::to_string(fr) + (seq ? " (" + seq->path(fr) + ")" : std::string()) + ": " +
                                    e.what());
         }
-        lap(1);
-
-        progress.begin("combine");
-        // Detail near the smoke only (issue 20): the smoke on L's box, zero where the density grid stops short.
-        turb::CombineSettings combine = a.combine;
-        turb::ScalarField smoke;
-        if (!a.detailEverywhere && cf.hasDensity()) {
-            smoke = turb::cropped(cf.density, cf.velocity.bbox());
-            combine.smoke = &smoke;
-            if (std::none_of(smoke.values().begin(), smoke.values().end(), [&](float v) { return v > combine.smokeThreshold; })) {
-                progress.clear();
-                logWarning("frame " + std::to_string(fr) + ": the density has no smoke (nothing above " +
-                           fmt("%g", combine.smokeThreshold) + "), so no detail is written; --detail-everywhere puts it everywhere");
-            }
+        const turb::DetailField& H = sequence.lastDetail();
+        const turb::VectorField& F = r.motion;
+        turb::Frame& outFrame = r.frame;
+        if (r.smokeless) {
+            progress.clear();
+            logWarning("frame " + std::to_string(fr) + ": the density has no smoke (nothing above " +
+                       fmt("%g", a.combine.smokeThreshold) + "), so no detail is written; --detail-everywhere puts it everywhere");
         }
-        turb::VectorField F = turb::combineMotion(cf.velocity, H.world, combine);
         nlohmann::json projJson;
-        if (a.project) {
-            progress.begin("projection");
-            turb::ProjectionSettings ps;
-            ps.maxIterations = a.projectIterations;
-            for (int k = 0; k < 6; ++k)
-                if (s.boundary.walls & (1u << k)) ps.faces[size_t(k)] = turb::Boundary::Closed;
-            if (!volume) ps.faces[turb::kFaceZMin] = ps.faces[turb::kFaceZMax] = turb::Boundary::Closed; // stay 2D
-            std::optional<turb::MaskField> solid;
-            if (obstacle) {
-                solid = turb::MaskField(F.bbox(), F.lattice());
-                for (size_t n = 0; n < solid->size(); ++n) {
-                    const turb::Vec3d w = F.lattice().indexToWorld(solid->coordOf(n).asVec3d());
-                    solid->data()[n] = turb::sampleWorld(*obstacle, w) < 0.0f ? 1 : 0;
-                }
-            }
-            const turb::ProjectionResult pr = turb::project(F, ps, solid ? &*solid : nullptr, &progress);
+        if (r.projection) {
+            const turb::ProjectionResult& pr = *r.projection;
             projJson = {{"converged", pr.converged}, {"iterations", pr.iterations}, {"div_max_before", pr.divMaxBefore},
                 {"div_max_after", pr.divMaxAfter}};
             if (!pr.converged) {
@@ -622,35 +597,8 @@ int runSynth(SynthArgs& a)
                            "), solver residual " + fmt("%.2e", pr.relativeResidual));
             }
         }
-        lap(2);
-
-        turb::Frame outFrame;
-        outFrame.number = fr;
-        outFrame.dt = dt;
-        if (a.output == "detail") {
-            // omega * H' alone: what the synthesis added.
-            outFrame.velocity = F;
-            const turb::VectorField up = turb::upsampleCoarse(cf.velocity, a.factor);
-            for (size_t n = 0; n < F.size(); ++n) outFrame.velocity.data()[n] -= up.data()[n];
-        } else {
-            outFrame.velocity = F;
-        }
-        double densityMass = -1.0;
-        if (cf.hasDensity() && !a.noDensity) {
-            progress.begin("density");
-            if (!continuing) lookback = turb::LookbackDensity(lbs); // a gap in the frames starts a new history
-            const std::optional<turb::ScalarField> emitters = source.sceneEmitters(cf.density, fr);
-            const turb::ScalarField src = turb::estimateSources(previousDensity.empty() || !continuing ? nullptr : &previousDensity,
-                cf.density, cf.velocity, elapsed, turb::AdvectSettings{}, emitters ? &*emitters : nullptr);
-            const turb::ScalarField fineSrc = turb::upsampleCoarse(src, a.factor);
-            const turb::ScalarField coarseOnly = a.lookback > 0 ? turb::upsampleCoarse(cf.density, a.factor) : turb::ScalarField();
-            outFrame.density = lookback.step(F, fineSrc, coarseOnly, elapsed, &progress);
-            previousDensity = cf.density;
-            densityMass = 0.0;
-            for (float v : outFrame.density.values()) densityMass += v;
-            densityMass *= std::pow(outFrame.density.lattice().voxelSize, 3);
-        }
-        lap(3);
+        const double densityMass = r.densityMass;
+        auto tWrite = std::chrono::steady_clock::now();
 
         outFrame.metadata[turb::meta::kCommand] = "synth";
         std::string names;
@@ -664,7 +612,7 @@ int runSynth(SynthArgs& a)
         turbio::ensureParentDirectory(outPath);
         warnIfClippedAway(outFrame, a.write, outPath, warnedClipping);
         turbio::writeFrame(outPath, outFrame, a.write);
-        lap(4);
+        const double writeSeconds = secondsSince(tWrite);
 
         nlohmann::json extra;
         extra["out"] = outPath;
@@ -681,11 +629,11 @@ int runSynth(SynthArgs& a)
         double h2 = 0.0;
         for (const auto& v : H.world.values()) h2 += v.lengthSqr();
         extra["detail_rms"] = std::sqrt(h2 / double(std::max<size_t>(1, H.world.size())));
-        extra["detail_region"] = combine.smoke ? "smoke" : "everywhere";
+        extra["detail_region"] = !a.detailEverywhere && cf.hasDensity() ? "smoke" : "everywhere";
         if (a.project) extra["projection"] = projJson;
         if (densityMass >= 0.0) extra["density_mass"] = densityMass;
-        extra["steps_s"] = {{"read", seconds[0]}, {"synthesis", seconds[1]}, {"combine", seconds[2]}, {"density", seconds[3]},
-            {"write", seconds[4]}};
+        extra["steps_s"] = {{"read", readSeconds}, {"synthesis", r.seconds[0]}, {"combine", r.seconds[1]},
+            {"density", r.seconds[2]}, {"write", writeSeconds}};
         if (a.stats) {
             progress.begin("statistics");
             nlohmann::json m = nlohmann::json::array();
@@ -733,7 +681,7 @@ int runSynth(SynthArgs& a)
         progress.clear();
 
         std::string human = std::string(H.fromPrevious ? "continued" : "synthesised") + fmt(", E %.4f", H.finalEnergy()) +
-                            fmt(", |H'| rms %.3f", extra["detail_rms"].get<double>()) + fmt(", synthesis %.2f s", seconds[1]) +
+                            fmt(", |H'| rms %.3f", extra["detail_rms"].get<double>()) + fmt(", synthesis %.2f s", r.seconds[0]) +
                             (a.project ? " projection " + std::to_string(projJson["iterations"].get<int>()) + " it" : "") + " -> " +
                             outPath;
         for (const auto& l : H.levels) {
@@ -743,8 +691,6 @@ int runSynth(SynthArgs& a)
                        std::to_string(l.dim.y()) + "x" + std::to_string(l.dim.z()) + " energy" + e);
         }
         report.frameDone(fr, int(i), count, secondsSince(t0), human, extra);
-        previous = std::move(H);
-        previousFrame = fr;
     }
     report.finish();
     if (!unconverged.empty()) {
