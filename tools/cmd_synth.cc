@@ -347,7 +347,8 @@ turb::Image labelled(const turb::Image& img, const std::string& label)
 // The synthesis carries look-back density only when the coarse input has density and it is written.
 bool cf0HasDensity(const turb::Frame& f, const SynthArgs& a) { return f.hasDensity() && !a.noDensity; }
 
-int runSynth(SynthArgs& a)
+// The command line into the library settings (a.settings, a.combine).
+void fillSettings(SynthArgs& a)
 {
     turb::SynthSettings& s = a.settings;
     s.threads = globals().threads;
@@ -383,46 +384,12 @@ int runSynth(SynthArgs& a)
     a.combine.weighting = a.omegaMode == "energy"      ? turb::CombineSettings::Weighting::KineticEnergy
                           : a.omegaMode == "vorticity" ? turb::CombineSettings::Weighting::Vorticity
                                                        : turb::CombineSettings::Weighting::Constant;
+}
 
-    CoarseSource source(a);
-    const std::vector<int>& frames = source.frames();
-    const turbio::FramePattern outPattern = turbio::FramePattern::parse(a.out);
-    if (frames.size() > 1 && !outPattern.numbered())
-        throw turb::ValueError("--out '" + a.out + "' has no frame token (####, %04d, $F4) but " + std::to_string(frames.size()) +
-                               " frames are requested");
-    // Before anything is read in full: every frame's headers, one lattice, the output paths.
-    std::optional<turbio::SequenceScan> scan;
-    {
-        std::vector<std::string> outputs, inputs;
-        for (int fr : frames) outputs.push_back(outPattern.format(fr));
-        if (const auto& seq = source.sequence()) {
-            turbio::ReadOptions ro = a.read;
-            ro.requireDensity = false;
-            scan = checkInput("synth", "target", *seq, frames, ro, LatticePolicy::Refuse);
-            reportTiming("target", *scan, true);
-            // Synth's density sources and look-back need one box over the sequence: the union of the frames'
-            // held boxes (each the smoke and its margin, strays left out), not the cache's domain.
-            if (a.read.cropToSmoke) {
-                turb::CoordBBox all;
-                for (const auto& fs : scan->frames) all.expand(fs.domain);
-                a.read.holdBox = all;
-            }
-            for (int fr : frames) inputs.push_back(seq->path(fr));
-        }
-        checkOutputs(outputs, inputs, a.write.noClobber, false);
-    }
-
-    // Exemplars and views.
-    if (a.exemplars.empty()) a.exemplars.push_back("circles:16");
-    std::vector<turb::Exemplar> ex;
-    for (const auto& spec : a.exemplars) ex.push_back(loadExemplar(spec, a));
-
-    ConsoleProgress first(0, int(frames.size()), frames.front());
-    first.begin("reading");
-    turb::Frame f0 = source.read(frames.front(), &first);
-    first.clear();
-    if (!f0.hasVelocity()) throw turb::ValueError(source.label() + ": frame " + std::to_string(frames.front()) + " has no velocity");
-    const bool volume = f0.bbox().dim().z() > 1;
+// The views the exemplars serve: one 2D view, one volume exemplar, or planar exemplars along local axes (--views,
+// --view-weights).
+std::vector<turb::SynthView> synthViews(const SynthArgs& a, const std::vector<turb::Exemplar>& ex, bool volume)
+{
     std::vector<turb::SynthView> views;
     std::vector<int> normals;
     if (!a.views.empty())
@@ -456,9 +423,12 @@ int runSynth(SynthArgs& a)
                                    std::to_string(views.size()) + " views");
         for (size_t i = 0; i < views.size(); ++i) views[i].weight = weights[i];
     }
+    return views;
+}
 
-    // Boundaries.
-    s.boundary.walls = a.walls.empty() ? source.sceneWalls() : parseWalls(a.walls);
+// The obstacle: the scene's, or a level set named by --obstacle PATH[:GRID].
+std::optional<turb::ScalarField> readObstacle(const SynthArgs& a, CoarseSource& source, const turb::Frame& f0)
+{
     std::optional<turb::ScalarField> obstacle = source.sceneObstacles(f0.velocity);
     if (!a.obstacle.empty()) {
         const size_t c = a.obstacle.rfind(':');
@@ -475,6 +445,226 @@ int runSynth(SynthArgs& a)
         }
         obstacle = turbio::readFrame(path, 0, ro).density;
     }
+    return obstacle;
+}
+
+// Before anything is read in full: every frame's headers, one lattice, the output paths. Sets the one box a
+// cache is held over (synth's sources and look-back need one box over the sequence).
+std::optional<turbio::SequenceScan> preflightSynth(SynthArgs& a, const CoarseSource& source, const std::vector<int>& frames,
+    const turbio::FramePattern& outPattern)
+{
+    std::optional<turbio::SequenceScan> scan;
+    std::vector<std::string> outputs, inputs;
+    for (int fr : frames) outputs.push_back(outPattern.format(fr));
+    if (const auto& seq = source.sequence()) {
+        turbio::ReadOptions ro = a.read;
+        ro.requireDensity = false;
+        scan = checkInput("synth", "target", *seq, frames, ro, LatticePolicy::Refuse);
+        reportTiming("target", *scan, true);
+        // Synth's density sources and look-back need one box over the sequence: the union of the frames'
+        // held boxes (each the smoke and its margin, strays left out), not the cache's domain.
+        if (a.read.cropToSmoke) {
+            turb::CoordBBox all;
+            for (const auto& fs : scan->frames) all.expand(fs.domain);
+            a.read.holdBox = all;
+        }
+        for (int fr : frames) inputs.push_back(seq->path(fr));
+    }
+    checkOutputs(outputs, inputs, a.write.noClobber, false);
+    return scan;
+}
+
+// The output lattice (dry run and -vv) and the memory check, from the largest coarse frame.
+void checkSynthLatticeAndMemory(const SynthArgs& a, const turb::Frame& f0, const std::optional<turbio::SequenceScan>& scan,
+    bool volume, int frameCount)
+{
+    const turb::SynthSettings& s = a.settings;
+    turb::CoordBBox coarse = f0.velocity.bbox();
+    if (scan)
+        if (const turbio::FrameScan* l = scan->largestDomain()) coarse = l->domain;
+    const turb::FineDomain d = turb::fineDomain(f0.velocity, a.factor);
+    const turb::Lattice& cl = f0.velocity.lattice();
+    const turb::Vec3d lo = cl.indexToWorld(coarse.min().asVec3d() - turb::Vec3d(0.5));
+    const turb::Vec3d hi = cl.indexToWorld(coarse.max().asVec3d() + turb::Vec3d(0.5));
+    const double outVoxels = double(coarse.volume()) * std::pow(double(a.factor), volume ? 3.0 : 2.0);
+    if (globals().dryRun || globals().verbosity >= 2)
+        printData("output lattice: " + std::to_string(d.box.dim().x()) + "x" + std::to_string(d.box.dim().y()) + "x" +
+                  std::to_string(d.box.dim().z()) + " voxels of " + fmt("%g", d.lattice.voxelSize) + " (factor " +
+                  std::to_string(a.factor) + "), world (" + fmt("%.4g", lo.x()) + "," + fmt("%.4g", lo.y()) + "," +
+                  fmt("%.4g", lo.z()) + ")-(" + fmt("%.4g", hi.x()) + "," + fmt("%.4g", hi.y()) + "," + fmt("%.4g", hi.z()) +
+                  "); output size about " + turbio::formatBytes(outVoxels * 16.0) + " per frame");
+    const int lb = cf0HasDensity(f0, a) ? a.lookback : 0;
+    // The synthesis runs on the box grown by --face-padding on its open faces (walls not grown).
+    double grown = 1.0;
+    for (int ax = 0; ax < (volume ? 3 : 2); ++ax) {
+        const int open = !(s.boundary.walls & (1u << (2 * ax))) + !(s.boundary.walls & (1u << (2 * ax + 1)));
+        grown *= double(coarse.dim()[ax] + open * s.facePadding) / double(coarse.dim()[ax]);
+    }
+    const double coarseVoxels = (volume ? double(coarse.volume()) : double(coarse.volume()) / a.factor) * grown;
+    const double need = turb::synthPeakBytes(coarseVoxels, a.factor, frameCount, lb);
+    const long long usable = turbio::usableMemoryBytes();
+    const int fMax = usable > 0 ? turb::largestSynthFactor(0.9 * double(usable), coarseVoxels, frameCount, lb) : 0;
+    checkMemory(need, std::to_string(coarse.dim().x()) + "x" + std::to_string(coarse.dim().y()) + "x" +
+                          std::to_string(coarse.dim().z()) + " coarse voxels at factor " + std::to_string(a.factor),
+        fMax >= 1 ? "--factor " + std::to_string(fMax) + " fits" : "no factor fits: crop the coarse cache");
+}
+
+// The projection's outcome for the JSON line; one that stopped short is warned about (issue 14) and listed.
+nlohmann::json projectionReport(const SynthArgs& a, const turb::SynthFrameResult& r, int fr, ConsoleProgress& progress,
+    std::vector<int>& unconverged)
+{
+    nlohmann::json projJson;
+    if (r.projection) {
+        const turb::ProjectionResult& pr = *r.projection;
+        projJson = {{"converged", pr.converged}, {"iterations", pr.iterations}, {"div_max_before", pr.divMaxBefore},
+            {"div_max_after", pr.divMaxAfter}};
+        if (!pr.converged) {
+            // A solver that stops short is a result the user must hear about (issue 14), not only a JSON field.
+            unconverged.push_back(fr);
+            progress.clear();
+            logWarning("frame " + std::to_string(fr) + ": the projection did not converge (" +
+                       std::to_string(pr.iterations) + " iterations); the written velocity is not divergence-free" +
+                       (a.strict ? "" : " (--strict makes this an error)"));
+            logVerbose("frame " + std::to_string(fr) + ": projection max|div| " + fmt("%.3g", pr.divMaxBefore) + " -> " +
+                       fmt("%.3g", pr.divMaxAfter) + " (x" + fmt("%.2e", pr.relativeDivergence()) +
+                       "), solver residual " + fmt("%.2e", pr.relativeResidual));
+        }
+    }
+    return projJson;
+}
+
+// --stats: how well each planar view's neighbourhoods match its exemplar.
+nlohmann::json textureStats(const std::vector<turb::SynthView>& views, const turb::DetailField& H, bool volume)
+{
+    nlohmann::json m = nlohmann::json::array();
+    for (size_t v = 0; v < views.size(); ++v) {
+        if (!views[v].exemplar.planar()) continue;
+        turb::TextureMatchSettings ts;
+        ts.axis = volume ? views[v].normal : 2; // exact for axis-aligned local frames
+        ts.stride = volume ? 8 : 4;
+        const turb::TextureMatch tm = turb::textureMatch(views[v].exemplar, H.local, ts);
+        m.push_back({{"view", v}, {"nn_distance", tm.distance}, {"shuffled", tm.shuffled}, {"ratio", tm.ratio()},
+            {"rms", {tm.fieldRms[0], tm.fieldRms[1]}}, {"exemplar_rms", {tm.exemplarRms[0], tm.exemplarRms[1]}}});
+    }
+    return m;
+}
+
+// --preview: a sheet of the exemplar, up(L), H', F and the density; returns the picture's path.
+std::string writeSynthPreview(const SynthArgs& a, const std::vector<turb::SynthView>& views, const turb::Frame& cf,
+    const turb::DetailField& H, const turb::VectorField& F, const turb::Frame& outFrame, int fr, bool volume)
+{
+    const turb::View view = parseView(a.previewView, !volume);
+    turb::LicSettings ls;
+    ls.view = view;
+    ls.width = a.previewWidth;
+    turb::LicSettings le = ls;
+    le.view = turb::View::Top;
+    le.width = std::max(64, a.previewWidth / 2);
+    const turb::Image exImg = labelled(turb::renderLic(turb::exemplarAsField(views[0].exemplar), le), "exemplar");
+    const turb::Image hImg = labelled(turb::renderLic(H.world, ls), "detail H'");
+    const turb::Image lImg = labelled(turb::renderLic(turb::upsampleCoarse(cf.velocity, a.factor), ls), "coarse up(L)");
+    const turb::Image fImg = labelled(turb::renderLic(F, ls), "F = up(L) + w H'");
+    std::vector<turb::SheetCell> row{{&exImg, ""}, {&lImg, ""}, {&hImg, ""}, {&fImg, ""}};
+    turb::Image dImg;
+    if (!outFrame.density.empty()) {
+        turb::DensityRenderSettings dr;
+        dr.view = view;
+        dr.width = a.previewWidth;
+        dImg = labelled(volume ? turb::renderDensity(outFrame.density, dr)
+                               : turb::renderSlice(outFrame.density, turb::SliceSettings{view, 0.5, a.previewWidth}),
+            "density");
+        row.push_back({&dImg, ""});
+    }
+    const turb::Image sheet = turb::contactSheet({row}, {""}, "synth frame " + std::to_string(fr), 1);
+    const std::string png = a.preview + "/" + turbio::FramePattern::parse("synth.####." + a.previewFormat).format(fr);
+    turbio::ensureParentDirectory(png);
+    turbio::writeImage(png, sheet);
+    return png;
+}
+
+turb::SynthSequenceSettings sequenceSettings(const SynthArgs& a)
+{
+    turb::SynthSequenceSettings seqSettings;
+    seqSettings.synth = a.settings;
+    seqSettings.combine = a.combine;
+    seqSettings.factor = a.factor;
+    seqSettings.detailNearSmoke = !a.detailEverywhere;
+    seqSettings.project = a.project;
+    seqSettings.projectIterations = a.projectIterations;
+    seqSettings.density = !a.noDensity;
+    seqSettings.lookback = a.lookback;
+    seqSettings.detailOnly = a.output == "detail";
+    return seqSettings;
+}
+
+// A frame's JSON line: the output, the synthesis's levels and energies, the detail's strength and region.
+nlohmann::json frameJson(const SynthArgs& a, const turb::SynthFrameResult& r, const turb::DetailField& H, bool hasDensity,
+    const nlohmann::json& projJson, const std::string& outPath)
+{
+    const turb::VectorField& F = r.motion;
+    const double densityMass = r.densityMass;
+    nlohmann::json extra;
+    extra["out"] = outPath;
+    extra["size"] = {F.bbox().dim().x(), F.bbox().dim().y(), F.bbox().dim().z()};
+    extra["continued"] = H.fromPrevious;
+    nlohmann::json lv = nlohmann::json::array();
+    for (const auto& l : H.levels) {
+        nlohmann::json lj = {{"level", l.level}, {"size", {l.dim.x(), l.dim.y(), l.dim.z()}}, {"radius", l.radius}, {"energy", l.energy}};
+        if (!l.descent.empty()) lj["descent"] = l.descent; // [at search, after the average, after all terms]
+        lv.push_back(lj);
+    }
+    extra["levels"] = lv;
+    extra["energy"] = H.finalEnergy();
+    double h2 = 0.0;
+    for (const auto& v : H.world.values()) h2 += v.lengthSqr();
+    extra["detail_rms"] = std::sqrt(h2 / double(std::max<size_t>(1, H.world.size())));
+    extra["detail_region"] = !a.detailEverywhere && hasDensity ? "smoke" : "everywhere";
+    if (a.project) extra["projection"] = projJson;
+    if (densityMass >= 0.0) extra["density_mass"] = densityMass;
+    return extra;
+}
+
+// What the written frame records about how it was made.
+void tagOutput(turb::Frame& outFrame, const SynthArgs& a, const std::vector<turb::SynthView>& views)
+{
+    outFrame.metadata[turb::meta::kCommand] = "synth";
+    std::string names;
+    for (const auto& v : views) names += (names.empty() ? "" : ",") + v.exemplar.name;
+    outFrame.metadata[turb::meta::kExemplars] = names;
+    outFrame.metadata[turb::meta::kOmega] = fmt("%g", a.combine.omega) + (a.combine.relative ? " x rms|L|" : "") + " " + a.omegaMode;
+    outFrame.metadata[turb::meta::kSeed] = std::to_string(a.settings.seed);
+    outFrame.metadata[turb::meta::kRatio] = std::to_string(a.factor); // Blender-style placement (io.md)
+}
+
+int runSynth(SynthArgs& a)
+{
+    fillSettings(a);
+    turb::SynthSettings& s = a.settings;
+
+    CoarseSource source(a);
+    const std::vector<int>& frames = source.frames();
+    const turbio::FramePattern outPattern = turbio::FramePattern::parse(a.out);
+    if (frames.size() > 1 && !outPattern.numbered())
+        throw turb::ValueError("--out '" + a.out + "' has no frame token (####, %04d, $F4) but " + std::to_string(frames.size()) +
+                               " frames are requested");
+    const std::optional<turbio::SequenceScan> scan = preflightSynth(a, source, frames, outPattern);
+
+    // Exemplars and views.
+    if (a.exemplars.empty()) a.exemplars.push_back("circles:16");
+    std::vector<turb::Exemplar> ex;
+    for (const auto& spec : a.exemplars) ex.push_back(loadExemplar(spec, a));
+
+    ConsoleProgress first(0, int(frames.size()), frames.front());
+    first.begin("reading");
+    turb::Frame f0 = source.read(frames.front(), &first);
+    first.clear();
+    if (!f0.hasVelocity()) throw turb::ValueError(source.label() + ": frame " + std::to_string(frames.front()) + " has no velocity");
+    const bool volume = f0.bbox().dim().z() > 1;
+    const std::vector<turb::SynthView> views = synthViews(a, ex, volume);
+
+    // Boundaries.
+    s.boundary.walls = a.walls.empty() ? source.sceneWalls() : parseWalls(a.walls);
+    const std::optional<turb::ScalarField> obstacle = readObstacle(a, source, f0);
 
     logInfo("synth: " + source.label() + ", frames " + turbio::formatFrameList(frames) + ", " + (volume ? "3D" : "2D") +
             ", factor " + std::to_string(a.factor) + ", " + std::to_string(views.size()) + " view" + (views.size() == 1 ? "" : "s") +
@@ -484,37 +674,7 @@ int runSynth(SynthArgs& a)
                 (v.exemplar.planar() ? "" : "x" + std::to_string(v.exemplar.nz)) + (v.exemplar.periodic ? ", periodic" : "") +
                 ")" + (v.exemplar.planar() && volume ? ", looks along e" + std::to_string(v.normal + 1) : "") +
                 (views.size() > 1 ? ", weight " + fmt("%g", v.weight) : ""));
-    {
-        // Output lattice and memory, from the largest coarse frame.
-        turb::CoordBBox coarse = f0.velocity.bbox();
-        if (scan)
-            if (const turbio::FrameScan* l = scan->largestDomain()) coarse = l->domain;
-        const turb::FineDomain d = turb::fineDomain(f0.velocity, a.factor);
-        const turb::Lattice& cl = f0.velocity.lattice();
-        const turb::Vec3d lo = cl.indexToWorld(coarse.min().asVec3d() - turb::Vec3d(0.5));
-        const turb::Vec3d hi = cl.indexToWorld(coarse.max().asVec3d() + turb::Vec3d(0.5));
-        const double outVoxels = double(coarse.volume()) * std::pow(double(a.factor), volume ? 3.0 : 2.0);
-        if (globals().dryRun || globals().verbosity >= 2)
-            printData("output lattice: " + std::to_string(d.box.dim().x()) + "x" + std::to_string(d.box.dim().y()) + "x" +
-                      std::to_string(d.box.dim().z()) + " voxels of " + fmt("%g", d.lattice.voxelSize) + " (factor " +
-                      std::to_string(a.factor) + "), world (" + fmt("%.4g", lo.x()) + "," + fmt("%.4g", lo.y()) + "," +
-                      fmt("%.4g", lo.z()) + ")-(" + fmt("%.4g", hi.x()) + "," + fmt("%.4g", hi.y()) + "," + fmt("%.4g", hi.z()) +
-                      "); output size about " + turbio::formatBytes(outVoxels * 16.0) + " per frame");
-        const int lb = cf0HasDensity(f0, a) ? a.lookback : 0;
-        // The synthesis runs on the box grown by --face-padding on its open faces (walls not grown).
-        double grown = 1.0;
-        for (int ax = 0; ax < (volume ? 3 : 2); ++ax) {
-            const int open = !(s.boundary.walls & (1u << (2 * ax))) + !(s.boundary.walls & (1u << (2 * ax + 1)));
-            grown *= double(coarse.dim()[ax] + open * s.facePadding) / double(coarse.dim()[ax]);
-        }
-        const double coarseVoxels = (volume ? double(coarse.volume()) : double(coarse.volume()) / a.factor) * grown;
-        const double need = turb::synthPeakBytes(coarseVoxels, a.factor, int(frames.size()), lb);
-        const long long usable = turbio::usableMemoryBytes();
-        const int fMax = usable > 0 ? turb::largestSynthFactor(0.9 * double(usable), coarseVoxels, int(frames.size()), lb) : 0;
-        checkMemory(need, std::to_string(coarse.dim().x()) + "x" + std::to_string(coarse.dim().y()) + "x" +
-                              std::to_string(coarse.dim().z()) + " coarse voxels at factor " + std::to_string(a.factor),
-            fMax >= 1 ? "--factor " + std::to_string(fMax) + " fits" : "no factor fits: crop the coarse cache");
-    }
+    checkSynthLatticeAndMemory(a, f0, scan, volume, int(frames.size()));
     if (globals().dryRun) {
         for (int fr : frames) printData("would write " + outPattern.format(fr));
         return kOk;
@@ -531,17 +691,7 @@ int runSynth(SynthArgs& a)
     logVerbose("exemplar pyramids and indices: " + fmt("%.2f s", secondsSince(tPrep)) + ", " + std::to_string(prepared.levels()) +
                " levels");
 
-    turb::SynthSequenceSettings seqSettings;
-    seqSettings.synth = s;
-    seqSettings.combine = a.combine;
-    seqSettings.factor = a.factor;
-    seqSettings.detailNearSmoke = !a.detailEverywhere;
-    seqSettings.project = a.project;
-    seqSettings.projectIterations = a.projectIterations;
-    seqSettings.density = !a.noDensity;
-    seqSettings.lookback = a.lookback;
-    seqSettings.detailOnly = a.output == "detail";
-    turb::SynthSequence sequence(prepared, seqSettings);
+    turb::SynthSequence sequence(prepared, sequenceSettings(a));
 
     const int count = int(frames.size());
     std::vector<int> unconverged; // frames whose projection stopped short
@@ -580,33 +730,10 @@ int runSynth(SynthArgs& a)
             logWarning("frame " + std::to_string(fr) + ": the density has no smoke (nothing above " +
                        fmt("%g", a.combine.smokeThreshold) + "), so no detail is written; --detail-everywhere puts it everywhere");
         }
-        nlohmann::json projJson;
-        if (r.projection) {
-            const turb::ProjectionResult& pr = *r.projection;
-            projJson = {{"converged", pr.converged}, {"iterations", pr.iterations}, {"div_max_before", pr.divMaxBefore},
-                {"div_max_after", pr.divMaxAfter}};
-            if (!pr.converged) {
-                // A solver that stops short is a result the user must hear about (issue 14), not only a JSON field.
-                unconverged.push_back(fr);
-                progress.clear();
-                logWarning("frame " + std::to_string(fr) + ": the projection did not converge (" +
-                           std::to_string(pr.iterations) + " iterations); the written velocity is not divergence-free" +
-                           (a.strict ? "" : " (--strict makes this an error)"));
-                logVerbose("frame " + std::to_string(fr) + ": projection max|div| " + fmt("%.3g", pr.divMaxBefore) + " -> " +
-                           fmt("%.3g", pr.divMaxAfter) + " (x" + fmt("%.2e", pr.relativeDivergence()) +
-                           "), solver residual " + fmt("%.2e", pr.relativeResidual));
-            }
-        }
-        const double densityMass = r.densityMass;
+        const nlohmann::json projJson = projectionReport(a, r, fr, progress, unconverged);
         auto tWrite = std::chrono::steady_clock::now();
 
-        outFrame.metadata[turb::meta::kCommand] = "synth";
-        std::string names;
-        for (const auto& v : views) names += (names.empty() ? "" : ",") + v.exemplar.name;
-        outFrame.metadata[turb::meta::kExemplars] = names;
-        outFrame.metadata[turb::meta::kOmega] = fmt("%g", a.combine.omega) + (a.combine.relative ? " x rms|L|" : "") + " " + a.omegaMode;
-        outFrame.metadata[turb::meta::kSeed] = std::to_string(s.seed);
-        outFrame.metadata[turb::meta::kRatio] = std::to_string(a.factor); // Blender-style placement (io.md)
+        tagOutput(outFrame, a, views);
         progress.begin("writing");
         const std::string outPath = outPattern.format(fr);
         turbio::ensureParentDirectory(outPath);
@@ -614,69 +741,16 @@ int runSynth(SynthArgs& a)
         turbio::writeFrame(outPath, outFrame, a.write);
         const double writeSeconds = secondsSince(tWrite);
 
-        nlohmann::json extra;
-        extra["out"] = outPath;
-        extra["size"] = {F.bbox().dim().x(), F.bbox().dim().y(), F.bbox().dim().z()};
-        extra["continued"] = H.fromPrevious;
-        nlohmann::json lv = nlohmann::json::array();
-        for (const auto& l : H.levels) {
-            nlohmann::json lj = {{"level", l.level}, {"size", {l.dim.x(), l.dim.y(), l.dim.z()}}, {"radius", l.radius}, {"energy", l.energy}};
-            if (!l.descent.empty()) lj["descent"] = l.descent; // [at search, after the average, after all terms]
-            lv.push_back(lj);
-        }
-        extra["levels"] = lv;
-        extra["energy"] = H.finalEnergy();
-        double h2 = 0.0;
-        for (const auto& v : H.world.values()) h2 += v.lengthSqr();
-        extra["detail_rms"] = std::sqrt(h2 / double(std::max<size_t>(1, H.world.size())));
-        extra["detail_region"] = !a.detailEverywhere && cf.hasDensity() ? "smoke" : "everywhere";
-        if (a.project) extra["projection"] = projJson;
-        if (densityMass >= 0.0) extra["density_mass"] = densityMass;
+        nlohmann::json extra = frameJson(a, r, H, cf.hasDensity(), projJson, outPath);
         extra["steps_s"] = {{"read", readSeconds}, {"synthesis", r.seconds[0]}, {"combine", r.seconds[1]},
             {"density", r.seconds[2]}, {"write", writeSeconds}};
         if (a.stats) {
             progress.begin("statistics");
-            nlohmann::json m = nlohmann::json::array();
-            for (size_t v = 0; v < views.size(); ++v) {
-                if (!views[v].exemplar.planar()) continue;
-                turb::TextureMatchSettings ts;
-                ts.axis = volume ? views[v].normal : 2; // exact for axis-aligned local frames
-                ts.stride = volume ? 8 : 4;
-                const turb::TextureMatch tm = turb::textureMatch(views[v].exemplar, H.local, ts);
-                m.push_back({{"view", v}, {"nn_distance", tm.distance}, {"shuffled", tm.shuffled}, {"ratio", tm.ratio()},
-                    {"rms", {tm.fieldRms[0], tm.fieldRms[1]}}, {"exemplar_rms", {tm.exemplarRms[0], tm.exemplarRms[1]}}});
-            }
-            extra["texture_match"] = m;
+            extra["texture_match"] = textureStats(views, H, volume);
         }
         if (!a.preview.empty()) {
             progress.begin("preview");
-            const turb::View view = parseView(a.previewView, !volume);
-            turb::LicSettings ls;
-            ls.view = view;
-            ls.width = a.previewWidth;
-            turb::LicSettings le = ls;
-            le.view = turb::View::Top;
-            le.width = std::max(64, a.previewWidth / 2);
-            const turb::Image exImg = labelled(turb::renderLic(turb::exemplarAsField(views[0].exemplar), le), "exemplar");
-            const turb::Image hImg = labelled(turb::renderLic(H.world, ls), "detail H'");
-            const turb::Image lImg = labelled(turb::renderLic(turb::upsampleCoarse(cf.velocity, a.factor), ls), "coarse up(L)");
-            const turb::Image fImg = labelled(turb::renderLic(F, ls), "F = up(L) + w H'");
-            std::vector<turb::SheetCell> row{{&exImg, ""}, {&lImg, ""}, {&hImg, ""}, {&fImg, ""}};
-            turb::Image dImg;
-            if (!outFrame.density.empty()) {
-                turb::DensityRenderSettings dr;
-                dr.view = view;
-                dr.width = a.previewWidth;
-                dImg = labelled(volume ? turb::renderDensity(outFrame.density, dr)
-                                       : turb::renderSlice(outFrame.density, turb::SliceSettings{view, 0.5, a.previewWidth}),
-                    "density");
-                row.push_back({&dImg, ""});
-            }
-            const turb::Image sheet = turb::contactSheet({row}, {""}, "synth frame " + std::to_string(fr), 1);
-            const std::string png = a.preview + "/" + turbio::FramePattern::parse("synth.####." + a.previewFormat).format(fr);
-            turbio::ensureParentDirectory(png);
-            turbio::writeImage(png, sheet);
-            extra["preview"] = png;
+            extra["preview"] = writeSynthPreview(a, views, cf, H, F, outFrame, fr, volume);
         }
         progress.clear();
 
