@@ -296,6 +296,29 @@ TEST_F(TransferPair, IdenticalAtOneAndTwoThreads)
     }
 }
 
+TEST_F(TransferPair, CancellationStopsEverySearchingStage)
+{
+    // Ctrl-C must be honoured inside the global and local searches, not only between steps: a progress that asks
+    // to stop as soon as a stage begins makes that stage throw Cancelled, before the next step is reached.
+    struct StopAt : Progress
+    {
+        std::string stage, current, last;
+        void begin(const std::string& step) override
+        {
+            current = step;
+            last = step;
+        }
+        bool cancelled() const override { return current == stage; }
+    };
+    for (const char* stage : {"global search", "local search"}) {
+        TurbulenceTransfer transfer(TransferSettings{});
+        StopAt p;
+        p.stage = stage;
+        EXPECT_THROW(transfer.process(targets[0], sources[0], &p), Cancelled) << stage;
+        EXPECT_EQ(p.last, stage); // stopped inside it
+    }
+}
+
 TEST_F(TransferPair, SavedStateResumesBitIdentically)
 {
     TransferSettings s;

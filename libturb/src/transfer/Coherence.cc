@@ -20,6 +20,7 @@ void coherencePass(LocalSearchResult& local, const PatchEnergy& energy, const st
     for (int sweep = 0; sweep < 2 * s.coherenceSweeps; ++sweep) {
         const int colour = sweep % 2;
         parallelFor(local.activeList.size(), 8, [&](size_t b, size_t e) {
+            checkCancelled(fs.progress);
             for (size_t i = b; i < e; ++i) {
                 const size_t p = local.activeList[i];
                 const Coord P = L.patchCoord(p);

@@ -32,6 +32,7 @@ GlobalSearchResult globalSearch(const Frame& target, const SourceBands& src, con
     if (index.empty()) throw ValueError("the source has no smoke to match against");
     const size_t dim = globalDescriptorSize(fs.globalPatch, fs.globalDepth);
     parallelFor(needGlobal.size(), 16, [&](size_t b, size_t e) {
+        checkCancelled(fs.progress);
         std::vector<float> desc(dim);
         for (size_t i = b; i < e; ++i) {
             const size_t p = needGlobal[i];

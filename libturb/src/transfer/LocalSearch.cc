@@ -137,6 +137,7 @@ LocalSearchResult localSearch(const PatchEnergy& energy, const std::vector<uint8
         if (active[p]) out.activeList.push_back(p);
     const bool haveAdvected = !energy.advectedDetail.empty();
     parallelFor(out.activeList.size(), 8, [&](size_t b, size_t e) {
+        checkCancelled(fs.progress);
         std::vector<float> desc(ldim), red(rk);
         std::vector<std::pair<float, Coord>> best;
         for (size_t i = b; i < e; ++i) {

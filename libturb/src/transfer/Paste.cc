@@ -50,6 +50,7 @@ PasteResult pastePatches(const LocalSearchResult& local, const SourceBands& src,
     out.detail = VectorField(fs.fineBox, fs.fineLattice);
     out.offsets.assign(fs.layout.patchCount(), Coord(0));
     parallelFor(local.activeList.size(), 16, [&](size_t b, size_t e) {
+        checkCancelled(fs.progress);
         for (size_t i = b; i < e; ++i) {
             const size_t p = local.activeList[i];
             const CoordBBox full = fs.layout.patchBox(fs.layout.patchCoord(p));

@@ -32,6 +32,7 @@ void followSourceFlow(PatchTracks& tracks, const CarriedState& c, const TargetAt
     const Coord origin = L.origin;
     const CoordBBox& sb = src.split.low.bbox();
     parallelFor(L.patchCount(), 64, [&](size_t b, size_t e) {
+        checkCancelled(fs.progress);
         for (size_t p = b; p < e; ++p) {
             if (!active[p]) continue;
             CoordBBox pb = L.patchBox(L.patchCoord(p));

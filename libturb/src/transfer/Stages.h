@@ -51,6 +51,7 @@ struct FrameSetup
     PatchLayout layout;
     double elapsed = 0.0;    ///< time since the previous processed frame; 0 on a first frame
     int frameGap = 1;        ///< frame-number gap to that frame
+    const Progress* progress = nullptr; ///< asked before every parallel chunk of the stages: Ctrl-C stops a search
 };
 
 /// One look-back step (DensityMode::LookBack).

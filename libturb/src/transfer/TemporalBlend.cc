@@ -90,6 +90,7 @@ TemporalBlend blendTemporal(VectorField& detail, const TargetAtOutput& t, const 
     double pooled = 1.0;
     if (s.regenerate > 0.0f) {
         parallelFor(act.size(), 16, [&](size_t b, size_t e) {
+        checkCancelled(fs.progress);
             for (size_t i = b; i < e; ++i) {
                 if (!tracks.tracked[act[i]]) continue;
                 const CoordBBox pb = boxOf(act[i]);
@@ -112,6 +113,7 @@ TemporalBlend blendTemporal(VectorField& detail, const TargetAtOutput& t, const 
     out.weight.assign(L.patchCount(), 0.0f);
     std::vector<uint8_t> regen(act.size(), 0);
     parallelFor(act.size(), 16, [&](size_t b, size_t e) {
+        checkCancelled(fs.progress);
         for (size_t i = b; i < e; ++i) {
             const size_t p = act[i];
             if (tracks.tracked[p]) {
@@ -137,6 +139,7 @@ TemporalBlend blendTemporal(VectorField& detail, const TargetAtOutput& t, const 
     // energy its two parts had, interpolated by the weight.
     std::vector<uint8_t> done(L.patchCount(), 0);
     parallelFor(act.size(), 16, [&](size_t b, size_t e) {
+        checkCancelled(fs.progress);
         for (size_t i = b; i < e; ++i) {
             if (!regen[i]) continue;
             const size_t p = act[i];

@@ -288,7 +288,11 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
                               : "the target is 3D but the source is 2D (one z layer)");
     if (flat && s.alignment != FlowAlignment::None && s.alignment != FlowAlignment::Normalize)
         throw ValueError("flow alignment by rotation is for 3D only; a 2D pair takes none or normalize");
-    const FrameSetup fs = setup(target);
+    const FrameSetup fs = [&] {
+        FrameSetup f = setup(target);
+        f.progress = progress;
+        return f;
+    }();
     if (!carried.history.empty()) carried.history.back().elapsed = fs.elapsed;
     PatchTracks tracks = tracksFor(fs);
 
