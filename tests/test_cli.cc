@@ -756,3 +756,50 @@ TEST(Cli, TwoDCachesThroughSimTransferMeasureAndPreview)
     ASSERT_EQ(p.code, 0) << p.out;
     EXPECT_TRUE(std::filesystem::exists(d + "/sheet.png"));
 }
+
+TEST(Cli, SettingsFilesGiveEveryOptionAndTheCommandLineWins)
+{
+    // Issue 13's second tier: every knob from a file CLI11 reads as TOML, printed by the command itself.
+    testutil::TempDir dir;
+    const CmdResult printed = run("sim plume --print-settings");
+    ASSERT_EQ(printed.code, 0) << printed.out;
+    EXPECT_NE(printed.out.find("# res=32x32x48"), std::string::npos) << printed.out; // defaults, commented out
+    std::string text = printed.out;
+    const auto set = [&](const std::string& from, const std::string& to) {
+        const size_t at = text.find(from);
+        ASSERT_NE(at, std::string::npos) << from;
+        text.replace(at, from.size(), to);
+    };
+    set("# res=32x32x48", "res=8x8x12");
+    set("# frames=60", "frames=2");
+    {
+        std::ofstream f(dir / "sim.toml");
+        f << text;
+    }
+    // The file's res and the command line's frames (which wins over the file's 2).
+    const CmdResult r = run("sim plume --settings " + dir / "sim.toml" + " --frames 3 --out " + dir / "p.####.vdb -q");
+    ASSERT_EQ(r.code, 0) << r.out;
+    EXPECT_TRUE(std::filesystem::exists(dir / "p.0003.vdb"));
+    EXPECT_FALSE(std::filesystem::exists(dir / "p.0004.vdb"));
+    turbio::ReadOptions ro;
+    ro.cropToSmoke = false;
+    EXPECT_EQ(turbio::readFrame(dir / "p.0001.vdb", 1, ro).velocity.bbox().dim(), turb::Coord(8, 8, 12));
+    // What was read back prints as given.
+    const CmdResult again = run("sim plume --settings " + dir / "sim.toml" + " --print-settings");
+    EXPECT_NE(again.out.find("\nres=8x8x12\n"), std::string::npos) << again.out;
+    // A file that cannot be read, or holds sections for several commands, is a usage error naming it.
+    EXPECT_EQ(run("sim plume --settings " + dir / "missing.toml").code, 2);
+    {
+        std::ofstream f(dir / "sections.toml");
+        f << "[sim]\nres = 8x8x12\n";
+    }
+    const CmdResult sections = run("sim plume --settings " + dir / "sections.toml");
+    EXPECT_EQ(sections.code, 2);
+    EXPECT_NE(sections.out.find("sections.toml"), std::string::npos) << sections.out;
+    // A value the option refuses is refused from the file as from the command line.
+    {
+        std::ofstream f(dir / "bad.toml");
+        f << "res = banana\n";
+    }
+    EXPECT_EQ(run("sim plume --settings " + dir / "bad.toml" + " --out " + dir / "b.####.vdb").code, 2);
+}

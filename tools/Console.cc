@@ -1,7 +1,10 @@
 #include "Console.h"
 
+#include <turb/Error.h>
+
 #include <csignal>
 #include <cstdio>
+#include <cstring>
 #include <iostream>
 #include <algorithm>
 #include <mutex>
@@ -37,6 +40,81 @@ void addGlobalOptions(CLI::App* app, unsigned which)
     if (which & kDryRun)
         app->add_flag("--dry-run", globals().dryRun,
             "Check everything the run needs (every input's headers, the output paths, memory), print the plan, write nothing");
+    // Two tiers, as pbrt's: everyday flags on the command line, every knob also from a file (CLI11's config).
+    // Read by expandSettingsFiles before parsing; declared here so --help lists it and the parser accepts it.
+    app->add_option("--settings", "Read options from a TOML file of NAME = VALUE lines (long option names without the "
+                                  "dashes; the command line wins). --print-settings writes one with every option")
+        ->type_name("FILE");
+    // A callback, so it runs before the required options are checked: it needs none of them.
+    app->add_flag_callback(
+        "--print-settings",
+        [app] {
+            // Every option as "# help" and "name=value": the ones given (on the command line or by --settings)
+            // as settings, the rest commented out with their defaults, so the file reads back as it was printed
+            // (some defaults are "auto" values outside the range a user may give).
+            std::string out;
+            for (const CLI::Option* o : app->get_options()) {
+                const std::string name = o->get_single_name();
+                if (o->get_lnames().empty() || name == "help" || name == "settings" || name == "print-settings" ||
+                    name == "verbose" || name == "quiet" || name == "dry-run")
+                    continue;
+                const bool given = o->count() > 0;
+                std::string value;
+                if (o->get_expected_max() == 0) { // a flag
+                    value = given ? "true" : "false";
+                } else {
+                    for (const auto& r : o->results()) value += (value.empty() ? "" : ",") + r;
+                    if (!given) value = o->get_default_str();
+                    if (value.empty()) value = "\"\"";
+                }
+                out += "# " + o->get_description() + "\n" + (given ? "" : "# ") + name + "=" + value + "\n\n";
+            }
+            std::fputs(out.c_str(), stdout);
+            throw CLI::Success();
+        },
+        "Print every option of this command with its value as a --settings file (TOML) on stdout, and exit");
+}
+
+std::vector<std::string> expandSettingsFiles(const std::vector<std::string>& args)
+{
+    if (args.size() < 2) return args;
+    std::vector<std::string> fromFiles, rest;
+    for (size_t i = 1; i < args.size(); ++i) {
+        std::string file;
+        if (args[i] == "--settings" && i + 1 < args.size()) file = args[++i];
+        else if (args[i].rfind("--settings=", 0) == 0) file = args[i].substr(11);
+        else {
+            rest.push_back(args[i]);
+            continue;
+        }
+        std::vector<CLI::ConfigItem> items;
+        try {
+            items = CLI::ConfigTOML().from_file(file);
+        } catch (const CLI::Error& e) {
+            throw turb::ValueError("--settings " + file + ": " + e.what());
+        }
+        for (const auto& item : items) {
+            if (!item.parents.empty() && !(item.parents.size() == 1 && item.parents[0] == "default"))
+                throw turb::ValueError("--settings " + file + ": sections ([" + item.parents.back() +
+                                       "]) are not read; give one command's options as NAME = VALUE lines");
+            if (item.name.empty() || item.name == "settings" || item.name == "print-settings") continue;
+            // An empty value (an unset path in a printed file) leaves the option to the command line.
+            if (item.inputs.empty() || (item.inputs.size() == 1 && item.inputs[0].empty())) continue;
+            // The command line wins: an option it gives is not taken from the file (giving both would be a repeat).
+            const std::string flag = "--" + item.name;
+            const bool given = std::any_of(args.begin(), args.end(),
+                [&](const std::string& a) { return a == flag || a.rfind(flag + "=", 0) == 0; });
+            if (given) continue;
+            for (const auto& v : item.inputs) fromFiles.push_back(flag + "=" + v); // "=": flags take true/false too
+        }
+    }
+    std::vector<std::string> out{args[0]};
+    size_t k = 0;
+    // Keep the command (and a nested command such as "farm plan") before the inserted options.
+    while (k < rest.size() && !rest[k].empty() && rest[k][0] != '-') out.push_back(rest[k++]);
+    out.insert(out.end(), fromFiles.begin(), fromFiles.end());
+    out.insert(out.end(), rest.begin() + long(k), rest.end());
+    return out;
 }
 
 void installSignalHandlers()

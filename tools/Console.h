@@ -33,6 +33,11 @@ enum GlobalOption : unsigned { kVerbosity = 1, kThreads = 2, kDryRun = 4, kAllGl
 /// Adds -v/-q and, as `which` says, --threads and --dry-run to a subcommand.
 void addGlobalOptions(CLI::App* app, unsigned which = kAllGlobals);
 
+/// argv with every `--settings FILE` replaced by the file's NAME = VALUE lines as `--NAME VALUE` arguments, placed
+/// right after the command words so that the command line's own options, parsed later, win (options take their
+/// last value). Throws turb::ValueError naming the file when it cannot be read or holds [sections].
+std::vector<std::string> expandSettingsFiles(const std::vector<std::string>& args);
+
 /// Installs the SIGINT/SIGTERM handler that turns Ctrl-C into a cancellation request.
 void installSignalHandlers();
 bool interruptRequested();

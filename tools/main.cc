@@ -287,10 +287,24 @@ int main(int argc, char** argv)
     std::vector<std::pair<CLI::App*, Command*>> subs;
     for (auto& c : commands) {
         CLI::App* sub = app.add_subcommand(c.name, c.help);
+        sub->option_defaults()->always_capture_default(); // --help and --print-settings show each default
         addGlobalOptions(sub, c.globals);
         c.setup(sub);
         subs.emplace_back(sub, &c);
     }
+    // --settings files become command-line options before anything reads argv.
+    std::vector<std::string> args;
+    try {
+        args = expandSettingsFiles(std::vector<std::string>(argv, argv + argc));
+    } catch (const turb::ValueError& e) {
+        logError(e.what());
+        return kUsage;
+    }
+    std::vector<char*> argvExpanded;
+    for (auto& a : args) argvExpanded.push_back(a.data());
+    argc = int(argvExpanded.size());
+    argvExpanded.push_back(nullptr);
+    argv = argvExpanded.data();
     if (const std::string typo = checkSpelling(argc, argv, app, subs); !typo.empty()) {
         logError(typo);
         return kUsage;
