@@ -711,4 +711,19 @@ TEST(OtherGrids, ResampleCarriesEveryGridOfABlenderCacheWithTheFrame)
         vecErr = std::max(vecErr, double((openvdb::Vec3s(want.x(), want.y(), want.z()) - got).length()));
     }
     EXPECT_EQ(vecErr, 0.0); // a permutation and signs of half floats: exact
+
+    // By 2 the domain (125 x 125 x 60) ends in partial blocks: labels keep them (63 x 63 x 30 coarse voxels, as the
+    // block means do), and Blender's staggered velocity in grid cells per step halves with the cell.
+    turbio::OtherGrids half = turbio::OtherGrids::read(in, ro, frame.lattice());
+    half.downsample(turb::Coord(2));
+    const std::string outHalf = dir / "half.vdb";
+    turbio::writeFrame(outHalf, turb::downsampleFrame(frame, 2), turbio::WriteOptions{}, &half);
+    EXPECT_EQ(readGridFrom(outHalf, "flags")->activeVoxelCount(), openvdb::Index64(63 * 63 * 30));
+    EXPECT_EQ(readGridFrom(outHalf, "flags")->activeVoxelCount(), readGridFrom(outHalf, "shadow")->activeVoxelCount());
+    const auto prevHalf = openvdb::gridPtrCast<openvdb::Vec3SGrid>(readGridFrom(outHalf, "velocity_previous"));
+    double inMax = 0.0, outMax = 0.0;
+    for (auto it = prevIn->cbeginValueOn(); it; ++it) inMax = std::max(inMax, double(it->length()));
+    for (auto it = prevHalf->cbeginValueOn(); it; ++it) outMax = std::max(outMax, double(it->length()));
+    EXPECT_LT(outMax, 0.55 * inMax); // a block mean of cells/step, then halved
+    EXPECT_GT(outMax, 0.2 * inMax);
 }

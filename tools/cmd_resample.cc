@@ -81,14 +81,14 @@ std::string joined(const std::vector<std::string>& names)
 }
 
 // The other grids carried, once per sequence at -v; what is not exact, as warnings, once.
-void reportOtherGrids(const turbio::OtherGrids& others, const std::string& path, bool first)
+void reportOtherGrids(const turbio::OtherGrids& others, const std::string& path, bool first, bool moved)
 {
     if (!first || others.size() == 0) return;
     logVerbose(path + ": also carrying " + joined(others.names()));
     if (const auto u = others.unchanged(); !u.empty())
         logWarning(path + ": " + joined(u) + (u.size() == 1 ? " lies" : " lie") +
                    " on another lattice than the frame's: written unchanged (--drop-other-grids leaves them out)");
-    if (const auto st = others.staggered(); !st.empty())
+    if (const auto st = others.staggered(); moved && !st.empty())
         logWarning(path + ": " + joined(st) + (st.size() == 1 ? " is" : " are") +
                    " staggered (face-sampled): resampled as cell values, so the faces may be off by up to a voxel");
 }
@@ -132,9 +132,17 @@ int runResample(ResampleArgs& a)
         std::optional<turbio::OtherGrids> others;
         if (!a.dropOtherGrids) {
             others = turbio::OtherGrids::read(seq.path(f), a.read, frame.lattice());
+            // A carried grid named as the frame's grids are written (a --density-grid other than 'density' leaves
+            // the file's 'density' among the others) would give the file two grids of one name.
+            const bool blender = a.write.style == turbio::WriteStyle::Blender;
+            const std::vector<std::string> clash = others->dropNamed(
+                {"density", blender ? "velocity" : "vel", "temperature", "flame"});
+            if (!clash.empty() && i == 0)
+                logWarning(seq.path(f) + ": " + joined(clash) + " left out: the frame's own grids are written under " +
+                           (clash.size() == 1 ? "that name" : "those names"));
             if (a.down > 1) others->downsample(turb::domainFactors(frame.bbox(), a.down));
             others->rotate(rot);
-            reportOtherGrids(*others, seq.path(f), i == 0);
+            reportOtherGrids(*others, seq.path(f), i == 0, a.down > 1 || !rot.isIdentity());
         }
         if (a.down > 1) frame = turb::downsampleFrame(frame, a.down);
         if (!rot.isIdentity()) frame = turb::reorientFrame(frame, rot);

@@ -3,6 +3,8 @@
 
 #include <turb/Error.h>
 
+#include <openvdb/tools/ValueTransformer.h>
+
 #include <algorithm>
 #include <cctype>
 #include <string>
@@ -63,7 +65,26 @@ openvdb::GridBase::Ptr blockCentre(const GridT& in, const turb::Coord& f)
         const Coord b = blockOf(it.getCoord(), f);
         const Coord c(b.x() * f.x() + f.x() / 2, b.y() * f.y() + f.y() / 2, b.z() * f.z() + f.z() / 2);
         typename GridT::ValueType v;
-        if (inAcc.probeValue(c, v)) outAcc.setValue(b, v);
+        if (inAcc.probeValue(c, v)) {
+            outAcc.setValue(b, v);
+        } else if (!outAcc.isValueOn(b)) {
+            // A partial block at the domain's edge (its centre lies outside the data): the block's active voxel
+            // nearest the centre, first in x, y, z order on ties, so no edge block is lost.
+            long best = -1;
+            for (int x = 0; x < f.x(); ++x)
+                for (int y = 0; y < f.y(); ++y)
+                    for (int z = 0; z < f.z(); ++z) {
+                        const Coord q(b.x() * f.x() + x, b.y() * f.y() + y, b.z() * f.z() + z);
+                        typename GridT::ValueType w;
+                        if (!inAcc.probeValue(q, w)) continue;
+                        const long d = long(q.x() - c.x()) * (q.x() - c.x()) + long(q.y() - c.y()) * (q.y() - c.y()) +
+                                       long(q.z() - c.z()) * (q.z() - c.z());
+                        if (best < 0 || d < best) {
+                            best = d;
+                            outAcc.setValue(b, w);
+                        }
+                    }
+        }
     }
     return out;
 }
@@ -163,6 +184,12 @@ void OtherGrids::downsample(const turb::Coord& factors)
             else return blockMean(typed, factors);
         });
         if (out) {
+            // Blender's staggered velocities are in grid cells per step: a cell N times larger holds 1/N of them.
+            if (out->getGridClass() == openvdb::GRID_STAGGERED && (*out)["file_base_resolution"])
+                if (auto v = openvdb::GridBase::grid<openvdb::Vec3SGrid>(out))
+                    openvdb::tools::foreach(v->beginValueOn(), [&](const openvdb::Vec3SGrid::ValueOnIter& it) {
+                        it.setValue(*it / float(factors.x()));
+                    });
             rescaleBlenderDomain(*out, factors);
             mImpl->grids[i] = out;
         } else {
@@ -190,6 +217,18 @@ OtherGrids::OtherGrids() : mImpl(std::make_unique<Impl>()) {}
 OtherGrids::~OtherGrids() = default;
 OtherGrids::OtherGrids(OtherGrids&&) noexcept = default;
 OtherGrids& OtherGrids::operator=(OtherGrids&&) noexcept = default;
+
+std::vector<std::string> OtherGrids::dropNamed(const std::vector<std::string>& names)
+{
+    std::vector<std::string> dropped;
+    for (size_t i = mImpl->grids.size(); i-- > 0;)
+        if (std::find(names.begin(), names.end(), mImpl->grids[i]->getName()) != names.end()) {
+            dropped.insert(dropped.begin(), mImpl->grids[i]->getName());
+            mImpl->grids.erase(mImpl->grids.begin() + long(i));
+            mImpl->followFrame.erase(mImpl->followFrame.begin() + long(i));
+        }
+    return dropped;
+}
 
 size_t OtherGrids::size() const { return mImpl->grids.size(); }
 

@@ -190,7 +190,9 @@ public:
     /// frame keeps its z layer), each >= 1. Float, double and vector grids take the mean over each block, inactive
     /// voxels counting as the background (turb::boxDownsample's rule). Level sets, and integer and boolean grids
     /// (Blender's flags), take the block's centre voxel (for an even factor the one just above the centre): their
-    /// values are distances with far markers (Blender writes 1e4) and labels, which a mean would mix. Blender's
+    /// values are distances with far markers (Blender writes 1e4) and labels, which a mean would mix; a partial
+    /// block at the domain's edge takes its active voxel nearest the centre. Blender's staggered velocities (grid
+    /// cells per step) are divided by the factor. Blender's
     /// file_base_resolution and file_voxel_size metadata are scaled with the lattice. Throws ValueError for a
     /// factor < 1.
     void downsample(const turb::Coord& factors);
@@ -198,6 +200,10 @@ public:
     /// index, and vector values are rotated, except colours (a grid named Cd, or with "color" or "colour" in its
     /// name: OpenVDB's vector type defaults to "invariant" on velocities too, so it cannot tell).
     void rotate(const turb::AxisRotation& r);
+
+    /// Leaves out the grids with these names (those the frame's own grids will be written as: two grids of one
+    /// name in a file make readers pick one). Returns the names left out, in file order.
+    std::vector<std::string> dropNamed(const std::vector<std::string>& names);
 
     size_t size() const;
     std::vector<std::string> names() const;     ///< every grid held, in file order
