@@ -40,7 +40,7 @@ void addGlobalOptions(CLI::App* app, unsigned which)
     if (which & kDryRun)
         app->add_flag("--dry-run", globals().dryRun,
             "Check everything the run needs (every input's headers, the output paths, memory), print the plan, write nothing");
-    // Two tiers, as pbrt's: everyday flags on the command line, every knob also from a file (CLI11's config).
+    // Two tiers, as pbrt's: everyday flags on the command line, every knob also from a TOML file.
     // Read by expandSettingsFiles before parsing; declared here so --help lists it and the parser accepts it.
     app->add_option("--settings", "Read options from a TOML file of NAME = VALUE lines (long option names without the "
                                   "dashes; the command line wins). --print-settings writes one with every option")
