@@ -2,6 +2,7 @@
 #include "Commands.h"
 #include "Console.h"
 
+#include <turbio/Checksum.h>
 #include <turbio/Scan.h>
 #include <turbio/Sequence.h>
 #include <turbio/Vdb.h>
@@ -28,6 +29,7 @@ struct InfoArgs
     bool allValues = false;
     bool noValues = false;
     bool validate = false;
+    bool checksum = false;
     turbio::ReadOptions read;
 };
 
@@ -141,6 +143,20 @@ std::string usability(bool density, bool velocity)
     if (density) return "density only, no velocity grid: it cannot drive transfer (target or source) or synth; usable by "
                         "preview --mode density";
     return "neither density nor velocity: no command can use it";
+}
+
+// Per-grid fingerprints of one file (--checksum), as text lines and into its JSON record.
+std::string checksumLines(const std::string& path, nlohmann::json& fj)
+{
+    std::vector<std::vector<std::string>> rows{{"grid", "type", "active voxels", "values", "metadata"}};
+    fj["checksums"] = nlohmann::json::array();
+    for (const turbio::GridChecksum& g : turbio::gridChecksums(path)) {
+        rows.push_back({g.name, g.valueType, std::to_string(g.activeVoxels), turbio::hexDigest(g.values),
+            turbio::hexDigest(g.metadata)});
+        fj["checksums"].push_back({{"grid", g.name}, {"type", g.valueType}, {"active_voxels", g.activeVoxels},
+            {"values", turbio::hexDigest(g.values)}, {"metadata", turbio::hexDigest(g.metadata)}});
+    }
+    return alignColumns(rows);
 }
 
 int runInfo(const InfoArgs& a)
@@ -271,9 +287,10 @@ int runInfo(const InfoArgs& a)
                     }
                 }
             }
+            if (a.checksum) strayLine = (strayLine.empty() ? "" : strayLine + "\n") + checksumLines(path, fj);
             bool changed = false;
             for (const auto& c : scan.changes) changed = changed || c.toFrame == frame;
-            if (i == 0 || a.allValues || changed || globals().verbosity >= 2) {
+            if (i == 0 || a.allValues || a.checksum || changed || globals().verbosity >= 2) {
                 printData("frame " + std::to_string(frame) + ": " + path + (changed ? "  (lattice changes here)" : "") + "\n" +
                               gridTable(fi) + (strayLine.empty() ? "" : "\n" + strayLine),
                     toStderr);
@@ -321,6 +338,9 @@ Command infoCommand()
         app->add_flag("--validate", args->validate,
             "Also load every frame as transfer/measure would (all voxels, NaN/Inf checks), say which commands the "
             "frames can drive; exit 1 on any bad frame");
+        app->add_flag("--checksum", args->checksum,
+            "Fingerprint every grid of every frame (transform, active voxels and values bit for bit; metadata apart) "
+            "for regression tests");
         addReadOptions(app, args->read);
     };
     c.run = [args] { return runInfo(*args); };

@@ -21,6 +21,15 @@ Coord blockOf(const Coord& c, const turb::Coord& f)
     return Coord(turb::floorDiv(c.x(), f.x()), turb::floorDiv(c.y(), f.y()), turb::floorDiv(c.z(), f.z()));
 }
 
+// A copy with active tiles as voxels, so iterating visits every active voxel once.
+template<typename GridT>
+typename GridT::Ptr voxelized(const GridT& in)
+{
+    typename GridT::Ptr v = in.deepCopy();
+    v->tree().voxelizeActiveTiles();
+    return v;
+}
+
 // The mean over each block, inactive voxels counting as the background: a sum and a count per coarse voxel.
 template<typename GridT>
 openvdb::GridBase::Ptr blockMean(const GridT& in, const turb::Coord& f)
@@ -32,8 +41,7 @@ openvdb::GridBase::Ptr blockMean(const GridT& in, const turb::Coord& f)
     {
         auto sumAcc = sum->getAccessor();
         auto countAcc = count->getAccessor();
-        typename GridT::Ptr voxels = in.deepCopy();
-        voxels->tree().voxelizeActiveTiles();
+        const typename GridT::Ptr voxels = voxelized(in);
         for (auto it = voxels->cbeginValueOn(); it; ++it) {
             const Coord b = blockOf(it.getCoord(), f);
             sumAcc.setValue(b, sumAcc.getValue(b) + *it);
@@ -59,8 +67,7 @@ openvdb::GridBase::Ptr blockCentre(const GridT& in, const turb::Coord& f)
     auto out = GridT::create(in.background());
     auto outAcc = out->getAccessor();
     auto inAcc = in.getConstAccessor();
-    typename GridT::Ptr voxels = in.deepCopy();
-    voxels->tree().voxelizeActiveTiles();
+    const typename GridT::Ptr voxels = voxelized(in);
     for (auto it = voxels->cbeginValueOn(); it; ++it) {
         const Coord b = blockOf(it.getCoord(), f);
         const Coord c(b.x() * f.x() + f.x() / 2, b.y() * f.y() + f.y() / 2, b.z() * f.z() + f.z() / 2);
@@ -114,8 +121,7 @@ openvdb::GridBase::Ptr rotatedGrid(const GridT& in, const turb::AxisRotation& r)
     const bool rotateValues = name != "cd" && name.find("color") == std::string::npos && name.find("colour") == std::string::npos;
     auto out = GridT::create(turned(in.background(), r, rotateValues));
     auto outAcc = out->getAccessor();
-    typename GridT::Ptr voxels = in.deepCopy();
-    voxels->tree().voxelizeActiveTiles();
+    const typename GridT::Ptr voxels = voxelized(in);
     for (auto it = voxels->cbeginValueOn(); it; ++it) {
         // As turb::rotated: output voxel c takes input voxel o with o[perm[i]] = sign[i] c[i].
         const Coord o = it.getCoord();

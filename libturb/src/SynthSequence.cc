@@ -1,21 +1,17 @@
 #include <turb/SynthSequence.h>
 
+#include "Timing.h"
+
 #include <turb/Error.h>
 #include <turb/Operators.h>
 #include <turb/Resample.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 
 namespace turb {
 
 namespace {
-
-double secondsSince(std::chrono::steady_clock::time_point t0)
-{
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 LookbackSettings lookbackOf(const SynthSequenceSettings& s)
 {
@@ -58,7 +54,7 @@ SynthFrameResult SynthSequence::next(const SynthFrameInput& in, Progress* progre
     const SynthSequenceSettings& s = mSettings;
     const bool volume = in.coarse->bbox().dim().z() > 1;
     SynthFrameResult r;
-    auto t0 = std::chrono::steady_clock::now();
+    detail::Clock::time_point t0 = detail::Clock::now();
 
     // Continue from the previous *processed* frame over the real time between the two: frames two apart
     // (--frames 1-30x2, a cache written every second frame) advect by two frames' time.
@@ -72,8 +68,7 @@ SynthFrameResult SynthSequence::next(const SynthFrameInput& in, Progress* progre
     si.previous = continuing ? &*mPrevious : nullptr;
     si.dt = elapsed;
     DetailField H = synthesizeDetail(mExemplars, si, s.synth, progress);
-    r.seconds[0] = secondsSince(t0);
-    t0 = std::chrono::steady_clock::now();
+    r.seconds[0] = detail::lap(t0);
 
     if (progress) progress->begin("combine");
     // Detail near the smoke only (issue 20): the smoke on L's box, zero where the density grid stops short.
@@ -90,8 +85,7 @@ SynthFrameResult SynthSequence::next(const SynthFrameInput& in, Progress* progre
         if (progress) progress->begin("projection");
         r.projection = projectMotion(r.motion, s, in.obstacle, volume, progress);
     }
-    r.seconds[1] = secondsSince(t0);
-    t0 = std::chrono::steady_clock::now();
+    r.seconds[1] = detail::lap(t0);
 
     r.frame.number = in.frame;
     r.frame.dt = in.dt;
@@ -113,7 +107,7 @@ SynthFrameResult SynthSequence::next(const SynthFrameInput& in, Progress* progre
         for (float v : r.frame.density.values()) mass += v;
         r.densityMass = mass * std::pow(r.frame.density.lattice().voxelSize, 3);
     }
-    r.seconds[2] = secondsSince(t0);
+    r.seconds[2] = detail::lap(t0);
 
     mPrevious = std::move(H);
     mPreviousFrame = in.frame;

@@ -3,6 +3,7 @@
 #include <turb/Transfer.h>
 
 #include "Stages.h"
+#include "../Timing.h"
 
 #include <turb/Error.h>
 #include <turb/Parallel.h>
@@ -19,16 +20,8 @@ namespace turb {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-
-// Seconds since `t`, restarting it: one call per timed step.
-double lap(Clock::time_point& t)
-{
-    const Clock::time_point now = Clock::now();
-    const double s = std::chrono::duration<double>(now - t).count();
-    t = now;
-    return s;
-}
+using detail::Clock;
+using detail::lap;
 
 void requireFrame(const Frame& f, const char* role)
 {
