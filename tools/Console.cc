@@ -8,7 +8,9 @@
 #include <iostream>
 #include <algorithm>
 #include <mutex>
+#include <map>
 #include <set>
+#include <stdexcept>
 #include <unistd.h>
 
 namespace vdbturb {
@@ -30,54 +32,163 @@ Globals& globals()
     return g;
 }
 
-void addGlobalOptions(CLI::App* app, unsigned which)
+namespace {
+
+// What setting() and legacy() recorded: an option's tier and its settings-file key.
+struct Tier
 {
-    app->add_flag_callback("-v,--verbose", [] { globals().verbosity = 2; }, "Print details: solver iterations, timings");
-    app->add_flag_callback("-q,--quiet", [] { globals().verbosity = 0; }, "Print errors only");
-    if (which & kThreads)
-        app->add_option("--threads", globals().threads, "Worker threads (0 = all cores); results do not depend on it")
-            ->check(CLI::NonNegativeNumber);
-    if (which & kDryRun)
-        app->add_flag("--dry-run", globals().dryRun,
-            "Check everything the run needs (every input's headers, the output paths, memory), print the plan, write nothing");
-    // Two tiers, as pbrt's: everyday flags on the command line, every knob also from a TOML file.
-    // Read by expandSettingsFiles before parsing; declared here so --help lists it and the parser accepts it.
-    app->add_option("--settings", "Read options from a TOML file of NAME = VALUE lines (long option names without the "
-                                  "dashes; the command line wins). --print-settings writes one with every option")
-        ->type_name("FILE");
-    // A callback, so it runs before the required options are checked: it needs none of them.
-    app->add_flag_callback(
-        "--print-settings",
-        [app] {
-            // Every option as "# help" and "name=value": the ones given (on the command line or by --settings)
-            // as settings, the rest commented out with their defaults, so the file reads back as it was printed
-            // (some defaults are "auto" values outside the range a user may give).
-            std::string out;
-            for (const CLI::Option* o : app->get_options()) {
-                const std::string name = o->get_single_name();
-                if (o->get_lnames().empty() || name == "help" || name == "settings" || name == "print-settings" ||
-                    name == "verbose" || name == "quiet" || name == "dry-run")
-                    continue;
-                const bool given = o->count() > 0;
-                std::string value;
-                if (o->get_expected_max() == 0) { // a flag
-                    value = given ? "true" : "false";
-                } else {
-                    for (const auto& r : o->results()) value += (value.empty() ? "" : ",") + r;
-                    if (!given) value = o->get_default_str();
-                    if (value.empty()) value = "\"\"";
-                }
-                out += "# " + o->get_description() + "\n" + (given ? "" : "# ") + name + "=" + value + "\n\n";
-            }
-            std::fputs(out.c_str(), stdout);
-            throw CLI::Success();
-        },
-        "Print every option of this command with its value as a --settings file (TOML) on stdout, and exit");
+    bool legacy = false;
+    std::string key;   ///< setting: its key; legacy: the key of the setting it sets
+    std::string value; ///< legacy flags: the value they give that setting ("" = the option's own value)
+};
+
+std::map<const CLI::Option*, Tier>& tiers()
+{
+    static std::map<const CLI::Option*, Tier> t;
+    return t;
 }
 
-std::vector<std::string> expandSettingsFiles(const std::vector<std::string>& args)
+const char* const kGroupSettings = "Settings (second tier: also from --settings FILE; docs name their measured effects)";
+
+// Whether a legacy option's keys ("seams.bandWidth,seams.bandWidth2D") include `key`.
+bool sets(const Tier& legacy, const std::string& key)
+{
+    return ("," + legacy.key + ",").find("," + key + ",") != std::string::npos;
+}
+
+bool isSetting(const CLI::Option* o)
+{
+    const auto it = tiers().find(o);
+    return it != tiers().end() && !it->second.legacy;
+}
+
+bool isLegacy(const CLI::Option* o)
+{
+    const auto it = tiers().find(o);
+    return it != tiers().end() && it->second.legacy;
+}
+
+// The name an option has in settings files and --print-settings.
+std::string settingsName(const CLI::Option* o)
+{
+    const auto it = tiers().find(o);
+    return it != tiers().end() ? it->second.key : o->get_single_name();
+}
+
+// Every option as "# help" and "name=value": the ones given (on the command line or by --settings) as settings, the
+// rest commented out with their defaults, so the file reads back as it was printed (some defaults are "auto"
+// values outside the range a user may give). Everyday options first, then the second tier.
+std::string settingsFile(const CLI::App* app)
+{
+    static const std::set<std::string> kNotSettings{"help", "help-all", "settings", "print-settings", "verbose", "quiet",
+        "dry-run"};
+    std::string out;
+    for (const bool second : {false, true}) {
+        out += second ? "# --- second tier: solver and experimental settings ---\n\n" : "# --- everyday options ---\n\n";
+        for (const CLI::Option* o : app->get_options()) {
+            if (o->get_lnames().empty() || kNotSettings.count(o->get_single_name()) || isLegacy(o) || isSetting(o) != second)
+                continue;
+            bool given = o->count() > 0;
+            std::string value;
+            // An old spelling given instead (--no-seams) sets this setting: print what it set.
+            for (const CLI::Option* other : app->get_options())
+                if (const auto t = tiers().find(other); !given && t != tiers().end() && t->second.legacy &&
+                                                        sets(t->second, settingsName(o)) && other->count() > 0) {
+                    const Tier& tier = t->second;
+                    given = true;
+                    for (const auto& r : other->results()) value += (value.empty() ? "" : ",") + r;
+                    if (!tier.value.empty()) value = tier.value;
+                }
+            if (!value.empty()) {
+            } else if (o->get_expected_max() == 0) { // a flag
+                value = given ? "true" : "false";
+            } else {
+                for (const auto& r : o->results()) value += (value.empty() ? "" : ",") + r;
+                if (!given) value = o->get_default_str();
+                if (value.empty()) value = "\"\"";
+            }
+            out += "# " + o->get_description() + "\n" + (given ? "" : "# ") + settingsName(o) + "=" + value + "\n\n";
+        }
+    }
+    return out;
+}
+
+} // namespace
+
+CLI::Option* setting(CLI::Option* o, const std::string& key)
+{
+    const auto& names = o->get_lnames();
+    if (std::find(names.begin(), names.end(), key) == names.end())
+        throw std::logic_error("setting " + key + " is not a long name of " + o->get_name());
+    tiers()[o] = Tier{false, key};
+    return o->group("");
+}
+
+CLI::Option* legacy(CLI::Option* o, const std::string& setsKey, const std::string& value)
+{
+    tiers()[o] = Tier{true, setsKey, value};
+    return o->group("");
+}
+
+void addGlobalOptions(CLI::App* app, unsigned which)
+{
+    app->add_flag_callback("-v,--verbose", [] { globals().verbosity = 2; }, "Print details: solver iterations, timings")
+        ->group(kGroupRun);
+    app->add_flag_callback("-q,--quiet", [] { globals().verbosity = 0; }, "Print errors only")->group(kGroupRun);
+    if (which & kThreads)
+        app->add_option("--threads", globals().threads, "Worker threads (0 = all cores); results do not depend on it")
+            ->check(CLI::NonNegativeNumber)
+            ->group(kGroupRun);
+    if (which & kDryRun)
+        app->add_flag("--dry-run", globals().dryRun,
+               "Check everything the run needs (every input's headers, the output paths, memory), print the plan, write "
+               "nothing")
+            ->group(kGroupRun);
+    // Read by expandSettingsFiles before parsing; declared here so --help lists it and the parser accepts it.
+    app->add_option("--settings", "Read options from a TOML file of NAME = VALUE lines (the command line wins); "
+                                  "--print-settings writes one with every option")
+        ->type_name("FILE")
+        ->group(kGroupRun);
+    // Callbacks, so they run before the required options are checked: they need none of them.
+    app->add_flag_callback(
+           "--print-settings",
+           [app] {
+               std::fputs(settingsFile(app).c_str(), stdout);
+               throw CLI::Success();
+           },
+           "Print every option of this command with its value as a --settings file (TOML) on stdout, and exit")
+        ->group(kGroupRun);
+    app->add_flag_callback(
+           "--help-all",
+           [app] {
+               // The second tier becomes a listed group, each old spelling named beside its setting.
+               for (CLI::Option* o : app->get_options()) {
+                   if (!isSetting(o)) continue;
+                   std::string spellings;
+                   for (const auto& [other, tier] : tiers())
+                       if (tier.legacy && sets(tier, settingsName(o))) spellings += " --" + other->get_lnames().front();
+                   if (!spellings.empty()) o->description(o->get_description() + " (also:" + spellings + ")");
+                   o->group(kGroupSettings);
+               }
+               throw CLI::CallForHelp();
+           },
+           "Print the help with the second tier of settings too, and exit")
+        ->group(kGroupRun);
+    app->footer([app] {
+        size_t n = 0;
+        for (const CLI::Option* o : app->get_options()) n += isSetting(o) && o->get_group().empty();
+        return n ? std::to_string(n) + " more settings (solvers, ablations, experiments): --help-all lists them, "
+                                        "--print-settings writes them all as a --settings file."
+                 : std::string();
+    });
+}
+
+std::vector<std::string> expandSettingsFiles(const std::vector<std::string>& args,
+    const std::function<bool(const std::vector<std::string>&, const std::string&)>& known)
 {
     if (args.size() < 2) return args;
+    std::vector<std::string> command; // "farm", "plan": the words before the first option
+    for (size_t i = 1; i < args.size() && !args[i].empty() && args[i][0] != '-'; ++i) command.push_back(args[i]);
     std::vector<std::string> fromFiles, rest;
     for (size_t i = 1; i < args.size(); ++i) {
         std::string file;
@@ -94,14 +205,24 @@ std::vector<std::string> expandSettingsFiles(const std::vector<std::string>& arg
             throw turb::ValueError("--settings " + file + ": " + e.what());
         }
         for (const auto& item : items) {
-            if (!item.parents.empty() && !(item.parents.size() == 1 && item.parents[0] == "default"))
-                throw turb::ValueError("--settings " + file + ": sections ([" + item.parents.back() +
-                                       "]) are not read; give one command's options as NAME = VALUE lines");
-            if (item.name.empty() || item.name == "settings" || item.name == "print-settings") continue;
+            // A dotted key (seams.gamma = 10) is a nested setting; CLI11 reads it as a TOML table. A [section] line
+            // arrives the same way, so both name the setting "seams.gamma".
+            std::string name = item.name;
+            if (!(item.parents.size() == 1 && item.parents[0] == "default"))
+                for (auto p = item.parents.rbegin(); p != item.parents.rend(); ++p) name = *p + "." + name;
+            if (item.name.empty() || name == "settings" || name == "print-settings") continue;
             // An empty value (an unset path in a printed file) leaves the option to the command line.
             if (item.inputs.empty() || (item.inputs.size() == 1 && item.inputs[0].empty())) continue;
             // The command line wins: an option it gives is not taken from the file (giving both would be a repeat).
-            const std::string flag = "--" + item.name;
+            const std::string flag = "--" + name;
+            if (known && !known(command, flag))
+                throw turb::ValueError("--settings " + file + ": '" + name + "' is not an option of vdbturb" +
+                                       [&] {
+                                           std::string c;
+                                           for (const auto& w : command) c += " " + w;
+                                           return c;
+                                       }() +
+                                       " (--print-settings lists them)");
             const bool given = std::any_of(args.begin(), args.end(),
                 [&](const std::string& a) { return a == flag || a.rfind(flag + "=", 0) == 0; });
             if (given) continue;

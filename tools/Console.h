@@ -9,6 +9,8 @@
 
 #include <atomic>
 #include <chrono>
+#include <functional>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -30,13 +32,59 @@ Globals& globals();
 /// Which of the shared options a command takes: only those that mean something for it.
 enum GlobalOption : unsigned { kVerbosity = 1, kThreads = 2, kDryRun = 4, kAllGlobals = 7 };
 
-/// Adds -v/-q and, as `which` says, --threads and --dry-run to a subcommand.
+/// Adds -v/-q and, as `which` says, --threads and --dry-run to a subcommand, and the two tiers' options:
+/// --help-all, --settings FILE, --print-settings.
 void addGlobalOptions(CLI::App* app, unsigned which = kAllGlobals);
+
+/// Two tiers of options, as pbrt's: --help lists the everyday ones; setting() moves an option to the second
+/// tier, the solver and experimental knobs, which --help-all and --print-settings list with their defaults and a
+/// --settings file sets. `key` names the option in settings files: the settings struct's field ("temporalBlend",
+/// "seams.gamma"); it must be one of the option's long names, so it works on the command line too, beside the
+/// older spelling scripts use ("--temporal-blend"). Returns `o`.
+CLI::Option* setting(CLI::Option* o, const std::string& key);
+/// An old spelling kept working for scripts (a negation flag such as --no-seams for seams.enabled = false): accepted,
+/// never listed; --help-all names it beside the setting it sets, and --print-settings prints that setting as `value`
+/// (empty: the option's own value) when it was given. Returns `o`.
+/// `setsKeys` lists the settings it sets, comma-separated.
+CLI::Option* legacy(CLI::Option* o, const std::string& setsKeys, const std::string& value = "");
+
+/// An option bound to an enum setting: `choices` name its values (the first of a value's names is the one
+/// printed as its default). The values are parsed by CLI11's CheckedTransformer, not by hand.
+template<typename E>
+CLI::Option* addEnum(CLI::App* app, const std::string& names, E& value, const std::vector<std::pair<std::string, E>>& choices,
+    const std::string& help)
+{
+    std::map<std::string, E> byName(choices.begin(), choices.end());
+    std::string type, current;
+    for (const auto& [name, v] : choices) {
+        type += (type.empty() ? "" : "|") + name;
+        if (v == value && current.empty()) current = name;
+    }
+    return app->add_option(names, value, help)
+        ->transform(CLI::CheckedTransformer(byName).description(""))
+        ->type_name(type)
+        ->default_str(current);
+}
+
+/// A boolean setting given as `KEY=true|false` (on the command line --KEY=false), its default printed as a word.
+inline CLI::Option* boolSetting(CLI::App* app, const std::string& names, bool& value, const std::string& help,
+    const std::string& key)
+{
+    return setting(app->add_option(names, value, help)->type_name("true|false")->default_str(value ? "true" : "false"), key);
+}
+
+/// The option groups of --help, in the order they are listed.
+inline constexpr const char* kGroupInput = "Input caches";
+inline constexpr const char* kGroupOutput = "Output files";
+inline constexpr const char* kGroupRun = "Run";
 
 /// argv with every `--settings FILE` replaced by the file's NAME = VALUE lines as `--NAME VALUE` arguments, placed
 /// right after the command words so that the command line's own options, parsed later, win (options take their
-/// last value). Throws turb::ValueError naming the file when it cannot be read or holds [sections].
-std::vector<std::string> expandSettingsFiles(const std::vector<std::string>& args);
+/// last value). Dotted keys (`seams.gamma = 10`) and [sections] name nested settings. `known(command words, flag)`
+/// says whether the command has that option. Throws turb::ValueError naming the file when it cannot be read or names
+/// an option the command does not have.
+std::vector<std::string> expandSettingsFiles(const std::vector<std::string>& args,
+    const std::function<bool(const std::vector<std::string>&, const std::string&)>& known = {});
 
 /// Installs the SIGINT/SIGTERM handler that turns Ctrl-C into a cancellation request.
 void installSignalHandlers();

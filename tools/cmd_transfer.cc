@@ -31,17 +31,17 @@ struct TransferArgs
     std::string target, source, out;
     std::string frames, sourceFrames;
     int sourceOffset = 0;
-    std::string wrap = "loop";
-    std::string align = "none";
-    std::string density = "advect";
-    std::string densityScheme = "bfecc"; ///< --density-scheme
-    bool noSeams = false, noTracking = false, noFollow = false, keepCoarse = false, resume = false, json = false, noResample = false;
-    bool keepTargetDivergence = false;
-    std::string energy = "source";
-    int extendVelocity = 4;
+    turbio::SourceWrap wrap = turbio::SourceWrap::Loop;
+    bool resume = false, json = false;
     int preroll = 0;
-    int band = 0; ///< --band: both band widths (3D and 2D); 0 = their defaults
-    turbio::ReadOptions targetRead, sourceRead;
+    turbio::ReadOptions targetRead;
+    turbio::ReadOptions sourceRead = [] {
+        // Only the source: Blender clips velocity to the smoke and the zeros beyond would read as turbulence at its
+        // edge. The target's velocity stays as stored: the output keeps the target's coarse motion as the file has it.
+        turbio::ReadOptions r;
+        r.extendVelocity = 4;
+        return r;
+    }();
     const CLI::Option* sourceCropMargin = nullptr; ///< given or not: its default depends on the ratio
     turbio::WriteOptions write;
     turb::TransferSettings settings;
@@ -59,26 +59,20 @@ void defaultSourceMargin(TransferArgs& a, const turbio::Sequence& target, const 
     try {
         const double tv = turbio::scanFrame(target.path(target.frames.front()), target.frames.front(), a.targetRead).lattice.voxelSize;
         const double sv = turbio::scanFrame(source.path(sourceFor.front()), sourceFor.front(), a.sourceRead).lattice.voxelSize;
-        a.sourceRead.cropMargin = std::max(a.sourceRead.cropMargin, kSourceMarginCoarseVoxels * turb::transferRatio(tv, sv, !a.noResample));
+        a.sourceRead.cropMargin = std::max(a.sourceRead.cropMargin, kSourceMarginCoarseVoxels * turb::transferRatio(tv, sv, a.settings.resampleSource));
     } catch (const std::exception&) {
         // The preflight reports an unreadable frame or a bad ratio with its own message.
     }
 }
 
-turbio::SourceWrap parseWrap(const std::string& s)
+std::string wrapName(turbio::SourceWrap w)
 {
-    if (s == "pingpong") return turbio::SourceWrap::PingPong;
-    if (s == "clamp") return turbio::SourceWrap::Clamp;
-    if (s == "error") return turbio::SourceWrap::Error;
-    return turbio::SourceWrap::Loop;
-}
-
-turb::FlowAlignment parseAlign(const std::string& s)
-{
-    if (s == "normalize") return turb::FlowAlignment::Normalize;
-    if (s == "rotate") return turb::FlowAlignment::Rotate;
-    if (s == "both") return turb::FlowAlignment::Both;
-    return turb::FlowAlignment::None;
+    switch (w) {
+    case turbio::SourceWrap::PingPong: return "pingpong";
+    case turbio::SourceWrap::Clamp: return "clamp";
+    case turbio::SourceWrap::Error: return "error";
+    default: return "loop";
+    }
 }
 
 std::string fmt(const char* f, double v)
@@ -147,7 +141,7 @@ turb::CoordBBox preflight(const TransferArgs& a, const turbio::Sequence& target,
     const turbio::FrameScan& t0 = ts.frames.front();
     const turbio::FrameScan& s0 = ss.frames.front();
     const double tv = t0.lattice.voxelSize, sv = s0.lattice.voxelSize;
-    const int f = turb::transferRatio(tv, sv, !a.noResample); // throws, saying why, where the run would
+    const int f = turb::transferRatio(tv, sv, a.settings.resampleSource); // throws, saying why, where the run would
     const bool resampled = !turb::isIntegerRatio(tv, sv);
     const turbio::FrameScan* tl = ts.largestDomain();
     const turbio::FrameScan* sl = ss.largestDomain();
@@ -199,7 +193,7 @@ turb::CoordBBox preflight(const TransferArgs& a, const turbio::Sequence& target,
             const double sv2 = sv * down;
             int f2 = 0;
             try {
-                f2 = turb::transferRatio(tv, sv2, !a.noResample);
+                f2 = turb::transferRatio(tv, sv2, a.settings.resampleSource);
             } catch (const turb::ValueError&) {
                 break; // the ratio fell below 2
             }
@@ -306,252 +300,460 @@ std::optional<turb::Frame> resumeStateFrame(const std::string& prevPath, int pre
     return std::nullopt;
 }
 
-int runTransfer(TransferArgs& a)
+// The frames a run processes: the requested ones, the pre-roll before them and where writing and resuming start.
+struct FramePlan
 {
-    turb::TransferSettings& s = a.settings;
-    s.threads = globals().threads;
-    globals().json = a.json;
-    s.seams.enabled = !a.noSeams;
-    if (a.band > 0) s.seams.bandWidth = s.seams.bandWidth2D = a.band;
-    s.trackGlobalPatches = !a.noTracking;
-    s.followSourceFlow = !a.noFollow;
-    s.resampleSource = !a.noResample;
-    s.removeCoarseDetail = !a.keepCoarse;
-    s.detailEnergy = a.energy == "none" ? turb::DetailEnergy::None
-                     : a.energy == "pasted" ? turb::DetailEnergy::Pasted : turb::DetailEnergy::Source;
-    s.compensateTargetDivergence = !a.keepTargetDivergence;
-    s.alignment = parseAlign(a.align);
-    s.densityMode = a.density == "lookback" ? turb::DensityMode::LookBack : turb::DensityMode::Advect;
-    for (const auto sc : {turb::AdvectSettings::Scheme::BFECC, turb::AdvectSettings::Scheme::MacCormack,
-             turb::AdvectSettings::Scheme::SemiLagrangian})
-        if (a.densityScheme == turb::schemeName(sc)) s.densityScheme = sc;
+    turbio::Sequence target, source;
+    turbio::FramePattern out;
+    std::vector<int> sourceFor; ///< per target frame (pre-roll included): the source frame it reads
+    size_t first = 0;           ///< the first frame to process (a resume skips those written)
+    size_t writeFrom = 0;       ///< frames before this index are pre-roll: processed, not written
+};
 
-    // Only the source: its detail is what the extension cleans up. The target's velocity stays as stored,
-    // since the output must keep the target's coarse motion exactly as the file has it.
-    a.sourceRead.extendVelocity = a.extendVelocity;
-    turbio::Sequence target = turbio::resolveSequence(a.target, a.frames);
-    const turbio::Sequence source = turbio::resolveSequence(a.source, a.sourceFrames);
-    const turbio::FramePattern outPattern = turbio::FramePattern::parse(a.out);
-    if (!target.missing.empty())
-        throw turb::IoError(target.pattern.str() + ": missing target frames " + turbio::formatFrameList(target.missing));
-    if (target.frames.size() > 1 && !outPattern.numbered())
-        throw turb::ValueError("--out '" + a.out + "' has no frame token (####, %04d, $F4) but " +
-                               std::to_string(target.frames.size()) + " frames are requested");
-    const turbio::SourceWrap wrap = parseWrap(a.wrap);
-    std::vector<int> sourceFor;
+// The source frame of every target frame, as --source-offset and --source-wrap map them.
+std::vector<int> sourceFrames(const TransferArgs& a, const std::vector<int>& targetFrames, const turbio::Sequence& source)
+{
+    std::vector<int> out;
     try {
-        for (int t : target.frames) sourceFor.push_back(turbio::mapSourceFrame(t, source.frames, a.sourceOffset, wrap));
+        for (int t : targetFrames) out.push_back(turbio::mapSourceFrame(t, source.frames, a.sourceOffset, a.wrap));
     } catch (const turb::ValueError& e) {
         throw turb::ValueError(std::string(e.what()) + "; --source-offset or another --source-wrap maps it");
     }
+    return out;
+}
 
-    logInfo("transfer: target " + target.pattern.str() + " frames " + turbio::formatFrameList(target.frames) +
-            ", source " + source.pattern.str() + " frames " + turbio::formatFrameList(source.frames) +
-            (source.frames.size() < target.frames.size() ? " (" + a.wrap + ")" : ""));
-
-    size_t first = 0;
-    if (a.resume)
-        while (first < target.frames.size() && std::filesystem::exists(outPattern.format(target.frames[first]))) ++first;
-    // The detail and the advected density are state: a run that starts at a later frame than the cache's first
-    // differs from a longer run's frames there. --preroll runs up to N earlier cache frames first, unwritten.
-    size_t writeFrom = first;
-    if (first == 0 && !target.frames.empty()) {
-        const turbio::Sequence whole = turbio::resolveSequence(a.target);
-        std::vector<int> earlier;
-        for (int t : whole.frames)
-            if (t < target.frames.front()) earlier.push_back(t);
-        if (a.preroll > 0) {
-            const size_t n = std::min(earlier.size(), size_t(a.preroll));
-            std::vector<int> pre(earlier.end() - std::ptrdiff_t(n), earlier.end());
-            if (n < size_t(a.preroll))
-                logWarning("--preroll " + std::to_string(a.preroll) + ": the target cache has only " + std::to_string(n) +
-                           " frames before frame " + std::to_string(target.frames.front()));
-            std::vector<int> preSource;
-            for (int t : pre) preSource.push_back(turbio::mapSourceFrame(t, source.frames, a.sourceOffset, wrap));
-            sourceFor.insert(sourceFor.begin(), preSource.begin(), preSource.end());
-            target.frames.insert(target.frames.begin(), pre.begin(), pre.end());
-            writeFrom = n;
-            if (n > 0)
-                logInfo("pre-roll: frames " + turbio::formatFrameList(pre) + " run first and are not written");
-        } else if (!earlier.empty()) {
-            logWarning("the detail starts fresh at frame " + std::to_string(target.frames.front()) + " while the cache begins at " +
-                       std::to_string(earlier.front()) + ": these frames differ from a run started earlier (--preroll " +
-                       std::to_string(earlier.size()) + " runs earlier frames first without writing them)");
-        }
+// The detail and the advected density are state: a run that starts at a later frame than the cache's first differs
+// from a longer run's frames there. --preroll runs up to N earlier cache frames first, unwritten.
+void addPreroll(const TransferArgs& a, FramePlan& p)
+{
+    const turbio::Sequence whole = turbio::resolveSequence(a.target);
+    std::vector<int> earlier;
+    for (int t : whole.frames)
+        if (t < p.target.frames.front()) earlier.push_back(t);
+    if (a.preroll <= 0) {
+        if (!earlier.empty())
+            logWarning("the detail starts fresh at frame " + std::to_string(p.target.frames.front()) +
+                       " while the cache begins at " + std::to_string(earlier.front()) +
+                       ": these frames differ from a run started earlier (--preroll " + std::to_string(earlier.size()) +
+                       " runs earlier frames first without writing them)");
+        return;
     }
-    defaultSourceMargin(a, target, source, sourceFor);
+    const size_t n = std::min(earlier.size(), size_t(a.preroll));
+    const std::vector<int> pre(earlier.end() - std::ptrdiff_t(n), earlier.end());
+    if (n < size_t(a.preroll))
+        logWarning("--preroll " + std::to_string(a.preroll) + ": the target cache has only " + std::to_string(n) +
+                   " frames before frame " + std::to_string(p.target.frames.front()));
+    const std::vector<int> preSource = sourceFrames(a, pre, p.source);
+    p.sourceFor.insert(p.sourceFor.begin(), preSource.begin(), preSource.end());
+    p.target.frames.insert(p.target.frames.begin(), pre.begin(), pre.end());
+    p.writeFrom = n;
+    if (n > 0) logInfo("pre-roll: frames " + turbio::formatFrameList(pre) + " run first and are not written");
+}
+
+FramePlan planFrames(const TransferArgs& a)
+{
+    FramePlan p;
+    p.target = turbio::resolveSequence(a.target, a.frames);
+    p.source = turbio::resolveSequence(a.source, a.sourceFrames);
+    p.out = turbio::FramePattern::parse(a.out);
+    if (!p.target.missing.empty())
+        throw turb::IoError(p.target.pattern.str() + ": missing target frames " + turbio::formatFrameList(p.target.missing));
+    if (p.target.frames.size() > 1 && !p.out.numbered())
+        throw turb::ValueError("--out '" + a.out + "' has no frame token (####, %04d, $F4) but " +
+                               std::to_string(p.target.frames.size()) + " frames are requested");
+    p.sourceFor = sourceFrames(a, p.target.frames, p.source);
+    logInfo("transfer: target " + p.target.pattern.str() + " frames " + turbio::formatFrameList(p.target.frames) +
+            ", source " + p.source.pattern.str() + " frames " + turbio::formatFrameList(p.source.frames) +
+            (p.source.frames.size() < p.target.frames.size() ? " (" + wrapName(a.wrap) + ")" : ""));
+    if (a.resume)
+        while (p.first < p.target.frames.size() && std::filesystem::exists(p.out.format(p.target.frames[p.first]))) ++p.first;
+    p.writeFrom = p.first;
+    if (p.first == 0 && !p.target.frames.empty()) addPreroll(a, p);
+    return p;
+}
+
+// Continues after the last frame already written, from the state saved with it.
+void restoreFromLastWritten(const TransferArgs& a, const FramePlan& p, turb::TurbulenceTransfer& transfer)
+{
+    const int prev = p.target.frames[p.first - 1];
+    const std::string prevPath = p.out.format(prev);
+    turbio::ReadOptions ro;
+    ro.cropToSmoke = false; // the file holds the box the run held (written cropped); restore needs all of it
+    const turb::Frame prevOut = turbio::readFrame(prevPath, prev, ro);
+    const auto it = prevOut.metadata.find(turb::meta::kState);
+    if (it == prevOut.metadata.end()) throw turb::IoError(prevPath + ": no vdbturb_state metadata to resume from");
+    checkResumable(prevPath, prevOut, a.settings, a.write, p.target, p.source);
+    const turb::Frame prevTarget = turbio::readFrame(p.target.path(prev), prev, a.targetRead);
+    try {
+        const std::optional<turb::Frame> state = resumeStateFrame(prevPath, prev, prevOut);
+        transfer.restore(it->second, state ? *state : prevOut, prevTarget);
+    } catch (const turb::Error& e) {
+        throw turb::IoError(prevPath + ": cannot resume from this frame: " + e.what());
+    } catch (const std::exception& e) {
+        throw turb::IoError(prevPath + ": cannot resume from this frame: damaged vdbturb_state (" + e.what() + ")");
+    }
+    logInfo("resume: continuing after frame " + std::to_string(prev));
+}
+
+// What an output frame records about how it was made: resume state, settings, inputs and framing.
+void tagOutput(turb::Frame& frame, const TransferArgs& a, const FramePlan& p, size_t i, const std::string& state,
+    const turb::CoordBBox& sequenceDomain)
+{
+    frame.metadata[turb::meta::kState] = state;
+    frame.metadata[turb::meta::kSettings] = turb::outputSettingsText(a.settings);
+    frame.metadata[turb::meta::kWriteSettings] = writeSettingsText(a.write);
+    frame.metadata[turb::meta::kTargetInput] = inputId(p.target);
+    frame.metadata[turb::meta::kSourceInput] = inputId(p.source);
+    frame.metadata[turb::meta::kSourceFrame] = std::to_string(p.sourceFor[i]);
+    frame.metadata[turb::meta::kCommand] = "transfer";
+    if (!sequenceDomain.empty()) {
+        std::ostringstream box; // the format of vdbturb_domain
+        box << sequenceDomain.min().x() << ' ' << sequenceDomain.min().y() << ' ' << sequenceDomain.min().z() << ' '
+            << sequenceDomain.max().x() << ' ' << sequenceDomain.max().y() << ' ' << sequenceDomain.max().z();
+        frame.metadata[turb::meta::kSequenceDomain] = box.str();
+    }
+}
+
+// Writes the frame and, for small (lossy) outputs, the full-precision state beside it, after the output: a run
+// stopped between the two leaves a state one frame behind, which resume detects. The frame's fields move into the
+// state: it is not needed any more.
+void writeOutput(turb::Frame& frame, int t, const TransferArgs& a, const std::string& outPath,
+    const std::string& statePath, bool& warnedClipping)
+{
+    turbio::ensureParentDirectory(outPath);
+    warnIfClippedAway(frame, a.write, outPath, warnedClipping);
+    if (!statePath.empty())
+        frame.metadata[turb::meta::kResumeStateFile] = std::filesystem::path(statePath).filename().string();
+    turbio::writeFrame(outPath, frame, a.write);
+    if (statePath.empty()) return;
+    turb::Frame st;
+    st.number = t;
+    st.dt = frame.dt;
+    st.velocity = std::move(frame.velocity);
+    st.density = std::move(frame.density);
+    st.metadata = std::move(frame.metadata);
+    st.metadata[turb::meta::kResumeFrame] = std::to_string(t);
+    turbio::writeFrame(statePath, st, turbio::WriteOptions{});
+}
+
+// The frame's JSON line: what the transfer did and how its solvers ended.
+nlohmann::json frameJson(const turb::TransferResult& r, const std::string& outPath, int sourceFrame)
+{
+    const turb::TransferStats& st = r.stats;
+    nlohmann::json extra;
+    extra["out"] = outPath;
+    extra["source_frame"] = sourceFrame;
+    extra["empty"] = r.empty;
+    extra["ratio"] = st.ratio;
+    if (st.sourceResampled) extra["source_ratio_resampled_from"] = st.sourceRatio;
+    extra["patches"] = st.localPatches;
+    extra["global_searches"] = st.globalSearches;
+    extra["tracked"] = st.trackedPatches;
+    extra["followed"] = st.followedPatches;
+    extra["regenerated"] = st.regeneratedPatches;
+    extra["continuations"] = st.continuations;
+    extra["mean_local_energy"] = st.meanLocalEnergy;
+    extra["energy_scale"] = st.energyScale;
+    extra["coarse_kept"] = st.coarseKept;
+    extra["lf_err"] = st.lfErr;
+    extra["density_err"] = st.densityErr;
+    extra["density_err_before_guide"] = st.densityErrBefore;
+    if (st.detailChange) {
+        extra["detail_change"] = *st.detailChange;
+        extra["detail_growth"] = st.detailGrowth;
+    }
+    extra["band_voxels"] = st.seams.bandVoxels;
+    extra["seam_initial_energy"] = st.seams.initialEnergy;
+    nlohmann::json em = nlohmann::json::array();
+    for (const auto& it : st.seams.iterations)
+        em.push_back({{"cg_iterations", it.cgIterations}, {"cg_residual", it.cgResidual}, {"energy", it.energy}});
+    extra["seam_em"] = em;
+    nlohmann::json steps;
+    for (const auto& [name, sec] : st.seconds.named()) steps[name] = sec;
+    extra["steps_s"] = steps;
+    return extra;
+}
+
+// The farm log's line for the frame.
+std::string frameLine(const turb::TransferResult& r, const std::string& outPath)
+{
+    const turb::TransferStats& st = r.stats;
+    std::string human = r.empty ? "no smoke in target: wrote the up-sampled target"
+                                : std::to_string(st.localPatches) + " patches (" + std::to_string(st.globalSearches) +
+                                      " global searches), seams " + std::to_string(st.seams.iterations.size()) + " EM";
+    if (!st.seams.iterations.empty()) {
+        const auto& last = st.seams.iterations.back();
+        human += fmt(" E_b %.4g", last.energy) + " (CG " + std::to_string(last.cgIterations) +
+                 fmt(" it, res %.1e)", last.cgResidual);
+    }
+    return human + " -> " + outPath;
+}
+
+// -v: the solvers' iterations, the detail's energy and coherence, and the time of every step.
+void logFrameDetails(const turb::TransferResult& r, int t)
+{
+    const turb::TransferStats& st = r.stats;
+    const std::string frame = "frame " + std::to_string(t);
+    for (size_t k = 0; k < st.seams.iterations.size(); ++k) {
+        const auto& it = st.seams.iterations[k];
+        logVerbose(frame + ": seam EM " + std::to_string(k + 1) + ": CG " + std::to_string(it.cgIterations) +
+                   " iterations, residual " + fmt("%.2e", it.cgResidual) + ", E_b " + fmt("%.6g", it.energy));
+    }
+    logVerbose(frame + ": seams: setup " + fmt("%.2f s", st.seams.setupSeconds) + ", M-steps " +
+               fmt("%.2f s", st.seams.mStepSeconds) + ", E-steps " + fmt("%.2f s", st.seams.eStepSeconds) + ", band " +
+               std::to_string(st.seams.bandVoxels) + " voxels, " + std::to_string(st.seams.boundaryPatches) +
+               " boundary patches");
+    if (!r.empty) {
+        std::string detailLine = frame + ": detail energy x" + fmt("%.3f", st.energyScale) +
+                                 fmt(", coarse part kept %.2f", st.coarseKept) + fmt(" (lf_err %.3f)", st.lfErr);
+        if (st.detailChange)
+            detailLine += fmt(", change against last frame advected %.3f", *st.detailChange) +
+                          fmt(" (growth %.3f: at least ", st.detailGrowth) +
+                          fmt("%.3f)", std::max(0.0, 1.0 - 1.0 / st.detailGrowth));
+        logVerbose(detailLine);
+    }
+    std::string timing = frame + ": time";
+    for (const auto& [name, sec] : st.seconds.named())
+        if (std::string(name) != "total") timing += std::string(" ") + name + fmt(" %.2f", sec);
+    logVerbose(timing);
+}
+
+int runTransfer(TransferArgs& a)
+{
+    a.settings.threads = globals().threads;
+    globals().json = a.json;
+    FramePlan p = planFrames(a);
+    defaultSourceMargin(a, p.target, p.source, p.sourceFor);
     logVerbose("source crop margin: " + std::to_string(a.sourceRead.cropMargin) + " source voxels");
-    const turb::CoordBBox sequenceDomain = preflight(a, target, source, sourceFor, outPattern, writeFrom);
+    const turb::CoordBBox sequenceDomain = preflight(a, p.target, p.source, p.sourceFor, p.out, p.writeFrom);
     if (globals().dryRun) {
-        if (a.resume && first > 0) {
-            const std::string prevPath = outPattern.format(target.frames[first - 1]);
-            checkResumable(prevPath, turbio::readFrame(prevPath, target.frames[first - 1], turbio::ReadOptions{}), s, a.write, target,
-                source);
+        if (a.resume && p.first > 0) {
+            const std::string prevPath = p.out.format(p.target.frames[p.first - 1]);
+            checkResumable(prevPath, turbio::readFrame(prevPath, p.target.frames[p.first - 1], turbio::ReadOptions{}),
+                a.settings, a.write, p.target, p.source);
         }
         return kOk;
     }
-
-    turb::TurbulenceTransfer transfer(s);
-    if (a.resume) {
-        // Continue after the last frame already written, from the state saved with it.
-        if (first == target.frames.size()) {
-            logInfo("resume: every requested frame already exists; nothing to do");
-            return kOk;
-        }
-        if (first > 0) {
-            const int prev = target.frames[first - 1];
-            const std::string prevPath = outPattern.format(prev);
-            turbio::ReadOptions ro;
-            ro.cropToSmoke = false; // the file holds the box the run held (written cropped); restore needs all of it
-            const turb::Frame prevOut = turbio::readFrame(prevPath, prev, ro);
-            const auto it = prevOut.metadata.find(turb::meta::kState);
-            if (it == prevOut.metadata.end())
-                throw turb::IoError(prevPath + ": no vdbturb_state metadata to resume from");
-            checkResumable(prevPath, prevOut, s, a.write, target, source);
-            const turb::Frame prevTarget = turbio::readFrame(target.path(prev), prev, a.targetRead);
-            try {
-                const std::optional<turb::Frame> state = resumeStateFrame(prevPath, prev, prevOut);
-                transfer.restore(it->second, state ? *state : prevOut, prevTarget);
-            } catch (const turb::Error& e) {
-                throw turb::IoError(prevPath + ": cannot resume from this frame: " + e.what());
-            } catch (const std::exception& e) {
-                throw turb::IoError(prevPath + ": cannot resume from this frame: damaged vdbturb_state (" + e.what() + ")");
-            }
-            logInfo("resume: continuing after frame " + std::to_string(prev));
-        }
+    turb::TurbulenceTransfer transfer(a.settings);
+    if (a.resume && p.first == p.target.frames.size()) {
+        logInfo("resume: every requested frame already exists; nothing to do");
+        return kOk;
     }
-
+    if (a.resume && p.first > 0) restoreFromLastWritten(a, p, transfer);
     if (a.write.style == turbio::WriteStyle::Blender && a.write.velocityMargin >= 0)
         logWarning("--velocity-margin " + std::to_string(a.write.velocityMargin) +
                    " is ignored with --style blender: Blender's staggered velocity is written over the whole box");
     RunReport report("transfer", a.json);
-    const std::string statePath = resumeStatePath(outPattern, a.write);
+    const std::string statePath = resumeStatePath(p.out, a.write);
     bool warnedClipping = false;
     if (!statePath.empty()) logVerbose("resume state: " + statePath + " (the last frame in full precision)");
-    const int count = int(target.frames.size());
-    for (size_t i = first; i < target.frames.size(); ++i) {
-        const int t = target.frames[i];
+    const int count = int(p.target.frames.size());
+    for (size_t i = p.first; i < p.target.frames.size(); ++i) {
+        const int t = p.target.frames[i];
         const auto t0 = std::chrono::steady_clock::now();
         ConsoleProgress progress(int(i), count, t);
         progress.begin("reading");
-        const turb::Frame tf = turbio::readFrame(target.path(t), t, a.targetRead);
-        const turb::Frame sf = turbio::readFrame(source.path(sourceFor[i]), sourceFor[i], a.sourceRead);
+        const turb::Frame tf = turbio::readFrame(p.target.path(t), t, a.targetRead);
+        const turb::Frame sf = turbio::readFrame(p.source.path(p.sourceFor[i]), p.sourceFor[i], a.sourceRead);
         turb::TransferResult r;
         try {
             r = transfer.process(tf, sf, &progress);
         } catch (const turb::ValueError& e) {
             // The library names frames, not files: say which files this frame came from.
-            throw turb::ValueError("frame " + std::to_string(t) + " (target " + target.path(t) + ", source " +
-                                   source.path(sourceFor[i]) + "): " + e.what());
+            throw turb::ValueError("frame " + std::to_string(t) + " (target " + p.target.path(t) + ", source " +
+                                   p.source.path(p.sourceFor[i]) + "): " + e.what());
         }
-        if (i < writeFrom) {
+        if (i < p.writeFrom) {
             progress.clear();
             logInfo("pre-roll frame " + std::to_string(t) + " done in " + fmt("%.2f s", secondsSince(t0)) + " (not written)");
             continue;
         }
-        r.frame.metadata[turb::meta::kState] = transfer.saveState();
-        r.frame.metadata[turb::meta::kSettings] = turb::outputSettingsText(s);
-        r.frame.metadata[turb::meta::kWriteSettings] = writeSettingsText(a.write);
-        r.frame.metadata[turb::meta::kTargetInput] = inputId(target);
-        r.frame.metadata[turb::meta::kSourceInput] = inputId(source);
-        r.frame.metadata[turb::meta::kSourceFrame] = std::to_string(sourceFor[i]);
-        r.frame.metadata[turb::meta::kCommand] = "transfer";
-        if (!sequenceDomain.empty()) {
-            std::ostringstream box; // the format of vdbturb_domain
-            box << sequenceDomain.min().x() << ' ' << sequenceDomain.min().y() << ' ' << sequenceDomain.min().z() << ' '
-                << sequenceDomain.max().x() << ' ' << sequenceDomain.max().y() << ' ' << sequenceDomain.max().z();
-            r.frame.metadata[turb::meta::kSequenceDomain] = box.str();
-        }
+        tagOutput(r.frame, a, p, i, transfer.saveState(), sequenceDomain);
         progress.begin("writing");
-        const std::string outPath = outPattern.format(t);
-        turbio::ensureParentDirectory(outPath);
-        warnIfClippedAway(r.frame, a.write, outPath, warnedClipping);
-        if (!statePath.empty())
-            r.frame.metadata[turb::meta::kResumeStateFile] = std::filesystem::path(statePath).filename().string();
-        turbio::writeFrame(outPath, r.frame, a.write);
-        if (!statePath.empty()) {
-            // After the output: a run stopped between the two leaves a state one frame behind, which resume detects.
-            // The written frame is not needed any more: its fields move into the state.
-            turb::Frame st;
-            st.number = t;
-            st.dt = r.frame.dt;
-            st.velocity = std::move(r.frame.velocity);
-            st.density = std::move(r.frame.density);
-            st.metadata = std::move(r.frame.metadata);
-            st.metadata[turb::meta::kResumeFrame] = std::to_string(t);
-            turbio::writeFrame(statePath, st, turbio::WriteOptions{});
-        }
+        const std::string outPath = p.out.format(t);
+        const nlohmann::json extra = frameJson(r, outPath, p.sourceFor[i]); // before the fields move into the state
+        writeOutput(r.frame, t, a, outPath, statePath, warnedClipping);
         progress.clear();
-
-        const turb::TransferStats& st = r.stats;
-        nlohmann::json extra;
-        extra["out"] = outPath;
-        extra["source_frame"] = sourceFor[i];
-        extra["empty"] = r.empty;
-        extra["ratio"] = st.ratio;
-        if (st.sourceResampled) extra["source_ratio_resampled_from"] = st.sourceRatio;
-        if (st.sourceResampled && i == first)
-            logInfo("source resampled trilinearly from ratio " + fmt("%.4g", st.sourceRatio) + " to " + std::to_string(st.ratio) +
-                    " (output voxel = target voxel / " + std::to_string(st.ratio) + ")");
-        extra["patches"] = st.localPatches;
-        extra["global_searches"] = st.globalSearches;
-        extra["tracked"] = st.trackedPatches;
-        extra["followed"] = st.followedPatches;
-        extra["regenerated"] = st.regeneratedPatches;
-        extra["continuations"] = st.continuations;
-        extra["mean_local_energy"] = st.meanLocalEnergy;
-        extra["energy_scale"] = st.energyScale;
-        extra["coarse_kept"] = st.coarseKept;
-        extra["lf_err"] = st.lfErr;
-        extra["density_err"] = st.densityErr;
-        extra["density_err_before_guide"] = st.densityErrBefore;
-        if (st.detailChange) {
-            extra["detail_change"] = *st.detailChange;
-            extra["detail_growth"] = st.detailGrowth;
-        }
-        extra["band_voxels"] = st.seams.bandVoxels;
-        extra["seam_initial_energy"] = st.seams.initialEnergy;
-        nlohmann::json em = nlohmann::json::array();
-        for (const auto& it : st.seams.iterations)
-            em.push_back({{"cg_iterations", it.cgIterations}, {"cg_residual", it.cgResidual}, {"energy", it.energy}});
-        extra["seam_em"] = em;
-        nlohmann::json steps;
-        for (const auto& [name, sec] : st.seconds.named()) steps[name] = sec;
-        extra["steps_s"] = steps;
-        std::string human = r.empty ? "no smoke in target: wrote the up-sampled target"
-                                    : std::to_string(st.localPatches) + " patches (" + std::to_string(st.globalSearches) +
-                                          " global searches), seams " + std::to_string(st.seams.iterations.size()) + " EM";
-        if (!st.seams.iterations.empty()) {
-            const auto& last = st.seams.iterations.back();
-            human += fmt(" E_b %.4g", last.energy) + " (CG " + std::to_string(last.cgIterations) + fmt(" it, res %.1e)", last.cgResidual);
-        }
-        human += " -> " + outPath;
-        for (size_t k = 0; k < st.seams.iterations.size(); ++k) {
-            const auto& it = st.seams.iterations[k];
-            logVerbose("frame " + std::to_string(t) + ": seam EM " + std::to_string(k + 1) + ": CG " +
-                       std::to_string(it.cgIterations) + " iterations, residual " + fmt("%.2e", it.cgResidual) +
-                       ", E_b " + fmt("%.6g", it.energy));
-        }
-        logVerbose("frame " + std::to_string(t) + ": seams: setup " + fmt("%.2f s", st.seams.setupSeconds) + ", M-steps " +
-                   fmt("%.2f s", st.seams.mStepSeconds) + ", E-steps " + fmt("%.2f s", st.seams.eStepSeconds) + ", band " +
-                   std::to_string(st.seams.bandVoxels) + " voxels, " + std::to_string(st.seams.boundaryPatches) + " boundary patches");
-        if (!r.empty) {
-            std::string detailLine = "frame " + std::to_string(t) + ": detail energy x" + fmt("%.3f", st.energyScale) +
-                                     fmt(", coarse part kept %.2f", st.coarseKept) + fmt(" (lf_err %.3f)", st.lfErr);
-            if (st.detailChange)
-                detailLine += fmt(", change against last frame advected %.3f", *st.detailChange) +
-                              fmt(" (growth %.3f: at least ", st.detailGrowth) +
-                              fmt("%.3f)", std::max(0.0, 1.0 - 1.0 / st.detailGrowth));
-            logVerbose(detailLine);
-        }
-        std::string timing = "frame " + std::to_string(t) + ": time";
-        for (const auto& [name, sec] : st.seconds.named())
-            if (std::string(name) != "total") timing += std::string(" ") + name + fmt(" %.2f", sec);
-        logVerbose(timing);
-        report.frameDone(t, int(i), count, secondsSince(t0), human, extra);
+        if (r.stats.sourceResampled && i == p.first)
+            logInfo("source resampled trilinearly from ratio " + fmt("%.4g", r.stats.sourceRatio) + " to " +
+                    std::to_string(r.stats.ratio) + " (output voxel = target voxel / " + std::to_string(r.stats.ratio) + ")");
+        logFrameDetails(r, t);
+        report.frameDone(t, int(i), count, secondsSince(t0), frameLine(r, outPath), extra);
     }
     report.finish();
     return kOk;
+}
+
+} // namespace
+
+namespace {
+
+// A numeric setting: the option, in the second tier under `key`.
+template<typename T>
+CLI::Option* num(CLI::App* app, const std::string& names, T& v, const std::string& help, const std::string& key)
+{
+    return setting(app->add_option(names, v, help), key);
+}
+
+// Matching (Sato et al. section 3.2): patch sizes, descriptor, candidates and the energy's weights.
+void addSearchSettings(CLI::App* app, turb::TransferSettings& s)
+{
+    num(app, "--alpha", s.alpha, "Weight of the density-mask term in matching (paper 0.004)", "alpha")->check(finiteIn(0.0));
+    num(app, "--beta", s.beta, "Weight of the temporal term: previous detail advected (paper 0.5)", "beta")->check(finiteIn(0.0));
+    num(app, "--density-threshold,--densityThreshold", s.densityThreshold, "D_th: smoke where density > this",
+        "densityThreshold")
+        ->check(finiteIn(0.0));
+    num(app, "--patch,--localPatch", s.localPatch, "B: local patch edge in output voxels", "localPatch")->check(CLI::Range(2, 64));
+    num(app, "--global-patch,--globalPatch", s.globalPatch, "b: global patch edge in target voxels, odd (0 = 2*ceil(B/f)+1)",
+        "globalPatch");
+    num(app, "--pca,--pcaComponents", s.pcaComponents, "PCA dimensions of patch descriptors", "pcaComponents")
+        ->check(CLI::Range(1, 256));
+    num(app, "--stride,--localStride", s.localStride, "Spacing of candidate source patches in the local search",
+        "localStride")
+        ->check(CLI::Range(1, 16));
+    num(app, "--candidates,--refineCandidates", s.refineCandidates, "Local candidates re-scored at full resolution",
+        "refineCandidates")
+        ->check(CLI::Range(1, 4096));
+}
+
+// Seam smoothing (section 3.3): the band, the boundary patches, EM and CG.
+void addSeamSettings(CLI::App* app, turb::SeamSettings& seams)
+{
+    num(app, "--gamma,--seams.gamma", seams.gamma, "Weight of divergence in seam smoothing (paper 10)", "seams.gamma")
+        ->check(finiteIn(0.0));
+    num(app, "--seams.bandWidth", seams.bandWidth, "Seam band: voxels on each side of a patch border (3D)", "seams.bandWidth")
+        ->check(CLI::Range(1, 32));
+    num(app, "--seams.bandWidth2D", seams.bandWidth2D, "Seam band on 2D caches", "seams.bandWidth2D")->check(CLI::Range(1, 32));
+    legacy(app->add_option_function<int>(
+               "--band", [&seams](int v) { seams.bandWidth = seams.bandWidth2D = v; }, "Both seam band widths")
+               ->check(CLI::Range(1, 32)),
+        "seams.bandWidth,seams.bandWidth2D");
+    num(app, "--boundary-patch,--seams.boundaryPatch", seams.boundaryPatch, "C: boundary patch edge, even (0 = B)",
+        "seams.boundaryPatch");
+    num(app, "--em-iterations,--seams.maxEmIterations", seams.maxEmIterations, "Seam EM iterations at most",
+        "seams.maxEmIterations")
+        ->check(CLI::Range(1, 50));
+    num(app, "--em-tolerance,--seams.emTolerance", seams.emTolerance,
+        "Stop EM when E_b changes by less than this fraction", "seams.emTolerance");
+    num(app, "--cg-iterations,--seams.maxCgIterations", seams.maxCgIterations, "CG iterations per E-step at most",
+        "seams.maxCgIterations")
+        ->check(CLI::Range(1, 100000));
+    num(app, "--cg-tolerance,--seams.cgTolerance", seams.cgTolerance, "CG relative residual", "seams.cgTolerance");
+    num(app, "--value-weight,--seams.valueWeight", seams.valueWeight,
+        "Weight of seam-solve rows keeping carried detail at its value (0 = the paper's energy)", "seams.valueWeight")
+        ->check(CLI::NonNegativeNumber);
+    num(app, "--box-weight,--seams.boxWeight", seams.boxWeight,
+        "Weight of the seam-solve rows holding U_h's coarse-cell means (0 = free; coarseTolerance bounds them)",
+        "seams.boxWeight")
+        ->check(CLI::NonNegativeNumber);
+    num(app, "--box-keep,--seams.boxKeep", seams.boxKeep,
+        "Fraction of each coarse cell's mean of U_h the seam solve keeps (1: leaves the coarse motion; 0: pulls it to 0)",
+        "seams.boxKeep")
+        ->check(CLI::Range(0.0, 1.0));
+    boolSetting(app, "--seams.enabled", seams.enabled, "Seam smoothing (false: paste patches as they are)", "seams.enabled");
+    legacy(app->add_flag_function("--no-seams", [&seams](int64_t) { seams.enabled = false; }, "seams.enabled = false"),
+        "seams.enabled", "false");
+}
+
+// Beyond the paper: what U_h keeps of its coarse part, how patches follow the source, resampling.
+void addDetailSettings(CLI::App* app, turb::TransferSettings& s)
+{
+    num(app, "--coarse-tolerance,--coarseTolerance", s.coarseTolerance,
+        "lf_err bound: U_h's coarse-cell means are reduced only down to this fraction of the target's (0 = exactly)",
+        "coarseTolerance")
+        ->check(CLI::Range(0.0, 1.0));
+    boolSetting(app, "--removeCoarseDetail", s.removeCoarseDetail, "Reduce U_h's coarse part (false lets lf_err grow)", "removeCoarseDetail");
+    legacy(app->add_flag_function("--keep-coarse-detail", [&s](int64_t) { s.removeCoarseDetail = false; },
+               "removeCoarseDetail = false"),
+        "removeCoarseDetail", "false");
+    num(app, "--coherence", s.coherence,
+        "Take a neighbour's continued source patch within this fraction of the best E_h (0 = off, the paper)",
+        "coherence")
+        ->check(CLI::NonNegativeNumber);
+    setting(app->add_flag("--whole-fresh-patches,--solveFreshPatchesWhole", s.solveFreshPatchesWhole,
+                "Solve every voxel of patches without carried detail, not only the seam band"),
+        "solveFreshPatchesWhole");
+    boolSetting(app, "--resampleSource", s.resampleSource, "Resample a source at a non-integer ratio trilinearly to the nearest integer one (false: refuse it)", "resampleSource");
+    legacy(app->add_flag_function("--no-resample-source", [&s](int64_t) { s.resampleSource = false; },
+               "resampleSource = false"),
+        "resampleSource", "false");
+    boolSetting(app, "--followSourceFlow", s.followSourceFlow, "Patches follow the source's flow from frame to frame (false: re-paste where last frame found them)", "followSourceFlow");
+    legacy(app->add_flag_function("--no-follow-source", [&s](int64_t) { s.followSourceFlow = false; },
+               "followSourceFlow = false"),
+        "followSourceFlow", "false");
+    num(app, "--follow-tolerance,--followTolerance", s.followTolerance,
+        "Keep a patch's continuation while its E_h is within (1 + this) of the best", "followTolerance")
+        ->check(CLI::NonNegativeNumber);
+    num(app, "--source-smoke,--sourceSmoke", s.sourceSmoke,
+        "Fraction of a source patch's voxels that must hold smoke for it to be a candidate (0 = any, the paper)",
+        "sourceSmoke")
+        ->check(CLI::Range(0.0f, 1.0f));
+    boolSetting(app, "--trackGlobalPatches", s.trackGlobalPatches, "Follow last frame's global patch (false: global search every frame)", "trackGlobalPatches");
+    legacy(app->add_flag_function("--no-tracking", [&s](int64_t) { s.trackGlobalPatches = false; },
+               "trackGlobalPatches = false"),
+        "trackGlobalPatches", "false");
+    setting(addEnum<turb::DetailEnergy>(app, "--detail-energy,--detailEnergy", s.detailEnergy,
+                {{"source", turb::DetailEnergy::Source}, {"pasted", turb::DetailEnergy::Pasted},
+                    {"none", turb::DetailEnergy::None}},
+                "U_h's energy per smoke voxel: the source's high frequencies, the pasted patches', or as made"),
+        "detailEnergy");
+    boolSetting(app, "--compensateTargetDivergence", s.compensateTargetDivergence, "The seam gamma term penalises div(up(u_t) + U_h) (false: div(U_h), the paper)", "compensateTargetDivergence");
+    legacy(app->add_flag_function("--no-target-divergence", [&s](int64_t) { s.compensateTargetDivergence = false; },
+               "compensateTargetDivergence = false"),
+        "compensateTargetDivergence", "false");
+}
+
+// Temporal coherence, alignment, the output density and the source's velocity extension.
+void addTimeSettings(CLI::App* app, TransferArgs& a)
+{
+    turb::TransferSettings& s = a.settings;
+    num(app, "--temporal-blend,--temporalBlend", s.temporalBlend,
+        "Weight of last frame's detail advected through the target (0 = the paper)", "temporalBlend")
+        ->check(CLI::Range(0.0, 0.999));
+    num(app, "--regenerate", s.regenerate,
+        "Regenerate carried detail stretched below this fraction of the fresh patches' anisotropy (0 = off)",
+        "regenerate")
+        ->check(CLI::Range(0.0, 1.0));
+    num(app, "--regenerateBlend", s.regenerateBlend, "Carried weight per frame in a regenerated patch (3D)", "regenerateBlend")
+        ->check(CLI::Range(0.0, 0.999));
+    num(app, "--regenerateBlend2D", s.regenerateBlend2D, "The same on 2D caches", "regenerateBlend2D")
+        ->check(CLI::Range(0.0, 0.999));
+    legacy(app->add_option_function<float>(
+                  "--regenerate-blend", [&s](float v) { s.regenerateBlend = s.regenerateBlend2D = v; },
+                  "Both regeneration blends")
+               ->check(CLI::Range(0.0, 0.999)),
+        "regenerateBlend,regenerateBlend2D");
+    setting(addEnum<turb::FlowAlignment>(app, "--align,--alignment", s.alignment,
+                {{"none", turb::FlowAlignment::None}, {"normalize", turb::FlowAlignment::Normalize},
+                    {"rotate", turb::FlowAlignment::Rotate}, {"both", turb::FlowAlignment::Both}},
+                "Match after aligning flows: none (the paper), normalize, rotate, both"),
+        "alignment");
+    num(app, "--lookback,--lookBackFrames", s.lookBackFrames, "m for --density lookback", "lookBackFrames")
+        ->check(CLI::Range(1, 100));
+    setting(addEnum<turb::AdvectSettings::Scheme>(app, "--density-scheme,--densityScheme", s.densityScheme,
+                {{"bfecc", turb::AdvectSettings::Scheme::BFECC},
+                    {"maccormack", turb::AdvectSettings::Scheme::MacCormack},
+                    {"semi-lagrangian", turb::AdvectSettings::Scheme::SemiLagrangian}},
+                "Advection scheme of the output density"),
+        "densityScheme");
+    num(app, "--density-guide,--densityGuide.strength", s.densityGuide.strength,
+        "Fraction of the way the output density's coarse means move onto the target's per frame (0 = off)",
+        "densityGuide.strength")
+        ->check(finiteIn(0.0, 1.0));
+    num(app, "--extend-velocity,--sourceRead.extendVelocity", a.sourceRead.extendVelocity,
+        "Continue the source's velocity this many voxels past its active region (Blender clips it to the smoke; 0 = off)",
+        "sourceRead.extendVelocity")
+        ->check(CLI::Range(0, 64));
+}
+
+// The second tier: every solver and experimental knob of turb::TransferSettings under its field's name, beside the
+// spelling scripts used before (their measured effects are in docs/transfer.md).
+void addTransferSettings(CLI::App* app, TransferArgs& a)
+{
+    addSearchSettings(app, a.settings);
+    addSeamSettings(app, a.settings.seams);
+    addDetailSettings(app, a.settings);
+    addTimeSettings(app, a);
 }
 
 } // namespace
@@ -561,126 +763,41 @@ Command transferCommand()
     auto args = std::make_shared<TransferArgs>();
     Command c;
     c.name = "transfer";
-    c.help = "Turbulence style transfer: add a high-res source's detail to a low-res target's motion (3D, or 2D: one-z-layer caches)";
+    c.help = "Turbulence style transfer: add a high-res source's detail to a low-res target's motion (3D, or 2D: "
+             "one-z-layer caches)";
     c.setup = [args](CLI::App* app) {
         TransferArgs& a = *args;
-        turb::TransferSettings& s = a.settings;
         app->add_option("--target", a.target, "Low-res target cache (velocity + density): pattern or one file")->required();
         app->add_option("--source", a.source, "High-res source cache whose turbulence is transferred")->required();
         app->add_option("--out", a.out, "Output pattern, e.g. up/turb.####.vdb (directories are created)")->required();
-        app->add_option("--frames", a.frames, "Target frames, e.g. 1001-1100x2 (default: all on disk)")->check(frameListCheck());
+        app->add_option("--frames", a.frames, "Target frames, e.g. 1001-1100x2 (default: all on disk)")
+            ->check(frameListCheck());
         app->add_option("--source-frames", a.sourceFrames, "Restrict the source to these frames")->check(frameListCheck());
-        app->add_option("--source-offset", a.sourceOffset, "Source frame = target frame + offset (default 0)");
-        app->add_option("--source-wrap", a.wrap, "When the source runs out: loop (default), pingpong, clamp, error")
-            ->check(CLI::IsMember({"loop", "pingpong", "clamp", "error"}));
-        app->add_option("--alpha", s.alpha, "Weight of the density-mask term in matching (paper 0.004)")->check(finiteIn(0.0));
-        app->add_option("--beta", s.beta, "Weight of the temporal term: previous detail advected (paper 0.5)")->check(finiteIn(0.0));
-        app->add_option("--gamma", s.seams.gamma, "Weight of divergence in seam smoothing (paper 10)")->check(finiteIn(0.0));
-        app->add_option("--density-threshold", s.densityThreshold, "D_th: smoke where density > this (default 0.01)")
-            ->check(finiteIn(0.0));
-        app->add_option("--patch", s.localPatch, "B: local patch edge in output voxels (default 8)")->check(CLI::Range(2, 64));
-        app->add_option("--global-patch", s.globalPatch, "b: global patch edge in target voxels, odd (default 2*ceil(B/f)+1)");
-        app->add_option("--pca", s.pcaComponents, "PCA dimensions of patch descriptors (default 16)")->check(CLI::Range(1, 256));
-        app->add_option("--stride", s.localStride, "Spacing of candidate source patches in the local search (default 2)")->check(CLI::Range(1, 16));
-        app->add_option("--candidates", s.refineCandidates, "Local candidates re-scored at full resolution (default 24)")->check(CLI::Range(1, 4096));
-        app->add_option("--band", a.band, "Seam band: voxels on each side of a patch border (default 2; 3 for 2D caches)")->check(CLI::Range(1, 32));
-        app->add_option("--boundary-patch", s.seams.boundaryPatch, "C: boundary patch edge, even (default B)");
-        app->add_option("--em-iterations", s.seams.maxEmIterations, "Seam EM iterations at most (default 3)")->check(CLI::Range(1, 50));
-        app->add_option("--em-tolerance", s.seams.emTolerance, "Stop EM when E_b changes by less than this fraction (default 0.02)");
-        app->add_option("--cg-iterations", s.seams.maxCgIterations, "CG iterations per E-step at most (default 100)")->check(CLI::Range(1, 100000));
-        app->add_option("--cg-tolerance", s.seams.cgTolerance, "CG relative residual (default 1e-3)");
-        app->add_option("--value-weight", s.seams.valueWeight,
-               "Weight of rows keeping carried detail at its value in the seam solve, times the patch's blend weight "
-               "(default 0 = the paper's energy; 5 lowers pair a's tcoh from 0.196 to 0.192 but raises div_rel above the source's "
-               "on pairs b and d; see docs/transfer.md)")
-            ->check(CLI::NonNegativeNumber);
-        app->add_option("--box-weight", s.seams.boxWeight,
-               "Weight of the seam solve's rows holding U_h's coarse-cell means (default 10; 0 = the solve may change them "
-               "and --coarse-tolerance alone bounds them)")
-            ->check(CLI::NonNegativeNumber);
-        app->add_option("--box-keep", s.seams.boxKeep,
-               "The seam solve's box rows hold each coarse cell's mean of U_h at this fraction of its value on entry "
-               "(default 1: the solve leaves the coarse motion as it came; 0: pulls it to zero)")
-            ->check(CLI::Range(0.0, 1.0));
-        app->add_option("--coarse-tolerance", s.coarseTolerance,
-               "lf_err bound: U_h's coarse-cell means are reduced only until they are this fraction of the target's coarse "
-               "velocity (rms over smoke cells; default 0.04; 0 = removed exactly). What is left in is carried detail: "
-               "removing it changes the detail every frame (tcoh)")
-            ->check(CLI::Range(0.0, 1.0));
-        app->add_option("--coherence", s.coherence,
-               "Take a neighbour's continued source patch when it matches within this fraction of the best (default 0 = off, the paper)")
-            ->check(CLI::NonNegativeNumber);
-        app->add_flag("--whole-fresh-patches", s.solveFreshPatchesWhole,
-            "Solve every voxel of patches without carried detail (first frames, entering smoke), not only the seam band: "
-            "the divergence term then reaches their insides (first frames' div_rel below the source's on pairs a, b, d; "
-            "tcoh +0.002 on pair a, +0.007 on pair c; docs/transfer.md)");
-        app->add_flag("--no-seams", a.noSeams, "Paste patches without seam smoothing (ablation)");
-        app->add_flag("--no-resample-source", a.noResample,
-            "Refuse a source whose voxel size is not an integer fraction of the target's (default: resample it trilinearly to "
-            "the nearest integer ratio; the output then has voxel target/ratio)");
-        app->add_flag("--no-follow-source", a.noFollow,
-            "Re-paste patches where last frame found them instead of following the source's flow (ablation)");
-        app->add_option("--follow-tolerance", s.followTolerance,
-               "Keep a patch's continuation in the source's flow while its E_h is within (1 + this) of the best (default 1)")
-            ->check(CLI::NonNegativeNumber);
-        app->add_option("--source-smoke", s.sourceSmoke,
-               "Fraction of a source patch's voxels that must hold smoke for it to be a candidate (default 0.5; 0 = any "
-               "smoke, the paper's rule)")
-            ->check(CLI::Range(0.0f, 1.0f));
-        app->add_flag("--no-tracking", a.noTracking, "Run the global search every frame instead of following last frame's patch (ablation)");
-        app->add_flag("--keep-coarse-detail", a.keepCoarse, "Do not remove U_h's coarse part (lets lf_err grow)");
-        app->add_option("--detail-energy", a.energy,
-               "Calibrate U_h's energy per smoke voxel to: source (the source's high-frequency energy; default), "
-               "pasted (the chosen patches'), none")
-            ->check(CLI::IsMember({"source", "pasted", "none"}));
-        app->add_flag("--no-target-divergence", a.keepTargetDivergence,
-            "Seam gamma term penalises div(U_h) only, as in the paper, not div(up(u_t) + U_h)");
-        app->add_option("--temporal-blend", s.temporalBlend,
-            "Weight of last frame's detail advected through the target, mixed into the patches it reaches (default 0.95; 0 = paper)")
-            ->check(CLI::Range(0.0, 0.999));
-        app->add_option("--regenerate", s.regenerate,
-            "Regenerate carried detail that the flow has stretched: where its gradient energy along the flow over across "
-            "it falls below this fraction of the fresh patches', it is blended at --regenerate-blend instead "
-            "(default 0.6; 0 = off)")
-            ->check(CLI::Range(0.0, 1.0));
-        app->add_option_function<float>("--regenerate-blend", [args](float v) { args->settings.regenerateBlend = args->settings.regenerateBlend2D = v; },
-            "Weight of the carried detail per frame in a regenerated patch (default 0.5; 0.6 in 2D)")
-            ->check(CLI::Range(0.0, 0.999));
-        app->add_option("--align", a.align, "Match after aligning flows: none (paper), normalize, rotate, both")
-            ->check(CLI::IsMember({"none", "normalize", "rotate", "both"}));
-        app->add_option("--density", a.density, "Output density: advect (default) or lookback (seed 003 supplement)")
-            ->check(CLI::IsMember({"advect", "lookback"}));
-        app->add_option("--lookback", s.lookBackFrames, "m for --density lookback (default 12)")->check(CLI::Range(1, 100));
-        app->add_option("--density-scheme", a.densityScheme,
-               "Advection scheme of the output density: bfecc (default), maccormack (one backtrace fewer, faster; more "
-               "mass at a sharp inflow) or semi-lagrangian (fastest, shows the coarse cells at the smoke's edge)")
-            ->check(CLI::IsMember({"bfecc", "maccormack", "semi-lagrangian"}));
-        app->add_option("--density-guide", s.densityGuide.strength,
-               "Move the output density's coarse cell means this fraction of the way onto the target's each frame "
-               "(default 1; 0 = off: the high-res density drifts from the target's)")
-            ->check(finiteIn(0.0, 1.0));
-        app->add_option("--extend-velocity", a.extendVelocity,
-               "Continue the source's velocity this many voxels past its active region (Blender clips velocity to the "
-               "smoke; the zeros beyond would read as turbulence at the smoke's edge). Default 4; 0 = off")
-            ->check(CLI::Range(0, 64));
-        app->add_option("--velocity-margin", a.write.velocityMargin,
-               "Write velocity only within N voxels of the smoke, and temperature and flame only at it (smaller files; 1 covers a "
-               "renderer's motion blur, re-advection needs the smoke's travel per frame in voxels); -1 = the whole "
-               "box (default; --style blender always writes the whole box). --resume stays exact through a full-precision "
-               "copy of the last frame kept beside the outputs")
-            ->check(CLI::Range(-1, 64));
+        app->add_option("--source-offset", a.sourceOffset, "Source frame = target frame + offset");
+        addEnum<turbio::SourceWrap>(app, "--source-wrap", a.wrap,
+            {{"loop", turbio::SourceWrap::Loop}, {"pingpong", turbio::SourceWrap::PingPong},
+                {"clamp", turbio::SourceWrap::Clamp}, {"error", turbio::SourceWrap::Error}},
+            "When the source runs out");
+        addEnum<turb::DensityMode>(app, "--density", a.settings.densityMode,
+            {{"advect", turb::DensityMode::Advect}, {"lookback", turb::DensityMode::LookBack}},
+            "Output density: advected, or looked back m frames (Ma et al.'s supplement)");
         app->add_option("--preroll", a.preroll,
-               "Run up to N cache frames before the first requested one without writing them, so the detail and density "
-               "are established as in a longer run (default 0; a warning says when the run starts after the cache's first frame)")
+               "Run up to N cache frames before the first requested one without writing them, so the detail and "
+               "density are established as in a longer run")
             ->check(CLI::NonNegativeNumber);
         app->add_flag("--resume", a.resume, "Skip frames already written and continue from the state saved in the last one");
         app->add_flag("--json", a.json, "One JSON line per frame and a summary on stdout");
         addReadOptions(app, a.targetRead, "target");
         addReadOptions(app, a.sourceRead, "source");
-        a.sourceCropMargin = app->get_option("--source-crop-margin");
-        app->get_option("--source-crop-margin")
-            ->description("Source voxels kept around the source's smoke (default: 8 target voxels, 8 x the ratio)");
+        a.sourceCropMargin = app->get_option("--source-crop-margin")->description(
+            "Source voxels kept around the source's smoke (default: 8 target voxels)");
         addWriteOptions(app, a.write);
+        app->add_option("--velocity-margin", a.write.velocityMargin,
+               "Write velocity only within N voxels of the smoke (smaller files; 1 covers motion blur); -1 = the whole "
+               "box. --resume stays exact")
+            ->check(CLI::Range(-1, 64))
+            ->group(kGroupOutput);
+        addTransferSettings(app, a);
     };
     c.run = [args] { return runTransfer(*args); };
     return c;

@@ -72,54 +72,56 @@ void addReadOptions(CLI::App* app, turbio::ReadOptions& opt, const std::string& 
     app->add_option(p + "density-grid", opt.densityGrid,
            "Density grid: a name, NAME[N] (the N-th grid of that name; '[0]' = first unnamed grid) or '#N' (the file's "
            "N-th grid as `vdbturb info` numbers them). Default: density, density_noise")
-        ->check(selector("density-grid"));
+        ->check(selector("density-grid"))
+        ->group(kGroupInput);
     app->add_option(p + "vel-grid", opt.velocityGrid,
            "Velocity grid: as --" + prefix + (prefix.empty() ? "" : "-") +
                "density-grid, or the stem of NAME.x/.y/.z. Default: vel, velocity, v")
-        ->check(selector("vel-grid"));
-    app->add_option_function<std::string>(p + "vel-units",
-           [&opt](const std::string& s) {
-               opt.velocityUnits = s == "world" ? turbio::VelocityUnits::World
-                                   : s == "cells" ? turbio::VelocityUnits::Cells
-                                                  : turbio::VelocityUnits::Auto;
-           },
-           "Velocity units: world, cells (grid cells per time unit, Blender), auto (default: detect)")
-        ->check(CLI::IsMember({"auto", "world", "cells"}));
-    app->add_option(p + "dt", opt.dt,
-           "Time per frame in the velocity's time unit (default: vdbturb_dt metadata; Blender 0.1*25/fps; else 1/fps)")
-        ->check(CLI::PositiveNumber);
-    app->add_flag_function(p + "no-crop", [&opt](int64_t) { opt.cropToSmoke = false; },
-        "Hold the union of the grids' active boxes densely, stray voxels included (default: only the density's smoke "
-        "and a margin; clusters of stray voxels far from the smoke are left out and reported)");
-    app->add_option(p + "crop-margin", opt.cropMargin,
-           "Voxels kept around the smoke when cropping (default 8)")
-        ->check(CLI::NonNegativeNumber);
+        ->check(selector("vel-grid"))
+        ->group(kGroupInput);
     app->add_option(p + "fps", opt.fps,
-           "Frames per second of the shot, for the default time per frame (default: 24 assumed, with a warning; "
-           "Blender's and Houdini's caches do not record it)")
-        ->check(CLI::PositiveNumber);
+           "Frames per second of the shot, for the default time per frame (24 assumed, with a warning: Blender's "
+           "and Houdini's caches do not record it)")
+        ->check(CLI::PositiveNumber)
+        ->group(kGroupInput);
+    setting(addEnum<turbio::VelocityUnits>(app, p + "vel-units", opt.velocityUnits,
+                {{"auto", turbio::VelocityUnits::Auto}, {"world", turbio::VelocityUnits::World},
+                    {"cells", turbio::VelocityUnits::Cells}},
+                "Velocity units: world, cells (grid cells per time unit, Blender), auto (detect)"),
+        p.substr(2) + "vel-units");
+    setting(app->add_option(p + "dt", opt.dt,
+                   "Time per frame in the velocity's time unit (default: vdbturb_dt metadata; Blender 0.1*25/fps; else "
+                   "1/fps)")
+                ->check(CLI::PositiveNumber),
+        p.substr(2) + "dt");
+    setting(app->add_flag_function(p + "no-crop", [&opt](int64_t) { opt.cropToSmoke = false; },
+                "Hold the union of the grids' active boxes densely, stray voxels included (default: only the density's "
+                "smoke and a margin; clusters of stray voxels far from the smoke are left out and reported)"),
+        p.substr(2) + "no-crop");
+    setting(app->add_option(p + "crop-margin", opt.cropMargin, "Voxels kept around the smoke when cropping")
+                ->check(CLI::NonNegativeNumber),
+        p.substr(2) + "crop-margin");
 }
 
 void addWriteOptions(CLI::App* app, turbio::WriteOptions& opt)
 {
-    app->add_option_function<std::string>("--style",
-           [&opt](const std::string& s) {
-               opt.style = s == "blender" ? turbio::WriteStyle::Blender : turbio::WriteStyle::Houdini;
-           },
-           "Output grid convention: houdini (vel + density, world units; default) or blender (staggered "
-           "velocity in cells + density)")
-        ->check(CLI::IsMember({"houdini", "blender"}));
-    app->add_flag("--no-clobber", opt.noClobber, "Never replace an existing output file");
-    app->add_flag("--half", opt.halfFloat, "Store floats as half precision (smaller files)");
+    addEnum<turbio::WriteStyle>(app, "--style", opt.style,
+        {{"houdini", turbio::WriteStyle::Houdini}, {"blender", turbio::WriteStyle::Blender}},
+        "Output grid convention: houdini (vel + density, world units) or blender (staggered velocity in cells + "
+        "density)")
+        ->group(kGroupOutput);
+    app->add_flag("--no-clobber", opt.noClobber, "Never replace an existing output file")->group(kGroupOutput);
+    app->add_flag("--half", opt.halfFloat, "Store floats as half precision (smaller files)")->group(kGroupOutput);
     app->add_option("--clipping", opt.densityTolerance,
            "Write density at or below this value as empty space (inactive voxels), as Blender's cache Clipping "
-           "does (smaller files; default 0: every non-zero voxel)")
+           "does (smaller files; 0: every non-zero voxel)")
         ->check(CLI::Validator(
             [](std::string& text) -> std::string {
                 double v = 0.0; // CLI11's number checks let NaN through
                 return parseNumber(text, v) && std::isfinite(v) && v >= 0.0 ? std::string() : "must be a finite density >= 0";
             },
-            "DENSITY>=0"));
+            "DENSITY>=0"))
+        ->group(kGroupOutput);
 }
 
 CLI::Validator finiteIn(double lo, double hi)
@@ -288,14 +290,24 @@ int main(int argc, char** argv)
     for (auto& c : commands) {
         CLI::App* sub = app.add_subcommand(c.name, c.help);
         sub->option_defaults()->always_capture_default(); // --help and --print-settings show each default
-        addGlobalOptions(sub, c.globals);
         c.setup(sub);
+        addGlobalOptions(sub, c.globals); // after the command's own: --help lists them last
         subs.emplace_back(sub, &c);
     }
     // --settings files become command-line options before anything reads argv.
     std::vector<std::string> args;
     try {
-        args = expandSettingsFiles(std::vector<std::string>(argv, argv + argc));
+        args = expandSettingsFiles(std::vector<std::string>(argv, argv + argc),
+            [&subs](const std::vector<std::string>& words, const std::string& flag) {
+                for (const auto& [sub, cmd] : subs) {
+                    if (words.empty() || cmd->name != words[0]) continue;
+                    if (isLongOption(sub, flag)) return true;
+                    for (CLI::App* nested : sub->get_subcommands({}))
+                        if (words.size() > 1 && nested->get_name() == words[1] && isLongOption(nested, flag)) return true;
+                    return false;
+                }
+                return true; // no such command: the parser says so
+            });
     } catch (const turb::ValueError& e) {
         logError(e.what());
         return kUsage;
