@@ -138,8 +138,8 @@ nlohmann::json statsJson(const turb::StylizeStats& st)
     j["energy"] = st.energy;
     j["std_ratio"] = st.stdRatio;
     j["gradient_ratio"] = st.gradientRatio;
-    if (st.temporalChange >= 0.0) {
-        j["temporal_change"] = st.temporalChange;
+    if (st.temporalChange) {
+        j["temporal_change"] = *st.temporalChange;
         j["temporal_pixels"] = st.temporalPixels;
     }
     j["iou"] = st.iou;
@@ -159,7 +159,7 @@ std::string humanLine(const turb::StylizeStats& st)
              " (K " + std::to_string(u.K) + ")";
     s += fmt(", std %.2f", st.stdRatio) + fmt(" grad %.2f", st.gradientRatio) + fmt(", IoU %.3f", st.iou) +
          fmt(" edge %.2f", st.boundaryGradientMatch);
-    if (st.temporalChange >= 0.0) s += fmt(", change %.4f", st.temporalChange);
+    if (st.temporalChange) s += fmt(", change %.4f", *st.temporalChange);
     return s;
 }
 

@@ -213,12 +213,12 @@ nlohmann::json statsJson(const turb::FluidyStats& st)
     j["centres"] = st.centres;
     j["energy"] = {{"tex", st.energy.tex}, {"bound", st.energy.bound}, {"dir", st.energy.dir}, {"ext", st.energy.ext},
         {"temp", st.energy.temp}, {"uni", st.energy.uni}, {"total", st.energy.total()}};
-    j["mean_abs_sin"] = st.meanAbsSin;
+    j["mean_abs_sin"] = st.meanAbsSin.value_or(-1.0); // -1: no moving pixels, as bench/fluidymation_plots.py reads it
     j["moving_pixels"] = st.movingPixels;
     j["speed_correlation"] = st.speedCorrelation;
     j["extent_correlation"] = st.extentCorrelation;
-    if (st.stationaryChange >= 0.0) {
-        j["stationary_change"] = st.stationaryChange;
+    if (st.stationaryChange) {
+        j["stationary_change"] = *st.stationaryChange;
         j["stationary_pixels"] = st.stationaryPixels;
     }
     j["coverage"] = st.coverage;
@@ -234,9 +234,9 @@ std::string humanLine(const turb::FluidyStats& st)
 {
     if (st.maskedPixels == 0) return "empty mask: transparent";
     std::string s = std::to_string(st.maskedPixels) + " px, E " + fmt("%.2f", st.energy.total());
-    if (st.meanAbsSin >= 0.0) s += fmt(", |sin| %.3f", st.meanAbsSin);
+    if (st.meanAbsSin) s += fmt(", |sin| %.3f", *st.meanAbsSin);
     s += fmt(", speed corr %.2f", st.speedCorrelation) + fmt(", coverage %.1f%%", 100.0 * st.coverage) + fmt(", contrast %.2f", st.contrastRatio);
-    if (st.stationaryChange >= 0.0) s += fmt(", still change %.4f", st.stationaryChange);
+    if (st.stationaryChange) s += fmt(", still change %.4f", *st.stationaryChange);
     return s;
 }
 

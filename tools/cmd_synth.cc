@@ -742,8 +742,8 @@ int runSynth(SynthArgs& a)
         const double writeSeconds = secondsSince(tWrite);
 
         nlohmann::json extra = frameJson(a, r, H, cf.hasDensity(), projJson, outPath);
-        extra["steps_s"] = {{"read", readSeconds}, {"synthesis", r.seconds[0]}, {"combine", r.seconds[1]},
-            {"density", r.seconds[2]}, {"write", writeSeconds}};
+        extra["steps_s"] = {{"read", readSeconds}, {"write", writeSeconds}};
+        for (const auto& [name, sec] : r.seconds.named()) extra["steps_s"][name] = sec;
         if (a.stats) {
             progress.begin("statistics");
             extra["texture_match"] = textureStats(views, H, volume);
@@ -755,7 +755,7 @@ int runSynth(SynthArgs& a)
         progress.clear();
 
         std::string human = std::string(H.fromPrevious ? "continued" : "synthesised") + fmt(", E %.4f", H.finalEnergy()) +
-                            fmt(", |H'| rms %.3f", extra["detail_rms"].get<double>()) + fmt(", synthesis %.2f s", r.seconds[0]) +
+                            fmt(", |H'| rms %.3f", extra["detail_rms"].get<double>()) + fmt(", synthesis %.2f s", r.seconds.synthesis) +
                             (a.project ? " projection " + std::to_string(projJson["iterations"].get<int>()) + " it" : "") + " -> " +
                             outPath;
         for (const auto& l : H.levels) {

@@ -461,6 +461,237 @@ std::vector<std::pair<std::string, std::optional<double>>> FrameMeasures::scalar
         {"air_detail", airDetail}};
 }
 
+std::optional<double> lowFrequencyError(const VectorField& detail, const VectorField& up, const Mask& coarseMask, int f)
+{
+    if (detail.bbox() != up.bbox()) throw ValueError("lowFrequencyError: the detail and up(U_t) cover different boxes");
+    const VectorField dn = boxDownsample(detail, f);
+    const VectorField nn = boxDownsample(up, f);
+    if (coarseMask.size() != dn.size()) throw ValueError("lowFrequencyError: the mask does not cover the coarse box");
+    const CoordBBox cb = dn.bbox();
+    const auto sums = slabSums<2>(cb, [&](int i, std::array<double, 2>& acc) {
+        for (int j = cb.min().y(); j <= cb.max().y(); ++j)
+            for (int k = cb.min().z(); k <= cb.max().z(); ++k)
+                if (coarseMask[dn.offset(i, j, k)]) {
+                    acc[0] += double(dn(i, j, k).lengthSqr());
+                    acc[1] += double(nn(i, j, k).lengthSqr());
+                }
+    });
+    if (!(sums[1] > 0.0)) return std::nullopt;
+    return std::sqrt(sums[0] / sums[1]);
+}
+
+namespace {
+
+// The source frames as measured: at a non-integer ratio, resampled to the nearest integer one as the transfer
+// resamples them, so hf_ratio compares the output with the detail the transfer actually had.
+struct MeasuredSources
+{
+    const Frame* source = nullptr;   ///< in.source or `resampled`
+    const Frame* previous = nullptr; ///< in.previousSource or `previousResampled`
+    bool wasResampled = false;
+    Frame resampled, previousResampled;
+};
+
+void measuredSources(const MeasureInput& in, const Frame& T, MeasuredSources& out)
+{
+    out.source = in.source;
+    out.previous = in.previousSource;
+    if (!out.source) return;
+    const double tv = T.lattice().voxelSize, sv = out.source->lattice().voxelSize;
+    const int n = nearestRatio(tv, sv);
+    if (isIntegerRatio(tv, sv)) return;
+    out.wasResampled = true;
+    out.resampled = resampledToVoxel(*out.source, tv / n);
+    out.source = &out.resampled;
+    if (out.previous) {
+        out.previousResampled = resampledToVoxel(*out.previous, tv / n);
+        out.previous = &out.previousResampled;
+    }
+}
+
+void recordAlignment(const Aligned& a, const Frame& T, FrameMeasures& m)
+{
+    m.ratio = a.f;
+    m.alignment = a.alignment;
+    m.alignmentOffset = a.offset;
+    m.resampled = a.resampled;
+    m.targetNyquist = M_PI / T.lattice().voxelSize;
+    if (a.resampled)
+        m.notes.push_back("output resampled trilinearly onto the refined target lattice (offset " + fmt(a.offset.x()) +
+                          "," + fmt(a.offset.y()) + "," + fmt(a.offset.z()) + " voxels)");
+}
+
+// lf_err on the coarse cells with smoke, and air_detail.
+void coarseMeasures(const Aligned& a, const VectorField& uh, const Mask& coarseMask, const Frame& O, const Frame& T,
+    FrameMeasures& m)
+{
+    m.smokeCells = countMask(coarseMask);
+    m.lfErr = lowFrequencyError(uh, a.up, coarseMask, a.f);
+    if (m.smokeCells == 0) m.notes.push_back("lf_err: the target has no smoke");
+    else if (!m.lfErr) m.notes.push_back("lf_err: the target does not move");
+    if (m.smokeCells > 0) {
+        // Only where the output holds values: beyond the box it was read on, U_h would be -up(U_t).
+        const ScalarField covered = realign(ScalarField(O.velocity.bbox(), O.velocity.lattice(), 1.0f), a.refined,
+            a.box, a.alignment);
+        m.airDetail = airDetail(uh, covered, T.velocity, coarseMask, a.f);
+    }
+    if (m.smokeCells > 0 && !m.airDetail) m.notes.push_back("air_detail: no still air or no detail in the smoke");
+}
+
+// Intrinsic numbers of the output on its own lattice (no alignment can blur them) and its density against the
+// target's. Returns the output's smoke region on its own lattice.
+Mask outputMeasures(const Frame& O, const Frame& T, const Aligned& a, const MeasureSettings& s, FrameMeasures& m)
+{
+    Mask ownMask;
+    if (O.hasDensity()) ownMask = thresholdMask(O.density, O.velocity.bbox(), s.densityThreshold);
+    else {
+        ownMask = thresholdMask(realign(upsample(T.density, a.f), O.velocity.lattice(), O.velocity.bbox(), a.alignment),
+            O.velocity.bbox(), s.densityThreshold);
+        m.notes.push_back("the output has no density: its smoke region is the upsampled target's");
+    }
+    m.smokeVoxels = countMask(ownMask);
+    if (O.hasDensity()) {
+        const DensityMeasures dm = densityMeasures(O.density, realign(O.density, a.refined, a.box, a.alignment),
+            T.density.bbox() == T.velocity.bbox() ? T.density : cropped(T.density, T.velocity.bbox()), a.f,
+            s.densityThreshold);
+        m.massRatio = dm.massRatio;
+        m.peakDensity = dm.peak;
+        m.peakRatio = dm.peakRatio;
+        m.densityErr = dm.coarseErr;
+        m.densityImprint = dm.imprint;
+    }
+    m.hfEnergy = highFrequencyEnergy(O.velocity, ownMask, a.f);
+    m.divRel = relativeDivergence(O.velocity, ownMask);
+    if (m.smokeVoxels == 0) m.notes.push_back("the output has no smoke");
+    return ownMask;
+}
+
+// The source's own hf energy and divergence, and hf_ratio. Returns the source's smoke region (empty without one).
+Mask sourceMeasures(const MeasuredSources& sources, const Frame& T, const MeasureSettings& s, FrameMeasures& m)
+{
+    Mask srcMask;
+    if (!sources.source) {
+        m.notes.push_back("hf_ratio, div_rel_source: no source given");
+        return srcMask;
+    }
+    const Frame& S = *sources.source;
+    m.sourceRatio = integerRatio(T.lattice().voxelSize, S.lattice().voxelSize);
+    if (sources.wasResampled)
+        m.notes.push_back("source resampled trilinearly to the integer ratio " + std::to_string(m.sourceRatio));
+    srcMask = thresholdMask(S.density, S.velocity.bbox(), s.densityThreshold);
+    m.hfEnergySource = highFrequencyEnergy(S.velocity, srcMask, m.sourceRatio);
+    m.divRelSource = relativeDivergence(S.velocity, srcMask);
+    if (m.hfEnergy && m.hfEnergySource && *m.hfEnergySource > 0.0) m.hfRatio = *m.hfEnergy / *m.hfEnergySource;
+    else m.notes.push_back("hf_ratio: the source has no smoke or no high-frequency energy");
+    return srcMask;
+}
+
+// aniso and isotropy of the output, and of the source along the same direction.
+void structureMeasures(const Frame& O, const Frame& T, const Frame* src, const Aligned& a, const Mask& ownMask,
+    const Mask& srcMask, const Mask& coarseMask, FrameMeasures& m)
+{
+    // d: the target's mean flow over its smoke cells; the source's detail is measured along the same d.
+    Vec3d mean(0.0);
+    for (size_t n = 0; n < T.velocity.size(); ++n)
+        if (coarseMask[n]) {
+            const Vec3f& v = T.velocity.data()[n];
+            mean += Vec3d(v.x(), v.y(), v.z());
+        }
+    m.aniso = detailAnisotropy(O.velocity, ownMask, a.f, mean);
+    if (!m.aniso) m.notes.push_back("aniso: no smoke, no mean flow or no detail gradient");
+    m.isotropy = detailIsotropy(O.velocity, ownMask, a.f);
+    if (src) {
+        m.anisoSource = detailAnisotropy(src->velocity, srcMask, m.sourceRatio, mean);
+        if (m.aniso && m.anisoSource && *m.anisoSource > 0.0) m.anisoRatio = *m.aniso / *m.anisoSource;
+        m.isotropySource = detailIsotropy(src->velocity, srcMask, m.sourceRatio);
+    }
+}
+
+// block: seams at the patch grid of the output's maker.
+void blockMeasure(const Frame& O, const Aligned& a, const VectorField& uh, const MeasureSettings& s, FrameMeasures& m)
+{
+    m.patchSize = s.patchSize > 0 ? s.patchSize : metadataInt(O, turb::meta::kPatchSize, 0);
+    m.patchOrigin = s.patchOrigin ? *s.patchOrigin : metadataCoord(O, turb::meta::kPatchOrigin, Coord(0));
+    if (m.patchSize >= 2) {
+        // U_h lives on the refined target lattice: move the origin there when whole voxels apart.
+        Coord origin = m.patchOrigin;
+        if (a.alignment == Alignment::World && !a.resampled)
+            for (int ax = 0; ax < 3; ++ax) origin[ax] += int(std::lround(a.offset[ax]));
+        m.block = blockRatio(uh, a.mask, m.patchSize, origin);
+        if (!m.block) m.notes.push_back("block: no detail differences inside the smoke region");
+    } else {
+        m.patchSize = 0;
+        m.notes.push_back("block: no patch size (option, or metadata vdbturb_patch_size)");
+    }
+}
+
+// rms(a - b) / rms(a) over the voxels of `box` where `mask` (one byte per voxel of a's box) is 1; nullopt when a
+// is zero there.
+std::optional<double> relativeChange(const VectorField& a, const VectorField& b, const Mask& mask, const CoordBBox& box)
+{
+    const auto sums = slabSums<2>(box, [&](int i, std::array<double, 2>& acc) {
+        for (int j = box.min().y(); j <= box.max().y(); ++j)
+            for (int k = box.min().z(); k <= box.max().z(); ++k) {
+                const size_t n = a.offset(i, j, k);
+                if (!mask[n]) continue;
+                acc[0] += double((a.data()[n] - b.data()[n]).lengthSqr());
+                acc[1] += double(a.data()[n].lengthSqr());
+            }
+    });
+    if (!(sums[1] > 0.0)) return std::nullopt;
+    return std::sqrt(sums[0] / sums[1]);
+}
+
+// tcoh: the previous frame's detail carried by the previous target velocity.
+void temporalCoherence(const MeasureInput& in, const Frame& T, const Aligned& a, const VectorField& uh,
+    const MeasureSettings& s, FrameMeasures& m)
+{
+    requireVelocity(in.previousOutput, "previous output");
+    requireVelocity(in.previousTarget, "previous target");
+    const Frame& Tp = *in.previousTarget;
+    Frame previousFilled;
+    const Frame& Op = fillUnwritten(*in.previousOutput, Tp, s, previousFilled);
+    // The real time between the two frames: frames measured two apart are two frames' time apart.
+    const int gap = T.number - Tp.number;
+    const double dt = (s.dt > 0.0 ? s.dt : Tp.dt) * gap;
+    if (gap <= 0) m.notes.push_back("tcoh: the previous frame is not earlier than this one");
+    else if (!(dt > 0.0)) m.notes.push_back("tcoh: unknown time step");
+    else if (!Tp.lattice().approxEqual(T.lattice()) || resolutionRatio(Tp, Op) != a.f)
+        m.notes.push_back("tcoh: the previous frame is on another lattice");
+    else {
+        const Aligned ap = [&] {
+            MeasureSettings sp = s;
+            sp.alignment = a.alignment; // one alignment for both frames
+            return alignPair(Op, Tp, sp);
+        }();
+        const VectorField uhPrev = difference(ap.output, ap.up);
+        const VectorField moved = advectOnto(uhPrev, Tp.velocity, dt, maskBBox(a.box, a.mask), a.box, s.advect);
+        m.dt = dt;
+        m.tcoh = relativeChange(uh, moved, a.mask, a.box);
+        if (!m.tcoh) m.notes.push_back("tcoh: no detail in the smoke region");
+    }
+}
+
+// The source's own coherence: its detail above the target's Nyquist, carried by its own low band.
+void sourceCoherence(const MeasuredSources& sources, const Mask& srcMask, const MeasureSettings& s, FrameMeasures& m)
+{
+    const Frame& S = *sources.source;
+    const Frame& Sp = *sources.previous;
+    requireVelocity(&Sp, "previous source");
+    const double dt = (s.dt > 0.0 ? s.dt : Sp.dt) * (S.number - Sp.number);
+    if (dt > 0.0 && Sp.lattice().approxEqual(S.lattice())) {
+        const FrequencySplit now = splitFrequencies(S.velocity, m.sourceRatio);
+        const FrequencySplit before = splitFrequencies(Sp.velocity, m.sourceRatio);
+        const VectorField moved = advectOnto(before.high, before.coarse, dt, maskBBox(S.velocity.bbox(), srcMask),
+            S.velocity.bbox(), s.advect);
+        m.tcohSource = relativeChange(now.high, moved, srcMask, S.velocity.bbox());
+    } else {
+        m.notes.push_back("tcoh_source: unknown time step or the previous source is on another lattice");
+    }
+}
+
+} // namespace
+
 FrameMeasures measureFrame(const MeasureInput& in, const MeasureSettings& s, Progress* progress)
 {
     requireVelocity(in.output, "output");
@@ -472,215 +703,46 @@ FrameMeasures measureFrame(const MeasureInput& in, const MeasureSettings& s, Pro
     }
     if (!(s.densityThreshold >= 0.0f)) throw ValueError("measure: density threshold must be >= 0");
     const Frame& T = *in.target;
-    Frame filled, previousFilled;
+    Frame filled;
     const Frame& O = fillUnwritten(*in.output, T, s, filled);
-    // A source at a non-integer ratio is measured at the nearest integer one, resampled as the transfer
-    // resamples it, so hf_ratio compares the output with the detail the transfer actually had.
-    const Frame* src = in.source;
-    const Frame* prevSrc = in.previousSource;
-    Frame srcResampled, prevSrcResampled;
-    bool sourceResampled = false;
-    if (src) {
-        const double tv = T.lattice().voxelSize, sv = src->lattice().voxelSize;
-        const int n = nearestRatio(tv, sv);
-        if (!isIntegerRatio(tv, sv)) {
-            sourceResampled = true;
-            srcResampled = resampledToVoxel(*src, tv / n);
-            src = &srcResampled;
-            if (prevSrc) {
-                prevSrcResampled = resampledToVoxel(*prevSrc, tv / n);
-                prevSrc = &prevSrcResampled;
-            }
-        }
-    }
+    MeasuredSources sources;
+    measuredSources(in, T, sources);
+    const Frame* src = sources.source;
 
     FrameMeasures m;
     m.frame = O.number;
     withThreads(s.threads, [&] {
         if (progress) progress->begin("align");
         const Aligned a = alignPair(O, T, s);
-        m.ratio = a.f;
-        m.alignment = a.alignment;
-        m.alignmentOffset = a.offset;
-        m.resampled = a.resampled;
-        m.targetNyquist = M_PI / T.lattice().voxelSize;
-        if (a.resampled)
-            m.notes.push_back("output resampled trilinearly onto the refined target lattice (offset " +
-                              fmt(a.offset.x()) + "," + fmt(a.offset.y()) + "," + fmt(a.offset.z()) + " voxels)");
+        recordAlignment(a, T, m);
         checkCancelled(progress);
 
-        // lf_err on the coarse cells with smoke.
         if (progress) progress->begin("lf_err");
         const VectorField uh = difference(a.output, a.up);
         const Mask coarseMask = thresholdMask(T.density, T.velocity.bbox(), s.densityThreshold);
-        m.smokeCells = countMask(coarseMask);
-        {
-            const VectorField dn = boxDownsample(uh, a.f);
-            const VectorField nn = boxDownsample(a.up, a.f);
-            const CoordBBox cb = T.velocity.bbox();
-            const auto sums = slabSums<2>(cb, [&](int i, std::array<double, 2>& acc) {
-                for (int j = cb.min().y(); j <= cb.max().y(); ++j)
-                    for (int k = cb.min().z(); k <= cb.max().z(); ++k)
-                        if (coarseMask[T.velocity.offset(i, j, k)]) {
-                            acc[0] += double(dn(i, j, k).lengthSqr());
-                            acc[1] += double(nn(i, j, k).lengthSqr());
-                        }
-            });
-            if (m.smokeCells == 0) m.notes.push_back("lf_err: the target has no smoke");
-            else if (!(sums[1] > 0.0)) m.notes.push_back("lf_err: the target does not move");
-            else m.lfErr = std::sqrt(sums[0] / sums[1]);
-        }
-        if (m.smokeCells > 0) {
-            // Only where the output holds values: beyond the box it was read on, U_h would be -up(U_t).
-            const ScalarField covered = realign(ScalarField(O.velocity.bbox(), O.velocity.lattice(), 1.0f), a.refined,
-                a.box, a.alignment);
-            m.airDetail = airDetail(uh, covered, T.velocity, coarseMask, a.f);
-        }
-        if (m.smokeCells > 0 && !m.airDetail) m.notes.push_back("air_detail: no still air or no detail in the smoke");
+        coarseMeasures(a, uh, coarseMask, O, T, m);
         checkCancelled(progress);
 
-        // Intrinsic numbers of the output on its own lattice: no alignment can blur them.
         if (progress) progress->begin("hf energy, divergence");
-        Mask ownMask;
-        if (O.hasDensity()) ownMask = thresholdMask(O.density, O.velocity.bbox(), s.densityThreshold);
-        else {
-            ownMask = thresholdMask(realign(upsample(T.density, a.f), O.velocity.lattice(), O.velocity.bbox(), a.alignment),
-                O.velocity.bbox(), s.densityThreshold);
-            m.notes.push_back("the output has no density: its smoke region is the upsampled target's");
-        }
-        m.smokeVoxels = countMask(ownMask);
-        if (O.hasDensity()) {
-            const DensityMeasures dm = densityMeasures(O.density, realign(O.density, a.refined, a.box, a.alignment),
-                T.density.bbox() == T.velocity.bbox() ? T.density : cropped(T.density, T.velocity.bbox()), a.f,
-                s.densityThreshold);
-            m.massRatio = dm.massRatio;
-            m.peakDensity = dm.peak;
-            m.peakRatio = dm.peakRatio;
-            m.densityErr = dm.coarseErr;
-            m.densityImprint = dm.imprint;
-        }
-        m.hfEnergy = highFrequencyEnergy(O.velocity, ownMask, a.f);
-        m.divRel = relativeDivergence(O.velocity, ownMask);
-        if (m.smokeVoxels == 0) m.notes.push_back("the output has no smoke");
+        const Mask ownMask = outputMeasures(O, T, a, s, m);
         checkCancelled(progress);
-
-        Mask srcMask;
-        if (src) {
-            const Frame& S = *src;
-            m.sourceRatio = integerRatio(T.lattice().voxelSize, S.lattice().voxelSize);
-            if (sourceResampled)
-                m.notes.push_back("source resampled trilinearly to the integer ratio " + std::to_string(m.sourceRatio));
-            srcMask = thresholdMask(S.density, S.velocity.bbox(), s.densityThreshold);
-            m.hfEnergySource = highFrequencyEnergy(S.velocity, srcMask, m.sourceRatio);
-            m.divRelSource = relativeDivergence(S.velocity, srcMask);
-            if (m.hfEnergy && m.hfEnergySource && *m.hfEnergySource > 0.0) m.hfRatio = *m.hfEnergy / *m.hfEnergySource;
-            else m.notes.push_back("hf_ratio: the source has no smoke or no high-frequency energy");
-        } else {
-            m.notes.push_back("hf_ratio, div_rel_source: no source given");
-        }
+        const Mask srcMask = sourceMeasures(sources, T, s, m);
         checkCancelled(progress);
 
         if (s.structure) {
             if (progress) progress->begin("structure");
-            // d: the target's mean flow over its smoke cells; the source's detail is measured along the same d.
-            Vec3d mean(0.0);
-            for (size_t n = 0; n < T.velocity.size(); ++n)
-                if (coarseMask[n]) {
-                    const Vec3f& v = T.velocity.data()[n];
-                    mean += Vec3d(v.x(), v.y(), v.z());
-                }
-            m.aniso = detailAnisotropy(O.velocity, ownMask, a.f, mean);
-            if (!m.aniso) m.notes.push_back("aniso: no smoke, no mean flow or no detail gradient");
-            m.isotropy = detailIsotropy(O.velocity, ownMask, a.f);
-            if (src) {
-                m.anisoSource = detailAnisotropy(src->velocity, srcMask, m.sourceRatio, mean);
-                if (m.aniso && m.anisoSource && *m.anisoSource > 0.0) m.anisoRatio = *m.aniso / *m.anisoSource;
-                m.isotropySource = detailIsotropy(src->velocity, srcMask, m.sourceRatio);
-            }
+            structureMeasures(O, T, src, a, ownMask, srcMask, coarseMask, m);
             checkCancelled(progress);
         }
-
-        // block: seams at the patch grid of the output's maker.
-        m.patchSize = s.patchSize > 0 ? s.patchSize : metadataInt(O, turb::meta::kPatchSize, 0);
-        m.patchOrigin = s.patchOrigin ? *s.patchOrigin : metadataCoord(O, turb::meta::kPatchOrigin, Coord(0));
-        if (m.patchSize >= 2) {
-            // U_h lives on the refined target lattice: move the origin there when whole voxels apart.
-            Coord origin = m.patchOrigin;
-            if (a.alignment == Alignment::World && !a.resampled)
-                for (int ax = 0; ax < 3; ++ax) origin[ax] += int(std::lround(a.offset[ax]));
-            m.block = blockRatio(uh, a.mask, m.patchSize, origin);
-            if (!m.block) m.notes.push_back("block: no detail differences inside the smoke region");
-        } else {
-            m.patchSize = 0;
-            m.notes.push_back("block: no patch size (option, or metadata vdbturb_patch_size)");
-        }
-
-        // tcoh: the previous frame's detail carried by the previous target velocity.
+        blockMeasure(O, a, uh, s, m);
         if (in.previousOutput && in.previousTarget) {
             if (progress) progress->begin("tcoh");
-            requireVelocity(in.previousOutput, "previous output");
-            requireVelocity(in.previousTarget, "previous target");
-            const Frame& Tp = *in.previousTarget;
-            const Frame& Op = fillUnwritten(*in.previousOutput, Tp, s, previousFilled);
-            // The real time between the two frames: frames measured two apart are two frames' time apart.
-            const int gap = T.number - Tp.number;
-            const double dt = (s.dt > 0.0 ? s.dt : Tp.dt) * gap;
-            if (gap <= 0) m.notes.push_back("tcoh: the previous frame is not earlier than this one");
-            else if (!(dt > 0.0)) m.notes.push_back("tcoh: unknown time step");
-            else if (!Tp.lattice().approxEqual(T.lattice()) || resolutionRatio(Tp, Op) != a.f)
-                m.notes.push_back("tcoh: the previous frame is on another lattice");
-            else {
-                const Aligned ap = [&] {
-                    MeasureSettings sp = s;
-                    sp.alignment = a.alignment; // one alignment for both frames
-                    return alignPair(Op, Tp, sp);
-                }();
-                const VectorField uhPrev = difference(ap.output, ap.up);
-                const VectorField moved = advectOnto(uhPrev, Tp.velocity, dt, maskBBox(a.box, a.mask), a.box, s.advect);
-                const auto sums = slabSums<2>(a.box, [&](int i, std::array<double, 2>& acc) {
-                    for (int j = a.box.min().y(); j <= a.box.max().y(); ++j)
-                        for (int k = a.box.min().z(); k <= a.box.max().z(); ++k) {
-                            const size_t n = uh.offset(i, j, k);
-                            if (!a.mask[n]) continue;
-                            acc[0] += double((uh.data()[n] - moved.data()[n]).lengthSqr());
-                            acc[1] += double(uh.data()[n].lengthSqr());
-                        }
-                });
-                m.dt = dt;
-                if (sums[1] > 0.0) m.tcoh = std::sqrt(sums[0] / sums[1]);
-                else m.notes.push_back("tcoh: no detail in the smoke region");
-            }
+            temporalCoherence(in, T, a, uh, s, m);
         } else {
             m.notes.push_back("tcoh: no previous frame");
         }
         checkCancelled(progress);
-
-        // The source's own coherence: its detail above the target's Nyquist, carried by its own low band.
-        if (src && prevSrc && !srcMask.empty()) {
-            const Frame& S = *src;
-            const Frame& Sp = *prevSrc;
-            requireVelocity(&Sp, "previous source");
-            const double dt = (s.dt > 0.0 ? s.dt : Sp.dt) * (S.number - Sp.number);
-            if (dt > 0.0 && Sp.lattice().approxEqual(S.lattice())) {
-                const FrequencySplit now = splitFrequencies(S.velocity, m.sourceRatio);
-                const FrequencySplit before = splitFrequencies(Sp.velocity, m.sourceRatio);
-                const VectorField moved = advectOnto(before.high, before.coarse, dt, maskBBox(S.velocity.bbox(), srcMask),
-                    S.velocity.bbox(), s.advect);
-                const CoordBBox sb = S.velocity.bbox();
-                const auto sums = slabSums<2>(sb, [&](int i, std::array<double, 2>& acc) {
-                    for (int j = sb.min().y(); j <= sb.max().y(); ++j)
-                        for (int k = sb.min().z(); k <= sb.max().z(); ++k) {
-                            const size_t n = S.velocity.offset(i, j, k);
-                            if (!srcMask[n]) continue;
-                            acc[0] += double((now.high.data()[n] - moved.data()[n]).lengthSqr());
-                            acc[1] += double(now.high.data()[n].lengthSqr());
-                        }
-                });
-                if (sums[1] > 0.0) m.tcohSource = std::sqrt(sums[0] / sums[1]);
-            } else {
-                m.notes.push_back("tcoh_source: unknown time step or the previous source is on another lattice");
-            }
-        }
+        if (src && sources.previous && !srcMask.empty()) sourceCoherence(sources, srcMask, s, m);
         checkCancelled(progress);
 
         if (s.spectra) {

@@ -596,38 +596,43 @@ struct Engine
         double before = 0.0, averaged = 0.0, updated = 0.0;
     };
 
-    /// One search + assignment iteration. `which`: 0 small radius, 1 large. `randomMatches`: the
-    /// initialisation (random exemplar neighbourhoods blended by the assignment, section 3.4).
-    /// Returns the mean squared neighbourhood distance per channel before the assignment; fills `trace`
-    /// when given (two more neighbourhood passes).
-    double iterate(Level& L, int level, int which, bool useTree, bool randomMatches, std::uint64_t salt,
-        const std::vector<Vec3f>* advected, const std::vector<Constraint>& constraints, Descent* trace = nullptr)
+    /// One iteration's centres (jittered lattice, slab axis outermost) and, per centre and view, the matched
+    /// exemplar row, its weight and its squared neighbourhood distance.
+    struct Matches
+    {
+        int spacing = 1, slabAxis = 0;
+        std::vector<Centre> cs;
+        std::vector<Match> match; ///< centre-major: match[ci * views + v]
+        std::vector<double> dist; ///< the same layout; 0 for random matches
+    };
+
+    /// The search (Kwatra's E-step): per centre and view the nearest exemplar neighbourhood (tree or k-coherence),
+    /// or a random one for the initialisation, weighted by the robust weight.
+    Matches search(const Level& L, int level, int which, bool useTree, bool randomMatches, std::uint64_t salt) const
     {
         const size_t nv = ex.prepared.size();
         int radius = 0;
         for (const auto& pv : ex.prepared) radius = std::max(radius, pv.levels[size_t(level)].neigh[which].radius);
-        const int spacing = spacingFor(radius, L.flat);
-        int slabAxis = 0;
-        const std::vector<Centre> cs = centres(L, spacing, salt, slabAxis);
-        const size_t nc = cs.size();
-
-        // --- search
-        std::vector<Match> match(nc * nv);
-        std::vector<double> dist(nc * nv, 0.0);
+        Matches m;
+        m.spacing = spacingFor(radius, L.flat);
+        m.cs = centres(L, m.spacing, salt, m.slabAxis);
+        const size_t nc = m.cs.size();
+        m.match.resize(nc * nv);
+        m.dist.assign(nc * nv, 0.0);
         const double r = std::clamp(s.robustExponent, 0.01, 2.0);
         parallelFor(nc, 32, [&](size_t b, size_t e) {
             std::vector<float> d, red, exd;
             std::vector<int> cand;
             for (size_t ci = b; ci < e; ++ci) {
-                const Centre& c = cs[ci];
+                const Centre& c = m.cs[ci];
                 for (size_t v = 0; v < nv; ++v) {
                     const PreparedView& pv = ex.prepared[v];
                     const ViewLevel& vl = pv.levels[size_t(level)];
                     const Neigh& N = vl.neigh[which];
-                    Match& m = match[ci * nv + v];
+                    Match& mt = m.match[ci * nv + v];
                     if (randomMatches) {
-                        m.row = int(hash4(s.seed, salt, ci, v) % std::uint64_t(N.rows));
-                        m.weight = pv.view.weight;
+                        mt.row = int(hash4(s.seed, salt, ci, v) % std::uint64_t(N.rows));
+                        mt.weight = pv.view.weight;
                         continue;
                     }
                     gather(L, c, pv, N, d);
@@ -641,63 +646,67 @@ struct Engine
                     } else {
                         row = kcoherenceSearch(L, c, vl, N, v, red, cand);
                     }
-                    m.row = row;
+                    mt.row = row;
                     const double s2 = distanceTo(vl, N, pv.nc, row, d);
-                    dist[ci * nv + v] = s2;
+                    m.dist[ci * nv + v] = s2;
                     // Kwatra's robust weight |x_p - z_p|^(r - 2); the floor keeps exact matches finite.
-                    m.weight = float(pv.view.weight * std::pow(s2 + 1e-4, 0.5 * (r - 2.0)));
+                    mt.weight = float(pv.view.weight * std::pow(s2 + 1e-4, 0.5 * (r - 2.0)));
                 }
             }
         });
-        double energy = 0.0;
-        for (double x : dist) energy += x;
-        energy /= double(std::max<size_t>(1, dist.size()));
-        // Kwatra's objective for these centres and matches: the weighted mean of the distances (weights fixed).
-        const auto objective = [&](std::vector<Vec3f>& h) {
-            std::swap(L.h, h);
-            const double sums = parallelSum(nc, 32, [&](size_t b, size_t e) {
-                std::vector<float> d;
-                double acc = 0.0;
-                for (size_t ci = b; ci < e; ++ci)
-                    for (size_t v = 0; v < nv; ++v) {
-                        const PreparedView& pv = ex.prepared[v];
-                        const Neigh& N = pv.levels[size_t(level)].neigh[which];
-                        const Match& m = match[ci * nv + v];
-                        gather(L, cs[ci], pv, N, d);
-                        acc += double(m.weight) * distanceTo(pv.levels[size_t(level)], N, pv.nc, m.row, d);
-                    }
-                return acc;
-            });
-            std::swap(L.h, h);
-            double w = 0.0;
-            for (const Match& m : match) w += m.weight;
-            return w > 0.0 ? sums / w : 0.0;
-        };
-        if (trace && !randomMatches) {
-            double w = 0.0, wd = 0.0;
-            for (size_t i = 0; i < match.size(); ++i) {
-                w += match[i].weight;
-                wd += double(match[i].weight) * dist[i];
-            }
-            trace->before = w > 0.0 ? wd / w : 0.0;
-        }
+        return m;
+    }
 
-        // --- assignment: splat every match's exemplar neighbourhood
+    /// Kwatra's objective for these centres and matches with `h` as the level's detail: the weighted mean of the
+    /// neighbourhood distances (weights fixed). L.h is swapped with `h` for the evaluation and back.
+    double objective(Level& L, int level, int which, const Matches& m, std::vector<Vec3f>& h) const
+    {
+        const size_t nv = ex.prepared.size();
+        std::swap(L.h, h);
+        const double sums = parallelSum(m.cs.size(), 32, [&](size_t b, size_t e) {
+            std::vector<float> d;
+            double acc = 0.0;
+            for (size_t ci = b; ci < e; ++ci)
+                for (size_t v = 0; v < nv; ++v) {
+                    const PreparedView& pv = ex.prepared[v];
+                    const Neigh& N = pv.levels[size_t(level)].neigh[which];
+                    const Match& mt = m.match[ci * nv + v];
+                    gather(L, m.cs[ci], pv, N, d);
+                    acc += double(mt.weight) * distanceTo(pv.levels[size_t(level)], N, pv.nc, mt.row, d);
+                }
+            return acc;
+        });
+        std::swap(L.h, h);
+        double w = 0.0;
+        for (const Match& mt : m.match) w += mt.weight;
+        return w > 0.0 ? sums / w : 0.0;
+    }
+
+    /// How far a centre's splat reaches, in level voxels: the widest neighbourhood plus its extrusion, plus one.
+    float splatReach(const Level& L, int level, int which, int spacing) const
+    {
         float reach = 0.0f;
         for (const auto& pv : ex.prepared)
             reach = std::max(reach, pv.levels[size_t(level)].neigh[which].reach + float(extrusion(pv, L, spacing)));
-        reach += 1.0f;
+        return reach + 1.0f;
+    }
+
+    /// The assignment's sums: every match's exemplar neighbourhood splatted onto the level (per voxel, three
+    /// weighted component sums and their three weights), slab by slab.
+    std::vector<float> splatMatches(const Level& L, int level, int which, const Matches& m, float reach) const
+    {
+        const size_t nv = ex.prepared.size();
         std::vector<float> acc(L.size() * 6, 0.0f);
-        bySlabs(cs, slabAxis, reach, [&](size_t ci) {
-            const Centre& c = cs[ci];
+        bySlabs(m.cs, m.slabAxis, reach, [&](size_t ci) {
+            const Centre& c = m.cs[ci];
             const Vec3f p(float(c.p[0]), float(c.p[1]), float(c.p[2]));
             for (size_t v = 0; v < nv; ++v) {
                 const PreparedView& pv = ex.prepared[v];
                 const ViewLevel& vl = pv.levels[size_t(level)];
                 const Neigh& N = vl.neigh[which];
-                const Match& m = match[ci * nv + v];
-                const auto pos = posOf(N, vl.ex, size_t(m.row));
-                const int ext = extrusion(pv, L, spacing);
+                const Match& mt = m.match[ci * nv + v];
+                const auto pos = posOf(N, vl.ex, size_t(mt.row));
+                const int ext = extrusion(pv, L, m.spacing);
                 const Vec3f nrm = pv.normal >= 0 ? c.f.e[pv.normal] : Vec3f(0.0f);
                 for (size_t t = 0; t < N.local.size(); ++t) {
                     const float* z = exValue(vl.ex, pos, N.ex[t]);
@@ -705,13 +714,18 @@ struct Engine
                     for (int layer = -(ext - 1); layer <= ext - 1; ++layer) {
                         const float tent = 1.0f - float(std::abs(layer)) / float(ext);
                         const Vec3f at = base + nrm * float(layer);
-                        splat(L, acc.data(), at, pv.comps, z, pv.nc, m.weight * tent);
+                        splat(L, acc.data(), at, pv.comps, z, pv.nc, mt.weight * tent);
                     }
                 }
             }
         });
+        return acc;
+    }
 
-        // Least-squares value per component (Eq. 1 / Eq. 2); components no view reached keep theirs.
+    /// Least-squares value per component (Eq. 1 / Eq. 2) from the splatted sums; components no view reached keep
+    /// the level's.
+    static std::vector<Vec3f> weightedAverage(const Level& L, const std::vector<float>& acc)
+    {
         std::vector<Vec3f> avg(L.h);
         parallelFor(L.size(), 4096, [&](size_t b, size_t e) {
             for (size_t i = b; i < e; ++i) {
@@ -720,11 +734,13 @@ struct Engine
                     if (o[3 + c] > 0.0f) avg[i][c] = o[c] / o[3 + c];
             }
         });
-        if (trace && !randomMatches) trace->averaged = objective(avg);
-        if (kcoh) discreteAssign(L, level, which, cs, slabAxis, reach, match, spacing, avg);
-        if (s.matchVariance) matchMoments(L, level, acc, avg);
+        return avg;
+    }
 
-        // Temporal coherence (O(x) of Eq. 1) and the wall term E_n (Eq. 3), both closed form.
+    /// Temporal coherence (O(x) of Eq. 1) and the wall term E_n (Eq. 3), both closed form, applied to `avg`.
+    void temporalAndWallTerms(const Level& L, const std::vector<float>& acc, const std::vector<Vec3f>* advected,
+        const std::vector<Constraint>& constraints, std::vector<Vec3f>& avg) const
+    {
         if (advected) {
             const float eta = float(std::max(0.0, s.temporalWeight));
             parallelFor(L.size(), 4096, [&](size_t b, size_t e) {
@@ -739,7 +755,36 @@ struct Engine
             Vec3f& x = avg[k.voxel];
             x -= k.normalLocal * (k.normalLocal.dot(x) * (k.lambda / (1.0f + k.lambda)));
         }
-        if (trace && !randomMatches) trace->updated = objective(avg);
+    }
+
+    /// One search + assignment iteration. `which`: 0 small radius, 1 large. `randomMatches`: the
+    /// initialisation (random exemplar neighbourhoods blended by the assignment, section 3.4).
+    /// Returns the mean squared neighbourhood distance per channel before the assignment; fills `trace`
+    /// when given (two more neighbourhood passes).
+    double iterate(Level& L, int level, int which, bool useTree, bool randomMatches, std::uint64_t salt,
+        const std::vector<Vec3f>* advected, const std::vector<Constraint>& constraints, Descent* trace = nullptr)
+    {
+        Matches m = search(L, level, which, useTree, randomMatches, salt);
+        double energy = 0.0;
+        for (double x : m.dist) energy += x;
+        energy /= double(std::max<size_t>(1, m.dist.size()));
+        if (trace && !randomMatches) {
+            double w = 0.0, wd = 0.0;
+            for (size_t i = 0; i < m.match.size(); ++i) {
+                w += m.match[i].weight;
+                wd += double(m.match[i].weight) * m.dist[i];
+            }
+            trace->before = w > 0.0 ? wd / w : 0.0;
+        }
+
+        const float reach = splatReach(L, level, which, m.spacing);
+        const std::vector<float> acc = splatMatches(L, level, which, m, reach);
+        std::vector<Vec3f> avg = weightedAverage(L, acc);
+        if (trace && !randomMatches) trace->averaged = objective(L, level, which, m, avg);
+        if (kcoh) discreteAssign(L, level, which, m.cs, m.slabAxis, reach, m.match, m.spacing, avg);
+        if (s.matchVariance) matchMoments(L, level, acc, avg);
+        temporalAndWallTerms(L, acc, advected, constraints, avg);
+        if (trace && !randomMatches) trace->updated = objective(L, level, which, m, avg);
         L.h.swap(avg);
         return energy;
     }
@@ -1174,6 +1219,213 @@ DetailField synthesizeDetail(const SynthExemplars& exemplars, const SynthInput& 
 
 namespace {
 
+/// Throws ValueError on a missing or non-finite L, a dimension the views were not prepared for, a density on another
+/// box, or a continuation without dt.
+void checkSynthInput(const SynthExemplars::Impl& ex, const SynthInput& in, const FineDomain& dom)
+{
+    if (dom.twoD == ex.volume)
+        throw ValueError(dom.twoD ? "synth: the coarse motion is 2D (one voxel thick) but the views were prepared for 3D"
+                                  : "synth: the coarse motion is 3D but the views were prepared for a 2D synthesis");
+    if (in.coarseDensity && !in.coarseDensity->empty() && in.coarseDensity->bbox() != in.coarse->bbox())
+        throw ValueError("synth: the coarse density and velocity must cover the same box");
+    const bool continuing = in.previous && !in.previous->world.empty();
+    if (continuing && !(in.dt > 0.0)) throw ValueError("synth: continuing from a previous frame needs dt > 0");
+}
+
+/// Pyramid level `level` of `levels` over the fine domain (the last level is the fine lattice), with H = 0.
+Level emptyLevel(int level, int levels, const FineDomain& dom)
+{
+    const Coord N = dom.box.dim();
+    Level L;
+    L.shrink = 1 << (levels - 1 - level);
+    L.flat = dom.twoD;
+    for (int a = 0; a < 3; ++a) L.n[a] = (a == 2 && L.flat) ? 1 : std::max(1, (N[a] + L.shrink - 1) / L.shrink);
+    L.fineMin = Vec3d(dom.box.min().x(), dom.box.min().y(), dom.box.min().z());
+    L.fineLat = dom.lattice;
+    L.h.assign(L.size(), Vec3f(0.0f));
+    return L;
+}
+
+/// H of the coarser level `L` upsampled onto `next` (cell-centred trilinear).
+void upsampleDetail(const Level& L, Level& next)
+{
+    parallelFor(size_t(next.n[0]), 1, [&](size_t b, size_t e) {
+        for (size_t x = b; x < e; ++x)
+            for (int y = 0; y < next.n[1]; ++y)
+                for (int z = 0; z < next.n[2]; ++z)
+                    next.h[next.idx(int(x), y, z)] = L.sample(float((x + 0.5) / 2 - 0.5),
+                        float((y + 0.5) / 2 - 0.5), next.flat ? 0.0f : float((z + 0.5) / 2 - 0.5));
+    });
+}
+
+/// Pure k-coherence's source maps carried from level `level - 1` (on L) to `level` (on next): each voxel takes its
+/// parent's exemplar pixel, doubled and offset by the voxel's parity in the view's plane.
+void upsampleSources(Engine& eng, const Level& L, const Level& next, int level)
+{
+    const SynthExemplars::Impl& ex = eng.ex;
+    std::vector<std::vector<int>> up(ex.prepared.size(), std::vector<int>(next.size(), -1));
+    for (size_t v = 0; v < ex.prepared.size(); ++v) {
+        const Exemplar& ec = ex.prepared[v].levels[size_t(level - 1)].ex;
+        const Exemplar& ef = ex.prepared[v].levels[size_t(level)].ex;
+        int u = 0, w = 1, t = 2;
+        if (ex.prepared[v].normal >= 0) planeAxes(ex.prepared[v].normal, u, w);
+        for (int x = 0; x < next.n[0]; ++x)
+            for (int y = 0; y < next.n[1]; ++y)
+                for (int z = 0; z < next.n[2]; ++z) {
+                    const int src = eng.source[v][L.idx(std::min(x / 2, L.n[0] - 1), std::min(y / 2, L.n[1] - 1),
+                        std::min(z / 2, L.n[2] - 1))];
+                    if (src < 0) continue;
+                    const size_t yz = size_t(ec.ny) * size_t(ec.nz);
+                    const int c[3] = {x, y, z};
+                    int px = 2 * int(size_t(src) / yz) + (c[u] & 1);
+                    int py = 2 * int((size_t(src) / size_t(ec.nz)) % size_t(ec.ny)) + (c[w] & 1);
+                    int pz = ec.planar() ? 0 : 2 * int(size_t(src) % size_t(ec.nz)) + (c[t] & 1);
+                    px = ef.periodic ? wrapi(px, ef.nx) : std::min(px, ef.nx - 1);
+                    py = ef.periodic ? wrapi(py, ef.ny) : std::min(py, ef.ny - 1);
+                    pz = ef.periodic ? wrapi(pz, ef.nz) : std::min(pz, ef.nz - 1);
+                    up[v][next.idx(x, y, z)] = int(ef.linear(px, py, pz));
+                }
+    }
+    eng.source.swap(up);
+}
+
+/// Counts the run's iterations for the progress bar and asks for cancellation after each.
+struct IterationTicker
+{
+    Progress* progress = nullptr;
+    int total = 1;
+    int done = 0;
+    void operator()()
+    {
+        ++done;
+        if (progress) progress->update(double(done) / double(std::max(1, total)));
+        checkCancelled(progress);
+    }
+};
+
+/// Appends one iteration's numbers to a level's statistics.
+void recordIteration(SynthLevelStats& st, int radius, bool tree, double energy, const Engine::Descent& d, bool trace)
+{
+    st.radius.push_back(radius);
+    st.tree.push_back(tree);
+    st.energy.push_back(energy);
+    if (trace) st.descent.push_back({d.before, d.averaged, d.updated});
+}
+
+/// One pyramid level's iterations (section 3.3): the random initialisation on the coarsest level, then for 2D views
+/// the large-radius iterations, then the small-radius ones.
+SynthLevelStats synthesizeLevel(Engine& eng, Level& L, int level, const std::vector<Constraint>& cons,
+    IterationTicker& tick)
+{
+    const SynthExemplars::Impl& ex = eng.ex;
+    const SynthSettings& s = eng.s;
+    SynthLevelStats st;
+    st.level = level;
+    st.dim = Coord(L.n[0], L.n[1], L.n[2]);
+    int it = 0;
+    if (level == 0) {
+        eng.iterate(L, level, ex.volume || s.largeIterations <= 0 ? 0 : 1, true, true, hash4(0, 0, 0, 0xabc), nullptr,
+            cons);
+        tick();
+    }
+    const auto run = [&](int which, int count) {
+        for (int i = 0; i < count; ++i, ++it) {
+            const bool tree = !eng.kcoh || it < s.treeIterationsPerLevel;
+            Engine::Descent d;
+            const double e = eng.iterate(L, level, which, tree, false, hash4(1, std::uint64_t(level), std::uint64_t(it), 0),
+                nullptr, cons, s.traceDescent ? &d : nullptr);
+            int radius = 0;
+            for (const auto& pv : ex.prepared) radius = std::max(radius, pv.levels[size_t(level)].neigh[which].radius);
+            recordIteration(st, radius, tree, e, d, s.traceDescent);
+            tick();
+        }
+    };
+    if (!ex.volume) run(1, std::max(0, s.largeIterations));
+    run(0, std::max(0, s.smallIterations));
+    return st;
+}
+
+/// The whole pyramid from a zero start, coarsest level first; returns the finest level.
+Level synthesizePyramid(Engine& eng, const SynthInput& in, const FineDomain& dom, IterationTicker& tick,
+    std::vector<SynthLevelStats>& levels)
+{
+    const SynthExemplars::Impl& ex = eng.ex;
+    const int nL = ex.levels;
+    Level L;
+    for (int level = 0; level < nL; ++level) {
+        Level next = emptyLevel(level, nL, dom);
+        if (level > 0) {
+            // Upsample H (cell-centred trilinear) and, for pure k-coherence, the source maps.
+            upsampleDetail(L, next);
+            if (eng.kcoh) upsampleSources(eng, L, next, level);
+        } else {
+            eng.source.assign(ex.prepared.size(), std::vector<int>(next.size(), -1));
+        }
+        L = std::move(next);
+        const std::vector<Constraint> cons = makeConstraints(L, eng.frames, eng.s.boundary, in.obstacle);
+        levels.push_back(synthesizeLevel(eng, L, level, cons, tick));
+    }
+    return L;
+}
+
+/// Section 3.4: the finest level started from the previous detail advected through L and expressed in the new
+/// frames, then refined (the advected detail is the temporal term's target).
+SynthLevelStats continueFromPrevious(Engine& eng, Level& L, const SynthInput& in, const FineDomain& dom,
+    IterationTicker& tick)
+{
+    const SynthExemplars::Impl& ex = eng.ex;
+    const SynthSettings& s = eng.s;
+    const int nL = ex.levels;
+    L = emptyLevel(nL - 1, nL, dom);
+    eng.source.assign(ex.prepared.size(), std::vector<int>(L.size(), -1));
+    VectorField prev = in.previous->world;
+    const VectorField moved = advect(prev, *in.coarse, in.dt, s.advect);
+    std::vector<Vec3f> adv(L.size(), Vec3f(0.0f));
+    parallelFor(size_t(L.n[0]), 1, [&](size_t b, size_t e) {
+        for (size_t x = b; x < e; ++x)
+            for (int y = 0; y < L.n[1]; ++y)
+                for (int z = 0; z < L.n[2]; ++z) {
+                    const Coord c = dom.box.min() + Coord(int(x), y, z);
+                    const Vec3f w = moved.valueOr(c.x(), c.y(), c.z(), Vec3f(0.0f));
+                    adv[L.idx(int(x), y, z)] = eng.frames.at(L.world(double(x), y, z)).toLocal(w);
+                }
+    });
+    L.h = adv;
+    const std::vector<Constraint> cons = makeConstraints(L, eng.frames, s.boundary, in.obstacle);
+    SynthLevelStats st;
+    st.level = nL - 1;
+    st.dim = Coord(L.n[0], L.n[1], L.n[2]);
+    for (int it = 0; it < std::max(1, s.continueIterations); ++it) {
+        // k-coherence has no source map yet on a continued frame: its first iteration searches the tree.
+        const bool tree = !eng.kcoh || it < std::max(1, s.treeIterationsPerLevel);
+        Engine::Descent d;
+        const double e = eng.iterate(L, nL - 1, 0, tree, false, hash4(2, std::uint64_t(it), 0, 0), &adv, cons,
+            s.traceDescent ? &d : nullptr);
+        int radius = 0;
+        for (const auto& pv : ex.prepared) radius = std::max(radius, pv.levels.back().neigh[0].radius);
+        recordIteration(st, radius, tree, e, d, s.traceDescent);
+        tick();
+    }
+    return st;
+}
+
+/// Post-process coordinate transformation (section 3.1): H' = R H, with H kept as `local`.
+void detailToWorld(const Level& L, const FineDomain& dom, const FrameGuide& frames, DetailField& out)
+{
+    out.local = VectorField(dom.box, dom.lattice);
+    out.world = VectorField(dom.box, dom.lattice);
+    parallelFor(size_t(L.n[0]), 1, [&](size_t b, size_t e) {
+        for (size_t x = b; x < e; ++x)
+            for (int y = 0; y < L.n[1]; ++y)
+                for (int z = 0; z < L.n[2]; ++z) {
+                    const Vec3f h = L.h[L.idx(int(x), y, z)];
+                    const Coord c = dom.box.min() + Coord(int(x), y, z);
+                    out.local[c] = h;
+                    out.world[c] = frames.at(L.world(double(x), y, z)).toWorld(h);
+                }
+    });
+}
+
 DetailField synthesizeOnBox(const SynthExemplars& exemplars, const SynthInput& in, const SynthSettings& s, Progress* progress)
 {
     if (!in.coarse || in.coarse->empty()) throw ValueError("synth: no coarse motion L");
@@ -1182,169 +1434,25 @@ DetailField synthesizeOnBox(const SynthExemplars& exemplars, const SynthInput& i
             throw ValueError("synth: the coarse motion holds NaN or Inf");
     const SynthExemplars::Impl& ex = exemplars.impl();
     const FineDomain dom = fineDomain(*in.coarse, in.factor);
-    if (dom.twoD == ex.volume)
-        throw ValueError(dom.twoD ? "synth: the coarse motion is 2D (one voxel thick) but the views were prepared for 3D"
-                                  : "synth: the coarse motion is 3D but the views were prepared for a 2D synthesis");
-    if (in.coarseDensity && !in.coarseDensity->empty() && in.coarseDensity->bbox() != in.coarse->bbox())
-        throw ValueError("synth: the coarse density and velocity must cover the same box");
+    checkSynthInput(ex, in, dom);
     const bool continuing = in.previous && !in.previous->world.empty();
-    if (continuing && !(in.dt > 0.0)) throw ValueError("synth: continuing from a previous frame needs dt > 0");
 
     DetailField out;
     withThreads(s.threads, [&] {
         const FrameGuide frames(in, s.orientation, dom.twoD);
         Engine eng{ex, s, frames, ex.kcoherence, progress, {}};
-        const int nL = ex.levels;
-        const Coord N = dom.box.dim();
-
-        const auto makeLevel = [&](int level) {
-            Level L;
-            L.shrink = 1 << (nL - 1 - level);
-            L.flat = dom.twoD;
-            for (int a = 0; a < 3; ++a) L.n[a] = (a == 2 && L.flat) ? 1 : std::max(1, (N[a] + L.shrink - 1) / L.shrink);
-            L.fineMin = Vec3d(dom.box.min().x(), dom.box.min().y(), dom.box.min().z());
-            L.fineLat = dom.lattice;
-            L.h.assign(L.size(), Vec3f(0.0f));
-            return L;
-        };
-        const auto resetSources = [&](const Level& L) {
-            eng.source.assign(ex.prepared.size(), std::vector<int>(L.size(), -1));
-        };
         const int itersPerLevel = (!ex.volume ? std::max(0, s.largeIterations) : 0) + std::max(0, s.smallIterations);
-        const int totalIters = continuing ? std::max(1, s.continueIterations) : itersPerLevel * nL + 1;
-        int done = 0;
-        const auto tick = [&] {
-            ++done;
-            if (progress) progress->update(double(done) / double(std::max(1, totalIters)));
-            checkCancelled(progress);
-        };
-
+        IterationTicker tick{progress, continuing ? std::max(1, s.continueIterations) : itersPerLevel * ex.levels + 1};
         Level L;
         if (!continuing) {
             if (progress) progress->begin("synthesis");
-            for (int level = 0; level < nL; ++level) {
-                Level next = makeLevel(level);
-                if (level > 0) {
-                    // Upsample H (cell-centred trilinear) and, for pure k-coherence, the source maps.
-                    parallelFor(size_t(next.n[0]), 1, [&](size_t b, size_t e) {
-                        for (size_t x = b; x < e; ++x)
-                            for (int y = 0; y < next.n[1]; ++y)
-                                for (int z = 0; z < next.n[2]; ++z)
-                                    next.h[next.idx(int(x), y, z)] = L.sample(float((x + 0.5) / 2 - 0.5),
-                                        float((y + 0.5) / 2 - 0.5), next.flat ? 0.0f : float((z + 0.5) / 2 - 0.5));
-                    });
-                    if (eng.kcoh) {
-                        std::vector<std::vector<int>> up(ex.prepared.size(), std::vector<int>(next.size(), -1));
-                        for (size_t v = 0; v < ex.prepared.size(); ++v) {
-                            const Exemplar& ec = ex.prepared[v].levels[size_t(level - 1)].ex;
-                            const Exemplar& ef = ex.prepared[v].levels[size_t(level)].ex;
-                            int u = 0, w = 1, t = 2;
-                            if (ex.prepared[v].normal >= 0) planeAxes(ex.prepared[v].normal, u, w);
-                            for (int x = 0; x < next.n[0]; ++x)
-                                for (int y = 0; y < next.n[1]; ++y)
-                                    for (int z = 0; z < next.n[2]; ++z) {
-                                        const int src = eng.source[v][L.idx(std::min(x / 2, L.n[0] - 1), std::min(y / 2, L.n[1] - 1),
-                                            std::min(z / 2, L.n[2] - 1))];
-                                        if (src < 0) continue;
-                                        const size_t yz = size_t(ec.ny) * size_t(ec.nz);
-                                        const int c[3] = {x, y, z};
-                                        int px = 2 * int(size_t(src) / yz) + (c[u] & 1);
-                                        int py = 2 * int((size_t(src) / size_t(ec.nz)) % size_t(ec.ny)) + (c[w] & 1);
-                                        int pz = ec.planar() ? 0 : 2 * int(size_t(src) % size_t(ec.nz)) + (c[t] & 1);
-                                        px = ef.periodic ? wrapi(px, ef.nx) : std::min(px, ef.nx - 1);
-                                        py = ef.periodic ? wrapi(py, ef.ny) : std::min(py, ef.ny - 1);
-                                        pz = ef.periodic ? wrapi(pz, ef.nz) : std::min(pz, ef.nz - 1);
-                                        up[v][next.idx(x, y, z)] = int(ef.linear(px, py, pz));
-                                    }
-                        }
-                        eng.source.swap(up);
-                    }
-                } else {
-                    resetSources(next);
-                }
-                L = std::move(next);
-                const std::vector<Constraint> cons = makeConstraints(L, frames, s.boundary, in.obstacle);
-                SynthLevelStats st;
-                st.level = level;
-                st.dim = Coord(L.n[0], L.n[1], L.n[2]);
-                int it = 0;
-                if (level == 0) {
-                    eng.iterate(L, level, ex.volume || s.largeIterations <= 0 ? 0 : 1, true, true,
-                        hash4(0, 0, 0, 0xabc), nullptr, cons);
-                    tick();
-                }
-                const auto run = [&](int which, int count) {
-                    for (int i = 0; i < count; ++i, ++it) {
-                        const bool tree = !eng.kcoh || it < s.treeIterationsPerLevel;
-                        Engine::Descent d;
-                        const double e = eng.iterate(L, level, which, tree, false, hash4(1, std::uint64_t(level), std::uint64_t(it), 0),
-                            nullptr, cons, s.traceDescent ? &d : nullptr);
-                        int radius = 0;
-                        for (const auto& pv : ex.prepared) radius = std::max(radius, pv.levels[size_t(level)].neigh[which].radius);
-                        st.radius.push_back(radius);
-                        st.tree.push_back(tree);
-                        st.energy.push_back(e);
-                        if (s.traceDescent) st.descent.push_back({d.before, d.averaged, d.updated});
-                        tick();
-                    }
-                };
-                if (!ex.volume) run(1, std::max(0, s.largeIterations));
-                run(0, std::max(0, s.smallIterations));
-                out.levels.push_back(st);
-            }
+            L = synthesizePyramid(eng, in, dom, tick, out.levels);
         } else {
-            // Section 3.4: start from the previous detail advected through L, expressed in the new frames.
             if (progress) progress->begin("advect + refine");
             out.fromPrevious = true;
-            L = makeLevel(nL - 1);
-            resetSources(L);
-            VectorField prev = in.previous->world;
-            const VectorField moved = advect(prev, *in.coarse, in.dt, s.advect);
-            std::vector<Vec3f> adv(L.size(), Vec3f(0.0f));
-            parallelFor(size_t(L.n[0]), 1, [&](size_t b, size_t e) {
-                for (size_t x = b; x < e; ++x)
-                    for (int y = 0; y < L.n[1]; ++y)
-                        for (int z = 0; z < L.n[2]; ++z) {
-                            const Coord c = dom.box.min() + Coord(int(x), y, z);
-                            const Vec3f w = moved.valueOr(c.x(), c.y(), c.z(), Vec3f(0.0f));
-                            adv[L.idx(int(x), y, z)] = frames.at(L.world(double(x), y, z)).toLocal(w);
-                        }
-            });
-            L.h = adv;
-            const std::vector<Constraint> cons = makeConstraints(L, frames, s.boundary, in.obstacle);
-            SynthLevelStats st;
-            st.level = nL - 1;
-            st.dim = Coord(L.n[0], L.n[1], L.n[2]);
-            for (int it = 0; it < std::max(1, s.continueIterations); ++it) {
-                // k-coherence has no source map yet on a continued frame: its first iteration searches the tree.
-                const bool tree = !eng.kcoh || it < std::max(1, s.treeIterationsPerLevel);
-                Engine::Descent d;
-                const double e = eng.iterate(L, nL - 1, 0, tree, false, hash4(2, std::uint64_t(it), 0, 0), &adv, cons,
-                    s.traceDescent ? &d : nullptr);
-                if (s.traceDescent) st.descent.push_back({d.before, d.averaged, d.updated});
-                int radius = 0;
-                for (const auto& pv : ex.prepared) radius = std::max(radius, pv.levels.back().neigh[0].radius);
-                st.radius.push_back(radius);
-                st.tree.push_back(tree);
-                st.energy.push_back(e);
-                tick();
-            }
-            out.levels.push_back(st);
+            out.levels.push_back(continueFromPrevious(eng, L, in, dom, tick));
         }
-
-        // Post-process coordinate transformation (section 3.1): H' = R H.
-        out.local = VectorField(dom.box, dom.lattice);
-        out.world = VectorField(dom.box, dom.lattice);
-        parallelFor(size_t(L.n[0]), 1, [&](size_t b, size_t e) {
-            for (size_t x = b; x < e; ++x)
-                for (int y = 0; y < L.n[1]; ++y)
-                    for (int z = 0; z < L.n[2]; ++z) {
-                        const Vec3f h = L.h[L.idx(int(x), y, z)];
-                        const Coord c = dom.box.min() + Coord(int(x), y, z);
-                        out.local[c] = h;
-                        out.world[c] = frames.at(L.world(double(x), y, z)).toWorld(h);
-                    }
-        });
+        detailToWorld(L, dom, frames, out);
     });
     return out;
 }

@@ -68,7 +68,7 @@ SynthFrameResult SynthSequence::next(const SynthFrameInput& in, Progress* progre
     si.previous = continuing ? &*mPrevious : nullptr;
     si.dt = elapsed;
     DetailField H = synthesizeDetail(mExemplars, si, s.synth, progress);
-    r.seconds[0] = detail::lap(t0);
+    r.seconds.synthesis = detail::lap(t0);
 
     if (progress) progress->begin("combine");
     // Detail near the smoke only (issue 20): the smoke on L's box, zero where the density grid stops short.
@@ -85,7 +85,7 @@ SynthFrameResult SynthSequence::next(const SynthFrameInput& in, Progress* progre
         if (progress) progress->begin("projection");
         r.projection = projectMotion(r.motion, s, in.obstacle, volume, progress);
     }
-    r.seconds[1] = detail::lap(t0);
+    r.seconds.combine = detail::lap(t0);
 
     r.frame.number = in.frame;
     r.frame.dt = in.dt;
@@ -107,7 +107,7 @@ SynthFrameResult SynthSequence::next(const SynthFrameInput& in, Progress* progre
         for (float v : r.frame.density.values()) mass += v;
         r.densityMass = mass * std::pow(r.frame.density.lattice().voxelSize, 3);
     }
-    r.seconds[2] = detail::lap(t0);
+    r.seconds.density = detail::lap(t0);
 
     mPrevious = std::move(H);
     mPreviousFrame = in.frame;

@@ -63,6 +63,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <vector>
 
 namespace turb {
@@ -131,11 +132,12 @@ struct FluidyStats
     long long maskedPixels = 0;     ///< target mask pixels
     long long centres = 0;          ///< target patch centres (the mask and a ring of n/2 pixels around it)
     FluidyTerms energy;             ///< mean weighted terms per centre at the finest level's last E-step
-    double meanAbsSin = -1.0;       ///< direction: mean |sin| of (rotated source flow, target flow) where both move (>= movingSpeed); -1 if none
+    std::optional<double> meanAbsSin; ///< direction: mean |sin| of (rotated source flow, target flow) where both move (>= movingSpeed); none if none do
     long long movingPixels = 0;
     double speedCorrelation = 0.0;  ///< extent: Pearson correlation of |T^flow(q)| and |S^flow(p)| over mask pixels
     double extentCorrelation = 0.0; ///< Pearson correlation of T+ext(q) and S+ext(p) over mask pixels
-    double stationaryChange = -1.0; ///< flicker: mean |T^j - T^{j-1}| (RGB) where both masks hold and the flow is < stillSpeed; -1 on frame 1
+    std::optional<double> stationaryChange; ///< flicker: mean |T^j - T^{j-1}| (RGB) where both masks hold and the flow is < stillSpeed; none on
+                                            ///< a shot's first frame
     long long stationaryPixels = 0;
     double coverage = 0.0;          ///< fraction of source patch centres (i, x, y) covered by some target cuboid (Omega* > 0)
     double distinctPatches = 0.0;   ///< distinct source patches used / target centres

@@ -209,6 +209,14 @@ std::optional<double> detailIsotropy(const VectorField& u, const std::vector<uns
 std::optional<double> highFrequencyEnergy(const VectorField& u, const std::vector<unsigned char>& mask, int f);
 /// rms(div U) / rms(|grad U|) over the mask, central differences (nullopt if the gradient is zero).
 std::optional<double> relativeDivergence(const VectorField& u, const std::vector<unsigned char>& mask);
+/// lf_err: rms of boxdown_f(detail) over rms of boxdown_f(up) over the coarse cells where `coarseMask` is 1, the two
+/// sums per x-slab added in slab order. `detail` is U_h and `up` is up_f(U_t), both on the refined target lattice
+/// over the same box (world units per time unit); `coarseMask` has one byte per cell of boxdown_f's coarse box, in
+/// Field order (smokeMask of the target's density). Dimensionless, >= 0; 0 when the detail adds no coarse motion.
+/// nullopt when the mask is empty or up is zero on it (a target at rest). Throws ValueError when the boxes differ or
+/// the mask does not cover the coarse box.
+std::optional<double> lowFrequencyError(const VectorField& detail, const VectorField& up,
+    const std::vector<unsigned char>& coarseMask, int f);
 /// Mean |U(I+e_a) - U(I)| over voxel pairs inside the mask whose shared face lies on a seam plane
 /// (I+e_a)[a] = origin[a] + n * patch, over the same mean elsewhere (nullopt when either set is empty or zero).
 std::optional<double> blockRatio(const VectorField& u, const std::vector<unsigned char>& mask, int patch,

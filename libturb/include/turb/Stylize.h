@@ -39,6 +39,7 @@
 #include <turb/UniformNnf.h>
 
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 namespace turb {
@@ -91,8 +92,8 @@ struct StylizeStats
     double energy = 0.0;             ///< eq. 7 per target patch at the finest level's last E-step (mean D)
     double stdRatio = 0.0;           ///< interior luminance standard deviation, output / exemplar
     double gradientRatio = 0.0;      ///< interior mean |grad luminance|^2, output / exemplar
-    double temporalChange = -1.0;    ///< mean |X^t - warped X^{t-1}| (premultiplied RGBA, per channel) where
-                                     ///< lambda_q / lambda >= 0.5 and X_a^t >= 0.05; -1 on a first frame
+    std::optional<double> temporalChange; ///< mean |X^t - warped X^{t-1}| (premultiplied RGBA, per channel) where
+                                     ///< lambda_q / lambda >= 0.5 and X_a^t >= 0.05; none on a first frame
     double temporalPixels = 0.0;     ///< fraction of target pixels in that region
     double iou = 0.0;                ///< IoU of (output alpha >= 0.5) with (target alpha >= 0.5)
     std::vector<double> boundaryGradient;         ///< histogram of |grad alpha| in the target's boundary segment

@@ -19,6 +19,8 @@
 #include <turb/Synth.h>
 
 #include <optional>
+#include <utility>
+#include <vector>
 
 namespace turb {
 
@@ -47,6 +49,19 @@ struct SynthFrameInput
     double dt = 0.0;                            ///< time per frame, > 0
 };
 
+/// Where one frame's time went, seconds.
+struct SynthTimings
+{
+    double synthesis = 0.0; ///< synthesizeDetail: the detail H
+    double combine = 0.0;   ///< combineMotion and, with SynthSequenceSettings::project, the projection
+    double density = 0.0;   ///< the density carried through F (look-back, sources)
+    /// (name, seconds) in report order; the names are the JSON keys of `steps_s`.
+    std::vector<std::pair<const char*, double>> named() const
+    {
+        return {{"synthesis", synthesis}, {"combine", combine}, {"density", density}};
+    }
+};
+
 struct SynthFrameResult
 {
     Frame frame;                    ///< number, dt, velocity (F, or F - up(L) with detailOnly), density when made
@@ -54,7 +69,7 @@ struct SynthFrameResult
     std::optional<ProjectionResult> projection; ///< with SynthSequenceSettings::project
     bool smokeless = false;         ///< the frame's density holds no smoke, so no detail was placed (detailNearSmoke)
     double densityMass = -1.0;      ///< sum of the fine density times the voxel volume; -1 when none was made
-    double seconds[3] = {0, 0, 0};  ///< synthesis; combine and projection; density
+    SynthTimings seconds;
 };
 
 class SynthSequence

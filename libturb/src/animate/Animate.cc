@@ -216,6 +216,130 @@ void checkInput(const AnimateInput& in, const AnimateSettings& s)
         throw ValueError("the matte must be a 1-channel image of the target's size");
 }
 
+/// Step 2 (sections 3.1, 5.1): the designed flow from the strokes (or the given dense flow), refined along the
+/// target's edges when asked; fills designMeanSpeed, the matte-weighted mean |flow| in pixels per frame.
+ChannelImage designFlow(const AnimateInput& in, double exampleSpeed, const AnimateSettings& s, const InspectFn& inspect,
+    AnimateStats& st)
+{
+    const ChannelImage* matte = in.matte;
+    RoughFlow rough;
+    if (in.strokes) {
+        StrokeSettings ss = s.strokes;
+        ss.defaultSpeed = exampleSpeed;
+        rough = interpolateStrokes(*in.strokes, in.target.width(), in.target.height(), ss);
+    } else {
+        rough = roughFromFlow(*in.designedFlow);
+    }
+    ChannelImage flow;
+    if (s.refineFlow) {
+        RefinedFlow refined = refineFlow(in.target, rough, s.refine);
+        if (inspect) inspect("gradient", -1, refined.gradient);
+        flow = std::move(refined.flow);
+    } else {
+        flow = rough.flow();
+    }
+    double sum = 0.0, w = 0.0;
+    for (size_t i = 0; i < flow.pixelCount(); ++i) {
+        const double m = matte ? matte->pixel(i)[0] : 1.0;
+        sum += m * std::hypot(flow.pixel(i)[0], flow.pixel(i)[1]);
+        w += m;
+    }
+    st.designMeanSpeed = w > 0.0 ? sum / w : 0.0;
+    if (inspect) {
+        inspect("rough", -1, rough.flow());
+        inspect("refined", -1, flow);
+    }
+    return flow;
+}
+
+/// Step 5 (eq. 7), incrementally: every example residual transferred (R'_k) and accumulated along the designed
+/// flow; returns the N - tau differences D'_i. The example's residuals are released as they are used.
+std::vector<ChannelImage> synthesizeDifferences(ExampleDecomposition& ex, const TransferMap& map, const ChannelImage& flow,
+    int tau, const InspectFn& inspect, Progress* progress)
+{
+    std::vector<ChannelImage> diffs;
+    DifferenceSynthesizer synth(flow, tau);
+    ex.first = ChannelImage();
+    for (size_t k = 0; k < ex.residuals.size(); ++k) {
+        checkCancelled(progress);
+        if (progress) progress->update(double(k) / double(ex.residuals.size()));
+        ChannelImage rk = map.apply(ex.residuals[k]);
+        ex.residuals[k] = ChannelImage(); // the example's residual is no longer needed
+        if (inspect) inspect("Rprime", int(k), rk);
+        ChannelImage d = synth.push(rk);
+        if (!d.empty()) diffs.push_back(std::move(d));
+    }
+    return diffs;
+}
+
+/// What step 6 composes every frame from.
+struct FrameAssembly
+{
+    const ChannelImage& target;
+    const ChannelImage* matte;
+    const ChannelImage& average;      ///< A'
+    const HistogramMatcher* matcher;  ///< null without histogram matching
+    const std::vector<HmCell>& cells; ///< the matcher's cells, or none
+    int tau;
+};
+
+/// Frame `index`: A' + D''_i composited into the target through the matte, histogram-matched, composited again, and
+/// its errors against the target. Consumes `d`.
+AnimatedFrame assembleFrame(ChannelImage& d, size_t index, const FrameAssembly& a)
+{
+    const auto tf = std::chrono::steady_clock::now();
+    for (size_t q = 0; q < d.data().size(); ++q) d.data()[q] += a.average.data()[q];
+    composite(d, a.target, a.matte);
+    AnimatedFrame f;
+    f.index = int(index);
+    f.exampleIndex = int(index) + a.tau;
+    f.image = a.matcher ? a.matcher->match(d) : std::move(d);
+    composite(f.image, a.target, a.matte);
+    d = ChannelImage();
+    frameErrors(f, a.target, a.cells);
+    f.seconds = since(tf);
+    return f;
+}
+
+/// Step 6 (section 5.6): eq. 8's contrast adjustment and histogram matching, frames in parallel batches, delivered
+/// to `sink` in order. Returns the seconds spent, the matcher's set-up included.
+double matchAndDeliver(std::vector<ChannelImage>& diffs, const ContrastAdjustment& adj, const ChannelImage& Aprime,
+    const AnimateInput& in, const AnimateSettings& s, const std::function<void(const AnimatedFrame&)>& sink,
+    const InspectFn& inspect, AnimateStats& st, Progress* progress)
+{
+    const auto t0 = std::chrono::steady_clock::now();
+    std::unique_ptr<HistogramMatcher> hm;
+    if (s.histogramMatch) {
+        hm = std::make_unique<HistogramMatcher>(in.target, s.hm, in.matte);
+        st.gridCols = hm->gridCols();
+        st.gridRows = hm->gridRows();
+    }
+    const std::vector<HmCell> noCells;
+    const FrameAssembly assembly{in.target, in.matte, Aprime, hm.get(), hm ? hm->cells() : noCells, s.tau};
+    const size_t count = diffs.size();
+    double matching = since(t0); // the target's pyramids and tables
+    for (size_t b0 = 0; b0 < count; b0 += size_t(s.batch)) {
+        checkCancelled(progress);
+        if (progress) progress->update(double(b0) / double(count));
+        const auto tb = std::chrono::steady_clock::now();
+        const size_t b1 = std::min(count, b0 + size_t(s.batch));
+        for (size_t j = b0; j < b1; ++j) {
+            adj.apply(diffs[j]);
+            if (inspect) inspect("Dsecond", int(j), diffs[j]);
+        }
+        std::vector<AnimatedFrame> out(b1 - b0);
+        parallelFor(b1 - b0, 1, [&](size_t j0, size_t j1) {
+            for (size_t j = j0; j < j1; ++j) {
+                checkCancelled(progress);
+                out[j] = assembleFrame(diffs[b0 + j], b0 + j, assembly);
+            }
+        });
+        matching += since(tb);
+        for (AnimatedFrame& f : out) sink(f);
+    }
+    return matching;
+}
+
 } // namespace
 
 AnimateStats animate(AnimateInput in, const AnimateSettings& s, const std::function<void(const AnimatedFrame&)>& sink, Progress* progress,
@@ -226,8 +350,7 @@ AnimateStats animate(AnimateInput in, const AnimateSettings& s, const std::funct
     AnimateStats st;
     const ChannelImage& target = in.target;
     const ChannelImage* matte = in.matte;
-    const int W = target.width(), H = target.height();
-    if (in.strokes) validateStrokes(*in.strokes, W, H);
+    if (in.strokes) validateStrokes(*in.strokes, target.width(), target.height());
 
     // 1. Decomposition (section 4).
     auto t0 = std::chrono::steady_clock::now();
@@ -244,35 +367,7 @@ AnimateStats animate(AnimateInput in, const AnimateSettings& s, const std::funct
     // 2. Flow design (3.1, 5.1).
     t0 = std::chrono::steady_clock::now();
     if (progress) progress->begin("design");
-    RoughFlow rough;
-    if (in.strokes) {
-        StrokeSettings ss = s.strokes;
-        ss.defaultSpeed = ex.stats.meanSpeed;
-        rough = interpolateStrokes(*in.strokes, W, H, ss);
-    } else {
-        rough = roughFromFlow(*in.designedFlow);
-    }
-    ChannelImage flow;
-    if (s.refineFlow) {
-        RefinedFlow refined = refineFlow(target, rough, s.refine);
-        if (inspect) inspect("gradient", -1, refined.gradient);
-        flow = std::move(refined.flow);
-    } else {
-        flow = rough.flow();
-    }
-    {
-        double sum = 0.0, w = 0.0;
-        for (size_t i = 0; i < flow.pixelCount(); ++i) {
-            const double m = matte ? matte->pixel(i)[0] : 1.0;
-            sum += m * std::hypot(flow.pixel(i)[0], flow.pixel(i)[1]);
-            w += m;
-        }
-        st.designMeanSpeed = w > 0.0 ? sum / w : 0.0;
-    }
-    if (inspect) {
-        inspect("rough", -1, rough.flow());
-        inspect("refined", -1, flow);
-    }
+    const ChannelImage flow = designFlow(in, ex.stats.meanSpeed, s, inspect, st);
     st.secondsDesign = since(t0);
 
     // 3. Residual transfer (5.2): one map for all frames.
@@ -293,20 +388,7 @@ AnimateStats animate(AnimateInput in, const AnimateSettings& s, const std::funct
     // 5. Eq. 7, incrementally; the N - tau differences are kept for eq. 8's global statistics.
     t0 = std::chrono::steady_clock::now();
     if (progress) progress->begin("synthesis");
-    std::vector<ChannelImage> diffs;
-    {
-        DifferenceSynthesizer synth(flow, s.tau);
-        ex.first = ChannelImage();
-        for (size_t k = 0; k < ex.residuals.size(); ++k) {
-            checkCancelled(progress);
-            if (progress) progress->update(double(k) / double(ex.residuals.size()));
-            ChannelImage rk = map.apply(ex.residuals[k]);
-            ex.residuals[k] = ChannelImage(); // the example's residual is no longer needed
-            if (inspect) inspect("Rprime", int(k), rk);
-            ChannelImage d = synth.push(rk);
-            if (!d.empty()) diffs.push_back(std::move(d));
-        }
-    }
+    std::vector<ChannelImage> diffs = synthesizeDifferences(ex, map, flow, s.tau, inspect, progress);
     const ContrastAdjustment adj = contrastAdjustment(diffs, cimg, matte);
     st.alpha = adj.alpha;
     st.beta = adj.beta;
@@ -317,48 +399,8 @@ AnimateStats animate(AnimateInput in, const AnimateSettings& s, const std::funct
     st.secondsSynthesis = since(t0);
 
     // 6. Histogram matching (5.6), frames in parallel batches, delivered in order.
-    t0 = std::chrono::steady_clock::now();
     if (progress) progress->begin("histogram matching");
-    std::unique_ptr<HistogramMatcher> hm;
-    if (s.histogramMatch) {
-        hm = std::make_unique<HistogramMatcher>(target, s.hm, matte);
-        st.gridCols = hm->gridCols();
-        st.gridRows = hm->gridRows();
-    }
-    const std::vector<HmCell> noCells;
-    const size_t count = diffs.size();
-    double matching = since(t0); // the target's pyramids and tables
-    for (size_t b0 = 0; b0 < count; b0 += size_t(s.batch)) {
-        checkCancelled(progress);
-        if (progress) progress->update(double(b0) / double(count));
-        const auto tb = std::chrono::steady_clock::now();
-        const size_t b1 = std::min(count, b0 + size_t(s.batch));
-        for (size_t j = b0; j < b1; ++j) {
-            adj.apply(diffs[j]);
-            if (inspect) inspect("Dsecond", int(j), diffs[j]);
-        }
-        std::vector<AnimatedFrame> out(b1 - b0);
-        parallelFor(b1 - b0, 1, [&](size_t j0, size_t j1) {
-            for (size_t j = j0; j < j1; ++j) {
-                const auto tf = std::chrono::steady_clock::now();
-                checkCancelled(progress);
-                ChannelImage& d = diffs[b0 + j];
-                for (size_t q = 0; q < d.data().size(); ++q) d.data()[q] += Aprime.data()[q];
-                composite(d, target, matte);
-                AnimatedFrame& f = out[j];
-                f.index = int(b0 + j);
-                f.exampleIndex = int(b0 + j) + s.tau;
-                f.image = hm ? hm->match(d) : std::move(d);
-                composite(f.image, target, matte);
-                diffs[b0 + j] = ChannelImage();
-                frameErrors(f, target, hm ? hm->cells() : noCells);
-                f.seconds = since(tf);
-            }
-        });
-        matching += since(tb);
-        for (AnimatedFrame& f : out) sink(f);
-    }
-    st.secondsMatching = matching;
+    st.secondsMatching = matchAndDeliver(diffs, adj, Aprime, in, s, sink, inspect, st, progress);
     return st;
 }
 

@@ -1,5 +1,6 @@
-// Fluidymation (seed 004): generalized PatchMatch over (i, x, y, theta), the occurrence map, the
-// rotation-aware pyramid with the previous frame's shifted NNF, and the per-frame measurements.
+// Platkevič et al., "Fluidymation: Stylizing Animations Using Natural Dynamics of Artistic Media": generalized
+// PatchMatch over (i, x, y, theta), the occurrence map, the rotation-aware pyramid with the previous frame's shifted
+// NNF, and the per-frame measurements.
 #include <turb/Fluidymation.h>
 
 #include <turb/Error.h>
@@ -136,6 +137,28 @@ struct Fluidymator::Impl
         FluidyStats& st) const;
     void measure(const ExemplarLevel& E0, const TargetLevel& T0, RotatedNnf& nnf, const ChannelImage& rgba, const ChannelImage& mask,
         const ChannelImage& flow, const ChannelImage& ext, FluidyStats& st);
+    /// Level 0's per-voxel extents, signed distance and flow, the exemplar's D^ext unit and interior luminance std.
+    void levelZeroExtras(const std::vector<ChannelImage>& rgb, const MotionSequence& exMotion);
+    /// The exemplar's pyramid and every level's patch centres; throws ValueError for a level without centres.
+    void buildExemplarPyramid(const std::vector<ChannelImage>& rgb, const MotionSequence& exMotion, Progress* progress);
+
+    /// One target frame's guides: its full-resolution images (with T^temp from the previous frame's shifted NNF),
+    /// the raw extents, that shifted NNF and the target pyramid.
+    struct FrameGuides
+    {
+        FrameImages images;
+        ChannelImage extRaw;
+        RotatedNnf shifted; ///< empty on the first frame of a shot
+        std::vector<TargetLevel> levels;
+    };
+    FrameGuides frameGuides(int frame, FluidyStats& st) const;
+    /// MERGENNF: takes the shifted previous NNF into `up` where it has the smaller D; returns how many pixels took it.
+    double mergeShifted(ExemplarLevel& E, TargetLevel& TL, int l, const RotatedNnf& shifted, const ChannelImage& coarser,
+        RotatedNnf& up) const;
+    /// Level l of Algorithm 1: the start NNF (random, shifted, or the coarser one upscaled and merged), then
+    /// Algorithm 2's FINDNNF + VOTE iterations. `result` holds the last vote.
+    void synthesizeLevel(int l, int frame, FrameGuides& g, RotatedNnf& nnf, ChannelImage& result, FluidyStats& st,
+        Progress* progress);
 };
 
 PatchRef Fluidymator::Impl::randomRef(const ExemplarLevel& E, const TargetLevel& T, size_t q, std::uint64_t key) const
@@ -388,6 +411,140 @@ RotatedNnf Fluidymator::Impl::shiftPrevious(const ChannelImage& ext, const std::
     return out;
 }
 
+namespace {
+
+/// Throws ValueError when the exemplar and the target cannot be synthesised from (see the constructor's doc).
+void checkFluidyInputs(const FluidySettings& settings, const std::vector<ChannelImage>& rgb, const MotionSequence& exMotion,
+    const MotionSequence& target, const RotationTable& table)
+{
+    const int F = exMotion.frames(), n = settings.patchSize;
+    if (!exMotion.finished() || !target.finished()) throw ValueError("fluidymation: the motion sequences must be finished");
+    if (int(rgb.size()) != F)
+        throw ValueError("fluidymation: " + std::to_string(rgb.size()) + " exemplar frames but " + std::to_string(F) + " exemplar masks");
+    if (F < 2 * settings.cuboidFrames + 1)
+        throw ValueError("fluidymation: the exemplar has " + std::to_string(F) + " frames, fewer than 2r + 1 = " +
+                         std::to_string(2 * settings.cuboidFrames + 1) + " (r = " + std::to_string(settings.cuboidFrames) + ")");
+    const int sw = exMotion.width(), sh = exMotion.height(), tw = target.width(), th = target.height();
+    for (const ChannelImage& c : rgb)
+        if (c.width() != sw || c.height() != sh || c.channels() < 3)
+            throw ValueError("fluidymation: every exemplar frame must be RGB of the masks' size (" + std::to_string(sw) + "x" + std::to_string(sh) + ")");
+    if (sw > 32767 || sh > 32767 || F > 32767)
+        throw ValueError("fluidymation: the exemplar must be at most 32767 pixels and frames along each axis");
+    const int minSide = 2 * (table.reach() + 1) + 1;
+    if (std::min(sw, sh) < minSide || std::min(tw, th) < n)
+        throw ValueError("fluidymation: the exemplar (" + std::to_string(sw) + "x" + std::to_string(sh) + ") or the target (" + std::to_string(tw) +
+                         "x" + std::to_string(th) + ") is too small for " + std::to_string(n) + "x" + std::to_string(n) + " rotated patches");
+    long long exMasked = 0, tMasked = 0;
+    for (int i = 0; i < F; ++i) exMasked += exMotion.maskedPixels(i);
+    for (int k = 0; k < target.frames(); ++k) tMasked += target.maskedPixels(k);
+    if (exMasked == 0) throw ValueError("fluidymation: the exemplar's masks are empty in every frame");
+    if (tMasked == 0) throw ValueError("fluidymation: the target's masks are empty in every frame");
+}
+
+/// The target's own D^ext unit: the 95th percentile of its extents inside its masks, from at most ~1M samples
+/// (every k-th frame and pixel).
+double targetExtentUnit(const MotionSequence& target)
+{
+    std::vector<float> t;
+    long long total = 0;
+    for (int k = 0; k < target.frames(); ++k) total += target.maskedPixels(k);
+    const long long step = std::max(1LL, total / 1000000);
+    long long seen = 0;
+    for (int k = 0; k < target.frames(); ++k) {
+        if (target.maskedPixels(k) == 0) continue;
+        const ChannelImage e = target.extents(k), m = target.mask(k);
+        for (size_t p = 0; p < e.pixelCount(); ++p)
+            if (m.pixel(p)[0] >= 0.5f && seen++ % step == 0) {
+                t.push_back(e.pixel(p)[0]);
+                t.push_back(e.pixel(p)[1]);
+            }
+    }
+    return percentile95(std::move(t));
+}
+
+} // namespace
+
+void Fluidymator::Impl::levelZeroExtras(const std::vector<ChannelImage>& rgb, const MotionSequence& exMotion)
+{
+    const size_t plane = size_t(exMotion.width()) * size_t(exMotion.height()), voxels = plane * size_t(F);
+    sExt.assign(2 * voxels, 0.0f);
+    sPhi.assign(voxels, 0.0f);
+    sFlow.assign(2 * voxels, 0.0f);
+    std::vector<float> extValues;
+    double l1 = 0.0, l2 = 0.0, ln = 0.0;
+    for (int i = 0; i < F; ++i) {
+        const ChannelImage e = exMotion.extents(i), fl = exMotion.flow(i), ph = exMotion.distance(i), mk = exMotion.mask(i);
+        for (size_t p = 0; p < plane; ++p) {
+            const size_t v = size_t(i) * plane + p;
+            std::copy(e.pixel(p), e.pixel(p) + 2, sExt.data() + 2 * v);
+            std::copy(fl.pixel(p), fl.pixel(p) + 2, sFlow.data() + 2 * v);
+            sPhi[v] = ph.pixel(p)[0];
+            if (mk.pixel(p)[0] >= 0.5f) {
+                extValues.push_back(e.pixel(p)[0]);
+                extValues.push_back(e.pixel(p)[1]);
+                const double Y = luminance(rgb[size_t(i)].pixel(p));
+                l1 += Y;
+                l2 += Y * Y;
+                ln += 1.0;
+            }
+        }
+    }
+    extScale = s.extentScale > 0.0 ? s.extentScale : percentile95(std::move(extValues));
+    exLumStd = ln > 1.0 ? std::sqrt(std::max(0.0, l2 / ln - (l1 / ln) * (l1 / ln))) : 0.0;
+}
+
+void Fluidymator::Impl::buildExemplarPyramid(const std::vector<ChannelImage>& rgb, const MotionSequence& exMotion,
+    Progress* progress)
+{
+    ex.resize(size_t(L));
+    for (int l = 0; l < L; ++l) {
+        ExemplarLevel& E = ex[size_t(l)];
+        E.W = exMotion.width();
+        E.H = exMotion.height();
+        for (int k = 0; k < l; ++k) {
+            E.W = (E.W + 1) / 2;
+            E.H = (E.H + 1) / 2;
+        }
+        E.F = F;
+        const size_t v = size_t(E.W) * size_t(E.H) * size_t(E.F);
+        E.feat.assign(v * kS, 0.0f);
+        E.dirStep.assign(v, kNoDirection);
+        E.label.assign(v, -1);
+        E.segment.assign(v, kBoundary);
+        E.vote.resize(size_t(E.F));
+        E.counts.assign(v, 0);
+        E.omega.assign(v, 0.0f);
+        E.omegaPatch.assign(v, 0.0f);
+        E.scratch.assign(v, 0.0f);
+    }
+    for (int i = 0; i < F; ++i) {
+        checkCancelled(progress);
+        FrameImages f;
+        f.rgb = channelRange(rgb[size_t(i)], 0, 3);
+        f.mask = exMotion.mask(i);
+        f.shape = gaussianBlur(f.mask, s.boundaryBlur / 3.0);
+        f.ext = exMotion.extents(i);
+        for (float& x : f.ext.data()) x = float(x / extScale);
+        f.flow = exMotion.flow(i);
+        for (int l = 0; l < L; ++l) {
+            if (l > 0) f = reduced(f);
+            fillExemplarFrame(ex[size_t(l)], i, f, rules);
+        }
+        if (progress) progress->update(double(i + 1) / F);
+    }
+    for (int l = 0; l < L; ++l) {
+        ExemplarLevel& E = ex[size_t(l)];
+        for (size_t v = 0; v < E.label.size(); ++v)
+            if (E.label[v] >= 0) {
+                E.centres.push_back(std::int32_t(v));
+                ++E.segCount[E.label[v]];
+            }
+        if (E.centres.empty())
+            throw ValueError("fluidymation: the exemplar has no patch centre at pyramid level " + std::to_string(l) +
+                             " (its masks are too small or too close to the border); use fewer pyramid levels");
+    }
+}
+
 Fluidymator::Fluidymator(const FluidySettings& settings, const std::vector<ChannelImage>& rgb, const MotionSequence& exMotion,
     const MotionSequence& target, Progress* progress)
     : mImpl(std::make_unique<Impl>())
@@ -400,28 +557,8 @@ Fluidymator::Fluidymator(const FluidySettings& settings, const std::vector<Chann
     I.table = RotationTable(I.r);
     I.target = &target;
     I.F = exMotion.frames();
-    if (!exMotion.finished() || !target.finished()) throw ValueError("fluidymation: the motion sequences must be finished");
-    if (int(rgb.size()) != I.F)
-        throw ValueError("fluidymation: " + std::to_string(rgb.size()) + " exemplar frames but " + std::to_string(I.F) + " exemplar masks");
-    if (I.F < 2 * settings.cuboidFrames + 1)
-        throw ValueError("fluidymation: the exemplar has " + std::to_string(I.F) + " frames, fewer than 2r + 1 = " +
-                         std::to_string(2 * settings.cuboidFrames + 1) + " (r = " + std::to_string(settings.cuboidFrames) + ")");
+    checkFluidyInputs(settings, rgb, exMotion, target, I.table);
     const int sw = exMotion.width(), sh = exMotion.height(), tw = target.width(), th = target.height();
-    for (const ChannelImage& c : rgb)
-        if (c.width() != sw || c.height() != sh || c.channels() < 3)
-            throw ValueError("fluidymation: every exemplar frame must be RGB of the masks' size (" + std::to_string(sw) + "x" + std::to_string(sh) + ")");
-    if (sw > 32767 || sh > 32767 || I.F > 32767)
-        throw ValueError("fluidymation: the exemplar must be at most 32767 pixels and frames along each axis");
-    const int minSide = 2 * (I.table.reach() + 1) + 1;
-    if (std::min(sw, sh) < minSide || std::min(tw, th) < I.n)
-        throw ValueError("fluidymation: the exemplar (" + std::to_string(sw) + "x" + std::to_string(sh) + ") or the target (" + std::to_string(tw) +
-                         "x" + std::to_string(th) + ") is too small for " + std::to_string(I.n) + "x" + std::to_string(I.n) + " rotated patches");
-    long long exMasked = 0, tMasked = 0;
-    for (int i = 0; i < I.F; ++i) exMasked += exMotion.maskedPixels(i);
-    for (int k = 0; k < target.frames(); ++k) tMasked += target.maskedPixels(k);
-    if (exMasked == 0) throw ValueError("fluidymation: the exemplar's masks are empty in every frame");
-    if (tMasked == 0) throw ValueError("fluidymation: the target's masks are empty in every frame");
-
     I.L = settings.levels > 0 ? settings.levels : fluidyLevels(sw, sh, tw, th, I.n);
     I.bw = settings.boundaryWidth > 0 ? settings.boundaryWidth : I.n;
     I.rules = LevelRules{I.r, I.bw, settings.flowEpsilon, I.table.reach()};
@@ -429,101 +566,10 @@ Fluidymator::Fluidymator(const FluidySettings& settings, const std::vector<Chann
     I.mLower = settings.mLower * d;
     I.mUpper = settings.mUpper * d;
 
-    // Level 0 extras and the extent unit.
-    const size_t plane = size_t(sw) * size_t(sh), voxels = plane * size_t(I.F);
-    I.sExt.assign(2 * voxels, 0.0f);
-    I.sPhi.assign(voxels, 0.0f);
-    I.sFlow.assign(2 * voxels, 0.0f);
-    std::vector<float> extValues;
-    double l1 = 0.0, l2 = 0.0, ln = 0.0;
-    for (int i = 0; i < I.F; ++i) {
-        const ChannelImage e = exMotion.extents(i), fl = exMotion.flow(i), ph = exMotion.distance(i), mk = exMotion.mask(i);
-        for (size_t p = 0; p < plane; ++p) {
-            const size_t v = size_t(i) * plane + p;
-            std::copy(e.pixel(p), e.pixel(p) + 2, I.sExt.data() + 2 * v);
-            std::copy(fl.pixel(p), fl.pixel(p) + 2, I.sFlow.data() + 2 * v);
-            I.sPhi[v] = ph.pixel(p)[0];
-            if (mk.pixel(p)[0] >= 0.5f) {
-                extValues.push_back(e.pixel(p)[0]);
-                extValues.push_back(e.pixel(p)[1]);
-                const double Y = luminance(rgb[size_t(i)].pixel(p));
-                l1 += Y;
-                l2 += Y * Y;
-                ln += 1.0;
-            }
-        }
-    }
-    I.extScale = settings.extentScale > 0.0 ? settings.extentScale : percentile95(std::move(extValues));
-    if (settings.targetExtentScale > 0.0) {
-        I.targetExtScale = settings.targetExtentScale;
-    } else {
-        // The target's own 95th percentile, from at most ~1M samples (every k-th frame and pixel).
-        std::vector<float> t;
-        long long total = 0;
-        for (int k = 0; k < target.frames(); ++k) total += target.maskedPixels(k);
-        const long long step = std::max(1LL, total / 1000000);
-        long long seen = 0;
-        for (int k = 0; k < target.frames(); ++k) {
-            if (target.maskedPixels(k) == 0) continue;
-            const ChannelImage e = target.extents(k), m = target.mask(k);
-            for (size_t p = 0; p < e.pixelCount(); ++p)
-                if (m.pixel(p)[0] >= 0.5f && seen++ % step == 0) {
-                    t.push_back(e.pixel(p)[0]);
-                    t.push_back(e.pixel(p)[1]);
-                }
-        }
-        I.targetExtScale = percentile95(std::move(t));
-    }
-    I.exLumStd = ln > 1.0 ? std::sqrt(std::max(0.0, l2 / ln - (l1 / ln) * (l1 / ln))) : 0.0;
-
-    // The exemplar's pyramid: every frame reduced level by level.
-    I.ex.resize(size_t(I.L));
-    for (int l = 0; l < I.L; ++l) {
-        ExemplarLevel& E = I.ex[size_t(l)];
-        E.W = sw;
-        E.H = sh;
-        for (int k = 0; k < l; ++k) {
-            E.W = (E.W + 1) / 2;
-            E.H = (E.H + 1) / 2;
-        }
-        E.F = I.F;
-        const size_t v = size_t(E.W) * size_t(E.H) * size_t(E.F);
-        E.feat.assign(v * kS, 0.0f);
-        E.dirStep.assign(v, kNoDirection);
-        E.label.assign(v, -1);
-        E.segment.assign(v, kBoundary);
-        E.vote.resize(size_t(E.F));
-        E.counts.assign(v, 0);
-        E.omega.assign(v, 0.0f);
-        E.omegaPatch.assign(v, 0.0f);
-        E.scratch.assign(v, 0.0f);
-    }
-    for (int i = 0; i < I.F; ++i) {
-        checkCancelled(progress);
-        FrameImages f;
-        f.rgb = channelRange(rgb[size_t(i)], 0, 3);
-        f.mask = exMotion.mask(i);
-        f.shape = gaussianBlur(f.mask, settings.boundaryBlur / 3.0);
-        f.ext = exMotion.extents(i);
-        for (float& x : f.ext.data()) x = float(x / I.extScale);
-        f.flow = exMotion.flow(i);
-        for (int l = 0; l < I.L; ++l) {
-            if (l > 0) f = reduced(f);
-            fillExemplarFrame(I.ex[size_t(l)], i, f, I.rules);
-        }
-        if (progress) progress->update(double(i + 1) / I.F);
-    }
-    for (int l = 0; l < I.L; ++l) {
-        ExemplarLevel& E = I.ex[size_t(l)];
-        for (size_t v = 0; v < E.label.size(); ++v)
-            if (E.label[v] >= 0) {
-                E.centres.push_back(std::int32_t(v));
-                ++E.segCount[E.label[v]];
-            }
-        if (E.centres.empty())
-            throw ValueError("fluidymation: the exemplar has no patch centre at pyramid level " + std::to_string(l) +
-                             " (its masks are too small or too close to the border); use fewer pyramid levels");
-    }
+    // Level 0 extras and the extent units, then the exemplar's pyramid: every frame reduced level by level.
+    I.levelZeroExtras(rgb, exMotion);
+    I.targetExtScale = settings.targetExtentScale > 0.0 ? settings.targetExtentScale : targetExtentUnit(target);
+    I.buildExemplarPyramid(rgb, exMotion, progress);
 }
 
 Fluidymator::~Fluidymator() = default;
@@ -617,7 +663,7 @@ void Fluidymator::Impl::measure(const ExemplarLevel& E0c, const TargetLevel& T0,
     });
     if (m[2] > 1.0 && exLumStd > 0.0) st.contrastRatio = std::sqrt(std::max(0.0, m[1] / m[2] - (m[0] / m[2]) * (m[0] / m[2]))) / exLumStd;
     st.movingPixels = (long long)m[4];
-    st.meanAbsSin = m[4] > 0.0 ? m[3] / m[4] : -1.0;
+    if (m[4] > 0.0) st.meanAbsSin = m[3] / m[4];
     st.speedCorrelation = pearson(m[5], m[6], m[7], m[8], m[9], m[10]);
     st.extentCorrelation = pearson(m[5], m[11], m[12], m[13], m[14], m[15]);
     if (!prevRgb.empty()) {
@@ -637,6 +683,101 @@ void Fluidymator::Impl::measure(const ExemplarLevel& E0c, const TargetLevel& T0,
     std::sort(keys.begin(), keys.end());
     const size_t distinct = size_t(std::unique(keys.begin(), keys.end()) - keys.begin());
     st.distinctPatches = keys.empty() ? 0.0 : double(distinct) / double(keys.size());
+}
+
+Fluidymator::Impl::FrameGuides Fluidymator::Impl::frameGuides(int frame, FluidyStats& st) const
+{
+    const MotionSequence& tg = *target;
+    FrameGuides g;
+    FrameImages& f = g.images;
+    f.mask = tg.mask(frame);
+    f.flow = tg.flow(frame);
+    g.extRaw = tg.extents(frame);
+    f.ext = g.extRaw;
+    for (float& x : f.ext.data()) x = float(x / targetExtScale);
+    f.shape = gaussianBlur(f.mask, s.boundaryBlur / 3.0);
+    f.temp = ChannelImage(tg.width(), tg.height(), 4);
+    if (havePrev) {
+        // Section 3.4: the previous NNF shifted by Delta i*, voted into T^temp, weighted by w^temp m.
+        ChannelImage m;
+        g.shifted = shiftPrevious(g.extRaw, patchMeanSteps(f.flow, r, s.flowEpsilon), signedDistance(f.mask), m, st);
+        std::vector<const ChannelImage*> frames;
+        for (const ChannelImage& v : ex[0].vote) frames.push_back(&v);
+        voteRotated(frames, g.shifted, r, 0, 0, 3, f.temp);
+        for (size_t p = 0; p < f.temp.pixelCount(); ++p) f.temp.pixel(p)[3] = s.wTemp * m.pixel(p)[0];
+    }
+    FrameImages reducedImages = f;
+    g.levels.resize(size_t(L));
+    for (int l = 0; l < L; ++l) {
+        if (l > 0) reducedImages = reduced(reducedImages);
+        g.levels[size_t(l)] = makeTargetLevel(reducedImages, rules);
+    }
+    return g;
+}
+
+double Fluidymator::Impl::mergeShifted(ExemplarLevel& E, TargetLevel& TL, int l, const RotatedNnf& shifted,
+    const ChannelImage& coarser, RotatedNnf& up) const
+{
+    // MERGENNF: per pixel the start with the smaller D, compared on the coarser result enlarged.
+    const ChannelImage big = enlarge(coarser, TL.W, TL.H);
+    for (int y = -TL.pad; y < TL.H + TL.pad; ++y)
+        for (int x = -TL.pad; x < TL.W + TL.pad; ++x)
+            std::copy(big.pixel(std::clamp(x, 0, TL.W - 1), std::clamp(y, 0, TL.H - 1)),
+                big.pixel(std::clamp(x, 0, TL.W - 1), std::clamp(y, 0, TL.H - 1)) + 3, TL.at(x, y));
+    const RotatedNnf pd = l == 0 ? shifted : downscaleNnf(shifted, l, TL.W, TL.H);
+    if (s.wUni > 0.0f) rebuildOmega(E, TL, up);
+    const Evaluator ev(E, TL, table, weights());
+    const std::vector<double> taken = rowSums(TL.H, 1, [&](int y, double* a) {
+        for (int x = 0; x < TL.W; ++x) {
+            const size_t q = size_t(y) * size_t(TL.W) + size_t(x);
+            if (TL.label[q] < 0 || !E.isCentre(pd.match[q])) continue;
+            const float du = ev(x, y, up.match[q], kInf);
+            if (ev(x, y, pd.match[q], du) < du) {
+                up.match[q] = pd.match[q];
+                a[0] += 1.0;
+            }
+        }
+    });
+    return taken[0];
+}
+
+void Fluidymator::Impl::synthesizeLevel(int l, int frame, FrameGuides& g, RotatedNnf& nnf, ChannelImage& result,
+    FluidyStats& st, Progress* progress)
+{
+    ExemplarLevel& E = ex[size_t(l)];
+    TargetLevel& TL = g.levels[size_t(l)];
+    const bool reuse = havePrev && s.reusePrevious;
+    const std::uint64_t key = detail::key(s.seed, std::uint64_t(frame), std::uint64_t(l), 0x1e7e1);
+    auto ts = Clock::now();
+    if (l == L - 1) {
+        // Algorithm 1: random only at the coarsest level of the first frame (and where the previous
+        // frame had no patch); else the previous frame's shifted field, downscaled by mode.
+        nnf = reuse ? downscaleNnf(g.shifted, l, TL.W, TL.H) : emptyRotatedNnf(TL.W, TL.H);
+        repair(E, TL, nnf, key);
+    } else {
+        RotatedNnf up = upscaleNnf(nnf, TL.W, TL.H);
+        repair(E, TL, up, key);
+        if (reuse) {
+            const double taken = mergeShifted(E, TL, l, g.shifted, result, up);
+            if (l == 0) st.reusedFraction = st.centres ? taken / double(st.centres) : 0.0;
+        }
+        nnf = std::move(up);
+    }
+    st.secondsSearch += since(ts);
+    // Algorithm 2: vote the start, then FINDNNF + VOTE.
+    auto tv = Clock::now();
+    voteInto(E, nnf, TL, &result);
+    st.secondsVote += since(tv);
+    const int iterations = l == 0 ? s.fineIterations : s.iterations;
+    for (int it = 0; it < iterations; ++it) {
+        if (progress) progress->begin("level " + std::to_string(l) + " iteration " + std::to_string(it + 1));
+        ts = Clock::now();
+        findNnf(E, TL, nnf, detail::key(key, std::uint64_t(it), 0x5ea, 0), l == 0, progress);
+        st.secondsSearch += since(ts);
+        tv = Clock::now();
+        voteInto(E, nnf, TL, &result);
+        st.secondsVote += since(tv);
+    }
 }
 
 FluidyFrame Fluidymator::next(Progress* progress)
@@ -663,96 +804,19 @@ FluidyFrame Fluidymator::next(Progress* progress)
     }
     auto t0 = Clock::now();
     if (progress) progress->begin("guides");
-    FrameImages f;
-    f.mask = tg.mask(j);
-    f.flow = tg.flow(j);
-    const ChannelImage extRaw = tg.extents(j);
-    f.ext = extRaw;
-    for (float& x : f.ext.data()) x = float(x / I.targetExtScale);
-    f.shape = gaussianBlur(f.mask, I.s.boundaryBlur / 3.0);
-    f.temp = ChannelImage(W, H, 4);
-    RotatedNnf shifted;
-    const bool reuse = I.havePrev && I.s.reusePrevious;
-    if (I.havePrev) {
-        // Section 3.4: the previous NNF shifted by Delta i*, voted into T^temp, weighted by w^temp m.
-        ChannelImage m;
-        shifted = I.shiftPrevious(extRaw, patchMeanSteps(f.flow, I.r, I.s.flowEpsilon), signedDistance(f.mask), m, st);
-        std::vector<const ChannelImage*> frames;
-        for (const ChannelImage& v : I.ex[0].vote) frames.push_back(&v);
-        voteRotated(frames, shifted, I.r, 0, 0, 3, f.temp);
-        for (size_t p = 0; p < f.temp.pixelCount(); ++p) f.temp.pixel(p)[3] = I.s.wTemp * m.pixel(p)[0];
-    }
-    std::vector<TargetLevel> T(size_t(I.L));
-    {
-        FrameImages g = f;
-        for (int l = 0; l < I.L; ++l) {
-            if (l > 0) g = reduced(g);
-            T[size_t(l)] = makeTargetLevel(g, I.rules);
-        }
-    }
-    st.centres = T[0].segCount[0] + T[0].segCount[1];
+    Impl::FrameGuides g = I.frameGuides(j, st);
+    st.centres = g.levels[0].segCount[0] + g.levels[0].segCount[1];
     st.secondsGuides = since(t0);
 
     RotatedNnf nnf;
     ChannelImage result; // the last vote: R, G, B, mask at the current level
     for (int l = I.L - 1; l >= 0; --l) {
         checkCancelled(progress);
-        ExemplarLevel& E = I.ex[size_t(l)];
-        TargetLevel& TL = T[size_t(l)];
-        const std::uint64_t key = detail::key(I.s.seed, std::uint64_t(j), std::uint64_t(l), 0x1e7e1);
-        auto ts = Clock::now();
-        if (l == I.L - 1) {
-            // Algorithm 1: random only at the coarsest level of the first frame (and where the previous
-            // frame had no patch); else the previous frame's shifted field, downscaled by mode.
-            nnf = reuse ? downscaleNnf(shifted, l, TL.W, TL.H) : emptyRotatedNnf(TL.W, TL.H);
-            I.repair(E, TL, nnf, key);
-        } else {
-            RotatedNnf up = upscaleNnf(nnf, TL.W, TL.H);
-            I.repair(E, TL, up, key);
-            if (reuse) {
-                // MERGENNF: per pixel the start with the smaller D, compared on the coarser result enlarged.
-                const ChannelImage big = enlarge(result, TL.W, TL.H);
-                for (int y = -TL.pad; y < TL.H + TL.pad; ++y)
-                    for (int x = -TL.pad; x < TL.W + TL.pad; ++x)
-                        std::copy(big.pixel(std::clamp(x, 0, TL.W - 1), std::clamp(y, 0, TL.H - 1)),
-                            big.pixel(std::clamp(x, 0, TL.W - 1), std::clamp(y, 0, TL.H - 1)) + 3, TL.at(x, y));
-                const RotatedNnf pd = l == 0 ? shifted : downscaleNnf(shifted, l, TL.W, TL.H);
-                if (I.s.wUni > 0.0f) I.rebuildOmega(E, TL, up);
-                const Evaluator ev(E, TL, I.table, I.weights());
-                const std::vector<double> taken = rowSums(TL.H, 1, [&](int y, double* a) {
-                    for (int x = 0; x < TL.W; ++x) {
-                        const size_t q = size_t(y) * size_t(TL.W) + size_t(x);
-                        if (TL.label[q] < 0 || !E.isCentre(pd.match[q])) continue;
-                        const float du = ev(x, y, up.match[q], kInf);
-                        if (ev(x, y, pd.match[q], du) < du) {
-                            up.match[q] = pd.match[q];
-                            a[0] += 1.0;
-                        }
-                    }
-                });
-                if (l == 0) st.reusedFraction = st.centres ? taken[0] / double(st.centres) : 0.0;
-            }
-            nnf = std::move(up);
-        }
-        st.secondsSearch += since(ts);
-        // Algorithm 2: vote the start, then FINDNNF + VOTE.
-        auto tv = Clock::now();
-        I.voteInto(E, nnf, TL, &result);
-        st.secondsVote += since(tv);
-        const int iterations = l == 0 ? I.s.fineIterations : I.s.iterations;
-        for (int it = 0; it < iterations; ++it) {
-            if (progress) progress->begin("level " + std::to_string(l) + " iteration " + std::to_string(it + 1));
-            ts = Clock::now();
-            I.findNnf(E, TL, nnf, detail::key(key, std::uint64_t(it), 0x5ea, 0), l == 0, progress);
-            st.secondsSearch += since(ts);
-            tv = Clock::now();
-            I.voteInto(E, nnf, TL, &result);
-            st.secondsVote += since(tv);
-        }
+        I.synthesizeLevel(l, j, g, nnf, result, st, progress);
     }
 
     auto tm = Clock::now();
-    I.measure(I.ex[0], T[0], nnf, result, f.mask, f.flow, extRaw, st);
+    I.measure(I.ex[0], g.levels[0], nnf, result, g.images.mask, g.images.flow, g.extRaw, st);
     st.secondsStats = since(tm);
     out.image = RgbaImage(W, H);
     out.image.colorSpace = "";
@@ -760,7 +824,7 @@ FluidyFrame Fluidymator::next(Progress* progress)
         const float* v = result.pixel(p);
         out.image.pixels()[p] = Rgba(v[0], v[1], v[2], std::clamp(v[3], 0.0f, 1.0f));
         const PatchRef& m = nnf.match[p];
-        if (T[0].label[p] >= 0 && m.valid()) {
+        if (g.levels[0].label[p] >= 0 && m.valid()) {
             out.rotation.pixel(p)[0] = float(rotationAngle(m.rotation));
             out.rotation.pixel(p)[1] = 1.0f;
         }
@@ -768,11 +832,11 @@ FluidyFrame Fluidymator::next(Progress* progress)
     out.nnf = nnf;
     I.prevNnf = std::move(nnf);
     I.prevRgb = channelRange(result, 0, 3);
-    I.prevMask = std::move(f.mask);
-    I.prevFlow = std::move(f.flow);
-    I.prevExt = extRaw;
+    I.prevMask = std::move(g.images.mask);
+    I.prevFlow = std::move(g.images.flow);
+    I.prevExt = std::move(g.extRaw);
     I.havePrev = true;
-    I.last = std::move(T[0]);
+    I.last = std::move(g.levels[0]);
     I.haveLast = true;
     ++I.j;
     return out;

@@ -1,4 +1,5 @@
-// LazyFluids (seed 000): the EM pyramid over 9-channel patches with uniform patch usage.
+// Jamriška et al., "LazyFluids: Appearance Transfer for Fluid Animations": the EM pyramid over 9-channel patches
+// with uniform patch usage.
 #include <turb/Stylize.h>
 
 #include <turb/Error.h>
@@ -233,6 +234,231 @@ void checkFrame(const StylizeFrame& f, int r)
         throw ValueError("stylize: the previous exemplar frame must have the exemplar's size");
 }
 
+/// The target's guides at full resolution: the clamped alpha, its blur, the previous output warped along the motion
+/// and eq. 6's lambda_q (with its shape, lambda_q / lambda); `prev` and the lambdas are zero on a first frame.
+struct TargetGuides
+{
+    ChannelImage alpha, blur, prev, lambda, lambdaShape;
+};
+
+TargetGuides targetGuides(const StylizeFrame& frame, const ChannelImage& previous, bool first, const StylizeSettings& s,
+    StylizeStats& st)
+{
+    const ChannelImage& alphaIn = *frame.alpha;
+    const int W = alphaIn.width(), H = alphaIn.height();
+    TargetGuides g;
+    g.alpha = ChannelImage(W, H, 1);
+    for (size_t i = 0; i < g.alpha.pixelCount(); ++i) {
+        const float a = alphaIn.pixel(i)[0];
+        g.alpha.pixel(i)[0] = std::isfinite(a) ? std::min(1.0f, std::max(0.0f, a)) : 0.0f;
+    }
+    g.blur = gaussianBlur(g.alpha, s.blurRadius);
+    g.prev = ChannelImage(W, H, 4);
+    g.lambda = ChannelImage(W, H, 1);
+    g.lambdaShape = ChannelImage(W, H, 1);
+    if (!first) {
+        const auto tw = Clock::now();
+        g.prev = forwardWarp(previous, *frame.motionIn).image;
+        st.secondsWarp = since(tw);
+        for (size_t i = 0; i < g.lambda.pixelCount(); ++i) {
+            // eq. 6: fluid that is new here (an emitter, inflow) is free of the previous frame.
+            g.lambdaShape.pixel(i)[0] = 1.0f - std::max(0.0f, g.alpha.pixel(i)[0] - g.prev.pixel(i)[3]);
+            g.lambda.pixel(i)[0] = s.lambda * g.lambdaShape.pixel(i)[0];
+        }
+    }
+    return g;
+}
+
+/// The exemplar's premultiplied current and previous frames and its blurred alpha.
+struct ExemplarGuides
+{
+    ChannelImage cur, prev, blur;
+};
+
+ExemplarGuides exemplarGuides(const StylizeFrame& frame, const StylizeSettings& s)
+{
+    ExemplarGuides e;
+    e.cur = premultiplied(*frame.exemplar);
+    e.prev = frame.exemplarPrevious ? premultiplied(*frame.exemplarPrevious) : e.cur;
+    e.blur = gaussianBlur(channelOf(*frame.exemplar, 3), s.blurRadius);
+    return e;
+}
+
+/// Throws ValueError when the target has a segment (boundary or interior) the exemplar cannot supply.
+void requireExemplarSegments(const ExemplarGuides& e, const ChannelImage& targetBlur, int r, const StylizeSettings& s)
+{
+    const ExemplarLevel fine = exemplarLevel(e.cur, e.prev, e.blur, 0, r, false, s);
+    const std::vector<std::int8_t> tseg = segmentsOf(targetBlur, s.lower, s.upper);
+    bool needs[2] = {false, false};
+    for (auto L : tseg) if (L >= 0) needs[L] = true;
+    if (needs[kInterior] && !fine.has[kInterior])
+        throw ValueError("stylize: the exemplar has no interior (no pixel whose alpha blurred by r = " + std::to_string(s.blurRadius) +
+                         " reaches u = " + std::to_string(s.upper) + "): check its alpha");
+    if (needs[kBoundary] && !fine.has[kBoundary] && !fine.has[kInterior])
+        throw ValueError("stylize: the exemplar has no usable alpha (empty or transparent everywhere)");
+}
+
+/// Kwatra et al.'s start on the coarsest level: random exemplar patches of each target patch's segment, voted.
+void randomStart(const ExemplarLevel& ex, TargetLevel& tl, int r, const StylizeSettings& s, int frame)
+{
+    std::vector<std::vector<std::int32_t>> lists(2);
+    for (size_t p = 0; p < ex.labels.size(); ++p)
+        if (ex.labels[p] >= 0) lists[size_t(ex.labels[p])].push_back(std::int32_t(p));
+    Nnf random = emptyNnf(tl.features.width(), tl.features.height());
+    for (size_t q = 0; q < tl.labels.size(); ++q) {
+        const int L = tl.labels[q];
+        if (L < 0 || lists[size_t(L)].empty()) continue;
+        detail::Rng rng(detail::key(s.seed, std::uint64_t(frame), q, 0x1d1d));
+        random.source[q] = lists[size_t(L)][rng.below(std::uint32_t(lists[size_t(L)].size()))];
+    }
+    vote(ex.features, random, r, 0, 0, 4, tl.features);
+}
+
+/// The last E-step of the finest level: its NNF and the exemplar patches' usage.
+struct Correspondence
+{
+    Nnf nnf;
+    std::vector<SegmentUsage> usage;
+};
+
+/// One level's EM iterations: the NNF (uniform patch usage or PatchMatch), then the vote into tl's RGBA.
+void emIterations(const ExemplarLevel& ex, TargetLevel& tl, int level, int r, const StylizeSettings& s, int frame,
+    Correspondence& c, StylizeStats& st, Progress* progress)
+{
+    const PatchSpace space{&ex.features, &tl.features, &tl.weights, r};
+    c.nnf = emptyNnf(tl.features.width(), tl.features.height());
+    const int iterations = level == 0 ? s.fineIterations : s.iterations;
+    for (int it = 0; it < iterations; ++it) {
+        if (progress) progress->begin("level " + std::to_string(level) + " iteration " + std::to_string(it + 1));
+        const std::uint64_t seed = detail::key(s.seed, std::uint64_t(frame), std::uint64_t(level), std::uint64_t(it));
+        auto tn = Clock::now();
+        if (s.nnf == NnfMode::Uniform) {
+            UniformNnfSettings us;
+            us.sweepsPerRound = s.sweeps;
+            us.seed = seed;
+            UniformNnf u = uniformNnf(space, ex.labels, tl.labels, us, progress);
+            st.rounds += u.rounds;
+            c.nnf = std::move(u.nnf);
+            c.usage = std::move(u.usage);
+        } else {
+            PatchMatchSettings ps;
+            ps.iterations = 2 * s.sweeps;
+            ps.seed = seed;
+            patchMatch(space, ex.labels, tl.labels, ps, c.nnf, progress);
+            c.usage = patchUsage(c.nnf, ex.labels, tl.labels);
+        }
+        st.secondsNnf += since(tn);
+        auto tv = Clock::now();
+        vote(ex.features, c.nnf, r, 0, 0, 4, tl.features);
+        st.secondsVote += since(tv);
+    }
+}
+
+/// The EM pyramid from the coarsest level to the finest: each level starts from the coarser result enlarged (the
+/// coarsest from random patches). Returns the finest level's premultiplied RGBA, unpadded.
+ChannelImage synthesizePyramid(const TargetGuides& g, const ExemplarGuides& e, bool first, int levels, int r,
+    const StylizeSettings& s, int frame, Correspondence& c, StylizeStats& st, Progress* progress)
+{
+    const int W = g.alpha.width(), H = g.alpha.height();
+    ChannelImage current; // synthesised premultiplied RGBA of the previous (coarser) level, unpadded
+    for (int level = levels - 1; level >= 0; --level) {
+        checkCancelled(progress);
+        auto tg = Clock::now();
+        const ExemplarLevel ex = exemplarLevel(e.cur, e.prev, e.blur, level, r, s.rotations, s);
+        TargetLevel tl = targetLevel(g.alpha, g.blur, first ? ChannelImage(W, H, 4) : g.prev,
+            first ? ChannelImage(W, H, 1) : g.lambda, level, r, s, ex);
+        if (!current.empty()) {
+            const ChannelImage init = padClamped(enlarge(current, tl.width, tl.height), r);
+            for (size_t i = 0; i < init.pixelCount(); ++i) std::copy(init.pixel(i), init.pixel(i) + 4, tl.features.pixel(i));
+        } else {
+            randomStart(ex, tl, r, s, frame);
+        }
+        st.secondsGuides += since(tg);
+        emIterations(ex, tl, level, r, s, frame, c, st, progress);
+        current = cropped(tl.features, r, 4);
+    }
+    return current;
+}
+
+/// Eq. 7's mean energy per matched target patch and the fraction of exemplar patches used.
+void matchStats(const Correspondence& c, StylizeStats& st)
+{
+    st.usage = c.usage;
+    double e = 0.0;
+    long long n = 0;
+    for (size_t q = 0; q < c.nnf.source.size(); ++q)
+        if (c.nnf.source[q] >= 0) {
+            e += c.nnf.distance[q];
+            ++n;
+        }
+    st.energy = n ? e / double(n) : 0.0;
+    long long used = 0, sources = 0;
+    for (const auto& u : c.usage) {
+        used += (long long)std::llround(u.coverage * double(u.sources));
+        sources += u.sources;
+    }
+    st.coverage = sources ? double(used) / double(sources) : 0.0;
+}
+
+/// The output's interior texture and boundary against the exemplar's: luminance contrast, gradient energy and the
+/// histogram of |grad alpha| in the boundary segment.
+void appearanceStats(const ChannelImage& current, const TargetGuides& g, const ExemplarGuides& e,
+    const RgbaImage& exemplar, const StylizeSettings& s, StylizeStats& st)
+{
+    ChannelImage straight(current.width(), current.height(), 4);
+    for (size_t i = 0; i < straight.pixelCount(); ++i) {
+        const float* p = current.pixel(i);
+        float* o = straight.pixel(i);
+        for (int c = 0; c < 3; ++c) o[c] = p[3] > 1e-6f ? p[c] / p[3] : 0.0f;
+        o[3] = p[3];
+    }
+    const InteriorStats outStats = luminanceStats(straight, interiorMask(g.blur, s.upper));
+    const InteriorStats exStats = luminanceStats(toChannels(exemplar), interiorMask(e.blur, s.upper));
+    st.stdRatio = exStats.stdLuminance > 0.0 ? outStats.stdLuminance / exStats.stdLuminance : 0.0;
+    st.gradientRatio = exStats.gradientEnergy > 0.0 ? outStats.gradientEnergy / exStats.gradientEnergy : 0.0;
+    st.boundaryGradient = boundaryGradientHistogram(current, 3, g.blur, s.lower, s.upper);
+    st.exemplarBoundaryGradient = boundaryGradientHistogram(e.cur, 3, e.blur, s.lower, s.upper);
+    for (size_t b = 0; b < st.boundaryGradient.size(); ++b)
+        st.boundaryGradientMatch += std::min(st.boundaryGradient[b], st.exemplarBoundaryGradient[b]);
+}
+
+/// The output's shape against the target alpha (IoU) and its change from the warped previous output where eq. 6's
+/// lambda_q holds it (not on a first frame).
+void shapeStats(const ChannelImage& current, const TargetGuides& g, bool first, StylizeStats& st)
+{
+    long long inter = 0, uni = 0, region = 0;
+    double change = 0.0;
+    for (size_t i = 0; i < current.pixelCount(); ++i) {
+        const bool o = current.pixel(i)[3] >= 0.5f, t = g.alpha.pixel(i)[0] >= 0.5f;
+        inter += o && t;
+        uni += o || t;
+        if (!first && g.alpha.pixel(i)[0] >= 0.05f && g.lambdaShape.pixel(i)[0] >= 0.5f) {
+            double d = 0.0;
+            for (int c = 0; c < 4; ++c) d += std::abs(double(current.pixel(i)[c]) - double(g.prev.pixel(i)[c]));
+            change += d / 4.0;
+            ++region;
+        }
+    }
+    st.iou = uni ? double(inter) / double(uni) : 1.0;
+    if (!first) {
+        st.temporalChange = region ? change / double(region) : 0.0;
+        st.temporalPixels = double(region) / double(current.pixelCount());
+    }
+}
+
+/// Straight RGBA from premultiplied, alpha clamped to [0, 1]; transparent where alpha is about 0.
+RgbaImage straightRgba(const ChannelImage& premultipliedRgba, const std::string& colorSpace)
+{
+    RgbaImage image(premultipliedRgba.width(), premultipliedRgba.height());
+    image.colorSpace = colorSpace;
+    for (size_t i = 0; i < image.size(); ++i) {
+        const float* p = premultipliedRgba.pixel(i);
+        const float a = std::min(1.0f, std::max(0.0f, p[3]));
+        image.pixels()[i] = a > 1e-6f ? Rgba(p[0] / a, p[1] / a, p[2] / a, a) : Rgba(0.0f, 0.0f, 0.0f, 0.0f);
+    }
+    return image;
+}
+
 } // namespace
 
 void validate(const StylizeSettings& s)
@@ -267,158 +493,29 @@ StylizedFrame Stylizer::next(const StylizeFrame& frame, Progress* progress)
     checkFrame(frame, r);
     StylizedFrame out;
     StylizeStats& st = out.stats;
-    const ChannelImage& alphaIn = *frame.alpha;
-    const int W = alphaIn.width(), H = alphaIn.height();
+    const int W = frame.alpha->width(), H = frame.alpha->height();
     st.width = W;
     st.height = H;
-    const bool first = mPrevious.empty() || !frame.motionIn || !mPrevious.sameSize(alphaIn);
+    const bool first = mPrevious.empty() || !frame.motionIn || !mPrevious.sameSize(*frame.alpha);
     auto t0 = Clock::now();
 
-    // Target guides at full resolution: alpha, blurred alpha, the warped previous output and lambda_q.
+    // Guides at full resolution (eq. 8's channels, eq. 9's weights): the target's and the exemplar's.
     if (progress) progress->begin("guides");
-    ChannelImage alpha(W, H, 1);
-    for (size_t i = 0; i < alpha.pixelCount(); ++i) {
-        const float a = alphaIn.pixel(i)[0];
-        alpha.pixel(i)[0] = std::isfinite(a) ? std::min(1.0f, std::max(0.0f, a)) : 0.0f;
-    }
-    const ChannelImage blur = gaussianBlur(alpha, s.blurRadius);
-    ChannelImage prev(W, H, 4), lambda(W, H, 1), lambdaShape(W, H, 1);
-    if (!first) {
-        const auto tw = Clock::now();
-        prev = forwardWarp(mPrevious, *frame.motionIn).image;
-        st.secondsWarp = since(tw);
-        for (size_t i = 0; i < lambda.pixelCount(); ++i) {
-            // eq. 6: fluid that is new here (an emitter, inflow) is free of the previous frame.
-            lambdaShape.pixel(i)[0] = 1.0f - std::max(0.0f, alpha.pixel(i)[0] - prev.pixel(i)[3]);
-            lambda.pixel(i)[0] = s.lambda * lambdaShape.pixel(i)[0];
-        }
-    }
-    const ChannelImage exCur = premultiplied(*frame.exemplar);
-    const ChannelImage exPrev = frame.exemplarPrevious ? premultiplied(*frame.exemplarPrevious) : exCur;
-    const ChannelImage exBlur = gaussianBlur(channelOf(*frame.exemplar, 3), s.blurRadius);
-    {
-        const ExemplarLevel fine = exemplarLevel(exCur, exPrev, exBlur, 0, r, false, s);
-        const std::vector<std::int8_t> tseg = segmentsOf(blur, s.lower, s.upper);
-        bool needs[2] = {false, false};
-        for (auto L : tseg) if (L >= 0) needs[L] = true;
-        if (needs[kInterior] && !fine.has[kInterior])
-            throw ValueError("stylize: the exemplar has no interior (no pixel whose alpha blurred by r = " + std::to_string(s.blurRadius) +
-                             " reaches u = " + std::to_string(s.upper) + "): check its alpha");
-        if (needs[kBoundary] && !fine.has[kBoundary] && !fine.has[kInterior])
-            throw ValueError("stylize: the exemplar has no usable alpha (empty or transparent everywhere)");
-    }
+    const TargetGuides g = targetGuides(frame, mPrevious, first, s, st);
+    const ExemplarGuides e = exemplarGuides(frame, s);
+    requireExemplarSegments(e, g.blur, r, s);
     const int levels = s.levels > 0 ? s.levels : autoLevels(W, H, frame.exemplar->width(), frame.exemplar->height(), r);
     st.levels = levels;
     st.secondsGuides = since(t0);
 
-    ChannelImage current; // synthesised premultiplied RGBA of the previous (coarser) level, unpadded
-    Nnf nnf;
-    std::vector<SegmentUsage> usage;
-    for (int level = levels - 1; level >= 0; --level) {
-        checkCancelled(progress);
-        auto tg = Clock::now();
-        const ExemplarLevel ex = exemplarLevel(exCur, exPrev, exBlur, level, r, s.rotations, s);
-        TargetLevel tl = targetLevel(alpha, blur, first ? ChannelImage(W, H, 4) : prev, first ? ChannelImage(W, H, 1) : lambda, level, r, s, ex);
-        if (!current.empty()) {
-            const ChannelImage init = padClamped(enlarge(current, tl.width, tl.height), r);
-            for (size_t i = 0; i < init.pixelCount(); ++i) std::copy(init.pixel(i), init.pixel(i) + 4, tl.features.pixel(i));
-        } else {
-            // Kwatra et al.'s start: random exemplar patches of each target patch's segment, voted.
-            std::vector<std::vector<std::int32_t>> lists(2);
-            for (size_t p = 0; p < ex.labels.size(); ++p)
-                if (ex.labels[p] >= 0) lists[size_t(ex.labels[p])].push_back(std::int32_t(p));
-            Nnf random = emptyNnf(tl.features.width(), tl.features.height());
-            for (size_t q = 0; q < tl.labels.size(); ++q) {
-                const int L = tl.labels[q];
-                if (L < 0 || lists[size_t(L)].empty()) continue;
-                detail::Rng rng(detail::key(s.seed, std::uint64_t(mFrames), q, 0x1d1d));
-                random.source[q] = lists[size_t(L)][rng.below(std::uint32_t(lists[size_t(L)].size()))];
-            }
-            vote(ex.features, random, r, 0, 0, 4, tl.features);
-        }
-        st.secondsGuides += since(tg);
-        const PatchSpace space{&ex.features, &tl.features, &tl.weights, r};
-        nnf = emptyNnf(tl.features.width(), tl.features.height());
-        const int iterations = level == 0 ? s.fineIterations : s.iterations;
-        for (int it = 0; it < iterations; ++it) {
-            if (progress) progress->begin("level " + std::to_string(level) + " iteration " + std::to_string(it + 1));
-            const std::uint64_t seed = detail::key(s.seed, std::uint64_t(mFrames), std::uint64_t(level), std::uint64_t(it));
-            auto tn = Clock::now();
-            if (s.nnf == NnfMode::Uniform) {
-                UniformNnfSettings us;
-                us.sweepsPerRound = s.sweeps;
-                us.seed = seed;
-                UniformNnf u = uniformNnf(space, ex.labels, tl.labels, us, progress);
-                st.rounds += u.rounds;
-                nnf = std::move(u.nnf);
-                usage = std::move(u.usage);
-            } else {
-                PatchMatchSettings ps;
-                ps.iterations = 2 * s.sweeps;
-                ps.seed = seed;
-                patchMatch(space, ex.labels, tl.labels, ps, nnf, progress);
-                usage = patchUsage(nnf, ex.labels, tl.labels);
-            }
-            st.secondsNnf += since(tn);
-            auto tv = Clock::now();
-            vote(ex.features, nnf, r, 0, 0, 4, tl.features);
-            st.secondsVote += since(tv);
-        }
-        current = cropped(tl.features, r, 4);
-    }
+    Correspondence c;
+    const ChannelImage current = synthesizePyramid(g, e, first, levels, r, s, mFrames, c, st, progress);
 
     // Statistics of the frame, then the output.
     auto ts = Clock::now();
-    st.usage = usage;
-    {
-        double e = 0.0;
-        long long n = 0;
-        for (size_t q = 0; q < nnf.source.size(); ++q)
-            if (nnf.source[q] >= 0) {
-                e += nnf.distance[q];
-                ++n;
-            }
-        st.energy = n ? e / double(n) : 0.0;
-    }
-    long long used = 0, sources = 0;
-    for (const auto& u : usage) {
-        used += (long long)std::llround(u.coverage * double(u.sources));
-        sources += u.sources;
-    }
-    st.coverage = sources ? double(used) / double(sources) : 0.0;
-    ChannelImage straight(W, H, 4);
-    for (size_t i = 0; i < straight.pixelCount(); ++i) {
-        const float* p = current.pixel(i);
-        float* o = straight.pixel(i);
-        for (int c = 0; c < 3; ++c) o[c] = p[3] > 1e-6f ? p[c] / p[3] : 0.0f;
-        o[3] = p[3];
-    }
-    const InteriorStats outStats = luminanceStats(straight, interiorMask(blur, s.upper));
-    const InteriorStats exStats = luminanceStats(toChannels(*frame.exemplar), interiorMask(exBlur, s.upper));
-    st.stdRatio = exStats.stdLuminance > 0.0 ? outStats.stdLuminance / exStats.stdLuminance : 0.0;
-    st.gradientRatio = exStats.gradientEnergy > 0.0 ? outStats.gradientEnergy / exStats.gradientEnergy : 0.0;
-    long long inter = 0, uni = 0, region = 0;
-    double change = 0.0;
-    for (size_t i = 0; i < current.pixelCount(); ++i) {
-        const bool o = current.pixel(i)[3] >= 0.5f, t = alpha.pixel(i)[0] >= 0.5f;
-        inter += o && t;
-        uni += o || t;
-        if (!first && alpha.pixel(i)[0] >= 0.05f && lambdaShape.pixel(i)[0] >= 0.5f) {
-            double d = 0.0;
-            for (int c = 0; c < 4; ++c) d += std::abs(double(current.pixel(i)[c]) - double(prev.pixel(i)[c]));
-            change += d / 4.0;
-            ++region;
-        }
-    }
-    st.iou = uni ? double(inter) / double(uni) : 1.0;
-    st.boundaryGradient = boundaryGradientHistogram(current, 3, blur, s.lower, s.upper);
-    st.exemplarBoundaryGradient = boundaryGradientHistogram(exCur, 3, exBlur, s.lower, s.upper);
-    for (size_t b = 0; b < st.boundaryGradient.size(); ++b)
-        st.boundaryGradientMatch += std::min(st.boundaryGradient[b], st.exemplarBoundaryGradient[b]);
-    if (!first) {
-        st.temporalChange = region ? change / double(region) : 0.0;
-        st.temporalPixels = double(region) / double(current.pixelCount());
-    }
+    matchStats(c, st);
+    appearanceStats(current, g, e, *frame.exemplar, s, st);
+    shapeStats(current, g, first, st);
     st.secondsStats = since(ts);
 
     mPrevious = current;
@@ -429,13 +526,7 @@ StylizedFrame Stylizer::next(const StylizeFrame& frame, Progress* progress)
         mb.shutter = s.motionBlur;
         shown = motionBlur(current, *frame.motionOut, mb);
     }
-    out.image = RgbaImage(W, H);
-    out.image.colorSpace = frame.exemplar->colorSpace;
-    for (size_t i = 0; i < out.image.size(); ++i) {
-        const float* p = shown.pixel(i);
-        const float a = std::min(1.0f, std::max(0.0f, p[3]));
-        out.image.pixels()[i] = a > 1e-6f ? Rgba(p[0] / a, p[1] / a, p[2] / a, a) : Rgba(0.0f, 0.0f, 0.0f, 0.0f);
-    }
+    out.image = straightRgba(shown, frame.exemplar->colorSpace);
     return out;
 }
 

@@ -45,6 +45,15 @@ double elapsedTime(int previousNumber, double previousDt, int number, double dt)
     return 0.5 * (previousDt + dt) * double(gap);
 }
 
+/// What section 3.2 leaves for the paste: the source's bands, the carried detail advected to this frame (U^_h) and
+/// every active patch's chosen source corner.
+struct MatchedPatches
+{
+    detail::SourceBands bands;
+    VectorField advectedDetail;
+    detail::LocalSearchResult local;
+};
+
 } // namespace
 
 struct TurbulenceTransfer::Impl
@@ -63,6 +72,16 @@ struct TurbulenceTransfer::Impl
     void start(const Lattice& target, int f);
     detail::FrameSetup setup(const Frame& target) const;
     detail::PatchTracks tracksFor(const detail::FrameSetup& fs) const;
+    /// Starts the sequence on its first frame; then checks every frame against it (lattice, ratio, 2D or 3D).
+    void checkSequence(const Frame& target, const Frame& src, int f);
+    /// Section 3.2: the source's bands, the continuations in its flow, the global and the local search.
+    MatchedPatches matchPatches(const Frame& target, const Frame& src, const detail::TargetAtOutput& t,
+        const std::vector<uint8_t>& active, detail::PatchTracks& tracks, const detail::FrameSetup& fs, TransferStats& st,
+        Clock::time_point& t0, Progress* progress);
+    /// Sections 3.2-3.4 on a frame with smoke: U_h matched, pasted, blended, seam-smoothed and calibrated.
+    VectorField transferDetail(const Frame& target, const Frame& src, const detail::TargetAtOutput& t,
+        const ScalarField& density, const std::vector<uint8_t>& active, detail::PatchTracks& tracks,
+        const detail::FrameSetup& fs, TransferStats& st, Clock::time_point& t0, Progress* progress);
     TransferResult process(const Frame& target, const Frame& source, Progress* progress);
 };
 
@@ -245,18 +264,8 @@ TransferResult TurbulenceTransfer::process(const Frame& target, const Frame& sou
     return r;
 }
 
-TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Frame& sourceArg, Progress* progress)
+void TurbulenceTransfer::Impl::checkSequence(const Frame& target, const Frame& src, int f)
 {
-    using namespace detail;
-    const Clock::time_point tStart = Clock::now();
-    Clock::time_point t0 = tStart;
-    requireFrame(target, "target");
-    requireFrame(sourceArg, "source");
-    const double tv = target.velocity.lattice().voxelSize, sv = sourceArg.velocity.lattice().voxelSize;
-    const int f = transferRatio(tv, sv, s.resampleSource);
-    const bool resampleSource = !isIntegerRatio(tv, sv);
-    const Frame source = resampleSource ? resampledToVoxel(sourceArg, tv / f) : Frame();
-    const Frame& src = resampleSource ? source : sourceArg;
     // 2D or 3D is decided by the first frame with smoke and checked on every frame with smoke: a frame held over
     // its smoke alone (an empty one is held as one voxel) says nothing about the sequence's dimension.
     const auto smoky = [&](const Frame& fr) {
@@ -281,6 +290,90 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
                               : "the target is 3D but the source is 2D (one z layer)");
     if (flat && s.alignment != FlowAlignment::None && s.alignment != FlowAlignment::Normalize)
         throw ValueError("flow alignment by rotation is for 3D only; a 2D pair takes none or normalize");
+}
+
+MatchedPatches TurbulenceTransfer::Impl::matchPatches(const Frame& target, const Frame& src,
+    const detail::TargetAtOutput& t, const std::vector<uint8_t>& active, detail::PatchTracks& tracks,
+    const detail::FrameSetup& fs, TransferStats& st, Clock::time_point& t0, Progress* progress)
+{
+    using namespace detail;
+    TransferTimings& time = st.seconds;
+    MatchedPatches m{splitSource(src, target, fs, align), {}, {}};
+    time.split += lap(t0);
+    // Where each patch's detail came from in the source, moved on by the source's flow; the search region of a
+    // patch that has one follows it.
+    followSourceFlow(tracks, carried, t, m.bands, src, active, fs);
+    for (size_t p = 0; p < tracks.following.size(); ++p)
+        if (tracks.following[p]) {
+            const Vec3d& c = tracks.follow[p];
+            tracks.match[p] = Coord(int(std::lround(c.x())), int(std::lround(c.y())), int(std::lround(c.z())));
+        }
+    m.advectedDetail = advectPreviousDetail(carried, fs); // U^_h, the beta term's and the blend's
+    time.advectDetail = lap(t0);
+
+    // 3.2: global search where smoke newly entered a patch, then the local search in its region.
+    if (progress) progress->begin("global search");
+    const GlobalSearchResult global = globalSearch(target, m.bands, active, tracks, fs, w);
+    st.globalSearches = global.searches;
+    st.trackedPatches = global.tracked;
+    time.global = lap(t0);
+    if (progress) progress->begin("local search");
+    const PatchEnergy energy{fs, t, m.bands, m.advectedDetail};
+    m.local = localSearch(energy, active, global, tracks, w);
+    coherencePass(m.local, energy, active, tracks);
+    st.meanLocalEnergy = m.local.meanEnergy();
+    st.followedPatches = m.local.followed;
+    st.continuations = int(std::count(tracks.following.begin(), tracks.following.end(), uint8_t(1)));
+    time.local = lap(t0);
+    return m;
+}
+
+VectorField TurbulenceTransfer::Impl::transferDetail(const Frame& target, const Frame& src,
+    const detail::TargetAtOutput& t, const ScalarField& density, const std::vector<uint8_t>& active,
+    detail::PatchTracks& tracks, const detail::FrameSetup& fs, TransferStats& st, Clock::time_point& t0,
+    Progress* progress)
+{
+    using namespace detail;
+    TransferTimings& time = st.seconds;
+    const SmokeEnergy smoke(density, s.densityThreshold);
+    const MatchedPatches m = matchPatches(target, src, t, active, tracks, fs, st, t0, progress);
+    PasteResult pasted = pastePatches(m.local, m.bands, fs);
+    VectorField detail = std::move(pasted.detail);
+    time.paste = lap(t0);
+    const double referenceEnergy = s.detailEnergy == DetailEnergy::Source ? m.bands.reference
+                                   : s.detailEnergy == DetailEnergy::Pasted ? smoke(detail) : 0.0;
+
+    // Beyond the paper: last frame's detail carried into the patches it reaches; then 3.3's seam smoothing.
+    if (progress) progress->begin("seams");
+    TemporalBlend blend = blendTemporal(detail, t, m.advectedDetail, m.local, tracks, fs);
+    st.regeneratedPatches = blend.regenerated;
+    const double scaleEstimate = reduceCoarsePartBeforeSeams(detail, t, target, smoke, referenceEnergy, fs);
+    st.seams = smoothPatchSeams(detail,
+        SeamInputs{t, m.bands, active, pasted.offsets, m.advectedDetail, blend.weight, scaleEstimate}, fs, progress);
+    time.seams = lap(t0);
+    carried.tracks.clear();
+    for (size_t p = 0; p < active.size(); ++p)
+        if (active[p]) carried.tracks[fs.absolutePatch(fs.layout.patchCoord(p))] = m.local.chosenExact[p];
+
+    // 3.4: the detail's coarse part and energy (U = up(u_t) + U_h is assembled by the caller).
+    calibrateDetail(detail, t, target, smoke, referenceEnergy, fs, st);
+    detailChange(detail, m.advectedDetail, density, s.densityThreshold, st);
+    return detail;
+}
+
+TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Frame& sourceArg, Progress* progress)
+{
+    using namespace detail;
+    const Clock::time_point tStart = Clock::now();
+    Clock::time_point t0 = tStart;
+    requireFrame(target, "target");
+    requireFrame(sourceArg, "source");
+    const double tv = target.velocity.lattice().voxelSize, sv = sourceArg.velocity.lattice().voxelSize;
+    const int f = transferRatio(tv, sv, s.resampleSource);
+    const bool resampleSource = !isIntegerRatio(tv, sv);
+    const Frame source = resampleSource ? resampledToVoxel(sourceArg, tv / f) : Frame();
+    const Frame& src = resampleSource ? source : sourceArg;
+    checkSequence(target, src, f);
     const FrameSetup fs = [&] {
         FrameSetup f = setup(target);
         f.progress = progress;
@@ -306,64 +399,17 @@ TransferResult TurbulenceTransfer::Impl::process(const Frame& target, const Fram
     st.densityErrBefore = density.errorBefore;
     st.densityErr = density.errorAfter;
     time.density = lap(t0);
-    const SmokeEnergy smoke(density.density, s.densityThreshold);
     const std::vector<uint8_t> active = activePatches(fs, t.Dt, density.density);
     st.localPatches = int(std::count(active.begin(), active.end(), uint8_t(1)));
 
-    VectorField detail(fs.fineBox, fs.fineLattice), advectedDetail;
+    // 3.2-3.4 on the patches with smoke, then U = up(u_t) + U_h.
+    VectorField detail(fs.fineBox, fs.fineLattice);
     if (st.localPatches == 0) {
         // Defined no-op: no smoke in the target, nothing to match. Tracks restart when smoke appears.
         result.empty = true;
         carried.tracks.clear();
     } else {
-        const SourceBands bands = splitSource(src, target, fs, align);
-        time.split += lap(t0);
-        // Where each patch's detail came from in the source, moved on by the source's flow; the search region of a
-        // patch that has one follows it.
-        followSourceFlow(tracks, carried, t, bands, src, active, fs);
-        for (size_t p = 0; p < tracks.following.size(); ++p)
-            if (tracks.following[p]) {
-                const Vec3d& c = tracks.follow[p];
-                tracks.match[p] = Coord(int(std::lround(c.x())), int(std::lround(c.y())), int(std::lround(c.z())));
-            }
-        advectedDetail = advectPreviousDetail(carried, fs); // U^_h, the beta term's and the blend's
-        time.advectDetail = lap(t0);
-
-        // 3.2: global search where smoke newly entered a patch, then the local search in its region.
-        if (progress) progress->begin("global search");
-        const GlobalSearchResult global = globalSearch(target, bands, active, tracks, fs, w);
-        st.globalSearches = global.searches;
-        st.trackedPatches = global.tracked;
-        time.global = lap(t0);
-        if (progress) progress->begin("local search");
-        const PatchEnergy energy{fs, t, bands, advectedDetail};
-        LocalSearchResult local = localSearch(energy, active, global, tracks, w);
-        coherencePass(local, energy, active, tracks);
-        st.meanLocalEnergy = local.meanEnergy();
-        st.followedPatches = local.followed;
-        st.continuations = int(std::count(tracks.following.begin(), tracks.following.end(), uint8_t(1)));
-        time.local = lap(t0);
-        PasteResult pasted = pastePatches(local, bands, fs);
-        detail = std::move(pasted.detail);
-        time.paste = lap(t0);
-        const double referenceEnergy = s.detailEnergy == DetailEnergy::Source ? bands.reference
-                                       : s.detailEnergy == DetailEnergy::Pasted ? smoke(detail) : 0.0;
-
-        // Beyond the paper: last frame's detail carried into the patches it reaches; then 3.3's seam smoothing.
-        if (progress) progress->begin("seams");
-        TemporalBlend blend = blendTemporal(detail, t, advectedDetail, local, tracks, fs);
-        st.regeneratedPatches = blend.regenerated;
-        const double scaleEstimate = reduceCoarsePartBeforeSeams(detail, t, target, smoke, referenceEnergy, fs);
-        st.seams = smoothPatchSeams(detail,
-            SeamInputs{t, bands, active, pasted.offsets, advectedDetail, blend.weight, scaleEstimate}, fs, progress);
-        time.seams = lap(t0);
-        carried.tracks.clear();
-        for (size_t p = 0; p < active.size(); ++p)
-            if (active[p]) carried.tracks[fs.absolutePatch(fs.layout.patchCoord(p))] = local.chosenExact[p];
-
-        // 3.4: the detail's coarse part and energy, then U = up(u_t) + U_h.
-        calibrateDetail(detail, t, target, smoke, referenceEnergy, fs, st);
-        detailChange(detail, advectedDetail, density.density, s.densityThreshold, st);
+        detail = transferDetail(target, src, t, density.density, active, tracks, fs, st, t0, progress);
     }
     result.frame = assembleOutput(target, t, detail, std::move(density.density), fs);
     carryState(carried, target, src, result.frame, t, t.emission, fs);
