@@ -44,17 +44,10 @@ struct SynthArgs
     double exemplarScale = 1.0;
     bool periodic = false;
     std::string views, viewWeights, iterations, radius;
-    std::string search = "tree";
     std::string secondary = "density";
-    bool noOrient = false, noVarianceMatch = false;
     std::string walls, obstacle;
-    std::string omegaMode = "constant";
-    bool omegaAbsolute = false, project = false, noDensity = false, json = false, stats = false;
-    bool detailEverywhere = false; ///< the paper: omega over the whole box, still air included
+    bool json = false, stats = false;
     bool strict = false; ///< a projection that does not converge fails the run (exit 1) after the last frame
-    int projectIterations = 2000; ///< conjugate-gradient cap of --project
-    int lookback = 12;
-    std::string output = "combined";
     std::string out = "synth/synth.####.vdb";
     std::string preview, previewView;
     int previewWidth = 256;
@@ -62,10 +55,19 @@ struct SynthArgs
     int volumeCrop = 32;
     turbio::ReadOptions read;
     turbio::WriteOptions write;
-    turb::SynthSettings settings;
-    turb::CombineSettings combine;
-    int factor = 4;
+    turb::SynthSequenceSettings seq; ///< what the options set: the synthesis, F = up(L) + omega H', the projection
 };
+
+const std::vector<std::pair<std::string, turb::CombineSettings::Weighting>> kWeightings{
+    {"constant", turb::CombineSettings::Weighting::Constant}, {"energy", turb::CombineSettings::Weighting::KineticEnergy},
+    {"vorticity", turb::CombineSettings::Weighting::Vorticity}};
+
+std::string weightingName(turb::CombineSettings::Weighting w)
+{
+    for (const auto& [name, v] : kWeightings)
+        if (v == w) return name;
+    return "constant";
+}
 
 std::string fmt(const char* f, double v)
 {
@@ -99,35 +101,6 @@ turb::Coord parseRes(const std::string& s, const std::string& what)
     }
     if (p.size() != 3) throw turb::ValueError(what + ": expected NXxNYxNZ (cells along x, y, z) or N, got '" + s + "'");
     return turb::Coord(toInt(p[0], what), toInt(p[1], what), toInt(p[2], what));
-}
-
-/// Takes layer k of a 3D frame as a 2D frame (one voxel thick, in-plane velocity only).
-turb::Frame sliceFrame(const turb::Frame& f, int k)
-{
-    const turb::CoordBBox b = f.bbox();
-    if (k < b.min().z() || k > b.max().z())
-        throw turb::ValueError("--slice-z " + std::to_string(k) + " is outside the cache's z range " +
-                               std::to_string(b.min().z()) + ".." + std::to_string(b.max().z()));
-    const turb::CoordBBox s(turb::Coord(b.min().x(), b.min().y(), k), turb::Coord(b.max().x(), b.max().y(), k));
-    turb::Frame out;
-    out.number = f.number;
-    out.dt = f.dt;
-    out.metadata = f.metadata;
-    if (f.hasVelocity()) {
-        out.velocity = turb::VectorField(s, f.velocity.lattice());
-        for (int i = s.min().x(); i <= s.max().x(); ++i)
-            for (int j = s.min().y(); j <= s.max().y(); ++j) {
-                turb::Vec3f v = f.velocity(i, j, k);
-                v[2] = 0.0f;
-                out.velocity(i, j, k) = v;
-            }
-    }
-    if (f.hasDensity()) {
-        out.density = turb::ScalarField(s, f.density.lattice());
-        for (int i = s.min().x(); i <= s.max().x(); ++i)
-            for (int j = s.min().y(); j <= s.max().y(); ++j) out.density(i, j, k) = f.density(i, j, k);
-    }
-    return out;
 }
 
 /// One exemplar from its command-line description (see the --exemplar help).
@@ -171,16 +144,7 @@ turb::Exemplar loadExemplar(const std::string& spec, const SynthArgs& a)
         const turb::Frame f = turbio::readFrame(path, 0, ro);
         if (kind == "vdb3") {
             // A volume exemplar costs (voxels x 375) floats of descriptors: keep the central N^3 only.
-            const turb::CoordBBox b = f.velocity.bbox();
-            turb::Coord lo, hi;
-            for (int ax = 0; ax < 3; ++ax) {
-                const int n = std::min(b.dim()[ax], a.volumeCrop);
-                lo[ax] = b.min()[ax] + (b.dim()[ax] - n) / 2;
-                hi[ax] = lo[ax] + n - 1;
-            }
-            turb::VectorField crop(turb::CoordBBox(lo, hi), f.velocity.lattice());
-            for (size_t n = 0; n < crop.size(); ++n) crop.data()[n] = f.velocity[crop.coordOf(n)];
-            e = turb::exemplarFromVolume(crop);
+            e = turb::exemplarFromVolume(turb::cropped(f.velocity, turb::centralBox(f.velocity.bbox(), a.volumeCrop)));
         } else {
             if (index == std::numeric_limits<int>::min()) index = (f.bbox().min()[axis] + f.bbox().max()[axis]) / 2;
             e = turb::exemplarFromSlice(f.velocity, axis, index);
@@ -266,7 +230,13 @@ public:
             f.dt = mArgs.flowDt;
             f.number = frame;
         }
-        if (mArgs.sliceZ >= 0) f = sliceFrame(f, mArgs.sliceZ);
+        if (mArgs.sliceZ >= 0) {
+            try {
+                f = turb::zLayer(f, mArgs.sliceZ);
+            } catch (const turb::ValueError& e) {
+                throw turb::ValueError(std::string("--slice-z: ") + e.what());
+            }
+        }
         return f;
     }
 
@@ -283,27 +253,13 @@ public:
     std::optional<turb::ScalarField> sceneEmitters(const turb::ScalarField& like, int frame) const
     {
         if (!mSceneSettings) return std::nullopt;
-        turb::ScalarField m(like.bbox(), like.lattice(), 0.0f);
-        const double t = frame * mSceneSettings->frameDt, h = like.lattice().voxelSize;
-        for (size_t n = 0; n < m.size(); ++n) {
-            const turb::Vec3d w = like.lattice().indexToWorld(m.coordOf(n).asVec3d());
-            for (const auto& e : mSceneSettings->emitters)
-                if (t >= e.startTime && t - mSceneSettings->frameDt <= e.endTime && (w - e.shape.centre).length() <= e.shape.radius + h)
-                    m.data()[n] = 1.0f;
-        }
-        return m;
+        return turb::scenes::emitterMask(*mSceneSettings, like, frame);
     }
     /// Obstacles of a built-in scene as a signed distance on the coarse lattice.
     std::optional<turb::ScalarField> sceneObstacles(const turb::VectorField& like) const
     {
         if (!mSceneSettings || mSceneSettings->obstacles.empty()) return std::nullopt;
-        turb::ScalarField sdf(like.bbox(), like.lattice(), 1e9f);
-        for (size_t n = 0; n < sdf.size(); ++n) {
-            const turb::Vec3d w = like.lattice().indexToWorld(turb::Vec3d(sdf.coordOf(n).asVec3d()));
-            for (const auto& s : mSceneSettings->obstacles)
-                sdf.data()[n] = std::min(sdf.data()[n], float((w - s.centre).length() - s.radius));
-        }
-        return sdf;
+        return turb::scenes::obstacleDistance(*mSceneSettings, like);
     }
 
 private:
@@ -345,16 +301,13 @@ turb::Image labelled(const turb::Image& img, const std::string& label)
 }
 
 // The synthesis carries look-back density only when the coarse input has density and it is written.
-bool cf0HasDensity(const turb::Frame& f, const SynthArgs& a) { return f.hasDensity() && !a.noDensity; }
+bool cf0HasDensity(const turb::Frame& f, const SynthArgs& a) { return f.hasDensity() && a.seq.density; }
 
-// The command line into the library settings (a.settings, a.combine).
+// The command line into the library settings (a.seq.synth, a.seq.combine).
 void fillSettings(SynthArgs& a)
 {
-    turb::SynthSettings& s = a.settings;
+    turb::SynthSettings& s = a.seq.synth;
     s.threads = globals().threads;
-    s.search = a.search == "kcoherence" ? turb::SearchMethod::KCoherence : turb::SearchMethod::Tree;
-    s.orientation.follow = !a.noOrient;
-    s.matchVariance = !a.noVarianceMatch;
     if (a.secondary != "density") {
         const auto p = split(a.secondary, ',');
         double v[3];
@@ -380,10 +333,6 @@ void fillSettings(SynthArgs& a)
     };
     largeSmall(a.iterations, "--iterations", s.largeIterations, s.smallIterations);
     largeSmall(a.radius, "--radius", s.largeRadius, s.smallRadius);
-    a.combine.relative = !a.omegaAbsolute;
-    a.combine.weighting = a.omegaMode == "energy"      ? turb::CombineSettings::Weighting::KineticEnergy
-                          : a.omegaMode == "vorticity" ? turb::CombineSettings::Weighting::Vorticity
-                                                       : turb::CombineSettings::Weighting::Constant;
 }
 
 // The views the exemplars serve: one 2D view, one volume exemplar, or planar exemplars along local axes (--views,
@@ -478,34 +427,34 @@ std::optional<turbio::SequenceScan> preflightSynth(SynthArgs& a, const CoarseSou
 void checkSynthLatticeAndMemory(const SynthArgs& a, const turb::Frame& f0, const std::optional<turbio::SequenceScan>& scan,
     bool volume, int frameCount)
 {
-    const turb::SynthSettings& s = a.settings;
+    const turb::SynthSettings& s = a.seq.synth;
     turb::CoordBBox coarse = f0.velocity.bbox();
     if (scan)
         if (const turbio::FrameScan* l = scan->largestDomain()) coarse = l->domain;
-    const turb::FineDomain d = turb::fineDomain(f0.velocity, a.factor);
+    const turb::FineDomain d = turb::fineDomain(f0.velocity, a.seq.factor);
     const turb::Lattice& cl = f0.velocity.lattice();
     const turb::Vec3d lo = cl.indexToWorld(coarse.min().asVec3d() - turb::Vec3d(0.5));
     const turb::Vec3d hi = cl.indexToWorld(coarse.max().asVec3d() + turb::Vec3d(0.5));
-    const double outVoxels = double(coarse.volume()) * std::pow(double(a.factor), volume ? 3.0 : 2.0);
+    const double outVoxels = double(coarse.volume()) * std::pow(double(a.seq.factor), volume ? 3.0 : 2.0);
     if (globals().dryRun || globals().verbosity >= 2)
         printData("output lattice: " + std::to_string(d.box.dim().x()) + "x" + std::to_string(d.box.dim().y()) + "x" +
                   std::to_string(d.box.dim().z()) + " voxels of " + fmt("%g", d.lattice.voxelSize) + " (factor " +
-                  std::to_string(a.factor) + "), world (" + fmt("%.4g", lo.x()) + "," + fmt("%.4g", lo.y()) + "," +
+                  std::to_string(a.seq.factor) + "), world (" + fmt("%.4g", lo.x()) + "," + fmt("%.4g", lo.y()) + "," +
                   fmt("%.4g", lo.z()) + ")-(" + fmt("%.4g", hi.x()) + "," + fmt("%.4g", hi.y()) + "," + fmt("%.4g", hi.z()) +
                   "); output size about " + turbio::formatBytes(outVoxels * 16.0) + " per frame");
-    const int lb = cf0HasDensity(f0, a) ? a.lookback : 0;
+    const int lb = cf0HasDensity(f0, a) ? a.seq.lookback : 0;
     // The synthesis runs on the box grown by --face-padding on its open faces (walls not grown).
     double grown = 1.0;
     for (int ax = 0; ax < (volume ? 3 : 2); ++ax) {
         const int open = !(s.boundary.walls & (1u << (2 * ax))) + !(s.boundary.walls & (1u << (2 * ax + 1)));
         grown *= double(coarse.dim()[ax] + open * s.facePadding) / double(coarse.dim()[ax]);
     }
-    const double coarseVoxels = (volume ? double(coarse.volume()) : double(coarse.volume()) / a.factor) * grown;
-    const double need = turb::synthPeakBytes(coarseVoxels, a.factor, frameCount, lb);
+    const double coarseVoxels = (volume ? double(coarse.volume()) : double(coarse.volume()) / a.seq.factor) * grown;
+    const double need = turb::synthPeakBytes(coarseVoxels, a.seq.factor, frameCount, lb);
     const long long usable = turbio::usableMemoryBytes();
     const int fMax = usable > 0 ? turb::largestSynthFactor(0.9 * double(usable), coarseVoxels, frameCount, lb) : 0;
     checkMemory(need, std::to_string(coarse.dim().x()) + "x" + std::to_string(coarse.dim().y()) + "x" +
-                          std::to_string(coarse.dim().z()) + " coarse voxels at factor " + std::to_string(a.factor),
+                          std::to_string(coarse.dim().z()) + " coarse voxels at factor " + std::to_string(a.seq.factor),
         fMax >= 1 ? "--factor " + std::to_string(fMax) + " fits" : "no factor fits: crop the coarse cache");
 }
 
@@ -562,7 +511,7 @@ std::string writeSynthPreview(const SynthArgs& a, const std::vector<turb::SynthV
     le.width = std::max(64, a.previewWidth / 2);
     const turb::Image exImg = labelled(turb::renderLic(turb::exemplarAsField(views[0].exemplar), le), "exemplar");
     const turb::Image hImg = labelled(turb::renderLic(H.world, ls), "detail H'");
-    const turb::Image lImg = labelled(turb::renderLic(turb::upsampleCoarse(cf.velocity, a.factor), ls), "coarse up(L)");
+    const turb::Image lImg = labelled(turb::renderLic(turb::upsampleCoarse(cf.velocity, a.seq.factor), ls), "coarse up(L)");
     const turb::Image fImg = labelled(turb::renderLic(F, ls), "F = up(L) + w H'");
     std::vector<turb::SheetCell> row{{&exImg, ""}, {&lImg, ""}, {&hImg, ""}, {&fImg, ""}};
     turb::Image dImg;
@@ -582,20 +531,6 @@ std::string writeSynthPreview(const SynthArgs& a, const std::vector<turb::SynthV
     return png;
 }
 
-turb::SynthSequenceSettings sequenceSettings(const SynthArgs& a)
-{
-    turb::SynthSequenceSettings seqSettings;
-    seqSettings.synth = a.settings;
-    seqSettings.combine = a.combine;
-    seqSettings.factor = a.factor;
-    seqSettings.detailNearSmoke = !a.detailEverywhere;
-    seqSettings.project = a.project;
-    seqSettings.projectIterations = a.projectIterations;
-    seqSettings.density = !a.noDensity;
-    seqSettings.lookback = a.lookback;
-    seqSettings.detailOnly = a.output == "detail";
-    return seqSettings;
-}
 
 // A frame's JSON line: the output, the synthesis's levels and energies, the detail's strength and region.
 nlohmann::json frameJson(const SynthArgs& a, const turb::SynthFrameResult& r, const turb::DetailField& H, bool hasDensity,
@@ -618,8 +553,8 @@ nlohmann::json frameJson(const SynthArgs& a, const turb::SynthFrameResult& r, co
     double h2 = 0.0;
     for (const auto& v : H.world.values()) h2 += v.lengthSqr();
     extra["detail_rms"] = std::sqrt(h2 / double(std::max<size_t>(1, H.world.size())));
-    extra["detail_region"] = !a.detailEverywhere && hasDensity ? "smoke" : "everywhere";
-    if (a.project) extra["projection"] = projJson;
+    extra["detail_region"] = a.seq.detailNearSmoke && hasDensity ? "smoke" : "everywhere";
+    if (a.seq.project) extra["projection"] = projJson;
     if (densityMass >= 0.0) extra["density_mass"] = densityMass;
     return extra;
 }
@@ -631,153 +566,333 @@ void tagOutput(turb::Frame& outFrame, const SynthArgs& a, const std::vector<turb
     std::string names;
     for (const auto& v : views) names += (names.empty() ? "" : ",") + v.exemplar.name;
     outFrame.metadata[turb::meta::kExemplars] = names;
-    outFrame.metadata[turb::meta::kOmega] = fmt("%g", a.combine.omega) + (a.combine.relative ? " x rms|L|" : "") + " " + a.omegaMode;
-    outFrame.metadata[turb::meta::kSeed] = std::to_string(a.settings.seed);
-    outFrame.metadata[turb::meta::kRatio] = std::to_string(a.factor); // Blender-style placement (io.md)
+    outFrame.metadata[turb::meta::kOmega] = fmt("%g", a.seq.combine.omega) + (a.seq.combine.relative ? " x rms|L|" : "") + " " + weightingName(a.seq.combine.weighting);
+    outFrame.metadata[turb::meta::kSeed] = std::to_string(a.seq.synth.seed);
+    outFrame.metadata[turb::meta::kRatio] = std::to_string(a.seq.factor); // Blender-style placement (io.md)
+}
+
+// The run's fixed parts: the coarse input, its first frame, the exemplars as views, walls and obstacle.
+struct SynthPlan
+{
+    std::vector<int> frames;
+    turbio::FramePattern out;
+    std::optional<turbio::SequenceScan> scan;
+    turb::Frame first; ///< the first coarse frame, read to decide 2D or 3D and the views
+    bool volume = false;
+    std::vector<turb::SynthView> views;
+    std::optional<turb::ScalarField> obstacle;
+};
+
+SynthPlan planSynth(SynthArgs& a, CoarseSource& source)
+{
+    SynthPlan p;
+    p.frames = source.frames();
+    p.out = turbio::FramePattern::parse(a.out);
+    if (p.frames.size() > 1 && !p.out.numbered())
+        throw turb::ValueError("--out '" + a.out + "' has no frame token (####, %04d, $F4) but " +
+                               std::to_string(p.frames.size()) + " frames are requested");
+    p.scan = preflightSynth(a, source, p.frames, p.out);
+    if (a.exemplars.empty()) a.exemplars.push_back("circles:16");
+    std::vector<turb::Exemplar> ex;
+    for (const auto& spec : a.exemplars) ex.push_back(loadExemplar(spec, a));
+    ConsoleProgress progress(0, int(p.frames.size()), p.frames.front());
+    progress.begin("reading");
+    p.first = source.read(p.frames.front(), &progress);
+    progress.clear();
+    if (!p.first.hasVelocity())
+        throw turb::ValueError(source.label() + ": frame " + std::to_string(p.frames.front()) + " has no velocity");
+    p.volume = p.first.bbox().dim().z() > 1;
+    p.views = synthViews(a, ex, p.volume);
+    a.seq.synth.boundary.walls = a.walls.empty() ? source.sceneWalls() : parseWalls(a.walls);
+    p.obstacle = readObstacle(a, source, p.first);
+    return p;
+}
+
+void logPlan(const SynthArgs& a, const CoarseSource& source, const SynthPlan& p)
+{
+    logInfo("synth: " + source.label() + ", frames " + turbio::formatFrameList(p.frames) + ", " + (p.volume ? "3D" : "2D") +
+            ", factor " + std::to_string(a.seq.factor) + ", " + std::to_string(p.views.size()) + " view" +
+            (p.views.size() == 1 ? "" : "s") + ", " +
+            (a.seq.synth.search == turb::SearchMethod::Tree ? "tree search" : "k-coherence"));
+    for (const auto& v : p.views)
+        logInfo("  exemplar " + v.exemplar.name + " (" + std::to_string(v.exemplar.nx) + "x" + std::to_string(v.exemplar.ny) +
+                (v.exemplar.planar() ? "" : "x" + std::to_string(v.exemplar.nz)) + (v.exemplar.periodic ? ", periodic" : "") +
+                ")" + (v.exemplar.planar() && p.volume ? ", looks along e" + std::to_string(v.normal + 1) : "") +
+                (p.views.size() > 1 ? ", weight " + fmt("%g", v.weight) : ""));
+}
+
+// -v: every level's energy after each iteration.
+void logLevels(const turb::DetailField& H, int fr)
+{
+    for (const auto& l : H.levels) {
+        std::string e;
+        for (double x : l.energy) e += fmt(" %.4f", x);
+        logVerbose("frame " + std::to_string(fr) + ": level " + std::to_string(l.level) + " " + std::to_string(l.dim.x()) +
+                   "x" + std::to_string(l.dim.y()) + "x" + std::to_string(l.dim.z()) + " energy" + e);
+    }
+}
+
+// One frame: read, synthesise and combine, write, report.
+void synthFrame(const SynthArgs& a, CoarseSource& source, SynthPlan& p, turb::SynthSequence& sequence, size_t i,
+    RunReport& report, std::vector<int>& unconverged, bool& warnedClipping)
+{
+    const int fr = p.frames[i];
+    const auto t0 = std::chrono::steady_clock::now();
+    ConsoleProgress progress(int(i), int(p.frames.size()), fr);
+    progress.begin("reading");
+    turb::Frame cf = i == 0 ? std::move(p.first) : source.read(fr, &progress);
+    if (!cf.hasVelocity()) throw turb::ValueError(source.label() + ": frame " + std::to_string(fr) + " has no velocity");
+    const double readSeconds = secondsSince(t0);
+
+    turb::SynthFrameInput in;
+    in.coarse = &cf.velocity;
+    in.coarseDensity = cf.hasDensity() ? &cf.density : nullptr;
+    in.obstacle = p.obstacle ? &*p.obstacle : nullptr;
+    in.frame = fr;
+    in.dt = cf.dt > 0.0 ? cf.dt : a.flowDt;
+    const std::optional<turb::ScalarField> emitters =
+        cf.hasDensity() && a.seq.density ? source.sceneEmitters(cf.density, fr) : std::nullopt;
+    in.emitters = emitters ? &*emitters : nullptr;
+    turb::SynthFrameResult r;
+    try {
+        r = sequence.next(in, &progress);
+    } catch (const turb::ValueError& e) {
+        const auto& seq = source.sequence();
+        throw turb::ValueError("frame " + std::to_string(fr) + (seq ? " (" + seq->path(fr) + ")" : std::string()) + ": " +
+                               e.what());
+    }
+    const turb::DetailField& H = sequence.lastDetail();
+    turb::Frame& outFrame = r.frame;
+    if (r.smokeless) {
+        progress.clear();
+        logWarning("frame " + std::to_string(fr) + ": the density has no smoke (nothing above " +
+                   fmt("%g", a.seq.combine.smokeThreshold) + "), so no detail is written; --detail-everywhere puts it everywhere");
+    }
+    const nlohmann::json projJson = projectionReport(a, r, fr, progress, unconverged);
+    const auto tWrite = std::chrono::steady_clock::now();
+    tagOutput(outFrame, a, p.views);
+    progress.begin("writing");
+    const std::string outPath = p.out.format(fr);
+    turbio::ensureParentDirectory(outPath);
+    warnIfClippedAway(outFrame, a.write, outPath, warnedClipping);
+    turbio::writeFrame(outPath, outFrame, a.write);
+    const double writeSeconds = secondsSince(tWrite);
+
+    nlohmann::json extra = frameJson(a, r, H, cf.hasDensity(), projJson, outPath);
+    extra["steps_s"] = {{"read", readSeconds}, {"write", writeSeconds}};
+    for (const auto& [name, sec] : r.seconds.named()) extra["steps_s"][name] = sec;
+    if (a.stats) {
+        progress.begin("statistics");
+        extra["texture_match"] = textureStats(p.views, H, p.volume);
+    }
+    if (!a.preview.empty()) {
+        progress.begin("preview");
+        extra["preview"] = writeSynthPreview(a, p.views, cf, H, r.motion, outFrame, fr, p.volume);
+    }
+    progress.clear();
+    const std::string human = std::string(H.fromPrevious ? "continued" : "synthesised") + fmt(", E %.4f", H.finalEnergy()) +
+                              fmt(", |H'| rms %.3f", extra["detail_rms"].get<double>()) +
+                              fmt(", synthesis %.2f s", r.seconds.synthesis) +
+                              (a.seq.project ? " projection " + std::to_string(projJson["iterations"].get<int>()) + " it" : "") +
+                              " -> " + outPath;
+    logLevels(H, fr);
+    report.frameDone(fr, int(i), int(p.frames.size()), secondsSince(t0), human, extra);
 }
 
 int runSynth(SynthArgs& a)
 {
     fillSettings(a);
-    turb::SynthSettings& s = a.settings;
-
     CoarseSource source(a);
-    const std::vector<int>& frames = source.frames();
-    const turbio::FramePattern outPattern = turbio::FramePattern::parse(a.out);
-    if (frames.size() > 1 && !outPattern.numbered())
-        throw turb::ValueError("--out '" + a.out + "' has no frame token (####, %04d, $F4) but " + std::to_string(frames.size()) +
-                               " frames are requested");
-    const std::optional<turbio::SequenceScan> scan = preflightSynth(a, source, frames, outPattern);
-
-    // Exemplars and views.
-    if (a.exemplars.empty()) a.exemplars.push_back("circles:16");
-    std::vector<turb::Exemplar> ex;
-    for (const auto& spec : a.exemplars) ex.push_back(loadExemplar(spec, a));
-
-    ConsoleProgress first(0, int(frames.size()), frames.front());
-    first.begin("reading");
-    turb::Frame f0 = source.read(frames.front(), &first);
-    first.clear();
-    if (!f0.hasVelocity()) throw turb::ValueError(source.label() + ": frame " + std::to_string(frames.front()) + " has no velocity");
-    const bool volume = f0.bbox().dim().z() > 1;
-    const std::vector<turb::SynthView> views = synthViews(a, ex, volume);
-
-    // Boundaries.
-    s.boundary.walls = a.walls.empty() ? source.sceneWalls() : parseWalls(a.walls);
-    const std::optional<turb::ScalarField> obstacle = readObstacle(a, source, f0);
-
-    logInfo("synth: " + source.label() + ", frames " + turbio::formatFrameList(frames) + ", " + (volume ? "3D" : "2D") +
-            ", factor " + std::to_string(a.factor) + ", " + std::to_string(views.size()) + " view" + (views.size() == 1 ? "" : "s") +
-            ", " + (s.search == turb::SearchMethod::Tree ? "tree search" : "k-coherence"));
-    for (const auto& v : views)
-        logInfo("  exemplar " + v.exemplar.name + " (" + std::to_string(v.exemplar.nx) + "x" + std::to_string(v.exemplar.ny) +
-                (v.exemplar.planar() ? "" : "x" + std::to_string(v.exemplar.nz)) + (v.exemplar.periodic ? ", periodic" : "") +
-                ")" + (v.exemplar.planar() && volume ? ", looks along e" + std::to_string(v.normal + 1) : "") +
-                (views.size() > 1 ? ", weight " + fmt("%g", v.weight) : ""));
-    checkSynthLatticeAndMemory(a, f0, scan, volume, int(frames.size()));
+    SynthPlan p = planSynth(a, source);
+    logPlan(a, source, p);
+    checkSynthLatticeAndMemory(a, p.first, p.scan, p.volume, int(p.frames.size()));
     if (globals().dryRun) {
-        for (int fr : frames) printData("would write " + outPattern.format(fr));
+        for (int fr : p.frames) printData("would write " + p.out.format(fr));
         return kOk;
     }
-
-    if (s.traceDescent && !a.json) logWarning("--trace-descent reports in the JSON lines only: add --json");
+    if (a.seq.synth.traceDescent && !a.json) logWarning("--trace-descent reports in the JSON lines only: add --json");
     // The report's clock starts here, so its total includes building the exemplar indices.
     RunReport report("synth", a.json);
     const auto tPrep = std::chrono::steady_clock::now();
-    ConsoleProgress prepProgress(0, int(frames.size()), frames.front());
+    ConsoleProgress prepProgress(0, int(p.frames.size()), p.frames.front());
     prepProgress.begin("exemplar indices");
-    const turb::SynthExemplars prepared(views, s, volume, &prepProgress);
+    const turb::SynthExemplars prepared(p.views, a.seq.synth, p.volume, &prepProgress);
     prepProgress.clear();
-    logVerbose("exemplar pyramids and indices: " + fmt("%.2f s", secondsSince(tPrep)) + ", " + std::to_string(prepared.levels()) +
-               " levels");
-
-    turb::SynthSequence sequence(prepared, sequenceSettings(a));
-
-    const int count = int(frames.size());
+    logVerbose("exemplar pyramids and indices: " + fmt("%.2f s", secondsSince(tPrep)) + ", " +
+               std::to_string(prepared.levels()) + " levels");
+    turb::SynthSequence sequence(prepared, a.seq);
     std::vector<int> unconverged; // frames whose projection stopped short
     bool warnedClipping = false;
-    for (size_t i = 0; i < frames.size(); ++i) {
-        const int fr = frames[i];
-        const auto t0 = std::chrono::steady_clock::now();
-        ConsoleProgress progress(int(i), count, fr);
-        progress.begin("reading");
-        turb::Frame cf = i == 0 ? std::move(f0) : source.read(fr, &progress);
-        if (!cf.hasVelocity()) throw turb::ValueError(source.label() + ": frame " + std::to_string(fr) + " has no velocity");
-        const double readSeconds = secondsSince(t0);
-
-        turb::SynthFrameInput in;
-        in.coarse = &cf.velocity;
-        in.coarseDensity = cf.hasDensity() ? &cf.density : nullptr;
-        in.obstacle = obstacle ? &*obstacle : nullptr;
-        in.frame = fr;
-        in.dt = cf.dt > 0.0 ? cf.dt : a.flowDt;
-        const std::optional<turb::ScalarField> emitters =
-            cf.hasDensity() && !a.noDensity ? source.sceneEmitters(cf.density, fr) : std::nullopt;
-        in.emitters = emitters ? &*emitters : nullptr;
-        turb::SynthFrameResult r;
-        try {
-            r = sequence.next(in, &progress);
-        } catch (const turb::ValueError& e) {
-            const auto& seq = source.sequence();
-            throw turb::ValueError("frame " + std::to_string(fr) + (seq ? " (" + seq->path(fr) + ")" : std::string()) + ": " +
-                                   e.what());
-        }
-        const turb::DetailField& H = sequence.lastDetail();
-        const turb::VectorField& F = r.motion;
-        turb::Frame& outFrame = r.frame;
-        if (r.smokeless) {
-            progress.clear();
-            logWarning("frame " + std::to_string(fr) + ": the density has no smoke (nothing above " +
-                       fmt("%g", a.combine.smokeThreshold) + "), so no detail is written; --detail-everywhere puts it everywhere");
-        }
-        const nlohmann::json projJson = projectionReport(a, r, fr, progress, unconverged);
-        auto tWrite = std::chrono::steady_clock::now();
-
-        tagOutput(outFrame, a, views);
-        progress.begin("writing");
-        const std::string outPath = outPattern.format(fr);
-        turbio::ensureParentDirectory(outPath);
-        warnIfClippedAway(outFrame, a.write, outPath, warnedClipping);
-        turbio::writeFrame(outPath, outFrame, a.write);
-        const double writeSeconds = secondsSince(tWrite);
-
-        nlohmann::json extra = frameJson(a, r, H, cf.hasDensity(), projJson, outPath);
-        extra["steps_s"] = {{"read", readSeconds}, {"write", writeSeconds}};
-        for (const auto& [name, sec] : r.seconds.named()) extra["steps_s"][name] = sec;
-        if (a.stats) {
-            progress.begin("statistics");
-            extra["texture_match"] = textureStats(views, H, volume);
-        }
-        if (!a.preview.empty()) {
-            progress.begin("preview");
-            extra["preview"] = writeSynthPreview(a, views, cf, H, F, outFrame, fr, volume);
-        }
-        progress.clear();
-
-        std::string human = std::string(H.fromPrevious ? "continued" : "synthesised") + fmt(", E %.4f", H.finalEnergy()) +
-                            fmt(", |H'| rms %.3f", extra["detail_rms"].get<double>()) + fmt(", synthesis %.2f s", r.seconds.synthesis) +
-                            (a.project ? " projection " + std::to_string(projJson["iterations"].get<int>()) + " it" : "") + " -> " +
-                            outPath;
-        for (const auto& l : H.levels) {
-            std::string e;
-            for (double x : l.energy) e += fmt(" %.4f", x);
-            logVerbose("frame " + std::to_string(fr) + ": level " + std::to_string(l.level) + " " + std::to_string(l.dim.x()) + "x" +
-                       std::to_string(l.dim.y()) + "x" + std::to_string(l.dim.z()) + " energy" + e);
-        }
-        report.frameDone(fr, int(i), count, secondsSince(t0), human, extra);
-    }
+    for (size_t i = 0; i < p.frames.size(); ++i) synthFrame(a, source, p, sequence, i, report, unconverged, warnedClipping);
     report.finish();
-    if (!unconverged.empty()) {
-        std::string list;
-        for (int fr : unconverged) list += (list.empty() ? "" : ", ") + std::to_string(fr);
-        const std::string msg = std::to_string(unconverged.size()) + " frame(s) with a projection that did not converge: " + list;
-        if (a.strict) {
-            logError(msg + " (--strict)");
-            return kFailed;
-        }
-        logWarning(msg);
+    if (unconverged.empty()) return kOk;
+    std::string list;
+    for (int fr : unconverged) list += (list.empty() ? "" : ", ") + std::to_string(fr);
+    const std::string msg = std::to_string(unconverged.size()) + " frame(s) with a projection that did not converge: " + list;
+    if (a.strict) {
+        logError(msg + " (--strict)");
+        return kFailed;
     }
+    logWarning(msg);
     return kOk;
+}
+
+} // namespace
+
+namespace {
+
+// A second-tier setting of the command: the option under `key`.
+template<typename T>
+CLI::Option* knob(CLI::App* app, const std::string& names, T& v, const std::string& help, const std::string& key)
+{
+    return setting(app->add_option(names, v, help), key);
+}
+
+// Where the coarse motion comes from beyond the everyday --target/--scene/--flow, and the exemplars' shape.
+void addInputSettings(CLI::App* app, SynthArgs& a)
+{
+    knob(app, "--scene-res", a.sceneRes, "Scene cells NXxNYxNZ along x, y, z (z is up), as sim --res", "scene-res");
+    knob(app, "--scene-seed", a.sceneSeed, "Scene emitter noise seed", "scene-seed");
+    knob(app, "--flow-res", a.flowRes, "Analytic flow cells NXxNYxNZ along x, y, z; NZ = 1 is 2D", "flow-res");
+    knob(app, "--flow-speed", a.flowSpeed, "Analytic flow speed, world units/s (the domain is 4 units wide)", "flow-speed");
+    knob(app, "--flow-angle", a.flowAngle, "Uniform flow direction in the xy plane, degrees from +x", "flow-angle");
+    knob(app, "--slice-z", a.sliceZ, "Synthesise in 2D on coarse layer K of a 3D input", "slice-z")
+        ->check(CLI::NonNegativeNumber);
+    knob(app, "--exemplar-scale", a.exemplarScale, "Texture scale: features this many times larger", "exemplar-scale")
+        ->check(CLI::PositiveNumber);
+    knob(app, "--volume-crop", a.volumeCrop, "vdb3 exemplars: use the central N^3 voxels", "volume-crop")
+        ->check(CLI::Range(8, 128));
+    setting(app->add_flag("--periodic", a.periodic, "Picture/VDB exemplars tile seamlessly (procedurals always do)"),
+        "periodic");
+    knob(app, "--views", a.views,
+        "3D: local axis each exemplar looks along, e.g. 0,1,2 (0 = along L; one exemplar for all views by default)", "views");
+    knob(app, "--view-weights", a.viewWeights, "3D: relative weight per view, e.g. 1,1,4", "view-weights");
+    knob(app, "--obstacle", a.obstacle, "Obstacle signed distance: FILE.vdb[:GRID] in world units (grid 'surface')",
+        "obstacle");
+}
+
+// The texture optimisation (Ma et al. sections 3.2-3.4, 3.7): pyramid, neighbourhoods, search, orientation.
+void addSynthesisSettings(CLI::App* app, SynthArgs& a)
+{
+    turb::SynthSettings& s = a.seq.synth;
+    setting(addEnum<turb::SearchMethod>(app, "--search,--synth.search", s.search,
+                {{"tree", turb::SearchMethod::Tree}, {"kcoherence", turb::SearchMethod::KCoherence}},
+                "Neighbourhood search: tree (the paper) or k-coherence (section 3.7)"),
+        "synth.search");
+    knob(app, "--k,--synth.kSimilar", s.kSimilar, "k-coherence: similar neighbourhoods per exemplar pixel", "synth.kSimilar")
+        ->check(CLI::Range(1, 64));
+    knob(app, "--tree-iterations,--synth.treeIterationsPerLevel", s.treeIterationsPerLevel,
+        "k-coherence: iterations per level that still search the tree (0 = pure k-coherence)", "synth.treeIterationsPerLevel")
+        ->check(CLI::Range(0, 100));
+    knob(app, "--levels,--synth.levels", s.levels, "Pyramid levels (0 = the paper's: 3, or 2 for exemplars <= 16^2)",
+        "synth.levels")
+        ->check(CLI::Range(0, 8));
+    knob(app, "--iterations", a.iterations, "Iterations per level: LARGE,SMALL in 2D, SMALL in 3D (paper 3-5)", "iterations");
+    knob(app, "--radius", a.radius, "Neighbourhood radii LARGE,SMALL (8,4 = 17^2 and 9^2)", "radius");
+    knob(app, "--spacing,--synth.spacing", s.spacing, "Distance between neighbourhood centres (0 = auto)", "synth.spacing")
+        ->check(CLI::Range(0, 16));
+    knob(app, "--tap-step,--synth.volumeTapStep", s.volumeTapStep,
+        "vdb3 exemplars: a tap every N voxels over the 9^3 footprint (1 = all 729)", "synth.volumeTapStep")
+        ->check(CLI::Range(1, 4));
+    knob(app, "--pca,--synth.pcaComponents", s.pcaComponents, "PCA dimensions for the tree search", "synth.pcaComponents")
+        ->check(CLI::Range(1, 256));
+    knob(app, "--robust,--synth.robustExponent", s.robustExponent,
+        "Robust exponent r of Kwatra's weights (2 = least squares)", "synth.robustExponent")
+        ->check(CLI::Range(0.01, 2.0));
+    boolSetting(app, "--synth.matchVariance", s.matchVariance,
+        "3D: views keep their mean and spread (false: the paper's plain average)", "synth.matchVariance");
+    legacy(app->add_flag_function("--no-variance-match", [&s](int64_t) { s.matchVariance = false; }, ""),
+        "synth.matchVariance", "false");
+    boolSetting(app, "--synth.orientation.follow", s.orientation.follow,
+        "Neighbourhoods and vectors follow L's local frame (false: world axes)", "synth.orientation.follow");
+    legacy(app->add_flag_function("--no-orient", [&s](int64_t) { s.orientation.follow = false; }, ""),
+        "synth.orientation.follow", "false");
+    knob(app, "--secondary", a.secondary,
+        "3D second local axis: density (its gradient, else the direction L has least of) or a fixed vector X,Y,Z",
+        "secondary");
+    knob(app, "--seed,--synth.seed", s.seed, "Random seed: the same seed gives the same output", "synth.seed");
+    knob(app, "--continue-iterations,--synth.continueIterations", s.continueIterations,
+        "Later frames: iterations from the advected detail", "synth.continueIterations")
+        ->check(CLI::Range(1, 100));
+    knob(app, "--temporal-weight,--synth.temporalWeight", s.temporalWeight,
+        "Later frames: pull toward the advected detail", "synth.temporalWeight")
+        ->check(CLI::NonNegativeNumber);
+    knob(app, "--wall-lambda,--synth.boundary.lambda", s.boundary.lambda,
+        "Wall term weight: normal detail shrinks by 1/(1+lambda) on the wall", "synth.boundary.lambda")
+        ->check(CLI::NonNegativeNumber);
+    knob(app, "--wall-width,--synth.boundary.width", s.boundary.width,
+        "Gaussian width of the wall term in voxels of each level", "synth.boundary.width")
+        ->check(CLI::PositiveNumber);
+    knob(app, "--face-padding,--synth.facePadding", s.facePadding,
+        "Coarse cells synthesised beyond each open box face and cut off, so faces show no seams (0 = the paper)",
+        "synth.facePadding")
+        ->check(CLI::Range(0, 16));
+    setting(app->add_flag("--trace-descent,--synth.traceDescent", s.traceDescent,
+                "JSON: Kwatra's objective at every step of every iteration (levels[].descent; slower)"),
+        "synth.traceDescent");
+}
+
+// CLI11's number ranges let NaN through and print their infinite bound in full.
+CLI::Validator coarseCells(bool zeroOk)
+{
+    return CLI::Validator(
+        [zeroOk](std::string& text) -> std::string {
+            double v = 0.0;
+            if (!parseNumber(text, v) || !std::isfinite(v) || v > 1e6 || (zeroOk ? v < 0.0 : v <= 0.0))
+                return std::string("must be a number of coarse cells ") + (zeroOk ? ">= 0" : "> 0") + " (up to 1e6)";
+            return {};
+        },
+        zeroOk ? "CELLS>=0" : "CELLS>0");
+}
+
+// F = up(L) + omega H' (section 3.5), the projection, the density and the pictures.
+void addCombineSettings(CLI::App* app, SynthArgs& a)
+{
+    turb::SynthSequenceSettings& q = a.seq;
+    turb::CombineSettings& c = q.combine;
+    boolSetting(app, "--combine.removeCoarsePart", c.removeCoarsePart,
+        "Take the detail's coarse part out, so the coarse motion stays L's (false: the paper's F)", "combine.removeCoarsePart");
+    legacy(app->add_flag_function("--keep-coarse", [&c](int64_t) { c.removeCoarsePart = false; }, ""),
+        "combine.removeCoarsePart", "false");
+    boolSetting(app, "--combine.relative", c.relative, "omega is relative to L's rms speed (false: velocity units)",
+        "combine.relative");
+    legacy(app->add_flag_function("--omega-absolute", [&c](int64_t) { c.relative = false; }, ""), "combine.relative",
+        "false");
+    setting(addEnum<turb::CombineSettings::Weighting>(app, "--omega-mode,--combine.weighting", c.weighting, kWeightings,
+                "Shape of omega: constant, energy (|L|^2), vorticity (|curl L|)"),
+        "combine.weighting");
+    knob(app, "--detail-margin,--combine.smokeMargin", c.smokeMargin,
+        "Coarse cells of full detail around the smoke; the detail then fades out", "combine.smokeMargin")
+        ->check(coarseCells(true));
+    knob(app, "--detail-falloff,--combine.smokeFalloff", c.smokeFalloff,
+        "Coarse cells over which the detail fades to zero beyond the margin", "combine.smokeFalloff")
+        ->check(coarseCells(false));
+    boolSetting(app, "--detailNearSmoke", q.detailNearSmoke,
+        "Detail near the smoke only, when L has density (false: the whole box, the paper)", "detailNearSmoke");
+    legacy(app->add_flag_function("--detail-everywhere", [&q](int64_t) { q.detailNearSmoke = false; }, ""),
+        "detailNearSmoke", "false");
+    knob(app, "--project-iterations,--projectIterations", q.projectIterations, "Conjugate-gradient cap of --project",
+        "projectIterations")
+        ->check(CLI::Range(1, 100000));
+    boolSetting(app, "--detailOnly", q.detailOnly, "Write F - up(L), what the synthesis added (false: F)", "detailOnly");
+    legacy(app->add_option_function<std::string>(
+               "--output", [&q](const std::string& v) { q.detailOnly = v == "detail"; }, "combined or detail")
+               ->check(CLI::IsMember({"combined", "detail"})),
+        "detailOnly");
+    knob(app, "--lookback", q.lookback, "Density: frames of look-back integration m (paper 10-20; 0 = naive)", "lookback")
+        ->check(CLI::Range(0, 200));
+    boolSetting(app, "--density", q.density, "Carry a fine density (false: velocity only)", "density");
+    legacy(app->add_flag_function("--no-density", [&q](int64_t) { q.density = false; }, ""), "density", "false");
+    knob(app, "--preview-format", a.previewFormat, "Picture format of --preview: png, exr (linear half), tif",
+        "preview-format")
+        ->check(CLI::IsMember({"png", "exr", "tif"}));
+    knob(app, "--preview-width", a.previewWidth, "Width of each preview panel in pixels", "preview-width")
+        ->check(CLI::Range(32, 4096));
+    knob(app, "--preview-view", a.previewView, "Preview slice: top, front, side (top in 2D, front in 3D)", "preview-view")
+        ->check(CLI::IsMember({"top", "front", "side"}));
+    setting(app->add_flag("--stats", a.stats,
+                "Texture statistics per frame: nearest-neighbour distance to each exemplar against a shuffled field"),
+        "stats");
 }
 
 } // namespace
@@ -790,116 +905,29 @@ Command synthCommand()
     c.help = "Motion-field texture synthesis: detail motion from small exemplars, oriented along a coarse flow";
     c.setup = [args](CLI::App* app) {
         SynthArgs& a = *args;
-        turb::SynthSettings& s = a.settings;
         app->add_option("--target", a.target, "Coarse motion L: a VDB cache (pattern or one file); density optional");
         app->add_option("--scene", a.scene, "Coarse motion from a built-in scene simulated on the fly (plume, swirl, obstacle, wind)");
-        app->add_option("--scene-res", a.sceneRes, "Scene cells NXxNYxNZ along x, y, z (z is up), as sim --res (default 32x32x48)");
-        app->add_option("--scene-seed", a.sceneSeed, "Scene emitter noise seed (default 1)");
-        app->add_option("--flow", a.flow, "Coarse motion from an analytic flow: uniform, vortex, shear (no density)")
+        app->add_option("--flow", a.flow, "Coarse motion from an analytic flow (no density)")
             ->check(CLI::IsMember({"uniform", "vortex", "shear"}));
-        app->add_option("--flow-res", a.flowRes, "Analytic flow cells NXxNYxNZ along x, y, z; NZ = 1 is 2D (default 64x64x1)");
-        app->add_option("--flow-speed", a.flowSpeed, "Analytic flow speed, world units/s (default 1; domain 4 units wide)");
-        app->add_option("--flow-angle", a.flowAngle, "Uniform flow direction in the xy plane, degrees from +x (default 0)");
-        app->add_option("--frames", a.frames, "Cache: frames to use (default all). Scene/flow: a count N or a list (default 1)")->check(frameListCheck());
-        app->add_option("--slice-z", a.sliceZ, "Synthesise in 2D on coarse layer K of a 3D input")->check(CLI::NonNegativeNumber);
-        app->add_option("--factor", a.factor, "Up-res factor: output voxel = coarse voxel / factor (default 4)")->check(CLI::Range(1, 32));
+        app->add_option("--frames", a.frames, "Cache: frames to use (default all). Scene/flow: a count N or a list (default 1)")
+            ->check(frameListCheck());
+        app->add_option("--factor", a.seq.factor, "Up-res factor: output voxel = coarse voxel / factor")
+            ->check(CLI::Range(1, 32));
         app->add_option("--exemplar", a.exemplars,
-            "Exemplar, repeatable (one per view): circles|swirls|squares|hearts|stripes|sinusoids[:PERIOD[:SIZE]] "
-            "(default circles:16, size 64); rg:FILE[:SCALE] (a picture, any format OpenImageIO reads; R,G = x,y; v = (2c-1)*SCALE); gray:FILE[:SCALE] "
-            "(curl of intensity); vdb:FILE.vdb[:AXIS:INDEX] (a slice); vdb3:FILE.vdb (a volume)");
-        app->add_option("--exemplar-scale", a.exemplarScale, "Texture scale: features this many times larger (default 1)")
-            ->check(CLI::PositiveNumber);
-        app->add_option("--volume-crop", a.volumeCrop, "vdb3 exemplars: use the central N^3 voxels (default 32)")
-            ->check(CLI::Range(8, 128));
-        app->add_flag("--periodic", a.periodic, "Picture/VDB exemplars tile seamlessly (procedurals always do)");
-        app->add_option("--views", a.views,
-            "3D: local axis each exemplar looks along, e.g. 0,1,2 (0 = along L, plane e2-e3; 1 = plane e1-e3; 2 = plane e1-e2). "
-            "Default: one exemplar for all three views, or one per view in that order");
-        app->add_option("--view-weights", a.viewWeights, "3D: relative weight per view, e.g. 1,1,4 (one view dominates)");
-        app->add_option("--search", a.search, "Neighbourhood search: tree (default, paper) or kcoherence (section 3.7)")
-            ->check(CLI::IsMember({"tree", "kcoherence"}));
-        app->add_option("--k", s.kSimilar, "k-coherence: similar neighbourhoods per exemplar pixel (default 5)")->check(CLI::Range(1, 64));
-        app->add_option("--tree-iterations", s.treeIterationsPerLevel,
-            "k-coherence: iterations per level that still search the tree (default 1; 0 = pure k-coherence)")
-            ->check(CLI::Range(0, 100));
-        app->add_option("--levels", s.levels, "Pyramid levels (default 0 = paper: 3, or 2 for exemplars <= 16^2)")->check(CLI::Range(0, 8));
-        app->add_option("--iterations", a.iterations, "Iterations per level: LARGE,SMALL in 2D, SMALL in 3D (default 4,4; paper 3-5)");
-        app->add_option("--radius", a.radius, "Neighbourhood radii LARGE,SMALL (default 8,4 = 17^2 and 9^2)");
-        app->add_option("--spacing", s.spacing, "Distance between neighbourhood centres (default 0 = auto)")->check(CLI::Range(0, 16));
-        app->add_option("--tap-step", s.volumeTapStep, "vdb3 exemplars: a tap every N voxels over the 9^3 footprint (default 2; 1 = all 729)")
-            ->check(CLI::Range(1, 4));
-        app->add_option("--pca", s.pcaComponents, "PCA dimensions for the tree search (default 16)")->check(CLI::Range(1, 256));
-        app->add_option("--robust", s.robustExponent, "Robust exponent r of Kwatra's weights (default 0.8; 2 = least squares)")
-            ->check(CLI::Range(0.01, 2.0));
-        app->add_flag("--no-variance-match", a.noVarianceMatch, "3D: plain average of the views (paper) instead of matching their spread");
-        app->add_flag("--no-orient", a.noOrient, "Do not follow L: neighbourhoods and vectors in world axes");
-        app->add_option("--secondary", a.secondary, "3D second local axis: density (its gradient, else the direction the coarse flow has least of; default) or a fixed vector X,Y,Z");
-        app->add_option("--seed", s.seed, "Random seed: the same seed gives the same output (default 1)");
-        app->add_option("--continue-iterations", s.continueIterations, "Later frames: iterations from the advected detail (default 3)")
-            ->check(CLI::Range(1, 100));
-        app->add_option("--temporal-weight", s.temporalWeight, "Later frames: pull toward the advected detail (default 0.5)")
-            ->check(CLI::NonNegativeNumber);
+            "Exemplar, repeatable (one per view): circles|swirls|squares|hearts|stripes|sinusoids[:PERIOD[:SIZE]] (default "
+            "circles:16), rg:PICTURE[:SCALE], gray:PICTURE[:SCALE], vdb:FILE.vdb[:AXIS:INDEX], vdb3:FILE.vdb (docs/synth.md)");
+        app->add_option("--omega", a.seq.combine.omega, "Detail strength: times rms|L|")->check(CLI::NonNegativeNumber);
         app->add_option("--walls", a.walls, "Walls: x-,x+,y-,y+,z-,z+, all or none (default: a scene's closed faces, else none)");
-        app->add_option("--wall-lambda", s.boundary.lambda, "Wall term weight: normal detail shrinks by 1/(1+lambda) on the wall (default 50)")
-            ->check(CLI::NonNegativeNumber);
-        app->add_option("--wall-width", s.boundary.width, "Gaussian width of the wall term in voxels of each level (default 1.5)")
-            ->check(CLI::PositiveNumber);
-        app->add_option("--obstacle", a.obstacle, "Obstacle signed distance: FILE.vdb[:GRID] in world units (default grid 'surface')");
-        app->add_option("--omega", a.combine.omega, "Detail strength: times rms|L| (default 0.5), or velocity units with --omega-absolute")
-            ->check(CLI::NonNegativeNumber);
-        app->add_flag_function("--keep-coarse", [args](int64_t) { args->combine.removeCoarsePart = false; },
-            "Keep the detail's coarse part (the paper's F = up(L) + omega H'); default: taken out, so the coarse motion stays L's");
-        app->add_option("--face-padding", s.facePadding,
-               "Coarse cells synthesised beyond each box face that is not a wall and then cut off, so faces show no seams "
-               "(default 2; 0 = the box alone, the paper)")
-            ->check(CLI::Range(0, 16));
-        app->add_flag("--trace-descent", s.traceDescent,
-               "JSON: per iteration, Kwatra's objective of its centres and matches at the search, after the weighted "
-               "average and after the moment match and temporal/wall terms (levels[].descent; slower)");
-        // CLI11's number ranges let NaN through and print their infinite bound in full.
-        const auto cells = [](bool zeroOk) {
-            return CLI::Validator(
-                [zeroOk](std::string& text) -> std::string {
-                    double v = 0.0;
-                    if (!parseNumber(text, v) || !std::isfinite(v) || v > 1e6 || (zeroOk ? v < 0.0 : v <= 0.0))
-                        return std::string("must be a number of coarse cells ") + (zeroOk ? ">= 0" : "> 0") + " (up to 1e6)";
-                    return {};
-                },
-                zeroOk ? "CELLS>=0" : "CELLS>0");
-        };
-        app->add_option("--detail-margin", a.combine.smokeMargin,
-               "Coarse cells of full detail around the smoke (default 2); the detail then fades out over --detail-falloff")
-            ->check(cells(true));
-        app->add_option("--detail-falloff", a.combine.smokeFalloff,
-               "Coarse cells over which the detail fades to zero beyond --detail-margin (default 2)")
-            ->check(cells(false));
-        app->add_flag("--detail-everywhere", a.detailEverywhere,
-               "Detail over the whole box, still air included (the paper); default: near the smoke only, when L has density");
-        app->add_flag("--omega-absolute", a.omegaAbsolute, "--omega is in velocity units (H' has unit rms)");
-        app->add_option("--omega-mode", a.omegaMode, "Shape of omega: constant (default), energy (|L|^2), vorticity (|curl L|)")
-            ->check(CLI::IsMember({"constant", "energy", "vorticity"}));
-        app->add_flag("--project", a.project, "Make F divergence-free (Helmholtz-Hodge, OpenVDB Poisson solver); walls are closed faces");
-        app->add_flag("--strict", a.strict,
-            "Exit 1 when a projection does not converge (always a warning naming the frame; -v gives the solver's numbers)");
-        app->add_option("--project-iterations", a.projectIterations, "Conjugate-gradient iteration cap of --project (default 2000)")
-            ->check(CLI::Range(1, 100000));
-        app->add_option("--output", a.output, "Velocity written: combined (F, default) or detail (F - up(L))")
-            ->check(CLI::IsMember({"combined", "detail"}));
-        app->add_option("--lookback", a.lookback, "Density: frames of look-back integration m (default 12, paper 10-20; 0 = naive)")
-            ->check(CLI::Range(0, 200));
-        app->add_flag("--no-density", a.noDensity, "Write velocity only");
-        app->add_option("--out", a.out, "Output pattern (default synth/synth.####.vdb; directories are created)");
+        app->add_flag("--project", a.seq.project, "Make F divergence-free (Helmholtz-Hodge projection); walls are closed faces");
+        app->add_flag("--strict", a.strict, "Exit 1 when a projection does not converge (always a warning naming the frame)");
         app->add_option("--preview", a.preview, "Write a picture per frame into DIR: LIC of exemplar, up(L), H', F, and density");
-        app->add_option("--preview-format", a.previewFormat, "Picture format of --preview: png (default), exr (linear half), tif")
-            ->check(CLI::IsMember({"png", "exr", "tif"}));
-        app->add_option("--preview-width", a.previewWidth, "Width of each preview panel in pixels (default 256)")
-            ->check(CLI::Range(32, 4096));
-        app->add_option("--preview-view", a.previewView, "Preview slice: top, front, side (default top in 2D, front in 3D)")
-            ->check(CLI::IsMember({"top", "front", "side"}));
-        app->add_flag("--stats", a.stats, "Report texture statistics per frame: nearest-neighbour distance to each exemplar vs a shuffled field");
         app->add_flag("--json", a.json, "One JSON line per frame and a summary on stdout");
         addReadOptions(app, a.read);
+        app->add_option("--out", a.out, "Output pattern (directories are created)")->group(kGroupOutput);
         addWriteOptions(app, a.write);
+        addInputSettings(app, a);
+        addSynthesisSettings(app, a);
+        addCombineSettings(app, a);
     };
     c.run = [args] { return runSynth(*args); };
     return c;

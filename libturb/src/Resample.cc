@@ -200,6 +200,45 @@ Field<T> resampledToVoxel(const Field<T>& f, double voxelSize)
     return out;
 }
 
+CoordBBox centralBox(const CoordBBox& box, int n)
+{
+    Coord lo, hi;
+    for (int ax = 0; ax < 3; ++ax) {
+        const int m = std::min(box.dim()[ax], n);
+        lo[ax] = box.min()[ax] + (box.dim()[ax] - m) / 2;
+        hi[ax] = lo[ax] + m - 1;
+    }
+    return CoordBBox(lo, hi);
+}
+
+Frame zLayer(const Frame& f, int k)
+{
+    const CoordBBox b = f.bbox();
+    if (k < b.min().z() || k > b.max().z())
+        throw ValueError("layer " + std::to_string(k) + " is outside the frame's z range " + std::to_string(b.min().z()) +
+                         ".." + std::to_string(b.max().z()));
+    const CoordBBox s(Coord(b.min().x(), b.min().y(), k), Coord(b.max().x(), b.max().y(), k));
+    Frame out;
+    out.number = f.number;
+    out.dt = f.dt;
+    out.metadata = f.metadata;
+    if (f.hasVelocity()) {
+        out.velocity = VectorField(s, f.velocity.lattice());
+        for (int i = s.min().x(); i <= s.max().x(); ++i)
+            for (int j = s.min().y(); j <= s.max().y(); ++j) {
+                Vec3f v = f.velocity(i, j, k);
+                v[2] = 0.0f;
+                out.velocity(i, j, k) = v;
+            }
+    }
+    if (f.hasDensity()) {
+        out.density = ScalarField(s, f.density.lattice());
+        for (int i = s.min().x(); i <= s.max().x(); ++i)
+            for (int j = s.min().y(); j <= s.max().y(); ++j) out.density(i, j, k) = f.density(i, j, k);
+    }
+    return out;
+}
+
 Frame resampledToVoxel(const Frame& frame, double voxelSize)
 {
     return mapFields(frame, [&](const auto& field) { return resampledToVoxel(field, voxelSize); });

@@ -87,5 +87,28 @@ SmokeSettings sceneSettings(const std::string& name, const Coord& resolution, st
     return s;
 }
 
+ScalarField emitterMask(const SmokeSettings& settings, const ScalarField& like, int frame)
+{
+    ScalarField m(like.bbox(), like.lattice(), 0.0f);
+    const double t = frame * settings.frameDt, h = like.lattice().voxelSize;
+    for (size_t n = 0; n < m.size(); ++n) {
+        const Vec3d w = like.lattice().indexToWorld(m.coordOf(n).asVec3d());
+        for (const auto& e : settings.emitters)
+            if (t >= e.startTime && t - settings.frameDt <= e.endTime && (w - e.shape.centre).length() <= e.shape.radius + h)
+                m.data()[n] = 1.0f;
+    }
+    return m;
+}
+
+ScalarField obstacleDistance(const SmokeSettings& settings, const VectorField& like)
+{
+    ScalarField sdf(like.bbox(), like.lattice(), 1e9f);
+    for (size_t n = 0; n < sdf.size(); ++n) {
+        const Vec3d w = like.lattice().indexToWorld(Vec3d(sdf.coordOf(n).asVec3d()));
+        for (const auto& s : settings.obstacles) sdf.data()[n] = std::min(sdf.data()[n], float((w - s.centre).length() - s.radius));
+    }
+    return sdf;
+}
+
 } // namespace scenes
 } // namespace turb

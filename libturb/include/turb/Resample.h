@@ -42,6 +42,14 @@ FrequencySplit splitFrequencies(const VectorField& fine, int factor);
 template<typename T>
 Field<T> cropped(const Field<T>& f, const CoordBBox& box);
 
+/// The central part of `box`: at most `n` voxels along each axis, centred (the lower side takes the odd voxel).
+CoordBBox centralBox(const CoordBBox& box, int n);
+
+/// Layer `k` of a 3D frame as a 2D frame, one voxel thick: density as it is, velocity in the layer's plane (its z
+/// component set to 0). Number, dt and metadata are kept; temperature and flame are not. Throws ValueError when `k` is
+/// outside the frame's z range.
+Frame zLayer(const Frame& frame, int k);
+
 /// A velocity written only near the smoke (the IO layer's velocity margin, meta::kVelocityMargin) is the
 /// up-sampled target's wherever it was not written, and reads there as an exact zero: sets each exactly zero voxel
 /// of `velocity` to `up` at the same index (zero where `up`'s box does not reach). Used by transfer's restore,

@@ -182,5 +182,14 @@ const std::vector<SceneInfo>& sceneList();
 /// scene, and z = 1.5 x gives the scene's full height). Throws ValueError for an unknown name.
 SmokeSettings sceneSettings(const std::string& name, const Coord& resolution, std::uint64_t seed);
 
+/// Where the scene's emitters emit during frame `frame` (its time is frame x frameDt; an emitter counts from the frame
+/// before its start to its end), on `like`'s lattice and box: 1 inside an emitter's sphere grown by one voxel, else 0.
+/// `synth` keeps its detail and density out of them, as the simulation's own sources overwrite what is there.
+ScalarField emitterMask(const SmokeSettings& settings, const ScalarField& like, int frame);
+
+/// The scene's obstacles as a signed distance on `like`'s lattice and box, world units: negative inside the nearest
+/// sphere, 1e9 far from all (no obstacles). The distance of a union of spheres is the minimum of theirs.
+ScalarField obstacleDistance(const SmokeSettings& settings, const VectorField& like);
+
 } // namespace scenes
 } // namespace turb
