@@ -6,7 +6,6 @@
 #include <turb/Measure.h>
 #include <turb/Metadata.h>
 #include <turb/Parallel.h>
-#include <turb/Plot.h>
 #include <turb/Resample.h>
 #include <turb/Spectrum.h>
 #include <turbio/ImageIO.h>
@@ -588,73 +587,6 @@ TEST(Measure, IdenticalAtOneAndTwoThreads)
     const auto stats = summarize({a, b});
     EXPECT_EQ(stats.at("lf_err").count, 2);
     EXPECT_EQ(stats.at("lf_err").median, *a.lfErr);
-}
-
-TEST(Plot, LogAxesPlaceDataAndMarkers)
-{
-    PlotSettings ps;
-    ps.width = 400;
-    ps.height = 300;
-    ps.logX = ps.logY = true;
-    const Rgb red(1.0f, 0.0f, 0.0f), blue(0.0f, 0.0f, 1.0f);
-    // Markers at (1, 10) and (100, 100); a rule at x = 10. On log axes 10 is halfway between 1 and 100, and
-    // the line passes the rule at y = 10^1.5, halfway between the markers' heights (linear axes would put
-    // both at about 9% and 24% of the way).
-    PlotSeries s{"", {1.0, 100.0}, {10.0, 100.0}, red, true};
-    const Image img = linePlot({s}, ps, {PlotRule{true, 10.0, "", blue}});
-    ASSERT_EQ(img.width(), 400);
-    int xa = img.width(), xb = -1, ya = -1, yb = -1, blueX = -1;
-    for (int x = 0; x < img.width(); ++x)
-        for (int y = 0; y < img.height(); ++y) {
-            const Rgb p = img.at(x, y);
-            if (p == red) { // marker squares are drawn unblended
-                if (x < xa) { xa = x; ya = y; }
-                if (x > xb) { xb = x; yb = y; }
-            }
-            if (blueX < 0 && p.z() > 0.8f && p.x() < 0.4f && p.y() < 0.4f) blueX = x;
-        }
-    ASSERT_GE(xb, 0);
-    ASSERT_GE(blueX, 0);
-    EXPECT_NEAR(blueX, 0.5 * (xa + xb), 3.0);
-    // Where the red line crosses the rule's column.
-    double sumY = 0.0;
-    int n = 0;
-    for (int y = 0; y < img.height(); ++y) {
-        const Rgb p = img.at(blueX + 1, y);
-        if (p.x() > 0.7f && p.y() < 0.6f && p.z() < 0.6f) {
-            sumY += y;
-            ++n;
-        }
-    }
-    ASSERT_GT(n, 0);
-    EXPECT_NEAR(sumY / n, 0.5 * (ya + yb), 4.0);
-    const auto ticks = niceTicks(0.0, 1.0);
-    ASSERT_FALSE(ticks.empty());
-    EXPECT_DOUBLE_EQ(ticks[1] - ticks[0], 0.2);
-}
-
-TEST(Measure, FiguresRenderAndWrite)
-{
-    const Lattice lat{0.3, {0.0, 0.0, 0.0}};
-    const CoordBBox box({0, 0, 0}, {7, 7, 7});
-    std::vector<FrameMeasures> all;
-    Frame prevT, prevO;
-    for (int fr = 1; fr <= 3; ++fr) {
-        const Frame t = makeFrame(fr, box, lat, smoothFlow, kAll);
-        const Frame o = upFrame(t, 2, noiseDetail(0.2f, unsigned(fr)));
-        MeasureInput in{&o, &t, &o, fr > 1 ? &prevO : nullptr, fr > 1 ? &prevT : nullptr};
-        all.push_back(measureFrame(in));
-        prevT = t;
-        prevO = o;
-    }
-    const Image sp = spectrumFigure(all.back(), "frame 3");
-    const Image mf = metricsFigure(all, "metrics");
-    EXPECT_GT(sp.width(), 500);
-    EXPECT_GT(mf.width(), 1000);
-    testutil::TempDir dir;
-    turbio::writeImage(dir / "spectrum.png", sp);
-    turbio::writeImage(dir / "metrics.png", mf);
-    EXPECT_EQ(turbio::readImage(dir / "metrics.png").width(), mf.width());
 }
 
 // ---------------------------------------------------------------------------------------------

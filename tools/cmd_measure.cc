@@ -2,6 +2,7 @@
 // stdout: one JSON line per frame and a summary line (always: the numbers are this command's product).
 #include "Commands.h"
 #include "Console.h"
+#include "Figures.h"
 #include "Preflight.h"
 
 #include <turb/Metadata.h>
@@ -171,6 +172,7 @@ int runMeasure(MeasureArgs& a)
                                    std::to_string(t.lattice.voxelSize / o.lattice.voxelSize) + " is not an integer");
     }
     if (!a.plotDir.empty()) {
+        if (std::string why; !gnuplotAvailable(why)) throw turb::Error(why);
         std::vector<std::string> plots{a.plotDir + "/metrics.png"};
         for (int f : frames) plots.push_back(a.plotDir + "/" + turbio::FramePattern::parse("spectrum.####.png").format(f));
         checkOutputs(plots, {}, false, false);
@@ -219,7 +221,7 @@ int runMeasure(MeasureArgs& a)
             if (!a.plotDir.empty()) {
                 char name[64];
                 std::snprintf(name, sizeof(name), "/spectrum.%04d.%s", f, a.plotFormat.c_str());
-                turbio::writeImage(a.plotDir + name, turb::spectrumFigure(m, "E(k) frame " + std::to_string(f)));
+                writeSpectrumFigure(a.plotDir + name, m, "E(k) frame " + std::to_string(f));
             }
             const double sec = secondsSince(t1);
             seconds.push_back(sec);
@@ -255,7 +257,7 @@ int runMeasure(MeasureArgs& a)
 
     if (!a.plotDir.empty() && !results.empty()) {
         const std::string ext = "." + a.plotFormat;
-        turbio::writeImage(a.plotDir + "/metrics" + ext, turb::metricsFigure(results, "vdbturb measure: " + out.pattern.str()));
+        writeMetricsFigure(a.plotDir + "/metrics" + ext, results, "vdbturb measure: " + out.pattern.str());
         logInfo("plots: " + a.plotDir + "/metrics" + ext + ", " + a.plotDir + "/spectrum.####" + ext);
     }
 
@@ -319,9 +321,12 @@ Command measureCommand()
         app->add_flag("--no-spectra", args->noSpectra, "Skip the energy spectra (faster)");
         app->add_flag("--no-structure", args->noStructure, "Skip aniso and isotropy (faster)");
         app->add_flag("--spectra", args->spectraJson, "Include the E(k) arrays in the JSON lines");
-        app->add_option("--plot", args->plotDir, "Write plots here: spectrum.####.png per frame and metrics.png");
-        app->add_option("--plot-format", args->plotFormat, "Picture format of the plots: png (default), exr (linear half), tif")
-            ->check(CLI::IsMember({"png", "exr", "tif"}));
+        app->add_option("--plot", args->plotDir,
+            "Write plots here with gnuplot (Debian gnuplot-nox): spectrum.####.png per frame, metrics.png, and their "
+            "gnuplot scripts (.gp) to restyle them");
+        app->add_option("--plot-format", args->plotFormat,
+               "Picture format of the plots (drawn by gnuplot; exr and tif converted from its PNG)")
+            ->check(CLI::IsMember({"png", "svg", "pdf", "exr", "tif"}));
         app->add_flag("--json", args->json, "Accepted for symmetry with other commands: measure always prints JSON");
         addReadOptions(app, args->read);
     };

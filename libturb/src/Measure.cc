@@ -5,7 +5,6 @@
 #include <turb/Error.h>
 #include <turb/Operators.h>
 #include <turb/Parallel.h>
-#include <turb/Plot.h>
 #include <turb/Resample.h>
 
 #include <algorithm>
@@ -780,105 +779,6 @@ std::map<std::string, MetricStats> summarize(const std::vector<FrameMeasures>& f
         st.median = v.size() % 2 ? v[h] : 0.5 * (v[h - 1] + v[h]);
         out[name] = st;
     }
-    return out;
-}
-
-// ---------------------------------------------------------------------------------------------
-// Figures
-
-namespace {
-
-const Rgb kOutputColor(0.10f, 0.35f, 0.80f), kTargetColor(0.10f, 0.10f, 0.10f), kSourceColor(0.15f, 0.60f, 0.25f),
-    kRuleColor(0.80f, 0.20f, 0.15f);
-
-} // namespace
-
-Image spectrumFigure(const FrameMeasures& m, const std::string& title)
-{
-    std::vector<PlotSeries> series;
-    double emax = 0.0;
-    const auto add = [&](const Spectrum& sp, const std::string& label, const Rgb& c, bool dashed) {
-        if (sp.empty()) return;
-        PlotSeries s;
-        s.label = label;
-        s.x = sp.k;
-        s.y = sp.energy;
-        s.color = c;
-        s.dashed = dashed;
-        for (double e : sp.energy) emax = std::max(emax, e);
-        series.push_back(std::move(s));
-    };
-    // The dashed source goes last so that it stays visible where it coincides with the output.
-    add(m.spectrumTarget, "target", kTargetColor, false);
-    add(m.spectrumOutput, "output", kOutputColor, false);
-    add(m.spectrumSource, "source", kSourceColor, true);
-    PlotSettings ps;
-    ps.width = 1000;
-    ps.height = 700;
-    ps.title = title;
-    ps.xLabel = "k (radians per world unit)";
-    ps.yLabel = "E(k)";
-    ps.logX = ps.logY = true;
-    // At most eight decades below the peak: deeper values are round-off and would flatten the rest.
-    double emin = emax;
-    for (const auto& s : series)
-        for (double e : s.y)
-            if (e > 0.0) emin = std::min(emin, e);
-    if (emax > 0.0 && emin < emax * 1e-8) ps.yMin = emax * 1e-8;
-    std::vector<PlotRule> rules;
-    if (m.targetNyquist > 0.0) rules.push_back(PlotRule{true, m.targetNyquist, "target Nyquist", kRuleColor});
-    return linePlot(series, ps, rules);
-}
-
-Image metricsFigure(const std::vector<FrameMeasures>& frames, const std::string& title)
-{
-    std::vector<double> x;
-    for (const auto& f : frames) x.push_back(f.frame);
-    const auto column = [&](std::optional<double> FrameMeasures::*member) {
-        std::vector<double> y;
-        for (const auto& f : frames) y.push_back((f.*member) ? *(f.*member) : std::nan(""));
-        return y;
-    };
-    const auto panel = [&](const std::string& name, std::vector<PlotSeries> series, std::vector<PlotRule> rules) {
-        PlotSettings ps;
-        ps.width = 640;
-        ps.height = 400;
-        ps.title = name;
-        ps.xLabel = "frame";
-        ps.yMin = 0.0;
-        for (auto& s : series) {
-            s.x = x;
-            s.markers = true;
-        }
-        return linePlot(series, ps, rules);
-    };
-    std::vector<Image> panels;
-    panels.push_back(panel("lf_err (good <= 0.05)", {PlotSeries{"output", {}, column(&FrameMeasures::lfErr), kOutputColor}},
-        {PlotRule{false, 0.05, "0.05", kRuleColor}}));
-    panels.push_back(panel("hf_ratio (good 0.8 - 1.25)", {PlotSeries{"output / source", {}, column(&FrameMeasures::hfRatio), kOutputColor}},
-        {PlotRule{false, 0.8, "0.8", kRuleColor}, PlotRule{false, 1.25, "1.25", kRuleColor}}));
-    panels.push_back(panel("div_rel (good <= source)",
-        {PlotSeries{"output", {}, column(&FrameMeasures::divRel), kOutputColor},
-            PlotSeries{"source", {}, column(&FrameMeasures::divRelSource), kSourceColor, false, true}},
-        {}));
-    bool anyBlock = false;
-    for (const auto& f : frames) anyBlock = anyBlock || f.block.has_value();
-    panels.push_back(panel(anyBlock ? "block (good <= 1.05)" : "block: no patch size given", {PlotSeries{"output", {}, column(&FrameMeasures::block), kOutputColor}},
-        {PlotRule{false, 1.05, "1.05", kRuleColor}}));
-    panels.push_back(panel("tcoh (good <= source)",
-        {PlotSeries{"output", {}, column(&FrameMeasures::tcoh), kOutputColor},
-            PlotSeries{"source", {}, column(&FrameMeasures::tcohSource), kSourceColor, false, true}},
-        {}));
-    panels.push_back(panel("E_hf (world units^2)",
-        {PlotSeries{"output", {}, column(&FrameMeasures::hfEnergy), kOutputColor},
-            PlotSeries{"source", {}, column(&FrameMeasures::hfEnergySource), kSourceColor, false, true}},
-        {}));
-    const Image grid = tileImages(panels, 3);
-    const int ts = 3, bar = Image::textHeight(ts) * 2 + 8;
-    Image out(grid.width(), grid.height() + bar, Rgb(1.0f));
-    out.drawText((out.width() - Image::textWidth(title, ts)) / 2, bar / 2 - Image::textHeight(ts) / 2 + 4, title,
-        Rgb(0.1f), ts);
-    out.blit(grid, 0, bar);
     return out;
 }
 

@@ -23,7 +23,6 @@
 #include <turb/Advect.h>
 #include <turb/Field.h>
 #include <turb/Frame.h>
-#include <turb/Image.h>
 #include <turb/Progress.h>
 #include <turb/Spectrum.h>
 
@@ -221,13 +220,5 @@ std::optional<double> lowFrequencyError(const VectorField& detail, const VectorF
 /// (I+e_a)[a] = origin[a] + n * patch, over the same mean elsewhere (nullopt when either set is empty or zero).
 std::optional<double> blockRatio(const VectorField& u, const std::vector<unsigned char>& mask, int patch,
     const Coord& origin = Coord(0));
-
-// ---------------------------------------------------------------------------------------------
-// Figures for reviewers (drawn with Plot.h).
-
-/// Log-log E(k) of output, target and source of one frame, with the target's Nyquist wavenumber marked.
-Image spectrumFigure(const FrameMeasures& m, const std::string& title);
-/// One panel per metric over frames, with the quality.md targets drawn as reference lines.
-Image metricsFigure(const std::vector<FrameMeasures>& frames, const std::string& title);
 
 } // namespace turb
