@@ -720,7 +720,7 @@ int runSynth(SynthArgs& a)
         } catch (const turb::ValueError& e) {
             const auto& seq = source.sequence();
             throw turb::ValueError("frame " + std::to_string(fr) + (seq ? " (" + seq->path(fr) + ")" : std::string()) + ": " +
-                                   e.what());
+                                   e.what(), e.settings());
         }
         const turb::DetailField& H = sequence.lastDetail();
         const turb::VectorField& F = r.motion;

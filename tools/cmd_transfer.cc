@@ -139,10 +139,12 @@ turb::CoordBBox preflight(const TransferArgs& a, const turbio::Sequence& target,
     std::sort(sourceFrames.begin(), sourceFrames.end());
     sourceFrames.erase(std::unique(sourceFrames.begin(), sourceFrames.end()), sourceFrames.end());
     if (targetFrames.empty()) return {};
-    const turbio::SequenceScan ts = checkInput("transfer", "target", target, targetFrames, a.targetRead, LatticePolicy::Refuse);
-    const turbio::SequenceScan ss = checkInput("transfer", "source", source, sourceFrames, a.sourceRead, LatticePolicy::Refuse);
-    reportTiming("target", ts, true, "target-");
-    reportTiming("source", ss, true, "source-");
+    const turbio::SequenceScan ts =
+        checkInput("transfer", "target", target, targetFrames, a.targetRead, LatticePolicy::Refuse, "target");
+    const turbio::SequenceScan ss =
+        checkInput("transfer", "source", source, sourceFrames, a.sourceRead, LatticePolicy::Refuse, "source");
+    reportTiming("target", ts, true, "target");
+    reportTiming("source", ss, true, "source");
 
     const turbio::FrameScan& t0 = ts.frames.front();
     const turbio::FrameScan& s0 = ss.frames.front();
@@ -297,7 +299,7 @@ std::optional<turb::Frame> resumeStateFrame(const std::string& prevPath, int pre
             else
                 return st;
         } catch (const turb::Error& e) {
-            why = e.what();
+            why = messageWithFlags(e);
         }
     }
     logWarning("resume: the exact state " + side + " cannot be used: " + why + ". Continuing from " + prevPath +
@@ -342,7 +344,8 @@ int runTransfer(TransferArgs& a)
     try {
         for (int t : target.frames) sourceFor.push_back(turbio::mapSourceFrame(t, source.frames, a.sourceOffset, wrap));
     } catch (const turb::ValueError& e) {
-        throw turb::ValueError(std::string(e.what()) + "; --source-offset or another --source-wrap maps it");
+        throw turb::ValueError(std::string(e.what()) + "; --source-offset or another --source-wrap maps it",
+            e.settings());
     }
 
     logInfo("transfer: target " + target.pattern.str() + " frames " + turbio::formatFrameList(target.frames) +
@@ -408,12 +411,13 @@ int runTransfer(TransferArgs& a)
             if (it == prevOut.metadata.end())
                 throw turb::IoError(prevPath + ": no vdbturb_state metadata to resume from");
             checkResumable(prevPath, prevOut, s, a.write, target, source);
-            const turb::Frame prevTarget = turbio::readFrame(target.path(prev), prev, a.targetRead);
+            const turb::Frame prevTarget =
+                readingAs("target", [&] { return turbio::readFrame(target.path(prev), prev, a.targetRead); });
             try {
                 const std::optional<turb::Frame> state = resumeStateFrame(prevPath, prev, prevOut);
                 transfer.restore(it->second, state ? *state : prevOut, prevTarget);
             } catch (const turb::Error& e) {
-                throw turb::IoError(prevPath + ": cannot resume from this frame: " + e.what());
+                throw turb::IoError(prevPath + ": cannot resume from this frame: " + e.what(), e.settings());
             } catch (const std::exception& e) {
                 throw turb::IoError(prevPath + ": cannot resume from this frame: damaged vdbturb_state (" + e.what() + ")");
             }
@@ -434,15 +438,16 @@ int runTransfer(TransferArgs& a)
         const auto t0 = std::chrono::steady_clock::now();
         ConsoleProgress progress(int(i), count, t);
         progress.begin("reading");
-        const turb::Frame tf = turbio::readFrame(target.path(t), t, a.targetRead);
-        const turb::Frame sf = turbio::readFrame(source.path(sourceFor[i]), sourceFor[i], a.sourceRead);
+        const turb::Frame tf = readingAs("target", [&] { return turbio::readFrame(target.path(t), t, a.targetRead); });
+        const turb::Frame sf = readingAs("source",
+            [&] { return turbio::readFrame(source.path(sourceFor[i]), sourceFor[i], a.sourceRead); });
         turb::TransferResult r;
         try {
             r = transfer.process(tf, sf, &progress);
         } catch (const turb::ValueError& e) {
             // The library names frames, not files: say which files this frame came from.
             throw turb::ValueError("frame " + std::to_string(t) + " (target " + target.path(t) + ", source " +
-                                   source.path(sourceFor[i]) + "): " + e.what());
+                                   source.path(sourceFor[i]) + "): " + e.what(), e.settings());
         }
         if (i < writeFrom) {
             progress.clear();

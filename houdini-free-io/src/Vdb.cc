@@ -601,15 +601,22 @@ std::string describeGrids(const std::vector<GridInfo>& grids)
 
 namespace detail {
 
-std::string missingGridMessage(const std::string& path, GridRole role, const ReadOptions& options, const std::string& listing)
+turb::IoError missingGrid(const std::string& path, GridRole role, const ReadOptions& options,
+    const std::string& listing)
 {
     const bool density = role == GridRole::Density;
     const std::string& chosen = density ? options.densityGrid : options.velocityGrid;
     const std::string wanted = !chosen.empty() ? "'" + chosen + "'"
                                : density       ? std::string("density (density, density_noise)")
                                                : std::string("velocity (vel, velocity, v, or vel.x/vel.y/vel.z)");
-    return path + ": no " + wanted + " grid; the file has: " + listing + ". Use --" + options.optionPrefix +
-           (density ? "density-grid" : "vel-grid") + " NAME, or '#N' for the N-th grid listed here.";
+    return turb::IoError(path + ": no " + wanted + " grid; the file has: " + listing + ".",
+        {density ? "densityGrid" : "velocityGrid"});
+}
+
+turb::IoError noRequestedGrid(const std::string& path, const std::string& listing)
+{
+    return turb::IoError(path + ": none of the requested grids is present; the file has: " + listing + ".",
+        {"densityGrid", "velocityGrid"});
 }
 
 std::string unsupportedTransformMessage(const std::string& path, const std::string& grid, const std::string& mapType)
@@ -666,13 +673,16 @@ std::string denseSizeProblem(const std::string& path, const turb::CoordBBox& dom
 ReadReport resolveTiming(bool blenderVelocity, bool blenderCache, double recordedDt, const ReadOptions& options)
 {
     ReadReport r;
-    const std::string flag = "--" + options.optionPrefix;
     switch (options.velocityUnits) {
     case VelocityUnits::Cells:
         r.cells = true;
-        r.unitsSource = flag + "vel-units cells";
+        r.unitsSource = "ReadOptions::velocityUnits cells";
+        r.unitsSetting = "velocityUnits";
         break;
-    case VelocityUnits::World: r.unitsSource = flag + "vel-units world"; break;
+    case VelocityUnits::World:
+        r.unitsSource = "ReadOptions::velocityUnits world";
+        r.unitsSetting = "velocityUnits";
+        break;
     case VelocityUnits::Auto:
         r.cells = blenderVelocity;
         r.unitsSource = blenderVelocity ? "detected: Blender's staggered 'velocity' with file_base_resolution is in grid cells "
@@ -681,10 +691,12 @@ ReadReport resolveTiming(bool blenderVelocity, bool blenderCache, double recorde
         break;
     }
     r.fps = options.fps > 0.0 ? options.fps : 24.0;
-    const std::string fpsText = options.fps > 0.0 ? "--" + options.optionPrefix + "fps" : "assumed: the cache records no frame rate";
+    const std::string fpsText = options.fps > 0.0 ? "ReadOptions::fps" : "assumed: the cache records no frame rate";
+    const std::string fpsSetting = options.fps > 0.0 ? "fps" : "";
     if (options.dt > 0.0) {
         r.dt = options.dt;
-        r.dtSource = flag + "dt";
+        r.dtSource = "ReadOptions::dt";
+        r.dtSetting = "dt";
         r.fpsSource = "not used";
     } else if (recordedDt > 0.0) {
         r.dt = recordedDt;
@@ -696,11 +708,13 @@ ReadReport resolveTiming(bool blenderVelocity, bool blenderCache, double recorde
         r.dt = 0.1 * 25.0 / r.fps;
         r.dtSource = "Blender's frame length 0.1 x 25/fps, time scale 1 assumed";
         r.fpsSource = fpsText;
+        r.fpsSetting = fpsSetting;
         r.conventionAssumed = options.fps <= 0.0;
     } else {
         r.dt = 1.0 / r.fps;
         r.dtSource = "1/fps seconds";
         r.fpsSource = fpsText;
+        r.fpsSetting = fpsSetting;
         r.conventionAssumed = options.fps <= 0.0;
     }
     return r;
@@ -717,9 +731,9 @@ void readRoles(openvdb::io::File& file, const std::vector<Descriptor>& order, op
     const auto densName = resolveGrid(names, GridRole::Density, options.densityGrid);
     const auto velName = resolveGrid(names, GridRole::Velocity, options.velocityGrid);
     if (densName.empty() && (options.requireDensity || !options.densityGrid.empty()))
-        throw IoError(detail::missingGridMessage(path, GridRole::Density, options, describeEntries(entries)));
+        throw detail::missingGrid(path, GridRole::Density, options, describeEntries(entries));
     if (velName.empty() && (options.requireVelocity || !options.velocityGrid.empty()))
-        throw IoError(detail::missingGridMessage(path, GridRole::Velocity, options, describeEntries(entries)));
+        throw detail::missingGrid(path, GridRole::Velocity, options, describeEntries(entries));
     const auto take = [&](const std::string& name, const std::string& role) {
         auto g = readGridNamed(file, path, name);
         g->insertMeta(kRoleKey, openvdb::StringMetadata(role));
@@ -736,10 +750,7 @@ void readRoles(openvdb::io::File& file, const std::vector<Descriptor>& order, op
         if (auto n = resolveGrid(names, GridRole::Temperature); !n.empty()) take(n[0], "temperature");
         if (auto n = resolveGrid(names, GridRole::Flame); !n.empty()) take(n[0], "flame");
     }
-    if (out.empty())
-        throw IoError(path + ": none of the requested grids is present; the file has: " + describeEntries(entries) +
-                      ". Choose grids with --" + options.optionPrefix + "density-grid / --" + options.optionPrefix +
-                      "vel-grid NAME, or '#N' for the N-th grid listed here.");
+    if (out.empty()) throw detail::noRequestedGrid(path, describeEntries(entries));
     meta.insertMeta("__turb_grid_list", openvdb::StringMetadata(describeEntries(entries)));
     if (auto fm = file.getMetadata())
         for (auto it = fm->beginMeta(); it != fm->endMeta(); ++it) meta.insertMeta(it->first, *it->second);
@@ -1036,7 +1047,7 @@ SmokeRegion smokeRegion(const std::string& path, const ReadOptions& options)
             const std::vector<GridEntry> entries = listGrids(file, order);
             const auto name = resolveGrid(uniqueNames(entries), GridRole::Density, options.densityGrid);
             if (name.empty() && !options.densityGrid.empty())
-                throw IoError(detail::missingGridMessage(path, GridRole::Density, options, describeEntries(entries)));
+                throw detail::missingGrid(path, GridRole::Density, options, describeEntries(entries));
             if (!name.empty()) out.push_back(readGridNamed(file, path, name[0]));
         },
         options.readTimeout);
@@ -1402,7 +1413,7 @@ void commitTemp(const std::string& tmp, const std::string& path, bool noClobber)
         if (::link(tmp.c_str(), path.c_str()) != 0) {
             const int err = errno;
             ::unlink(tmp.c_str());
-            if (err == EEXIST) throw IoError(path + ": exists, not replaced (--no-clobber)");
+            if (err == EEXIST) throw IoError(path + ": exists, not replaced", {"noClobber"});
             throw IoError(path + ": cannot write (" + std::strerror(err) + ")");
         }
         ::unlink(tmp.c_str());
@@ -1516,7 +1527,7 @@ typename GridT::Ptr maskedGrid(const turb::Field<T>& field, const openvdb::MaskG
 
 void writeFileAtomic(const std::string& path, const std::string& bytes, bool noClobber)
 {
-    if (noClobber && fileExists(path)) throw IoError(path + ": exists, not replaced (--no-clobber)");
+    if (noClobber && fileExists(path)) throw IoError(path + ": exists, not replaced", {"noClobber"});
     const std::string tmp = tempPathFor(path);
     const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
     if (fd < 0) throw IoError(path + ": cannot write (" + std::strerror(errno) + ")");
@@ -1538,7 +1549,7 @@ void writeFileAtomic(const std::string& path, const std::string& bytes, bool noC
 
 void writeAtomically(const std::string& path, bool noClobber, const std::function<void(const std::string& tmp)>& write)
 {
-    if (noClobber && fileExists(path)) throw IoError(path + ": exists, not replaced (--no-clobber)");
+    if (noClobber && fileExists(path)) throw IoError(path + ": exists, not replaced", {"noClobber"});
     const std::string tmp = tempPathFor(path);
     try {
         write(tmp);
@@ -1561,7 +1572,7 @@ void writeAtomically(const std::string& path, bool noClobber, const std::functio
 void writeFrame(const std::string& path, const turb::Frame& frame, const WriteOptions& options, const OtherGrids* others)
 {
     initOpenVdb();
-    if (options.noClobber && fileExists(path)) throw IoError(path + ": exists, not replaced (--no-clobber)");
+    if (options.noClobber && fileExists(path)) throw IoError(path + ": exists, not replaced", {"noClobber"});
     if (!frame.hasVelocity() && !frame.hasDensity()) throw IoError(path + ": frame has no grids to write");
 
     openvdb::GridPtrVec grids;
