@@ -1055,6 +1055,165 @@ SmokeRegion smokeRegion(const std::string& path, const ReadOptions& options)
     return findSmoke(*asFloatGrid(path, r.grids.front(), "density"), options);
 }
 
+namespace {
+
+// The grids the reader took, by the role readRoles labelled them with. A Blender-style file places index 0 where
+// Blender does; the frame keeps the lattice it was written from, so the placement offset comes off here.
+RoleGrids gridsByRole(const std::string& path, const detail::GuardedResult& r)
+{
+    const openvdb::Vec3d offset = blenderOffset(*r.meta);
+    if (offset != openvdb::Vec3d(0.0))
+        for (const auto& grid : r.grids) grid->transform().postTranslate(-offset);
+    RoleGrids g;
+    for (const auto& grid : r.grids) {
+        const std::string role = roleOf(*grid);
+        if (role == "density") g.density = asFloatGrid(path, grid, "density");
+        else if (role == "velocity") g.vel = asVec3Grid(path, grid);
+        else if (role == "velocity.x") g.comp[0] = asFloatGrid(path, grid, "velocity component");
+        else if (role == "velocity.y") g.comp[1] = asFloatGrid(path, grid, "velocity component");
+        else if (role == "velocity.z") g.comp[2] = asFloatGrid(path, grid, "velocity component");
+        else if (role == "temperature") g.temperature = asFloatGrid(path, grid, "temperature");
+        else if (role == "flame") g.flame = asFloatGrid(path, grid, "flame");
+    }
+    return g;
+}
+
+// Where a frame's grids lie, on the frame's lattice.
+struct GridSpans
+{
+    turb::Lattice lattice;                ///< the frame's: the density's (the velocity's without density)
+    std::optional<turb::Coord> baseRes;   ///< Blender's simulation box, when the file records it
+    std::vector<turb::CoordBBox> boxes;   ///< each grid's active box (RoleGrids::all() order)
+    double bytesPerVoxel = 0.0;           ///< of the dense fields the grids become
+    turb::CoordBBox domain;               ///< Blender's box or vdbturb's recorded one, and the boxes' union
+};
+
+GridSpans gridSpans(const std::string& path, const RoleGrids& g, const std::vector<openvdb::GridBase::ConstPtr>& all,
+    const openvdb::MetaMap& meta)
+{
+    // One lattice for the frame: the density's (the velocity's without density). Grids on another uniform
+    // lattice (Houdini's velocity voxel scale) are resampled onto it; components must share one lattice.
+    GridSpans s;
+    s.lattice = latticeOf(path, *all.front());
+    std::vector<turb::Lattice> lattices;
+    for (const auto& grid : all) lattices.push_back(latticeOf(path, *grid));
+    if (g.comp[0])
+        for (int a = 1; a < 3; ++a)
+            if (!latticeOf(path, *g.comp[a]).approxEqual(latticeOf(path, *g.comp[0])))
+                throw IoError(path + ": velocity components " + quoted(g.comp[0]->getName()) + " and " +
+                              quoted(g.comp[a]->getName()) + " lie on different lattices");
+
+    // Domain: Blender records its full simulation box; otherwise the union of the grids' active boxes.
+    for (const auto& grid : all)
+        if (auto res = baseResolution(*grid)) s.baseRes = res;
+    if (s.baseRes) s.domain = turb::CoordBBox(turb::Coord(0), *s.baseRes - turb::Coord(1));
+    // vdbturb's own outputs record the box they span; their grids may be sparse within it.
+    if (const auto recorded = recordedDomain(meta)) s.domain.expand(*recorded);
+    for (size_t i = 0; i < all.size(); ++i) {
+        turb::CoordBBox b = activeBoxOn(*all[i], lattices[i], s.lattice);
+        // A staggered grid's faces on the domain's upper boundary (vdbturb writes them so the last voxel has both
+        // faces) are not voxels of the domain.
+        if (s.baseRes && all[i]->getGridClass() == openvdb::GRID_STAGGERED)
+            b.intersect(turb::CoordBBox(turb::Coord(0), *s.baseRes - turb::Coord(1)));
+        s.boxes.push_back(b);
+        if (!b.empty()) s.domain.expand(b);
+        const bool vector = all[i] == openvdb::GridBase::ConstPtr(g.vel);
+        s.bytesPerVoxel += vector ? 12.0 : 4.0;
+    }
+    if (s.domain.empty()) s.domain = turb::CoordBBox(turb::Coord(0), turb::Coord(0)); // every grid is empty
+    return s;
+}
+
+// The box the frame's fields cover: the smoke and its margin (or ReadOptions::holdBox) with cropToSmoke, else the
+// domain; refused when its dense fields would not fit. Fills `rep`'s span, held box, smoke region and strays note.
+turb::CoordBBox heldBox(const std::string& path, const RoleGrids& g, const std::vector<openvdb::GridBase::ConstPtr>& all,
+    const GridSpans& spans, const ReadOptions& options, ReadReport& rep, std::string& stage)
+{
+    // Hold the smoke, not the span: stray voxels and a large velocity box around a small plume cost nothing.
+    turb::CoordBBox domain = spans.domain;
+    rep.span = domain;
+    if (g.density && options.cropToSmoke) {
+        stage = "finding the smoke in grid " + quoted(g.density->getName());
+        rep.region = findSmoke(*g.density, options);
+        // The margin reaches as far as the other grids (or Blender's domain) do, never toward the strays.
+        turb::CoordBBox reach = rep.region.smoke;
+        if (spans.baseRes) reach.expand(turb::CoordBBox(turb::Coord(0), *spans.baseRes - turb::Coord(1)));
+        for (size_t i = 0; i < all.size(); ++i)
+            if (all[i] != openvdb::GridBase::ConstPtr(g.density) && !spans.boxes[i].empty()) reach.expand(spans.boxes[i]);
+        domain = heldRegion(rep.region, reach.empty() ? domain : reach, options);
+        if (!options.holdBox.empty()) domain = options.holdBox;
+        if (!rep.region.strays.empty()) rep.notes.push_back(rep.region.describeStrays(g.density->getName()));
+    }
+    rep.held = domain;
+    std::vector<std::pair<std::string, turb::CoordBBox>> named;
+    for (size_t i = 0; i < all.size(); ++i) named.emplace_back(all[i]->getName(), spans.boxes[i]);
+    const std::string problem = detail::denseSizeProblem(path, domain, named, spans.bytesPerVoxel, options);
+    if (!problem.empty()) throw IoError(problem);
+    return domain;
+}
+
+// The frame's velocity over `domain` on `lattice`, from a grid on that lattice or on its own (read over the part
+// the held box samples, then resampled, with a note in `rep`). `stage` names the step for out-of-memory messages.
+turb::VectorField heldVelocity(const std::string& path, const RoleGrids& g, const turb::CoordBBox& domain,
+    const turb::Lattice& lattice, bool cells, const ReadOptions& options, ReadReport& rep, std::string& stage)
+{
+    const openvdb::GridBase& vg = g.vel ? static_cast<const openvdb::GridBase&>(*g.vel) : *g.comp[0];
+    if (latticeOf(path, vg).approxEqual(lattice)) {
+        stage = "grid " + quoted(vg.getName()) + " over " + spanText(domain);
+        return velocityField(path, g, domain, lattice, cells, options);
+    }
+    // Read on its own lattice over its own active box (plus the extension), then resample.
+    const turb::Lattice own = latticeOf(path, vg);
+    // Only the part the held box samples (trilinear: one voxel around), plus the extension's reach.
+    turb::CoordBBox box = vg.evalActiveVoxelBoundingBox();
+    box.expand(options.extendVelocity);
+    turb::CoordBBox need = detail::boxOnLattice(domain, lattice, own);
+    need.expand(2 + options.extendVelocity);
+    box.intersect(need);
+    if (box.empty()) box = turb::CoordBBox(turb::Coord(0), turb::Coord(0));
+    stage = "grid " + quoted(vg.getName()) + " over " + spanText(box) + " before resampling";
+    const turb::VectorField native = velocityField(path, g, box, own, cells, options);
+    stage = "grid " + quoted(vg.getName()) + " resampled over " + spanText(domain);
+    turb::VectorField v = resampledOnto(native, domain, lattice);
+    std::ostringstream note;
+    note << "grid " << quoted(vg.getName()) << " (voxel " << own.voxelSize << ") resampled trilinearly onto the "
+         << (g.density ? "density's" : "frame's") << " lattice (voxel " << lattice.voxelSize
+         << ")" << (std::abs(own.voxelSize / lattice.voxelSize - 2.0) < 1e-6 ? ": Houdini's velocity voxel scale 2" : "");
+    rep.notes.push_back(note.str());
+    return v;
+}
+
+// Temperature or flame over `domain` on `lattice` (nothing without the grid), resampled from its own lattice
+// with a note in `rep` when it has one.
+std::optional<turb::ScalarField> heldScalar(const std::string& path, const openvdb::FloatGrid::Ptr& grid,
+    const turb::CoordBBox& domain, const turb::Lattice& lattice, const ReadOptions& options, ReadReport& rep,
+    std::string& stage)
+{
+    if (!grid) return std::nullopt;
+    stage = "grid " + quoted(grid->getName()) + " over " + spanText(domain);
+    if (latticeOf(path, *grid).approxEqual(lattice)) return scalarField(path, *grid, domain, lattice, options.checkFinite);
+    turb::CoordBBox box = grid->evalActiveVoxelBoundingBox();
+    turb::CoordBBox need = detail::boxOnLattice(domain, lattice, latticeOf(path, *grid));
+    need.expand(2);
+    box.intersect(need);
+    const turb::ScalarField native = scalarField(path, *grid,
+        box.empty() ? turb::CoordBBox(turb::Coord(0), turb::Coord(0)) : box, latticeOf(path, *grid), options.checkFinite);
+    turb::ScalarField f = resampledOnto(native, domain, lattice);
+    rep.notes.push_back("grid " + quoted(grid->getName()) + " resampled trilinearly onto the frame's lattice");
+    return f;
+}
+
+// File-level string metadata (vdbturb parameters, creator) travels with the frame.
+void copyFileMetadata(const openvdb::MetaMap& meta, turb::Frame& frame)
+{
+    for (auto it = meta.beginMeta(); it != meta.endMeta(); ++it)
+        if (it->second && it->second->typeName() == openvdb::StringMetadata::staticTypeName() && it->first.rfind("__turb", 0) != 0 &&
+            it->first != turb::meta::kBlenderOffset)
+            frame.metadata[it->first] = it->second->str();
+}
+
+} // namespace
+
 static turb::Frame readFrameUnchecked(const std::string& path, int frameNumber, const ReadOptions& options,
     ReadReport* report, std::string& stage);
 
@@ -1076,147 +1235,36 @@ static turb::Frame readFrameUnchecked(const std::string& path, int frameNumber, 
             readRoles(file, order, out, meta, path, options);
         },
         options.readTimeout);
-
-    // A Blender-style file places index 0 where Blender does; the frame keeps the lattice it was written from.
-    const openvdb::Vec3d offset = blenderOffset(*r.meta);
-    if (offset != openvdb::Vec3d(0.0))
-        for (const auto& grid : r.grids) grid->transform().postTranslate(-offset);
-    RoleGrids g;
-    for (const auto& grid : r.grids) {
-        const std::string role = roleOf(*grid);
-        if (role == "density") g.density = asFloatGrid(path, grid, "density");
-        else if (role == "velocity") g.vel = asVec3Grid(path, grid);
-        else if (role == "velocity.x") g.comp[0] = asFloatGrid(path, grid, "velocity component");
-        else if (role == "velocity.y") g.comp[1] = asFloatGrid(path, grid, "velocity component");
-        else if (role == "velocity.z") g.comp[2] = asFloatGrid(path, grid, "velocity component");
-        else if (role == "temperature") g.temperature = asFloatGrid(path, grid, "temperature");
-        else if (role == "flame") g.flame = asFloatGrid(path, grid, "flame");
-    }
+    const RoleGrids g = gridsByRole(path, r);
     const std::vector<openvdb::GridBase::ConstPtr> all = g.all();
     if (all.empty()) throw IoError(path + ": none of the requested grids is present");
-
-    // One lattice for the frame: the density's (the velocity's without density). Grids on another uniform
-    // lattice (Houdini's velocity voxel scale) are resampled onto it; components must share one lattice.
-    const turb::Lattice lattice = latticeOf(path, *all.front());
-    std::vector<turb::Lattice> lattices;
-    for (const auto& grid : all) lattices.push_back(latticeOf(path, *grid));
-    if (g.comp[0])
-        for (int a = 1; a < 3; ++a)
-            if (!latticeOf(path, *g.comp[a]).approxEqual(latticeOf(path, *g.comp[0])))
-                throw IoError(path + ": velocity components " + quoted(g.comp[0]->getName()) + " and " +
-                              quoted(g.comp[a]->getName()) + " lie on different lattices");
-
-    // Domain: Blender records its full simulation box; otherwise the union of the grids' active boxes.
-    turb::CoordBBox domain;
-    std::optional<turb::Coord> baseRes;
-    for (const auto& grid : all)
-        if (auto res = baseResolution(*grid)) baseRes = res;
-    if (baseRes) domain = turb::CoordBBox(turb::Coord(0), *baseRes - turb::Coord(1));
-    // vdbturb's own outputs record the box they span; their grids may be sparse within it.
-    if (const auto recorded = recordedDomain(*r.meta)) domain.expand(*recorded);
-    std::vector<turb::CoordBBox> spans;
-    double bytesPerVoxel = 0.0;
-    for (size_t i = 0; i < all.size(); ++i) {
-        turb::CoordBBox b = activeBoxOn(*all[i], lattices[i], lattice);
-        // A staggered grid's faces on the domain's upper boundary (vdbturb writes them so the last voxel has both
-        // faces) are not voxels of the domain.
-        if (baseRes && all[i]->getGridClass() == openvdb::GRID_STAGGERED)
-            b.intersect(turb::CoordBBox(turb::Coord(0), *baseRes - turb::Coord(1)));
-        spans.push_back(b);
-        if (!b.empty()) domain.expand(b);
-        const bool vector = all[i] == openvdb::GridBase::ConstPtr(g.vel);
-        bytesPerVoxel += vector ? 12.0 : 4.0;
-    }
-    if (domain.empty()) domain = turb::CoordBBox(turb::Coord(0), turb::Coord(0)); // every grid is empty
-    // Hold the smoke, not the span: stray voxels and a large velocity box around a small plume cost nothing.
+    const GridSpans spans = gridSpans(path, g, all, *r.meta);
+    const turb::Lattice& lattice = spans.lattice;
     ReadReport rep;
-    rep.span = domain;
-    if (g.density && options.cropToSmoke) {
-        stage = "finding the smoke in grid " + quoted(g.density->getName());
-        rep.region = findSmoke(*g.density, options);
-        // The margin reaches as far as the other grids (or Blender's domain) do, never toward the strays.
-        turb::CoordBBox reach = rep.region.smoke;
-        if (baseRes) reach.expand(turb::CoordBBox(turb::Coord(0), *baseRes - turb::Coord(1)));
-        for (size_t i = 0; i < all.size(); ++i)
-            if (all[i] != openvdb::GridBase::ConstPtr(g.density) && !spans[i].empty()) reach.expand(spans[i]);
-        domain = heldRegion(rep.region, reach.empty() ? domain : reach, options);
-        if (!options.holdBox.empty()) domain = options.holdBox;
-        if (!rep.region.strays.empty()) rep.notes.push_back(rep.region.describeStrays(g.density->getName()));
-    }
-    rep.held = domain;
-    {
-        std::vector<std::pair<std::string, turb::CoordBBox>> named;
-        for (size_t i = 0; i < all.size(); ++i) named.emplace_back(all[i]->getName(), spans[i]);
-        const std::string problem = detail::denseSizeProblem(path, domain, named, bytesPerVoxel, options);
-        if (!problem.empty()) throw IoError(problem);
-    }
+    const turb::CoordBBox domain = heldBox(path, g, all, spans, options, rep, stage);
 
     turb::Frame frame;
     frame.number = frameNumber;
-    const auto onOwnLattice = [&](const openvdb::GridBase& grid) { return latticeOf(path, grid).approxEqual(lattice); };
     if (g.density) {
         stage = "grid " + quoted(g.density->getName()) + " over " + spanText(domain);
         frame.density = scalarField(path, *g.density, domain, lattice, options.checkFinite);
     }
     bool blenderVelocity = false;
     if (g.vel || g.comp[0]) {
-        const openvdb::GridBase& vg = g.vel ? static_cast<const openvdb::GridBase&>(*g.vel) : *g.comp[0];
         blenderVelocity = g.vel && isBlenderVelocity(*g.vel);
         const bool cells = options.velocityUnits == VelocityUnits::Cells ||
                            (options.velocityUnits == VelocityUnits::Auto && blenderVelocity);
-        if (onOwnLattice(vg)) {
-            stage = "grid " + quoted(vg.getName()) + " over " + spanText(domain);
-            frame.velocity = velocityField(path, g, domain, lattice, cells, options);
-        } else {
-            // Read on its own lattice over its own active box (plus the extension), then resample.
-            const turb::Lattice own = latticeOf(path, vg);
-            // Only the part the held box samples (trilinear: one voxel around), plus the extension's reach.
-            turb::CoordBBox box = vg.evalActiveVoxelBoundingBox();
-            box.expand(options.extendVelocity);
-            turb::CoordBBox need = detail::boxOnLattice(domain, lattice, own);
-            need.expand(2 + options.extendVelocity);
-            box.intersect(need);
-            if (box.empty()) box = turb::CoordBBox(turb::Coord(0), turb::Coord(0));
-            stage = "grid " + quoted(vg.getName()) + " over " + spanText(box) + " before resampling";
-            const turb::VectorField native = velocityField(path, g, box, own, cells, options);
-            stage = "grid " + quoted(vg.getName()) + " resampled over " + spanText(domain);
-            frame.velocity = resampledOnto(native, domain, lattice);
-            std::ostringstream note;
-            note << "grid " << quoted(vg.getName()) << " (voxel " << own.voxelSize << ") resampled trilinearly onto the "
-                 << (g.density ? "density's" : "frame's") << " lattice (voxel " << lattice.voxelSize
-                 << ")" << (std::abs(own.voxelSize / lattice.voxelSize - 2.0) < 1e-6 ? ": Houdini's velocity voxel scale 2" : "");
-            rep.notes.push_back(note.str());
-        }
+        frame.velocity = heldVelocity(path, g, domain, lattice, cells, options, rep, stage);
         frame.metadata[turb::meta::kInputVelocityUnits] = cells ? "cells" : "world";
     }
-    const auto extra = [&](const openvdb::FloatGrid::Ptr& grid, std::optional<turb::ScalarField>& dst) {
-        if (!grid) return;
-        stage = "grid " + quoted(grid->getName()) + " over " + spanText(domain);
-        if (onOwnLattice(*grid)) {
-            dst = scalarField(path, *grid, domain, lattice, options.checkFinite);
-            return;
-        }
-        turb::CoordBBox box = grid->evalActiveVoxelBoundingBox();
-        turb::CoordBBox need = detail::boxOnLattice(domain, lattice, latticeOf(path, *grid));
-        need.expand(2);
-        box.intersect(need);
-        const turb::ScalarField native = scalarField(path, *grid,
-            box.empty() ? turb::CoordBBox(turb::Coord(0), turb::Coord(0)) : box, latticeOf(path, *grid), options.checkFinite);
-        dst = resampledOnto(native, domain, lattice);
-        rep.notes.push_back("grid " + quoted(grid->getName()) + " resampled trilinearly onto the frame's lattice");
-    };
-    extra(g.temperature, frame.temperature);
-    extra(g.flame, frame.flame);
+    frame.temperature = heldScalar(path, g.temperature, domain, lattice, options, rep, stage);
+    frame.flame = heldScalar(path, g.flame, domain, lattice, options, rep, stage);
     stage.clear();
-
-    // File-level string metadata (vdbturb parameters, creator) travels with the frame.
-    for (auto it = r.meta->beginMeta(); it != r.meta->endMeta(); ++it)
-        if (it->second && it->second->typeName() == openvdb::StringMetadata::staticTypeName() && it->first.rfind("__turb", 0) != 0 &&
-            it->first != turb::meta::kBlenderOffset)
-            frame.metadata[it->first] = it->second->str();
+    copyFileMetadata(*r.meta, frame);
 
     // Time per frame and the units: explicit option > recorded by vdbturb > the writer's convention.
-    const ReadReport timing = resolveTiming(blenderVelocity, baseRes.has_value(), metaDouble(*r.meta, turb::meta::kDt, 0.0), options);
+    const ReadReport timing =
+        resolveTiming(blenderVelocity, spans.baseRes.has_value(), metaDouble(*r.meta, turb::meta::kDt, 0.0), options);
     frame.dt = timing.dt;
     if (report) {
         *report = timing;
