@@ -1768,66 +1768,125 @@ OtherGrids OtherGrids::read(const std::string& path, const ReadOptions& options,
 // ---------------------------------------------------------------------------------------------
 // Inspection
 
+namespace {
+
+// The value range, active voxel count and bounding box of a float or vector grid (magnitudes for vectors), from a
+// serial pass over its voxels (OpenVDB's own counters use TBB, which a forked child must not), recorded as
+// __turb_* metadata on `header`.
+void recordValueStatistics(const openvdb::GridBase::Ptr& full, openvdb::GridBase& header)
+{
+    double lo = 0, hi = 0;
+    long long count = 0;
+    openvdb::CoordBBox box;
+    const auto take = [&](double v, const openvdb::CoordBBox& b) {
+        if (count == 0) lo = hi = v;
+        lo = std::min(lo, v);
+        hi = std::max(hi, v);
+        count += (long long)b.volume();
+        box.expand(b);
+    };
+    if (auto fg = openvdb::gridPtrCast<openvdb::FloatGrid>(full))
+        for (auto it = fg->cbeginValueOn(); it; ++it) take(double(*it), it.getBoundingBox());
+    else if (auto dg = openvdb::gridPtrCast<openvdb::DoubleGrid>(full))
+        for (auto it = dg->cbeginValueOn(); it; ++it) take(*it, it.getBoundingBox());
+    else if (auto vg = openvdb::gridPtrCast<openvdb::Vec3SGrid>(full))
+        for (auto it = vg->cbeginValueOn(); it; ++it) take(double(it->length()), it.getBoundingBox());
+    else if (auto wg = openvdb::gridPtrCast<openvdb::Vec3DGrid>(full))
+        for (auto it = wg->cbeginValueOn(); it; ++it) take(it->length(), it.getBoundingBox());
+    if (count > 0) {
+        header.insertMeta("__turb_min", openvdb::DoubleMetadata(lo));
+        header.insertMeta("__turb_max", openvdb::DoubleMetadata(hi));
+        header.insertMeta("__turb_bbox_min", openvdb::Vec3IMetadata(box.min().asVec3i()));
+        header.insertMeta("__turb_bbox_max", openvdb::Vec3IMetadata(box.max().asVec3i()));
+    }
+    header.insertMeta("__turb_count", openvdb::Int64Metadata(count));
+}
+
+// The child's part of inspectFile: the file's versions and metadata, and the header of every grid in file order,
+// labelled with its unique name and position (two unnamed grids each get their own statistics); with
+// `readValues`, each float and vector grid's value statistics.
+void readHeaders(openvdb::io::File& file, const std::vector<Descriptor>& order, openvdb::GridPtrVec& out,
+    openvdb::MetaMap& meta, const std::string& path, bool readValues)
+{
+    meta.insertMeta("__turb_file_version", openvdb::Int64Metadata(file.fileVersion()));
+    const auto lv = file.libraryVersion();
+    meta.insertMeta("__turb_lib_version", openvdb::StringMetadata(std::to_string(lv.first) + "." + std::to_string(lv.second)));
+    if (auto fm = file.getMetadata())
+        for (auto it = fm->beginMeta(); it != fm->endMeta(); ++it) meta.insertMeta(it->first, *it->second);
+    const std::vector<GridEntry> entries = listGrids(file, order);
+    for (size_t i = 0; i < entries.size(); ++i) {
+        openvdb::GridBase::Ptr g;
+        try {
+            g = file.readGridMetadata(entries[i].unique);
+        } catch (const std::exception& e) {
+            throw IoError(path + ": grid " + quoted(cleanMessage(entries[i].unique)) + " has a damaged header (" +
+                          cleanMessage(e.what()) + ")");
+        }
+        g->insertMeta(kHalfKey, openvdb::BoolMetadata(g->saveFloatAsHalf()));
+        g->insertMeta("__turb_unique", openvdb::StringMetadata(entries[i].unique));
+        g->insertMeta("__turb_index", openvdb::Int64Metadata(int64_t(i)));
+        const std::string type = g->valueType();
+        const bool scalar = type == "float" || type == "double";
+        const bool vector = type == "vec3s" || type == "vec3d";
+        if (readValues && (scalar || vector)) recordValueStatistics(readGridNamed(file, path, entries[i].unique), *g);
+        out.push_back(g);
+    }
+}
+
+// What one grid's header (and the child's __turb_* statistics) says, for FileInfo. `selector` is its unique name;
+// Blender's placement offset (`fileMeta`) is taken off its transform as readFrame takes it off.
+GridInfo gridInfoOf(openvdb::GridBase& g, int index, const std::string& selector, GridRole role,
+    const openvdb::MetaMap& fileMeta)
+{
+    GridInfo gi;
+    gi.index = index;
+    if (auto idx = g.getMetadata<openvdb::Int64Metadata>("__turb_index")) gi.index = int(idx->value());
+    gi.selector = selector;
+    gi.name = g.getName();
+    gi.valueType = g.valueType();
+    gi.gridClass = openvdb::GridBase::gridClassToString(g.getGridClass());
+    gi.vectorType = openvdb::GridBase::vecTypeToString(g.getVectorType());
+    gi.role = role;
+    if (auto h = g.getMetadata<openvdb::BoolMetadata>(kHalfKey)) gi.halfFloat = h->value();
+    gi.mapType = g.transform().mapType();
+    g.transform().postTranslate(-blenderOffset(fileMeta));
+    gi.supportedTransform = uniformTransform(g.transform(), gi.voxelSize, gi.origin);
+    if (!gi.supportedTransform) {
+        gi.voxelSize = g.transform().voxelSize()[0];
+        gi.origin = g.transform().indexToWorld(openvdb::Vec3d(0.0));
+    }
+    if (gi.role == GridRole::Velocity) gi.units = isBlenderVelocity(g) ? "cells" : "world";
+    const auto bbox = [&](const char* lo, const char* hi) {
+        auto bmin = g.getMetadata<openvdb::Vec3IMetadata>(lo);
+        auto bmax = g.getMetadata<openvdb::Vec3IMetadata>(hi);
+        if (!bmin || !bmax) return false;
+        const auto a = bmin->value(), b = bmax->value();
+        gi.activeBBox = turb::CoordBBox(turb::Coord(a.x(), a.y(), a.z()), turb::Coord(b.x(), b.y(), b.z()));
+        gi.hasBBox = !gi.activeBBox.empty();
+        return true;
+    };
+    if (!bbox(openvdb::GridBase::META_FILE_BBOX_MIN, openvdb::GridBase::META_FILE_BBOX_MAX))
+        bbox("__turb_bbox_min", "__turb_bbox_max");
+    if (auto cnt = g.getMetadata<openvdb::Int64Metadata>(openvdb::GridBase::META_FILE_VOXEL_COUNT))
+        gi.activeVoxels = cnt->value();
+    else if (auto c2 = g.getMetadata<openvdb::Int64Metadata>("__turb_count"))
+        gi.activeVoxels = c2->value();
+    if (g.getMetadata<openvdb::DoubleMetadata>("__turb_min")) {
+        gi.hasRange = true;
+        gi.minValue = g.metaValue<double>("__turb_min");
+        gi.maxValue = g.metaValue<double>("__turb_max");
+    }
+    return gi;
+}
+
+} // namespace
+
 FileInfo inspectFile(const std::string& path, bool readValues)
 {
-    // Child: headers of every grid in file order, and with readValues a serial pass over each float/vector
-    // grid for its range, count and bounding box (OpenVDB's own counters use TBB, which a forked child must
-    // not). Grids are read by their unique names, so two unnamed grids each get their own statistics.
-    const auto body = [&](openvdb::io::File& file, const std::vector<Descriptor>& order, openvdb::GridPtrVec& out,
-                          openvdb::MetaMap& meta) {
-        meta.insertMeta("__turb_file_version", openvdb::Int64Metadata(file.fileVersion()));
-        const auto lv = file.libraryVersion();
-        meta.insertMeta("__turb_lib_version",
-            openvdb::StringMetadata(std::to_string(lv.first) + "." + std::to_string(lv.second)));
-        if (auto fm = file.getMetadata())
-            for (auto it = fm->beginMeta(); it != fm->endMeta(); ++it) meta.insertMeta(it->first, *it->second);
-        const std::vector<GridEntry> entries = listGrids(file, order);
-        for (size_t i = 0; i < entries.size(); ++i) {
-            openvdb::GridBase::Ptr g;
-            try {
-                g = file.readGridMetadata(entries[i].unique);
-            } catch (const std::exception& e) {
-                throw IoError(path + ": grid " + quoted(cleanMessage(entries[i].unique)) + " has a damaged header (" +
-                              cleanMessage(e.what()) + ")");
-            }
-            g->insertMeta(kHalfKey, openvdb::BoolMetadata(g->saveFloatAsHalf()));
-            g->insertMeta("__turb_unique", openvdb::StringMetadata(entries[i].unique));
-            g->insertMeta("__turb_index", openvdb::Int64Metadata(int64_t(i)));
-            const std::string type = g->valueType();
-            const bool scalar = type == "float" || type == "double";
-            const bool vector = type == "vec3s" || type == "vec3d";
-            if (readValues && (scalar || vector)) {
-                auto full = readGridNamed(file, path, entries[i].unique);
-                double lo = 0, hi = 0;
-                long long count = 0;
-                openvdb::CoordBBox box;
-                const auto take = [&](double v, const openvdb::CoordBBox& b) {
-                    if (count == 0) lo = hi = v;
-                    lo = std::min(lo, v);
-                    hi = std::max(hi, v);
-                    count += (long long)b.volume();
-                    box.expand(b);
-                };
-                if (auto fg = openvdb::gridPtrCast<openvdb::FloatGrid>(full))
-                    for (auto it = fg->cbeginValueOn(); it; ++it) take(double(*it), it.getBoundingBox());
-                else if (auto dg = openvdb::gridPtrCast<openvdb::DoubleGrid>(full))
-                    for (auto it = dg->cbeginValueOn(); it; ++it) take(*it, it.getBoundingBox());
-                else if (auto vg = openvdb::gridPtrCast<openvdb::Vec3SGrid>(full))
-                    for (auto it = vg->cbeginValueOn(); it; ++it) take(double(it->length()), it.getBoundingBox());
-                else if (auto wg = openvdb::gridPtrCast<openvdb::Vec3DGrid>(full))
-                    for (auto it = wg->cbeginValueOn(); it; ++it) take(it->length(), it.getBoundingBox());
-                if (count > 0) {
-                    g->insertMeta("__turb_min", openvdb::DoubleMetadata(lo));
-                    g->insertMeta("__turb_max", openvdb::DoubleMetadata(hi));
-                    g->insertMeta("__turb_bbox_min", openvdb::Vec3IMetadata(box.min().asVec3i()));
-                    g->insertMeta("__turb_bbox_max", openvdb::Vec3IMetadata(box.max().asVec3i()));
-                }
-                g->insertMeta("__turb_count", openvdb::Int64Metadata(count));
-            }
-            out.push_back(g);
-        }
-    };
-    const detail::GuardedResult r = guarded(path, body);
+    const detail::GuardedResult r = guarded(path,
+        [&](openvdb::io::File& file, const std::vector<Descriptor>& order, openvdb::GridPtrVec& out, openvdb::MetaMap& meta) {
+            readHeaders(file, order, out, meta, path, readValues);
+        });
 
     FileInfo info;
     info.path = path;
@@ -1850,47 +1909,8 @@ FileInfo inspectFile(const std::string& path, bool readValues)
         return GridRole::Other;
     };
     for (size_t i = 0; i < r.grids.size(); ++i) {
-        const auto& g = r.grids[i];
-        GridInfo gi;
-        gi.index = int(i);
-        if (auto idx = g->getMetadata<openvdb::Int64Metadata>("__turb_index")) gi.index = int(idx->value());
-        gi.selector = names[i];
-        gi.name = g->getName();
-        gi.valueType = g->valueType();
-        gi.gridClass = openvdb::GridBase::gridClassToString(g->getGridClass());
-        gi.vectorType = openvdb::GridBase::vecTypeToString(g->getVectorType());
-        gi.role = roleOfName(names[i]);
-        if (auto h = g->getMetadata<openvdb::BoolMetadata>(kHalfKey)) gi.halfFloat = h->value();
-        gi.mapType = g->transform().mapType();
-        g->transform().postTranslate(-blenderOffset(*r.meta));
-        gi.supportedTransform = uniformTransform(g->transform(), gi.voxelSize, gi.origin);
-        if (!gi.supportedTransform) {
-            gi.voxelSize = g->transform().voxelSize()[0];
-            gi.origin = g->transform().indexToWorld(openvdb::Vec3d(0.0));
-        }
-        if (gi.role == GridRole::Velocity) gi.units = isBlenderVelocity(*g) ? "cells" : "world";
-        if (auto res = baseResolution(*g)) info.baseResolution = res;
-        const auto bbox = [&](const char* lo, const char* hi) {
-            auto bmin = g->getMetadata<openvdb::Vec3IMetadata>(lo);
-            auto bmax = g->getMetadata<openvdb::Vec3IMetadata>(hi);
-            if (!bmin || !bmax) return false;
-            const auto a = bmin->value(), b = bmax->value();
-            gi.activeBBox = turb::CoordBBox(turb::Coord(a.x(), a.y(), a.z()), turb::Coord(b.x(), b.y(), b.z()));
-            gi.hasBBox = !gi.activeBBox.empty();
-            return true;
-        };
-        if (!bbox(openvdb::GridBase::META_FILE_BBOX_MIN, openvdb::GridBase::META_FILE_BBOX_MAX))
-            bbox("__turb_bbox_min", "__turb_bbox_max");
-        if (auto cnt = g->getMetadata<openvdb::Int64Metadata>(openvdb::GridBase::META_FILE_VOXEL_COUNT))
-            gi.activeVoxels = cnt->value();
-        else if (auto c2 = g->getMetadata<openvdb::Int64Metadata>("__turb_count"))
-            gi.activeVoxels = c2->value();
-        if (g->getMetadata<openvdb::DoubleMetadata>("__turb_min")) {
-            gi.hasRange = true;
-            gi.minValue = g->metaValue<double>("__turb_min");
-            gi.maxValue = g->metaValue<double>("__turb_max");
-        }
-        info.grids.push_back(gi);
+        info.grids.push_back(gridInfoOf(*r.grids[i], int(i), names[i], roleOfName(names[i]), *r.meta));
+        if (auto res = baseResolution(*r.grids[i])) info.baseResolution = res;
     }
     std::sort(info.grids.begin(), info.grids.end(), [](const GridInfo& a, const GridInfo& b) { return a.index < b.index; });
     return info;
