@@ -4,6 +4,7 @@
 #include <turb/Error.h>
 #include <turb/Metadata.h>
 #include <turbio/Checksum.h>
+#include <turbio/Scan.h>
 #include <turbio/Vdb.h>
 
 #include <openvdb/openvdb.h>
@@ -89,6 +90,18 @@ std::string errorOf(const std::function<void()>& fn)
         return e.what();
     }
     return "";
+}
+
+// The settings a turb::IoError names (its message names no command-line flag: the command line adds its own).
+std::vector<std::string> settingsOf(const std::function<void()>& fn)
+{
+    try {
+        fn();
+    } catch (const turb::IoError& e) {
+        EXPECT_EQ(std::string(e.what()).find("--"), std::string::npos) << e.what();
+        return e.settings();
+    }
+    return {{"(no error)"}};
 }
 
 } // namespace
@@ -376,6 +389,8 @@ TEST(Writing, IsAtomicAndHonoursNoClobber)
     keep.noClobber = true;
     f.density.fill(0.25f);
     EXPECT_THROW(writeFrame(dir / "a.vdb", f, keep), turb::IoError);
+    EXPECT_EQ(settingsOf([&] { writeFrame(dir / "a.vdb", f, keep); }), std::vector<std::string>{"noClobber"});
+    EXPECT_EQ(settingsOf([&] { writeFileAtomic(dir / "a.vdb", "x", true); }), std::vector<std::string>{"noClobber"});
     EXPECT_EQ(readFrame(dir / "a.vdb", 1, anyGrids()).density(1, 1, 1), 0.5f) << "no-clobber must keep the old file";
 
     writeFrame(dir / "a.vdb", f, WriteOptions{});
@@ -397,12 +412,16 @@ TEST(BadInput, EveryErrorNamesTheFileAndTheProblem)
     EXPECT_NE(errorOf([&] { readFrame(dir / "text.vdb", 1, ReadOptions{}); }).find("not an OpenVDB file"),
         std::string::npos);
 
-    // Missing grid: the message lists what the file has and the option to use.
+    // Missing grid: the message lists what the file has, and the error names the setting that chooses the grid,
+    // through the guarded reader and in the header scan (dry runs) alike.
     writeGrids(dir / "d.vdb", {densityBox(openvdb::CoordBBox({0, 0, 0}, {2, 2, 2}), 1.0f)});
     const std::string noVel = errorOf([&] { readFrame(dir / "d.vdb", 1, ReadOptions{}); });
     EXPECT_NE(noVel.find("no velocity"), std::string::npos) << noVel;
     EXPECT_NE(noVel.find("the file has: #0 'density' float fog volume"), std::string::npos) << noVel;
-    EXPECT_NE(noVel.find("--vel-grid"), std::string::npos) << noVel;
+    EXPECT_EQ(settingsOf([&] { readFrame(dir / "d.vdb", 1, ReadOptions{}); }), std::vector<std::string>{"velocityGrid"});
+    const FrameScan scan = scanFrame(dir / "d.vdb", 1, ReadOptions{});
+    EXPECT_EQ(scan.error, noVel);
+    EXPECT_EQ(scan.errorSettings, std::vector<std::string>{"velocityGrid"});
 
     // A newer file format (OpenVDB 13 writes 225).
     {
@@ -526,15 +545,20 @@ TEST(GridIdentity, UnnamedGridsKeepTheirOwnStatisticsAndCanBeChosen)
     EXPECT_EQ(info.grids[0].index, 0);
     EXPECT_EQ(info.grids[1].index, 1);
 
-    // The error lists what is there (index, type, class) and how to choose.
+    // The error lists what is there (index, type, class) and names the setting that chooses.
     ReadOptions o;
-    o.optionPrefix = "target-";
     const std::string err = errorOf([&] { readFrame(dir / "unnamed.vdb", 1, o); });
     EXPECT_NE(err.find("#0 (unnamed)"), std::string::npos) << err;
     EXPECT_NE(err.find("float fog volume"), std::string::npos) << err;
     EXPECT_NE(err.find("vec3s"), std::string::npos) << err;
-    EXPECT_NE(err.find("--target-density-grid"), std::string::npos) << err;
+    EXPECT_EQ(settingsOf([&] { readFrame(dir / "unnamed.vdb", 1, o); }), std::vector<std::string>{"densityGrid"});
     EXPECT_EQ(err.find("none of the requested"), std::string::npos) << err;
+    // Without a required grid, nothing found names both selectors.
+    ReadOptions optional = o;
+    optional.requireDensity = optional.requireVelocity = false;
+    const std::vector<std::string> both{"densityGrid", "velocityGrid"};
+    EXPECT_EQ(settingsOf([&] { readFrame(dir / "unnamed.vdb", 1, optional); }), both);
+    EXPECT_EQ(scanFrame(dir / "unnamed.vdb", 1, optional).errorSettings, both);
 
     // Chosen by file position or by OpenVDB's unique name.
     const int fi = info.grids[0].valueType == "float" ? 0 : 1;

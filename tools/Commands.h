@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include <turb/Error.h>
 #include <turbio/Vdb.h>
 
 namespace vdbturb {
@@ -36,8 +37,32 @@ Command farmCommand();
 /// All commands, in the order `vdbturb --help` lists them.
 std::vector<Command> allCommands();
 
-/// Adds --density-grid, --vel-grid, --vel-units, --dt, --fps for reading caches.
+/// Adds --density-grid, --vel-grid, --vel-units, --dt, --fps for reading caches; with a `prefix` ("target"),
+/// --target-density-grid and so on.
 void addReadOptions(CLI::App* app, turbio::ReadOptions& opt, const std::string& prefix = "");
+
+/// The flag that sets `setting`, a turbio::ReadOptions or WriteOptions field as turb::Error::settings and
+/// turbio::ReadReport name it ("velocityGrid" -> "--vel-grid"). A read option takes the prefix addReadOptions
+/// declared it with: the setting's qualifier ("target.velocityGrid" -> "--target-vel-grid"), else `readPrefix`.
+/// "" for a setting no flag sets.
+std::string flagFor(const std::string& setting, const std::string& readPrefix = "");
+
+/// `e`'s message as the command line prints it: followed by the flags of the settings it names ("...; the file
+/// has: #0 'density' float fog volume. Use --vel-grid NAME, or '#N' for the N-th grid listed here.").
+std::string messageWithFlags(const turb::Error& e);
+
+/// Runs `read`, a read with the ReadOptions that addReadOptions declared with `prefix`, and qualifies the settings
+/// a turb::Error it throws names with that prefix, so that its message names this command's flags.
+template<typename Read>
+auto readingAs(const std::string& prefix, Read&& read) -> decltype(read())
+{
+    try {
+        return read();
+    } catch (turb::Error& e) {
+        e.qualifySettings(prefix);
+        throw;
+    }
+}
 
 /// Checks a frame list ("1001-1100x2,1200") when the command line is parsed, so a bad one is a usage error
 /// (exit 2) naming the bad piece, like any other malformed option.

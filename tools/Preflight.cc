@@ -1,5 +1,6 @@
 #include "Preflight.h"
 
+#include "Commands.h"
 #include "Console.h"
 
 #include <turb/Error.h>
@@ -30,11 +31,14 @@ bool dryOrVerbose() { return globals().dryRun || globals().verbosity >= 2; }
 } // namespace
 
 turbio::SequenceScan checkInput(const std::string& command, const std::string& role, const turbio::Sequence& seq,
-    const std::vector<int>& frames, const turbio::ReadOptions& read, LatticePolicy policy)
+    const std::vector<int>& frames, const turbio::ReadOptions& read, LatticePolicy policy, const std::string& readPrefix)
 {
     turbio::SequenceScan scan = turbio::scanSequence(seq, frames, read, /*readVoxelsIfNeeded=*/true);
-    const std::string error = scan.firstError();
-    if (!error.empty()) throw turb::IoError(error);
+    if (const turbio::FrameScan* failed = scan.firstFailure()) {
+        turb::IoError error(failed->error, failed->errorSettings);
+        error.qualifySettings(readPrefix);
+        throw error;
+    }
     if (!scan.changes.empty()) {
         const std::string what = role + " " + seq.pattern.str() + ": the lattice is not the same in every frame: " +
                                  scan.describeChanges();
@@ -48,35 +52,49 @@ turbio::SequenceScan checkInput(const std::string& command, const std::string& r
     return scan;
 }
 
-std::vector<std::string> timingLines(const std::string& role, const turbio::FrameScan& f)
+TimingSources timingSources(const turbio::ReadReport& t, const std::string& readPrefix)
+{
+    const auto given = [&](const std::string& source, const std::string& setting) {
+        return setting.empty() ? source : flagFor(setting, readPrefix);
+    };
+    TimingSources s;
+    s.dt = given(t.dtSource, t.dtSetting);
+    s.fps = given(t.fpsSource, t.fpsSetting);
+    s.units = t.unitsSetting.empty() ? t.unitsSource
+                                     : flagFor(t.unitsSetting, readPrefix) + (t.cells ? " cells" : " world");
+    return s;
+}
+
+std::vector<std::string> timingLines(const std::string& role, const turbio::FrameScan& f, const std::string& readPrefix)
 {
     const turbio::ReadReport& t = f.timing;
+    const TimingSources source = timingSources(t, readPrefix);
     std::vector<std::string> lines;
-    std::string dt = role + " dt: " + num("%.6g", t.dt) + " per frame (" + t.dtSource + ")";
-    if (t.fpsSource != "not used") dt += ", fps " + num("%g", t.fps) + " (" + t.fpsSource + ")";
+    std::string dt = role + " dt: " + num("%.6g", t.dt) + " per frame (" + source.dt + ")";
+    if (t.fpsSource != "not used") dt += ", fps " + num("%g", t.fps) + " (" + source.fps + ")";
     lines.push_back(dt);
     if (!f.velocityGrid.empty())
         lines.push_back(role + " velocity: grid '" + f.velocityGrid + "', " +
                         (t.cells ? "grid cells per time unit x voxel " + num("%g", f.lattice.voxelSize) + " = world units"
                                  : std::string("world units")) +
-                        " (" + t.unitsSource + ")");
+                        " (" + source.units + ")");
     for (const auto& n : t.notes) lines.push_back(role + ": " + n);
     return lines;
 }
 
-void reportTiming(const std::string& role, const turbio::SequenceScan& scan, bool usesDt, const std::string& optionPrefix)
+void reportTiming(const std::string& role, const turbio::SequenceScan& scan, bool usesDt, const std::string& readPrefix)
 {
     if (scan.frames.empty()) return;
     const turbio::FrameScan& f = scan.frames.front();
     if (dryOrVerbose())
-        for (const auto& line : timingLines(role, f)) printData(line);
+        for (const auto& line : timingLines(role, f, readPrefix)) printData(line);
     else
         for (const auto& n : f.timing.notes) warnOnce("note " + role, role + ": " + n);
     if (usesDt && f.timing.conventionAssumed)
         warnOnce("fps " + role,
             role + " " + f.path + ": the cache records no frame rate; dt " + num("%.6g", f.timing.dt) + " assumes 24 fps" +
                 (f.timing.dtSource.find("Blender") != std::string::npos ? " and Blender's time scale 1" : "") +
-                ". Give --" + optionPrefix + "fps or --" + optionPrefix + "dt if the shot differs");
+                ". Give " + flagFor("fps", readPrefix) + " or " + flagFor("dt", readPrefix) + " if the shot differs");
 }
 
 void checkOutputs(const std::vector<std::string>& outputs, const std::vector<std::string>& inputs, bool noClobber,

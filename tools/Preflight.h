@@ -22,17 +22,29 @@ enum class LatticePolicy
 };
 
 /// Scans the headers of `frames` of `seq` as `read` will read them. Throws the first frame's error (it names
-/// the file and grid), and with LatticePolicy::Refuse a lattice change naming the frames and files; with
-/// Report it logs the change once. `role` ("target", "source", "cache") and `command` word the messages.
+/// the file and grid, and its settings qualified with `readPrefix`, the prefix addReadOptions declared `read`'s
+/// flags with), and with LatticePolicy::Refuse a lattice change naming the frames and files; with Report it logs
+/// the change once. `role` ("target", "source", "cache") and `command` word the messages.
 turbio::SequenceScan checkInput(const std::string& command, const std::string& role, const turbio::Sequence& seq,
-    const std::vector<int>& frames, const turbio::ReadOptions& read, LatticePolicy policy);
+    const std::vector<int>& frames, const turbio::ReadOptions& read, LatticePolicy policy,
+    const std::string& readPrefix = "");
+
+/// Where a read's time step, frame rate and velocity units came from, in the command line's words: a setting the
+/// user gave is its flag ("--target-dt", "--vel-units cells"), with the prefix addReadOptions declared it with.
+struct TimingSources
+{
+    std::string dt, fps, units;
+};
+TimingSources timingSources(const turbio::ReadReport& timing, const std::string& readPrefix = "");
 
 /// How a scanned input's time step and velocity units were decided, one line each (for -v and dry runs).
-std::vector<std::string> timingLines(const std::string& role, const turbio::FrameScan& frame);
+std::vector<std::string> timingLines(const std::string& role, const turbio::FrameScan& frame,
+    const std::string& readPrefix = "");
 
 /// Prints timingLines in a dry run (always) or at -v, and warns once when the time step rests on an assumed
-/// frame rate and the command uses it (`usesDt`); the warning names --PREFIXfps / --PREFIXdt.
-void reportTiming(const std::string& role, const turbio::SequenceScan& scan, bool usesDt, const std::string& optionPrefix = "");
+/// frame rate and the command uses it (`usesDt`); the warning names --PREFIX-fps / --PREFIX-dt.
+void reportTiming(const std::string& role, const turbio::SequenceScan& scan, bool usesDt,
+    const std::string& readPrefix = "");
 
 /// Refuses outputs that cannot be written: a parent path that is a file, a directory that cannot be
 /// written, an output that is a directory, an output that is one of `inputs`, and (with `noClobber`) an

@@ -146,7 +146,7 @@ TargetFrame TargetSource::read(int frame) const
         try {
             v = turb::viewThroughCamera(f, mBridge);
         } catch (const turb::ValueError& e) {
-            throw turb::IoError(path + ": " + e.what());
+            throw turb::IoError(path + ": " + e.what(), e.settings());
         }
         t.alpha = std::move(v.alpha);
         t.motion = std::move(v.motion);

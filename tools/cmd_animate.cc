@@ -180,7 +180,7 @@ Example readExample(const AnimateArgs& a, int tau)
         try {
             view = turb::viewThroughCamera(frame, bridge);
         } catch (const turb::ValueError& e) {
-            throw turb::IoError(path + ": " + e.what());
+            throw turb::IoError(path + ": " + e.what(), e.settings());
         }
         turb::DensityRenderSettings dr;
         dr.camera = c;
@@ -470,7 +470,7 @@ int runAnimate(AnimateArgs& a)
     try {
         turbio::outputFormatOf(a.out);
     } catch (const turb::ValueError& e) {
-        logError(e.what());
+        logError(messageWithFlags(e));
         return kUsage;
     }
     const turbio::FramePattern outPattern = turbio::FramePattern::parse(a.out);

@@ -338,7 +338,7 @@ int runJoin(FarmArgs& a)
             turb::Frame fb = turbio::readFrame(pb.format(t), t, ro);
             turbio::ReadOptions tro = a.targetRead;
             tro.cropToSmoke = false;
-            const turb::Frame ft = turbio::readFrame(target.path(t), t, tro);
+            const turb::Frame ft = readingAs("target", [&] { return turbio::readFrame(target.path(t), t, tro); });
             const auto r = fb.metadata.find(turb::meta::kRatio);
             if (r == fb.metadata.end()) throw turb::IoError(pb.format(t) + ": no " + std::string(turb::meta::kRatio) + " metadata: not a transfer output");
             const turb::VectorField up = turb::cropped(turb::upsample(ft.velocity, std::stoi(r->second)), fb.velocity.bbox());

@@ -1,6 +1,7 @@
 // vdbturb info PATTERN: what a cache holds, from file headers. The tables are the command's data: stdout.
 #include "Commands.h"
 #include "Console.h"
+#include "Preflight.h"
 
 #include <turbio/Checksum.h>
 #include <turbio/Scan.h>
@@ -181,6 +182,7 @@ int runInfo(const InfoArgs& a)
         }
     if (first) {
         const turbio::ReadReport& t = first->timing;
+        const TimingSources source = timingSources(t);
         head += "\nlattice: voxel " + fmtNum("%g", first->lattice.voxelSize) + ", origin " + fmtVec(first->lattice.origin) +
                 (scan.changes.empty() ? std::string(", the same in every frame")
                                       : "; CHANGES within the sequence: " + scan.describeChanges());
@@ -201,13 +203,13 @@ int runInfo(const InfoArgs& a)
                     std::to_string(sd.dim().z()) + " voxels at this resolution, world " + fmtVec(sw.first) + "-" +
                     fmtVec(sw.second) + " (vdbturb_sequence_domain: the target's)";
         }
-        head += "\ndt: " + fmtNum("%.6g", t.dt) + " per frame (" + t.dtSource + ")";
-        if (t.fpsSource != "not used") head += "; fps " + fmtNum("%g", t.fps) + " (" + t.fpsSource + ")";
+        head += "\ndt: " + fmtNum("%.6g", t.dt) + " per frame (" + source.dt + ")";
+        if (t.fpsSource != "not used") head += "; fps " + fmtNum("%g", t.fps) + " (" + source.fps + ")";
         if (!first->velocityGrid.empty())
             head += "\nvelocity units: " +
                     (t.cells ? "grid cells per time unit, x voxel " + fmtNum("%g", first->lattice.voxelSize) + " = world units"
                              : std::string("world units per time unit")) +
-                    " (" + t.unitsSource + ")";
+                    " (" + source.units + ")";
         for (const auto& n : t.notes) head += "\nnote: " + n;
     }
     printData(head, toStderr);
@@ -221,10 +223,12 @@ int runInfo(const InfoArgs& a)
         out["lattice_changes"].push_back({{"from_frame", c.fromFrame}, {"to_frame", c.toFrame}, {"from_path", c.fromPath},
             {"to_path", c.toPath}, {"from_voxel", c.from.voxelSize}, {"to_voxel", c.to.voxelSize},
             {"from_origin", vecJson(c.from.origin)}, {"to_origin", vecJson(c.to.origin)}});
-    if (first)
-        out["timing"] = {{"dt", first->timing.dt}, {"dt_source", first->timing.dtSource}, {"fps", first->timing.fps},
-            {"fps_source", first->timing.fpsSource}, {"velocity_units", first->timing.cells ? "cells" : "world"},
-            {"units_source", first->timing.unitsSource}, {"convention_assumed", first->timing.conventionAssumed}};
+    if (first) {
+        const TimingSources source = timingSources(first->timing);
+        out["timing"] = {{"dt", first->timing.dt}, {"dt_source", source.dt}, {"fps", first->timing.fps},
+            {"fps_source", source.fps}, {"velocity_units", first->timing.cells ? "cells" : "world"},
+            {"units_source", source.units}, {"convention_assumed", first->timing.conventionAssumed}};
+    }
     out["files"] = nlohmann::json::array();
     int failures = 0;
     bool anyDensity = false, anyVelocity = false;
@@ -245,7 +249,7 @@ int runInfo(const InfoArgs& a)
                 const turb::Frame f = turbio::readFrame(path, frame, ro, &report);
                 fj["valid"] = true;
                 fj["dt"] = f.dt;
-                fj["dt_source"] = report.dtSource;
+                fj["dt_source"] = timingSources(report).dt;
                 fj["has_density"] = f.hasDensity();
                 fj["has_velocity"] = f.hasVelocity();
                 fj["usable"] = usability(f.hasDensity(), f.hasVelocity());
@@ -302,8 +306,8 @@ int runInfo(const InfoArgs& a)
             }
         } catch (const turb::Error& e) {
             ++failures;
-            fj["error"] = e.what();
-            logError(e.what());
+            fj["error"] = messageWithFlags(e);
+            logError(messageWithFlags(e));
         }
         out["files"].push_back(fj);
     }

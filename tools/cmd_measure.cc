@@ -242,13 +242,14 @@ int runMeasure(MeasureArgs& a)
             throw;
         } catch (const turb::IoError& e) {
             ++failed;
-            logError("frame " + std::to_string(f) + ": " + e.what()); // names its file
+            logError("frame " + std::to_string(f) + ": " + messageWithFlags(e)); // names its file
             prevOut.reset();
             prevTgt.reset();
             prevSrc.reset();
         } catch (const turb::Error& e) {
             ++failed;
-            logError("frame " + std::to_string(f) + " (output " + out.path(f) + ", target " + tgt.path(f) + "): " + e.what());
+            logError("frame " + std::to_string(f) + " (output " + out.path(f) + ", target " + tgt.path(f) + "): " +
+                     messageWithFlags(e));
             prevOut.reset();
             prevTgt.reset();
             prevSrc.reset();

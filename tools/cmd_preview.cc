@@ -339,7 +339,7 @@ int runPreview(PreviewArgs& a)
     try {
         turbio::outputFormatOf(a.sheet.empty() ? a.out : a.sheet); // an unknown extension fails before any drawing (after "out is an input", the worse mistake)
     } catch (const turb::ValueError& e) {
-        logError(e.what());
+        logError(messageWithFlags(e));
         return kUsage;
     }
 

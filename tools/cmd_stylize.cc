@@ -196,7 +196,7 @@ int runStylize(StylizeArgs& a)
     try {
         turbio::outputFormatOf(a.out);
     } catch (const turb::ValueError& e) {
-        logError(e.what());
+        logError(messageWithFlags(e));
         return kUsage;
     }
     const turbio::FramePattern outPattern = turbio::FramePattern::parse(a.out);
@@ -243,7 +243,8 @@ int runStylize(StylizeArgs& a)
             try {
                 outFrame = styl.next(in, &progress);
             } catch (const turb::ValueError& e) {
-                throw turb::ValueError(t.alphaName + " with exemplar " + exemplar.label() + ": " + e.what());
+                throw turb::ValueError(t.alphaName + " with exemplar " + exemplar.label() + ": " + e.what(),
+                    e.settings());
             }
             progress.begin("writing");
             const std::string outPath = outPattern.format(fr);

@@ -128,7 +128,7 @@ ExemplarVideo loadExemplar(const StylizeArgs& a, bool estimateFlow)
             try {
                 ex.motion.addFrame(mask, flows ? &flow : nullptr);
             } catch (const turb::ValueError& e) {
-                throw turb::IoError(path + ": " + e.what());
+                throw turb::IoError(path + ": " + e.what(), e.settings());
             }
         }
     }
@@ -153,7 +153,7 @@ turb::MotionSequence loadTarget(const TargetSource& src, const FluidyArgs& f)
         try {
             seq.addFrame(t.alpha, useFlow ? &t.motion : nullptr, f.maskThreshold);
         } catch (const turb::ValueError& e) {
-            throw turb::IoError((useFlow ? t.motionName : t.alphaName) + ": " + e.what());
+            throw turb::IoError((useFlow ? t.motionName : t.alphaName) + ": " + e.what(), e.settings());
         }
         progress.clear();
     }
@@ -378,7 +378,7 @@ int runFluidymation(StylizeArgs& a)
         turbio::outputFormatOf(a.out);
         if (!f.outRot.empty()) turbio::outputFormatOf(f.outRot);
     } catch (const turb::ValueError& e) {
-        logError(e.what());
+        logError(messageWithFlags(e));
         return kUsage;
     }
     if (!a.flow.empty() || !a.alpha.empty() || !a.exemplarAlpha.empty())
@@ -407,7 +407,8 @@ int runFluidymation(StylizeArgs& a)
         try {
             fl = std::make_unique<turb::Fluidymator>(f.settings, ex.rgb, ex.motion, tgt);
         } catch (const turb::ValueError& e) {
-            throw turb::ValueError("exemplar " + ex.label + ", target " + target.label() + ": " + e.what());
+            throw turb::ValueError("exemplar " + ex.label + ", target " + target.label() + ": " + e.what(),
+                e.settings());
         }
         logVerbose("levels " + std::to_string(fl->levels()) + ", extent units " + fmt("%.2f px", fl->extentScale()) + " (exemplar), " +
                    fmt("%.2f px", fl->targetExtentScale()) + " (target)");

@@ -234,7 +234,7 @@ public:
             try {
                 f = turb::zLayer(f, mArgs.sliceZ);
             } catch (const turb::ValueError& e) {
-                throw turb::ValueError(std::string("--slice-z: ") + e.what());
+                throw turb::ValueError(std::string("--slice-z: ") + e.what(), e.settings());
             }
         }
         return f;
@@ -659,7 +659,7 @@ void synthFrame(const SynthArgs& a, CoarseSource& source, SynthPlan& p, turb::Sy
     } catch (const turb::ValueError& e) {
         const auto& seq = source.sequence();
         throw turb::ValueError("frame " + std::to_string(fr) + (seq ? " (" + seq->path(fr) + ")" : std::string()) + ": " +
-                               e.what());
+                               e.what(), e.settings());
     }
     const turb::DetailField& H = sequence.lastDetail();
     turb::Frame& outFrame = r.frame;

@@ -133,10 +133,12 @@ turb::CoordBBox preflight(const TransferArgs& a, const turbio::Sequence& target,
     std::sort(sourceFrames.begin(), sourceFrames.end());
     sourceFrames.erase(std::unique(sourceFrames.begin(), sourceFrames.end()), sourceFrames.end());
     if (targetFrames.empty()) return {};
-    const turbio::SequenceScan ts = checkInput("transfer", "target", target, targetFrames, a.targetRead, LatticePolicy::Refuse);
-    const turbio::SequenceScan ss = checkInput("transfer", "source", source, sourceFrames, a.sourceRead, LatticePolicy::Refuse);
-    reportTiming("target", ts, true, "target-");
-    reportTiming("source", ss, true, "source-");
+    const turbio::SequenceScan ts =
+        checkInput("transfer", "target", target, targetFrames, a.targetRead, LatticePolicy::Refuse, "target");
+    const turbio::SequenceScan ss =
+        checkInput("transfer", "source", source, sourceFrames, a.sourceRead, LatticePolicy::Refuse, "source");
+    reportTiming("target", ts, true, "target");
+    reportTiming("source", ss, true, "source");
 
     const turbio::FrameScan& t0 = ts.frames.front();
     const turbio::FrameScan& s0 = ss.frames.front();
@@ -291,7 +293,7 @@ std::optional<turb::Frame> resumeStateFrame(const std::string& prevPath, int pre
             else
                 return st;
         } catch (const turb::Error& e) {
-            why = e.what();
+            why = messageWithFlags(e);
         }
     }
     logWarning("resume: the exact state " + side + " cannot be used: " + why + ". Continuing from " + prevPath +
@@ -317,7 +319,8 @@ std::vector<int> sourceFrames(const TransferArgs& a, const std::vector<int>& tar
     try {
         for (int t : targetFrames) out.push_back(turbio::mapSourceFrame(t, source.frames, a.sourceOffset, a.wrap));
     } catch (const turb::ValueError& e) {
-        throw turb::ValueError(std::string(e.what()) + "; --source-offset or another --source-wrap maps it");
+        throw turb::ValueError(std::string(e.what()) + "; --source-offset or another --source-wrap maps it",
+            e.settings());
     }
     return out;
 }
@@ -383,12 +386,13 @@ void restoreFromLastWritten(const TransferArgs& a, const FramePlan& p, turb::Tur
     const auto it = prevOut.metadata.find(turb::meta::kState);
     if (it == prevOut.metadata.end()) throw turb::IoError(prevPath + ": no vdbturb_state metadata to resume from");
     checkResumable(prevPath, prevOut, a.settings, a.write, p.target, p.source);
-    const turb::Frame prevTarget = turbio::readFrame(p.target.path(prev), prev, a.targetRead);
+    const turb::Frame prevTarget =
+        readingAs("target", [&] { return turbio::readFrame(p.target.path(prev), prev, a.targetRead); });
     try {
         const std::optional<turb::Frame> state = resumeStateFrame(prevPath, prev, prevOut);
         transfer.restore(it->second, state ? *state : prevOut, prevTarget);
     } catch (const turb::Error& e) {
-        throw turb::IoError(prevPath + ": cannot resume from this frame: " + e.what());
+        throw turb::IoError(prevPath + ": cannot resume from this frame: " + e.what(), e.settings());
     } catch (const std::exception& e) {
         throw turb::IoError(prevPath + ": cannot resume from this frame: damaged vdbturb_state (" + e.what() + ")");
     }
@@ -553,15 +557,16 @@ int runTransfer(TransferArgs& a)
         const auto t0 = std::chrono::steady_clock::now();
         ConsoleProgress progress(int(i), count, t);
         progress.begin("reading");
-        const turb::Frame tf = turbio::readFrame(p.target.path(t), t, a.targetRead);
-        const turb::Frame sf = turbio::readFrame(p.source.path(p.sourceFor[i]), p.sourceFor[i], a.sourceRead);
+        const turb::Frame tf = readingAs("target", [&] { return turbio::readFrame(p.target.path(t), t, a.targetRead); });
+        const turb::Frame sf = readingAs("source",
+            [&] { return turbio::readFrame(p.source.path(p.sourceFor[i]), p.sourceFor[i], a.sourceRead); });
         turb::TransferResult r;
         try {
             r = transfer.process(tf, sf, &progress);
         } catch (const turb::ValueError& e) {
             // The library names frames, not files: say which files this frame came from.
             throw turb::ValueError("frame " + std::to_string(t) + " (target " + p.target.path(t) + ", source " +
-                                   p.source.path(p.sourceFor[i]) + "): " + e.what());
+                                   p.source.path(p.sourceFor[i]) + "): " + e.what(), e.settings());
         }
         if (i < p.writeFrom) {
             progress.clear();

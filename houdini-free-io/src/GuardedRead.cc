@@ -4,6 +4,7 @@
 
 #include <openvdb/io/Stream.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <csignal>
@@ -15,6 +16,7 @@
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
+#include <vector>
 
 namespace turbio::detail {
 
@@ -41,6 +43,28 @@ size_t currentVirtualBytes()
     size_t pages = 0;
     in >> pages;
     return pages * size_t(::sysconf(_SC_PAGESIZE));
+}
+
+// A failure crosses the pipe as 'E', the settings it names (turb::Error::settings, comma-separated: field
+// names hold neither commas nor newlines), a newline and the message.
+std::string errorPayload(const std::string& message, const std::vector<std::string>& settings = {})
+{
+    std::string names;
+    for (const auto& s : settings) names += (names.empty() ? "" : ",") + s;
+    return "E" + names + "\n" + message;
+}
+
+[[noreturn]] void throwPayload(const std::string& data)
+{
+    const size_t nl = data.find('\n');
+    if (nl == std::string::npos) throw turb::IoError(data.substr(1));
+    std::vector<std::string> settings;
+    for (size_t at = 1; at < nl;) {
+        const size_t comma = std::min(data.find(',', at), nl);
+        settings.push_back(data.substr(at, comma - at));
+        at = comma + 1;
+    }
+    throw turb::IoError(data.substr(nl + 1), settings);
 }
 
 extern "C" __attribute__((weak)) void __sanitizer_set_death_callback(void (*)(void));
@@ -78,13 +102,13 @@ extern "C" __attribute__((weak)) void __sanitizer_set_death_callback(void (*)(vo
         stream.write(grids, meta);
         payload = "G" + os.str();
     } catch (const turb::Error& e) {
-        payload = std::string("E") + e.what();
+        payload = errorPayload(e.what(), e.settings());
     } catch (const std::bad_alloc&) {
-        payload = "E" + path + ": corrupt file (a size field asks for more memory than exists)";
+        payload = errorPayload(path + ": corrupt file (a size field asks for more memory than exists)");
     } catch (const std::exception& e) {
-        payload = "E" + path + ": truncated or corrupt file (" + cleanMessage(e.what()) + ")";
+        payload = errorPayload(path + ": truncated or corrupt file (" + cleanMessage(e.what()) + ")");
     } catch (...) {
-        payload = "Eunknown error";
+        payload = errorPayload("unknown error");
     }
     const bool ok = writeAll(fd, payload.data(), payload.size());
     ::close(fd);
@@ -164,7 +188,7 @@ GuardedResult readInChild(const std::string& path, const ReadBody& body, double 
     }
     if (data.empty() || (WIFEXITED(status) && WEXITSTATUS(status) != 0 && data[0] != 'E'))
         throw turb::IoError(path + ": corrupt file: the reader stopped without a result");
-    if (data[0] == 'E') throw turb::IoError(data.substr(1));
+    if (data[0] == 'E') throwPayload(data);
 
     GuardedResult result;
     try {

@@ -29,9 +29,10 @@ using ReadBody = std::function<void(openvdb::io::File& file, openvdb::GridPtrVec
 /// OpenVDB messages may quote bytes of a damaged file: keep them printable and short.
 std::string cleanMessage(const std::string& message);
 
-/// Opens `path` in a child process and runs `body` there. turb::Error thrown by the body is rethrown
-/// here with its message; a crash, a hang longer than `timeoutSeconds` in two readers in a row (the first
-/// may have inherited a lock held at the fork) or a memory blow-up becomes a turb::IoError naming the file.
+/// Opens `path` in a child process and runs `body` there. turb::Error thrown by the body is rethrown here as
+/// turb::IoError with its message and settings; a crash, a hang longer than `timeoutSeconds` in two readers in a
+/// row (the first may have inherited a lock held at the fork) or a memory blow-up becomes a turb::IoError naming
+/// the file.
 GuardedResult guardedRead(const std::string& path, const ReadBody& body, double timeoutSeconds);
 
 } // namespace turbio::detail

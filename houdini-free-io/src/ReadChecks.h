@@ -2,6 +2,7 @@
 // fails with the same words as the run.
 #pragma once
 
+#include <turb/Error.h>
 #include <turbio/Vdb.h>
 
 #include <string>
@@ -10,8 +11,13 @@
 
 namespace turbio::detail {
 
-/// "PATH: no velocity (...) grid; the file has: LISTING. Use --target-vel-grid NAME, or '#N' ..."
-std::string missingGridMessage(const std::string& path, GridRole role, const ReadOptions& options, const std::string& listing);
+/// "PATH: no velocity (...) grid; the file has: LISTING.", naming the setting that chooses the grid
+/// ("velocityGrid"; the caller's own name for it, such as a flag, follows the listing).
+turb::IoError missingGrid(const std::string& path, GridRole role, const ReadOptions& options,
+    const std::string& listing);
+
+/// "PATH: none of the requested grids is present; the file has: LISTING.", naming densityGrid and velocityGrid.
+turb::IoError noRequestedGrid(const std::string& path, const std::string& listing);
 
 /// "PATH: grid 'G' has a MAP transform with ...; vdbturb supports only uniform voxels with a translation."
 std::string unsupportedTransformMessage(const std::string& path, const std::string& grid, const std::string& mapType);

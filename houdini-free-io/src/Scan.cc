@@ -34,9 +34,9 @@ void resolveFrame(FrameScan& fs, const FileInfo& info, const ReadOptions& option
     const auto dens = resolveGrid(names, GridRole::Density, options.densityGrid);
     const auto vel = resolveGrid(names, GridRole::Velocity, options.velocityGrid);
     if (dens.empty() && (options.requireDensity || !options.densityGrid.empty()))
-        throw turb::IoError(detail::missingGridMessage(fs.path, GridRole::Density, options, listing));
+        throw detail::missingGrid(fs.path, GridRole::Density, options, listing);
     if (vel.empty() && (options.requireVelocity || !options.velocityGrid.empty()))
-        throw turb::IoError(detail::missingGridMessage(fs.path, GridRole::Velocity, options, listing));
+        throw detail::missingGrid(fs.path, GridRole::Velocity, options, listing);
 
     std::vector<const GridInfo*> used;
     const GridInfo* d = dens.empty() ? nullptr : findSelector(info.grids, dens[0]);
@@ -64,10 +64,7 @@ void resolveFrame(FrameScan& fs, const FileInfo& info, const ReadOptions& option
         for (GridRole role : {GridRole::Temperature, GridRole::Flame})
             if (auto n = resolveGrid(names, role); !n.empty())
                 if (const GridInfo* e = findSelector(info.grids, n[0])) used.push_back(e);
-    if (used.empty())
-        throw turb::IoError(fs.path + ": none of the requested grids is present; the file has: " + listing + ". Choose grids with --" +
-                            options.optionPrefix + "density-grid / --" + options.optionPrefix +
-                            "vel-grid NAME, or '#N' for the N-th grid listed here.");
+    if (used.empty()) throw detail::noRequestedGrid(fs.path, listing);
     for (const GridInfo* g : used)
         if (!g->supportedTransform) throw turb::IoError(detail::unsupportedTransformMessage(fs.path, g->name, g->mapType));
 
@@ -154,15 +151,16 @@ FrameScan scanFrame(const std::string& path, int frame, const ReadOptions& optio
         }
     } catch (const turb::Error& e) {
         fs.error = e.what();
+        fs.errorSettings = e.settings();
     }
     return fs;
 }
 
-std::string SequenceScan::firstError() const
+const FrameScan* SequenceScan::firstFailure() const
 {
     for (const auto& f : frames)
-        if (!f.error.empty()) return f.error;
-    return "";
+        if (!f.error.empty()) return &f;
+    return nullptr;
 }
 
 std::string SequenceScan::describeChanges(size_t most) const

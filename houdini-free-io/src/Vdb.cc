@@ -601,15 +601,22 @@ std::string describeGrids(const std::vector<GridInfo>& grids)
 
 namespace detail {
 
-std::string missingGridMessage(const std::string& path, GridRole role, const ReadOptions& options, const std::string& listing)
+turb::IoError missingGrid(const std::string& path, GridRole role, const ReadOptions& options,
+    const std::string& listing)
 {
     const bool density = role == GridRole::Density;
     const std::string& chosen = density ? options.densityGrid : options.velocityGrid;
     const std::string wanted = !chosen.empty() ? "'" + chosen + "'"
                                : density       ? std::string("density (density, density_noise)")
                                                : std::string("velocity (vel, velocity, v, or vel.x/vel.y/vel.z)");
-    return path + ": no " + wanted + " grid; the file has: " + listing + ". Use --" + options.optionPrefix +
-           (density ? "density-grid" : "vel-grid") + " NAME, or '#N' for the N-th grid listed here.";
+    return turb::IoError(path + ": no " + wanted + " grid; the file has: " + listing + ".",
+        {density ? "densityGrid" : "velocityGrid"});
+}
+
+turb::IoError noRequestedGrid(const std::string& path, const std::string& listing)
+{
+    return turb::IoError(path + ": none of the requested grids is present; the file has: " + listing + ".",
+        {"densityGrid", "velocityGrid"});
 }
 
 std::string unsupportedTransformMessage(const std::string& path, const std::string& grid, const std::string& mapType)
@@ -666,13 +673,16 @@ std::string denseSizeProblem(const std::string& path, const turb::CoordBBox& dom
 ReadReport resolveTiming(bool blenderVelocity, bool blenderCache, double recordedDt, const ReadOptions& options)
 {
     ReadReport r;
-    const std::string flag = "--" + options.optionPrefix;
     switch (options.velocityUnits) {
     case VelocityUnits::Cells:
         r.cells = true;
-        r.unitsSource = flag + "vel-units cells";
+        r.unitsSource = "ReadOptions::velocityUnits cells";
+        r.unitsSetting = "velocityUnits";
         break;
-    case VelocityUnits::World: r.unitsSource = flag + "vel-units world"; break;
+    case VelocityUnits::World:
+        r.unitsSource = "ReadOptions::velocityUnits world";
+        r.unitsSetting = "velocityUnits";
+        break;
     case VelocityUnits::Auto:
         r.cells = blenderVelocity;
         r.unitsSource = blenderVelocity ? "detected: Blender's staggered 'velocity' with file_base_resolution is in grid cells "
@@ -681,10 +691,12 @@ ReadReport resolveTiming(bool blenderVelocity, bool blenderCache, double recorde
         break;
     }
     r.fps = options.fps > 0.0 ? options.fps : 24.0;
-    const std::string fpsText = options.fps > 0.0 ? "--" + options.optionPrefix + "fps" : "assumed: the cache records no frame rate";
+    const std::string fpsText = options.fps > 0.0 ? "ReadOptions::fps" : "assumed: the cache records no frame rate";
+    const std::string fpsSetting = options.fps > 0.0 ? "fps" : "";
     if (options.dt > 0.0) {
         r.dt = options.dt;
-        r.dtSource = flag + "dt";
+        r.dtSource = "ReadOptions::dt";
+        r.dtSetting = "dt";
         r.fpsSource = "not used";
     } else if (recordedDt > 0.0) {
         r.dt = recordedDt;
@@ -696,11 +708,13 @@ ReadReport resolveTiming(bool blenderVelocity, bool blenderCache, double recorde
         r.dt = 0.1 * 25.0 / r.fps;
         r.dtSource = "Blender's frame length 0.1 x 25/fps, time scale 1 assumed";
         r.fpsSource = fpsText;
+        r.fpsSetting = fpsSetting;
         r.conventionAssumed = options.fps <= 0.0;
     } else {
         r.dt = 1.0 / r.fps;
         r.dtSource = "1/fps seconds";
         r.fpsSource = fpsText;
+        r.fpsSetting = fpsSetting;
         r.conventionAssumed = options.fps <= 0.0;
     }
     return r;
@@ -717,9 +731,9 @@ void readRoles(openvdb::io::File& file, const std::vector<Descriptor>& order, op
     const auto densName = resolveGrid(names, GridRole::Density, options.densityGrid);
     const auto velName = resolveGrid(names, GridRole::Velocity, options.velocityGrid);
     if (densName.empty() && (options.requireDensity || !options.densityGrid.empty()))
-        throw IoError(detail::missingGridMessage(path, GridRole::Density, options, describeEntries(entries)));
+        throw detail::missingGrid(path, GridRole::Density, options, describeEntries(entries));
     if (velName.empty() && (options.requireVelocity || !options.velocityGrid.empty()))
-        throw IoError(detail::missingGridMessage(path, GridRole::Velocity, options, describeEntries(entries)));
+        throw detail::missingGrid(path, GridRole::Velocity, options, describeEntries(entries));
     const auto take = [&](const std::string& name, const std::string& role) {
         auto g = readGridNamed(file, path, name);
         g->insertMeta(kRoleKey, openvdb::StringMetadata(role));
@@ -736,10 +750,7 @@ void readRoles(openvdb::io::File& file, const std::vector<Descriptor>& order, op
         if (auto n = resolveGrid(names, GridRole::Temperature); !n.empty()) take(n[0], "temperature");
         if (auto n = resolveGrid(names, GridRole::Flame); !n.empty()) take(n[0], "flame");
     }
-    if (out.empty())
-        throw IoError(path + ": none of the requested grids is present; the file has: " + describeEntries(entries) +
-                      ". Choose grids with --" + options.optionPrefix + "density-grid / --" + options.optionPrefix +
-                      "vel-grid NAME, or '#N' for the N-th grid listed here.");
+    if (out.empty()) throw detail::noRequestedGrid(path, describeEntries(entries));
     meta.insertMeta("__turb_grid_list", openvdb::StringMetadata(describeEntries(entries)));
     if (auto fm = file.getMetadata())
         for (auto it = fm->beginMeta(); it != fm->endMeta(); ++it) meta.insertMeta(it->first, *it->second);
@@ -1036,13 +1047,172 @@ SmokeRegion smokeRegion(const std::string& path, const ReadOptions& options)
             const std::vector<GridEntry> entries = listGrids(file, order);
             const auto name = resolveGrid(uniqueNames(entries), GridRole::Density, options.densityGrid);
             if (name.empty() && !options.densityGrid.empty())
-                throw IoError(detail::missingGridMessage(path, GridRole::Density, options, describeEntries(entries)));
+                throw detail::missingGrid(path, GridRole::Density, options, describeEntries(entries));
             if (!name.empty()) out.push_back(readGridNamed(file, path, name[0]));
         },
         options.readTimeout);
     if (r.grids.empty()) return SmokeRegion{};
     return findSmoke(*asFloatGrid(path, r.grids.front(), "density"), options);
 }
+
+namespace {
+
+// The grids the reader took, by the role readRoles labelled them with. A Blender-style file places index 0 where
+// Blender does; the frame keeps the lattice it was written from, so the placement offset comes off here.
+RoleGrids gridsByRole(const std::string& path, const detail::GuardedResult& r)
+{
+    const openvdb::Vec3d offset = blenderOffset(*r.meta);
+    if (offset != openvdb::Vec3d(0.0))
+        for (const auto& grid : r.grids) grid->transform().postTranslate(-offset);
+    RoleGrids g;
+    for (const auto& grid : r.grids) {
+        const std::string role = roleOf(*grid);
+        if (role == "density") g.density = asFloatGrid(path, grid, "density");
+        else if (role == "velocity") g.vel = asVec3Grid(path, grid);
+        else if (role == "velocity.x") g.comp[0] = asFloatGrid(path, grid, "velocity component");
+        else if (role == "velocity.y") g.comp[1] = asFloatGrid(path, grid, "velocity component");
+        else if (role == "velocity.z") g.comp[2] = asFloatGrid(path, grid, "velocity component");
+        else if (role == "temperature") g.temperature = asFloatGrid(path, grid, "temperature");
+        else if (role == "flame") g.flame = asFloatGrid(path, grid, "flame");
+    }
+    return g;
+}
+
+// Where a frame's grids lie, on the frame's lattice.
+struct GridSpans
+{
+    turb::Lattice lattice;                ///< the frame's: the density's (the velocity's without density)
+    std::optional<turb::Coord> baseRes;   ///< Blender's simulation box, when the file records it
+    std::vector<turb::CoordBBox> boxes;   ///< each grid's active box (RoleGrids::all() order)
+    double bytesPerVoxel = 0.0;           ///< of the dense fields the grids become
+    turb::CoordBBox domain;               ///< Blender's box or vdbturb's recorded one, and the boxes' union
+};
+
+GridSpans gridSpans(const std::string& path, const RoleGrids& g, const std::vector<openvdb::GridBase::ConstPtr>& all,
+    const openvdb::MetaMap& meta)
+{
+    // One lattice for the frame: the density's (the velocity's without density). Grids on another uniform
+    // lattice (Houdini's velocity voxel scale) are resampled onto it; components must share one lattice.
+    GridSpans s;
+    s.lattice = latticeOf(path, *all.front());
+    std::vector<turb::Lattice> lattices;
+    for (const auto& grid : all) lattices.push_back(latticeOf(path, *grid));
+    if (g.comp[0])
+        for (int a = 1; a < 3; ++a)
+            if (!latticeOf(path, *g.comp[a]).approxEqual(latticeOf(path, *g.comp[0])))
+                throw IoError(path + ": velocity components " + quoted(g.comp[0]->getName()) + " and " +
+                              quoted(g.comp[a]->getName()) + " lie on different lattices");
+
+    // Domain: Blender records its full simulation box; otherwise the union of the grids' active boxes.
+    for (const auto& grid : all)
+        if (auto res = baseResolution(*grid)) s.baseRes = res;
+    if (s.baseRes) s.domain = turb::CoordBBox(turb::Coord(0), *s.baseRes - turb::Coord(1));
+    // vdbturb's own outputs record the box they span; their grids may be sparse within it.
+    if (const auto recorded = recordedDomain(meta)) s.domain.expand(*recorded);
+    for (size_t i = 0; i < all.size(); ++i) {
+        turb::CoordBBox b = activeBoxOn(*all[i], lattices[i], s.lattice);
+        // A staggered grid's faces on the domain's upper boundary (vdbturb writes them so the last voxel has both
+        // faces) are not voxels of the domain.
+        if (s.baseRes && all[i]->getGridClass() == openvdb::GRID_STAGGERED)
+            b.intersect(turb::CoordBBox(turb::Coord(0), *s.baseRes - turb::Coord(1)));
+        s.boxes.push_back(b);
+        if (!b.empty()) s.domain.expand(b);
+        const bool vector = all[i] == openvdb::GridBase::ConstPtr(g.vel);
+        s.bytesPerVoxel += vector ? 12.0 : 4.0;
+    }
+    if (s.domain.empty()) s.domain = turb::CoordBBox(turb::Coord(0), turb::Coord(0)); // every grid is empty
+    return s;
+}
+
+// The box the frame's fields cover: the smoke and its margin (or ReadOptions::holdBox) with cropToSmoke, else the
+// domain; refused when its dense fields would not fit. Fills `rep`'s span, held box, smoke region and strays note.
+turb::CoordBBox heldBox(const std::string& path, const RoleGrids& g, const std::vector<openvdb::GridBase::ConstPtr>& all,
+    const GridSpans& spans, const ReadOptions& options, ReadReport& rep, std::string& stage)
+{
+    // Hold the smoke, not the span: stray voxels and a large velocity box around a small plume cost nothing.
+    turb::CoordBBox domain = spans.domain;
+    rep.span = domain;
+    if (g.density && options.cropToSmoke) {
+        stage = "finding the smoke in grid " + quoted(g.density->getName());
+        rep.region = findSmoke(*g.density, options);
+        // The margin reaches as far as the other grids (or Blender's domain) do, never toward the strays.
+        turb::CoordBBox reach = rep.region.smoke;
+        if (spans.baseRes) reach.expand(turb::CoordBBox(turb::Coord(0), *spans.baseRes - turb::Coord(1)));
+        for (size_t i = 0; i < all.size(); ++i)
+            if (all[i] != openvdb::GridBase::ConstPtr(g.density) && !spans.boxes[i].empty()) reach.expand(spans.boxes[i]);
+        domain = heldRegion(rep.region, reach.empty() ? domain : reach, options);
+        if (!options.holdBox.empty()) domain = options.holdBox;
+        if (!rep.region.strays.empty()) rep.notes.push_back(rep.region.describeStrays(g.density->getName()));
+    }
+    rep.held = domain;
+    std::vector<std::pair<std::string, turb::CoordBBox>> named;
+    for (size_t i = 0; i < all.size(); ++i) named.emplace_back(all[i]->getName(), spans.boxes[i]);
+    const std::string problem = detail::denseSizeProblem(path, domain, named, spans.bytesPerVoxel, options);
+    if (!problem.empty()) throw IoError(problem);
+    return domain;
+}
+
+// The frame's velocity over `domain` on `lattice`, from a grid on that lattice or on its own (read over the part
+// the held box samples, then resampled, with a note in `rep`). `stage` names the step for out-of-memory messages.
+turb::VectorField heldVelocity(const std::string& path, const RoleGrids& g, const turb::CoordBBox& domain,
+    const turb::Lattice& lattice, bool cells, const ReadOptions& options, ReadReport& rep, std::string& stage)
+{
+    const openvdb::GridBase& vg = g.vel ? static_cast<const openvdb::GridBase&>(*g.vel) : *g.comp[0];
+    if (latticeOf(path, vg).approxEqual(lattice)) {
+        stage = "grid " + quoted(vg.getName()) + " over " + spanText(domain);
+        return velocityField(path, g, domain, lattice, cells, options);
+    }
+    // Read on its own lattice over its own active box (plus the extension), then resample.
+    const turb::Lattice own = latticeOf(path, vg);
+    // Only the part the held box samples (trilinear: one voxel around), plus the extension's reach.
+    turb::CoordBBox box = vg.evalActiveVoxelBoundingBox();
+    box.expand(options.extendVelocity);
+    turb::CoordBBox need = detail::boxOnLattice(domain, lattice, own);
+    need.expand(2 + options.extendVelocity);
+    box.intersect(need);
+    if (box.empty()) box = turb::CoordBBox(turb::Coord(0), turb::Coord(0));
+    stage = "grid " + quoted(vg.getName()) + " over " + spanText(box) + " before resampling";
+    const turb::VectorField native = velocityField(path, g, box, own, cells, options);
+    stage = "grid " + quoted(vg.getName()) + " resampled over " + spanText(domain);
+    turb::VectorField v = resampledOnto(native, domain, lattice);
+    std::ostringstream note;
+    note << "grid " << quoted(vg.getName()) << " (voxel " << own.voxelSize << ") resampled trilinearly onto the "
+         << (g.density ? "density's" : "frame's") << " lattice (voxel " << lattice.voxelSize
+         << ")" << (std::abs(own.voxelSize / lattice.voxelSize - 2.0) < 1e-6 ? ": Houdini's velocity voxel scale 2" : "");
+    rep.notes.push_back(note.str());
+    return v;
+}
+
+// Temperature or flame over `domain` on `lattice` (nothing without the grid), resampled from its own lattice
+// with a note in `rep` when it has one.
+std::optional<turb::ScalarField> heldScalar(const std::string& path, const openvdb::FloatGrid::Ptr& grid,
+    const turb::CoordBBox& domain, const turb::Lattice& lattice, const ReadOptions& options, ReadReport& rep,
+    std::string& stage)
+{
+    if (!grid) return std::nullopt;
+    stage = "grid " + quoted(grid->getName()) + " over " + spanText(domain);
+    if (latticeOf(path, *grid).approxEqual(lattice)) return scalarField(path, *grid, domain, lattice, options.checkFinite);
+    turb::CoordBBox box = grid->evalActiveVoxelBoundingBox();
+    turb::CoordBBox need = detail::boxOnLattice(domain, lattice, latticeOf(path, *grid));
+    need.expand(2);
+    box.intersect(need);
+    const turb::ScalarField native = scalarField(path, *grid,
+        box.empty() ? turb::CoordBBox(turb::Coord(0), turb::Coord(0)) : box, latticeOf(path, *grid), options.checkFinite);
+    turb::ScalarField f = resampledOnto(native, domain, lattice);
+    rep.notes.push_back("grid " + quoted(grid->getName()) + " resampled trilinearly onto the frame's lattice");
+    return f;
+}
+
+// File-level string metadata (vdbturb parameters, creator) travels with the frame.
+void copyFileMetadata(const openvdb::MetaMap& meta, turb::Frame& frame)
+{
+    for (auto it = meta.beginMeta(); it != meta.endMeta(); ++it)
+        if (it->second && it->second->typeName() == openvdb::StringMetadata::staticTypeName() && it->first.rfind("__turb", 0) != 0 &&
+            it->first != turb::meta::kBlenderOffset)
+            frame.metadata[it->first] = it->second->str();
+}
+
+} // namespace
 
 static turb::Frame readFrameUnchecked(const std::string& path, int frameNumber, const ReadOptions& options,
     ReadReport* report, std::string& stage);
@@ -1065,147 +1235,36 @@ static turb::Frame readFrameUnchecked(const std::string& path, int frameNumber, 
             readRoles(file, order, out, meta, path, options);
         },
         options.readTimeout);
-
-    // A Blender-style file places index 0 where Blender does; the frame keeps the lattice it was written from.
-    const openvdb::Vec3d offset = blenderOffset(*r.meta);
-    if (offset != openvdb::Vec3d(0.0))
-        for (const auto& grid : r.grids) grid->transform().postTranslate(-offset);
-    RoleGrids g;
-    for (const auto& grid : r.grids) {
-        const std::string role = roleOf(*grid);
-        if (role == "density") g.density = asFloatGrid(path, grid, "density");
-        else if (role == "velocity") g.vel = asVec3Grid(path, grid);
-        else if (role == "velocity.x") g.comp[0] = asFloatGrid(path, grid, "velocity component");
-        else if (role == "velocity.y") g.comp[1] = asFloatGrid(path, grid, "velocity component");
-        else if (role == "velocity.z") g.comp[2] = asFloatGrid(path, grid, "velocity component");
-        else if (role == "temperature") g.temperature = asFloatGrid(path, grid, "temperature");
-        else if (role == "flame") g.flame = asFloatGrid(path, grid, "flame");
-    }
+    const RoleGrids g = gridsByRole(path, r);
     const std::vector<openvdb::GridBase::ConstPtr> all = g.all();
     if (all.empty()) throw IoError(path + ": none of the requested grids is present");
-
-    // One lattice for the frame: the density's (the velocity's without density). Grids on another uniform
-    // lattice (Houdini's velocity voxel scale) are resampled onto it; components must share one lattice.
-    const turb::Lattice lattice = latticeOf(path, *all.front());
-    std::vector<turb::Lattice> lattices;
-    for (const auto& grid : all) lattices.push_back(latticeOf(path, *grid));
-    if (g.comp[0])
-        for (int a = 1; a < 3; ++a)
-            if (!latticeOf(path, *g.comp[a]).approxEqual(latticeOf(path, *g.comp[0])))
-                throw IoError(path + ": velocity components " + quoted(g.comp[0]->getName()) + " and " +
-                              quoted(g.comp[a]->getName()) + " lie on different lattices");
-
-    // Domain: Blender records its full simulation box; otherwise the union of the grids' active boxes.
-    turb::CoordBBox domain;
-    std::optional<turb::Coord> baseRes;
-    for (const auto& grid : all)
-        if (auto res = baseResolution(*grid)) baseRes = res;
-    if (baseRes) domain = turb::CoordBBox(turb::Coord(0), *baseRes - turb::Coord(1));
-    // vdbturb's own outputs record the box they span; their grids may be sparse within it.
-    if (const auto recorded = recordedDomain(*r.meta)) domain.expand(*recorded);
-    std::vector<turb::CoordBBox> spans;
-    double bytesPerVoxel = 0.0;
-    for (size_t i = 0; i < all.size(); ++i) {
-        turb::CoordBBox b = activeBoxOn(*all[i], lattices[i], lattice);
-        // A staggered grid's faces on the domain's upper boundary (vdbturb writes them so the last voxel has both
-        // faces) are not voxels of the domain.
-        if (baseRes && all[i]->getGridClass() == openvdb::GRID_STAGGERED)
-            b.intersect(turb::CoordBBox(turb::Coord(0), *baseRes - turb::Coord(1)));
-        spans.push_back(b);
-        if (!b.empty()) domain.expand(b);
-        const bool vector = all[i] == openvdb::GridBase::ConstPtr(g.vel);
-        bytesPerVoxel += vector ? 12.0 : 4.0;
-    }
-    if (domain.empty()) domain = turb::CoordBBox(turb::Coord(0), turb::Coord(0)); // every grid is empty
-    // Hold the smoke, not the span: stray voxels and a large velocity box around a small plume cost nothing.
+    const GridSpans spans = gridSpans(path, g, all, *r.meta);
+    const turb::Lattice& lattice = spans.lattice;
     ReadReport rep;
-    rep.span = domain;
-    if (g.density && options.cropToSmoke) {
-        stage = "finding the smoke in grid " + quoted(g.density->getName());
-        rep.region = findSmoke(*g.density, options);
-        // The margin reaches as far as the other grids (or Blender's domain) do, never toward the strays.
-        turb::CoordBBox reach = rep.region.smoke;
-        if (baseRes) reach.expand(turb::CoordBBox(turb::Coord(0), *baseRes - turb::Coord(1)));
-        for (size_t i = 0; i < all.size(); ++i)
-            if (all[i] != openvdb::GridBase::ConstPtr(g.density) && !spans[i].empty()) reach.expand(spans[i]);
-        domain = heldRegion(rep.region, reach.empty() ? domain : reach, options);
-        if (!options.holdBox.empty()) domain = options.holdBox;
-        if (!rep.region.strays.empty()) rep.notes.push_back(rep.region.describeStrays(g.density->getName()));
-    }
-    rep.held = domain;
-    {
-        std::vector<std::pair<std::string, turb::CoordBBox>> named;
-        for (size_t i = 0; i < all.size(); ++i) named.emplace_back(all[i]->getName(), spans[i]);
-        const std::string problem = detail::denseSizeProblem(path, domain, named, bytesPerVoxel, options);
-        if (!problem.empty()) throw IoError(problem);
-    }
+    const turb::CoordBBox domain = heldBox(path, g, all, spans, options, rep, stage);
 
     turb::Frame frame;
     frame.number = frameNumber;
-    const auto onOwnLattice = [&](const openvdb::GridBase& grid) { return latticeOf(path, grid).approxEqual(lattice); };
     if (g.density) {
         stage = "grid " + quoted(g.density->getName()) + " over " + spanText(domain);
         frame.density = scalarField(path, *g.density, domain, lattice, options.checkFinite);
     }
     bool blenderVelocity = false;
     if (g.vel || g.comp[0]) {
-        const openvdb::GridBase& vg = g.vel ? static_cast<const openvdb::GridBase&>(*g.vel) : *g.comp[0];
         blenderVelocity = g.vel && isBlenderVelocity(*g.vel);
         const bool cells = options.velocityUnits == VelocityUnits::Cells ||
                            (options.velocityUnits == VelocityUnits::Auto && blenderVelocity);
-        if (onOwnLattice(vg)) {
-            stage = "grid " + quoted(vg.getName()) + " over " + spanText(domain);
-            frame.velocity = velocityField(path, g, domain, lattice, cells, options);
-        } else {
-            // Read on its own lattice over its own active box (plus the extension), then resample.
-            const turb::Lattice own = latticeOf(path, vg);
-            // Only the part the held box samples (trilinear: one voxel around), plus the extension's reach.
-            turb::CoordBBox box = vg.evalActiveVoxelBoundingBox();
-            box.expand(options.extendVelocity);
-            turb::CoordBBox need = detail::boxOnLattice(domain, lattice, own);
-            need.expand(2 + options.extendVelocity);
-            box.intersect(need);
-            if (box.empty()) box = turb::CoordBBox(turb::Coord(0), turb::Coord(0));
-            stage = "grid " + quoted(vg.getName()) + " over " + spanText(box) + " before resampling";
-            const turb::VectorField native = velocityField(path, g, box, own, cells, options);
-            stage = "grid " + quoted(vg.getName()) + " resampled over " + spanText(domain);
-            frame.velocity = resampledOnto(native, domain, lattice);
-            std::ostringstream note;
-            note << "grid " << quoted(vg.getName()) << " (voxel " << own.voxelSize << ") resampled trilinearly onto the "
-                 << (g.density ? "density's" : "frame's") << " lattice (voxel " << lattice.voxelSize
-                 << ")" << (std::abs(own.voxelSize / lattice.voxelSize - 2.0) < 1e-6 ? ": Houdini's velocity voxel scale 2" : "");
-            rep.notes.push_back(note.str());
-        }
+        frame.velocity = heldVelocity(path, g, domain, lattice, cells, options, rep, stage);
         frame.metadata[turb::meta::kInputVelocityUnits] = cells ? "cells" : "world";
     }
-    const auto extra = [&](const openvdb::FloatGrid::Ptr& grid, std::optional<turb::ScalarField>& dst) {
-        if (!grid) return;
-        stage = "grid " + quoted(grid->getName()) + " over " + spanText(domain);
-        if (onOwnLattice(*grid)) {
-            dst = scalarField(path, *grid, domain, lattice, options.checkFinite);
-            return;
-        }
-        turb::CoordBBox box = grid->evalActiveVoxelBoundingBox();
-        turb::CoordBBox need = detail::boxOnLattice(domain, lattice, latticeOf(path, *grid));
-        need.expand(2);
-        box.intersect(need);
-        const turb::ScalarField native = scalarField(path, *grid,
-            box.empty() ? turb::CoordBBox(turb::Coord(0), turb::Coord(0)) : box, latticeOf(path, *grid), options.checkFinite);
-        dst = resampledOnto(native, domain, lattice);
-        rep.notes.push_back("grid " + quoted(grid->getName()) + " resampled trilinearly onto the frame's lattice");
-    };
-    extra(g.temperature, frame.temperature);
-    extra(g.flame, frame.flame);
+    frame.temperature = heldScalar(path, g.temperature, domain, lattice, options, rep, stage);
+    frame.flame = heldScalar(path, g.flame, domain, lattice, options, rep, stage);
     stage.clear();
-
-    // File-level string metadata (vdbturb parameters, creator) travels with the frame.
-    for (auto it = r.meta->beginMeta(); it != r.meta->endMeta(); ++it)
-        if (it->second && it->second->typeName() == openvdb::StringMetadata::staticTypeName() && it->first.rfind("__turb", 0) != 0 &&
-            it->first != turb::meta::kBlenderOffset)
-            frame.metadata[it->first] = it->second->str();
+    copyFileMetadata(*r.meta, frame);
 
     // Time per frame and the units: explicit option > recorded by vdbturb > the writer's convention.
-    const ReadReport timing = resolveTiming(blenderVelocity, baseRes.has_value(), metaDouble(*r.meta, turb::meta::kDt, 0.0), options);
+    const ReadReport timing =
+        resolveTiming(blenderVelocity, spans.baseRes.has_value(), metaDouble(*r.meta, turb::meta::kDt, 0.0), options);
     frame.dt = timing.dt;
     if (report) {
         *report = timing;
@@ -1402,7 +1461,7 @@ void commitTemp(const std::string& tmp, const std::string& path, bool noClobber)
         if (::link(tmp.c_str(), path.c_str()) != 0) {
             const int err = errno;
             ::unlink(tmp.c_str());
-            if (err == EEXIST) throw IoError(path + ": exists, not replaced (--no-clobber)");
+            if (err == EEXIST) throw IoError(path + ": exists, not replaced", {"noClobber"});
             throw IoError(path + ": cannot write (" + std::strerror(err) + ")");
         }
         ::unlink(tmp.c_str());
@@ -1516,7 +1575,7 @@ typename GridT::Ptr maskedGrid(const turb::Field<T>& field, const openvdb::MaskG
 
 void writeFileAtomic(const std::string& path, const std::string& bytes, bool noClobber)
 {
-    if (noClobber && fileExists(path)) throw IoError(path + ": exists, not replaced (--no-clobber)");
+    if (noClobber && fileExists(path)) throw IoError(path + ": exists, not replaced", {"noClobber"});
     const std::string tmp = tempPathFor(path);
     const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
     if (fd < 0) throw IoError(path + ": cannot write (" + std::strerror(errno) + ")");
@@ -1538,7 +1597,7 @@ void writeFileAtomic(const std::string& path, const std::string& bytes, bool noC
 
 void writeAtomically(const std::string& path, bool noClobber, const std::function<void(const std::string& tmp)>& write)
 {
-    if (noClobber && fileExists(path)) throw IoError(path + ": exists, not replaced (--no-clobber)");
+    if (noClobber && fileExists(path)) throw IoError(path + ": exists, not replaced", {"noClobber"});
     const std::string tmp = tempPathFor(path);
     try {
         write(tmp);
@@ -1561,7 +1620,7 @@ void writeAtomically(const std::string& path, bool noClobber, const std::functio
 void writeFrame(const std::string& path, const turb::Frame& frame, const WriteOptions& options, const OtherGrids* others)
 {
     initOpenVdb();
-    if (options.noClobber && fileExists(path)) throw IoError(path + ": exists, not replaced (--no-clobber)");
+    if (options.noClobber && fileExists(path)) throw IoError(path + ": exists, not replaced", {"noClobber"});
     if (!frame.hasVelocity() && !frame.hasDensity()) throw IoError(path + ": frame has no grids to write");
 
     openvdb::GridPtrVec grids;
@@ -1709,66 +1768,125 @@ OtherGrids OtherGrids::read(const std::string& path, const ReadOptions& options,
 // ---------------------------------------------------------------------------------------------
 // Inspection
 
+namespace {
+
+// The value range, active voxel count and bounding box of a float or vector grid (magnitudes for vectors), from a
+// serial pass over its voxels (OpenVDB's own counters use TBB, which a forked child must not), recorded as
+// __turb_* metadata on `header`.
+void recordValueStatistics(const openvdb::GridBase::Ptr& full, openvdb::GridBase& header)
+{
+    double lo = 0, hi = 0;
+    long long count = 0;
+    openvdb::CoordBBox box;
+    const auto take = [&](double v, const openvdb::CoordBBox& b) {
+        if (count == 0) lo = hi = v;
+        lo = std::min(lo, v);
+        hi = std::max(hi, v);
+        count += (long long)b.volume();
+        box.expand(b);
+    };
+    if (auto fg = openvdb::gridPtrCast<openvdb::FloatGrid>(full))
+        for (auto it = fg->cbeginValueOn(); it; ++it) take(double(*it), it.getBoundingBox());
+    else if (auto dg = openvdb::gridPtrCast<openvdb::DoubleGrid>(full))
+        for (auto it = dg->cbeginValueOn(); it; ++it) take(*it, it.getBoundingBox());
+    else if (auto vg = openvdb::gridPtrCast<openvdb::Vec3SGrid>(full))
+        for (auto it = vg->cbeginValueOn(); it; ++it) take(double(it->length()), it.getBoundingBox());
+    else if (auto wg = openvdb::gridPtrCast<openvdb::Vec3DGrid>(full))
+        for (auto it = wg->cbeginValueOn(); it; ++it) take(it->length(), it.getBoundingBox());
+    if (count > 0) {
+        header.insertMeta("__turb_min", openvdb::DoubleMetadata(lo));
+        header.insertMeta("__turb_max", openvdb::DoubleMetadata(hi));
+        header.insertMeta("__turb_bbox_min", openvdb::Vec3IMetadata(box.min().asVec3i()));
+        header.insertMeta("__turb_bbox_max", openvdb::Vec3IMetadata(box.max().asVec3i()));
+    }
+    header.insertMeta("__turb_count", openvdb::Int64Metadata(count));
+}
+
+// The child's part of inspectFile: the file's versions and metadata, and the header of every grid in file order,
+// labelled with its unique name and position (two unnamed grids each get their own statistics); with
+// `readValues`, each float and vector grid's value statistics.
+void readHeaders(openvdb::io::File& file, const std::vector<Descriptor>& order, openvdb::GridPtrVec& out,
+    openvdb::MetaMap& meta, const std::string& path, bool readValues)
+{
+    meta.insertMeta("__turb_file_version", openvdb::Int64Metadata(file.fileVersion()));
+    const auto lv = file.libraryVersion();
+    meta.insertMeta("__turb_lib_version", openvdb::StringMetadata(std::to_string(lv.first) + "." + std::to_string(lv.second)));
+    if (auto fm = file.getMetadata())
+        for (auto it = fm->beginMeta(); it != fm->endMeta(); ++it) meta.insertMeta(it->first, *it->second);
+    const std::vector<GridEntry> entries = listGrids(file, order);
+    for (size_t i = 0; i < entries.size(); ++i) {
+        openvdb::GridBase::Ptr g;
+        try {
+            g = file.readGridMetadata(entries[i].unique);
+        } catch (const std::exception& e) {
+            throw IoError(path + ": grid " + quoted(cleanMessage(entries[i].unique)) + " has a damaged header (" +
+                          cleanMessage(e.what()) + ")");
+        }
+        g->insertMeta(kHalfKey, openvdb::BoolMetadata(g->saveFloatAsHalf()));
+        g->insertMeta("__turb_unique", openvdb::StringMetadata(entries[i].unique));
+        g->insertMeta("__turb_index", openvdb::Int64Metadata(int64_t(i)));
+        const std::string type = g->valueType();
+        const bool scalar = type == "float" || type == "double";
+        const bool vector = type == "vec3s" || type == "vec3d";
+        if (readValues && (scalar || vector)) recordValueStatistics(readGridNamed(file, path, entries[i].unique), *g);
+        out.push_back(g);
+    }
+}
+
+// What one grid's header (and the child's __turb_* statistics) says, for FileInfo. `selector` is its unique name;
+// Blender's placement offset (`fileMeta`) is taken off its transform as readFrame takes it off.
+GridInfo gridInfoOf(openvdb::GridBase& g, int index, const std::string& selector, GridRole role,
+    const openvdb::MetaMap& fileMeta)
+{
+    GridInfo gi;
+    gi.index = index;
+    if (auto idx = g.getMetadata<openvdb::Int64Metadata>("__turb_index")) gi.index = int(idx->value());
+    gi.selector = selector;
+    gi.name = g.getName();
+    gi.valueType = g.valueType();
+    gi.gridClass = openvdb::GridBase::gridClassToString(g.getGridClass());
+    gi.vectorType = openvdb::GridBase::vecTypeToString(g.getVectorType());
+    gi.role = role;
+    if (auto h = g.getMetadata<openvdb::BoolMetadata>(kHalfKey)) gi.halfFloat = h->value();
+    gi.mapType = g.transform().mapType();
+    g.transform().postTranslate(-blenderOffset(fileMeta));
+    gi.supportedTransform = uniformTransform(g.transform(), gi.voxelSize, gi.origin);
+    if (!gi.supportedTransform) {
+        gi.voxelSize = g.transform().voxelSize()[0];
+        gi.origin = g.transform().indexToWorld(openvdb::Vec3d(0.0));
+    }
+    if (gi.role == GridRole::Velocity) gi.units = isBlenderVelocity(g) ? "cells" : "world";
+    const auto bbox = [&](const char* lo, const char* hi) {
+        auto bmin = g.getMetadata<openvdb::Vec3IMetadata>(lo);
+        auto bmax = g.getMetadata<openvdb::Vec3IMetadata>(hi);
+        if (!bmin || !bmax) return false;
+        const auto a = bmin->value(), b = bmax->value();
+        gi.activeBBox = turb::CoordBBox(turb::Coord(a.x(), a.y(), a.z()), turb::Coord(b.x(), b.y(), b.z()));
+        gi.hasBBox = !gi.activeBBox.empty();
+        return true;
+    };
+    if (!bbox(openvdb::GridBase::META_FILE_BBOX_MIN, openvdb::GridBase::META_FILE_BBOX_MAX))
+        bbox("__turb_bbox_min", "__turb_bbox_max");
+    if (auto cnt = g.getMetadata<openvdb::Int64Metadata>(openvdb::GridBase::META_FILE_VOXEL_COUNT))
+        gi.activeVoxels = cnt->value();
+    else if (auto c2 = g.getMetadata<openvdb::Int64Metadata>("__turb_count"))
+        gi.activeVoxels = c2->value();
+    if (g.getMetadata<openvdb::DoubleMetadata>("__turb_min")) {
+        gi.hasRange = true;
+        gi.minValue = g.metaValue<double>("__turb_min");
+        gi.maxValue = g.metaValue<double>("__turb_max");
+    }
+    return gi;
+}
+
+} // namespace
+
 FileInfo inspectFile(const std::string& path, bool readValues)
 {
-    // Child: headers of every grid in file order, and with readValues a serial pass over each float/vector
-    // grid for its range, count and bounding box (OpenVDB's own counters use TBB, which a forked child must
-    // not). Grids are read by their unique names, so two unnamed grids each get their own statistics.
-    const auto body = [&](openvdb::io::File& file, const std::vector<Descriptor>& order, openvdb::GridPtrVec& out,
-                          openvdb::MetaMap& meta) {
-        meta.insertMeta("__turb_file_version", openvdb::Int64Metadata(file.fileVersion()));
-        const auto lv = file.libraryVersion();
-        meta.insertMeta("__turb_lib_version",
-            openvdb::StringMetadata(std::to_string(lv.first) + "." + std::to_string(lv.second)));
-        if (auto fm = file.getMetadata())
-            for (auto it = fm->beginMeta(); it != fm->endMeta(); ++it) meta.insertMeta(it->first, *it->second);
-        const std::vector<GridEntry> entries = listGrids(file, order);
-        for (size_t i = 0; i < entries.size(); ++i) {
-            openvdb::GridBase::Ptr g;
-            try {
-                g = file.readGridMetadata(entries[i].unique);
-            } catch (const std::exception& e) {
-                throw IoError(path + ": grid " + quoted(cleanMessage(entries[i].unique)) + " has a damaged header (" +
-                              cleanMessage(e.what()) + ")");
-            }
-            g->insertMeta(kHalfKey, openvdb::BoolMetadata(g->saveFloatAsHalf()));
-            g->insertMeta("__turb_unique", openvdb::StringMetadata(entries[i].unique));
-            g->insertMeta("__turb_index", openvdb::Int64Metadata(int64_t(i)));
-            const std::string type = g->valueType();
-            const bool scalar = type == "float" || type == "double";
-            const bool vector = type == "vec3s" || type == "vec3d";
-            if (readValues && (scalar || vector)) {
-                auto full = readGridNamed(file, path, entries[i].unique);
-                double lo = 0, hi = 0;
-                long long count = 0;
-                openvdb::CoordBBox box;
-                const auto take = [&](double v, const openvdb::CoordBBox& b) {
-                    if (count == 0) lo = hi = v;
-                    lo = std::min(lo, v);
-                    hi = std::max(hi, v);
-                    count += (long long)b.volume();
-                    box.expand(b);
-                };
-                if (auto fg = openvdb::gridPtrCast<openvdb::FloatGrid>(full))
-                    for (auto it = fg->cbeginValueOn(); it; ++it) take(double(*it), it.getBoundingBox());
-                else if (auto dg = openvdb::gridPtrCast<openvdb::DoubleGrid>(full))
-                    for (auto it = dg->cbeginValueOn(); it; ++it) take(*it, it.getBoundingBox());
-                else if (auto vg = openvdb::gridPtrCast<openvdb::Vec3SGrid>(full))
-                    for (auto it = vg->cbeginValueOn(); it; ++it) take(double(it->length()), it.getBoundingBox());
-                else if (auto wg = openvdb::gridPtrCast<openvdb::Vec3DGrid>(full))
-                    for (auto it = wg->cbeginValueOn(); it; ++it) take(it->length(), it.getBoundingBox());
-                if (count > 0) {
-                    g->insertMeta("__turb_min", openvdb::DoubleMetadata(lo));
-                    g->insertMeta("__turb_max", openvdb::DoubleMetadata(hi));
-                    g->insertMeta("__turb_bbox_min", openvdb::Vec3IMetadata(box.min().asVec3i()));
-                    g->insertMeta("__turb_bbox_max", openvdb::Vec3IMetadata(box.max().asVec3i()));
-                }
-                g->insertMeta("__turb_count", openvdb::Int64Metadata(count));
-            }
-            out.push_back(g);
-        }
-    };
-    const detail::GuardedResult r = guarded(path, body);
+    const detail::GuardedResult r = guarded(path,
+        [&](openvdb::io::File& file, const std::vector<Descriptor>& order, openvdb::GridPtrVec& out, openvdb::MetaMap& meta) {
+            readHeaders(file, order, out, meta, path, readValues);
+        });
 
     FileInfo info;
     info.path = path;
@@ -1791,47 +1909,8 @@ FileInfo inspectFile(const std::string& path, bool readValues)
         return GridRole::Other;
     };
     for (size_t i = 0; i < r.grids.size(); ++i) {
-        const auto& g = r.grids[i];
-        GridInfo gi;
-        gi.index = int(i);
-        if (auto idx = g->getMetadata<openvdb::Int64Metadata>("__turb_index")) gi.index = int(idx->value());
-        gi.selector = names[i];
-        gi.name = g->getName();
-        gi.valueType = g->valueType();
-        gi.gridClass = openvdb::GridBase::gridClassToString(g->getGridClass());
-        gi.vectorType = openvdb::GridBase::vecTypeToString(g->getVectorType());
-        gi.role = roleOfName(names[i]);
-        if (auto h = g->getMetadata<openvdb::BoolMetadata>(kHalfKey)) gi.halfFloat = h->value();
-        gi.mapType = g->transform().mapType();
-        g->transform().postTranslate(-blenderOffset(*r.meta));
-        gi.supportedTransform = uniformTransform(g->transform(), gi.voxelSize, gi.origin);
-        if (!gi.supportedTransform) {
-            gi.voxelSize = g->transform().voxelSize()[0];
-            gi.origin = g->transform().indexToWorld(openvdb::Vec3d(0.0));
-        }
-        if (gi.role == GridRole::Velocity) gi.units = isBlenderVelocity(*g) ? "cells" : "world";
-        if (auto res = baseResolution(*g)) info.baseResolution = res;
-        const auto bbox = [&](const char* lo, const char* hi) {
-            auto bmin = g->getMetadata<openvdb::Vec3IMetadata>(lo);
-            auto bmax = g->getMetadata<openvdb::Vec3IMetadata>(hi);
-            if (!bmin || !bmax) return false;
-            const auto a = bmin->value(), b = bmax->value();
-            gi.activeBBox = turb::CoordBBox(turb::Coord(a.x(), a.y(), a.z()), turb::Coord(b.x(), b.y(), b.z()));
-            gi.hasBBox = !gi.activeBBox.empty();
-            return true;
-        };
-        if (!bbox(openvdb::GridBase::META_FILE_BBOX_MIN, openvdb::GridBase::META_FILE_BBOX_MAX))
-            bbox("__turb_bbox_min", "__turb_bbox_max");
-        if (auto cnt = g->getMetadata<openvdb::Int64Metadata>(openvdb::GridBase::META_FILE_VOXEL_COUNT))
-            gi.activeVoxels = cnt->value();
-        else if (auto c2 = g->getMetadata<openvdb::Int64Metadata>("__turb_count"))
-            gi.activeVoxels = c2->value();
-        if (g->getMetadata<openvdb::DoubleMetadata>("__turb_min")) {
-            gi.hasRange = true;
-            gi.minValue = g->metaValue<double>("__turb_min");
-            gi.maxValue = g->metaValue<double>("__turb_max");
-        }
-        info.grids.push_back(gi);
+        info.grids.push_back(gridInfoOf(*r.grids[i], int(i), names[i], roleOfName(names[i]), *r.meta));
+        if (auto res = baseResolution(*r.grids[i])) info.baseResolution = res;
     }
     std::sort(info.grids.begin(), info.grids.end(), [](const GridInfo& a, const GridInfo& b) { return a.index < b.index; });
     return info;

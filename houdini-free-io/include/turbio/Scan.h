@@ -26,6 +26,7 @@ struct FrameScan
     int frame = 0;
     std::string path;
     std::string error;            ///< non-empty: reading this frame will fail; the message names the file and grid
+    std::vector<std::string> errorSettings; ///< the ReadOptions fields that fix the error (turb::Error::settings)
     turb::Lattice lattice;        ///< the frame's lattice (the density's, else the velocity's)
     turb::CoordBBox domain;       ///< index box of the dense frame: `span` cropped to the smoke and its margin
                                   ///< (ReadOptions::cropToSmoke); from the density's header box, or from its voxels
@@ -45,7 +46,8 @@ struct FrameScan
     std::vector<GridInfo> grids;  ///< every grid of the file, in file order
 };
 
-/// Scans one file's headers. Never throws for a bad file: the problem goes into FrameScan::error.
+/// Scans one file's headers. Never throws for a bad file: the problem goes into FrameScan::error (and
+/// errorSettings).
 /// With `readVoxelsIfNeeded`, a file whose headers lack active boxes is read (in the guarded child) for them.
 FrameScan scanFrame(const std::string& path, int frame, const ReadOptions& options, bool readVoxelsIfNeeded = false);
 
@@ -63,8 +65,8 @@ struct SequenceScan
     std::vector<FrameScan> frames;      ///< in the order scanned
     std::vector<LatticeChange> changes; ///< where consecutive frames' lattices differ
 
-    /// The first frame error ("" when every frame reads).
-    std::string firstError() const;
+    /// The first frame that will fail to read, with its error and errorSettings; nullptr when every frame reads.
+    const FrameScan* firstFailure() const;
     /// "voxel size changes from 0.1 at frame 2 (a.0002.vdb) to 0.2 at frame 3 (a.0003.vdb); ..." (at most `most`).
     std::string describeChanges(size_t most = 4) const;
     /// The frame with the largest domain (for memory estimates); nullptr when none is known.

@@ -9,7 +9,8 @@
 /// - Blender's velocity (grid cells per time unit) is scaled to world units;
 /// - double and half-float grids become float; Int32 and unknown grids are ignored.
 ///
-/// Every failure throws turb::IoError naming the file and, where there is one, the grid.
+/// Every failure throws turb::IoError naming the file and, where there is one, the grid; an error that a
+/// ReadOptions or WriteOptions field fixes names that field in turb::Error::settings() ("velocityGrid").
 ///
 /// @code
 /// turbio::ReadOptions opt;
@@ -56,8 +57,6 @@ struct ReadOptions
     double maxVoxels = 5.0e8;     ///< largest dense domain accepted (velocity needs 12 bytes a voxel)
     int extendVelocity = 0;       ///< continue velocity this many voxels past the grid's active region (caches
                                   ///< that clip velocity to the smoke, as Blender's do); 0 = inactive reads as zero
-    std::string optionPrefix;     ///< how the command line spells these options ("" = --vel-grid, "target-" =
-                                  ///< --target-vel-grid), so messages name the option the user must give
 
     // The region held densely (see SmokeRegion). Without a density grid the frame covers every grid's span.
     bool cropToSmoke = true;      ///< hold only the smoke (plus cropMargin), not the union of the grids' active boxes
@@ -109,11 +108,14 @@ turb::CoordBBox heldRegion(const SmokeRegion& region, const turb::CoordBBox& spa
 struct ReadReport
 {
     double dt = 0.0;           ///< time per frame in the velocity's time unit
-    std::string dtSource;      ///< e.g. "vdbturb_dt metadata", "--dt", "Blender frame length 0.1 x 25/fps"
+    std::string dtSource;      ///< e.g. "vdbturb_dt metadata", "ReadOptions::dt", "1/fps seconds"
+    std::string dtSetting;     ///< "dt" when ReadOptions::dt decided dt, else "" (the cache or a convention did)
     double fps = 24.0;         ///< the frame rate dt was derived from (when it was)
-    std::string fpsSource;     ///< "--fps", "assumed (the cache records no frame rate)", "not used"
+    std::string fpsSource;     ///< "ReadOptions::fps", "assumed: the cache records no frame rate", "not used"
+    std::string fpsSetting;    ///< "fps" when ReadOptions::fps gave the frame rate dt was derived from, else ""
     bool cells = false;        ///< the velocity was in grid cells per time unit and was scaled by the voxel size
     std::string unitsSource;   ///< why the units were taken as they were
+    std::string unitsSetting;  ///< "velocityUnits" when ReadOptions::velocityUnits decided them (not Auto), else ""
     bool conventionAssumed = false; ///< dt rests on an assumed frame rate / time scale (warn the user once)
     std::vector<std::string> notes; ///< conversions worth one log line (e.g. velocity resampled onto density)
     turb::CoordBBox span;      ///< readFrame: the union of the grids' active boxes (or Blender's domain)
@@ -241,7 +243,7 @@ void writeAtomically(const std::string& path, bool noClobber, const std::functio
 struct GridInfo
 {
     int index = 0;           ///< position in the file (what "#N" selects)
-    std::string selector;    ///< how to choose this grid with --density-grid/--vel-grid: its name when unique,
+    std::string selector;    ///< how to choose this grid (ReadOptions::densityGrid/velocityGrid): its name when unique,
                              ///< else OpenVDB's "name[N]" ("[0]" for the first unnamed grid)
     std::string name;
     std::string valueType;   ///< "float", "vec3s", "int32", ...
