@@ -41,6 +41,7 @@ struct TransferArgs
     int extendVelocity = 4;
     int preroll = 0;
     int band = 0; ///< --band: both band widths (3D and 2D); 0 = their defaults
+    std::string seamSolver = "cgnr"; ///< --seam-solver
     turbio::ReadOptions targetRead, sourceRead;
     const CLI::Option* sourceCropMargin = nullptr; ///< given or not: its default depends on the ratio
     turbio::WriteOptions write;
@@ -313,6 +314,7 @@ int runTransfer(TransferArgs& a)
     globals().json = a.json;
     s.seams.enabled = !a.noSeams;
     if (a.band > 0) s.seams.bandWidth = s.seams.bandWidth2D = a.band;
+    s.seams.solver = a.seamSolver == "eigen" ? turb::SeamSolver::EigenLscg : turb::SeamSolver::Cgnr;
     s.trackGlobalPatches = !a.noTracking;
     s.followSourceFlow = !a.noFollow;
     s.resampleSource = !a.noResample;
@@ -589,6 +591,7 @@ Command transferCommand()
         app->add_option("--em-tolerance", s.seams.emTolerance, "Stop EM when E_b changes by less than this fraction (default 0.02)");
         app->add_option("--cg-iterations", s.seams.maxCgIterations, "CG iterations per E-step at most (default 100)")->check(CLI::Range(1, 100000));
         app->add_option("--cg-tolerance", s.seams.cgTolerance, "CG relative residual (default 1e-3)");
+        app->add_option("--seam-solver", a.seamSolver, "Seam E-step solver: cgnr (default) or eigen (Eigen's LSCG, for measuring)")->check(CLI::IsMember({"cgnr", "eigen"}));
         app->add_option("--value-weight", s.seams.valueWeight,
                "Weight of rows keeping carried detail at its value in the seam solve, times the patch's blend weight "
                "(default 0 = the paper's energy; 5 lowers pair a's tcoh from 0.196 to 0.192 but raises div_rel above the source's "

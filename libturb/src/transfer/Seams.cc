@@ -5,9 +5,13 @@
 #include <turb/Error.h>
 #include <turb/Parallel.h>
 
+#include <Eigen/IterativeLinearSolvers>
+#include <Eigen/SparseCore>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <memory>
 
 namespace turb {
 
@@ -447,6 +451,34 @@ public:
         return out;
     }
 
+    // The E-step by a library solver, for measuring against solve(): the rows residual() and applyA() define,
+    // assembled once as a sparse matrix over the unknowns' components, and solved by Eigen's
+    // LeastSquaresConjugateGradient (CG on the normal equations with the diagonal preconditioner, in double).
+    // Its stopping test is the same relative normal residual |A^T r| / |A^T r0|, checked after each step.
+    SeamIteration solveLeastSquares(VectorField& X, int maxIterations, double tolerance)
+    {
+        if (!mLeastSquares) mLeastSquares = assembleLeastSquares();
+        LeastSquares& ls = *mLeastSquares;
+        std::vector<Vec3f> se, sb, sv;
+        std::vector<float> sd;
+        residual(X, se, sd, sb, sv);
+        const Eigen::VectorXd b = leastSquaresRhs(ls, se, sd, sb, sv);
+        ls.solver.setMaxIterations(std::max(0, maxIterations));
+        ls.solver.setTolerance(tolerance);
+        const Eigen::VectorXd delta = ls.solver.solve(b);
+        for (size_t u = 0; u < mUnknowns.size(); ++u)
+            X.data()[mLinear[size_t(mUnknowns[u])]] +=
+                Vec3f(float(delta[Eigen::Index(3 * u)]), float(delta[Eigen::Index(3 * u + 1)]), float(delta[Eigen::Index(3 * u + 2)]));
+        SeamIteration out;
+        // Eigen does not count the step after which it stops converged; count matrix products, as solve() does.
+        out.cgIterations = int(ls.solver.iterations());
+        if (ls.solver.info() == Eigen::Success && !(out.cgIterations == 0 && (ls.A.transpose() * b).squaredNorm() == 0.0))
+            ++out.cgIterations;
+        out.cgResidual = ls.solver.error();
+        out.energy = energy(X);
+        return out;
+    }
+
     double energy(const VectorField& X) const
     {
         std::vector<Vec3f> se, sb, sv;
@@ -456,6 +488,152 @@ public:
     }
 
 private:
+    // The explicit form of the least-squares system, for solveLeastSquares. Rows in this order: per row voxel
+    // its edge rows (axis a, then component) and its divergence row; then the box rows (cell, component); then
+    // the value rows with a non-zero weight (unknown, component). Column 3u + c is component c of unknown u.
+    using SparseRows = Eigen::SparseMatrix<double, Eigen::RowMajor, int>;
+    struct LeastSquares
+    {
+        SparseRows A;
+        std::vector<Eigen::Index> voxelRow; // per row voxel: its first row (rows() + 1 entries)
+        Eigen::LeastSquaresConjugateGradient<SparseRows> solver;
+    };
+    // The rows of one row voxel, at most 3 edge rows per axis and a divergence row of up to 6 entries.
+    struct VoxelRows
+    {
+        int count = 0;
+        int size[10] = {};
+        int col[10][6];
+        double value[10][6];
+        void add(int col0, double v)
+        {
+            col[count][size[count]] = col0;
+            value[count][size[count]++] = v;
+        }
+    };
+
+    // Row voxel r's rows, as applyA() applies them (columns of fixed voxels left out).
+    void rowsOf(size_t r, const std::vector<int>& unknownOf, VoxelRows& out) const
+    {
+        out.count = 0;
+        const int self = unknownOf[r];
+        for (int a = 0; a < 3; ++a) {
+            if (!(mFlags[r] & (1u << a))) continue;
+            const int q = unknownOf[size_t(mNb[2 * a + 1][r])];
+            for (int c = 0; c < 3; ++c, ++out.count) {
+                out.size[out.count] = 0;
+                if (self >= 0) out.add(3 * self + c, -1.0); // q follows r in the compact order: columns sorted
+                if (q >= 0) out.add(3 * q + c, 1.0);
+            }
+        }
+        if (!(mFlags[r] & 8u)) return;
+        out.size[out.count] = 0;
+        for (int a = 0; a < 3; ++a) {
+            const float inv = mInv[r * 3 + size_t(a)];
+            if (inv == 0.0f) continue;
+            const int lo = mLo[r * 3 + size_t(a)], hi = mHi[r * 3 + size_t(a)];
+            if (lo >= 0 && unknownOf[size_t(lo)] >= 0) out.add(3 * unknownOf[size_t(lo)] + a, -double(mSqrtGamma) * inv);
+            if (hi >= 0 && unknownOf[size_t(hi)] >= 0) out.add(3 * unknownOf[size_t(hi)] + a, double(mSqrtGamma) * inv);
+        }
+        // Sort the (at most 6) entries by column: Eigen expects sorted inner indices.
+        int* col = out.col[out.count];
+        double* val = out.value[out.count];
+        for (int i = 1; i < out.size[out.count]; ++i)
+            for (int j = i; j > 0 && col[j - 1] > col[j]; --j) {
+                std::swap(col[j - 1], col[j]);
+                std::swap(val[j - 1], val[j]);
+            }
+        ++out.count;
+    }
+
+    std::unique_ptr<LeastSquares> assembleLeastSquares() const
+    {
+        const size_t m = rows(), nu = mUnknowns.size();
+        std::vector<int> unknownOf(m, -1);
+        for (size_t u = 0; u < nu; ++u) unknownOf[size_t(mUnknowns[u])] = int(u);
+        // Rows and entries per row voxel, then their starts; the writes below go to disjoint ranges.
+        std::vector<Eigen::Index> voxelRows(m + 1, 0), voxelEntries(m + 1, 0);
+        parallelFor(m, 4096, [&](size_t b, size_t e) {
+            VoxelRows vr;
+            for (size_t r = b; r < e; ++r) {
+                rowsOf(r, unknownOf, vr);
+                voxelRows[r + 1] = vr.count;
+                for (int k = 0; k < vr.count; ++k) voxelEntries[r + 1] += vr.size[k];
+            }
+        });
+        for (size_t r = 0; r < m; ++r) {
+            voxelRows[r + 1] += voxelRows[r];
+            voxelEntries[r + 1] += voxelEntries[r];
+        }
+        size_t valueRows = 0;
+        for (float coef : mValueCoef) valueRows += coef > 0.0f;
+        const Eigen::Index nRows = voxelRows[m] + Eigen::Index(3 * (mCells.size() + valueRows));
+        const Eigen::Index nnz = voxelEntries[m] + Eigen::Index(3 * (mCellMembers.size() + valueRows));
+        auto ls = std::make_unique<LeastSquares>();
+        SparseRows& A = ls->A;
+        A.resize(nRows, Eigen::Index(3 * nu));
+        A.resizeNonZeros(nnz);
+        int* outer = A.outerIndexPtr();
+        int* inner = A.innerIndexPtr();
+        double* value = A.valuePtr();
+        parallelFor(m, 4096, [&](size_t b, size_t e) {
+            VoxelRows vr;
+            for (size_t r = b; r < e; ++r) {
+                rowsOf(r, unknownOf, vr);
+                Eigen::Index row = voxelRows[r], k = voxelEntries[r];
+                for (int i = 0; i < vr.count; ++i, ++row) {
+                    outer[row] = int(k);
+                    for (int j = 0; j < vr.size[i]; ++j, ++k) {
+                        inner[k] = vr.col[i][j];
+                        value[k] = vr.value[i][j];
+                    }
+                }
+            }
+        });
+        Eigen::Index row = voxelRows[m], k = voxelEntries[m];
+        for (size_t c = 0; c < mCells.size(); ++c)
+            for (int comp = 0; comp < 3; ++comp, ++row) {
+                outer[row] = int(k);
+                for (int i = mCellStart[c]; i < mCellStart[c + 1]; ++i, ++k) {
+                    inner[k] = 3 * unknownOf[size_t(mCellMembers[size_t(i)])] + comp;
+                    value[k] = mBoxCoef;
+                }
+            }
+        for (size_t u = 0; u < mValueCoef.size(); ++u)
+            for (int comp = 0; comp < 3 && mValueCoef[u] > 0.0f; ++comp, ++row, ++k) {
+                outer[row] = int(k);
+                inner[k] = int(3 * u) + comp;
+                value[k] = mValueCoef[u];
+            }
+        outer[nRows] = int(k);
+        ls->voxelRow = std::move(voxelRows);
+        ls->solver.compute(A);
+        return ls;
+    }
+
+    // b of the explicit system: the residual rows of X (residual()'s output) in the matrix's row order.
+    Eigen::VectorXd leastSquaresRhs(const LeastSquares& ls, const std::vector<Vec3f>& se, const std::vector<float>& sd,
+        const std::vector<Vec3f>& sb, const std::vector<Vec3f>& sv) const
+    {
+        const size_t m = rows();
+        Eigen::VectorXd b(ls.A.rows());
+        parallelFor(m, 4096, [&](size_t bb, size_t e) {
+            for (size_t r = bb; r < e; ++r) {
+                Eigen::Index row = ls.voxelRow[r];
+                for (int a = 0; a < 3; ++a)
+                    if (mFlags[r] & (1u << a))
+                        for (int c = 0; c < 3; ++c) b[row++] = se[r * 3 + size_t(a)][c];
+                if (mFlags[r] & 8u) b[row] = sd[r];
+            }
+        });
+        Eigen::Index row = ls.voxelRow[m];
+        for (const Vec3f& v : sb)
+            for (int c = 0; c < 3; ++c) b[row++] = v[c];
+        for (size_t u = 0; u < mValueCoef.size(); ++u)
+            for (int c = 0; c < 3 && mValueCoef[u] > 0.0f; ++c) b[row++] = sv[u][c];
+        return b;
+    }
+
     CoordBBox mBox;
     Coord mDim;
     float mSqrtGamma;
@@ -479,6 +657,7 @@ private:
     std::vector<float> mGatherCoef;   // and their coefficients
     std::vector<float> mValueCoef;    // per unknown: sqrt(mu) of its value row (empty = none)
     std::vector<Vec3f> mAnchor;       // per unknown: the value that row pulls towards
+    std::unique_ptr<LeastSquares> mLeastSquares; // solveLeastSquares' matrix, assembled on its first call
 };
 
 void loadDenseTargets(SeamSystem& sys, const std::vector<Vec3f>& dense)
@@ -491,12 +670,13 @@ void loadDenseTargets(SeamSystem& sys, const std::vector<Vec3f>& dense)
 } // namespace
 
 SeamIteration solveSeamEStep(VectorField& X, const std::vector<uint8_t>& omega, const std::vector<Vec3f>& edgeTargets,
-    float gamma, int maxIterations, double tolerance)
+    float gamma, int maxIterations, double tolerance, SeamSolver solver)
 {
     if (omega.size() != X.size() || edgeTargets.size() != 3 * X.size())
         throw ValueError("solveSeamEStep: omega / targets do not match the field");
     SeamSystem sys(X, omega, gamma);
     loadDenseTargets(sys, edgeTargets);
+    if (solver == SeamSolver::EigenLscg) return sys.solveLeastSquares(X, maxIterations, tolerance);
     return sys.solve(X, maxIterations, tolerance);
 }
 
@@ -736,6 +916,14 @@ void setEdgeTargets(SeamSystem& sys, const BoundaryPatches& bps, const VectorFie
     });
 }
 
+// The E-step with the solver the settings name.
+SeamIteration solveEStep(SeamSystem& sys, VectorField& X, const SeamSettings& settings)
+{
+    if (settings.solver == SeamSolver::EigenLscg)
+        return sys.solveLeastSquares(X, settings.maxCgIterations, settings.cgTolerance);
+    return sys.solve(X, settings.maxCgIterations, settings.cgTolerance);
+}
+
 // The EM loop of section 3.3: M-step (boundary patches' Z, edge targets), then E-step, until E_b changes by
 // less than emTolerance.
 void runSeamEm(SeamSystem& sys, BoundaryPatches& bps, VectorField& detail, const SeamProblem& problem,
@@ -752,7 +940,7 @@ void runSeamEm(SeamSystem& sys, BoundaryPatches& bps, VectorField& detail, const
         if (it == 0) stats.initialEnergy = sys.energy(detail);
         stats.mStepSeconds += seconds(t0);
         t0 = Clock::now();
-        SeamIteration s = sys.solve(detail, settings.maxCgIterations, settings.cgTolerance);
+        SeamIteration s = solveEStep(sys, detail, settings);
         stats.eStepSeconds += seconds(t0);
         stats.iterations.push_back(s);
         if (progress) progress->update(double(it + 1) / std::max(1, settings.maxEmIterations));
