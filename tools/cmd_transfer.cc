@@ -651,6 +651,10 @@ void addSeamSettings(CLI::App* app, turb::SeamSettings& seams)
         "Weight of the seam-solve rows holding U_h's coarse-cell means (0 = free; coarseTolerance bounds them)",
         "seams.boxWeight")
         ->check(CLI::NonNegativeNumber);
+    setting(addEnum<turb::SeamSolver>(app, "--seam-solver,--seams.solver", seams.solver,
+                {{"cgnr", turb::SeamSolver::Cgnr}, {"eigen", turb::SeamSolver::EigenLscg}},
+                "Seam E-step solver: cgnr (matrix-free, parallel) or eigen (Eigen's LeastSquaresConjugateGradient)"),
+        "seams.solver");
     num(app, "--box-keep,--seams.boxKeep", seams.boxKeep,
         "Fraction of each coarse cell's mean of U_h the seam solve keeps (1: leaves the coarse motion; 0: pulls it to 0)",
         "seams.boxKeep")

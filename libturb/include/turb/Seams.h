@@ -1,5 +1,6 @@
 /// @file Seams.h
-/// @brief Seam smoothing between pasted patches (seed 002, section 3.3).
+/// @brief Seam smoothing between pasted patches (Sato et al., "Example-based Synthesis of Turbulence by Flow Field
+/// Style Transfer", section 3.3).
 ///
 /// Ω is a band of `bandWidth` voxels on each side of every border between local patches where at
 /// least one side carries detail. An EM loop alternates:
@@ -22,6 +23,15 @@
 
 namespace turb {
 
+/// How the E-step solves its least-squares system.
+enum class SeamSolver
+{
+    Cgnr,      ///< matrix-free conjugate gradients on the normal equations, in float with double sums (the default)
+    EigenLscg, ///< the same rows assembled as a sparse matrix (double) and solved by Eigen's
+               ///< LeastSquaresConjugateGradient with its diagonal (column-norm) preconditioner; same iteration cap and
+               ///< relative residual |A^T r| / |A^T r0|; measured against Cgnr in docs/performance.md
+};
+
 struct SeamSettings
 {
     bool enabled = true;         ///< false pastes patches without smoothing (ablation)
@@ -35,6 +45,7 @@ struct SeamSettings
     double emTolerance = 0.02;   ///< stop when |E_b(k) - E_b(k-1)| / E_b(k-1) is below this
     int maxCgIterations = 100;   ///< CG iterations per E-step
     double cgTolerance = 1e-3;   ///< CG stops at this relative residual of the normal equations
+    SeamSolver solver = SeamSolver::Cgnr; ///< the E-step's solver
     float boxWeight = 10.0f;     ///< nu/f^3: weight of the rows holding U_h's box means (coarse cells), >= 0
     float boxKeep = 1.0f;        ///< the box rows pull each coarse cell's mean of X to this fraction of its mean on
                                  ///< entry: 1 = the solve moves detail within cells but leaves their means (the coarse
@@ -131,7 +142,7 @@ SeamStats smoothSeams(VectorField& detail, const SeamProblem& problem, const Sea
 /// omega = 1, for given edge targets g (per voxel p and axis a: the target of X(p + e_a) - X(p)),
 /// starting from and writing into X. Returns {iterations, relative residual, final energy}.
 SeamIteration solveSeamEStep(VectorField& X, const std::vector<uint8_t>& omega, const std::vector<Vec3f>& edgeTargets,
-    float gamma, int maxIterations, double tolerance);
+    float gamma, int maxIterations, double tolerance, SeamSolver solver = SeamSolver::Cgnr);
 
 /// The energy the E-step minimises, evaluated over the rows touching Ω (for tests).
 double seamEnergy(const VectorField& X, const std::vector<uint8_t>& omega, const std::vector<Vec3f>& edgeTargets,

@@ -1,12 +1,17 @@
-// Seam smoothing (seed 002, section 3.3): band geometry, CGNR E-step, boundary-patch M-step.
+// Seam smoothing (Sato et al., "Example-based Synthesis of Turbulence by Flow Field Style Transfer", section 3.3):
+// band geometry, CGNR E-step, boundary-patch M-step.
 #include <turb/Seams.h>
 
 #include <turb/Error.h>
 #include <turb/Parallel.h>
 
+#include <Eigen/IterativeLinearSolvers>
+#include <Eigen/SparseCore>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <memory>
 
 namespace turb {
 
@@ -446,6 +451,34 @@ public:
         return out;
     }
 
+    // The E-step by a library solver, for measuring against solve(): the rows residual() and applyA() define,
+    // assembled once as a sparse matrix over the unknowns' components, and solved by Eigen's
+    // LeastSquaresConjugateGradient (CG on the normal equations with the diagonal preconditioner, in double).
+    // Its stopping test is the same relative normal residual |A^T r| / |A^T r0|, checked after each step.
+    SeamIteration solveLeastSquares(VectorField& X, int maxIterations, double tolerance)
+    {
+        if (!mLeastSquares) mLeastSquares = assembleLeastSquares();
+        LeastSquares& ls = *mLeastSquares;
+        std::vector<Vec3f> se, sb, sv;
+        std::vector<float> sd;
+        residual(X, se, sd, sb, sv);
+        const Eigen::VectorXd b = leastSquaresRhs(ls, se, sd, sb, sv);
+        ls.solver.setMaxIterations(std::max(0, maxIterations));
+        ls.solver.setTolerance(tolerance);
+        const Eigen::VectorXd delta = ls.solver.solve(b);
+        for (size_t u = 0; u < mUnknowns.size(); ++u)
+            X.data()[mLinear[size_t(mUnknowns[u])]] +=
+                Vec3f(float(delta[Eigen::Index(3 * u)]), float(delta[Eigen::Index(3 * u + 1)]), float(delta[Eigen::Index(3 * u + 2)]));
+        SeamIteration out;
+        // Eigen does not count the step after which it stops converged; count matrix products, as solve() does.
+        out.cgIterations = int(ls.solver.iterations());
+        if (ls.solver.info() == Eigen::Success && !(out.cgIterations == 0 && (ls.A.transpose() * b).squaredNorm() == 0.0))
+            ++out.cgIterations;
+        out.cgResidual = ls.solver.error();
+        out.energy = energy(X);
+        return out;
+    }
+
     double energy(const VectorField& X) const
     {
         std::vector<Vec3f> se, sb, sv;
@@ -455,6 +488,152 @@ public:
     }
 
 private:
+    // The explicit form of the least-squares system, for solveLeastSquares. Rows in this order: per row voxel
+    // its edge rows (axis a, then component) and its divergence row; then the box rows (cell, component); then
+    // the value rows with a non-zero weight (unknown, component). Column 3u + c is component c of unknown u.
+    using SparseRows = Eigen::SparseMatrix<double, Eigen::RowMajor, int>;
+    struct LeastSquares
+    {
+        SparseRows A;
+        std::vector<Eigen::Index> voxelRow; // per row voxel: its first row (rows() + 1 entries)
+        Eigen::LeastSquaresConjugateGradient<SparseRows> solver;
+    };
+    // The rows of one row voxel, at most 3 edge rows per axis and a divergence row of up to 6 entries.
+    struct VoxelRows
+    {
+        int count = 0;
+        int size[10] = {};
+        int col[10][6];
+        double value[10][6];
+        void add(int col0, double v)
+        {
+            col[count][size[count]] = col0;
+            value[count][size[count]++] = v;
+        }
+    };
+
+    // Row voxel r's rows, as applyA() applies them (columns of fixed voxels left out).
+    void rowsOf(size_t r, const std::vector<int>& unknownOf, VoxelRows& out) const
+    {
+        out.count = 0;
+        const int self = unknownOf[r];
+        for (int a = 0; a < 3; ++a) {
+            if (!(mFlags[r] & (1u << a))) continue;
+            const int q = unknownOf[size_t(mNb[2 * a + 1][r])];
+            for (int c = 0; c < 3; ++c, ++out.count) {
+                out.size[out.count] = 0;
+                if (self >= 0) out.add(3 * self + c, -1.0); // q follows r in the compact order: columns sorted
+                if (q >= 0) out.add(3 * q + c, 1.0);
+            }
+        }
+        if (!(mFlags[r] & 8u)) return;
+        out.size[out.count] = 0;
+        for (int a = 0; a < 3; ++a) {
+            const float inv = mInv[r * 3 + size_t(a)];
+            if (inv == 0.0f) continue;
+            const int lo = mLo[r * 3 + size_t(a)], hi = mHi[r * 3 + size_t(a)];
+            if (lo >= 0 && unknownOf[size_t(lo)] >= 0) out.add(3 * unknownOf[size_t(lo)] + a, -double(mSqrtGamma) * inv);
+            if (hi >= 0 && unknownOf[size_t(hi)] >= 0) out.add(3 * unknownOf[size_t(hi)] + a, double(mSqrtGamma) * inv);
+        }
+        // Sort the (at most 6) entries by column: Eigen expects sorted inner indices.
+        int* col = out.col[out.count];
+        double* val = out.value[out.count];
+        for (int i = 1; i < out.size[out.count]; ++i)
+            for (int j = i; j > 0 && col[j - 1] > col[j]; --j) {
+                std::swap(col[j - 1], col[j]);
+                std::swap(val[j - 1], val[j]);
+            }
+        ++out.count;
+    }
+
+    std::unique_ptr<LeastSquares> assembleLeastSquares() const
+    {
+        const size_t m = rows(), nu = mUnknowns.size();
+        std::vector<int> unknownOf(m, -1);
+        for (size_t u = 0; u < nu; ++u) unknownOf[size_t(mUnknowns[u])] = int(u);
+        // Rows and entries per row voxel, then their starts; the writes below go to disjoint ranges.
+        std::vector<Eigen::Index> voxelRows(m + 1, 0), voxelEntries(m + 1, 0);
+        parallelFor(m, 4096, [&](size_t b, size_t e) {
+            VoxelRows vr;
+            for (size_t r = b; r < e; ++r) {
+                rowsOf(r, unknownOf, vr);
+                voxelRows[r + 1] = vr.count;
+                for (int k = 0; k < vr.count; ++k) voxelEntries[r + 1] += vr.size[k];
+            }
+        });
+        for (size_t r = 0; r < m; ++r) {
+            voxelRows[r + 1] += voxelRows[r];
+            voxelEntries[r + 1] += voxelEntries[r];
+        }
+        size_t valueRows = 0;
+        for (float coef : mValueCoef) valueRows += coef > 0.0f;
+        const Eigen::Index nRows = voxelRows[m] + Eigen::Index(3 * (mCells.size() + valueRows));
+        const Eigen::Index nnz = voxelEntries[m] + Eigen::Index(3 * (mCellMembers.size() + valueRows));
+        auto ls = std::make_unique<LeastSquares>();
+        SparseRows& A = ls->A;
+        A.resize(nRows, Eigen::Index(3 * nu));
+        A.resizeNonZeros(nnz);
+        int* outer = A.outerIndexPtr();
+        int* inner = A.innerIndexPtr();
+        double* value = A.valuePtr();
+        parallelFor(m, 4096, [&](size_t b, size_t e) {
+            VoxelRows vr;
+            for (size_t r = b; r < e; ++r) {
+                rowsOf(r, unknownOf, vr);
+                Eigen::Index row = voxelRows[r], k = voxelEntries[r];
+                for (int i = 0; i < vr.count; ++i, ++row) {
+                    outer[row] = int(k);
+                    for (int j = 0; j < vr.size[i]; ++j, ++k) {
+                        inner[k] = vr.col[i][j];
+                        value[k] = vr.value[i][j];
+                    }
+                }
+            }
+        });
+        Eigen::Index row = voxelRows[m], k = voxelEntries[m];
+        for (size_t c = 0; c < mCells.size(); ++c)
+            for (int comp = 0; comp < 3; ++comp, ++row) {
+                outer[row] = int(k);
+                for (int i = mCellStart[c]; i < mCellStart[c + 1]; ++i, ++k) {
+                    inner[k] = 3 * unknownOf[size_t(mCellMembers[size_t(i)])] + comp;
+                    value[k] = mBoxCoef;
+                }
+            }
+        for (size_t u = 0; u < mValueCoef.size(); ++u)
+            for (int comp = 0; comp < 3 && mValueCoef[u] > 0.0f; ++comp, ++row, ++k) {
+                outer[row] = int(k);
+                inner[k] = int(3 * u) + comp;
+                value[k] = mValueCoef[u];
+            }
+        outer[nRows] = int(k);
+        ls->voxelRow = std::move(voxelRows);
+        ls->solver.compute(A);
+        return ls;
+    }
+
+    // b of the explicit system: the residual rows of X (residual()'s output) in the matrix's row order.
+    Eigen::VectorXd leastSquaresRhs(const LeastSquares& ls, const std::vector<Vec3f>& se, const std::vector<float>& sd,
+        const std::vector<Vec3f>& sb, const std::vector<Vec3f>& sv) const
+    {
+        const size_t m = rows();
+        Eigen::VectorXd b(ls.A.rows());
+        parallelFor(m, 4096, [&](size_t bb, size_t e) {
+            for (size_t r = bb; r < e; ++r) {
+                Eigen::Index row = ls.voxelRow[r];
+                for (int a = 0; a < 3; ++a)
+                    if (mFlags[r] & (1u << a))
+                        for (int c = 0; c < 3; ++c) b[row++] = se[r * 3 + size_t(a)][c];
+                if (mFlags[r] & 8u) b[row] = sd[r];
+            }
+        });
+        Eigen::Index row = ls.voxelRow[m];
+        for (const Vec3f& v : sb)
+            for (int c = 0; c < 3; ++c) b[row++] = v[c];
+        for (size_t u = 0; u < mValueCoef.size(); ++u)
+            for (int c = 0; c < 3 && mValueCoef[u] > 0.0f; ++c) b[row++] = sv[u][c];
+        return b;
+    }
+
     CoordBBox mBox;
     Coord mDim;
     float mSqrtGamma;
@@ -478,6 +657,7 @@ private:
     std::vector<float> mGatherCoef;   // and their coefficients
     std::vector<float> mValueCoef;    // per unknown: sqrt(mu) of its value row (empty = none)
     std::vector<Vec3f> mAnchor;       // per unknown: the value that row pulls towards
+    std::unique_ptr<LeastSquares> mLeastSquares; // solveLeastSquares' matrix, assembled on its first call
 };
 
 void loadDenseTargets(SeamSystem& sys, const std::vector<Vec3f>& dense)
@@ -490,12 +670,13 @@ void loadDenseTargets(SeamSystem& sys, const std::vector<Vec3f>& dense)
 } // namespace
 
 SeamIteration solveSeamEStep(VectorField& X, const std::vector<uint8_t>& omega, const std::vector<Vec3f>& edgeTargets,
-    float gamma, int maxIterations, double tolerance)
+    float gamma, int maxIterations, double tolerance, SeamSolver solver)
 {
     if (omega.size() != X.size() || edgeTargets.size() != 3 * X.size())
         throw ValueError("solveSeamEStep: omega / targets do not match the field");
     SeamSystem sys(X, omega, gamma);
     loadDenseTargets(sys, edgeTargets);
+    if (solver == SeamSolver::EigenLscg) return sys.solveLeastSquares(X, maxIterations, tolerance);
     return sys.solve(X, maxIterations, tolerance);
 }
 
@@ -517,7 +698,259 @@ struct BoundaryPatch
     Coord offset{0};    // else Z(v) = U_sh(v + offset)
 };
 
+// The boundary patches of a frame: centres on the lattice origin + k*h (h = C/2), with an index from lattice
+// position k to the patch there. In 2D (a flat layout) they are C x C x 1 on the one layer: one row of centres in z.
+struct BoundaryPatches
+{
+    int h = 1;
+    Coord kCount{0};
+    Coord hLo{0}, hHi{0};             // a patch covers [centre - hLo, centre + hHi]
+    std::vector<int> patchId;         // per lattice position k: index into `patches`, -1 = none there
+    std::vector<BoundaryPatch> patches;
+
+    size_t kIndex(const Coord& k) const
+    {
+        return (size_t(k.x()) * size_t(kCount.y()) + size_t(k.y())) * size_t(kCount.z()) + size_t(k.z());
+    }
+    CoordBBox region(const BoundaryPatch& bp) const { return CoordBBox(bp.centre - hLo, bp.centre + hHi); }
+};
+
 const Vec3f& sourceAt(const VectorField& s, const Coord& c) { return s.clamped(c.x(), c.y(), c.z()); }
+
+// Calls fn(patch index) for every local patch that `region` overlaps, in lattice order.
+template<typename Fn>
+void forEachOverlappedPatch(const PatchLayout& L, const CoordBBox& region, Fn&& fn)
+{
+    const Coord P0 = L.patchOf(region.min()), P1 = L.patchOf(region.max());
+    for (int px = std::max(0, P0.x()); px <= std::min(L.count.x() - 1, P1.x()); ++px)
+        for (int py = std::max(0, P0.y()); py <= std::min(L.count.y() - 1, P1.y()); ++py)
+            for (int pz = std::max(0, P0.z()); pz <= std::min(L.count.z() - 1, P1.z()); ++pz)
+                fn(L.patchIndex(Coord(px, py, pz)));
+}
+
+// C, the boundary patch edge: even and dividing 2B, so that centres at spacing C/2 fall on every patch border.
+int boundaryPatchEdge(const SeamProblem& problem, const SeamSettings& settings)
+{
+    if (!problem.sourceHigh) throw ValueError("smoothSeams: no source detail field");
+    const int B = problem.layout.size;
+    const int C = settings.boundaryPatch > 0 ? settings.boundaryPatch : B;
+    if (C % 2 != 0 || C < 2 || (2 * B) % C != 0)
+        throw ValueError("boundary patch size C must be even and divide 2*B (B = " + std::to_string(B) + ")");
+    return C;
+}
+
+// Ω: the seam band, plus every voxel of the active patches the problem asks to solve whole.
+std::vector<uint8_t> seamUnknowns(const VectorField& detail, const SeamProblem& problem, const SeamSettings& settings)
+{
+    const PatchLayout& L = problem.layout;
+    std::vector<uint8_t> omega =
+        seamBand(detail.bbox(), L, problem.active, L.flat ? settings.bandWidth2D : settings.bandWidth);
+    if (problem.wholePatches.empty()) return omega;
+    if (problem.wholePatches.size() != L.patchCount())
+        throw ValueError("smoothSeams: wholePatches must hold one flag per local patch");
+    parallelFor(omega.size(), 1 << 14, [&](size_t b, size_t e) {
+        for (size_t n = b; n < e; ++n) {
+            const size_t p = L.patchIndex(L.patchOf(detail.coordOf(n)));
+            if (problem.wholePatches[p] && problem.active[p]) omega[n] = 1;
+        }
+    });
+    return omega;
+}
+
+// Boundary patches: centres on the lattice origin + k*(C/2), on at least one patch border, that overlap an
+// active patch.
+BoundaryPatches placeBoundaryPatches(const PatchLayout& L, const std::vector<uint8_t>& active, int C)
+{
+    const int B = L.size;
+    BoundaryPatches bps;
+    const int h = bps.h = C / 2;
+    bps.kCount = Coord(L.count.x() * B / h + 1, L.count.y() * B / h + 1, L.flat ? 1 : L.count.z() * B / h + 1);
+    bps.hLo = L.flat ? Coord(h, h, 0) : Coord(h);
+    bps.hHi = L.flat ? Coord(h - 1, h - 1, 0) : Coord(h - 1);
+    bps.patchId.assign(size_t(bps.kCount.x()) * size_t(bps.kCount.y()) * size_t(bps.kCount.z()), -1);
+    for (int kx = 0; kx < bps.kCount.x(); ++kx)
+        for (int ky = 0; ky < bps.kCount.y(); ++ky)
+            for (int kz = 0; kz < bps.kCount.z(); ++kz) {
+                const Coord k(kx, ky, kz);
+                const Coord c = L.origin + Coord(kx * h, ky * h, kz * h);
+                bool onBorder = false;
+                for (int a = 0; a < 3; ++a) {
+                    const int rel = c[a] - L.origin[a];
+                    onBorder |= rel % B == 0 && rel > 0 && rel < L.count[a] * B;
+                }
+                if (!onBorder) continue;
+                bool anyActive = false;
+                forEachOverlappedPatch(L, CoordBBox(c - bps.hLo, c + bps.hHi),
+                    [&](size_t p) { anyActive |= active[p] != 0; });
+                if (!anyActive) continue;
+                bps.patchId[bps.kIndex(k)] = int(bps.patches.size());
+                bps.patches.push_back(BoundaryPatch{c, false, Coord(0)});
+            }
+    return bps;
+}
+
+// |grad X - grad Z|^2 over a boundary patch's region, Z being the zero field or U_sh at `offset`. Every other
+// voxel of the region is used: the choice is among a handful of candidates.
+double gradientDistance(const VectorField& detail, const VectorField& Ush, float scale, const CoordBBox& region,
+    bool zero, const Coord& offset)
+{
+    const CoordBBox& box = detail.bbox();
+    double d = 0.0;
+    for (int x = region.min().x(); x <= region.max().x(); x += 2)
+        for (int y = region.min().y(); y <= region.max().y(); y += 2)
+            for (int z = region.min().z(); z <= region.max().z(); z += 2) {
+                const Coord v(x, y, z);
+                if (!box.isInside(v)) continue;
+                const Vec3f xv = detail[v];
+                const Vec3f zv = zero ? Vec3f(0.0f) : sourceAt(Ush, v + offset) * scale;
+                for (int a = 0; a < 3; ++a) {
+                    Coord q = v;
+                    q[a] += 1;
+                    if (q[a] > region.max()[a] || !box.isInside(q)) continue;
+                    const Vec3f zq = zero ? Vec3f(0.0f) : sourceAt(Ush, q + offset) * scale;
+                    d += double(((detail[q] - xv) - (zq - zv)).lengthSqr());
+                }
+            }
+    return d;
+}
+
+// First half of the M-step: each boundary patch picks, among the continuations of the local patches it overlaps
+// (and the zero field next to patches without detail), the Z whose gradient best matches X.
+void chooseBoundaryZ(BoundaryPatches& bps, const VectorField& detail, const SeamProblem& problem)
+{
+    const PatchLayout& L = problem.layout;
+    parallelFor(bps.patches.size(), 64, [&](size_t b, size_t e) {
+        std::vector<std::pair<int, Coord>> cands; // (isZero, offset)
+        for (size_t i = b; i < e; ++i) {
+            BoundaryPatch& bp = bps.patches[i];
+            const CoordBBox region = bps.region(bp);
+            cands.clear();
+            forEachOverlappedPatch(L, region, [&](size_t pi) {
+                if (problem.active[pi]) cands.emplace_back(0, problem.offset[pi]);
+                else cands.emplace_back(1, Coord(0));
+            });
+            std::sort(cands.begin(), cands.end(), [](const auto& x, const auto& y) {
+                if (x.first != y.first) return x.first < y.first;
+                return x.second < y.second;
+            });
+            cands.erase(std::unique(cands.begin(), cands.end()), cands.end());
+            double best = -1.0;
+            for (const auto& cand : cands) {
+                const double d =
+                    gradientDistance(detail, *problem.sourceHigh, problem.sourceScale, region, cand.first != 0, cand.second);
+                if (best < 0.0 || d < best) {
+                    best = d;
+                    bp.zero = cand.first != 0;
+                    bp.offset = cand.second;
+                }
+            }
+        }
+    });
+}
+
+// The target of X(q) - X(p) on the edge p -> q = p + e_a: the mean, over the boundary patches containing both
+// ends, of Z's difference; an edge no boundary patch covers keeps the current field's difference. In blended
+// patches it mixes with the advected detail's difference.
+Vec3f edgeTarget(const BoundaryPatches& bps, const VectorField& detail, const SeamProblem& problem, const Coord& p,
+    const Coord& q)
+{
+    const PatchLayout& L = problem.layout;
+    const VectorField& Ush = *problem.sourceHigh;
+    const float scale = problem.sourceScale;
+    const int h = bps.h;
+    // Centres c with p and q in [c - h, c + h - 1]: per axis k*h in [max(p,q) - h + 1, min(p,q) + h].
+    int kLo[3], kHi[3];
+    for (int s = 0; s < 3; ++s) {
+        if (s == 2 && L.flat) {
+            kLo[s] = kHi[s] = 0;
+            continue;
+        }
+        const int lo = std::max(p[s], q[s]) - h + 1 - L.origin[s];
+        const int hi = std::min(p[s], q[s]) + h - L.origin[s];
+        kLo[s] = std::max(0, -floorDiv(-lo, h)); // ceil(lo / h)
+        kHi[s] = std::min(bps.kCount[s] - 1, floorDiv(hi, h));
+    }
+    // Tent weights centred on each boundary patch: a cross-fade between overlapping patches instead of a
+    // flat average, which would halve the energy where two different textures meet.
+    Vec3f sum(0.0f);
+    float wsum = 0.0f;
+    const Vec3d mid = (p.asVec3d() + q.asVec3d()) * 0.5;
+    for (int kx = kLo[0]; kx <= kHi[0]; ++kx)
+        for (int ky = kLo[1]; ky <= kHi[1]; ++ky)
+            for (int kz = kLo[2]; kz <= kHi[2]; ++kz) {
+                const int id = bps.patchId[bps.kIndex(Coord(kx, ky, kz))];
+                if (id < 0) continue;
+                const BoundaryPatch& bp = bps.patches[size_t(id)];
+                float wgt = 1.0f;
+                for (int t = 0; t < (L.flat ? 2 : 3); ++t)
+                    wgt *= std::max(0.0f, 1.0f - float(std::abs(mid[t] - (bp.centre[t] - 0.5))) / (0.6f * float(h)));
+                if (wgt <= 0.0f) continue;
+                if (!bp.zero) sum += (sourceAt(Ush, q + bp.offset) - sourceAt(Ush, p + bp.offset)) * (scale * wgt);
+                wsum += wgt;
+            }
+    Vec3f t = wsum > 0.0f ? sum / wsum : detail[q] - detail[p];
+    if (problem.temporal) {
+        const float w = 0.5f * (problem.temporalWeights[L.patchIndex(L.patchOf(p))] +
+                                   problem.temporalWeights[L.patchIndex(L.patchOf(q))]);
+        const VectorField& T = *problem.temporal;
+        if (w > 0.0f) t = t * (1.0f - w) + (T[q] - T[p]) * w;
+    }
+    return t;
+}
+
+// Second half of the M-step: the edge targets g of every edge row, from the boundary patches' chosen Z.
+void setEdgeTargets(SeamSystem& sys, const BoundaryPatches& bps, const VectorField& detail, const SeamProblem& problem)
+{
+    const CoordBBox& box = detail.bbox();
+    auto& targets = sys.targets();
+    parallelFor(sys.rows(), 2048, [&](size_t b, size_t e) {
+        for (size_t r = b; r < e; ++r) {
+            const Coord p = detail.coordOf(sys.linear(r));
+            for (int a = 0; a < 3; ++a) {
+                Coord q = p;
+                q[a] += 1;
+                if (!box.isInside(q)) continue;
+                targets[r * 3 + size_t(a)] = edgeTarget(bps, detail, problem, p, q);
+            }
+        }
+    });
+}
+
+// The E-step with the solver the settings name.
+SeamIteration solveEStep(SeamSystem& sys, VectorField& X, const SeamSettings& settings)
+{
+    if (settings.solver == SeamSolver::EigenLscg)
+        return sys.solveLeastSquares(X, settings.maxCgIterations, settings.cgTolerance);
+    return sys.solve(X, settings.maxCgIterations, settings.cgTolerance);
+}
+
+// The EM loop of section 3.3: M-step (boundary patches' Z, edge targets), then E-step, until E_b changes by
+// less than emTolerance.
+void runSeamEm(SeamSystem& sys, BoundaryPatches& bps, VectorField& detail, const SeamProblem& problem,
+    const SeamSettings& settings, Progress* progress, SeamStats& stats)
+{
+    using Clock = std::chrono::steady_clock;
+    const auto seconds = [](Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); };
+    double previous = -1.0;
+    for (int it = 0; it < std::max(1, settings.maxEmIterations); ++it) {
+        checkCancelled(progress);
+        auto t0 = Clock::now();
+        chooseBoundaryZ(bps, detail, problem);
+        setEdgeTargets(sys, bps, detail, problem);
+        if (it == 0) stats.initialEnergy = sys.energy(detail);
+        stats.mStepSeconds += seconds(t0);
+        t0 = Clock::now();
+        SeamIteration s = solveEStep(sys, detail, settings);
+        stats.eStepSeconds += seconds(t0);
+        stats.iterations.push_back(s);
+        if (progress) progress->update(double(it + 1) / std::max(1, settings.maxEmIterations));
+        if (previous > 0.0 && std::abs(previous - s.energy) <= settings.emTolerance * previous) {
+            stats.converged = true;
+            break;
+        }
+        previous = s.energy;
+    }
+}
 
 } // namespace
 
@@ -525,29 +958,12 @@ SeamStats smoothSeams(VectorField& detail, const SeamProblem& problem, const Sea
 {
     SeamStats stats;
     if (!settings.enabled) return stats;
-    if (!problem.sourceHigh) throw ValueError("smoothSeams: no source detail field");
+    const int C = boundaryPatchEdge(problem, settings);
     const PatchLayout& L = problem.layout;
-    const int B = L.size;
-    const int C = settings.boundaryPatch > 0 ? settings.boundaryPatch : B;
-    const int h = C / 2;
-    if (C % 2 != 0 || C < 2 || (2 * B) % C != 0)
-        throw ValueError("boundary patch size C must be even and divide 2*B (B = " + std::to_string(B) + ")");
 
     using Clock = std::chrono::steady_clock;
-    const auto seconds = [](Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); };
-    auto t0 = Clock::now();
-    const CoordBBox box = detail.bbox();
-    std::vector<uint8_t> omega = seamBand(box, L, problem.active, L.flat ? settings.bandWidth2D : settings.bandWidth);
-    if (!problem.wholePatches.empty()) {
-        if (problem.wholePatches.size() != L.patchCount())
-            throw ValueError("smoothSeams: wholePatches must hold one flag per local patch");
-        parallelFor(omega.size(), 1 << 14, [&](size_t b, size_t e) {
-            for (size_t n = b; n < e; ++n) {
-                const size_t p = L.patchIndex(L.patchOf(detail.coordOf(n)));
-                if (problem.wholePatches[p] && problem.active[p]) omega[n] = 1;
-            }
-        });
-    }
+    const auto t0 = Clock::now();
+    const std::vector<uint8_t> omega = seamUnknowns(detail, problem, settings);
     if (problem.temporal && problem.temporalWeights.size() != L.patchCount())
         throw ValueError("smoothSeams: temporalWeights must hold one weight per local patch");
     if (problem.base && problem.base->bbox() != detail.bbox())
@@ -564,165 +980,10 @@ SeamStats smoothSeams(VectorField& detail, const SeamProblem& problem, const Sea
         stats.converged = true;
         return stats;
     }
-
-    // Boundary patches: centres on the lattice origin + k*(C/2), on at least one patch border, that
-    // overlap an active patch.
-    // In 2D (a flat layout) boundary patches are C x C x 1 on the one layer: one row of centres in z.
-    const Coord kCount(L.count.x() * B / h + 1, L.count.y() * B / h + 1, L.flat ? 1 : L.count.z() * B / h + 1);
-    const Coord hLo = L.flat ? Coord(h, h, 0) : Coord(h), hHi = L.flat ? Coord(h - 1, h - 1, 0) : Coord(h - 1);
-    std::vector<int> patchId(size_t(kCount.x()) * size_t(kCount.y()) * size_t(kCount.z()), -1);
-    const auto kIndex = [&](const Coord& k) {
-        return (size_t(k.x()) * size_t(kCount.y()) + size_t(k.y())) * size_t(kCount.z()) + size_t(k.z());
-    };
-    std::vector<BoundaryPatch> patches;
-    for (int kx = 0; kx < kCount.x(); ++kx)
-        for (int ky = 0; ky < kCount.y(); ++ky)
-            for (int kz = 0; kz < kCount.z(); ++kz) {
-                const Coord k(kx, ky, kz);
-                const Coord c = L.origin + Coord(kx * h, ky * h, kz * h);
-                bool onBorder = false;
-                for (int a = 0; a < 3; ++a) {
-                    const int rel = c[a] - L.origin[a];
-                    onBorder |= rel % B == 0 && rel > 0 && rel < L.count[a] * B;
-                }
-                if (!onBorder) continue;
-                bool anyActive = false;
-                const CoordBBox region(c - hLo, c + hHi);
-                const Coord P0 = L.patchOf(region.min()), P1 = L.patchOf(region.max());
-                for (int px = std::max(0, P0.x()); px <= std::min(L.count.x() - 1, P1.x()); ++px)
-                    for (int py = std::max(0, P0.y()); py <= std::min(L.count.y() - 1, P1.y()); ++py)
-                        for (int pz = std::max(0, P0.z()); pz <= std::min(L.count.z() - 1, P1.z()); ++pz)
-                            anyActive |= problem.active[L.patchIndex(Coord(px, py, pz))] != 0;
-                if (!anyActive) continue;
-                patchId[kIndex(k)] = int(patches.size());
-                patches.push_back(BoundaryPatch{c, false, Coord(0)});
-            }
-    stats.boundaryPatches = patches.size();
-    const VectorField& Ush = *problem.sourceHigh;
-    const float scale = problem.sourceScale;
-
-    // M-step: each boundary patch picks, among the continuations of the local patches it overlaps
-    // (and the zero field next to patches without detail), the Z whose gradient best matches X.
-    // Distances use every other voxel of the patch: the choice is among a handful of candidates.
-    const auto mStep = [&]() {
-        parallelFor(patches.size(), 64, [&](size_t b, size_t e) {
-            std::vector<std::pair<int, Coord>> cands; // (isZero, offset)
-            for (size_t i = b; i < e; ++i) {
-                BoundaryPatch& bp = patches[i];
-                const CoordBBox region(bp.centre - hLo, bp.centre + hHi);
-                cands.clear();
-                const Coord P0 = L.patchOf(region.min()), P1 = L.patchOf(region.max());
-                for (int px = std::max(0, P0.x()); px <= std::min(L.count.x() - 1, P1.x()); ++px)
-                    for (int py = std::max(0, P0.y()); py <= std::min(L.count.y() - 1, P1.y()); ++py)
-                        for (int pz = std::max(0, P0.z()); pz <= std::min(L.count.z() - 1, P1.z()); ++pz) {
-                            const size_t pi = L.patchIndex(Coord(px, py, pz));
-                            if (problem.active[pi]) cands.emplace_back(0, problem.offset[pi]);
-                            else cands.emplace_back(1, Coord(0));
-                        }
-                std::sort(cands.begin(), cands.end(), [](const auto& x, const auto& y) {
-                    if (x.first != y.first) return x.first < y.first;
-                    return x.second < y.second;
-                });
-                cands.erase(std::unique(cands.begin(), cands.end()), cands.end());
-                double best = -1.0;
-                for (const auto& cand : cands) {
-                    double d = 0.0;
-                    for (int x = region.min().x(); x <= region.max().x(); x += 2)
-                        for (int y = region.min().y(); y <= region.max().y(); y += 2)
-                            for (int z = region.min().z(); z <= region.max().z(); z += 2) {
-                                const Coord v(x, y, z);
-                                if (!box.isInside(v)) continue;
-                                const Vec3f xv = detail[v];
-                                const Vec3f zv = cand.first ? Vec3f(0.0f) : sourceAt(Ush, v + cand.second) * scale;
-                                for (int a = 0; a < 3; ++a) {
-                                    Coord q = v;
-                                    q[a] += 1;
-                                    if (q[a] > region.max()[a] || !box.isInside(q)) continue;
-                                    const Vec3f zq = cand.first ? Vec3f(0.0f) : sourceAt(Ush, q + cand.second) * scale;
-                                    d += double(((detail[q] - xv) - (zq - zv)).lengthSqr());
-                                }
-                            }
-                    if (best < 0.0 || d < best) {
-                        best = d;
-                        bp.zero = cand.first != 0;
-                        bp.offset = cand.second;
-                    }
-                }
-            }
-        });
-        // Edge targets: the mean, over the boundary patches containing both ends of an edge, of Z's
-        // difference; edges no boundary patch covers keep the current field's difference.
-        auto& targets = sys.targets();
-        parallelFor(sys.rows(), 2048, [&](size_t b, size_t e) {
-            for (size_t r = b; r < e; ++r) {
-                const Coord p = detail.coordOf(sys.linear(r));
-                for (int a = 0; a < 3; ++a) {
-                    Coord q = p;
-                    q[a] += 1;
-                    if (!box.isInside(q)) continue;
-                    // Centres c with p and q in [c - h, c + h - 1]: per axis k*h in [max(p,q) - h + 1, min(p,q) + h].
-                    int kLo[3], kHi[3];
-                    for (int s = 0; s < 3; ++s) {
-                        if (s == 2 && L.flat) {
-                            kLo[s] = kHi[s] = 0;
-                            continue;
-                        }
-                        const int lo = std::max(p[s], q[s]) - h + 1 - L.origin[s];
-                        const int hi = std::min(p[s], q[s]) + h - L.origin[s];
-                        kLo[s] = std::max(0, -floorDiv(-lo, h)); // ceil(lo / h)
-                        kHi[s] = std::min(kCount[s] - 1, floorDiv(hi, h));
-                    }
-                    // Tent weights centred on each boundary patch: a cross-fade between overlapping
-                    // patches instead of a flat average, which would halve the energy where two
-                    // different textures meet.
-                    Vec3f sum(0.0f);
-                    float wsum = 0.0f;
-                    const Vec3d mid = (p.asVec3d() + q.asVec3d()) * 0.5;
-                    for (int kx = kLo[0]; kx <= kHi[0]; ++kx)
-                        for (int ky = kLo[1]; ky <= kHi[1]; ++ky)
-                            for (int kz = kLo[2]; kz <= kHi[2]; ++kz) {
-                                const int id = patchId[kIndex(Coord(kx, ky, kz))];
-                                if (id < 0) continue;
-                                const BoundaryPatch& bp = patches[size_t(id)];
-                                float wgt = 1.0f;
-                                for (int t = 0; t < (L.flat ? 2 : 3); ++t)
-                                    wgt *= std::max(0.0f, 1.0f - float(std::abs(mid[t] - (bp.centre[t] - 0.5))) / (0.6f * float(h)));
-                                if (wgt <= 0.0f) continue;
-                                if (!bp.zero) sum += (sourceAt(Ush, q + bp.offset) - sourceAt(Ush, p + bp.offset)) * (scale * wgt);
-                                wsum += wgt;
-                            }
-                    Vec3f t = wsum > 0.0f ? sum / wsum : detail[q] - detail[p];
-                    if (problem.temporal) {
-                        const float w = 0.5f * (problem.temporalWeights[L.patchIndex(L.patchOf(p))] +
-                                                   problem.temporalWeights[L.patchIndex(L.patchOf(q))]);
-                        const VectorField& T = *problem.temporal;
-                        if (w > 0.0f) t = t * (1.0f - w) + (T[q] - T[p]) * w;
-                    }
-                    targets[r * 3 + size_t(a)] = t;
-                }
-            }
-        });
-    };
-
-    double previous = -1.0;
-    stats.setupSeconds = seconds(t0);
-    for (int it = 0; it < std::max(1, settings.maxEmIterations); ++it) {
-        checkCancelled(progress);
-        t0 = Clock::now();
-        mStep();
-        if (it == 0) stats.initialEnergy = sys.energy(detail);
-        stats.mStepSeconds += seconds(t0);
-        t0 = Clock::now();
-        SeamIteration s = sys.solve(detail, settings.maxCgIterations, settings.cgTolerance);
-        stats.eStepSeconds += seconds(t0);
-        stats.iterations.push_back(s);
-        if (progress) progress->update(double(it + 1) / std::max(1, settings.maxEmIterations));
-        if (previous > 0.0 && std::abs(previous - s.energy) <= settings.emTolerance * previous) {
-            stats.converged = true;
-            break;
-        }
-        previous = s.energy;
-    }
+    BoundaryPatches bps = placeBoundaryPatches(L, problem.active, C);
+    stats.boundaryPatches = bps.patches.size();
+    stats.setupSeconds = std::chrono::duration<double>(Clock::now() - t0).count();
+    runSeamEm(sys, bps, detail, problem, settings, progress, stats);
     return stats;
 }
 

@@ -157,7 +157,8 @@ std::vector<std::pair<std::string, std::string>> outputSettings(const TransferSe
     const auto flag = [](bool b) { return std::string(b ? "on" : "off"); };
     const char* align[] = {"none", "normalize", "rotate", "both"};
     const char* energy[] = {"none", "pasted", "source"};
-    return {{"alpha", num(s.alpha)}, {"beta", num(s.beta)}, {"density-threshold", num(s.densityThreshold)},
+    std::vector<std::pair<std::string, std::string>> out = {{"alpha", num(s.alpha)}, {"beta", num(s.beta)},
+        {"density-threshold", num(s.densityThreshold)},
         {"patch", num(s.localPatch)}, {"global-patch", num(s.globalPatch)}, {"pca", num(s.pcaComponents)},
         {"stride", num(s.localStride)}, {"candidates", num(s.refineCandidates)}, {"tracking", flag(s.trackGlobalPatches)},
         {"follow-source", flag(s.followSourceFlow)}, {"source-smoke", num(s.sourceSmoke)},
@@ -179,6 +180,9 @@ std::vector<std::pair<std::string, std::string>> outputSettings(const TransferSe
         {"density-guide", num(s.densityGuide.strength)}, {"density-guide-passes", num(s.densityGuide.passes)},
         {"density-guide-threshold", num(s.densityGuide.threshold)}, {"density-guide-max-gain", num(s.densityGuide.maxGain)},
         {"lookback", num(s.lookBackFrames)}};
+    // Only when not the default: the default outputs' settings text stays what earlier versions wrote.
+    if (s.seams.solver == SeamSolver::EigenLscg) out.emplace_back("seam-solver", "eigen");
+    return out;
 }
 
 std::string outputSettingsText(const TransferSettings& s)
