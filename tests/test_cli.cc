@@ -21,10 +21,11 @@ struct CmdResult
     std::string out; // stdout + stderr
 };
 
-CmdResult run(const std::string& args)
+// `env` prefixes the command ("PATH=/x" runs it with another environment).
+CmdResult run(const std::string& args, const std::string& env = "")
 {
     CmdResult r;
-    const std::string cmd = std::string(VDBTURB_EXE) + " " + args + " 2>&1";
+    const std::string cmd = env + (env.empty() ? "" : " ") + std::string(VDBTURB_EXE) + " " + args + " 2>&1";
     FILE* p = ::popen(cmd.c_str(), "r");
     if (!p) return r;
     std::array<char, 4096> buf;
@@ -354,6 +355,39 @@ TEST(Cli, MeasureCanReadTheSourceAsTransferReadsIt)
     ASSERT_GT(asWritten, 0.0);
     ASSERT_GT(extended, 0.0);
     EXPECT_LT(extended, 0.5 * asWritten);
+}
+
+TEST(Cli, MeasurePlotsAreDrawnByGnuplotWithTheirScripts)
+{
+    // The figures are gnuplot's (a plotting package, not code of ours): each picture has its script beside it, and a
+    // machine without gnuplot is told what to install before anything is measured.
+    testutil::TempDir dir;
+    const std::string base = "measure --output " + hi() + " --target " + lo() + " --source " + hi() + " --frames 2-3 -q";
+    const CmdResult r = run(base + " --plot " + dir / "p");
+    ASSERT_EQ(r.code, 0) << r.out;
+    for (const char* f : {"metrics.png", "metrics.png.gp", "spectrum.0002.png", "spectrum.0003.png.gp"})
+        EXPECT_TRUE(std::filesystem::exists(dir / "p/" + f)) << f;
+    const turb::RgbaImage metrics = turbio::readImage(dir / "p/metrics.png");
+    EXPECT_EQ(metrics.width(), 1920);
+    EXPECT_EQ(metrics.height(), 860);
+    // Not a blank canvas: the lines and labels darken some pixels.
+    int dark = 0;
+    for (int y = 0; y < metrics.height(); ++y)
+        for (int x = 0; x < metrics.width(); ++x) dark += metrics.at(x, y).x() < 0.5f;
+    EXPECT_GT(dark, 2000);
+    std::ifstream gp(dir / "p/spectrum.0003.png.gp");
+    const std::string script((std::istreambuf_iterator<char>(gp)), std::istreambuf_iterator<char>());
+    EXPECT_NE(script.find("set logscale xy"), std::string::npos);
+    EXPECT_NE(script.find("target Nyquist"), std::string::npos);
+    // EXR through OpenImageIO from gnuplot's PNG.
+    ASSERT_EQ(run(base + " --plot " + dir / "e" + " --plot-format exr").code, 0);
+    EXPECT_EQ(turbio::readImage(dir / "e/metrics.exr").width(), 1920);
+    EXPECT_FALSE(std::filesystem::exists(dir / "e/metrics.exr.png"));
+    // Without gnuplot on the PATH: a clear error naming the package, before any measuring or writing.
+    const CmdResult none = run(base + " --plot " + dir / "n", "PATH=/nonexistent");
+    EXPECT_EQ(none.code, 1) << none.out;
+    EXPECT_NE(none.out.find("gnuplot-nox"), std::string::npos) << none.out;
+    EXPECT_FALSE(std::filesystem::exists(dir / "n"));
 }
 
 TEST(Cli, ACorruptFrameStopsTheRunWithoutDamagingEarlierOutput)

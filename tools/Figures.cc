@@ -3,6 +3,7 @@
 #include <turb/Error.h>
 #include <turbio/ImageIO.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -61,9 +62,11 @@ void render(const std::string& path, const std::string& script, int width, int h
     const bool direct = ext == ".png" || ext == ".svg" || ext == ".pdf";
     const std::string drawn = direct ? path : path + ".png";
     std::string terminal;
-    if (ext == ".svg") terminal = "svg size " + std::to_string(width) + "," + std::to_string(height) + " dynamic";
-    else if (ext == ".pdf") terminal = "pdfcairo size " + std::to_string(width / 100.0) + "in," + std::to_string(height / 100.0) + "in";
-    else terminal = "pngcairo size " + std::to_string(width) + "," + std::to_string(height) + " font \"DejaVu Sans,11\"";
+    // noenhanced: metric names and paths hold underscores, which gnuplot's enhanced text would set as subscripts.
+    if (ext == ".svg") terminal = "svg noenhanced size " + std::to_string(width) + "," + std::to_string(height) + " dynamic";
+    else if (ext == ".pdf")
+        terminal = "pdfcairo noenhanced size " + std::to_string(width / 100.0) + "in," + std::to_string(height / 100.0) + "in";
+    else terminal = "pngcairo noenhanced size " + std::to_string(width) + "," + std::to_string(height) + " font \"DejaVu Sans,11\"";
     const std::string gp = path + ".gp";
     {
         std::ofstream f(gp);
@@ -175,6 +178,8 @@ void writeMetricsFigure(const std::string& path, const std::vector<turb::FrameMe
     for (const auto& f : frames) anyBlock = anyBlock || f.block.has_value();
     std::ostringstream os;
     os << "set multiplot layout 2,3 title " << quoted(title) << " font \",14\"\nset grid\nset key top right\n";
+    // Frames are whole numbers: a tick every frame, or every few on long shots.
+    if (!x.empty()) os << "set xtics " << std::max(1, int(std::ceil((x.back() - x.front()) / 10.0))) << "\n";
     os << panel("lf_err (good <= 0.05)", x, {{"output", column(frames, &FM::lfErr), kOutput}}, {0.05}, 0);
     os << panel("hf_ratio (good 0.8 - 1.25)", x, {{"output / source", column(frames, &FM::hfRatio), kOutput}}, {0.8, 1.25}, 1);
     os << panel("div_rel (good <= source)", x,
