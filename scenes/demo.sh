@@ -38,7 +38,7 @@ echo "demo: simulating plume 16x16x24 and swirl 128x128x192, $FRAMES frames each
 # to about 9 voxels a frame (6.8 units/s measured), which MacCormack with its limiter takes stably.
 "$BIN" sim swirl --res 128x128x192 --frames "$FRAMES" --seed 2 --max-substeps 1 --out "$SOURCE" --threads "$THREADS"
 
-# The main job: the swirl's turbulence transferred onto the plume's motion (seed 002), then measured.
+# The main job: the swirl's turbulence transferred onto the plume's motion (Sato et al. 2018), then measured.
 echo "demo: transferring the swirl's turbulence onto the plume" >&2
 "$BIN" transfer --target "$TARGET" --source "$SOURCE" --out "$OUTPUT" --threads "$THREADS"
 echo "demo: measuring the result (lf_err, hf_ratio, div_rel, block, tcoh, spectra)" >&2

@@ -1,4 +1,4 @@
-// animate (seed 001, Okabe et al.): decomposition, flow design, residual transfer, synthesis and
+// animate (Okabe et al. 2009): decomposition, flow design, residual transfer, synthesis and
 // histogram matching against analytic answers.
 #include "TestUtil.h"
 

@@ -1,4 +1,4 @@
-// Fluidymation (seed 004): motion guides (Appendix A, extents), the (i, x, y, theta) field's pyramid
+// Fluidymation (Fluidymation): motion guides (Appendix A, extents), the (i, x, y, theta) field's pyramid
 // operations, the time shift, each energy term against its optimum, determinism and bad input.
 #include "TestUtil.h"
 

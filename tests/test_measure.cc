@@ -590,7 +590,7 @@ TEST(Measure, IdenticalAtOneAndTwoThreads)
 }
 
 // ---------------------------------------------------------------------------------------------
-// The Blender plume pair (regression facts from quality.md and ../shared/data/README.md)
+// The Blender plume pair (regression facts from ../shared/data/README.md)
 
 TEST(MeasureRealCaches, BlenderPlumePairReproducesQualityFacts)
 {
@@ -625,7 +625,7 @@ TEST(MeasureRealCaches, BlenderPlumePairReproducesQualityFacts)
         prevT = t;
         prevO = o;
     }
-    // quality.md quotes "about 0.47" and "about 0.11" from an earlier, unrecorded computation. The
+    // An earlier, unrecorded computation gave "about 0.47" and "about 0.11". The
     // definitions as written (and implemented here, see docs/measure.md) give 0.765 and 0.136 on these
     // frames; these are the regression facts, so any change to the metrics or the reader shows up here.
     EXPECT_NEAR(lfSum / 3.0, 0.765, 0.005);

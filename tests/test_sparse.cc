@@ -159,7 +159,7 @@ TEST(SparseRead, StrayVoxelFarAwayIsLeftOutAndReported)
     s.strays = {Coord(1000, 1000, 1000)};
     writeCache(dir / "stray.vdb", s);
 
-    // Today's behaviour (the whole span densely) refuses the frame: the repro of issue 16.
+    // Today's behaviour (the whole span densely) refuses the frame: the case that used to fail.
     turbio::ReadOptions whole = readOptions();
     whole.cropToSmoke = false;
     EXPECT_THROW(turbio::readFrame(dir / "stray.vdb", 1, whole), IoError);

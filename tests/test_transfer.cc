@@ -1,4 +1,4 @@
-// Turbulence transfer (seed 002): per-stage analytic tests, an end-to-end pair, determinism, bad input.
+// Turbulence transfer (Sato et al. 2018): per-stage analytic tests, an end-to-end pair, determinism, bad input.
 #include "Modes.h"
 #include "TestUtil.h"
 
@@ -45,7 +45,7 @@ double hfEnergy(const VectorField& u, const ScalarField& smoke, int f)
     return n ? e / double(n) : 0.0;
 }
 
-// lf_err as quality.md defines it, on coarse cells with smoke.
+// lf_err as docs/measure.md defines it, on coarse cells with smoke.
 double lfErr(const VectorField& out, const VectorField& target, const ScalarField& targetDensity, int f)
 {
     const VectorField up = upsample(target, f);
@@ -110,7 +110,7 @@ TEST_F(TransferPair, RecoversSourceDetailStatistics)
         ASSERT_FALSE(r.stats.seams.iterations.empty());
         EXPECT_LT(r.stats.seams.iterations.back().energy, r.stats.seams.initialEnergy);
         const double hf = hfEnergy(out.velocity, sources[i].density, kF) / hfEnergy(sources[i].velocity, sources[i].density, kF);
-        // quality.md's targets for an up-res: as much turbulence as the source, coarse motion kept.
+        // The targets for an up-res: as much turbulence as the source, coarse motion kept.
         EXPECT_GT(hf, 0.8) << "frame " << i;
         EXPECT_LT(hf, 1.25) << "frame " << i;
         EXPECT_LT(lfErr(out.velocity, targets[i].velocity, targets[i].density, kF), 0.05) << "frame " << i;
@@ -209,7 +209,7 @@ TEST_F(TransferPair, NonIntegerRatioResamplesTheSourceToTheNearestInteger)
 
 TEST_F(TransferPair, CoarseToleranceBoundsLfErrAndTheReportedChangeIsTcoh)
 {
-    // The coarse part of U_h is cut to the tolerance, not below (lf_err as quality.md defines it), and the
+    // The coarse part of U_h is cut to the tolerance, not below (lf_err as docs/measure.md defines it), and the
     // change the transfer reports is what `measure` calls tcoh, computed there by its own code.
     const auto run = [&](float tolerance) {
         TransferSettings s;
@@ -476,7 +476,7 @@ TEST_F(TransferPair, TargetWhoseBoxGrowsKeepsItsTracks)
 
 namespace {
 
-// A Gaussian puff carried at a constant 2 target voxels per frame along x (issue 11's case): target 28x12x12 at
+// A Gaussian puff carried at a constant 2 target voxels per frame along x (a reported case): target 28x12x12 at
 // voxel 0.15 over frames 1001.., source a 2x finer puff of the same motion with divergence-free detail.
 struct MovingPuff
 {
@@ -821,11 +821,11 @@ TEST(MeasureDensity, MassPeakAndCoarseErrorOfKnownFields)
     EXPECT_THROW(densityMeasures(o, t, t, f, 0.01f), ValueError);
 }
 
-// ---- 2D (issue 14): one-z-layer caches, B^2 patches, C^2 boundary patches, a 2D seam solve ------------------
+// ---- 2D: one-z-layer caches, B^2 patches, C^2 boundary patches, a 2D seam solve ------------------
 
 namespace {
 
-// The built-in 2D pair of issue 14: a plume at 24x32 (target) and a swirl at 192x256 (source), one voxel thick,
+// The built-in 2D pair: a plume at 24x32 (target) and a swirl at 192x256 (source), one voxel thick,
 // the same 4-unit-wide domain (voxel ratio 8), frames 1-12. Simulated once for the whole suite.
 struct Pair2D
 {
@@ -926,7 +926,7 @@ TEST(Transfer2D, IdenticalAtOneAndTwoThreads)
 TEST(Transfer2D, MixingTwoDAndThreeDIsRefused)
 {
     const Pair2D& pr = pair2D();
-    // A 3D source for a 2D target: the source copied into 8 layers (the workaround issue 14 reports).
+    // A 3D source for a 2D target: the source copied into 8 layers (the workaround users reached for).
     Frame thick = pr.sources[0];
     const CoordBBox sb = thick.velocity.bbox();
     const CoordBBox tb(sb.min(), Coord(sb.max().x(), sb.max().y(), sb.min().z() + 7));

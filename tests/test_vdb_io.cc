@@ -625,7 +625,7 @@ TEST(BadInput, AFrameTooLargeToLoadNamesTheGridAndItsSpan)
     d->tree().setValue(openvdb::Coord(20000, 20000, 20000), 1.0f);
     auto v = linearMac(openvdb::CoordBBox({0, 0, 0}, {3, 3, 3}), "vel", 0.1);
     writeGrids(dir / "sparse.vdb", {d, v});
-    // Held whole (--no-crop), as every read was before issue 16; by default the stray is left out.
+    // Held whole (--no-crop), as every read once was; by default the stray is left out.
     ReadOptions whole;
     whole.cropToSmoke = false;
     const std::string e = errorOf([&] { readFrame(dir / "sparse.vdb", 1, whole); });

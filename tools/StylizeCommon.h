@@ -35,7 +35,7 @@ struct FluidyArgs
 
 struct StylizeArgs
 {
-    std::string method = "lazyfluids"; ///< lazyfluids (seed 000) or fluidymation (seed 004)
+    std::string method = "lazyfluids"; ///< lazyfluids (LazyFluids) or fluidymation (Fluidymation)
     FluidyArgs fluidy;
     std::string exemplar, exemplarAlpha;
     std::string flow, alpha, cache, scene;

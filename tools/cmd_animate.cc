@@ -1,4 +1,4 @@
-// vdbturb animate: animate a still picture of fluid from a video example (seed 001, Okabe et al.).
+// vdbturb animate: animate a still picture of fluid from a video example (Okabe et al. 2009).
 #include "Commands.h"
 #include "Console.h"
 #include "RunReport.h"

@@ -39,7 +39,7 @@ struct MeasureArgs
     bool noSpectra = false, noStructure = false;
     turb::MeasureSettings settings;
     turbio::ReadOptions read;
-    int sourceExtend = 0;     // quality.md's definitions read the source as written: no extension by default
+    int sourceExtend = 0;     // the metrics' definitions read the source as written: no extension by default
 };
 
 nlohmann::json opt(const std::optional<double>& v) { return v ? nlohmann::json(*v) : nlohmann::json(nullptr); }

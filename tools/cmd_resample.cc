@@ -128,7 +128,7 @@ int runResample(ResampleArgs& a)
         const int f = seq.frames[i];
         const auto t0 = std::chrono::steady_clock::now();
         turb::Frame frame = turbio::readFrame(seq.path(f), f, a.read);
-        // Everything else the file holds goes along (issue 16): a proxy keeps Blender's flags, colours, level sets.
+        // Everything else the file holds goes along: a proxy keeps Blender's flags, colours, level sets.
         std::optional<turbio::OtherGrids> others;
         if (!a.dropOtherGrids) {
             others = turbio::OtherGrids::read(seq.path(f), a.read, frame.lattice());

@@ -1,4 +1,4 @@
-// vdbturb stylize: appearance transfer onto fluid motion (seed 000, LazyFluids).
+// vdbturb stylize: appearance transfer onto fluid motion (LazyFluids, Jamriška et al. 2015).
 #include "Commands.h"
 #include "StylizeCommon.h"
 #include "Console.h"
@@ -291,7 +291,7 @@ Command stylizeCommand()
         StylizeArgs& a = *args;
         turb::StylizeSettings& s = a.settings;
         app->add_option("--method", a.method,
-               "lazyfluids (seed 000: a still or video RGBA exemplar, uniform patch usage; default) or fluidymation (seed 004: a "
+               "lazyfluids (LazyFluids: a still or video RGBA exemplar, uniform patch usage; default) or fluidymation (Fluidymation: a "
                "moving exemplar's look and dynamics; options marked [fluidymation])")
             ->check(CLI::IsMember({"lazyfluids", "fluidymation"}));
         app->add_option("--exemplar", a.exemplar,

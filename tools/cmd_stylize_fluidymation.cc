@@ -1,4 +1,4 @@
-// vdbturb stylize --method fluidymation: moving exemplars (seed 004, Fluidymation).
+// vdbturb stylize --method fluidymation: moving exemplars (Fluidymation).
 #include "Console.h"
 #include "RunReport.h"
 #include "StylizeCommon.h"

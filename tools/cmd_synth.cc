@@ -1,4 +1,4 @@
-// vdbturb synth: motion-field texture synthesis (seed 003) over a coarse flow.
+// vdbturb synth: motion-field texture synthesis (Ma et al. 2009) over a coarse flow.
 #include "Commands.h"
 #include "Console.h"
 #include "Preflight.h"
@@ -458,7 +458,7 @@ void checkSynthLatticeAndMemory(const SynthArgs& a, const turb::Frame& f0, const
         fMax >= 1 ? "--factor " + std::to_string(fMax) + " fits" : "no factor fits: crop the coarse cache");
 }
 
-// The projection's outcome for the JSON line; one that stopped short is warned about (issue 14) and listed.
+// The projection's outcome for the JSON line; one that stopped short is warned about and listed.
 nlohmann::json projectionReport(const SynthArgs& a, const turb::SynthFrameResult& r, int fr, ConsoleProgress& progress,
     std::vector<int>& unconverged)
 {
@@ -468,7 +468,7 @@ nlohmann::json projectionReport(const SynthArgs& a, const turb::SynthFrameResult
         projJson = {{"converged", pr.converged}, {"iterations", pr.iterations}, {"div_max_before", pr.divMaxBefore},
             {"div_max_after", pr.divMaxAfter}};
         if (!pr.converged) {
-            // A solver that stops short is a result the user must hear about (issue 14), not only a JSON field.
+            // A solver that stops short is a result the user must hear about, not only a JSON field.
             unconverged.push_back(fr);
             progress.clear();
             logWarning("frame " + std::to_string(fr) + ": the projection did not converge (" +
@@ -537,7 +537,6 @@ nlohmann::json frameJson(const SynthArgs& a, const turb::SynthFrameResult& r, co
     const nlohmann::json& projJson, const std::string& outPath)
 {
     const turb::VectorField& F = r.motion;
-    const double densityMass = r.densityMass;
     nlohmann::json extra;
     extra["out"] = outPath;
     extra["size"] = {F.bbox().dim().x(), F.bbox().dim().y(), F.bbox().dim().z()};
@@ -555,7 +554,7 @@ nlohmann::json frameJson(const SynthArgs& a, const turb::SynthFrameResult& r, co
     extra["detail_rms"] = std::sqrt(h2 / double(std::max<size_t>(1, H.world.size())));
     extra["detail_region"] = a.seq.detailNearSmoke && hasDensity ? "smoke" : "everywhere";
     if (a.seq.project) extra["projection"] = projJson;
-    if (densityMass >= 0.0) extra["density_mass"] = densityMass;
+    if (r.densityMass) extra["density_mass"] = *r.densityMass;
     return extra;
 }
 

@@ -1,4 +1,4 @@
-// vdbturb transfer: turbulence style transfer (seed 002) from a high-res source onto a low-res target.
+// vdbturb transfer: turbulence style transfer (Sato et al. 2018) from a high-res source onto a low-res target.
 #include "Commands.h"
 #include "Console.h"
 #include "Preflight.h"

@@ -7,7 +7,7 @@ namespace turb {
 double transferPeakBytes(double targetVoxels, int ratio, double sourceVoxels)
 {
     const double f = double(ratio);
-    // 200 MB fixed: refitted for issue 16, when cropped reads made the voxel terms small (box32: 278 MB measured).
+    // 200 MB fixed: refitted when cropped reads made the voxel terms small (box32: 278 MB measured).
     return 200e6 + 664.0 * sourceVoxels / f + 30.0 * targetVoxels * f * f * f;
 }
 

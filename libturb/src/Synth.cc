@@ -1,4 +1,4 @@
-// Motion-field texture synthesis (seed 003): exemplar preparation and the texture-optimisation engine.
+// Motion-field texture synthesis (Ma et al. 2009): exemplar preparation and the texture-optimisation engine.
 //
 // Layout of the engine, per pyramid level and iteration:
 //   centres  a lattice of neighbourhood centres, `spacing` apart, jittered per iteration (Kwatra's

@@ -71,7 +71,7 @@ SynthFrameResult SynthSequence::next(const SynthFrameInput& in, Progress* progre
     r.seconds.synthesis = detail::lap(t0);
 
     if (progress) progress->begin("combine");
-    // Detail near the smoke only (issue 20): the smoke on L's box, zero where the density grid stops short.
+    // Detail near the smoke only: the smoke on L's box, zero where the density grid stops short.
     CombineSettings combine = s.combine;
     ScalarField smoke;
     if (s.detailNearSmoke && in.coarseDensity) {

@@ -1,4 +1,4 @@
-// The bad-input corpus (issue 11): one row per case. tests/corpus/make_corpus.cc writes each case's files
+// The bad-input corpus: one row per case. tests/corpus/make_corpus.cc writes each case's files
 // into the build tree; tests/test_corpus.cc runs every cache-reading command on them and checks the row.
 #pragma once
 
@@ -109,7 +109,7 @@ inline const std::vector<Case>& cases()
         {"lattice_change", "frame 3 re-cached at twice the voxel size", Subject::Target, 3, {0, 1, 1, 0, 0, 0},
             "voxel size changes", kNone},
         {"vel_voxel_scale", "Houdini velocity voxel scale 2 in every frame", Subject::Target, 0, {0, 0, 0, 0, 0, 0}, "", kNone},
-        {"stray_voxel", "one density voxel 20000 voxels away (left out of the region held: issue 16)", Subject::Target, 2,
+        {"stray_voxel", "one density voxel 20000 voxels away (left out of the region held)", Subject::Target, 2,
             {0, 0, 0, 0, 0, 0}, "", kNone},
         {"rotated", "rotated transform", Subject::Target, 2, {1, 1, 1, 1, 1, 1}, "uniform voxels", kNone},
         {"nonuniform_scale", "non-uniform scale", Subject::Target, 2, {1, 1, 1, 1, 1, 1}, "uniform voxels", kNone},

@@ -1,5 +1,5 @@
 /// @file Strokes.h
-/// @brief Reading the flow design of `vdbturb animate` (seed 001): orientation and speed strokes as a
+/// @brief Reading the flow design of `vdbturb animate` (Okabe et al. 2009): orientation and speed strokes as a
 ///        JSON file, the file form of Okabe et al.'s Orientation and Speed Brushes (section 3.1).
 ///
 /// The schema (version 1; scenes/animate/README.md has the full description and an example):

@@ -1,6 +1,6 @@
 /// @file Animate.h
-/// @brief Animating a still picture of fluid from a video example (Okabe, Anjyo, Igarashi, Seidel 2009,
-///        seed 001): the whole pipeline of Fig. 2, and its synthesis steps (sections 5.4 and 5.5).
+/// @brief Animating a still picture of fluid from a video example (Okabe, Anjyo, Igarashi, Seidel 2009):
+///        the whole pipeline of Fig. 2, and its synthesis steps (sections 5.4 and 5.5).
 ///
 /// 1. The example is decomposed into A, v and R (VideoAnalysis.h).
 /// 2. The target's flow is designed from strokes or a dense flow and refined by its gradients

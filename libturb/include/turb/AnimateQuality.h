@@ -1,5 +1,5 @@
 /// @file AnimateQuality.h
-/// @brief The numbers that say whether an `animate` result is right (docs/animate.md, seed 001):
+/// @brief The numbers that say whether an `animate` result is right (docs/animate.md):
 ///        does the motion follow the design, and does the output flicker like the example?
 ///
 /// - **Flow agreement**: the output's mean flow, measured by the same analysis as the example's

@@ -2,7 +2,7 @@
 /// @brief A 3D smoke cache seen through a camera as a 2D target for the image-space methods
 ///        (stylize; seeds 004 and 001): per pixel the rendered opacity and the mean projected motion.
 ///
-/// Beyond seed 000, which is 2D only. Along each pixel's ray (Camera.h's marchRay, the ray march of
+/// Beyond LazyFluids, which is 2D only. Along each pixel's ray (Camera.h's marchRay, the ray march of
 /// `vdbturb preview`), sample i has opacity a_i = 1 - exp(-sigma rho_i ds) behind transmittance T_i:
 /// - alpha = 1 - prod(1 - a_i) = 1 - exp(-sigma * integral rho ds), the rendered opacity;
 /// - motion = sum(w_i m_i) / sum(w_i) with w_i = T_i a_i (each sample's share of the opacity), where

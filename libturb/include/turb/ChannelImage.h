@@ -2,7 +2,7 @@
 /// @brief The 2D engine's working image: W x H pixels of C float channels, and the image operations
 ///        the patch-based stages share (Gaussian blur, 2x reduction, bilinear sampling).
 ///
-/// Shared by stylize (seed 000) and meant for the other image-space methods (seeds 004 and 001).
+/// Shared by stylize (Jamriška et al. 2015) and meant for the other image-space methods (Fluidymation; Okabe et al.).
 /// Channels are interleaved per pixel, rows top to bottom: channel c of pixel (x, y) is
 /// data()[(y * W + x) * C + c]. Pixel (x, y) has its centre at the continuous position (x, y), so a
 /// motion vector (dx, dy) in pixels moves pixel (x, y) to (x + dx, y + dy); x is right, y is down.

@@ -1,5 +1,5 @@
 /// @file Exemplar.h
-/// @brief Vector-field texture exemplars for `synth` (seed 003, Ma et al. 2009): the small 2D or 3D
+/// @brief Vector-field texture exemplars for `synth` (Ma et al. 2009): the small 2D or 3D
 ///        motion fields whose local patterns are spread over a coarse flow.
 ///
 /// An exemplar is a dense array of vectors: planar (two channels, the x and y components, nz == 1) or

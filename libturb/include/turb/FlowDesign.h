@@ -1,6 +1,6 @@
 /// @file FlowDesign.h
 /// @brief The target's flow field: rough design from orientation and speed strokes, and its automatic
-///        refinement by the target image's gradients (Okabe et al. 2009, seed 001, sections 3.1 and 5.1).
+///        refinement by the target image's gradients (Okabe et al. 2009, sections 3.1 and 5.1).
 ///
 /// **Rough field** (5.1). Orientation strokes give the unit tangent of the polyline at samples along it;
 /// speed strokes give their speed (pixels per frame). Samples are interpolated over the image with the

@@ -1,6 +1,6 @@
 /// @file Fluidymation.h
 /// @brief Stylizing an animation with the natural dynamics of an artistic medium: Fluidymation
-///        (Platkevič, Curtis, Sýkora 2020, seed 004), the `--method fluidymation` of `vdbturb stylize`.
+///        (Platkevič, Curtis, Sýkora 2020), the `--method fluidymation` of `vdbturb stylize`.
 ///
 /// A moving exemplar (l_S RGB frames S^rgb of ink or paint spreading, with binary masks S^mask and flows
 /// S^flow) gives its look *and its motion* to a target animation (l_T binary masks T^mask and flows

@@ -1,5 +1,5 @@
 /// @file Measure.h
-/// @brief The quality numbers of an up-res (docs/measure.md, ../shared/docs/quality.md): lf_err,
+/// @brief The quality numbers of an up-res (docs/measure.md): lf_err,
 ///        hf_ratio, div_rel, block, tcoh and the energy spectra, per frame.
 ///
 /// Terms used throughout:
@@ -56,7 +56,7 @@ constexpr double kAirCells = 4.0;
 
 struct MeasureSettings
 {
-    float densityThreshold = 0.01f; ///< smoke region is density > this (quality.md: 0.01); >= 0
+    float densityThreshold = 0.01f; ///< smoke region is density > this (docs/measure.md: 0.01); >= 0
     int patchSize = 0;       ///< seam spacing for `block`, in output voxels; 0 = metadata "vdbturb_patch_size"
                              ///< of the output frame; block is not computed when neither gives >= 2
     std::optional<Coord> patchOrigin; ///< an output voxel where a patch starts (seam planes at origin[a] + n *

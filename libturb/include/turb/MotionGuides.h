@@ -1,6 +1,6 @@
 /// @file MotionGuides.h
-/// @brief The motion description of a masked image sequence, as Fluidymation (Platkevič et al. 2020,
-///        seed 004) needs it on both sides: binary masks, a flow per frame (given, or estimated from the
+/// @brief The motion description of a masked image sequence, as Fluidymation (Platkevič et al. 2020)
+///        needs it on both sides: binary masks, a flow per frame (given, or estimated from the
 ///        masks by the paper's Appendix A), signed distance fields, and the motion-extent channels
 ///        I+ext and I-ext of section 3.3.
 ///

@@ -139,7 +139,7 @@ ProjectionResult projectMac(VectorField& mac, const ProjectionSettings& s = {}, 
 /// the MAC grid, and each cell receives the mean of its faces' corrections, so the field's own detail
 /// is never smoothed. The result's divergences are those of the intermediate MAC field; the
 /// central-difference divergence of the cell-centred result is reduced, not zeroed (measure it with
-/// relativeDivergence() in Measure.h, quality.md's div_rel).
+/// relativeDivergence() in Measure.h, div_rel of docs/measure.md).
 ProjectionResult project(VectorField& centred, const ProjectionSettings& s = {}, const MaskField* solid = nullptr,
     Progress* progress = nullptr);
 

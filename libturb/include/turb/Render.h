@@ -73,7 +73,7 @@ struct LicSettings
 };
 
 /// Line integral convolution (Cabral & Leedom 1993) of the in-plane velocity of a slice: a white-noise
-/// texture smeared along streamlines. As in seed 003, where the flow is zero the noise is left
+/// texture smeared along streamlines. As in Ma et al., where the flow is zero the noise is left
 /// un-integrated with reduced contrast.
 Image renderLic(const VectorField& u, const LicSettings& s = {});
 

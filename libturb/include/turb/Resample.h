@@ -1,8 +1,8 @@
 /// @file Resample.h
 /// @brief Moving fields between a coarse lattice and its f-times finer refinement, and the frequency
-///        split of seed 002 (section 3.1) built on them.
+///        split of Sato et al. 2018 (section 3.1) built on them.
 ///
-/// Both operators are the ones quality.md defines its metrics with:
+/// Both operators are the ones docs/measure.md defines the metrics with:
 /// - upsample: cell-centred trilinear. Fine voxel I sits at coarse coordinate (I + 1/2)/f - 1/2; values
 ///   beyond the coarse box are extended constantly from the edge.
 /// - boxDownsample: the mean over each coarse voxel's f^3 fine voxels; fine voxels outside the fine box

@@ -1,5 +1,5 @@
 /// @file ResidualTransfer.h
-/// @brief Automatic transfer of the example's residuals onto the target (Okabe et al. 2009, seed 001,
+/// @brief Automatic transfer of the example's residuals onto the target (Okabe et al. 2009,
 ///        section 5.2): patches of the target's flow are matched to windows of the example's flow, and
 ///        the residuals under the matched windows are pasted in the Lapped Textures manner.
 ///

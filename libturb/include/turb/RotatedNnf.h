@@ -1,6 +1,6 @@
 /// @file RotatedNnf.h
 /// @brief Nearest-neighbour fields into a video with rotated patches: the (i, x, y, theta) field of
-///        Fluidymation (Platkevič et al. 2020, seed 004, section 3.6), its rotation tables, and the
+///        Fluidymation (Platkevič et al. 2020, section 3.6), its rotation tables, and the
 ///        pyramid operations UPSCALENNF and DOWNSCALENNF of Algorithm 1.
 ///
 /// A target pixel q = (x^, y^) maps to the source patch centred on pixel (x, y) of source frame i, turned

@@ -1,5 +1,5 @@
 /// @file Stylize.h
-/// @brief Appearance transfer onto fluid motion: LazyFluids (Jamriška et al. 2015, seed 000).
+/// @brief Appearance transfer onto fluid motion: LazyFluids (Jamriška et al. 2015).
 ///
 /// A target animation (alpha masks X_a^t and motion fields F^t) takes its look from an RGBA exemplar
 /// Z (a still or a video Z^t). Each frame minimises eq. 7 under the uniformity constraint eq. 5 with

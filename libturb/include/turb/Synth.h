@@ -1,5 +1,5 @@
 /// @file Synth.h
-/// @brief Motion-field texture synthesis (seed 003: Ma, Wei, Guo, Zhou, "Motion Field Texture
+/// @brief Motion-field texture synthesis (Ma, Wei, Guo, Zhou, "Motion Field Texture
 ///        Synthesis", SIGGRAPH Asia 2009): detail motion H synthesised from small vector-field
 ///        exemplars, oriented along a coarse flow L, and combined as F = up(L) + omega * H.
 ///
@@ -71,7 +71,7 @@ struct OrientationSettings
     bool follow = true;        ///< sample neighbourhoods in the local frame of L and rotate H into it (3.1, 3.3); false = world axes
     bool densitySecondary = true; ///< 3D: e2 from the coarse density gradient where there is one, else `secondary`
     Vec3d secondary{0, 1, 0};  ///< 3D: the given secondary direction (world) when autoSecondary is off
-    /// 3D (beyond the paper, issue 14): the secondary direction is n x e1, with n the direction L has least of
+    /// 3D (beyond the paper): the secondary direction is n x e1, with n the direction L has least of
     /// (the eigenvector of the smallest eigenvalue of sum L L^T over the box: the normal of a planar vortex, a
     /// horizontal axis for a rising plume). For a flow in a plane this is 2D's frame (e2 = z x e1). A fixed axis s
     /// that L crosses turns the frame 180 degrees there (e2 = s - (s.e1) e1 changes sign where e1 passes s),
@@ -110,7 +110,7 @@ struct SynthSettings
     int threads = 0;           ///< worker threads, 0 = all; results do not depend on it
     OrientationSettings orientation; ///< local frames (sections 3.1, 3.3)
     BoundarySettings boundary; ///< soft wall constraint (section 3.6, Eq. 3)
-    /// Beyond the paper (issue 20): coarse cells synthesised around L's box on every face that is not a wall
+    /// Beyond the paper: coarse cells synthesised around L's box on every face that is not a wall
     /// (L and its density extended by their face values), then cut off. A voxel at a face otherwise gets votes
     /// from fewer neighbourhoods than an interior one, and the texture shows straight lines along the faces.
     /// 0 = the box alone (the paper); >= 0. Costs about (1 + 2 pad / cells)^3 in time.
@@ -213,10 +213,10 @@ struct CombineSettings
     Weighting weighting = Weighting::Constant; ///< spatial shape of omega (section 3.5); means are over moving voxels (|L| > 5% of max)
     double omega = 0.5;   ///< detail strength, >= 0; relative: times rms|L| over moving voxels (|L| > 5% of max); else world units per time
     bool relative = true; ///< omega relative to the rms speed of L (true) or absolute velocity units (false)
-    bool removeCoarsePart = true; ///< beyond the paper (issue 12): take omega * H''s coarse-cell means (spread
+    bool removeCoarsePart = true; ///< beyond the paper: take omega * H''s coarse-cell means (spread
                                   ///< trilinearly, five passes) out of the detail, so F keeps L's coarse motion;
                                   ///< false = the paper's F = up(L) + omega * H'
-    /// Beyond the paper (issue 20): where the detail goes. With a coarse density (L's box and lattice), omega is
+    /// Beyond the paper: where the detail goes. With a coarse density (L's box and lattice), omega is
     /// multiplied by a weight that is 1 within `smokeMargin` coarse cells of the smoke (density >
     /// `smokeThreshold`), falls as a half cosine to 0 over the next `smokeFalloff` cells, and is 0 beyond: still
     /// air far from the smoke keeps L's motion. nullptr = detail everywhere (the paper).

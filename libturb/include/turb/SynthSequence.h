@@ -30,7 +30,7 @@ struct SynthSequenceSettings
     SynthSettings synth;          ///< the texture synthesis; synth.boundary.walls also close the projection's faces
     CombineSettings combine;      ///< F = up(L) + omega H' (section 3.5); its `smoke` is set per frame (below)
     int factor = 4;               ///< output voxel = coarse voxel / factor, >= 1
-    bool detailNearSmoke = true;  ///< beyond the paper (issue 20): omega only near a frame's smoke when it has density
+    bool detailNearSmoke = true;  ///< beyond the paper: omega only near a frame's smoke when it has density
     bool project = false;         ///< Helmholtz-Hodge projection of F (section 3.5; walls and obstacle closed)
     int projectIterations = 2000; ///< the projection's conjugate-gradient cap, >= 1
     bool density = true;          ///< carry a fine density through F when the frame has a coarse one
@@ -68,7 +68,7 @@ struct SynthFrameResult
     VectorField motion;             ///< F on the fine box
     std::optional<ProjectionResult> projection; ///< with SynthSequenceSettings::project
     bool smokeless = false;         ///< the frame's density holds no smoke, so no detail was placed (detailNearSmoke)
-    double densityMass = -1.0;      ///< sum of the fine density times the voxel volume; -1 when none was made
+    std::optional<double> densityMass; ///< sum of the fine density times the voxel volume; none when no density was made
     SynthTimings seconds;
 };
 

@@ -1,5 +1,5 @@
 /// @file Transfer.h
-/// @brief Turbulence style transfer (seed 002, Sato et al. 2018, section 3): moves the high-frequency
+/// @brief Turbulence style transfer (Sato et al. 2018, section 3): moves the high-frequency
 ///        velocity of a high-resolution *source* simulation onto the motion of a low-resolution
 ///        *target* simulation.
 ///
@@ -70,7 +70,7 @@ enum class DetailEnergy
 enum class DensityMode
 {
     Advect,  ///< carry the previous output density through U, plus the target's own emission
-    LookBack ///< seed 003 supplement: re-start from the target density m frames back and advect m times
+    LookBack ///< Ma et al.'s supplement: re-start from the target density m frames back and advect m times
 };
 
 struct TransferSettings
@@ -100,7 +100,7 @@ struct TransferSettings
     int coherenceSweeps = 2;      ///< red-black sweeps of the coherence pass, >= 1
     float temporalBlend = 0.95f;  ///< beyond the paper: weight of last frame's detail (advected through the target)
                                   ///< mixed into patches that had detail, in [0, 0.999]; 0 = the paper
-    float regenerate = 0.6f;      ///< beyond the paper (issue 12): carried detail that the flow has stretched is
+    float regenerate = 0.6f;      ///< beyond the paper: carried detail that the flow has stretched is
                                   ///< regenerated from the freshly pasted patch faster. A patch's structure ratio is the
                                   ///< gradient energy of U_h along up(u_t)'s mean direction over the mean across it;
                                   ///< where the carried detail's is below this fraction of the fresh detail's (the
@@ -138,7 +138,7 @@ struct TransferSettings
     AdvectSettings::Scheme densityScheme = AdvectSettings::Scheme::BFECC;
     DensityGuideSettings densityGuide; ///< beyond the paper: the output density's coarse means are moved onto the
                                    ///< target's every frame (strength 0 = off), so it does not drift from the target
-    int lookBackFrames = 12;      ///< m for DensityMode::LookBack (seed 003 suggests 10-20)
+    int lookBackFrames = 12;      ///< m for DensityMode::LookBack (Ma et al. suggest 10-20)
     int threads = 0;              ///< worker threads, 0 = all; results do not depend on it
 };
 

@@ -1,5 +1,5 @@
 /// @file UniformNnf.h
-/// @brief The reversed nearest-neighbour field with uniform patch usage (LazyFluids, seed 000,
+/// @brief The reversed nearest-neighbour field with uniform patch usage (LazyFluids,
 ///        section 4.1, after Rosenberger et al. 2009): the core of `vdbturb stylize`.
 ///
 /// Per segment L with |X_L| target and |Z_L| source centres, K = floor(|X_L| / |Z_L|) and

@@ -1,7 +1,7 @@
 /// @file VideoAnalysis.h
 /// @brief Decomposition of a video example into an average image, a flow field and residuals
 ///        (Okabe, Anjyo, Igarashi, Seidel 2009, "Animating Pictures of Fluid using Video Examples",
-///        seed 001, section 4).
+///        section 4).
 ///
 /// For frames F_0..F_{N-1} (C float channels each, one size):
 /// - the average image A = (1/N) sum_i F_i and the differences D_i = F_i - A (4.1);

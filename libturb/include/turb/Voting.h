@@ -30,7 +30,7 @@ struct VoteSettings
 std::vector<int> vote(const ChannelImage& source, const Nnf& nnf, int radius, int firstSource, int firstTarget, int count,
     ChannelImage& target, const VoteSettings& settings = {});
 
-/// Voting of rotated patches from a video (Fluidymation, seed 004): target pixel q gathers, from every
+/// Voting of rotated patches from a video (Fluidymation): target pixel q gathers, from every
 /// centre q' = q - d with a match (i, x, y, theta), the source frame i sampled bilinearly at
 /// (x, y) + R_{-theta} d (RotatedNnf.h), and takes the mean. `frames[i]` is source frame i; channels
 /// [firstSource, firstSource + count) go to [firstTarget, ...) of `target`. Returns the votes per target

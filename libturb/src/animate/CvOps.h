@@ -1,5 +1,5 @@
 /// @file CvOps.h
-/// @brief The image operations `animate` (seed 001) takes from OpenCV, over turb::ChannelImage.
+/// @brief The image operations `animate` (Okabe et al. 2009) takes from OpenCV, over turb::ChannelImage.
 ///
 /// The one boundary to OpenCV in libturb: only CvOps.cc includes OpenCV headers, so the rest of the
 /// library (and its users) never see cv::Mat. Everything here is per pixel or per feature, so results

@@ -1,4 +1,4 @@
-// Private to the transfer stage: descriptors and the two-level patch search of seed 002 section 3.2.
+// Private to the transfer stage: descriptors and the two-level patch search of Sato et al. section 3.2.
 #pragma once
 
 #include <turb/Field.h>

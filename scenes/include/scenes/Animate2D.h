@@ -1,5 +1,5 @@
 /// @file Animate2D.h
-/// @brief Built-in inputs for `vdbturb animate` (seed 001): a procedural river video example, a still
+/// @brief Built-in inputs for `vdbturb animate` (Okabe et al. 2009): a procedural river video example, a still
 ///        of another river with banks (and its matte), for the demo, the tests and the benchmark.
 ///
 /// - `riverExample`: water flowing right under a shear flow, speed s(y) = 1 + fast (1 - (2y/H - 1)^2)

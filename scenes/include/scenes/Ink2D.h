@@ -1,5 +1,5 @@
 /// @file Ink2D.h
-/// @brief A built-in moving exemplar for Fluidymation (`vdbturb stylize --method fluidymation`, seed 004):
+/// @brief A built-in moving exemplar for Fluidymation (`vdbturb stylize --method fluidymation`):
 ///        a drop of ink spreading over wet paper, simulated in 2D and painted like watercolour.
 ///
 /// No video of a real medium ships with Debian, so this is the exemplar of the tests, docs and

@@ -110,7 +110,7 @@ struct FrameStats
     double relativeResidual = 0.0; ///< worst solver residual max|r| / max|div before| over substeps
     double relativeDivergence = 0.0; ///< worst measured max|div after| / max|div before| over substeps
     double divMaxAfter = 0.0;      ///< max |MAC divergence| after the last projection, 1/s
-    double divRel = 0.0;           ///< quality.md div_rel of the cell-centred output (density > 0.01)
+    double divRel = 0.0;           ///< div_rel (docs/measure.md) of the cell-centred output (density > 0.01)
     double maxSpeed = 0.0;         ///< fastest face velocity, world units/s
     double mass = 0.0;             ///< total density times voxel volume
     double advectSeconds = 0.0;    ///< wall time in advection (for benchmarks; never affects results)
