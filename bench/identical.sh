@@ -8,7 +8,8 @@
 #   bench/identical.sh --work /tmp/ident record after.txt      # with the new build, same --work
 #   diff before.txt after.txt                                   # empty: every output is bit-identical
 #
-# The same --work matters: outputs record the absolute input paths they were made from.
+# Paths under --work are recorded relative to it, so records made in different work directories compare, but
+# for pictures that draw a path (measure's metrics.png title): compare those from the same --work.
 set -eu
 cd "$(dirname "$0")/.."
 WORK="${TMPDIR:-/tmp}/vdbturb-identical"
@@ -38,16 +39,18 @@ step() { # NAME ARGS...: runs vdbturb, keeps its stdout (JSON stripped) and exit
   code=$?
   set -e
   echo "== $name exit $code" >> "$OUT"
-  strip_json < "$R/$name.stdout" | md5sum | sed "s/-\$/stdout/" >> "$OUT"
+  strip_json < "$R/$name.stdout" | sed "s|$WORK/||g" | md5sum | sed "s/-\$/stdout/" >> "$OUT"
 }
 fingerprint() { # DIR: every file under it
   find "$1" -type f | LC_ALL=C sort | while read -r f; do
-    rel="${f#"$R"/}"
+    rel="${f#"$WORK"/}"
     case "$f" in
-      *.vdb) echo "$rel"; "$BIN" info "$f" --checksum --headers-only 2>/dev/null | sed -n '/active voxels/,$p' ;;
+      *.vdb) echo "$rel"; "$BIN" info "$f" --checksum --headers-only 2>/dev/null | sed -n -e "s|$WORK/||g" -e '/active voxels/,$p' ;;
       *.stdout) ;; # kept, stripped, by step
-      *.exr) echo "$rel $(oiiotool "$f" --dumpdata | md5sum | cut -c1-32)" ;; # pixels: the header holds a DateTime
-      *.json|*.txt|*.jsonl) echo "$rel $(strip_json < "$f" | md5sum | cut -c1-32)" ;;
+      # Pixels only: the header holds a DateTime, and --dumpdata's first line the path.
+      *.exr) echo "$rel $(oiiotool --dumpdata "$f" | tail -n +2 | md5sum | cut -c1-32)" ;;
+      *.json|*.txt|*.jsonl) echo "$rel $(strip_json < "$f" | sed "s|$WORK/||g" | md5sum | cut -c1-32)" ;;
+      *.sbatch|*.gp|*.sh) echo "$rel $(sed "s|$WORK/||g" "$f" | md5sum | cut -c1-32)" ;;
       *) echo "$rel $(md5sum < "$f" | cut -c1-32)" ;;
     esac
   done >> "$OUT"
