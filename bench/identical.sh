@@ -1,5 +1,5 @@
 #!/bin/sh
-# Restructuring guard (issue 13): runs a fixed set of small commands that cover every command and the main
+# Restructuring guard: runs a fixed set of small commands that cover every command and the main
 # options of transfer and synth, and records a fingerprint of everything they write: `vdbturb info --checksum`
 # for VDB files (grid values bit for bit, metadata apart), md5 for images and text, JSON lines with the timing
 # and path fields taken out. Run it before and after a change and compare the two records:
@@ -9,19 +9,23 @@
 #   diff before.txt after.txt                                   # empty: every output is bit-identical
 #
 # Paths under --work are recorded relative to it, so records made in different work directories compare, but
-# for pictures that draw a path (measure's metrics.png title): compare those from the same --work.
+# for pictures that draw a path (measure's metrics.png title): compare those from the same --work. When the
+# fingerprint itself changes, fingerprint both records with the same build: --fingerprint-with NEW_EXE.
 set -eu
 cd "$(dirname "$0")/.."
 WORK="${TMPDIR:-/tmp}/vdbturb-identical"
 BIN=build/tools/vdbturb
+CHECK=""
 while [ $# -gt 0 ]; do
   case "$1" in
     --work) WORK="$2"; shift 2 ;;
     --vdbturb) BIN="$2"; shift 2 ;;
+    --fingerprint-with) CHECK="$2"; shift 2 ;; # the vdbturb whose `info --checksum` fingerprints (default --vdbturb)
     *) break ;;
   esac
 done
-[ "${1:-}" = record ] && [ -n "${2:-}" ] || { echo "usage: $0 [--work DIR] [--vdbturb EXE] record OUT.txt" >&2; exit 2; }
+[ "${1:-}" = record ] && [ -n "${2:-}" ] || { echo "usage: $0 [--work DIR] [--vdbturb EXE] [--fingerprint-with EXE] record OUT.txt" >&2; exit 2; }
+CHECK="${CHECK:-$BIN}"
 OUT="$2"
 DATA=../shared/data
 mkdir -p "$WORK"
@@ -45,7 +49,7 @@ fingerprint() { # DIR: every file under it
   find "$1" -type f | LC_ALL=C sort | while read -r f; do
     rel="${f#"$WORK"/}"
     case "$f" in
-      *.vdb) echo "$rel"; "$BIN" info "$f" --checksum --headers-only 2>/dev/null | sed -n -e "s|$WORK/||g" -e '/active voxels/,$p' ;;
+      *.vdb) echo "$rel"; "$CHECK" info "$f" --checksum --headers-only 2>/dev/null | sed -n -e "s|$WORK/||g" -e '/active voxels/,$p' ;;
       *.stdout) ;; # kept, stripped, by step
       # Pixels only: the header holds a DateTime, and --dumpdata's first line the path.
       *.exr) echo "$rel $(oiiotool --dumpdata "$f" | tail -n +2 | md5sum | cut -c1-32)" ;;

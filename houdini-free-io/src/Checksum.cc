@@ -1,6 +1,7 @@
 // Grid fingerprints (turbio/Checksum.h): read through the guarded reader, hashed in the parent.
 #include <turbio/Checksum.h>
 
+#include "ActiveVoxels.h"
 #include "GuardedRead.h"
 
 #include <turb/Error.h>
@@ -46,22 +47,29 @@ void addValue(Fnv& f, const V& v)
     }
 }
 
+// splitmix64's finaliser: spreads a voxel's hash over all 64 bits before the voxels' hashes are summed.
+uint64_t mix(uint64_t h)
+{
+    h = (h ^ (h >> 30)) * 0xbf58476d1ce4e5b9ull;
+    h = (h ^ (h >> 27)) * 0x94d049bb133111ebull;
+    return h ^ (h >> 31);
+}
+
+// The sum of per-voxel hashes of (position, value): independent of the order voxels are visited in, so a tile
+// and the voxels it covers, or any other tree layout of the same values, hash the same.
 template<typename GridT>
-bool hashValues(const openvdb::GridBase& base, GridChecksum& out, Fnv& f)
+bool hashValues(const openvdb::GridBase& base, GridChecksum& out, uint64_t& sum)
 {
     const GridT* g = dynamic_cast<const GridT*>(&base);
     if (!g) return false;
-    // Tiles as voxels, so the same values in another tree layout hash the same. Value iteration visits
-    // nodes in index order, which is deterministic.
-    typename GridT::Ptr voxels = g->deepCopy();
-    voxels->tree().voxelizeActiveTiles();
-    for (auto it = voxels->cbeginValueOn(); it; ++it) {
-        const openvdb::Coord c = it.getCoord();
+    detail::forEachActiveVoxel(*g, [&](const openvdb::Coord& c, const typename GridT::ValueType& value) {
+        Fnv f;
         const int32_t xyz[3] = {c.x(), c.y(), c.z()};
         f.add(xyz, sizeof xyz);
-        addValue(f, *it);
+        addValue(f, value);
+        sum += mix(f.h);
         ++out.activeVoxels;
-    }
+    });
     return true;
 }
 
@@ -98,13 +106,16 @@ std::vector<GridChecksum> gridChecksums(const std::string& path)
         const openvdb::math::Mat4d m = g->transform().baseMap()->getAffineMap()->getMat4();
         v.add(m.asPointer(), 16 * sizeof(double));
         v.add(openvdb::GridBase::gridClassToString(g->getGridClass()));
-        const bool known = hashValues<openvdb::FloatGrid>(*g, c, v) || hashValues<openvdb::DoubleGrid>(*g, c, v) ||
-                           hashValues<openvdb::Int32Grid>(*g, c, v) || hashValues<openvdb::Int64Grid>(*g, c, v) ||
-                           hashValues<openvdb::BoolGrid>(*g, c, v) || hashValues<openvdb::Vec3SGrid>(*g, c, v) ||
-                           hashValues<openvdb::Vec3DGrid>(*g, c, v) || hashValues<openvdb::Vec3IGrid>(*g, c, v);
+        uint64_t sum = 0;
+        const bool known = hashValues<openvdb::FloatGrid>(*g, c, sum) || hashValues<openvdb::DoubleGrid>(*g, c, sum) ||
+                           hashValues<openvdb::Int32Grid>(*g, c, sum) || hashValues<openvdb::Int64Grid>(*g, c, sum) ||
+                           hashValues<openvdb::BoolGrid>(*g, c, sum) || hashValues<openvdb::Vec3SGrid>(*g, c, sum) ||
+                           hashValues<openvdb::Vec3DGrid>(*g, c, sum) || hashValues<openvdb::Vec3IGrid>(*g, c, sum);
         if (!known)
             throw turb::IoError(path + ": grid '" + c.name + "' has value type " + c.valueType +
                                 ", which vdbturb cannot fingerprint");
+        v.add(&sum, sizeof sum);
+        v.add(&c.activeVoxels, sizeof c.activeVoxels);
         c.values = v.h;
         std::vector<std::pair<std::string, std::string>> meta;
         for (auto it = g->beginMeta(); it != g->endMeta(); ++it)

@@ -1,6 +1,8 @@
 // turbio::OtherGrids' down-sampling and quarter turns, on sparse OpenVDB grids of any value type.
 #include "OtherGrids.h"
 
+#include "ActiveVoxels.h"
+
 #include <turb/Error.h>
 
 #include <openvdb/tools/ValueTransformer.h>
@@ -21,15 +23,6 @@ Coord blockOf(const Coord& c, const turb::Coord& f)
     return Coord(turb::floorDiv(c.x(), f.x()), turb::floorDiv(c.y(), f.y()), turb::floorDiv(c.z(), f.z()));
 }
 
-// A copy with active tiles as voxels, so iterating visits every active voxel once.
-template<typename GridT>
-typename GridT::Ptr voxelized(const GridT& in)
-{
-    typename GridT::Ptr v = in.deepCopy();
-    v->tree().voxelizeActiveTiles();
-    return v;
-}
-
 // The mean over each block, inactive voxels counting as the background: a sum and a count per coarse voxel.
 template<typename GridT>
 openvdb::GridBase::Ptr blockMean(const GridT& in, const turb::Coord& f)
@@ -41,12 +34,12 @@ openvdb::GridBase::Ptr blockMean(const GridT& in, const turb::Coord& f)
     {
         auto sumAcc = sum->getAccessor();
         auto countAcc = count->getAccessor();
-        const typename GridT::Ptr voxels = voxelized(in);
-        for (auto it = voxels->cbeginValueOn(); it; ++it) {
-            const Coord b = blockOf(it.getCoord(), f);
-            sumAcc.setValue(b, sumAcc.getValue(b) + *it);
+        // Summed in visiting order: tiles come whole, which can move a block's sum by an ulp against voxels.
+        turbio::detail::forEachActiveVoxel(in, [&](const Coord& c, const V& value) {
+            const Coord b = blockOf(c, f);
+            sumAcc.setValue(b, sumAcc.getValue(b) + value);
             countAcc.setValue(b, countAcc.getValue(b) + 1);
-        }
+        });
     }
     const double n = double(f.x()) * f.y() * f.z();
     auto out = GridT::create(background);
@@ -67,9 +60,8 @@ openvdb::GridBase::Ptr blockCentre(const GridT& in, const turb::Coord& f)
     auto out = GridT::create(in.background());
     auto outAcc = out->getAccessor();
     auto inAcc = in.getConstAccessor();
-    const typename GridT::Ptr voxels = voxelized(in);
-    for (auto it = voxels->cbeginValueOn(); it; ++it) {
-        const Coord b = blockOf(it.getCoord(), f);
+    turbio::detail::forEachActiveVoxel(in, [&](const Coord& voxel, const typename GridT::ValueType&) {
+        const Coord b = blockOf(voxel, f);
         const Coord c(b.x() * f.x() + f.x() / 2, b.y() * f.y() + f.y() / 2, b.z() * f.z() + f.z() / 2);
         typename GridT::ValueType v;
         if (inAcc.probeValue(c, v)) {
@@ -92,7 +84,7 @@ openvdb::GridBase::Ptr blockCentre(const GridT& in, const turb::Coord& f)
                         }
                     }
         }
-    }
+    });
     return out;
 }
 
@@ -121,14 +113,12 @@ openvdb::GridBase::Ptr rotatedGrid(const GridT& in, const turb::AxisRotation& r)
     const bool rotateValues = name != "cd" && name.find("color") == std::string::npos && name.find("colour") == std::string::npos;
     auto out = GridT::create(turned(in.background(), r, rotateValues));
     auto outAcc = out->getAccessor();
-    const typename GridT::Ptr voxels = voxelized(in);
-    for (auto it = voxels->cbeginValueOn(); it; ++it) {
+    turbio::detail::forEachActiveVoxel(in, [&](const Coord& o, const typename GridT::ValueType& value) {
         // As turb::rotated: output voxel c takes input voxel o with o[perm[i]] = sign[i] c[i].
-        const Coord o = it.getCoord();
         Coord c;
         for (int i = 0; i < 3; ++i) c[i] = r.sign[size_t(i)] * o[r.perm[size_t(i)]];
-        outAcc.setValue(c, turned(*it, r, rotateValues));
-    }
+        outAcc.setValue(c, turned(value, r, rotateValues));
+    });
     return out;
 }
 
