@@ -5,7 +5,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <functional>
 #include <string>
@@ -61,6 +64,21 @@ inline turb::Frame makeFrame(int number, const turb::CoordBBox& box, const turb:
         f.density.data()[n] = den(c);
     }
     return f;
+}
+
+/// Largest |value| of a scalar field (0 for an empty one).
+inline double maxAbs(const turb::ScalarField& f)
+{
+    double m = 0;
+    for (float v : f.values()) m = std::max(m, double(std::abs(v)));
+    return m;
+}
+
+/// Same box and the same bytes: results that must not depend on the thread count.
+template<typename T>
+bool bitIdentical(const turb::Field<T>& a, const turb::Field<T>& b)
+{
+    return a.bbox() == b.bbox() && a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0;
 }
 
 } // namespace testutil

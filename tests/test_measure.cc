@@ -1,5 +1,5 @@
-// vdbturb measure: the quality metrics against analytic answers, the spectrum, the plots, and the
-// Blender plume pair as regression facts.
+// vdbturb measure (Measure.cc): the quality and density metrics against analytic answers, and the Blender plume pair
+// as regression facts. The spectrum and the structure metrics have their own files.
 #include "TestUtil.h"
 
 #include <turb/Error.h>
@@ -7,7 +7,6 @@
 #include <turb/Metadata.h>
 #include <turb/Parallel.h>
 #include <turb/Resample.h>
-#include <turb/Spectrum.h>
 #include <turbio/ImageIO.h>
 #include <turbio/Sequence.h>
 #include <turbio/Vdb.h>
@@ -494,67 +493,6 @@ TEST(Measure, SourceCoherenceCarriesItsDetailWithItsOwnLowBand)
 }
 
 // ---------------------------------------------------------------------------------------------
-// Spectrum
-
-TEST(Spectrum, SingleFourierModePeaksAtItsWavenumber)
-{
-    const double h = 0.1;
-    // A non-cubic box: 32 x 24 x 20 voxels, padded to 32^3, so dk = 2 pi / 3.2.
-    const CoordBBox box({0, 0, 0}, {31, 23, 19});
-    const auto modeField = [&](int axis, int periods, int extent) {
-        VectorField u(box, Lattice{h, {0.0, 0.0, 0.0}});
-        for (size_t n = 0; n < u.size(); ++n) {
-            const Coord c = u.coordOf(n);
-            const double phase = 2.0 * M_PI * periods * (c[axis] + 0.5) / extent + 0.3;
-            u.data()[n] = Vec3f(0.0f, float(std::sin(phase)), 0.5f); // a mean flow too: removed first
-        }
-        return u;
-    };
-    const auto peak = [](const Spectrum& s) {
-        return size_t(std::max_element(s.energy.begin(), s.energy.end()) - s.energy.begin());
-    };
-    const Spectrum sx = energySpectrum(modeField(0, 5, 32), box);
-    EXPECT_EQ(sx.fftSide, 32);
-    EXPECT_NEAR(sx.dk, 2.0 * M_PI / 3.2, 1e-12);
-    EXPECT_NEAR(sx.k[peak(sx)], 5 * sx.dk, 1e-9);
-    // 5 periods over the 20-voxel z extent: k = 2 pi 5 / 2.0 = 8 dk.
-    const Spectrum sz = energySpectrum(modeField(2, 5, 20), box);
-    EXPECT_NEAR(sz.k[peak(sz)], 2.0 * M_PI * 5 / 2.0, 1e-9);
-    // Energy: 1/2 mean sin^2 = 1/4, the window's loss divided out.
-    EXPECT_NEAR(sx.meanEnergy, 0.25, 0.01);
-}
-
-TEST(Spectrum, ParsevalOnAPeriodicBandLimitedField)
-{
-    const int n = 24;
-    const double h = 0.05;
-    const CoordBBox box({0, 0, 0}, {n - 1, n - 1, n - 1});
-    VectorField u(box, Lattice{h, {0.0, 0.0, 0.0}});
-    double e = 0.0;
-    for (size_t q = 0; q < u.size(); ++q) {
-        const Vec3d x = u.coordOf(q).asVec3d() * (2.0 * M_PI / n);
-        // Modes (3,4,0), (0,0,4), (0,7,-5): shells 5, 4 and 9.
-        u.data()[q] = Vec3f(float(std::sin(3 * x.x() + 4 * x.y())), float(0.5 * std::cos(4 * x.z())),
-            float(0.2 * std::sin(7 * x.y() - 5 * x.z())));
-        e += 0.5 * double(u.data()[q].lengthSqr());
-    }
-    e /= double(u.size());
-    SpectrumSettings s;
-    s.window = SpectrumSettings::Window::None;
-    const Spectrum sp = energySpectrum(u, box, s);
-    double sum = 0.0;
-    for (double v : sp.energy) sum += v * sp.dk;
-    EXPECT_NEAR(sp.meanEnergy, e, 1e-5 * e);
-    EXPECT_NEAR(sum, e, 1e-4 * e); // every mode lies inside the Nyquist sphere
-    // Shell 4 holds the y component's 1/2 * 0.5^2 / 2, shell 5 the x component's 1/2 * 1/2.
-    EXPECT_NEAR(sp.energy[3] * sp.dk, 0.0625, 1e-5);
-    EXPECT_NEAR(sp.energy[4] * sp.dk, 0.25, 1e-5);
-    EXPECT_NEAR(sp.energy[2] * sp.dk, 0.0, 1e-6);
-    EXPECT_EQ(fftFriendlySize(97), 98);
-    EXPECT_EQ(fftFriendlySize(121), 125);
-}
-
-// ---------------------------------------------------------------------------------------------
 // Determinism, figures
 
 TEST(Measure, IdenticalAtOneAndTwoThreads)
@@ -633,79 +571,6 @@ TEST(MeasureRealCaches, BlenderPlumePairReproducesQualityFacts)
 }
 
 // ---------------------------------------------------------------------------------------------
-// Structure: anisotropy along the flow and the style distance
-
-namespace {
-
-// Smooth isotropic noise: a sum of random plane waves with wavelengths between 3 and 6 voxels, sampled at
-// (x, y, z / zStretch): zStretch > 1 stretches every structure along z.
-VectorField planeWaveNoise(const CoordBBox& box, unsigned seed, double zStretch)
-{
-    std::mt19937 rng(seed);
-    std::uniform_real_distribution<double> u(-1.0, 1.0), len(3.0, 6.0), ph(0.0, 6.2831853);
-    struct Wave
-    {
-        Vec3d k, a;
-        double phase;
-    };
-    std::vector<Wave> waves;
-    for (int i = 0; i < 60; ++i) {
-        Vec3d dir(u(rng), u(rng), u(rng));
-        dir.normalize();
-        waves.push_back({dir * (6.2831853 / len(rng)), Vec3d(u(rng), u(rng), u(rng)), ph(rng)});
-    }
-    VectorField f(box, Lattice{});
-    for (size_t n = 0; n < f.size(); ++n) {
-        const Coord c = f.coordOf(n);
-        const Vec3d x(c.x(), c.y(), c.z() / zStretch);
-        Vec3d v(0.0);
-        for (const Wave& w : waves) v += w.a * std::sin(w.k.dot(x) + w.phase);
-        f.data()[n] = Vec3f(float(v.x()), float(v.y()), float(v.z()));
-    }
-    return f;
-}
-
-} // namespace
-
-TEST(MeasureStructure, IsotropicNoiseIsNearOneAndStretchedNoiseFarBelow)
-{
-    const CoordBBox box({0, 0, 0}, {47, 47, 47});
-    const std::vector<unsigned char> all(size_t(48 * 48 * 48), 1);
-    const Vec3d up(0.0, 0.0, 1.0), side(1.0, 0.0, 0.0);
-    const VectorField iso = planeWaveNoise(box, 3, 1.0), streaks = planeWaveNoise(box, 3, 4.0);
-    const auto aIso = detailAnisotropy(iso, all, 4, up), aSide = detailAnisotropy(iso, all, 4, side);
-    const auto aStreaks = detailAnisotropy(streaks, all, 4, up);
-    ASSERT_TRUE(aIso && aSide && aStreaks);
-    EXPECT_NEAR(*aIso, 1.0, 0.2);
-    EXPECT_NEAR(*aSide, 1.0, 0.2);
-    EXPECT_LT(*aStreaks, 0.25) << "4x stretch along the flow";
-    // Across the stretch the structure is squashed relative to the rest: above 1 when looking along x.
-    EXPECT_GT(*detailAnisotropy(streaks, all, 4, side), 1.0);
-    EXPECT_FALSE(detailAnisotropy(iso, all, 4, Vec3d(0.0)));
-}
-
-TEST(MeasureStructure, IsotropyIsHighForNoiseAndLowForStreaksAlongAnyAxis)
-{
-    const CoordBBox box({0, 0, 0}, {47, 47, 47});
-    const std::vector<unsigned char> all(size_t(48 * 48 * 48), 1);
-    const VectorField iso = planeWaveNoise(box, 5, 1.0), alongZ = planeWaveNoise(box, 5, 4.0);
-    // The same streaks turned to run along x: a direction-free measure must see them too.
-    VectorField alongX(box, Lattice{});
-    for (size_t n = 0; n < alongX.size(); ++n) {
-        const Coord c = alongX.coordOf(n);
-        const Vec3f v = alongZ(c.z(), c.y(), c.x());
-        alongX.data()[n] = Vec3f(v.z(), v.y(), v.x());
-    }
-    const auto a = detailIsotropy(iso, all, 4), b = detailIsotropy(alongZ, all, 4), c = detailIsotropy(alongX, all, 4);
-    ASSERT_TRUE(a && b && c);
-    EXPECT_GT(*a, 0.4);
-    EXPECT_LT(*b, 0.5 * *a);
-    EXPECT_NEAR(*c, *b, 0.02);
-    // Tiles need half their voxels in the mask.
-    EXPECT_FALSE(detailIsotropy(iso, std::vector<unsigned char>(all.size(), 0), 4));
-}
-
-// ---------------------------------------------------------------------------------------------
 // air_detail: detail that leaks into still air
 
 TEST(Measure, AirDetailSeesDetailFarFromTheSmokeOnly)
@@ -741,4 +606,60 @@ TEST(Measure, AirDetailSeesDetailFarFromTheSmokeOnly)
     in.target = &full;
     in.output = &everywhere;
     EXPECT_FALSE(measureFrame(in).airDetail);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Density measures
+
+TEST(MeasureDensity, ImprintIsOneWithoutCellsAndLargeForCellSteps)
+{
+    // A trilinear up(coarse) has its kinks at the cell centres: no imprint. The same field replicated per cell (plus
+    // a fine pattern, so the pairs inside cells differ too) jumps only at the cell faces.
+    const int f = 4;
+    const Lattice lat{0.5, {0.0, 0.0, 0.0}};
+    // Smoke that fades out before the box's faces (where the up-sampling holds values constant).
+    ScalarField coarse(CoordBBox({0, 0, 0}, {11, 11, 11}), lat);
+    for (size_t n = 0; n < coarse.size(); ++n) {
+        const Vec3d p = coarse.coordOf(n).asVec3d();
+        const double fade = std::max(0.0, 1.0 - (p - Vec3d(5.5)).length() / 4.5);
+        coarse.data()[n] = float(fade * (0.6 + 0.3 * std::sin(0.9 * p.x() + 0.4 * p.y()) * std::cos(0.7 * p.z())));
+    }
+    const ScalarField smooth = upsample(coarse, f);
+    const std::optional<double> a = densityImprint(smooth, f, 0.01f);
+    ASSERT_TRUE(a);
+    EXPECT_NEAR(*a, 1.0, 0.15);
+    ScalarField blocky(smooth.bbox(), smooth.lattice());
+    for (size_t n = 0; n < blocky.size(); ++n) {
+        const Coord c = blocky.coordOf(n);
+        blocky.data()[n] = coarse(c.x() / f, c.y() / f, c.z() / f) * (1.0f + 0.01f * float(std::sin(2.0 * c.x() + c.y())));
+    }
+    const std::optional<double> b = densityImprint(blocky, f, 0.01f);
+    ASSERT_TRUE(b);
+    EXPECT_GT(*b, 3.0);
+    EXPECT_FALSE(densityImprint(smooth, 1, 0.01f)) << "no coarse cells at ratio 1";
+}
+
+TEST(MeasureDensity, MassPeakAndCoarseErrorOfKnownFields)
+{
+    // Output = the target up-sampled by replication, scaled by 1.2 in one half: every number is known.
+    const Lattice lat{0.5, {0.0, 0.0, 0.0}};
+    ScalarField t(CoordBBox({0, 0, 0}, {3, 3, 3}), lat);
+    for (size_t n = 0; n < t.size(); ++n) t.data()[n] = 0.5f;
+    const int f = 2;
+    ScalarField o(refineBox(t.bbox(), f), lat.refined(f));
+    for (size_t n = 0; n < o.size(); ++n) o.data()[n] = o.coordOf(n).x() < 4 ? 0.6f : 0.5f;
+    const DensityMeasures m = densityMeasures(o, o, t, f, 0.01f);
+    ASSERT_TRUE(m.massRatio && m.peak && m.peakRatio && m.coarseErr);
+    EXPECT_NEAR(*m.massRatio, 1.1, 1e-6);
+    EXPECT_NEAR(*m.peak, 0.6, 1e-6);
+    EXPECT_NEAR(*m.peakRatio, 1.2, 1e-6);
+    // Half the cells are off by 0.1 against 0.5: rms error sqrt(0.5 * 0.01) / 0.5.
+    EXPECT_NEAR(*m.coarseErr, std::sqrt(0.005) / 0.5, 1e-6);
+    EXPECT_NEAR(coarseDensityError(o, t, f, 0.01f), *m.coarseErr, 1e-12);
+    // Cells outside the target's smoke do not count.
+    ScalarField t2 = t;
+    for (size_t n = 0; n < t2.size(); ++n)
+        if (t2.coordOf(n).x() < 2) t2.data()[n] = 0.0f;
+    EXPECT_NEAR(coarseDensityError(o, t2, f, 0.01f), 0.0, 1e-6);
+    EXPECT_THROW(densityMeasures(o, t, t, f, 0.01f), ValueError);
 }

@@ -1,4 +1,5 @@
-// The built-in smoke solver: analytic checks (the pressure projection's own tests are in test_projection.cc).
+// The built-in smoke solver (scenes/Smoke.h): analytic checks, and every frame's pressure solve converging within a
+// stated number of iterations (the projection's own tests are in test_projection.cc).
 #include "TestUtil.h"
 
 #include <turb/Error.h>
@@ -10,31 +11,10 @@
 #include <scenes/Smoke.h>
 
 #include <cmath>
-#include <cstring>
-#include <random>
 
 using namespace turb;
-
-namespace {
-
-double maxAbs(const ScalarField& f)
-{
-    double m = 0;
-    for (float v : f.values()) m = std::max(m, double(std::abs(v)));
-    return m;
-}
-
-template<typename T>
-bool bitIdentical(const Field<T>& a, const Field<T>& b)
-{
-    return a.bbox() == b.bbox() && a.size() == b.size() &&
-           std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0;
-}
-
-} // namespace
-
-// ---------------------------------------------------------------------------------------------
-// The smoke solver
+using testutil::bitIdentical;
+using testutil::maxAbs;
 
 namespace {
 
@@ -80,6 +60,20 @@ Moments moments(const SmokeSim& sim, const ScalarField& d)
     return m;
 }
 
+// A frame's pressure solves as the solver reports them: all converged, the worst residual within the scene's
+// tolerance, and fewer than `perSubstep` conjugate-gradient iterations per substep. The bounds are about twice the
+// most measured on each test's scene (given beside it), so a slower solve is caught before it reaches the cap.
+::testing::AssertionResult solved(const FrameStats& st, const SmokeSettings& s, int perSubstep)
+{
+    if (!st.converged) return ::testing::AssertionFailure() << "a projection did not converge";
+    if (!(st.relativeResidual <= s.pressureTolerance))
+        return ::testing::AssertionFailure() << "relative residual " << st.relativeResidual << " above " << s.pressureTolerance;
+    if (st.pressureIterations >= perSubstep * st.substeps)
+        return ::testing::AssertionFailure() << st.pressureIterations << " iterations over " << st.substeps
+                                             << " substeps, bound " << perSubstep << " per substep";
+    return ::testing::AssertionSuccess();
+}
+
 bool sameFrames(const Frame& a, const Frame& b)
 {
     return bitIdentical(a.velocity, b.velocity) && bitIdentical(a.density, b.density) &&
@@ -96,7 +90,10 @@ TEST(Smoke, BuoyancyMovesSmokeUp)
     addBlob(sim, c0, 0.15);
     const Moments before = moments(sim, sim.density());
     FrameStats st;
-    for (int f = 0; f < 8; ++f) st = sim.advanceFrame();
+    for (int f = 0; f < 8; ++f) {
+        st = sim.advanceFrame();
+        EXPECT_TRUE(solved(st, s, 40)) << "frame " << f; // measured 9-17
+    }
     const Moments after = moments(sim, sim.density());
     const double h = sim.lattice().voxelSize;
     // Up, and the symmetric blob does not drift sideways. A buoyant ball with added mass 1/2 rises
@@ -120,6 +117,7 @@ TEST(Smoke, ProjectedVelocityIsDivergenceFreeEveryFrame)
     SmokeSim sim(sceneSettings("obstacle", Coord(16, 16, 24), 2));
     for (int f = 0; f < 12; ++f) {
         const FrameStats st = sim.advanceFrame();
+        ASSERT_TRUE(solved(st, sim.settings(), 40)) << f; // measured 9-16
         ASSERT_TRUE(st.converged) << f;
         ASSERT_LE(st.relativeResidual, 1e-4) << f;
         ASSERT_LE(st.relativeDivergence, 1e-4) << f;
@@ -134,7 +132,7 @@ TEST(Smoke, ProjectedVelocityIsDivergenceFreeEveryFrame)
 TEST(Smoke, ObstacleHoldsNoSmokeAndNoFlowThroughIt)
 {
     SmokeSim sim(sceneSettings("obstacle", Coord(16, 16, 24), 3));
-    for (int f = 0; f < 30; ++f) sim.advanceFrame();
+    for (int f = 0; f < 30; ++f) ASSERT_TRUE(solved(sim.advanceFrame(), sim.settings(), 40)) << f; // measured 10-16
     const MaskField& solid = sim.solid();
     int cells = 0;
     for (size_t q = 0; q < solid.size(); ++q) {
@@ -181,6 +179,8 @@ TEST(Smoke, MassInAClosedBoxIsConservedWithinTheAdvectionLoss)
                 w += rho;
             }
             const FrameStats st = sim.advanceFrame();
+            // All six walls closed: the pure-Neumann solve takes the most iterations here (measured 12-29).
+            EXPECT_TRUE(solved(st, s, 60)) << int(scheme) << " frame " << f;
             const double dt = s.frameDt / st.substeps;
             bound += st.substeps * dt * dt * 0.5 * g2 / w;
         }
@@ -198,7 +198,7 @@ TEST(Smoke, SameSeedGivesIdenticalFramesAtAnyThreadCount)
         SmokeSettings s = sceneSettings("swirl", Coord(16, 16, 24), seed);
         s.threads = threads;
         SmokeSim sim(s);
-        for (int f = 0; f < 6; ++f) sim.advanceFrame();
+        for (int f = 0; f < 6; ++f) EXPECT_TRUE(solved(sim.advanceFrame(), s, 40)) << f; // measured 12-15
         return sim.frame();
     };
     const Frame a = run(7, 1), b = run(7, 2), c = run(7, 2), d = run(8, 2);
@@ -232,7 +232,10 @@ TEST(Smoke, EveryScenePutsSmokeAboveItsEmitter)
     for (const auto& info : sceneList()) {
         SmokeSim sim(sceneSettings(info.name, info.pairLow, 1));
         FrameStats st;
-        for (int f = 0; f < 10; ++f) st = sim.advanceFrame();
+        for (int f = 0; f < 10; ++f) {
+            st = sim.advanceFrame();
+            EXPECT_TRUE(solved(st, sim.settings(), 40)) << info.name << " frame " << f; // measured 11-16
+        }
         const Moments m = moments(sim, sim.density());
         double emitterZ = 0;
         for (const auto& e : sim.settings().emitters) emitterZ += e.shape.centre.z() / sim.settings().emitters.size();
@@ -256,7 +259,7 @@ TEST(Smoke, RejectsBadSettings)
 
 TEST(Smoke, TwoDScenesRunInOneLayerWithYUpAndNoZVelocity)
 {
-    // Issue 14: `sim plume --res 24x32x1` is a 2D simulation in the x-y plane, written one voxel thick.
+    // `sim plume --res 24x32x1` is a 2D simulation in the x-y plane, written one voxel thick.
     for (const char* scene : {"plume", "swirl"}) {
         SmokeSim sim(sceneSettings(scene, Coord(24, 32, 1), 1));
         ASSERT_TRUE(sim.twoD());
@@ -264,6 +267,7 @@ TEST(Smoke, TwoDScenesRunInOneLayerWithYUpAndNoZVelocity)
         FrameStats st;
         for (int f = 0; f < 10; ++f) {
             st = sim.advanceFrame();
+            ASSERT_TRUE(solved(st, sim.settings(), 50)) << scene << " frame " << f; // measured 15-21
             ASSERT_TRUE(st.converged) << scene << " frame " << f;
             ASSERT_LE(st.relativeDivergence, 1e-4) << scene << " frame " << f;
         }
@@ -297,7 +301,7 @@ TEST(Smoke, TwoDSameSeedGivesIdenticalFramesAtAnyThreadCount)
         SmokeSettings s = sceneSettings("swirl", Coord(24, 32, 1), 3);
         s.threads = threads;
         SmokeSim sim(s);
-        for (int f = 0; f < 4; ++f) sim.advanceFrame();
+        for (int f = 0; f < 4; ++f) EXPECT_TRUE(solved(sim.advanceFrame(), s, 50)) << f; // measured 19-20
         (threads == 1 ? a : b) = sim.frame();
     }
     EXPECT_TRUE(bitIdentical(a.velocity, b.velocity));
