@@ -112,7 +112,7 @@ TEST(Cli, TransferWritesResumesAndNeverClobbers)
     const std::string ref = dir / "ref/turb.####.vdb";
     const CmdResult whole3 = run("transfer --target " + lo() + " --source " + hi() + " --out " + ref + " --frames 1-3 -q --json");
     ASSERT_EQ(whole3.code, 0) << whole3.out;
-    // Issue 20, item 1 on a real Blender pair: the density keeps the target's mass, peak and coarse means, and its
+    // On a real Blender pair: the density keeps the target's mass, peak and coarse means, and its
     // edge shows no coarse cells (the per-cell density guide drew them into the silhouette: density_imprint 2.1 on these frames, now 0.88-1.03).
     const CmdResult m = run("measure --output " + ref + " --target " + lo() + " --source " + hi() + " --no-spectra --json");
     ASSERT_EQ(m.code, 0) << m.out;
@@ -178,7 +178,7 @@ TEST(Cli, TransferWritesResumesAndNeverClobbers)
 
 TEST(Cli, TrimmedHalfFramesResumeExactlyFromTheStateKeptBesideThem)
 {
-    // Issue 20, item 5: frames written small (velocity near the smoke, temperature and flame at it, half floats, density
+    // Frames written small (velocity near the smoke, temperature and flame at it, half floats, density
     // clipped) still resume bit-identically, from the full-precision state of the last frame kept beside them.
     testutil::TempDir dir;
     const std::string base = "transfer --target " + lo() + " --source " + hi() + " --velocity-margin 1 --half --clipping 1e-3";
@@ -241,7 +241,7 @@ TEST(Cli, TrimmedHalfFramesResumeExactlyFromTheStateKeptBesideThem)
 
 TEST(Cli, PrerollMatchesALongerRunAndResumeRefusesOtherSettings)
 {
-    // Issue 20, item 4. A run asked for frame 2 starts its detail fresh there: it says so, and --preroll 1 runs
+    // A run asked for frame 2 starts its detail fresh there: it says so, and --preroll 1 runs
     // frame 1 first without writing it, which gives exactly the frame of a run over 1-2.
     testutil::TempDir dir;
     const std::string base = "transfer --target " + lo() + " --source " + hi();
@@ -279,7 +279,7 @@ TEST(Cli, PrerollMatchesALongerRunAndResumeRefusesOtherSettings)
 
 TEST(Cli, PreviewFramesASequenceWithOneCamera)
 {
-    // Issue 20, item 5: smoke that grows over a sequence, written sparse (as vdbturb and Houdini write it). Every
+    // Smoke that grows over a sequence, written sparse (as vdbturb and Houdini write it). Every
     // frame is drawn over the union of the frames' domains: the pictures keep one size and the smoke stays put.
     testutil::TempDir dir;
     const turb::Lattice lat{0.1, {0.0, 0.0, 0.0}};
@@ -732,7 +732,7 @@ TEST(Cli, FluidymationRefusesBadInputBeforeWritingAnything)
 
 TEST(Cli, SynthProjectionThatStopsShortWarnsNamingTheFrameAndFailsUnderStrict)
 {
-    // Issue 14 item 2: a projection that does not converge is a warning naming the frame (-v: the solver's numbers),
+    // A projection that does not converge is a warning naming the frame (-v: the solver's numbers),
     // and exit 1 under --strict. One CG iteration cannot converge; the default cap does, walls included.
     testutil::TempDir dir;
     const std::string base = "synth --flow vortex --flow-res 16x16x1 --factor 2 --walls x-,x+,y-,y+ --project --frames 2 --out '" +
@@ -752,7 +752,7 @@ TEST(Cli, SynthProjectionThatStopsShortWarnsNamingTheFrameAndFailsUnderStrict)
 
 TEST(Cli, TwoDCachesThroughSimTransferMeasureAndPreview)
 {
-    // Issue 14: the 2D path end to end through the commands: one-z-layer sims, a transfer, its measures and a
+    // The 2D path end to end through the commands: one-z-layer sims, a transfer, its measures and a
     // picture sheet (small: a 12x16 plume and a 48x64 swirl, ratio 4).
     testutil::TempDir dir;
     const std::string d = dir.path();
@@ -793,7 +793,7 @@ TEST(Cli, TwoDCachesThroughSimTransferMeasureAndPreview)
 
 TEST(Cli, SettingsFilesGiveEveryOptionAndTheCommandLineWins)
 {
-    // Issue 13's second tier: every knob from a file CLI11 reads as TOML, printed by the command itself.
+    // The second tier: every knob from a file CLI11 reads as TOML, printed by the command itself.
     testutil::TempDir dir;
     const CmdResult printed = run("sim plume --print-settings");
     ASSERT_EQ(printed.code, 0) << printed.out;

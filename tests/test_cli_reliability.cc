@@ -318,7 +318,7 @@ TEST(CliReliability, ResolutionsAreCellsAlongXYZForEveryOption)
 
 TEST(CliReliability, SynthDetailStaysNearTheSmoke)
 {
-    // Issue 20 item 7: synth's detail fills still air only with --detail-everywhere (the paper). measure's
+    // Synth's detail fills still air only with --detail-everywhere (the paper). measure's
     // air_detail (detail rms more than 4 coarse cells from the smoke over its rms in the smoke; whole boxes read).
     testutil::TempDir dir;
     ASSERT_EQ(run("sim plume --res 16x16x24 --frames 3 --out '" + dir / "t/p.####.vdb' -q").code, 0);
@@ -365,7 +365,7 @@ TEST(CliReliability, SynthRefusesNonsenseOrientationAndMarginsAndSaysWhatItSkips
 
 TEST(CliReliability, ResampleCarriesTheOtherGridsUnlessAskedNotTo)
 {
-    // Issue 16: the 20 grids of a Blender cache that are not density, velocity, temperature or flame were dropped.
+    // The 20 grids of a Blender cache that are not density, velocity, temperature or flame were dropped.
     testutil::TempDir dir;
     const std::string in = testutil::dataPath("blender-c42/fluid_data_0001.vdb");
     const auto gridCount = [](const std::string& path) { return turbio::inspectFile(path, false).grids.size(); };

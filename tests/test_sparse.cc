@@ -1,4 +1,4 @@
-// Issue 16: cost follows the smoke, not the bounding box. Caches are written with OpenVDB directly (sparse
+// Cost follows the smoke, not the bounding box. Caches are written with OpenVDB directly (sparse
 // trees, tiles for large velocity boxes), read through turbio and transferred, so the crop is what is tested.
 #include "TestUtil.h"
 

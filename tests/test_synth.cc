@@ -552,7 +552,7 @@ TEST(Combine, OmegaConstantRelativeAndEnergyWeighted)
 
 TEST(Combine, TheDetailsCoarsePartIsTakenOutByDefault)
 {
-    // Issue 12: the detail must not change L's coarse motion. A constant detail is all coarse part and goes
+    // The detail must not change L's coarse motion. A constant detail is all coarse part and goes
     // entirely; one alternating voxel by voxel has zero cell means and stays; a smooth one (a wavelength of two
     // coarse cells) loses most of its cell means.
     const VectorField L = analyticFlow(AnalyticFlowSettings{AnalyticFlowSettings::Kind::Shear, Coord(8, 8, 1), 1.0, 2.0, 0.0});
@@ -672,7 +672,7 @@ std::vector<double> faceBandVorticity(const VectorField& h, int band, int inner)
 
 TEST(Synth, FacesLookLikeTheInterior)
 {
-    // Issue 20: straight lines along the box faces. A face voxel is covered by fewer neighbourhoods than an
+    // Straight lines along the box faces. A face voxel is covered by fewer neighbourhoods than an
     // interior one, so its average cancels less. Synthesising a margin around the box and cutting it off gives
     // the face bands the interior's vorticity; without it, some face band is off by more than 25%.
     const Exemplar ex = procedural(ProceduralPattern::Swirls, 64, 16);
@@ -763,7 +763,7 @@ TEST(Combine, DetailStaysNearTheSmokeWhenGivenItsDensity)
 
 TEST(Synth, ThreeDFramesDoNotFlipAcrossAVortex)
 {
-    // Issue 14 item 3: with a fixed secondary axis (+y), the local frame turns 180 degrees where a vortex in the
+    // With a fixed secondary axis (+y), the local frame turns 180 degrees where a vortex in the
     // xy plane crosses y = centre, so circles turning one way in the exemplar turn the other way on one side: the
     // skewness of curl_z changes sign across the plane. The secondary n x e1, with n the direction L has least of
     // (here z), keeps the frame continuous, and the sense of rotation the same on both sides.
@@ -809,7 +809,7 @@ TEST(Synth, ThreeDFramesDoNotFlipAcrossAVortex)
 
 TEST(Synth, EachThreeDIterationDescendsOnItsOwnCentres)
 {
-    // Issue 14 item 3: the reported 3D energy is not monotone across iterations. Measured with traceDescent: on
+    // The reported 3D energy is not monotone across iterations. Measured with traceDescent: on
     // its own centres and matches every iteration lowers Kwatra's objective (the weighted average, the M-step,
     // always; the moment match gives part of it back); the next iteration jitters the centres to new positions,
     // whose neighbourhoods start higher. This holds that every iteration descends on its own centres.

@@ -260,7 +260,7 @@ TEST(RoundTrip, BlenderStyleWritesStaggeredCellsAndReadsBack)
 
 TEST(RoundTrip, BlenderStyleGivesBackTheCentredVelocityWithItsFinestDetail)
 {
-    // Issue 20, item 5: a Blender-style output read back gives the default output's velocity, also where the field
+    // A Blender-style output read back gives the default output's velocity, also where the field
     // varies from voxel to voxel (a checkerboard plus noise: the octave plain face averaging would blur away),
     // to float precision, and with 16-bit storage to half precision.
     testutil::TempDir dir;
@@ -301,7 +301,7 @@ TEST(RoundTrip, BlenderStyleGivesBackTheCentredVelocityWithItsFinestDetail)
 
 TEST(RoundTrip, BlenderStyleUpResSitsWhereBlendersOwnCacheOfTheDomainDoes)
 {
-    // Issue 20, item 5: a 4x up-res of Blender's 32^3 domain (voxel 0.125, translation 0) written Blender-style has
+    // A 4x up-res of Blender's 32^3 domain (voxel 0.125, translation 0) written Blender-style has
     // translation 0, as Blender's own 128^3 cache of the domain has, not the refined lattice's -0.046875. vdbturb
     // reads it back on the lattice it was written from (info and readFrame alike).
     testutil::TempDir dir;
@@ -654,7 +654,7 @@ openvdb::GridBase::Ptr readGridFrom(const std::string& path, const std::string& 
 
 TEST(OtherGrids, ResampleCarriesEveryGridOfABlenderCacheWithTheFrame)
 {
-    // Issue 16: resample wrote density, velocity, temperature and flame and silently dropped the other 20 grids of
+    // Resample wrote density, velocity, temperature and flame and silently dropped the other 20 grids of
     // a Blender cache (flags, level sets, colour, shadow, previous velocity, inflow fields).
     ASSERT_TRUE(testutil::haveData()) << "expected the real caches at " << testutil::dataDir();
     const std::string in = testutil::dataPath("blender-c42/fluid_data_0001.vdb");
