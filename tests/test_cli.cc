@@ -837,3 +837,30 @@ TEST(Cli, SettingsFilesGiveEveryOptionAndTheCommandLineWins)
     }
     EXPECT_EQ(run("sim plume --settings " + dir / "bad.toml" + " --out " + dir / "b.####.vdb").code, 2);
 }
+
+TEST(Cli, MeasurePreviewInfoSimResampleListTheirSettingsOnlyInHelpAll)
+{
+    // Two tiers: --help lists the everyday options, --help-all the settings too (each beside its old spelling), and
+    // the old spellings still set them.
+    const std::vector<std::pair<std::string, std::vector<std::string>>> settings{
+        {"measure", {"--patchSize", "--patchOrigin", "--alignment", "--sourceRead.extendVelocity", "--computeSpectra",
+                        "--structure", "--plot-format"}},
+        {"preview", {"--slice", "--exposure", "--extinction", "--speed-max", "--vorticity-max"}},
+        {"info", {"--checksum"}},
+        {"sim", {"--scheme", "--pressureTolerance", "--preconditioner", "--cfl", "--maxSubsteps"}},
+        {"resample", {"--drop-other-grids"}}};
+    for (const auto& [command, names] : settings) {
+        const CmdResult help = run(command + " --help"), all = run(command + " --help-all");
+        ASSERT_EQ(help.code, 0) << help.out;
+        ASSERT_EQ(all.code, 0) << all.out;
+        for (const auto& name : names) {
+            EXPECT_EQ(help.out.find(name), std::string::npos) << command << " --help lists " << name;
+            EXPECT_NE(all.out.find(name), std::string::npos) << command << " --help-all misses " << name;
+        }
+    }
+    EXPECT_NE(run("measure --help-all").out.find("(also: --no-spectra)"), std::string::npos);
+    const CmdResult printed = run("measure --output a --target b --no-spectra --no-structure --align index --print-settings");
+    ASSERT_EQ(printed.code, 0) << printed.out;
+    for (const char* line : {"\ncomputeSpectra=false\n", "\nstructure=false\n", "\nalignment="})
+        EXPECT_NE(printed.out.find(line), std::string::npos) << line << "\n" << printed.out;
+}

@@ -160,60 +160,52 @@ std::string checksumLines(const std::string& path, nlohmann::json& fj)
     return alignColumns(rows);
 }
 
-int runInfo(const InfoArgs& a)
+// The first line: the frames found and missing.
+std::string sequenceLine(const turbio::Sequence& seq)
 {
-    const turbio::Sequence seq = turbio::resolveSequence(a.pattern, a.frames);
-    const bool toStderr = a.json; // stdout carries the JSON then
-    std::string head = "sequence " + seq.pattern.str() + ": " + std::to_string(seq.frames.size()) + " frame" +
-                       (seq.frames.size() == 1 ? "" : "s") +
-                       (seq.pattern.numbered() ? " (" + turbio::formatFrameList(seq.frames) + ")" : "") +
-                       ", missing: " + (seq.missing.empty() ? "none" : turbio::formatFrameList(seq.missing));
+    return "sequence " + seq.pattern.str() + ": " + std::to_string(seq.frames.size()) + " frame" +
+           (seq.frames.size() == 1 ? "" : "s") + (seq.pattern.numbered() ? " (" + turbio::formatFrameList(seq.frames) + ")" : "") +
+           ", missing: " + (seq.missing.empty() ? "none" : turbio::formatFrameList(seq.missing));
+}
 
-    // Headers of every frame: the lattice, its changes, dt and units with their sources.
-    turbio::ReadOptions ro = a.read;
-    ro.requireDensity = !ro.densityGrid.empty();
-    ro.requireVelocity = !ro.velocityGrid.empty();
-    const turbio::SequenceScan scan = turbio::scanSequence(seq, seq.frames, ro);
-    const turbio::FrameScan* first = nullptr;
-    for (const auto& f : scan.frames)
-        if (f.error.empty()) {
-            first = &f;
-            break;
-        }
-    if (first) {
-        const turbio::ReadReport& t = first->timing;
-        const TimingSources source = timingSources(t);
-        head += "\nlattice: voxel " + fmtNum("%g", first->lattice.voxelSize) + ", origin " + fmtVec(first->lattice.origin) +
-                (scan.changes.empty() ? std::string(", the same in every frame")
-                                      : "; CHANGES within the sequence: " + scan.describeChanges());
-        // The domain as the cache spans it; what a read holds (the smoke and its margin) after it.
-        const auto wb = worldBounds(first->span, first->lattice.voxelSize, first->lattice.origin);
-        const turb::Coord d = first->span.dim();
-        head += "\ndomain (frame " + std::to_string(first->frame) + "): " + std::to_string(d.x()) + "x" + std::to_string(d.y()) +
-                "x" + std::to_string(d.z()) + " voxels, world " + fmtVec(wb.first) + "-" + fmtVec(wb.second);
-        if (first->span != first->domain) {
-            const turb::Coord e = first->domain.dim();
-            head += "; held in memory: " + std::to_string(e.x()) + "x" + std::to_string(e.y()) + "x" + std::to_string(e.z()) +
-                    " voxels (the smoke and a margin of " + std::to_string(ro.cropMargin) + " voxels)";
-        }
-        if (first->sequenceDomain) {
-            const turb::CoordBBox& sd = *first->sequenceDomain;
-            const auto sw = worldBounds(sd, first->lattice.voxelSize, first->lattice.origin);
-            head += "\nmade from a domain of " + std::to_string(sd.dim().x()) + "x" + std::to_string(sd.dim().y()) + "x" +
-                    std::to_string(sd.dim().z()) + " voxels at this resolution, world " + fmtVec(sw.first) + "-" +
-                    fmtVec(sw.second) + " (vdbturb_sequence_domain: the target's)";
-        }
-        head += "\ndt: " + fmtNum("%.6g", t.dt) + " per frame (" + source.dt + ")";
-        if (t.fpsSource != "not used") head += "; fps " + fmtNum("%g", t.fps) + " (" + source.fps + ")";
-        if (!first->velocityGrid.empty())
-            head += "\nvelocity units: " +
-                    (t.cells ? "grid cells per time unit, x voxel " + fmtNum("%g", first->lattice.voxelSize) + " = world units"
-                             : std::string("world units per time unit")) +
-                    " (" + source.units + ")";
-        for (const auto& n : t.notes) head += "\nnote: " + n;
+// From the first readable frame's headers: the lattice and its changes, the domain, dt and units with their sources.
+std::string latticeLines(const turbio::FrameScan& first, const turbio::SequenceScan& scan, const turbio::ReadOptions& ro)
+{
+    const turbio::ReadReport& t = first.timing;
+    const TimingSources source = timingSources(t);
+    std::string head = "\nlattice: voxel " + fmtNum("%g", first.lattice.voxelSize) + ", origin " + fmtVec(first.lattice.origin) +
+                       (scan.changes.empty() ? std::string(", the same in every frame")
+                                             : "; CHANGES within the sequence: " + scan.describeChanges());
+    // The domain as the cache spans it; what a read holds (the smoke and its margin) after it.
+    const auto wb = worldBounds(first.span, first.lattice.voxelSize, first.lattice.origin);
+    const turb::Coord d = first.span.dim();
+    head += "\ndomain (frame " + std::to_string(first.frame) + "): " + std::to_string(d.x()) + "x" + std::to_string(d.y()) +
+            "x" + std::to_string(d.z()) + " voxels, world " + fmtVec(wb.first) + "-" + fmtVec(wb.second);
+    if (first.span != first.domain) {
+        const turb::Coord e = first.domain.dim();
+        head += "; held in memory: " + std::to_string(e.x()) + "x" + std::to_string(e.y()) + "x" + std::to_string(e.z()) +
+                " voxels (the smoke and a margin of " + std::to_string(ro.cropMargin) + " voxels)";
     }
-    printData(head, toStderr);
+    if (first.sequenceDomain) {
+        const turb::CoordBBox& sd = *first.sequenceDomain;
+        const auto sw = worldBounds(sd, first.lattice.voxelSize, first.lattice.origin);
+        head += "\nmade from a domain of " + std::to_string(sd.dim().x()) + "x" + std::to_string(sd.dim().y()) + "x" +
+                std::to_string(sd.dim().z()) + " voxels at this resolution, world " + fmtVec(sw.first) + "-" +
+                fmtVec(sw.second) + " (vdbturb_sequence_domain: the target's)";
+    }
+    head += "\ndt: " + fmtNum("%.6g", t.dt) + " per frame (" + source.dt + ")";
+    if (t.fpsSource != "not used") head += "; fps " + fmtNum("%g", t.fps) + " (" + source.fps + ")";
+    if (!first.velocityGrid.empty())
+        head += "\nvelocity units: " +
+                (t.cells ? "grid cells per time unit, x voxel " + fmtNum("%g", first.lattice.voxelSize) + " = world units"
+                         : std::string("world units per time unit")) +
+                " (" + source.units + ")";
+    for (const auto& n : t.notes) head += "\nnote: " + n;
+    return head;
+}
 
+nlohmann::json sequenceJson(const turbio::Sequence& seq, const turbio::SequenceScan& scan, const turbio::FrameScan* first)
+{
     nlohmann::json out;
     out["pattern"] = seq.pattern.str();
     out["frames"] = seq.frames;
@@ -230,96 +222,142 @@ int runInfo(const InfoArgs& a)
             {"units_source", source.units}, {"convention_assumed", first->timing.conventionAssumed}};
     }
     out["files"] = nlohmann::json::array();
+    return out;
+}
+
+// What --validate found over the frames.
+struct Tally
+{
     int failures = 0;
     bool anyDensity = false, anyVelocity = false;
+};
+
+// --validate: the frame read exactly as the other commands would (every voxel, NaN/Inf checks).
+void validateFrame(const std::string& path, int frame, const turbio::ReadOptions& ro, nlohmann::json& fj, Tally& tally)
+{
+    turbio::ReadReport report;
+    const turb::Frame f = turbio::readFrame(path, frame, ro, &report);
+    fj["valid"] = true;
+    fj["dt"] = f.dt;
+    fj["dt_source"] = timingSources(report).dt;
+    fj["has_density"] = f.hasDensity();
+    fj["has_velocity"] = f.hasVelocity();
+    fj["usable"] = usability(f.hasDensity(), f.hasVelocity());
+    tally.anyDensity = tally.anyDensity || f.hasDensity();
+    tally.anyVelocity = tally.anyVelocity || f.hasVelocity();
+}
+
+void fileJson(const turbio::FileInfo& fi, nlohmann::json& fj)
+{
+    fj["file_version"] = fi.fileVersion;
+    fj["library_version"] = fi.libraryVersion;
+    fj["creator"] = fi.creator;
+    fj["velocity_margin"] = fi.velocityMargin >= 0 ? nlohmann::json(fi.velocityMargin) : nlohmann::json(nullptr);
+    if (fi.baseResolution)
+        fj["blender_base_resolution"] = {fi.baseResolution->x(), fi.baseResolution->y(), fi.baseResolution->z()};
+    fj["grids"] = nlohmann::json::array();
+    for (const auto& g : fi.grids) fj["grids"].push_back(gridJson(g));
+}
+
+// Where the smoke is (it needs the voxels): strays far from it are left out of every read. Returns the lines to
+// print ("" without density).
+std::string smokeLines(const std::string& path, int frame, const turbio::ReadOptions& ro, const turbio::SequenceScan& scan,
+    nlohmann::json& fj)
+{
+    const turbio::SmokeRegion region = turbio::smokeRegion(path, ro);
+    if (!region.hasDensity) return "";
+    turb::CoordBBox reach = region.smoke;
+    for (const auto& f : scan.frames)
+        if (f.frame == frame) reach.expand(f.others);
+    const turb::CoordBBox held = turbio::heldRegion(region, reach, ro);
+    fj["smoke_voxels"] = region.smokeVoxels;
+    if (!held.empty())
+        fj["held_box"] = {{held.min().x(), held.min().y(), held.min().z()}, {held.max().x(), held.max().y(), held.max().z()}};
+    nlohmann::json strays = nlohmann::json::array();
+    for (const auto& c : region.strays)
+        strays.push_back({{"voxels", c.voxels}, {"distance", c.distance}, {"mass_share", c.massShare},
+            {"min", {c.box.min().x(), c.box.min().y(), c.box.min().z()}},
+            {"max", {c.box.max().x(), c.box.max().y(), c.box.max().z()}}});
+    fj["strays"] = strays;
+    std::string lines = region.describeStrays();
+    if (!held.empty()) {
+        const turb::Coord d = held.dim();
+        lines = (lines.empty() ? "" : lines + "\n") + "held in memory: " + std::to_string(d.x()) + "x" + std::to_string(d.y()) +
+                "x" + std::to_string(d.z()) + " voxels " + "(the smoke and a margin of " + std::to_string(ro.cropMargin) +
+                " voxels)";
+    }
+    return lines;
+}
+
+// One frame's file: its grids as a table (the first frame, a lattice change, or when asked) or one line of active
+// voxels, into `fj` for the JSON.
+void describeFile(const InfoArgs& a, const turbio::ReadOptions& ro, const turbio::SequenceScan& scan, int frame,
+    const std::string& path, bool first, nlohmann::json& fj, Tally& tally)
+{
+    // Value ranges need the voxels: read them for the first frame only unless asked, so info stays fast on long
+    // sequences.
+    const bool values = !a.noValues && (a.allValues || first);
+    const turbio::FileInfo fi = turbio::inspectFile(path, values);
+    if (a.validate) validateFrame(path, frame, ro, fj, tally);
+    fileJson(fi, fj);
+    std::string extra = values && ro.cropToSmoke ? smokeLines(path, frame, ro, scan, fj) : std::string();
+    if (a.checksum) extra = (extra.empty() ? "" : extra + "\n") + checksumLines(path, fj);
+    bool changed = false;
+    for (const auto& c : scan.changes) changed = changed || c.toFrame == frame;
+    if (first || a.allValues || a.checksum || changed || globals().verbosity >= 2) {
+        printData("frame " + std::to_string(frame) + ": " + path + (changed ? "  (lattice changes here)" : "") + "\n" +
+                      gridTable(fi) + (extra.empty() ? "" : "\n" + extra),
+            a.json);
+    } else {
+        std::string line = "frame " + std::to_string(frame) + ":";
+        for (const auto& g : fi.grids)
+            if (g.role != turbio::GridRole::Other) line += " " + g.name + "=" + std::to_string(g.activeVoxels);
+        printData(line + " active voxels", a.json);
+    }
+}
+
+int runInfo(const InfoArgs& a)
+{
+    const turbio::Sequence seq = turbio::resolveSequence(a.pattern, a.frames);
+    const bool toStderr = a.json; // stdout carries the JSON then
+    turbio::ReadOptions ro = a.read;
+    ro.requireDensity = !ro.densityGrid.empty();
+    ro.requireVelocity = !ro.velocityGrid.empty();
+    const turbio::SequenceScan scan = turbio::scanSequence(seq, seq.frames, ro);
+    const turbio::FrameScan* first = nullptr;
+    for (const auto& f : scan.frames)
+        if (f.error.empty()) {
+            first = &f;
+            break;
+        }
+    printData(sequenceLine(seq) + (first ? latticeLines(*first, scan, ro) : std::string()), toStderr);
+
+    nlohmann::json out = sequenceJson(seq, scan, first);
+    Tally tally;
     for (size_t i = 0; i < seq.frames.size(); ++i) {
         const int frame = seq.frames[i];
         const std::string path = seq.path(frame);
-        // Value ranges need the voxels: read them for the first frame only unless asked, so info stays
-        // fast on long sequences.
-        const bool values = !a.noValues && (a.allValues || i == 0);
         nlohmann::json fj;
         fj["frame"] = frame;
         fj["path"] = path;
         try {
-            const turbio::FileInfo fi = turbio::inspectFile(path, values);
-            if (a.validate) {
-                // Read the frame exactly as the other commands would: every voxel, NaN/Inf checks.
-                turbio::ReadReport report;
-                const turb::Frame f = turbio::readFrame(path, frame, ro, &report);
-                fj["valid"] = true;
-                fj["dt"] = f.dt;
-                fj["dt_source"] = timingSources(report).dt;
-                fj["has_density"] = f.hasDensity();
-                fj["has_velocity"] = f.hasVelocity();
-                fj["usable"] = usability(f.hasDensity(), f.hasVelocity());
-                anyDensity = anyDensity || f.hasDensity();
-                anyVelocity = anyVelocity || f.hasVelocity();
-            }
-            fj["file_version"] = fi.fileVersion;
-            fj["library_version"] = fi.libraryVersion;
-            fj["creator"] = fi.creator;
-            fj["velocity_margin"] = fi.velocityMargin >= 0 ? nlohmann::json(fi.velocityMargin) : nlohmann::json(nullptr);
-            if (fi.baseResolution)
-                fj["blender_base_resolution"] = {fi.baseResolution->x(), fi.baseResolution->y(), fi.baseResolution->z()};
-            fj["grids"] = nlohmann::json::array();
-            for (const auto& g : fi.grids) fj["grids"].push_back(gridJson(g));
-            // Where the smoke is (with the voxels only): strays far from it are left out of every read.
-            std::string strayLine;
-            if (values && ro.cropToSmoke) {
-                const turbio::SmokeRegion region = turbio::smokeRegion(path, ro);
-                if (region.hasDensity) {
-                    turb::CoordBBox reach = region.smoke;
-                    for (const auto& f : scan.frames)
-                        if (f.frame == frame) reach.expand(f.others);
-                    const turb::CoordBBox held = turbio::heldRegion(region, reach, ro);
-                    fj["smoke_voxels"] = region.smokeVoxels;
-                    if (!held.empty())
-                        fj["held_box"] = {{held.min().x(), held.min().y(), held.min().z()}, {held.max().x(), held.max().y(), held.max().z()}};
-                    nlohmann::json strays = nlohmann::json::array();
-                    for (const auto& c : region.strays)
-                        strays.push_back({{"voxels", c.voxels}, {"distance", c.distance}, {"mass_share", c.massShare},
-                            {"min", {c.box.min().x(), c.box.min().y(), c.box.min().z()}},
-                            {"max", {c.box.max().x(), c.box.max().y(), c.box.max().z()}}});
-                    fj["strays"] = strays;
-                    strayLine = region.describeStrays();
-                    if (!held.empty()) {
-                        const turb::Coord d = held.dim();
-                        strayLine = (strayLine.empty() ? "" : strayLine + "\n") + "held in memory: " + std::to_string(d.x()) + "x" +
-                                    std::to_string(d.y()) + "x" + std::to_string(d.z()) + " voxels " +
-                                    "(the smoke and a margin of " + std::to_string(ro.cropMargin) + " voxels)";
-                    }
-                }
-            }
-            if (a.checksum) strayLine = (strayLine.empty() ? "" : strayLine + "\n") + checksumLines(path, fj);
-            bool changed = false;
-            for (const auto& c : scan.changes) changed = changed || c.toFrame == frame;
-            if (i == 0 || a.allValues || a.checksum || changed || globals().verbosity >= 2) {
-                printData("frame " + std::to_string(frame) + ": " + path + (changed ? "  (lattice changes here)" : "") + "\n" +
-                              gridTable(fi) + (strayLine.empty() ? "" : "\n" + strayLine),
-                    toStderr);
-            } else {
-                std::string s = "frame " + std::to_string(frame) + ":";
-                for (const auto& g : fi.grids)
-                    if (g.role != turbio::GridRole::Other) s += " " + g.name + "=" + std::to_string(g.activeVoxels);
-                printData(s + " active voxels", toStderr);
-            }
+            describeFile(a, ro, scan, frame, path, i == 0, fj, tally);
         } catch (const turb::Error& e) {
-            ++failures;
+            ++tally.failures;
             fj["error"] = messageWithFlags(e);
             logError(messageWithFlags(e));
         }
         out["files"].push_back(fj);
     }
     if (a.validate) {
-        const std::string verdict = failures ? std::to_string(failures) + " of " + std::to_string(seq.frames.size()) +
-                                                   " frames fail to read"
-                                             : "every frame reads";
-        printData("validate: " + verdict + "; " + usability(anyDensity, anyVelocity), toStderr);
-        out["usable"] = usability(anyDensity, anyVelocity);
+        const std::string verdict = tally.failures ? std::to_string(tally.failures) + " of " +
+                                                         std::to_string(seq.frames.size()) + " frames fail to read"
+                                                   : "every frame reads";
+        printData("validate: " + verdict + "; " + usability(tally.anyDensity, tally.anyVelocity), toStderr);
+        out["usable"] = usability(tally.anyDensity, tally.anyVelocity);
     }
     if (a.json) std::cout << out.dump(1) << std::endl;
-    return failures ? kFailed : kOk;
+    return tally.failures ? kFailed : kOk;
 }
 
 } // namespace
@@ -340,12 +378,10 @@ Command infoCommand()
         app->add_flag("--all-values", args->allValues, "Read every frame's voxels for value ranges (slower)");
         app->add_flag("--headers-only", args->noValues, "Read no voxels at all (no value ranges)");
         app->add_flag("--validate", args->validate,
-            "Also load every frame as transfer/measure would (all voxels, NaN/Inf checks), say which commands the "
-            "frames can drive; exit 1 on any bad frame");
-        app->add_flag("--checksum", args->checksum,
-            "Fingerprint every grid of every frame (transform, active voxels and values bit for bit; metadata apart) "
-            "for regression tests");
+            "Also read every frame as the other commands do and say which commands can use it; exit 1 on a bad frame");
         addReadOptions(app, args->read);
+        setting(app->add_flag("--checksum", args->checksum, "Fingerprint every grid of every frame, bit for bit, for regression tests"),
+            "checksum");
     };
     c.run = [args] { return runInfo(*args); };
     return c;

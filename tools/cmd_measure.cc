@@ -33,10 +33,10 @@ namespace {
 
 struct MeasureArgs
 {
-    std::string output, target, source, frames, plotDir, plotFormat = "png", align = "auto", patchOrigin;
+    std::string output, target, source, frames, plotDir, plotFormat = "png", patchOrigin;
     bool json = false;        // accepted for symmetry with the other commands; JSON is always written
     bool spectraJson = false; // include the E(k) arrays in the JSON lines
-    bool noSpectra = false, noStructure = false;
+    bool computeSpectra = true; // --plot and --spectra compute them whatever this says
     turb::MeasureSettings settings;
     turbio::ReadOptions read;
     int sourceExtend = 0;     // the metrics' definitions read the source as written: no extension by default
@@ -107,58 +107,61 @@ double median(std::vector<double> v)
     return v.size() % 2 ? v[h] : 0.5 * (v[h - 1] + v[h]);
 }
 
-int runMeasure(MeasureArgs& a)
+turb::MeasureSettings measureSettings(const MeasureArgs& a)
 {
-    const auto t0 = std::chrono::steady_clock::now();
     turb::MeasureSettings s = a.settings;
-    s.alignment = a.align == "world" ? turb::Alignment::World
-                  : a.align == "index" ? turb::Alignment::Index
-                                       : turb::Alignment::Auto;
     s.patchOrigin = parseCoord(a.patchOrigin);
-    s.spectra = !a.noSpectra || !a.plotDir.empty() || a.spectraJson;
-    s.structure = !a.noStructure;
+    s.spectra = a.computeSpectra || !a.plotDir.empty() || a.spectraJson;
     s.threads = globals().threads;
+    return s;
+}
 
-    const turbio::Sequence out = turbio::resolveSequence(a.output, a.frames);
-    const turbio::Sequence tgt = turbio::resolveSequence(a.target, a.frames);
+// The sequences measured, the frames and how each sequence is read.
+struct MeasurePlan
+{
+    turbio::Sequence out, tgt;
     std::optional<turbio::Sequence> src;
-    if (!a.source.empty()) src = turbio::resolveSequence(a.source);
+    std::vector<int> frames;
+    turbio::ReadOptions readOut, readTgt, readSrc;
+};
+
+MeasurePlan planMeasure(const MeasureArgs& a)
+{
+    MeasurePlan p;
+    p.out = turbio::resolveSequence(a.output, a.frames);
+    p.tgt = turbio::resolveSequence(a.target, a.frames);
+    if (!a.source.empty()) p.src = turbio::resolveSequence(a.source);
 
     // Explicit --frames: every requested frame counts, and a missing file fails that frame. Otherwise the
     // frames both sequences hold (a 10-frame target against a 30-frame output measures 10 frames).
-    std::vector<int> frames;
     if (!a.frames.empty()) {
-        std::set<int> all(out.frames.begin(), out.frames.end());
-        all.insert(out.missing.begin(), out.missing.end());
-        frames.assign(all.begin(), all.end());
+        std::set<int> all(p.out.frames.begin(), p.out.frames.end());
+        all.insert(p.out.missing.begin(), p.out.missing.end());
+        p.frames.assign(all.begin(), all.end());
     } else {
-        std::set_intersection(out.frames.begin(), out.frames.end(), tgt.frames.begin(), tgt.frames.end(),
-            std::back_inserter(frames));
-        if (frames.size() < out.frames.size())
-            logInfo("measuring the " + std::to_string(frames.size()) + " frames both the output and the target hold (" +
-                    (frames.empty() ? std::string("none") : turbio::formatFrameList(frames)) + ")");
+        std::set_intersection(p.out.frames.begin(), p.out.frames.end(), p.tgt.frames.begin(), p.tgt.frames.end(),
+            std::back_inserter(p.frames));
+        if (p.frames.size() < p.out.frames.size())
+            logInfo("measuring the " + std::to_string(p.frames.size()) + " frames both the output and the target hold (" +
+                    (p.frames.empty() ? std::string("none") : turbio::formatFrameList(p.frames)) + ")");
     }
-    if (frames.empty()) {
-        logError("no frame is present in both " + out.pattern.str() + " and " + tgt.pattern.str());
-        return kFailed;
-    }
-    logInfo("measure: output " + out.pattern.str() + ", target " + tgt.pattern.str() +
-            (src ? ", source " + src->pattern.str() : std::string(", no source")) + ", frames " +
-            turbio::formatFrameList(frames));
+    p.readOut = p.readTgt = p.readSrc = a.read;
+    p.readOut.readExtras = p.readTgt.readExtras = p.readSrc.readExtras = false;
+    p.readOut.requireDensity = false; // an up-res may carry velocity only; the target then gives the region
+    p.readSrc.extendVelocity = a.sourceExtend;
+    return p;
+}
 
-    turbio::ReadOptions readOut = a.read, readTgt = a.read, readSrc = a.read;
-    readOut.readExtras = readTgt.readExtras = readSrc.readExtras = false;
-    readOut.requireDensity = false; // an up-res may carry velocity only; the target then gives the region
-    readSrc.extendVelocity = a.sourceExtend;
-
-    // Every frame's headers before the first measurement (a dry run stops here). Frames are measured one by
-    // one, so a lattice that changes within a sequence is read frame by frame; tcoh skips the change.
-    const turbio::SequenceScan outScan = checkInput("measure", "output", out, frames, readOut, LatticePolicy::Report);
-    const turbio::SequenceScan tgtScan = checkInput("measure", "target", tgt, frames, readTgt, LatticePolicy::Report);
+// Every frame's headers before the first measurement (all a dry run does), and the plots' paths. Frames are
+// measured one by one, so a lattice that changes within a sequence is read frame by frame; tcoh skips the change.
+void preflight(const MeasureArgs& a, const MeasurePlan& p)
+{
+    const turbio::SequenceScan outScan = checkInput("measure", "output", p.out, p.frames, p.readOut, LatticePolicy::Report);
+    const turbio::SequenceScan tgtScan = checkInput("measure", "target", p.tgt, p.frames, p.readTgt, LatticePolicy::Report);
     reportTiming("output", outScan, true);
     reportTiming("target", tgtScan, true);
-    if (src) {
-        const turbio::SequenceScan srcScan = checkInput("measure", "source", *src, src->frames, readSrc, LatticePolicy::Report);
+    if (p.src) {
+        const turbio::SequenceScan srcScan = checkInput("measure", "source", *p.src, p.src->frames, p.readSrc, LatticePolicy::Report);
         reportTiming("source", srcScan, true);
     }
     // An up-res sits on a lattice an integer number of times finer than its target's.
@@ -174,94 +177,85 @@ int runMeasure(MeasureArgs& a)
     if (!a.plotDir.empty()) {
         if (std::string why; !gnuplotAvailable(why)) throw turb::Error(why);
         std::vector<std::string> plots{a.plotDir + "/metrics.png"};
-        for (int f : frames) plots.push_back(a.plotDir + "/" + turbio::FramePattern::parse("spectrum.####.png").format(f));
+        for (int f : p.frames) plots.push_back(a.plotDir + "/" + turbio::FramePattern::parse("spectrum.####.png").format(f));
         checkOutputs(plots, {}, false, false);
     }
-    if (globals().dryRun) return kOk;
-    if (!a.plotDir.empty()) std::filesystem::create_directories(a.plotDir);
+}
 
-    const auto has = [](const turbio::Sequence& q, int f) {
-        return std::binary_search(q.frames.begin(), q.frames.end(), f);
-    };
-    std::vector<turb::FrameMeasures> results;
-    std::vector<double> seconds;
-    int failed = 0;
-    std::optional<turb::Frame> prevOut, prevTgt, prevSrc;
-    for (size_t i = 0; i < frames.size(); ++i) {
-        const int f = frames[i];
-        const auto t1 = std::chrono::steady_clock::now();
-        try {
-            if (!has(out, f)) throw turb::IoError(out.path(f) + ": missing");
-            if (!has(tgt, f)) throw turb::IoError(tgt.path(f) + ": missing");
-            turb::Frame o = turbio::readFrame(out.path(f), f, readOut);
-            turb::Frame t = turbio::readFrame(tgt.path(f), f, readTgt);
-            std::optional<turb::Frame> sf;
-            if (src) {
-                // A transfer output names its source frame; otherwise the same frame number.
-                int sn = f;
-                if (auto it = o.metadata.find(turb::meta::kSourceFrame); it != o.metadata.end())
-                    sn = std::atoi(it->second.c_str());
-                if (has(*src, sn)) sf = turbio::readFrame(src->path(sn), sn, readSrc);
-                else logWarning("frame " + std::to_string(f) + ": source frame " + std::to_string(sn) + " missing");
-            }
-            // tcoh compares with the previous *processed* frame, over the real time between the two, and only
-            // on one lattice (a sequence whose lattice changes is measured frame by frame).
-            const bool consecutive = prevOut && prevTgt && prevOut->number < f && prevOut->lattice().approxEqual(o.lattice()) &&
-                                     prevTgt->lattice().approxEqual(t.lattice());
-            turb::MeasureInput in;
-            in.output = &o;
-            in.target = &t;
-            in.source = sf ? &*sf : nullptr;
-            in.previousOutput = consecutive ? &*prevOut : nullptr;
-            in.previousTarget = consecutive ? &*prevTgt : nullptr;
-            in.previousSource = (sf && prevSrc && prevSrc->number < sf->number) ? &*prevSrc : nullptr;
-            ConsoleProgress progress(int(i), int(frames.size()), f);
-            turb::FrameMeasures m = turb::measureFrame(in, s, &progress);
-            progress.clear();
-            if (!a.plotDir.empty()) {
-                char name[64];
-                std::snprintf(name, sizeof(name), "/spectrum.%04d.%s", f, a.plotFormat.c_str());
-                writeSpectrumFigure(a.plotDir + name, m, "E(k) frame " + std::to_string(f));
-            }
-            const double sec = secondsSince(t1);
-            seconds.push_back(sec);
-            char head[96];
-            std::snprintf(head, sizeof(head), "frame %d (%zu/%zu) %.2f s  ", f, i + 1, frames.size(), sec);
-            logInfo(head + humanLine(m));
-            for (const auto& n : m.notes)
-                logVerbose("frame " + std::to_string(f) + ": " + n + (n == "tcoh: unknown time step" ? " (give --dt)" : ""));
-            nlohmann::json j = frameJson(m, a.spectraJson);
-            j["frame"] = f;
-            j["seconds"] = sec;
-            std::cout << j.dump() << std::endl;
-            results.push_back(std::move(m));
-            prevOut = std::move(o);
-            prevTgt = std::move(t);
-            prevSrc = std::move(sf);
-        } catch (const turb::Cancelled&) {
-            throw;
-        } catch (const turb::IoError& e) {
-            ++failed;
-            logError("frame " + std::to_string(f) + ": " + messageWithFlags(e)); // names its file
-            prevOut.reset();
-            prevTgt.reset();
-            prevSrc.reset();
-        } catch (const turb::Error& e) {
-            ++failed;
-            logError("frame " + std::to_string(f) + " (output " + out.path(f) + ", target " + tgt.path(f) + "): " +
-                     messageWithFlags(e));
-            prevOut.reset();
-            prevTgt.reset();
-            prevSrc.reset();
-        }
+bool holds(const turbio::Sequence& q, int f) { return std::binary_search(q.frames.begin(), q.frames.end(), f); }
+
+// The frames last measured, for tcoh: the previous *processed* frame of each sequence.
+struct Previous
+{
+    std::optional<turb::Frame> out, tgt, src;
+    void reset()
+    {
+        out.reset();
+        tgt.reset();
+        src.reset();
     }
+};
 
-    if (!a.plotDir.empty() && !results.empty()) {
-        const std::string ext = "." + a.plotFormat;
-        writeMetricsFigure(a.plotDir + "/metrics" + ext, results, "vdbturb measure: " + out.pattern.str());
-        logInfo("plots: " + a.plotDir + "/metrics" + ext + ", " + a.plotDir + "/spectrum.####" + ext);
+// Reads frame `f` of every sequence and measures it; the frames read become `prev`.
+turb::FrameMeasures measureOne(const MeasurePlan& p, const turb::MeasureSettings& s, int f, size_t i, Previous& prev)
+{
+    if (!holds(p.out, f)) throw turb::IoError(p.out.path(f) + ": missing");
+    if (!holds(p.tgt, f)) throw turb::IoError(p.tgt.path(f) + ": missing");
+    turb::Frame o = turbio::readFrame(p.out.path(f), f, p.readOut);
+    turb::Frame t = turbio::readFrame(p.tgt.path(f), f, p.readTgt);
+    std::optional<turb::Frame> sf;
+    if (p.src) {
+        // A transfer output names its source frame; otherwise the same frame number.
+        int sn = f;
+        if (auto it = o.metadata.find(turb::meta::kSourceFrame); it != o.metadata.end()) sn = std::atoi(it->second.c_str());
+        if (holds(*p.src, sn)) sf = turbio::readFrame(p.src->path(sn), sn, p.readSrc);
+        else logWarning("frame " + std::to_string(f) + ": source frame " + std::to_string(sn) + " missing");
     }
+    // tcoh compares with the previous *processed* frame, over the real time between the two, and only on one
+    // lattice (a sequence whose lattice changes is measured frame by frame).
+    const bool consecutive = prev.out && prev.tgt && prev.out->number < f && prev.out->lattice().approxEqual(o.lattice()) &&
+                             prev.tgt->lattice().approxEqual(t.lattice());
+    turb::MeasureInput in;
+    in.output = &o;
+    in.target = &t;
+    in.source = sf ? &*sf : nullptr;
+    in.previousOutput = consecutive ? &*prev.out : nullptr;
+    in.previousTarget = consecutive ? &*prev.tgt : nullptr;
+    in.previousSource = (sf && prev.src && prev.src->number < sf->number) ? &*prev.src : nullptr;
+    ConsoleProgress progress(int(i), int(p.frames.size()), f);
+    turb::FrameMeasures m = turb::measureFrame(in, s, &progress);
+    progress.clear();
+    prev.out = std::move(o);
+    prev.tgt = std::move(t);
+    prev.src = std::move(sf);
+    return m;
+}
 
+void plotSpectrum(const MeasureArgs& a, const turb::FrameMeasures& m, int f)
+{
+    if (a.plotDir.empty()) return;
+    char name[64];
+    std::snprintf(name, sizeof(name), "/spectrum.%04d.%s", f, a.plotFormat.c_str());
+    writeSpectrumFigure(a.plotDir + name, m, "E(k) frame " + std::to_string(f));
+}
+
+// The frame's human line on stderr and its JSON line on stdout.
+void reportFrame(const MeasureArgs& a, const turb::FrameMeasures& m, int f, size_t i, size_t count, double sec)
+{
+    char head[96];
+    std::snprintf(head, sizeof(head), "frame %d (%zu/%zu) %.2f s  ", f, i + 1, count, sec);
+    logInfo(head + humanLine(m));
+    for (const auto& n : m.notes)
+        logVerbose("frame " + std::to_string(f) + ": " + n + (n == "tcoh: unknown time step" ? " (give --dt)" : ""));
+    nlohmann::json j = frameJson(m, a.spectraJson);
+    j["frame"] = f;
+    j["seconds"] = sec;
+    std::cout << j.dump() << std::endl;
+}
+
+void reportSummary(const std::vector<turb::FrameMeasures>& results, const std::vector<double>& seconds, int failed,
+    const turb::MeasureSettings& s, std::chrono::steady_clock::time_point t0)
+{
     nlohmann::json sum;
     sum["summary"] = true;
     sum["command"] = "measure";
@@ -282,7 +276,89 @@ int runMeasure(MeasureArgs& a)
     }
     logInfo(human + " (means)");
     std::cout << sum.dump() << std::endl;
+}
+
+int runMeasure(MeasureArgs& a)
+{
+    const auto t0 = std::chrono::steady_clock::now();
+    const turb::MeasureSettings s = measureSettings(a);
+    const MeasurePlan p = planMeasure(a);
+    if (p.frames.empty()) {
+        logError("no frame is present in both " + p.out.pattern.str() + " and " + p.tgt.pattern.str());
+        return kFailed;
+    }
+    logInfo("measure: output " + p.out.pattern.str() + ", target " + p.tgt.pattern.str() +
+            (p.src ? ", source " + p.src->pattern.str() : std::string(", no source")) + ", frames " +
+            turbio::formatFrameList(p.frames));
+    preflight(a, p);
+    if (globals().dryRun) return kOk;
+    if (!a.plotDir.empty()) std::filesystem::create_directories(a.plotDir);
+
+    std::vector<turb::FrameMeasures> results;
+    std::vector<double> seconds;
+    int failed = 0;
+    Previous prev;
+    for (size_t i = 0; i < p.frames.size(); ++i) {
+        const int f = p.frames[i];
+        const auto t1 = std::chrono::steady_clock::now();
+        try {
+            turb::FrameMeasures m = measureOne(p, s, f, i, prev);
+            plotSpectrum(a, m, f);
+            const double sec = secondsSince(t1);
+            seconds.push_back(sec);
+            reportFrame(a, m, f, i, p.frames.size(), sec);
+            results.push_back(std::move(m));
+        } catch (const turb::Cancelled&) {
+            throw;
+        } catch (const turb::IoError& e) {
+            ++failed;
+            logError("frame " + std::to_string(f) + ": " + messageWithFlags(e)); // names its file
+            prev.reset();
+        } catch (const turb::Error& e) {
+            ++failed;
+            logError("frame " + std::to_string(f) + " (output " + p.out.path(f) + ", target " + p.tgt.path(f) + "): " +
+                     messageWithFlags(e));
+            prev.reset();
+        }
+    }
+    if (!a.plotDir.empty() && !results.empty()) {
+        const std::string ext = "." + a.plotFormat;
+        writeMetricsFigure(a.plotDir + "/metrics" + ext, results, "vdbturb measure: " + p.out.pattern.str());
+        logInfo("plots: " + a.plotDir + "/metrics" + ext + ", " + a.plotDir + "/spectrum.####" + ext);
+    }
+    reportSummary(results, seconds, failed, s, t0);
     return failed ? kFailed : kOk;
+}
+
+// The second tier: the region and lattice a metric uses when the metadata does not say, and what to skip.
+void addMeasureSettings(CLI::App* app, MeasureArgs& a)
+{
+    turb::MeasureSettings& s = a.settings;
+    setting(app->add_option("--patch-size,--patchSize", s.patchSize,
+                   "Seam spacing for block, in output voxels (0: the output's vdbturb_patch_size metadata)")
+                ->check(CLI::Range(2, 4096)),
+        "patchSize");
+    setting(app->add_option("--patch-origin,--patchOrigin", a.patchOrigin,
+                "An output voxel where a patch starts, X,Y,Z (default: vdbturb_patch_origin metadata, else 0,0,0)"),
+        "patchOrigin");
+    setting(addEnum<turb::Alignment>(app, "--align,--alignment", s.alignment,
+                {{"auto", turb::Alignment::Auto}, {"world", turb::Alignment::World}, {"index", turb::Alignment::Index}},
+                "Output against the refined target lattice: auto, world (the transforms) or index (the voxels)"),
+        "alignment");
+    setting(app->add_option("--source-extend-velocity,--sourceRead.extendVelocity", a.sourceExtend,
+                   "Continue the source's velocity this many voxels past its active region, as transfer reads it "
+                   "(0: as written)")
+                ->check(CLI::Range(0, 64)),
+        "sourceRead.extendVelocity");
+    // MeasureSettings::spectra under another key: --spectra is the everyday flag for the JSON arrays.
+    boolSetting(app, "--computeSpectra", a.computeSpectra, "Energy spectra (false: skip the FFTs unless --plot or --spectra needs them)", "computeSpectra");
+    legacy(app->add_flag_function("--no-spectra", [&a](int64_t) { a.computeSpectra = false; }, ""), "computeSpectra",
+        "false");
+    boolSetting(app, "--structure", s.structure, "The structure numbers aniso and isotropy (false: skip them)", "structure");
+    legacy(app->add_flag_function("--no-structure", [&s](int64_t) { s.structure = false; }, ""), "structure", "false");
+    setting(app->add_option("--plot-format", a.plotFormat, "Picture format of --plot (exr and tif from gnuplot's PNG)")
+                ->check(CLI::IsMember({"png", "svg", "pdf", "exr", "tif"})),
+        "plot-format");
 }
 
 } // namespace
@@ -295,41 +371,22 @@ Command measureCommand()
     c.help = "Quality numbers of an up-res (lf_err, hf_ratio, div_rel, block, tcoh, density, structure, air_detail, "
              "spectra): JSON lines on stdout";
     c.setup = [args](CLI::App* app) {
-        auto& s = args->settings;
-        app->add_option("--output", args->output, "The up-res cache (pattern or one file): velocity, density optional")
+        MeasureArgs& a = *args;
+        app->add_option("--output", a.output, "The up-res cache (pattern or one file): velocity, density optional")
             ->required();
-        app->add_option("--target", args->target, "The low-res cache it was made from: velocity and density")->required();
-        app->add_option("--source", args->source,
-            "The high-res source cache, for hf_ratio and div_rel_source (frame from the output's vdbturb_source_frame, "
-            "else the same number)");
-        app->add_option("--frames", args->frames, "Frames to measure, e.g. 1-30x2 (default: those output and target both hold)")->check(frameListCheck());
-        app->add_option("--threshold", s.densityThreshold, "Smoke region: density above this (default 0.01)")
+        app->add_option("--target", a.target, "The low-res cache it was made from: velocity and density")->required();
+        app->add_option("--source", a.source, "The high-res source cache, for the source's numbers (hf_ratio, div_rel_source)");
+        app->add_option("--frames", a.frames, "Frames to measure, e.g. 1-30x2 (default: those output and target both hold)")
+            ->check(frameListCheck());
+        app->add_option("--threshold", a.settings.densityThreshold, "Smoke region: density above this")
             ->check(CLI::NonNegativeNumber);
-        app->add_option("--patch-size", s.patchSize,
-               "Seam spacing for block, in output voxels (default: the output's vdbturb_patch_size metadata)")
-            ->check(CLI::Range(2, 4096));
-        app->add_option("--patch-origin", args->patchOrigin,
-            "An output voxel where a patch starts, X,Y,Z (default: vdbturb_patch_origin metadata, else 0,0,0)");
-        app->add_option("--align", args->align,
-               "Output vs refined target lattice: auto (index when the boxes match but the transforms do not "
-               "nest, as in Blender caches; else world), world, index")
-            ->check(CLI::IsMember({"auto", "world", "index"}));
-        app->add_option("--source-extend-velocity", args->sourceExtend,
-               "Continue the source's velocity this many voxels past its active region before measuring it, as "
-               "transfer reads it (default 0: the source as written; Blender's zeros beyond the smoke then count as "
-               "high-frequency energy at its edge)")
-            ->check(CLI::Range(0, 64));
-        app->add_flag("--no-spectra", args->noSpectra, "Skip the energy spectra (faster)");
-        app->add_flag("--no-structure", args->noStructure, "Skip aniso and isotropy (faster)");
-        app->add_flag("--spectra", args->spectraJson, "Include the E(k) arrays in the JSON lines");
-        app->add_option("--plot", args->plotDir,
-            "Write plots here with gnuplot (Debian gnuplot-nox): spectrum.####.png per frame, metrics.png, and their "
-            "gnuplot scripts (.gp) to restyle them");
-        app->add_option("--plot-format", args->plotFormat,
-               "Picture format of the plots (drawn by gnuplot; exr and tif converted from its PNG)")
-            ->check(CLI::IsMember({"png", "svg", "pdf", "exr", "tif"}));
-        app->add_flag("--json", args->json, "Accepted for symmetry with other commands: measure always prints JSON");
-        addReadOptions(app, args->read);
+        app->add_flag("--spectra", a.spectraJson, "Include the E(k) arrays in the JSON lines");
+        app->add_flag("--json", a.json, "Accepted for symmetry with other commands: measure always prints JSON");
+        addReadOptions(app, a.read);
+        app->add_option("--plot", a.plotDir,
+               "Write plots into DIR with gnuplot: spectrum.####.png per frame, metrics.png, and their .gp scripts")
+            ->group(kGroupOutput);
+        addMeasureSettings(app, a);
     };
     c.run = [args] { return runMeasure(*args); };
     return c;

@@ -38,7 +38,7 @@ struct PreviewArgs
     std::string out;
     std::string sheet;
     std::string title;
-    std::string view = "front";
+    turb::View view = turb::View::Front;
     double slice = 0.5;
     int width = 320;
     float exposure = 1.0f;
@@ -96,9 +96,14 @@ std::vector<Mode> parseModes(const std::string& text)
     return modes;
 }
 
-turb::View parseView(const std::string& v)
+const std::vector<std::pair<std::string, turb::View>> kViews{
+    {"front", turb::View::Front}, {"side", turb::View::Side}, {"top", turb::View::Top}};
+
+std::string viewName(turb::View v)
 {
-    return v == "side" ? turb::View::Side : v == "top" ? turb::View::Top : turb::View::Front;
+    for (const auto& [name, view] : kViews)
+        if (view == v) return name;
+    return "?";
 }
 
 bool needsVelocity(const std::vector<Mode>& modes)
@@ -172,7 +177,7 @@ turb::Image render(const turb::Frame& f, Mode m, const PreviewArgs& a, const Inp
     // A 2D cache (one z layer) is shown in its own plane, whatever --view says: a ray march through one voxel
     // would show almost nothing, so its density is a colour-mapped slice too.
     const bool flat = turb::isFlat(f.hasDensity() ? f.density.bbox() : f.velocity.bbox());
-    const turb::View view = flat ? turb::View::Top : parseView(a.view);
+    const turb::View view = flat ? turb::View::Top : a.view;
     switch (m) {
     case Mode::Density: {
         if (flat) {
@@ -227,19 +232,25 @@ std::string cellLabel(const Input& in, Mode m, size_t inputs, size_t modes)
     return std::string(modeName(m)) + unit;
 }
 
-int runPreview(PreviewArgs& a)
+// What a run draws: the caches (columns), the frames (rows), the modes and how frames are read.
+struct PreviewPlan
 {
-    const std::vector<Mode> modes = parseModes(a.modes);
-    // Argument combinations CLI11 cannot express are usage errors too (exit 2).
-    if (a.sheet.empty() && a.out.empty()) {
-        logError("give --out PATTERN.png|.exr (one picture per frame) or --sheet FILE.png|.exr");
-        return kUsage;
-    }
-    if (a.sheet.empty() && a.inputs.size() > 1) {
-        logError("several caches go side by side into a contact sheet: add --sheet FILE.png");
-        return kUsage;
-    }
+    std::vector<Mode> modes;
+    std::vector<Input> inputs;
+    std::vector<int> frames;
+    turbio::ReadOptions read;
+};
 
+bool exists(const Input& in, int frame)
+{
+    return in.still || std::find(in.seq.frames.begin(), in.seq.frames.end(), frame) != in.seq.frames.end();
+}
+
+// A still's one file is read as its own frame number, whatever the row.
+int fileFrame(const Input& in, int frame) { return in.still && !in.seq.frames.empty() ? in.seq.frames.front() : frame; }
+
+std::vector<Input> resolveInputs(const PreviewArgs& a)
+{
     std::vector<Input> inputs;
     for (const auto& text : a.inputs) {
         Input in;
@@ -259,8 +270,12 @@ int runPreview(PreviewArgs& a)
         }
         inputs.push_back(std::move(in));
     }
+    return inputs;
+}
 
-    // Rows: the frames asked for; for a sheet without --frames, three frames spread over the first cache.
+// Rows: the frames asked for; for a sheet without --frames, three frames spread over the first cache.
+std::vector<int> rowFrames(const PreviewArgs& a, const std::vector<Input>& inputs)
+{
     std::vector<int> frames;
     if (!a.frames.empty()) frames = turbio::parseFrameList(a.frames);
     else if (!a.sheet.empty()) {
@@ -286,28 +301,22 @@ int runPreview(PreviewArgs& a)
             }
     }
     if (frames.empty()) throw turb::IoError("no frames to preview");
+    return frames;
+}
 
-    turbio::ReadOptions read = a.read;
-    read.requireVelocity = needsVelocity(modes);
-    read.requireDensity = std::find(modes.begin(), modes.end(), Mode::Density) != modes.end();
-    read.readExtras = false;
-
-    const auto exists = [](const Input& in, int frame) {
-        return in.still || std::find(in.seq.frames.begin(), in.seq.frames.end(), frame) != in.seq.frames.end();
-    };
-    // A still's one file is read as its own frame number, whatever the row.
-    const auto fileFrame = [](const Input& in, int frame) { return in.still && !in.seq.frames.empty() ? in.seq.frames.front() : frame; };
-
-    // Every picture's frames, checked before the first is drawn; each frame is drawn on its own lattice.
-    std::vector<std::string> outputs, inputPaths;
-    for (auto& in : inputs) {
+// Every picture's frames, checked before the first is drawn, and one camera per input for the whole run. Returns
+// the files the pictures are drawn from.
+std::vector<std::string> checkAndFrame(PreviewPlan& p)
+{
+    std::vector<std::string> inputPaths;
+    for (auto& in : p.inputs) {
         const turbio::SequenceScan scan =
-            checkInput("preview", in.label, in.seq, in.still ? in.seq.frames : frames, read, LatticePolicy::Report);
-        for (int f : frames)
+            checkInput("preview", in.label, in.seq, in.still ? in.seq.frames : p.frames, p.read, LatticePolicy::Report);
+        for (int f : p.frames)
             if (exists(in, f)) inputPaths.push_back(in.seq.path(fileFrame(in, f)));
-        // One camera per input for the whole run: every frame is drawn over the union of the frames' domains
-        // (a Blender domain, else the union of the grids' active boxes), so a flipbook does not jump in size as
-        // the smoke grows and sheet columns stay in line. Frames on different lattices keep their own boxes.
+        // Every frame is drawn over the union of the frames' domains (a Blender domain, else the union of the grids'
+        // active boxes), so a flipbook does not jump in size as the smoke grows and sheet columns stay in line.
+        // Frames on different lattices keep their own boxes.
         if (scan.changes.empty()) {
             for (const auto& fs : scan.frames) {
                 if (!fs.error.empty() || !fs.domainKnown || fs.domain.empty()) continue;
@@ -318,21 +327,28 @@ int runPreview(PreviewArgs& a)
         }
         if (in.frameBox) in.held = *in.frameBox;
     }
-    shareCamera(inputs);
+    shareCamera(p.inputs);
     // A shared camera can reach past what a read holds (the smoke and its margin): read that much more, so the
     // velocity there is the cache's and not a zero-filled rim (a false box in speed and vorticity slices).
-    for (auto& in : inputs)
+    for (auto& in : p.inputs)
         if (in.frameBox && !in.held.empty())
             for (int ax = 0; ax < 3; ++ax)
                 in.extraMargin = std::max({in.extraMargin, in.held.min()[ax] - in.frameBox->min()[ax],
                     in.frameBox->max()[ax] - in.held.max()[ax]});
-    if (a.sheet.empty() && frames.size() > 1 && !turbio::FramePattern::parse(a.out).numbered()) {
-        logError("--out '" + a.out + "' has no frame token (####, %04d, $F4) but " + std::to_string(frames.size()) +
+    return inputPaths;
+}
+
+// The pictures' paths, checked against the inputs: kOk, or kUsage after saying why.
+int checkOutputPaths(const PreviewArgs& a, const PreviewPlan& p, const std::vector<std::string>& inputPaths)
+{
+    if (a.sheet.empty() && p.frames.size() > 1 && !turbio::FramePattern::parse(a.out).numbered()) {
+        logError("--out '" + a.out + "' has no frame token (####, %04d, $F4) but " + std::to_string(p.frames.size()) +
                  " frames are requested; every frame would overwrite the last");
         return kUsage;
     }
+    std::vector<std::string> outputs;
     if (a.sheet.empty())
-        for (int f : frames) outputs.push_back(turbio::FramePattern::parse(a.out).format(f));
+        for (int f : p.frames) outputs.push_back(turbio::FramePattern::parse(a.out).format(f));
     else
         outputs.push_back(a.sheet);
     checkOutputs(outputs, inputPaths, false, false);
@@ -342,111 +358,201 @@ int runPreview(PreviewArgs& a)
         logError(messageWithFlags(e));
         return kUsage;
     }
+    return kOk;
+}
 
-    int result = kOk;
-    turb::withThreads(globals().threads, [&] {
-        // Fixed colour ranges for the whole run, from the last row's frame, so sequences do not flicker.
-        // Speed shares one range across caches (same world units, comparable); vorticity grows with
-        // resolution, so each cache gets its own.
-        if (needsVelocity(modes)) {
-            float speedAll = a.speedMax;
-            for (auto& in : inputs) {
-                int ref = -1;
-                for (auto it = frames.rbegin(); it != frames.rend() && ref < 0; ++it)
-                    if (exists(in, *it)) ref = *it;
-                if (ref < 0) continue;
-                turbio::ReadOptions ro = read;
-                ro.requireDensity = false;
-                ro.cropMargin += in.extraMargin;
-                const turb::Frame f = turbio::readFrame(in.seq.path(fileFrame(in, ref)), fileFrame(in, ref), ro);
-                const turb::ScalarField* d = f.hasDensity() ? &f.density : nullptr;
-                in.speedMax = a.speedMax > 0.0f ? a.speedMax : percentile(turb::magnitude(f.velocity), d, 0.995);
-                in.vorticityMax = a.vorticityMax > 0.0f ? a.vorticityMax
-                                                        : percentile(turb::magnitude(turb::curl(f.velocity)), d, 0.99);
-                if (a.speedMax <= 0.0f) speedAll = std::max(speedAll, in.speedMax);
-            }
-            for (auto& in : inputs) in.speedMax = speedAll > 0.0f ? speedAll : 1.0f;
-        }
+// Fixed colour ranges for the whole run, from the last row's frame, so sequences do not flicker. Speed shares one
+// range across caches (same world units, comparable); vorticity grows with resolution, so each cache gets its own.
+void colourRanges(const PreviewArgs& a, PreviewPlan& p)
+{
+    if (!needsVelocity(p.modes)) return;
+    float speedAll = a.speedMax;
+    for (auto& in : p.inputs) {
+        int ref = -1;
+        for (auto it = p.frames.rbegin(); it != p.frames.rend() && ref < 0; ++it)
+            if (exists(in, *it)) ref = *it;
+        if (ref < 0) continue;
+        turbio::ReadOptions ro = p.read;
+        ro.requireDensity = false;
+        ro.cropMargin += in.extraMargin;
+        const turb::Frame f = turbio::readFrame(in.seq.path(fileFrame(in, ref)), fileFrame(in, ref), ro);
+        const turb::ScalarField* d = f.hasDensity() ? &f.density : nullptr;
+        in.speedMax = a.speedMax > 0.0f ? a.speedMax : percentile(turb::magnitude(f.velocity), d, 0.995);
+        in.vorticityMax = a.vorticityMax > 0.0f ? a.vorticityMax : percentile(turb::magnitude(turb::curl(f.velocity)), d, 0.99);
+        if (a.speedMax <= 0.0f) speedAll = std::max(speedAll, in.speedMax);
+    }
+    for (auto& in : p.inputs) in.speedMax = speedAll > 0.0f ? speedAll : 1.0f;
+}
 
-        RunReport report("preview", a.json);
-        std::vector<std::vector<turb::Image>> rowImages;
-        std::vector<std::vector<turb::SheetCell>> rows;
-        std::vector<std::string> rowLabels;
-        for (size_t r = 0; r < frames.size(); ++r) {
-            const int frame = frames[r];
-            const auto t0 = std::chrono::steady_clock::now();
-            ConsoleProgress progress(int(r), int(frames.size()), frame);
-            std::vector<turb::Image> images;
-            std::vector<std::string> labels;
-            for (const auto& in : inputs) {
-                std::optional<turb::Frame> f;
-                if (exists(in, frame)) {
-                    progress.begin("reading " + in.label);
-                    turbio::ReadOptions ro = read;
-                    ro.cropMargin += in.extraMargin;
-                    f = turbio::readFrame(in.seq.path(fileFrame(in, frame)), fileFrame(in, frame), ro);
-                    if (in.frameBox) {
-                        if (f->hasDensity()) f->density = turb::cropped(f->density, *in.frameBox);
-                        if (f->hasVelocity()) f->velocity = turb::cropped(f->velocity, *in.frameBox);
-                    }
-                } else {
-                    logWarning(in.seq.path(frame) + ": missing, left empty");
-                }
-                for (Mode m : modes) {
-                    progress.begin(std::string("rendering ") + modeName(m));
-                    images.push_back(f ? render(*f, m, a, in) : turb::Image());
-                    labels.push_back(cellLabel(in, m, inputs.size(), modes.size()));
-                }
+// One row: every cache's pictures of `frame` in every mode (empty where the cache lacks the frame), labelled.
+std::vector<turb::Image> renderRow(const PreviewArgs& a, const PreviewPlan& p, int frame, ConsoleProgress& progress,
+    std::vector<std::string>& labels)
+{
+    std::vector<turb::Image> images;
+    for (const auto& in : p.inputs) {
+        std::optional<turb::Frame> f;
+        if (exists(in, frame)) {
+            progress.begin("reading " + in.label);
+            turbio::ReadOptions ro = p.read;
+            ro.cropMargin += in.extraMargin;
+            f = turbio::readFrame(in.seq.path(fileFrame(in, frame)), fileFrame(in, frame), ro);
+            if (in.frameBox) {
+                if (f->hasDensity()) f->density = turb::cropped(f->density, *in.frameBox);
+                if (f->hasVelocity()) f->velocity = turb::cropped(f->velocity, *in.frameBox);
             }
-            progress.clear();
-            nlohmann::json extra;
-            for (const auto& in : inputs) // the world box each input is drawn over (one camera per scene)
-                if (in.frameBox) {
-                    const turb::Vec3d lo = in.lattice.indexToWorld(in.frameBox->min().asVec3d() - turb::Vec3d(0.5)),
-                                      hi = in.lattice.indexToWorld(in.frameBox->max().asVec3d() + turb::Vec3d(0.5));
-                    const auto clean = [](double x) { return std::round(x * 1e9) / 1e9; }; // no 1.9999999999999858
-                    extra["framed"][in.label] = {clean(lo.x()), clean(lo.y()), clean(lo.z()), clean(hi.x()), clean(hi.y()), clean(hi.z())};
-                }
-            if (a.sheet.empty()) {
-                // One picture per frame: a single image, or the modes side by side as a one-row sheet.
-                turb::Image pic;
-                if (images.size() == 1) pic = images.front();
-                else {
-                    std::vector<std::vector<turb::SheetCell>> one(1);
-                    for (size_t c = 0; c < images.size(); ++c) one[0].push_back({&images[c], labels[c]});
-                    pic = turb::contactSheet(one, {}, inputs.front().label + "  frame " + std::to_string(frame), 1);
-                }
-                const std::string path = turbio::FramePattern::parse(a.out).format(frame);
-                turbio::ensureParentDirectory(path);
-                turbio::writeImage(path, pic);
-                extra["out"] = path;
-                report.frameDone(frame, int(r), int(frames.size()), secondsSince(t0), "-> " + path, extra);
-            } else {
-                rowImages.push_back(std::move(images));
-                rowLabels.push_back("frame " + std::to_string(frame));
-                std::vector<turb::SheetCell> cells;
-                for (size_t c = 0; c < rowImages.back().size(); ++c)
-                    cells.push_back({rowImages.back()[c].empty() ? nullptr : &rowImages.back()[c], labels[c]});
-                rows.push_back(std::move(cells));
-                report.frameDone(frame, int(r), int(frames.size()), secondsSince(t0), "rendered", extra);
-            }
+        } else {
+            logWarning(in.seq.path(frame) + ": missing, left empty");
         }
-        if (!a.sheet.empty()) {
-            std::string title = a.title;
-            if (title.empty()) {
-                for (const auto& in : inputs) title += (title.empty() ? "" : " | ") + in.label;
-                bool allFlat = true; // 2D caches are drawn in their own x-y plane whatever --view says
-                for (const auto& in : inputs) allFlat = allFlat && in.frameBox && turb::isFlat(*in.frameBox);
-                title += allFlat ? std::string("  (x-y plane)") : "  (" + a.view + " view)";
-            }
-            const turb::Image sheet = turb::contactSheet(rows, rowLabels, title, 2);
-            turbio::ensureParentDirectory(a.sheet);
-            turbio::writeImage(a.sheet, sheet);
-            logInfo("wrote " + a.sheet + " (" + std::to_string(sheet.width()) + "x" + std::to_string(sheet.height()) + ")");
+        for (Mode m : p.modes) {
+            progress.begin(std::string("rendering ") + modeName(m));
+            images.push_back(f ? render(*f, m, a, in) : turb::Image());
+            labels.push_back(cellLabel(in, m, p.inputs.size(), p.modes.size()));
         }
-        report.finish();
-    });
-    return result;
+    }
+    return images;
+}
+
+// The world box each input is drawn over (one camera per scene), for the frame's JSON line.
+nlohmann::json framedJson(const std::vector<Input>& inputs)
+{
+    nlohmann::json extra;
+    for (const auto& in : inputs)
+        if (in.frameBox) {
+            const turb::Vec3d lo = in.lattice.indexToWorld(in.frameBox->min().asVec3d() - turb::Vec3d(0.5)),
+                              hi = in.lattice.indexToWorld(in.frameBox->max().asVec3d() + turb::Vec3d(0.5));
+            const auto clean = [](double x) { return std::round(x * 1e9) / 1e9; }; // no 1.9999999999999858
+            extra["framed"][in.label] = {clean(lo.x()), clean(lo.y()), clean(lo.z()), clean(hi.x()), clean(hi.y()), clean(hi.z())};
+        }
+    return extra;
+}
+
+// One picture per frame: a single image, or the modes side by side as a one-row sheet. Returns its path.
+std::string writePicture(const PreviewArgs& a, const PreviewPlan& p, int frame, const std::vector<turb::Image>& images,
+    const std::vector<std::string>& labels)
+{
+    turb::Image pic;
+    if (images.size() == 1) pic = images.front();
+    else {
+        std::vector<std::vector<turb::SheetCell>> one(1);
+        for (size_t c = 0; c < images.size(); ++c) one[0].push_back({&images[c], labels[c]});
+        pic = turb::contactSheet(one, {}, p.inputs.front().label + "  frame " + std::to_string(frame), 1);
+    }
+    const std::string path = turbio::FramePattern::parse(a.out).format(frame);
+    turbio::ensureParentDirectory(path);
+    turbio::writeImage(path, pic);
+    return path;
+}
+
+void writeSheet(const PreviewArgs& a, const PreviewPlan& p, const std::vector<std::vector<turb::SheetCell>>& rows,
+    const std::vector<std::string>& rowLabels)
+{
+    std::string title = a.title;
+    if (title.empty()) {
+        for (const auto& in : p.inputs) title += (title.empty() ? "" : " | ") + in.label;
+        bool allFlat = true; // 2D caches are drawn in their own x-y plane whatever --view says
+        for (const auto& in : p.inputs) allFlat = allFlat && in.frameBox && turb::isFlat(*in.frameBox);
+        title += allFlat ? std::string("  (x-y plane)") : "  (" + viewName(a.view) + " view)";
+    }
+    const turb::Image sheet = turb::contactSheet(rows, rowLabels, title, 2);
+    turbio::ensureParentDirectory(a.sheet);
+    turbio::writeImage(a.sheet, sheet);
+    logInfo("wrote " + a.sheet + " (" + std::to_string(sheet.width()) + "x" + std::to_string(sheet.height()) + ")");
+}
+
+// Draws every row: a picture per frame, or the rows of one sheet.
+void drawRows(const PreviewArgs& a, PreviewPlan& p)
+{
+    colourRanges(a, p);
+    RunReport report("preview", a.json);
+    std::vector<std::vector<turb::Image>> rowImages;
+    std::vector<std::vector<turb::SheetCell>> rows;
+    std::vector<std::string> rowLabels;
+    for (size_t r = 0; r < p.frames.size(); ++r) {
+        const int frame = p.frames[r];
+        const auto t0 = std::chrono::steady_clock::now();
+        ConsoleProgress progress(int(r), int(p.frames.size()), frame);
+        std::vector<std::string> labels;
+        std::vector<turb::Image> images = renderRow(a, p, frame, progress, labels);
+        progress.clear();
+        nlohmann::json extra = framedJson(p.inputs);
+        if (a.sheet.empty()) {
+            const std::string path = writePicture(a, p, frame, images, labels);
+            extra["out"] = path;
+            report.frameDone(frame, int(r), int(p.frames.size()), secondsSince(t0), "-> " + path, extra);
+        } else {
+            rowImages.push_back(std::move(images));
+            rowLabels.push_back("frame " + std::to_string(frame));
+            std::vector<turb::SheetCell> cells;
+            for (size_t c = 0; c < rowImages.back().size(); ++c)
+                cells.push_back({rowImages.back()[c].empty() ? nullptr : &rowImages.back()[c], labels[c]});
+            rows.push_back(std::move(cells));
+            report.frameDone(frame, int(r), int(p.frames.size()), secondsSince(t0), "rendered", extra);
+        }
+    }
+    if (!a.sheet.empty()) writeSheet(a, p, rows, rowLabels);
+    report.finish();
+}
+
+int runPreview(PreviewArgs& a)
+{
+    PreviewPlan p;
+    p.modes = parseModes(a.modes);
+    // Argument combinations CLI11 cannot express are usage errors too (exit 2).
+    if (a.sheet.empty() && a.out.empty()) {
+        logError("give --out PATTERN.png|.exr (one picture per frame) or --sheet FILE.png|.exr");
+        return kUsage;
+    }
+    if (a.sheet.empty() && a.inputs.size() > 1) {
+        logError("several caches go side by side into a contact sheet: add --sheet FILE.png");
+        return kUsage;
+    }
+    p.inputs = resolveInputs(a);
+    p.frames = rowFrames(a, p.inputs);
+    p.read = a.read;
+    p.read.requireVelocity = needsVelocity(p.modes);
+    p.read.requireDensity = std::find(p.modes.begin(), p.modes.end(), Mode::Density) != p.modes.end();
+    p.read.readExtras = false;
+
+    const std::vector<std::string> inputPaths = checkAndFrame(p);
+    if (const int rc = checkOutputPaths(a, p, inputPaths); rc != kOk) return rc;
+    turb::withThreads(globals().threads, [&] { drawRows(a, p); });
+    return kOk;
+}
+
+CLI::Validator modesCheck()
+{
+    return CLI::Validator(
+        [](std::string& v) {
+            try {
+                parseModes(v);
+            } catch (const turb::ValueError& e) {
+                return std::string(e.what());
+            }
+            return std::string();
+        },
+        "MODES");
+}
+
+// The second tier: the slice, the density render's light and the colour ranges (docs/scenes.md).
+void addPictureSettings(CLI::App* app, PreviewArgs& a)
+{
+    setting(app->add_option("--slice", a.slice, "Slice position for speed/vorticity/lic, fraction along the view axis")
+                ->check(CLI::Range(0.0, 1.0)),
+        "slice");
+    setting(app->add_option("--exposure", a.exposure, "Density render exposure, fixed for all frames")
+                ->check(CLI::PositiveNumber),
+        "exposure");
+    setting(app->add_option("--extinction", a.extinction, "Optical depth per unit density per world unit")
+                ->check(CLI::PositiveNumber),
+        "extinction");
+    setting(app->add_option("--speed-max", a.speedMax,
+                   "Speed at the top of the colour map (0: the last frame's 99.5th percentile)")
+                ->check(CLI::PositiveNumber),
+        "speed-max");
+    setting(app->add_option("--vorticity-max", a.vorticityMax,
+                   "Vorticity at the top of the colour map (0: each cache's 99th percentile)")
+                ->check(CLI::PositiveNumber),
+        "vorticity-max");
 }
 
 } // namespace
@@ -465,35 +571,20 @@ Command previewCommand()
                "Caches as [LABEL=]PATTERN (####, %04d, $F4 or one real file); several go side by side in --sheet")
             ->required();
         app->add_option("--mode", a.modes,
-               "Comma list of density (lit ray march), speed, vorticity (slices), lic (flow texture), all (default density)")
-            ->check(CLI::Validator(
-                [](std::string& v) {
-                    try {
-                        parseModes(v);
-                    } catch (const turb::ValueError& e) {
-                        return std::string(e.what());
-                    }
-                    return std::string();
-                },
-                "MODES"));
-        app->add_option("--frames", a.frames, "Frames, e.g. 10,30,60 or 1-60 (default: all; a sheet: three spread frames)")->check(frameListCheck());
-        app->add_option("--out", a.out, "One picture per frame, e.g. pics/plume.####.png (.exr: linear half float)");
-        app->add_option("--sheet", a.sheet, "Write one contact sheet: rows = frames, columns = caches x modes");
-        app->add_option("--title", a.title, "Title of the contact sheet (default: the labels)");
-        app->add_option("--view", a.view, "Camera: front (along +y, default), side (along +x), top (down -z)")
-            ->check(CLI::IsMember({"front", "side", "top"}));
-        app->add_option("--slice", a.slice, "Slice position for speed/vorticity/lic, fraction along the view axis (default 0.5)")
-            ->check(CLI::Range(0.0, 1.0));
-        app->add_option("--width", a.width, "Width of each picture in pixels (default 320)")->check(CLI::Range(16, 8192));
-        app->add_option("--exposure", a.exposure, "Density render exposure, fixed for all frames (default 1)")->check(CLI::PositiveNumber);
-        app->add_option("--extinction", a.extinction, "Optical depth per unit density per world unit (default 6)")
-            ->check(CLI::PositiveNumber);
-        app->add_option("--speed-max", a.speedMax, "Speed at the top of the colour map (default: 99.5th percentile of the last frame)")
-            ->check(CLI::PositiveNumber);
-        app->add_option("--vorticity-max", a.vorticityMax, "Vorticity at the top of the colour map (default: 99th percentile)")
-            ->check(CLI::PositiveNumber);
+               "Comma list of density (lit ray march), speed, vorticity (slices), lic (flow texture), all")
+            ->check(modesCheck());
+        app->add_option("--frames", a.frames, "Frames, e.g. 10,30,60 or 1-60 (default: all; a sheet: three spread frames)")
+            ->check(frameListCheck());
+        addEnum<turb::View>(app, "--view", a.view, kViews, "Camera: front (along +y), side (along +x), top (down -z)");
+        app->add_option("--width", a.width, "Width of each picture in pixels")->check(CLI::Range(16, 8192));
         app->add_flag("--json", a.json, "One JSON line per frame and a summary on stdout");
         addReadOptions(app, a.read);
+        app->add_option("--out", a.out, "One picture per frame, e.g. pics/plume.####.png (.exr: linear half float)")
+            ->group(kGroupOutput);
+        app->add_option("--sheet", a.sheet, "Write one contact sheet: rows = frames, columns = caches x modes")
+            ->group(kGroupOutput);
+        app->add_option("--title", a.title, "Title of the contact sheet (default: the labels)")->group(kGroupOutput);
+        addPictureSettings(app, a);
     };
     c.run = [args] { return runPreview(*args); };
     return c;

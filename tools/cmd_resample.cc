@@ -93,17 +93,39 @@ void reportOtherGrids(const turbio::OtherGrids& others, const std::string& path,
                    " staggered (face-sampled): resampled as cell values, so the faces may be off by up to a voxel");
 }
 
+// AXIS:TURNS, e.g. y:1 = one right-handed quarter turn about y; "" = none.
+turb::AxisRotation parseRotation(const std::string& text)
+{
+    if (text.empty()) return {};
+    const size_t colon = text.find(':');
+    const std::string axis = text.substr(0, colon);
+    const int turns = colon == std::string::npos ? 1 : std::stoi(text.substr(colon + 1));
+    if (axis != "x" && axis != "y" && axis != "z") throw turb::ValueError("--rotate: axis must be x, y or z");
+    return turb::AxisRotation::quarterTurns(axis == "x" ? 0 : axis == "y" ? 1 : 2, turns);
+}
+
+// Everything else the file holds goes along, resampled with the frame: a proxy keeps Blender's flags, colours,
+// level sets.
+turbio::OtherGrids carriedGrids(const ResampleArgs& a, const std::string& path, const turb::Frame& frame,
+    const turb::AxisRotation& rot, bool first)
+{
+    turbio::OtherGrids others = turbio::OtherGrids::read(path, a.read, frame.lattice());
+    // A carried grid named as the frame's grids are written (a --density-grid other than 'density' leaves the
+    // file's 'density' among the others) would give the file two grids of one name.
+    const bool blender = a.write.style == turbio::WriteStyle::Blender;
+    const std::vector<std::string> clash = others.dropNamed({"density", blender ? "velocity" : "vel", "temperature", "flame"});
+    if (!clash.empty() && first)
+        logWarning(path + ": " + joined(clash) + " left out: the frame's own grids are written under " +
+                   (clash.size() == 1 ? "that name" : "those names"));
+    if (a.down > 1) others.downsample(turb::domainFactors(frame.bbox(), a.down));
+    others.rotate(rot);
+    reportOtherGrids(others, path, first, a.down > 1 || !rot.isIdentity());
+    return others;
+}
+
 int runResample(ResampleArgs& a)
 {
-    turb::AxisRotation rot;
-    if (!a.rotate.empty()) {
-        // AXIS:TURNS, e.g. y:1 = one right-handed quarter turn about y.
-        const size_t colon = a.rotate.find(':');
-        const std::string axis = a.rotate.substr(0, colon);
-        const int turns = colon == std::string::npos ? 1 : std::stoi(a.rotate.substr(colon + 1));
-        if (axis != "x" && axis != "y" && axis != "z") throw turb::ValueError("--rotate: axis must be x, y or z");
-        rot = turb::AxisRotation::quarterTurns(axis == "x" ? 0 : axis == "y" ? 1 : 2, turns);
-    }
+    const turb::AxisRotation rot = parseRotation(a.rotate);
     const turbio::Sequence seq = turbio::resolveSequence(a.in, a.frames);
     const turbio::FramePattern outPattern = turbio::FramePattern::parse(a.out);
     if (seq.frames.size() > 1 && !outPattern.numbered())
@@ -128,22 +150,8 @@ int runResample(ResampleArgs& a)
         const int f = seq.frames[i];
         const auto t0 = std::chrono::steady_clock::now();
         turb::Frame frame = turbio::readFrame(seq.path(f), f, a.read);
-        // Everything else the file holds goes along: a proxy keeps Blender's flags, colours, level sets.
         std::optional<turbio::OtherGrids> others;
-        if (!a.dropOtherGrids) {
-            others = turbio::OtherGrids::read(seq.path(f), a.read, frame.lattice());
-            // A carried grid named as the frame's grids are written (a --density-grid other than 'density' leaves
-            // the file's 'density' among the others) would give the file two grids of one name.
-            const bool blender = a.write.style == turbio::WriteStyle::Blender;
-            const std::vector<std::string> clash = others->dropNamed(
-                {"density", blender ? "velocity" : "vel", "temperature", "flame"});
-            if (!clash.empty() && i == 0)
-                logWarning(seq.path(f) + ": " + joined(clash) + " left out: the frame's own grids are written under " +
-                           (clash.size() == 1 ? "that name" : "those names"));
-            if (a.down > 1) others->downsample(turb::domainFactors(frame.bbox(), a.down));
-            others->rotate(rot);
-            reportOtherGrids(*others, seq.path(f), i == 0, a.down > 1 || !rot.isIdentity());
-        }
+        if (!a.dropOtherGrids) others = carriedGrids(a, seq.path(f), frame, rot, i == 0);
         if (a.down > 1) frame = turb::downsampleFrame(frame, a.down);
         if (!rot.isIdentity()) frame = turb::reorientFrame(frame, rot);
         rescaleIndexMetadata(frame.metadata, a.down, !rot.isIdentity());
@@ -169,15 +177,16 @@ Command resampleCommand()
     c.help = "Box-downsample a cache by an integer factor and/or turn it by quarter turns (exact)";
     c.setup = [args](CLI::App* app) {
         app->add_option("input", args->in, "Cache: a pattern or one real file name")->required();
-        app->add_option("--out", args->out, "Output pattern, e.g. proxy/plume.####.vdb")->required();
         app->add_option("--frames", args->frames, "Frames, e.g. 1-30 (default: all on disk)")->check(frameListCheck());
         app->add_option("--down", args->down, "Mean over NxNxN blocks onto an N times coarser lattice")->check(CLI::Range(1, 64));
         app->add_option("--rotate", args->rotate, "AXIS:TURNS quarter turns about x, y or z (e.g. y:1), grids and vectors");
-        app->add_flag("--drop-other-grids", args->dropOtherGrids,
-            "Write only density, velocity, temperature and flame (default: every other grid of the file goes along, "
-            "resampled with the frame: mean over blocks, labels such as Blender's flags by the block's centre voxel)");
         addReadOptions(app, args->read);
+        app->add_option("--out", args->out, "Output pattern, e.g. proxy/plume.####.vdb")->required()->group(kGroupOutput);
         addWriteOptions(app, args->write);
+        // Rarely wanted: a proxy normally keeps Blender's flags, colours and level sets (docs/io.md).
+        setting(app->add_flag("--drop-other-grids", args->dropOtherGrids,
+                    "Write only density, velocity, temperature and flame, not the file's other grids"),
+            "drop-other-grids");
     };
     c.run = [args] { return runResample(*args); };
     return c;

@@ -24,6 +24,9 @@ namespace vdbturb {
 
 namespace {
 
+// The pressure solve's preconditioner (turb::scenes::SmokeSettings::pressureIncompleteCholesky).
+enum class Preconditioner { IncompleteCholesky, Jacobi };
+
 struct SimArgs
 {
     std::string scene;
@@ -32,13 +35,14 @@ struct SimArgs
     int start = 1;
     std::uint64_t seed = 1;
     std::string out;
-    std::string scheme = "maccormack";
-    std::string preconditioner = "ic";
-    double tolerance = 0.0;
-    double cfl = 0.0;
-    int maxSubsteps = 0;
     bool json = false;
     bool list = false;
+    // Solver settings: every scene keeps turb::scenes::SmokeSettings' defaults for these.
+    turb::AdvectSettings::Scheme scheme = turb::scenes::SmokeSettings{}.densityScheme;
+    Preconditioner preconditioner = Preconditioner::IncompleteCholesky;
+    double pressureTolerance = turb::scenes::SmokeSettings{}.pressureTolerance;
+    double cfl = turb::scenes::SmokeSettings{}.cfl;
+    int maxSubsteps = turb::scenes::SmokeSettings{}.maxSubsteps;
     turbio::WriteOptions write;
 };
 
@@ -121,37 +125,31 @@ int runInk(const SimArgs& a)
     return kOk;
 }
 
-int runSim(const SimArgs& a)
+void listScenes()
 {
-    if (a.list) {
-        for (const auto& s : turb::scenes::sceneList())
-            std::cout << s.name << "\t" << s.description << " (" << s.width << " units wide; pair "
-                      << resText(s.pairLow) << " / " << resText(s.pairHigh) << ")\n";
-        std::cout << "ink\t2D: a drop of ink spreading on wet paper, painted like watercolour (PNG frames, masks and EXR flows: "
-                     "Fluidymation's moving exemplar; --res WxH, default 320x240)\n";
-        return kOk;
-    }
-    if (a.scene == "ink") return runInk(a);
-    if (a.scene.empty()) throw turb::ValueError("no scene given (try --list)");
-    if (a.frames < 1) throw turb::ValueError("--frames must be >= 1");
-    const turb::Coord res = parseResolution(a.res);
+    for (const auto& s : turb::scenes::sceneList())
+        std::cout << s.name << "\t" << s.description << " (" << s.width << " units wide; pair "
+                  << resText(s.pairLow) << " / " << resText(s.pairHigh) << ")\n";
+    std::cout << "ink\t2D: a drop of ink spreading on wet paper, painted like watercolour (PNG frames, masks and EXR flows: "
+                 "Fluidymation's moving exemplar; --res WxH, default 320x240)\n";
+}
+
+// The scene's settings with the command's solver settings.
+turb::scenes::SmokeSettings solverSettings(const SimArgs& a, const turb::Coord& res)
+{
     turb::scenes::SmokeSettings s = turb::scenes::sceneSettings(a.scene, res, a.seed);
     s.threads = globals().threads;
-    using Scheme = turb::AdvectSettings::Scheme;
-    const Scheme scheme = a.scheme == "semi" ? Scheme::SemiLagrangian : a.scheme == "bfecc" ? Scheme::BFECC : Scheme::MacCormack;
-    s.densityScheme = s.velocityScheme = scheme;
-    s.pressureIncompleteCholesky = a.preconditioner != "jacobi";
-    if (a.tolerance > 0.0) s.pressureTolerance = a.tolerance;
-    if (a.cfl > 0.0) s.cfl = a.cfl;
-    if (a.maxSubsteps > 0) s.maxSubsteps = a.maxSubsteps;
+    s.densityScheme = s.velocityScheme = a.scheme;
+    s.pressureIncompleteCholesky = a.preconditioner == Preconditioner::IncompleteCholesky;
+    s.pressureTolerance = a.pressureTolerance;
+    s.cfl = a.cfl;
+    s.maxSubsteps = a.maxSubsteps;
+    return s;
+}
 
-    const std::string outText = a.out.empty() ? "sim/" + a.scene + "_" + resText(res) + "/" + a.scene + ".####.vdb" : a.out;
-    const turbio::FramePattern pattern = turbio::FramePattern::parse(outText);
-    if (!pattern.numbered() && a.frames > 1)
-        throw turb::ValueError("--out '" + outText + "' has no frame token (####, %04d, $F4) but " +
-                               std::to_string(a.frames) + " frames were asked for");
-
-    turb::scenes::SmokeSim sim(s); // validates the settings before anything is written
+std::string domainLine(const SimArgs& a, const turb::scenes::SmokeSim& sim, const turb::scenes::SmokeSettings& s,
+    const turb::Coord& res)
+{
     const double h = sim.lattice().voxelSize;
     const turb::Vec3d lo = sim.lattice().indexToWorld(turb::Vec3d(-0.5));
     const turb::Vec3d hi = lo + turb::Vec3d(res.x(), res.y(), res.z()) * h;
@@ -159,13 +157,37 @@ int runSim(const SimArgs& a)
     domain << "scene " << a.scene << " at " << resText(res) << ", voxel " << h << ", domain (" << lo.x() << ","
            << lo.y() << "," << lo.z() << ")-(" << hi.x() << "," << hi.y() << "," << hi.z() << ")" << (sim.twoD() ? ", 2D, y up, " : ", z up, ")
            << a.frames << " frames at " << fmt("%.4g", 1.0 / s.frameDt) << " fps, seed " << a.seed;
-    logInfo(domain.str());
-    if (globals().dryRun) {
-        logInfo("would write " + pattern.format(a.start) + (a.frames > 1 ? " .. " + pattern.format(a.start + a.frames - 1) : ""));
-        return kOk;
-    }
+    return domain.str();
+}
 
-    RunReport report("sim " + a.scene + " " + resText(res), a.json);
+nlohmann::json frameJson(const turb::scenes::FrameStats& st, const std::string& path)
+{
+    nlohmann::json extra;
+    extra["out"] = path;
+    extra["substeps"] = st.substeps;
+    extra["pressure_iterations"] = st.pressureIterations;
+    extra["converged"] = st.converged;
+    extra["relative_residual"] = st.relativeResidual;
+    extra["relative_divergence"] = st.relativeDivergence;
+    extra["div_max_after"] = st.divMaxAfter;
+    extra["div_rel"] = st.divRel;
+    extra["max_speed"] = st.maxSpeed;
+    extra["mass"] = st.mass;
+    extra["advect_s"] = st.advectSeconds;
+    extra["project_s"] = st.projectSeconds;
+    return extra;
+}
+
+std::string frameLine(const turb::scenes::FrameStats& st, const std::string& path)
+{
+    return std::to_string(st.substeps) + " substep" + (st.substeps == 1 ? "" : "s") + ", CG " +
+           std::to_string(st.pressureIterations) + " it, max|div| after/before " + fmt("%.1e", st.relativeDivergence) +
+           ", div_rel " + fmt("%.3f", st.divRel) + ", max speed " + fmt("%.2f", st.maxSpeed) + " -> " + path;
+}
+
+// Simulates and writes every frame; returns how many stopped before the pressure tolerance.
+int writeFrames(const SimArgs& a, turb::scenes::SmokeSim& sim, const turbio::FramePattern& pattern, RunReport& report)
+{
     int unconverged = 0;
     bool warnedClipping = false;
     turb::withThreads(globals().threads, [&] {
@@ -186,34 +208,97 @@ int runSim(const SimArgs& a)
             if (!st.converged) {
                 ++unconverged;
                 logWarning("frame " + std::to_string(number) + ": pressure solve stopped at residual " +
-                           fmt("%.2e", st.relativeResidual) + " (tolerance " + fmt("%.1e", s.pressureTolerance) + ")");
+                           fmt("%.2e", st.relativeResidual) + " (tolerance " + fmt("%.1e", a.pressureTolerance) + ")");
             }
-            nlohmann::json extra;
-            extra["out"] = path;
-            extra["substeps"] = st.substeps;
-            extra["pressure_iterations"] = st.pressureIterations;
-            extra["converged"] = st.converged;
-            extra["relative_residual"] = st.relativeResidual;
-            extra["relative_divergence"] = st.relativeDivergence;
-            extra["div_max_after"] = st.divMaxAfter;
-            extra["div_rel"] = st.divRel;
-            extra["max_speed"] = st.maxSpeed;
-            extra["mass"] = st.mass;
-            extra["advect_s"] = st.advectSeconds;
-            extra["project_s"] = st.projectSeconds;
-            const std::string human = std::to_string(st.substeps) + " substep" + (st.substeps == 1 ? "" : "s") + ", CG " +
-                                      std::to_string(st.pressureIterations) + " it, max|div| after/before " +
-                                      fmt("%.1e", st.relativeDivergence) + ", div_rel " + fmt("%.3f", st.divRel) +
-                                      ", max speed " + fmt("%.2f", st.maxSpeed) + " -> " + path;
             logVerbose("frame " + std::to_string(number) + ": advect " + fmt("%.2f s", st.advectSeconds) + ", project " +
                        fmt("%.2f s", st.projectSeconds));
-            report.frameDone(number, i, a.frames, secondsSince(t0), human, extra);
+            report.frameDone(number, i, a.frames, secondsSince(t0), frameLine(st, path), frameJson(st, path));
         }
     });
+    return unconverged;
+}
+
+int runSim(const SimArgs& a)
+{
+    if (a.list) {
+        listScenes();
+        return kOk;
+    }
+    if (a.scene == "ink") return runInk(a);
+    if (a.scene.empty()) throw turb::ValueError("no scene given (try --list)");
+    if (a.frames < 1) throw turb::ValueError("--frames must be >= 1");
+    const turb::Coord res = parseResolution(a.res);
+    const turb::scenes::SmokeSettings s = solverSettings(a, res);
+
+    const std::string outText = a.out.empty() ? "sim/" + a.scene + "_" + resText(res) + "/" + a.scene + ".####.vdb" : a.out;
+    const turbio::FramePattern pattern = turbio::FramePattern::parse(outText);
+    if (!pattern.numbered() && a.frames > 1)
+        throw turb::ValueError("--out '" + outText + "' has no frame token (####, %04d, $F4) but " +
+                               std::to_string(a.frames) + " frames were asked for");
+
+    turb::scenes::SmokeSim sim(s); // validates the settings before anything is written
+    logInfo(domainLine(a, sim, s, res));
+    if (globals().dryRun) {
+        logInfo("would write " + pattern.format(a.start) + (a.frames > 1 ? " .. " + pattern.format(a.start + a.frames - 1) : ""));
+        return kOk;
+    }
+
+    RunReport report("sim " + a.scene + " " + resText(res), a.json);
+    const int unconverged = writeFrames(a, sim, pattern, report);
     report.finish();
     if (unconverged)
         logWarning(std::to_string(unconverged) + " frame(s) stopped before the pressure tolerance; try --max-substeps or --tolerance");
     return kOk;
+}
+
+// CLI11's own checks name only the range: say what a resolution is.
+CLI::Validator resolutionCheck()
+{
+    return CLI::Validator(
+        [](std::string& v) {
+            try {
+                if (std::count(v.begin(), v.end(), 'x') + std::count(v.begin(), v.end(), 'X') == 1) return std::string(); // 2D (ink)
+                parseResolution(v);
+            } catch (const turb::ValueError& e) {
+                return std::string(e.what());
+            }
+            return std::string();
+        },
+        "NXxNYxNZ");
+}
+
+CLI::Validator frameCountCheck()
+{
+    return CLI::Validator(
+        [](std::string& v) {
+            return v.find_first_not_of("0123456789") == std::string::npos && !v.empty() && std::stoll(v.substr(0, 9)) > 0
+                       ? std::string()
+                       : "sim --frames is a number of frames (e.g. 24), not a frame list; got '" + v + "'";
+        },
+        "COUNT");
+}
+
+// The second tier: the solver's advection and pressure projection (docs/scenes.md has their measured effects).
+void addSolverSettings(CLI::App* app, SimArgs& a)
+{
+    using Scheme = turb::AdvectSettings::Scheme;
+    setting(addEnum<Scheme>(app, "--scheme", a.scheme,
+                {{"semi", Scheme::SemiLagrangian}, {"maccormack", Scheme::MacCormack}, {"bfecc", Scheme::BFECC}},
+                "Advection of density, temperature and velocity: semi (semi-Lagrangian), maccormack, bfecc"),
+        "scheme");
+    setting(app->add_option("--tolerance,--pressureTolerance", a.pressureTolerance,
+                   "Pressure solve: max|div| after / before")
+                ->check(CLI::Range(1e-12, 0.5)),
+        "pressureTolerance");
+    setting(addEnum<Preconditioner>(app, "--preconditioner", a.preconditioner,
+                {{"ic", Preconditioner::IncompleteCholesky}, {"jacobi", Preconditioner::Jacobi}},
+                "Pressure solve preconditioner: ic (incomplete Cholesky, one thread) or jacobi (all threads)"),
+        "preconditioner");
+    setting(app->add_option("--cfl", a.cfl, "Voxels the fastest flow may cross per substep")->check(CLI::PositiveNumber),
+        "cfl");
+    setting(app->add_option("--max-substeps,--maxSubsteps", a.maxSubsteps, "Substeps per frame at most")
+                ->check(CLI::Range(1, 64)),
+        "maxSubsteps");
 }
 
 } // namespace
@@ -231,43 +316,16 @@ Command simCommand()
         names.push_back("ink");
         app->add_option("scene", a.scene, "Scene: plume, swirl, obstacle, wind, or the 2D ink (see --list)")->check(CLI::IsMember(names));
         app->add_flag("--list", a.list, "List the scenes and exit");
-        app->add_option("--res", a.res,
-               "Cells NXxNYxNZ along x, y, z (z is up), or N for a cube (default 32x32x48); NZ = 1 is a 2D simulation in the x-y plane, y up, one voxel thick (e.g. 24x32x1). The world domain is fixed "
-               "per scene: 4 units wide, voxel = 4/NX; 16x16x24 and 128x128x192 cover the same 4x4x6 domain")
-            ->check(CLI::Validator(
-                [](std::string& v) {
-                    try {
-                        if (std::count(v.begin(), v.end(), 'x') + std::count(v.begin(), v.end(), 'X') == 1) return std::string(); // 2D (ink)
-                        parseResolution(v);
-                    } catch (const turb::ValueError& e) {
-                        return std::string(e.what());
-                    }
-                    return std::string();
-                },
-                "NXxNYxNZ"));
-        app->add_option("--frames", a.frames, "Number of frames to simulate, written as 1..N (default 60, 24 fps)")
-            ->check(CLI::Validator(
-                [](std::string& v) {
-                    return v.find_first_not_of("0123456789") == std::string::npos && !v.empty() && std::stoll(v.substr(0, 9)) > 0
-                               ? std::string()
-                               : "sim --frames is a number of frames (e.g. 24), not a frame list; got '" + v + "'";
-                },
-                "COUNT"));
-        app->add_option("--start", a.start, "Number of the first frame written (default 1)");
-        app->add_option("--seed", a.seed, "Emitter noise seed; the same seed gives identical caches (default 1)");
-        app->add_option("--out", a.out, "Output pattern, e.g. sim/plume.####.vdb (default sim/SCENE_RES/SCENE.####.vdb)");
-        app->add_option("--scheme", a.scheme, "Advection: semi (semi-Lagrangian), maccormack (default), bfecc")
-            ->check(CLI::IsMember({"semi", "maccormack", "bfecc"}));
-        app->add_option("--tolerance", a.tolerance, "Pressure solve: max|div| after / before (default 5e-5)")
-            ->check(CLI::Range(1e-12, 0.5));
-        app->add_option("--preconditioner", a.preconditioner,
-               "Pressure solve preconditioner: ic (incomplete Cholesky, default: fewest iterations, one thread) "
-               "or jacobi (more iterations, all threads)")
-            ->check(CLI::IsMember({"ic", "jacobi"}));
-        app->add_option("--cfl", a.cfl, "Voxels the fastest flow may cross per substep (default 5)")->check(CLI::PositiveNumber);
-        app->add_option("--max-substeps", a.maxSubsteps, "Substeps per frame at most (default 4)")->check(CLI::Range(1, 64));
+        app->add_option("--res", a.res, "Cells NXxNYxNZ along x, y, z (z up), or N for a cube; NZ = 1 simulates in 2D")
+            ->check(resolutionCheck());
+        app->add_option("--frames", a.frames, "Number of frames to simulate, at 24 per second")->check(frameCountCheck());
+        app->add_option("--start", a.start, "Number of the first frame written");
+        app->add_option("--seed", a.seed, "Emitter noise seed; the same seed gives identical caches");
         app->add_flag("--json", a.json, "One JSON line per frame and a summary on stdout");
+        app->add_option("--out", a.out, "Output pattern, e.g. sim/plume.####.vdb (default: sim/SCENE_RES/SCENE.####.vdb)")
+            ->group(kGroupOutput);
         addWriteOptions(app, a.write);
+        addSolverSettings(app, a);
     };
     c.run = [args] { return runSim(*args); };
     return c;
