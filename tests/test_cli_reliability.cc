@@ -9,6 +9,8 @@
 #include <openvdb/openvdb.h>
 #include <openvdb/io/File.h>
 
+#include <fstream>
+#include <map>
 #include <regex>
 
 using clitest::run;
@@ -265,6 +267,59 @@ TEST(CliReliability, TyposAndNearMissesGetTheFix)
     EXPECT_NE(houdini.out.find("fluid_data_$F.vdb: no file matches"), std::string::npos) << houdini.out;
     EXPECT_EQ(houdini.out.find('@'), std::string::npos) << houdini.out;
     EXPECT_EQ(run("info '" + testutil::dataPath("blender-plume-32/fluid_data_${F4}.vdb") + "' --headers-only").code, 0);
+}
+
+TEST(CliReliability, StylizeAnimateAndFarmListEverydayOptionsAndSettingsApart)
+{
+    // --help lists the everyday options; --help-all adds the second tier, each old spelling named beside its
+    // setting; --print-settings writes a setting under its key whichever spelling gave it.
+    const auto listed = [](const std::string& help, const std::string& option) {
+        return help.find("\n  " + option) != std::string::npos;
+    };
+    const std::map<std::string, std::pair<std::vector<std::string>, std::vector<std::string>>> tiers{
+        {"stylize", {{"--method", "--exemplar ", "--cache", "--camera ", "--width", "--scene ", "--target-mask", "--out"},
+                        {"--patch,--patchSize", "--lambda", "--nnf", "--camera-pos", "--n,--fluidy.patchSize",
+                            "--fluidy.reusePrevious", "--out-rot"}}},
+        {"animate", {{"--example ", "--example-cache", "--target ", "--flow-strokes", "--hm ", "--out"},
+                        {"--tau", "--shutter,--average.shutter", "--hm-rep,--hm.reps", "--hm.blendPixels", "--orient"}}},
+        {"farm plan", {{"--target", "--chunks", "--preroll", "--overlap", "--cpus"}, {"--retries", "--vdbturb", "--name"}}},
+        {"farm join", {{"--dir", "--json"}, {"--half", "--style", "--velocity-margin", "--target-vel-grid"}}}};
+    for (const auto& [command, options] : tiers) {
+        const auto help = run(command + " --help", false);
+        const auto all = run(command + " --help-all", false);
+        ASSERT_EQ(help.code, 0) << command;
+        ASSERT_EQ(all.code, 0) << command;
+        for (const auto& o : options.first) EXPECT_TRUE(listed(help.out, o)) << command << " --help lacks " << o << help.out;
+        for (const auto& o : options.second) {
+            EXPECT_FALSE(listed(help.out, o)) << command << " --help lists " << o;
+            EXPECT_TRUE(listed(all.out, o)) << command << " --help-all lacks " << o << all.out;
+        }
+    }
+    const auto stylizeAll = run("stylize --help-all", false).out;
+    EXPECT_NE(stylizeAll.find("(also: --no-reuse)"), std::string::npos) << stylizeAll;
+    EXPECT_NE(run("animate --help-all", false).out.find("(also: --hm-exact-cells)"), std::string::npos);
+
+    const auto printed = run("stylize --patch 7 --b 12 --no-reuse --nnf standard --print-settings", false);
+    ASSERT_EQ(printed.code, 0) << printed.out;
+    for (const char* line : {"\npatchSize=7\n", "\nfluidy.boundaryBlur=12\n", "\nfluidy.reusePrevious=false\n"})
+        EXPECT_NE(printed.out.find(line), std::string::npos) << line << printed.out;
+    const auto farm = run("farm plan --target a --source b --out c.####.vdb --retries 3 --print-settings", false);
+    EXPECT_NE(farm.out.find("\nretries=3\n"), std::string::npos) << farm.out;
+
+    // A settings file sets what the old spelling set: tau 12 leaves 20 - 12 frames of the built-in river.
+    testutil::TempDir dir;
+    {
+        std::ofstream f(dir / "a.toml");
+        f << "tau = 12\nhm.blendPixels = false\n";
+    }
+    const std::string animate = "animate --example builtin:river:48x40x20 --target builtin:river:48x40 --flow-strokes " +
+                                std::string(VDBTURB_SOURCE_DIR) + "/scenes/animate/river_strokes.json --out " +
+                                dir / "o.####.exr --dry-run";
+    const auto fromFile = run(animate + " --settings " + dir / "a.toml");
+    const auto fromFlags = run(animate + " --tau 12 --hm-exact-cells");
+    ASSERT_EQ(fromFile.code, 0) << fromFile.out;
+    EXPECT_NE(fromFile.out.find("tau 12 -> 8 frames"), std::string::npos) << fromFile.out;
+    EXPECT_EQ(fromFile.out, fromFlags.out);
 }
 
 TEST(CliReliability, InfoPutsAlignedTablesWithWorldBoundsOnStdout)

@@ -1,6 +1,8 @@
 // What both methods of `vdbturb stylize` share (StylizeCommon.h).
 #include "StylizeCommon.h"
 
+#include "Console.h"
+
 #include <turb/Error.h>
 #include <turb/Render.h>
 #include <turbio/ImageIO.h>
@@ -16,6 +18,22 @@ std::string fmt(const char* f, double v)
     char b[64];
     std::snprintf(b, sizeof(b), f, v);
     return b;
+}
+
+int checkOutputPatterns(const std::string& out, const std::string& more)
+{
+    if (out.empty()) {
+        logError("give --out PATTERN (.png, .exr or .tif with #### for the frame)");
+        return kUsage;
+    }
+    try {
+        turbio::outputFormatOf(out);
+        if (!more.empty()) turbio::outputFormatOf(more);
+    } catch (const turb::ValueError& e) {
+        logError(messageWithFlags(e));
+        return kUsage;
+    }
+    return kOk;
 }
 
 std::vector<double> parseNumbers(const std::string& s, size_t n, const std::string& what)
@@ -42,6 +60,61 @@ turb::Vec3d parseVec(const std::string& s, const std::string& what)
     return turb::Vec3d(v[0], v[1], v[2]);
 }
 
+std::string cameraName(CameraKind k)
+{
+    switch (k) {
+    case CameraKind::Side: return "side";
+    case CameraKind::Top: return "top";
+    case CameraKind::Perspective: return "perspective";
+    default: return "front";
+    }
+}
+
+void addCameraOptions(CLI::App* app, CameraArgs& c)
+{
+    addEnum<CameraKind>(app, "--camera", c.kind,
+        {{"front", CameraKind::Front}, {"side", CameraKind::Side}, {"top", CameraKind::Top},
+            {"perspective", CameraKind::Perspective}},
+        "Cache camera: front (along +y), side (along +x), top (down -z), or perspective")
+        ->group(kGroupInput);
+    app->add_option("--width", c.width, "Cache camera image width (0: 4 pixels per voxel; perspective 512)")
+        ->check(CLI::Range(16, 16384))
+        ->group(kGroupInput);
+    setting(app->add_option("--camera-pos", c.position, "Perspective camera position X,Y,Z (world units)"), "camera-pos");
+    setting(app->add_option("--look-at", c.lookAt, "Perspective camera target X,Y,Z (world units)"), "look-at");
+    setting(app->add_option("--camera-up", c.up, "Perspective camera up direction"), "camera-up");
+    setting(app->add_option("--fov", c.fov, "Perspective horizontal field of view in degrees")->check(CLI::Range(1.0, 170.0)),
+        "fov");
+    setting(app->add_option("--height", c.height, "Perspective image height (0: the width)")->check(CLI::Range(0, 16384)),
+        "height");
+    setting(app->add_option("--extinction", c.extinction, "Cache opacity: optical depth per unit density per world unit")
+                ->check(CLI::PositiveNumber),
+        "extinction");
+    setting(app->add_option("--step", c.step, "Cache ray-march step in voxels")->check(CLI::Range(0.05, 1.0)), "step");
+}
+
+turb::BridgeSettings bridgeSettings(const CameraArgs& a)
+{
+    turb::BridgeSettings b;
+    turb::CameraSettings& c = b.camera;
+    if (a.kind == CameraKind::Perspective) {
+        if (a.position.empty() || a.lookAt.empty())
+            throw turb::ValueError("--camera perspective needs --camera-pos X,Y,Z and --look-at X,Y,Z");
+        c.perspective = true;
+        c.position = parseVec(a.position, "--camera-pos");
+        c.lookAt = parseVec(a.lookAt, "--look-at");
+        c.up = parseVec(a.up, "--camera-up");
+        c.fovDegrees = a.fov;
+    } else {
+        c.view = a.kind == CameraKind::Side ? turb::View::Side : a.kind == CameraKind::Top ? turb::View::Top : turb::View::Front;
+    }
+    c.width = a.width;
+    c.height = a.height;
+    b.extinction = a.extinction;
+    b.stepVoxels = a.step;
+    return b;
+}
+
 /// The motion field as a LIC picture (2D: a one-voxel-thick field seen from the top).
 turb::Image motionPicture(const turb::ChannelImage& m)
 {
@@ -63,7 +136,7 @@ TargetSource::TargetSource(const StylizeArgs& a, bool flowOptional) : mArgs(a)
         mCache = turbio::resolveSequence(a.cache, a.frames);
         requireAll(*mCache);
         mFrames = mCache->frames;
-        setupCamera();
+        mBridge = bridgeSettings(a.camera);
     } else if (!a.scene.empty()) {
         const auto wh = parseSize(a.sceneSize);
         mScene.kind = a.scene;
@@ -99,7 +172,7 @@ TargetSource::TargetSource(const StylizeArgs& a, bool flowOptional) : mArgs(a)
 
 std::string TargetSource::label() const
 {
-    if (mCache) return "cache " + mCache->pattern.str() + " (" + mArgs.camera + " camera)";
+    if (mCache) return "cache " + mCache->pattern.str() + " (" + cameraName(mArgs.camera.kind) + " camera)";
     if (mFlow) return "flow " + mFlow->pattern.str() + " + alpha " + mAlpha->pattern.str();
     if (mAlpha) return "masks " + mAlpha->pattern.str();
     return "scene " + mScene.kind + " " + mArgs.sceneSize;
@@ -177,26 +250,6 @@ std::pair<int, int> TargetSource::parseSize(const std::string& s)
     const size_t x = s.find('x');
     const auto v = parseNumbers(x == std::string::npos ? s + "," + s : s.substr(0, x) + "," + s.substr(x + 1), 2, "--scene-size");
     return {int(v[0]), int(v[1])};
-}
-
-void TargetSource::setupCamera()
-{
-    turb::CameraSettings& c = mBridge.camera;
-    if (mArgs.camera == "perspective") {
-        if (mArgs.cameraPos.empty() || mArgs.lookAt.empty())
-            throw turb::ValueError("--camera perspective needs --camera-pos X,Y,Z and --look-at X,Y,Z");
-        c.perspective = true;
-        c.position = parseVec(mArgs.cameraPos, "--camera-pos");
-        c.lookAt = parseVec(mArgs.lookAt, "--look-at");
-        c.up = parseVec(mArgs.cameraUp, "--camera-up");
-        c.fovDegrees = mArgs.fov;
-    } else {
-        c.view = mArgs.camera == "side" ? turb::View::Side : mArgs.camera == "top" ? turb::View::Top : turb::View::Front;
-    }
-    c.width = mArgs.width;
-    c.height = mArgs.height;
-    mBridge.extinction = mArgs.extinction;
-    mBridge.stepVoxels = mArgs.step;
 }
 
 turb::ChannelImage TargetSource::readMotion(const std::string& path, int frame) const

@@ -1,7 +1,7 @@
 /// @file StylizeCommon.h
 /// @brief What both methods of `vdbturb stylize` share: the options, the target (2D masks and flows, a
 ///        VDB cache through a camera, or a built-in scene), and small helpers. LazyFluids lives in
-///        cmd_stylize.cc, Fluidymation in cmd_stylize_fluidymation.cc.
+///        cmd_stylize.cc, Fluidymation in cmd_stylize_fluidymation.cc. `vdbturb animate` uses the camera.
 #pragma once
 
 #include "Commands.h"
@@ -21,6 +21,26 @@
 
 namespace vdbturb::stylize {
 
+enum class Method { LazyFluids, Fluidymation };
+
+/// The camera a VDB cache is seen through: an axis view of the whole box, or a placed perspective camera.
+enum class CameraKind { Front, Side, Top, Perspective };
+
+struct CameraArgs
+{
+    CameraKind kind = CameraKind::Front;
+    std::string position, lookAt, up = "0,0,1"; ///< perspective: X,Y,Z in world units
+    double fov = 40.0;                          ///< perspective: horizontal field of view, degrees
+    int width = 0, height = 0;                  ///< 0: turb::CameraSettings' defaults
+    float extinction = 6.0f, step = 0.5f;       ///< turb::BridgeSettings
+};
+
+/// --camera and --width (everyday); the perspective camera's placement, the height and the ray march (settings).
+void addCameraOptions(CLI::App* app, CameraArgs& c);
+/// The bridge's camera and ray march; throws when a perspective camera is not placed.
+turb::BridgeSettings bridgeSettings(const CameraArgs& c);
+std::string cameraName(CameraKind k);
+
 /// Options of `--method fluidymation` only.
 struct FluidyArgs
 {
@@ -35,28 +55,25 @@ struct FluidyArgs
 
 struct StylizeArgs
 {
-    std::string method = "lazyfluids"; ///< lazyfluids (LazyFluids) or fluidymation (Fluidymation)
+    Method method = Method::LazyFluids;
     FluidyArgs fluidy;
     std::string exemplar, exemplarAlpha;
     std::string flow, alpha, cache, scene;
     std::string sceneSize = "256x256";
     double sceneSpeed = 0.02;
     std::string frames;
-    std::string camera = "front";
-    std::string cameraPos, lookAt, cameraUp = "0,0,1";
-    double fov = 40.0;
-    int width = 0, height = 0;
-    float extinction = 6.0f, step = 0.5f;
+    CameraArgs camera;
     bool flowYUp = false;
     std::string out;
     std::string preview, writeTarget;
-    std::string nnf = "uniform";
     bool json = false, noClobber = false;
     turbio::ReadOptions read;
     turb::StylizeSettings settings;
 };
 
 std::string fmt(const char* f, double v);
+/// kOk, or kUsage (said) when --out is missing or it or `more` (--out-rot) has no image extension the writers know.
+int checkOutputPatterns(const std::string& out, const std::string& more = "");
 std::vector<double> parseNumbers(const std::string& s, size_t n, const std::string& what);
 turb::Vec3d parseVec(const std::string& s, const std::string& what);
 
@@ -87,7 +104,6 @@ public:
 private:
     static void requireAll(const turbio::Sequence& s);
     static std::pair<int, int> parseSize(const std::string& s);
-    void setupCamera();
     turb::ChannelImage readMotion(const std::string& path, int frame) const;
 
     const StylizeArgs& mArgs;

@@ -2,6 +2,7 @@
 #include "Commands.h"
 #include "Console.h"
 #include "RunReport.h"
+#include "StylizeCommon.h"
 
 #include <scenes/Animate2D.h>
 #include <turb/Animate.h>
@@ -26,17 +27,19 @@ namespace vdbturb {
 
 namespace {
 
+enum class Refine { Auto, On, Off };
+enum class HmMode { Steerable, Laplacian, Off };
+
 struct AnimateArgs
 {
     std::string example, exampleCache, frames;
-    std::string camera = "front", cameraPos, lookAt, cameraUp = "0,0,1";
-    double fov = 40.0;
-    int width = 0, height = 0;
-    float extinction = 6.0f, step = 0.5f;
+    stylize::CameraArgs camera;
     std::string target, targetAlpha;
     std::string strokes, flow;
     bool flowYUp = false;
-    std::string refine = "auto", orient = "parallel", hm = "steerable", hmGrid = "auto";
+    Refine refine = Refine::Auto; ///< auto: a stroke design is refined, a dense --flow is not
+    HmMode hm = HmMode::Steerable;
+    std::string hmGrid = "auto";
     std::string out, dump, sheet, exportBuiltin;
     int start = 1;
     bool json = false, noClobber = false, measure = false;
@@ -68,12 +71,6 @@ std::vector<double> numbers(const std::string& s, char sep, size_t n, const std:
     }
     if (v.size() != n) throw turb::ValueError(what + ": '" + s + "' is not " + std::to_string(n) + " numbers separated by '" + sep + "'");
     return v;
-}
-
-turb::Vec3d vec3(const std::string& s, const std::string& what)
-{
-    const auto v = numbers(s, ',', 3, what);
-    return turb::Vec3d(v[0], v[1], v[2]);
 }
 
 /// "builtin:river[:WxH[xN]]" -> sizes; false when `text` is not a built-in.
@@ -120,6 +117,52 @@ struct Example
     std::vector<int> numbers;
 };
 
+// A cache: renders through the camera are the frames; the opacity-weighted mean of the projected velocity is v.
+void readCacheExample(const AnimateArgs& a, const turbio::Sequence& seq, Example& ex)
+{
+    const turb::BridgeSettings bridge = stylize::bridgeSettings(a.camera);
+    turbio::ReadOptions ro = a.read;
+    ro.readExtras = false;
+    ro.cropToSmoke = false; // the camera frames the cache's box: it must not change with the smoke
+    turb::ChannelImage num, den;
+    for (int f : seq.frames) {
+        const std::string path = seq.path(f);
+        const turb::Frame frame = turbio::readFrame(path, f, ro);
+        turb::CameraView view;
+        try {
+            view = turb::viewThroughCamera(frame, bridge);
+        } catch (const turb::ValueError& e) {
+            throw turb::IoError(path + ": " + e.what(), e.settings());
+        }
+        turb::DensityRenderSettings dr;
+        dr.camera = bridge.camera;
+        dr.camera->width = view.alpha.width();
+        dr.camera->height = view.alpha.height();
+        dr.extinction = a.camera.extinction;
+        dr.stepVoxels = a.camera.step;
+        ex.frames.push_back(fromPicture(turb::renderDensity(frame.density, dr)));
+        if (num.empty()) {
+            num = turb::ChannelImage(view.alpha.width(), view.alpha.height(), 2);
+            den = turb::ChannelImage(view.alpha.width(), view.alpha.height(), 1);
+        } else if (!view.alpha.sameSize(den)) {
+            throw turb::IoError(path + ": the camera image changed size (the cache's box changed); give --width and --height");
+        }
+        for (size_t i = 0; i < den.pixelCount(); ++i) {
+            const float w = view.alpha.pixel(i)[0];
+            num.pixel(i)[0] += w * view.motion.pixel(i)[0];
+            num.pixel(i)[1] += w * view.motion.pixel(i)[1];
+            den.pixel(i)[0] += w;
+        }
+    }
+    for (size_t i = 0; i < den.pixelCount(); ++i) {
+        const float w = den.pixel(i)[0];
+        num.pixel(i)[0] = w > 1e-6f ? num.pixel(i)[0] / w : 0.0f;
+        num.pixel(i)[1] = w > 1e-6f ? num.pixel(i)[1] / w : 0.0f;
+    }
+    ex.flow = std::move(num);
+    ex.label += " (" + stylize::cameraName(a.camera.kind) + " camera)";
+}
+
 Example readExample(const AnimateArgs& a, int tau)
 {
     Example ex;
@@ -152,63 +195,7 @@ Example readExample(const AnimateArgs& a, int tau)
         for (int f : seq.frames) ex.frames.push_back(rgbOfImage(turbio::readImage(seq.path(f))));
         return ex;
     }
-    // A cache: renders through the camera are the frames; the projected velocity gives v.
-    turb::BridgeSettings bridge;
-    turb::CameraSettings& c = bridge.camera;
-    if (a.camera == "perspective") {
-        if (a.cameraPos.empty() || a.lookAt.empty()) throw turb::ValueError("--camera perspective needs --camera-pos X,Y,Z and --look-at X,Y,Z");
-        c.perspective = true;
-        c.position = vec3(a.cameraPos, "--camera-pos");
-        c.lookAt = vec3(a.lookAt, "--look-at");
-        c.up = vec3(a.cameraUp, "--camera-up");
-        c.fovDegrees = a.fov;
-    } else {
-        c.view = a.camera == "side" ? turb::View::Side : a.camera == "top" ? turb::View::Top : turb::View::Front;
-    }
-    c.width = a.width;
-    c.height = a.height;
-    bridge.extinction = a.extinction;
-    bridge.stepVoxels = a.step;
-    turbio::ReadOptions ro = a.read;
-    ro.readExtras = false;
-    ro.cropToSmoke = false; // the camera frames the cache's box: it must not change with the smoke
-    turb::ChannelImage num, den;
-    for (int f : seq.frames) {
-        const std::string path = seq.path(f);
-        const turb::Frame frame = turbio::readFrame(path, f, ro);
-        turb::CameraView view;
-        try {
-            view = turb::viewThroughCamera(frame, bridge);
-        } catch (const turb::ValueError& e) {
-            throw turb::IoError(path + ": " + e.what(), e.settings());
-        }
-        turb::DensityRenderSettings dr;
-        dr.camera = c;
-        dr.camera->width = view.alpha.width();
-        dr.camera->height = view.alpha.height();
-        dr.extinction = a.extinction;
-        dr.stepVoxels = a.step;
-        ex.frames.push_back(fromPicture(turb::renderDensity(frame.density, dr)));
-        if (num.empty()) {
-            num = turb::ChannelImage(view.alpha.width(), view.alpha.height(), 2);
-            den = turb::ChannelImage(view.alpha.width(), view.alpha.height(), 1);
-        } else if (!view.alpha.sameSize(den)) {
-            throw turb::IoError(path + ": the camera image changed size (the cache's box changed); give --width and --height");
-        }
-        for (size_t i = 0; i < den.pixelCount(); ++i) {
-            const float w = view.alpha.pixel(i)[0];
-            num.pixel(i)[0] += w * view.motion.pixel(i)[0];
-            num.pixel(i)[1] += w * view.motion.pixel(i)[1];
-            den.pixel(i)[0] += w;
-        }
-    }
-    for (size_t i = 0; i < den.pixelCount(); ++i) {
-        const float w = den.pixel(i)[0];
-        num.pixel(i)[0] = w > 1e-6f ? num.pixel(i)[0] / w : 0.0f;
-        num.pixel(i)[1] = w > 1e-6f ? num.pixel(i)[1] / w : 0.0f;
-    }
-    ex.flow = std::move(num);
-    ex.label += " (" + a.camera + " camera)";
+    readCacheExample(a, seq, ex);
     return ex;
 }
 
@@ -417,10 +404,9 @@ nlohmann::json statsJson(const turb::AnimateStats& st)
 void configure(AnimateArgs& a)
 {
     turb::AnimateSettings& s = a.settings;
-    s.refine.orient = a.orient == "perpendicular" ? turb::GradientOrientation::Perpendicular : turb::GradientOrientation::Parallel;
-    s.refineFlow = a.refine == "on" || (a.refine == "auto" && a.flow.empty());
-    s.histogramMatch = a.hm != "off";
-    s.hm.pyramid = a.hm == "laplacian" ? turb::HmPyramid::Laplacian : turb::HmPyramid::Steerable;
+    s.refineFlow = a.refine == Refine::On || (a.refine == Refine::Auto && a.flow.empty());
+    s.histogramMatch = a.hm != HmMode::Off;
+    s.hm.pyramid = a.hm == HmMode::Laplacian ? turb::HmPyramid::Laplacian : turb::HmPyramid::Steerable;
     if (a.hmGrid == "off") {
         s.hm.gridCols = s.hm.gridRows = 1;
     } else if (a.hmGrid != "auto") {
@@ -459,66 +445,63 @@ int exportBuiltin(const AnimateArgs& a)
     return kOk;
 }
 
-int runAnimate(AnimateArgs& a)
+// The quality measures of --measure: the output's flow against the design, its temporal statistics against the
+// example's. They need the example's frames before the library consumes them.
+struct Measures
 {
-    if (!a.exportBuiltin.empty()) return exportBuiltin(a);
-    configure(a);
-    if (a.out.empty()) {
-        logError("give --out PATTERN (.exr, .png or .tif with #### for the frame)");
-        return kUsage;
-    }
-    try {
-        turbio::outputFormatOf(a.out);
-    } catch (const turb::ValueError& e) {
-        logError(messageWithFlags(e));
-        return kUsage;
-    }
-    const turbio::FramePattern outPattern = turbio::FramePattern::parse(a.out);
-    if (!outPattern.numbered()) throw turb::ValueError("--out " + a.out + " has no frame token (####): animate writes a sequence");
-    const turb::AnimateSettings& s = a.settings;
-
-    // Everything is read and checked before the first file is written.
-    Target target = readTarget(a);
-    Example example = readExample(a, s.tau);
-    const int N = int(example.frames.size());
-    logInfo("animate: example " + example.label + " (" + std::to_string(N) + " frames, " + std::to_string(example.frames[0].width()) + "x" +
-            std::to_string(example.frames[0].height()) + "), target " + target.label + " (" + std::to_string(target.rgb.width()) + "x" +
-            std::to_string(target.rgb.height()) + (target.matte ? ", matte" : "") + "), " +
-            (target.strokes ? std::to_string(target.strokes->strokes.size()) + " strokes" : "dense flow " + a.flow) + ", tau " + std::to_string(s.tau) +
-            " -> " + std::to_string(N - s.tau) + " frames");
-    if (globals().dryRun) {
-        for (int j = 0; j < N - s.tau; ++j) logInfo("frame " + std::to_string(a.start + j) + " -> " + outPattern.format(a.start + j));
-        return kOk;
-    }
-
-    // Quality measures need the example before the library consumes it.
     std::optional<turb::TemporalStats> exTemporal, outTemporal;
     std::vector<turb::ChannelImage> outLuma;
     std::optional<turb::FlowAgreement> exampleAgreement;
-    if (a.measure) {
-        exTemporal.emplace(s.tau);
-        for (int i = s.tau; i < N; ++i) exTemporal->add(example.frames[size_t(i)]);
-        outTemporal.emplace(s.tau, target.matte ? &*target.matte : nullptr);
-        // Calibration of the measurement: the same tracking on the example against the cache's own flow.
-        if (example.flow)
-            turb::withThreads(globals().threads, [&] {
-                exampleAgreement = turb::compareFlows(turb::estimateMeanFlow(example.frames, s.analysis), *example.flow, nullptr, 0.25);
-            });
+};
+
+Measures startMeasures(const AnimateArgs& a, const Example& example, const Target& target)
+{
+    Measures m;
+    if (!a.measure) return m;
+    const turb::AnimateSettings& s = a.settings;
+    m.exTemporal.emplace(s.tau);
+    for (size_t i = size_t(s.tau); i < example.frames.size(); ++i) m.exTemporal->add(example.frames[i]);
+    m.outTemporal.emplace(s.tau, target.matte ? &*target.matte : nullptr);
+    // Calibration of the measurement: the same tracking on the example against the cache's own flow.
+    if (example.flow)
+        turb::withThreads(globals().threads, [&] {
+            m.exampleAgreement = turb::compareFlows(turb::estimateMeanFlow(example.frames, s.analysis), *example.flow, nullptr, 0.25);
+        });
+    return m;
+}
+
+// The measures into the summary's "quality", and said.
+void finishMeasures(const AnimateArgs& a, const Measures& m, const turb::ChannelImage& designed, const Target& target,
+    nlohmann::json& summary)
+{
+    turb::AnalysisSettings as = a.settings.analysis;
+    const turb::ChannelImage measured = turb::estimateMeanFlow(m.outLuma, as);
+    const turb::FlowAgreement fa = turb::compareFlows(measured, designed, target.matte ? &*target.matte : nullptr);
+    const turb::TemporalSummary te = m.exTemporal->summary(), to = m.outTemporal->summary();
+    summary["quality"] = {{"flow_median_angle_deg", fa.medianAngleDeg}, {"flow_median_speed_ratio", fa.medianSpeedRatio},
+        {"flow_pixels", fa.pixels}, {"temporal_std", to.temporalStd}, {"temporal_std_example", te.temporalStd},
+        {"autocorrelation", to.autocorrelation}, {"autocorrelation_example", te.autocorrelation}};
+    if (m.exampleAgreement) {
+        summary["quality"]["example_flow_median_angle_deg"] = m.exampleAgreement->medianAngleDeg;
+        summary["quality"]["example_flow_median_speed_ratio"] = m.exampleAgreement->medianSpeedRatio;
+        logInfo("animate: the same tracking on the example against the cache's flow: median angle " +
+                fmt("%.1f deg", m.exampleAgreement->medianAngleDeg) + ", speed ratio " + fmt("%.2f", m.exampleAgreement->medianSpeedRatio));
     }
-    SheetParts sheet;
-    if (!a.sheet.empty())
-        for (int i : {0, N / 2, N - 1}) sheet.example.emplace_back(example.numbers[size_t(i)], picture(example.frames[size_t(i)]));
+    logInfo("animate: motion vs design: median angle " + fmt("%.1f deg", fa.medianAngleDeg) + ", speed ratio " +
+            fmt("%.2f", fa.medianSpeedRatio) + "; temporal std " + fmt("%.4f", to.temporalStd) + " (example " + fmt("%.4f", te.temporalStd) +
+            "); autocorrelation lag 1 " + fmt("%.2f", to.autocorrelation[0]) + " (example " + fmt("%.2f", te.autocorrelation[0]) + ")");
+    if (!a.dump.empty()) turbio::writeImage(a.dump + "/measured_flow.png", flowPicture(measured));
+}
 
-    turb::AnimateInput in;
-    in.exampleFrames = std::move(example.frames);
-    in.exampleFlow = example.flow ? &*example.flow : nullptr;
-    in.target = target.rgb;
-    in.matte = target.matte ? &*target.matte : nullptr;
-    if (target.strokes) in.strokes = &target.strokes->strokes;
-    if (target.flow) in.designedFlow = &*target.flow;
+// What the library shows of its stages: the refined design (for --measure), the sheet's pictures, --dump's files.
+struct Inspector
+{
+    const AnimateArgs& a;
+    SheetParts& sheet;
+    turb::ChannelImage& designed;
 
-    turb::ChannelImage designed;
-    const auto inspect = [&](const std::string& name, int index, const turb::ChannelImage& img) {
+    void operator()(const std::string& name, int index, const turb::ChannelImage& img) const
+    {
         if (name == "refined") designed = img;
         if (!a.sheet.empty()) {
             if (name == "A") sheet.A = img;
@@ -532,71 +515,101 @@ int runAnimate(AnimateArgs& a)
         const std::string file = index < 0 ? a.dump + "/" + name + ".exr" : turbio::FramePattern::parse(a.dump + "/" + name + ".####.exr").format(index);
         writeData(file, img, a.noClobber);
         if (name == "v" || name == "rough" || name == "refined") turbio::writeImage(a.dump + "/" + name + ".png", flowPicture(img));
-    };
+    }
+};
 
-    int result = kOk;
+// Each frame as the library finishes it: written with the still's alpha, measured, kept for the sheet, reported.
+struct FrameWriter
+{
+    const AnimateArgs& a;
+    const Target& target;
+    const turbio::FramePattern& outPattern;
+    int count;
+    Measures& measures;
+    SheetParts& sheet;
+    RunReport& report;
+    ConsoleProgress& stages;
+
+    void operator()(const turb::AnimatedFrame& f) const
+    {
+        stages.clear();
+        const auto tw = std::chrono::steady_clock::now();
+        const int number = a.start + f.index;
+        const std::string path = outPattern.format(number);
+        turb::RgbaImage img(f.image.width(), f.image.height());
+        for (size_t i = 0; i < img.size(); ++i) {
+            const float* p = f.image.pixel(i);
+            img.pixels()[i] = turb::Rgba(p[0], p[1], p[2], target.alpha[i]);
+        }
+        img.colorSpace = target.colorSpace;
+        turbio::ensureParentDirectory(path);
+        turbio::ImageWriteOptions wo;
+        wo.noClobber = a.noClobber;
+        turbio::writeImage(path, img, wo);
+        if (measures.outTemporal) {
+            measures.outTemporal->add(f.image);
+            measures.outLuma.push_back(turb::luminance(f.image));
+        }
+        const std::vector<int> sheetFrames{0, count / 3, 2 * count / 3, count - 1};
+        if (!a.sheet.empty() && std::find(sheetFrames.begin(), sheetFrames.end(), f.index) != sheetFrames.end())
+            sheet.outputs.emplace_back(number, picture(f.image));
+        nlohmann::json extra{{"out", path}, {"example_index", f.exampleIndex}, {"mean_error", f.meanError}, {"std_error", f.stdError},
+            {"cell_mean_error", f.cellMeanError}, {"cell_std_error", f.cellStdError}};
+        report.frameDone(number, f.index, count, f.seconds + secondsSince(tw),
+            "mean/std vs target " + fmt("%.2f%%", 100 * f.meanError) + "/" + fmt("%.2f%%", 100 * f.stdError) + ", worst cell " +
+                fmt("%.2f%%", 100 * f.cellMeanError) + "/" + fmt("%.2f%%", 100 * f.cellStdError) + " -> " + path,
+            extra);
+    }
+};
+
+void logStages(const turb::AnimateStats& st)
+{
+    logInfo("animate: example flow " + fmt("%.2f px/frame", st.analysis.meanSpeed) + (st.analysis.flowGiven ? " (from the cache)" : "") +
+            ", residual rms " + fmt("%.4f", st.analysis.rmsResidual) + " vs difference rms " + fmt("%.4f", st.analysis.rmsDifference) +
+            "; design " + fmt("%.2f px/frame", st.designMeanSpeed) + "; transfer cost " + fmt("%.3f", st.transfer.meanCost) + "; stages " +
+            fmt("%.1f", st.secondsAnalysis) + "/" + fmt("%.1f", st.secondsDesign) + "/" + fmt("%.1f", st.secondsTransfer) + "/" +
+            fmt("%.1f", st.secondsAverage) + "/" + fmt("%.1f", st.secondsSynthesis) + "/" + fmt("%.1f", st.secondsMatching) +
+            " s (analysis/design/transfer/A'/synthesis/matching)");
+}
+
+void logPlan(const AnimateArgs& a, const Example& example, const Target& target)
+{
+    const int N = int(example.frames.size()), tau = a.settings.tau;
+    logInfo("animate: example " + example.label + " (" + std::to_string(N) + " frames, " + std::to_string(example.frames[0].width()) + "x" +
+            std::to_string(example.frames[0].height()) + "), target " + target.label + " (" + std::to_string(target.rgb.width()) + "x" +
+            std::to_string(target.rgb.height()) + (target.matte ? ", matte" : "") + "), " +
+            (target.strokes ? std::to_string(target.strokes->strokes.size()) + " strokes" : "dense flow " + a.flow) + ", tau " + std::to_string(tau) +
+            " -> " + std::to_string(N - tau) + " frames");
+}
+
+// The animation: the library's stages, each frame written as it comes, then the summary (and --measure, --sheet).
+void animateFrames(const AnimateArgs& a, Example& example, const Target& target, const turbio::FramePattern& outPattern)
+{
+    const turb::AnimateSettings& s = a.settings;
+    const int N = int(example.frames.size());
+    Measures measures = startMeasures(a, example, target);
+    SheetParts sheet;
+    if (!a.sheet.empty())
+        for (int i : {0, N / 2, N - 1}) sheet.example.emplace_back(example.numbers[size_t(i)], picture(example.frames[size_t(i)]));
+
+    turb::AnimateInput in;
+    in.exampleFrames = std::move(example.frames);
+    in.exampleFlow = example.flow ? &*example.flow : nullptr;
+    in.target = target.rgb;
+    in.matte = target.matte ? &*target.matte : nullptr;
+    if (target.strokes) in.strokes = &target.strokes->strokes;
+    if (target.flow) in.designedFlow = &*target.flow;
+    turb::ChannelImage designed;
+
     turb::withThreads(globals().threads, [&] {
         RunReport report("animate", a.json);
         const int count = N - s.tau;
         ConsoleProgress stages(0, count, a.start);
-        const std::vector<int> sheetFrames{0, count / 3, 2 * count / 3, count - 1};
-        const turb::AnimateStats st = turb::animate(
-            std::move(in), s,
-            [&](const turb::AnimatedFrame& f) {
-                stages.clear();
-                const auto tw = std::chrono::steady_clock::now();
-                const int number = a.start + f.index;
-                const std::string path = outPattern.format(number);
-                turb::RgbaImage img(f.image.width(), f.image.height());
-                for (size_t i = 0; i < img.size(); ++i) {
-                    const float* p = f.image.pixel(i);
-                    img.pixels()[i] = turb::Rgba(p[0], p[1], p[2], target.alpha[i]);
-                }
-                img.colorSpace = target.colorSpace;
-                turbio::ensureParentDirectory(path);
-                turbio::ImageWriteOptions wo;
-                wo.noClobber = a.noClobber;
-                turbio::writeImage(path, img, wo);
-                if (outTemporal) {
-                    outTemporal->add(f.image);
-                    outLuma.push_back(turb::luminance(f.image));
-                }
-                if (!a.sheet.empty() && std::find(sheetFrames.begin(), sheetFrames.end(), f.index) != sheetFrames.end())
-                    sheet.outputs.emplace_back(number, picture(f.image));
-                nlohmann::json extra{{"out", path}, {"example_index", f.exampleIndex}, {"mean_error", f.meanError}, {"std_error", f.stdError},
-                    {"cell_mean_error", f.cellMeanError}, {"cell_std_error", f.cellStdError}};
-                report.frameDone(number, f.index, count, f.seconds + secondsSince(tw),
-                    "mean/std vs target " + fmt("%.2f%%", 100 * f.meanError) + "/" + fmt("%.2f%%", 100 * f.stdError) + ", worst cell " +
-                        fmt("%.2f%%", 100 * f.cellMeanError) + "/" + fmt("%.2f%%", 100 * f.cellStdError) + " -> " + path,
-                    extra);
-            },
-            &stages, inspect);
+        const turb::AnimateStats st = turb::animate(std::move(in), s,
+            FrameWriter{a, target, outPattern, count, measures, sheet, report, stages}, &stages, Inspector{a, sheet, designed});
         nlohmann::json summary = statsJson(st);
-        logInfo("animate: example flow " + fmt("%.2f px/frame", st.analysis.meanSpeed) + (st.analysis.flowGiven ? " (from the cache)" : "") +
-                ", residual rms " + fmt("%.4f", st.analysis.rmsResidual) + " vs difference rms " + fmt("%.4f", st.analysis.rmsDifference) +
-                "; design " + fmt("%.2f px/frame", st.designMeanSpeed) + "; transfer cost " + fmt("%.3f", st.transfer.meanCost) + "; stages " +
-                fmt("%.1f", st.secondsAnalysis) + "/" + fmt("%.1f", st.secondsDesign) + "/" + fmt("%.1f", st.secondsTransfer) + "/" +
-                fmt("%.1f", st.secondsAverage) + "/" + fmt("%.1f", st.secondsSynthesis) + "/" + fmt("%.1f", st.secondsMatching) +
-                " s (analysis/design/transfer/A'/synthesis/matching)");
-        if (a.measure) {
-            turb::AnalysisSettings as = s.analysis;
-            const turb::ChannelImage measured = turb::estimateMeanFlow(outLuma, as);
-            const turb::FlowAgreement fa = turb::compareFlows(measured, designed, target.matte ? &*target.matte : nullptr);
-            const turb::TemporalSummary te = exTemporal->summary(), to = outTemporal->summary();
-            summary["quality"] = {{"flow_median_angle_deg", fa.medianAngleDeg}, {"flow_median_speed_ratio", fa.medianSpeedRatio},
-                {"flow_pixels", fa.pixels}, {"temporal_std", to.temporalStd}, {"temporal_std_example", te.temporalStd},
-                {"autocorrelation", to.autocorrelation}, {"autocorrelation_example", te.autocorrelation}};
-            if (exampleAgreement) {
-                summary["quality"]["example_flow_median_angle_deg"] = exampleAgreement->medianAngleDeg;
-                summary["quality"]["example_flow_median_speed_ratio"] = exampleAgreement->medianSpeedRatio;
-                logInfo("animate: the same tracking on the example against the cache's flow: median angle " +
-                        fmt("%.1f deg", exampleAgreement->medianAngleDeg) + ", speed ratio " + fmt("%.2f", exampleAgreement->medianSpeedRatio));
-            }
-            logInfo("animate: motion vs design: median angle " + fmt("%.1f deg", fa.medianAngleDeg) + ", speed ratio " +
-                    fmt("%.2f", fa.medianSpeedRatio) + "; temporal std " + fmt("%.4f", to.temporalStd) + " (example " + fmt("%.4f", te.temporalStd) +
-                    "); autocorrelation lag 1 " + fmt("%.2f", to.autocorrelation[0]) + " (example " + fmt("%.2f", te.autocorrelation[0]) + ")");
-            if (!a.dump.empty()) turbio::writeImage(a.dump + "/measured_flow.png", flowPicture(measured));
-        }
+        logStages(st);
+        if (a.measure) finishMeasures(a, measures, designed, target, summary);
         if (!a.sheet.empty()) {
             turbio::ensureParentDirectory(a.sheet);
             turbio::writeImage(a.sheet, contactSheet(sheet, picture(target.rgb), "animate: " + example.label + " -> " + target.label));
@@ -604,7 +617,115 @@ int runAnimate(AnimateArgs& a)
         }
         report.finish(0, summary);
     });
-    return result;
+}
+
+int runAnimate(AnimateArgs& a)
+{
+    if (!a.exportBuiltin.empty()) return exportBuiltin(a);
+    configure(a);
+    if (const int rc = stylize::checkOutputPatterns(a.out); rc != kOk) return rc;
+    const turbio::FramePattern outPattern = turbio::FramePattern::parse(a.out);
+    if (!outPattern.numbered()) throw turb::ValueError("--out " + a.out + " has no frame token (####): animate writes a sequence");
+    // Everything is read and checked before the first file is written.
+    const Target target = readTarget(a);
+    Example example = readExample(a, a.settings.tau);
+    logPlan(a, example, target);
+    if (globals().dryRun) {
+        for (int j = 0; j < int(example.frames.size()) - a.settings.tau; ++j)
+            logInfo("frame " + std::to_string(a.start + j) + " -> " + outPattern.format(a.start + j));
+        return kOk;
+    }
+    animateFrames(a, example, target, outPattern);
+    return kOk;
+}
+
+// The video example, the still and its flow design (a cache example is seen through --camera).
+void addInputOptions(CLI::App* app, AnimateArgs& a)
+{
+    app->add_option("--example", a.example, "Video example: an image sequence with ####, or builtin:river[:WxHxN]");
+    app->add_option("--example-cache", a.exampleCache, "Video example from a VDB cache seen through --camera");
+    app->add_option("--frames", a.frames, "Example frames to use, e.g. 1-100 (empty: all on disk)")
+        ->check(frameListCheck());
+    stylize::addCameraOptions(app, a.camera);
+    app->add_option("--target", a.target, "The still to animate (its alpha is kept in the output), or builtin:river[:WxH]");
+    app->add_option("--target-alpha", a.targetAlpha, "Matte of the fluid (grey image, target size): only the fluid moves");
+    app->add_option("--flow-strokes", a.strokes, "Flow design: orientation and speed strokes (JSON, scenes/animate/README.md)");
+    app->add_option("--flow", a.flow, "Flow design: a dense flow image, R,G = x,y in pixels per frame (x right, y down)");
+    setting(app->add_flag("--flow-y-up", a.flowYUp, "The --flow image's G channel points up"), "flow-y-up");
+    addReadOptions(app, a.read);
+    // Only --example-cache reads grids: its grid and frame-rate choices are settings here.
+    for (const char* name : {"density-grid", "vel-grid", "fps"}) setting(app->get_option(std::string("--") + name), name);
+}
+
+void addOutputOptions(CLI::App* app, AnimateArgs& a)
+{
+    app->add_option("--out", a.out, "Output frames, e.g. anim/still.####.exr (EXR: half, premultiplied) or .png");
+    app->add_option("--start", a.start, "Frame number of the first output frame")->group(kGroupOutput);
+    app->add_flag("--no-clobber", a.noClobber, "Never replace an existing output file")->group(kGroupOutput);
+    app->add_option("--sheet", a.sheet, "Write a contact sheet PNG: example, design and output frames")->group(kGroupOutput);
+    app->add_flag("--json", a.json, "One JSON line per frame and a summary with stage times on stdout");
+    app->add_option("--export-builtin", a.exportBuiltin, "Write the built-in river example and still into DIR and stop");
+    setting(app->add_option("--dump", a.dump, "Also write every stage's images into DIR (float EXR) and flow pictures (PNG)"), "dump");
+    setting(app->add_flag("--measure", a.measure, "Measure the output's flow against the design and its temporal statistics"),
+        "measure");
+}
+
+// Histogram matching (section 5.6): the steerable pyramid's repetitions and the grid of cells.
+void addHmSettings(CLI::App* app, AnimateArgs& a)
+{
+    turb::HistogramMatchSettings& hm = a.settings.hm;
+    setting(app->add_option("--hm-rep,--hm.reps", hm.reps, "HM Rep: repetitions of the steerable matching (paper 3)")
+                ->check(CLI::Range(1, 10)),
+        "hm.reps");
+    setting(app->add_option("--hm-grid", a.hmGrid, "HM Grid: COLSxROWS, auto (cells of about hm.cellSize pixels) or off"),
+        "hm-grid");
+    setting(app->add_option("--hm-cell,--hm.cellSize", hm.cellSize, "Cell size of the automatic HM grid in pixels")
+                ->check(CLI::Range(16, 100000)),
+        "hm.cellSize");
+    setting(app->add_option("--hm-passes,--hm.pixelPasses", hm.pixelPasses, "Final pixel-domain matching passes")
+                ->check(CLI::Range(1, 20)),
+        "hm.pixelPasses");
+    boolSetting(app, "--hm.blendPixels", hm.blendPixels,
+        "Blend the cells' pixel-domain matches (false: each cell's statistics exact, seams can show)", "hm.blendPixels");
+    legacy(app->add_flag_function("--hm-exact-cells", [&hm](std::int64_t) { hm.blendPixels = false; }, "hm.blendPixels = false"),
+        "hm.blendPixels", "false");
+}
+
+// The method's knobs (Okabe et al.), under turb::AnimateSettings' field names; docs/animate.md has their measurements.
+void addAnimateSettings(CLI::App* app, AnimateArgs& a)
+{
+    turb::AnimateSettings& s = a.settings;
+    const auto knob = [app](const std::string& names, auto& v, const std::string& help, const std::string& key) {
+        return setting(app->add_option(names, v, help), key);
+    };
+    setting(addEnum<Refine>(app, "--refine", a.refine, {{"auto", Refine::Auto}, {"on", Refine::On}, {"off", Refine::Off}},
+                "Refine the design by the target's gradients: auto (strokes yes, --flow no), on, off"),
+        "refine");
+    setting(addEnum<turb::GradientOrientation>(app, "--orient,--refine.orient", s.refine.orient,
+                {{"parallel", turb::GradientOrientation::Parallel}, {"perpendicular", turb::GradientOrientation::Perpendicular}},
+                "Refined orientation: parallel to the image gradient (the paper) or perpendicular (along edges)"),
+        "refine.orient");
+    knob("--wf,--refine.wf", s.refine.wf, "w_f: blur of the refined orientation, Gaussian std in pixels (paper 12)", "refine.wf")
+        ->check(CLI::Range(0.1, 500.0));
+    knob("--tau", s.tau, "Lifetime of a residual in frames (paper 16); the output has N - tau frames", "tau")
+        ->check(CLI::Range(1, 10000));
+    knob("--shutter,--average.shutter", s.average.shutter, "Sh: motion blur of the target along the flow for A', in frames",
+        "average.shutter")
+        ->check(CLI::Range(0.0, 200.0));
+    knob("--wa,--average.wa", s.average.wa, "w_a: Gaussian std in pixels after the motion blur for A'", "average.wa")
+        ->check(CLI::Range(0.0, 500.0));
+    knob("--patch,--transfer.patchSize", s.transfer.patchSize, "Residual transfer patch size in pixels (paper 8-32)",
+        "transfer.patchSize")
+        ->check(CLI::Range(8, 64));
+    knob("--search-downsample,--transfer.downsample", s.transfer.downsample, "Match flows downsampled by 1, 2 or 4",
+        "transfer.downsample")
+        ->check(CLI::IsMember({1, 2, 4}));
+    knob("--features,--analysis.features", s.analysis.features, "Lucas-Kanade features per example frame pair (paper 100)",
+        "analysis.features")
+        ->check(CLI::Range(1, 100000));
+    knob("--lk-window,--analysis.window", s.analysis.window, "Lucas-Kanade window in pixels (paper 10)", "analysis.window")
+        ->check(CLI::Range(3, 64));
+    addHmSettings(app, a);
 }
 
 } // namespace
@@ -617,54 +738,11 @@ Command animateCommand()
     c.help = "Animate a still picture of fluid from a video example (Okabe et al.): strokes or a flow design, residual transfer, histogram matching";
     c.setup = [args](CLI::App* app) {
         AnimateArgs& a = *args;
-        turb::AnimateSettings& s = a.settings;
-        app->add_option("--example", a.example, "Video example: an image sequence with #### (any format OpenImageIO reads), or builtin:river[:WxHxN]");
-        app->add_option("--example-cache", a.exampleCache, "Video example from a VDB cache through --camera: renders are the frames, the projected velocity is v");
-        app->add_option("--frames", a.frames, "Example frames to use (e.g. 1-100; default: every frame on disk)")->check(frameListCheck());
-        app->add_option("--camera", a.camera, "Cache camera: front, side, top or perspective (default front)")->check(CLI::IsMember({"front", "side", "top", "perspective"}));
-        app->add_option("--camera-pos", a.cameraPos, "Perspective camera position X,Y,Z (world units)");
-        app->add_option("--look-at", a.lookAt, "Perspective camera target X,Y,Z (world units)");
-        app->add_option("--camera-up", a.cameraUp, "Perspective camera up direction (default 0,0,1)");
-        app->add_option("--fov", a.fov, "Perspective horizontal field of view in degrees (default 40)")->check(CLI::Range(1.0, 170.0));
-        app->add_option("--width", a.width, "Cache camera image width (default: 4 pixels per voxel; perspective 512)")->check(CLI::Range(16, 16384));
-        app->add_option("--height", a.height, "Perspective image height (default: the width)")->check(CLI::Range(0, 16384));
-        app->add_option("--extinction", a.extinction, "Cache opacity: optical depth per unit density per world unit (default 6)")->check(CLI::PositiveNumber);
-        app->add_option("--step", a.step, "Cache ray-march step in voxels (default 0.5)")->check(CLI::Range(0.05, 1.0));
-        app->add_option("--target", a.target, "The still to animate (any image OpenImageIO reads; its alpha is kept in the output), or builtin:river[:WxH]");
-        app->add_option("--target-alpha", a.targetAlpha, "Matte of the fluid (grey image, target size): only the fluid moves, the rest stays the still");
-        app->add_option("--flow-strokes", a.strokes, "Flow design: orientation and speed strokes (JSON; schema in scenes/animate/README.md)");
-        app->add_option("--flow", a.flow, "Flow design: a dense flow image, R,G = x,y in pixels per frame (x right, y down)");
-        app->add_flag("--flow-y-up", a.flowYUp, "The --flow image's G channel points up");
-        app->add_option("--refine", a.refine, "Refine the design by the target's gradients: auto (strokes yes, --flow no), on, off")->check(CLI::IsMember({"auto", "on", "off"}));
-        app->add_option("--orient", a.orient, "Refined orientation: parallel to the image gradient (paper) or perpendicular (along edges)")
-            ->check(CLI::IsMember({"parallel", "perpendicular"}));
-        app->add_option("--wf", s.refine.wf, "w_f: blur of the refined orientation, Gaussian std in pixels (default 12, paper)")->check(CLI::Range(0.1, 500.0));
-        app->add_option("--tau", s.tau, "Lifetime of a residual in frames (default 16, paper); the output has N - tau frames")->check(CLI::Range(1, 10000));
-        app->add_option("--shutter", s.average.shutter, "Sh: motion blur of the target along the flow for A', in frames of motion (default 16, measured)")
-            ->check(CLI::Range(0.0, 200.0));
-        app->add_option("--wa", s.average.wa, "w_a: Gaussian std in pixels after the motion blur for A' (default 4, measured)")->check(CLI::Range(0.0, 500.0));
-        app->add_option("--patch", s.transfer.patchSize, "Residual transfer patch size in pixels (default 16; paper 8-32)")->check(CLI::Range(8, 64));
-        app->add_option("--search-downsample", s.transfer.downsample, "Match flows downsampled by 1, 2 or 4 (default 2)")->check(CLI::IsMember({1, 2, 4}));
-        app->add_option("--features", s.analysis.features, "Lucas-Kanade features per example frame pair (default 100, paper)")->check(CLI::Range(1, 100000));
-        app->add_option("--lk-window", s.analysis.window, "Lucas-Kanade window in pixels (default 10, paper)")->check(CLI::Range(3, 64));
-        app->add_option("--hm", a.hm, "Histogram matching: steerable (Heeger-Bergen, HM Rep times), laplacian (one pass, the fast preview) or off")
-            ->check(CLI::IsMember({"steerable", "laplacian", "off"}));
-        app->add_option("--hm-rep", s.hm.reps, "HM Rep: repetitions of the steerable matching (default 3, paper)")->check(CLI::Range(1, 10));
-        app->add_option("--hm-grid", a.hmGrid, "HM Grid: COLSxROWS, auto (cells of about --hm-cell pixels) or off (one cell)");
-        app->add_flag("--hm-exact-cells", [&s](std::int64_t) { s.hm.blendPixels = false; },
-            "Pixel-domain matches per cell without blending: every cell's statistics exact, but seams can show where cells differ");
-        app->add_option("--hm-passes", s.hm.pixelPasses, "Final pixel-domain matching passes (blended cells converge to their statistics; default 3)")
-            ->check(CLI::Range(1, 20));
-        app->add_option("--hm-cell", s.hm.cellSize, "Cell size of the automatic HM grid in pixels (default 64)")->check(CLI::Range(16, 100000));
-        app->add_option("--out", a.out, "Output frames, e.g. anim/still.####.exr (EXR half, premultiplied) or .png; N - tau frames");
-        app->add_option("--start", a.start, "Frame number of the first output frame (default 1)");
-        app->add_flag("--no-clobber", a.noClobber, "Never replace an existing output file");
-        app->add_option("--dump", a.dump, "Also write into DIR: A, v, R.####, rough, refined, Aprime, Rprime.#### (float EXR) and flow pictures (PNG)");
-        app->add_option("--sheet", a.sheet, "Write a contact sheet PNG: example frames, A, v, R0 | target, rough, refined, A' | output frames");
-        app->add_flag("--measure", a.measure, "Measure the output: its flow against the design (median angle, speed ratio), temporal std and autocorrelation against the example");
-        app->add_option("--export-builtin", a.exportBuiltin, "Write the built-in river example (--example builtin:river:WxHxN) and still (--target) into DIR and stop");
-        app->add_flag("--json", a.json, "One JSON line per frame (mean/std errors against the target) and a summary with stage times");
-        addReadOptions(app, a.read);
+        addInputOptions(app, a);
+        addOutputOptions(app, a);
+        addEnum<HmMode>(app, "--hm", a.hm, {{"steerable", HmMode::Steerable}, {"laplacian", HmMode::Laplacian}, {"off", HmMode::Off}},
+            "Histogram matching: steerable (Heeger-Bergen), laplacian (one pass, the fast preview) or off");
+        addAnimateSettings(app, a);
     };
     c.run = [args] { return runAnimate(*args); };
     return c;

@@ -113,34 +113,104 @@ std::vector<std::string> joinArgs(const std::vector<std::string>& args)
     return out;
 }
 
-int runPlan(FarmArgs& a)
+// What plan sets itself is refused after --: a chunk's frames, paths and threads are the plan's.
+void checkPassThrough(const std::vector<std::string>& transferArgs)
 {
-    for (const auto& t : a.transferArgs)
+    for (const auto& t : transferArgs)
         if (t == "--frames" || t == "--out" || t == "--target" || t == "--source" || t == "--resume" || t == "--threads" ||
             t.rfind("--frames=", 0) == 0 || t.rfind("--out=", 0) == 0)
             throw turb::ValueError("'" + t + "' after -- is set by farm plan itself; give --target/--source/--out/--frames to farm plan");
+}
+
+// A plan's paths (absolute: the tasks run elsewhere), frames and chunks.
+struct Plan
+{
+    std::string dir, exe, target, source, out;
+    std::vector<int> frames;
+    std::vector<turb::TimeChunk> chunks;
+    std::vector<int> sub(size_t b, size_t e) const { return std::vector<int>(frames.begin() + long(b), frames.begin() + long(e)); }
+};
+
+Plan makePlan(const FarmArgs& a)
+{
+    checkPassThrough(a.transferArgs);
+    Plan p;
     const turbio::Sequence target = turbio::resolveSequence(a.target, a.frames);
     if (!target.missing.empty())
         throw turb::IoError(target.pattern.str() + ": missing target frames " + turbio::formatFrameList(target.missing));
-    const std::vector<int>& frames = target.frames;
-    const std::vector<turb::TimeChunk> chunks = turb::planTimeChunks(frames.size(), a.chunks, a.preroll, a.overlap);
+    p.frames = target.frames;
+    p.chunks = turb::planTimeChunks(p.frames.size(), a.chunks, a.preroll, a.overlap);
     if (!turbio::FramePattern::parse(a.out).numbered()) throw turb::ValueError("--out '" + a.out + "' has no frame token (####)");
+    p.dir = absolute(a.dir);
+    p.exe = a.exe.empty() ? selfExe() : a.exe;
+    p.target = absolute(a.target);
+    p.source = absolute(a.source);
+    p.out = absolute(a.out);
+    return p;
+}
 
-    const std::string dir = absolute(a.dir);
-    const std::string exe = a.exe.empty() ? selfExe() : a.exe;
-    const std::string targetAbs = absolute(a.target), sourceAbs = absolute(a.source), outAbs = absolute(a.out);
-    fs::create_directories(fs::path(dir) / "logs");
-    const auto sub = [&](size_t b, size_t e) { return std::vector<int>(frames.begin() + long(b), frames.begin() + long(e)); };
+// The transfer a chunk's array task runs: its frames with the pre-roll, resumable, and the options given after --.
+std::vector<std::string> chunkCommand(const FarmArgs& a, const Plan& p, const turb::TimeChunk& c)
+{
+    std::vector<std::string> argv = {p.exe, "transfer", "--target", p.target, "--source", p.source, "--out",
+        chunkPattern(p.dir, c.index, a.out), "--frames", turbio::formatFrameList(p.sub(c.computeBegin, c.end)), "--resume",
+        "--threads", std::to_string(a.cpus),
+        // Every chunk holds the target's whole domain: held over the smoke of its own frames only, chunks would
+        // get different output boxes and the join could not blend them.
+        "--target-no-crop", "--source-no-crop"};
+    argv.insert(argv.end(), a.transferArgs.begin(), a.transferArgs.end());
+    return argv;
+}
 
+std::vector<std::string> joinCommandLine(const FarmArgs& a, const Plan& p)
+{
+    std::vector<std::string> argv = {p.exe, "farm", "join", "--dir", p.dir, "--threads", std::to_string(a.cpus)};
+    for (const auto& r : joinArgs(a.transferArgs)) argv.push_back(r);
+    return argv;
+}
+
+nlohmann::json chunkTask(const FarmArgs& a, const Plan& p, const turb::TimeChunk& c)
+{
+    nlohmann::json t;
+    t["name"] = "chunk" + std::to_string(c.index);
+    t["array_index"] = c.index;
+    t["frames_computed"] = turbio::formatFrameList(p.sub(c.computeBegin, c.end));
+    t["frames_preroll"] = turbio::formatFrameList(p.sub(c.computeBegin, c.keepBegin));
+    t["frames_kept"] = turbio::formatFrameList(p.sub(c.keepBegin, c.end));
+    t["out"] = chunkPattern(p.dir, c.index, a.out);
+    t["log"] = p.dir + "/logs/chunk_" + std::to_string(c.index) + ".log";
+    t["command"] = chunkCommand(a, p, c);
+    t["depends_on"] = nlohmann::json::array();
+    t["retry_exit_codes"] = {1, 130, 137, 143};
+    return t;
+}
+
+nlohmann::json joinTask(const FarmArgs& a, const Plan& p)
+{
+    nlohmann::json join;
+    join["name"] = "join";
+    join["frames"] = turbio::formatFrameList(p.frames);
+    join["out"] = p.out;
+    join["log"] = p.dir + "/logs/join.log";
+    join["command"] = joinCommandLine(a, p);
+    nlohmann::json deps = nlohmann::json::array();
+    for (const auto& c : p.chunks) deps.push_back("chunk" + std::to_string(c.index));
+    join["depends_on"] = deps;
+    return join;
+}
+
+// plan.json: the same plan as the scripts, for tools that schedule otherwise, and for the join.
+nlohmann::json planJson(const FarmArgs& a, const Plan& p)
+{
     nlohmann::json plan;
     plan["version"] = 1;
     plan["kind"] = "time_chunks";
-    plan["dir"] = dir;
-    plan["vdbturb"] = exe;
-    plan["target"] = targetAbs;
-    plan["source"] = sourceAbs;
-    plan["out"] = outAbs;
-    plan["frames"] = turbio::formatFrameList(frames);
+    plan["dir"] = p.dir;
+    plan["vdbturb"] = p.exe;
+    plan["target"] = p.target;
+    plan["source"] = p.source;
+    plan["out"] = p.out;
+    plan["frames"] = turbio::formatFrameList(p.frames);
     plan["chunks"] = a.chunks;
     plan["preroll"] = a.preroll;
     plan["overlap"] = a.overlap;
@@ -148,100 +218,85 @@ int runPlan(FarmArgs& a)
     plan["exit_codes"] = {{"0", "done"}, {"1", "a frame failed: retry (resumes from the last whole frame)"},
         {"2", "usage error: do not retry"}, {"130", "interrupted: retry"}};
     nlohmann::json tasks = nlohmann::json::array();
-    std::string cases;
-    for (const auto& c : chunks) {
-        const std::string pattern = chunkPattern(dir, c.index, a.out);
-        std::vector<std::string> argv = {exe, "transfer", "--target", targetAbs, "--source", sourceAbs, "--out", pattern,
-            "--frames", turbio::formatFrameList(sub(c.computeBegin, c.end)), "--resume", "--threads", std::to_string(a.cpus),
-            // Every chunk holds the target's whole domain: held over the smoke of its own frames only, chunks would
-            // get different output boxes and the join could not blend them.
-            "--target-no-crop", "--source-no-crop"};
-        argv.insert(argv.end(), a.transferArgs.begin(), a.transferArgs.end());
-        nlohmann::json t;
-        t["name"] = "chunk" + std::to_string(c.index);
-        t["array_index"] = c.index;
-        t["frames_computed"] = turbio::formatFrameList(sub(c.computeBegin, c.end));
-        t["frames_preroll"] = turbio::formatFrameList(sub(c.computeBegin, c.keepBegin));
-        t["frames_kept"] = turbio::formatFrameList(sub(c.keepBegin, c.end));
-        t["out"] = pattern;
-        t["log"] = dir + "/logs/chunk_" + std::to_string(c.index) + ".log";
-        t["command"] = argv;
-        t["depends_on"] = nlohmann::json::array();
-        t["retry_exit_codes"] = {1, 130, 137, 143};
-        tasks.push_back(t);
-        cases += "  " + std::to_string(c.index) + ") set -- " + joinCommand(argv) + " ;;\n";
-    }
-    std::vector<std::string> joinArgv = {exe, "farm", "join", "--dir", dir, "--threads", std::to_string(a.cpus)};
-    for (const auto& r : joinArgs(a.transferArgs)) joinArgv.push_back(r);
-    nlohmann::json join;
-    join["name"] = "join";
-    join["frames"] = turbio::formatFrameList(frames);
-    join["out"] = outAbs;
-    join["log"] = dir + "/logs/join.log";
-    join["command"] = joinArgv;
-    nlohmann::json deps = nlohmann::json::array();
-    for (const auto& c : chunks) deps.push_back("chunk" + std::to_string(c.index));
-    join["depends_on"] = deps;
-    tasks.push_back(join);
+    for (const auto& c : p.chunks) tasks.push_back(chunkTask(a, p, c));
+    tasks.push_back(joinTask(a, p));
     plan["tasks"] = tasks;
     nlohmann::json overlaps = nlohmann::json::array();
-    for (size_t k = 0; k + 1 < chunks.size(); ++k)
+    for (size_t k = 0; k + 1 < p.chunks.size(); ++k)
         for (int j = 0; j < a.overlap; ++j) {
             const turb::CrossFade w = turb::crossFade(j, a.overlap);
-            overlaps.push_back({{"frame", frames[chunks[k + 1].keepBegin + size_t(j)]}, {"a", int(k)}, {"b", int(k + 1)},
+            overlaps.push_back({{"frame", p.frames[p.chunks[k + 1].keepBegin + size_t(j)]}, {"a", int(k)}, {"b", int(k + 1)},
                 {"t", w.t}, {"detail_a", w.detailA}, {"detail_b", w.detailB}, {"density_a", w.densityA}, {"density_b", w.densityB}});
         }
     plan["overlaps"] = overlaps;
-    plan["slurm"] = {{"chunks_script", dir + "/chunks.sbatch"}, {"join_script", dir + "/join.sbatch"}};
+    plan["slurm"] = {{"chunks_script", p.dir + "/chunks.sbatch"}, {"join_script", p.dir + "/join.sbatch"}};
+    return plan;
+}
 
+std::string sbatchResources(const FarmArgs& a)
+{
     std::string common = "#SBATCH --cpus-per-task=" + std::to_string(a.cpus) + "\n";
     if (!a.partition.empty()) common += "#SBATCH --partition=" + a.partition + "\n";
     if (!a.time.empty()) common += "#SBATCH --time=" + a.time + "\n";
     if (!a.mem.empty()) common += "#SBATCH --mem=" + a.mem + "\n";
-    // A task that failed (exit 1), was interrupted (130) or killed (137, 143) requeues itself up to --retries
-    // times; transfer --resume then continues from the last whole frame in the chunk's scratch directory. A usage
-    // error (2) would fail again and is not retried. Slurm's own --requeue covers node failure and preemption.
-    const std::string chunksScript =
-        "#!/bin/sh\n"
-        "# Written by vdbturb farm plan: one array task per time chunk (plan.json has the same plan as JSON).\n"
-        "#SBATCH --job-name=" + a.name + "-chunks\n"
-        "#SBATCH --array=0-" + std::to_string(chunks.size() - 1) + "\n"
-        "#SBATCH --requeue\n"
-        "#SBATCH --open-mode=append\n"
-        "#SBATCH --output=" + dir + "/logs/chunk_%a.log\n" + common +
-        "case \"$SLURM_ARRAY_TASK_ID\" in\n" + cases +
-        "  *) echo \"farm: no chunk $SLURM_ARRAY_TASK_ID\" >&2; exit 2 ;;\n"
-        "esac\n"
-        "echo \"farm: chunk $SLURM_ARRAY_TASK_ID start (restart ${SLURM_RESTART_COUNT:-0}) on $(hostname)\" >&2\n"
-        "\"$@\"\n"
-        "rc=$?\n"
-        "echo \"farm: chunk $SLURM_ARRAY_TASK_ID exit $rc\" >&2\n"
-        "case $rc in\n"
-        "  0|2) exit $rc ;;\n"
-        "esac\n"
-        "if [ \"${SLURM_RESTART_COUNT:-0}\" -lt " + std::to_string(a.retries) + " ]; then\n"
-        "  echo \"farm: chunk $SLURM_ARRAY_TASK_ID requeued; it resumes from its last whole frame\" >&2\n"
-        "  scontrol requeue \"${SLURM_ARRAY_JOB_ID}_${SLURM_ARRAY_TASK_ID}\"\n"
-        "  sleep 30 # the requeue ends this job; do not let it finish as failed first\n"
-        "fi\n"
-        "exit $rc\n";
-    const std::string joinScript =
-        "#!/bin/sh\n"
-        "# Written by vdbturb farm plan: assembles the chunks and cross-fades their overlaps (after every chunk succeeded).\n"
-        "#SBATCH --job-name=" + a.name + "-join\n"
-        "#SBATCH --output=" + dir + "/logs/join.log\n"
-        "#SBATCH --open-mode=append\n" + common +
-        "exec " + joinCommand(joinArgv) + "\n";
-    writeText(dir + "/plan.json", plan.dump(2) + "\n");
-    writeText(dir + "/chunks.sbatch", chunksScript, true);
-    writeText(dir + "/join.sbatch", joinScript, true);
+    return common;
+}
 
-    printData("plan: " + std::to_string(frames.size()) + " frames " + turbio::formatFrameList(frames) + " in " +
-              std::to_string(chunks.size()) + " chunks, pre-roll " + std::to_string(a.preroll) + ", overlap " + std::to_string(a.overlap));
-    for (const auto& c : chunks)
-        printData("  chunk " + std::to_string(c.index) + ": computes " + turbio::formatFrameList(sub(c.computeBegin, c.end)) +
-                  ", keeps " + turbio::formatFrameList(sub(c.keepBegin, c.end)));
-    printData("wrote " + dir + "/plan.json, chunks.sbatch, join.sbatch; submit with: vdbturb farm submit --dir " + dir);
+// A task that failed (exit 1), was interrupted (130) or killed (137, 143) requeues itself up to --retries times;
+// transfer --resume then continues from the last whole frame in the chunk's scratch directory. A usage error (2)
+// would fail again and is not retried. Slurm's own --requeue covers node failure and preemption.
+std::string chunksScript(const FarmArgs& a, const Plan& p)
+{
+    std::string cases;
+    for (const auto& c : p.chunks) cases += "  " + std::to_string(c.index) + ") set -- " + joinCommand(chunkCommand(a, p, c)) + " ;;\n";
+    return "#!/bin/sh\n"
+           "# Written by vdbturb farm plan: one array task per time chunk (plan.json has the same plan as JSON).\n"
+           "#SBATCH --job-name=" + a.name + "-chunks\n"
+           "#SBATCH --array=0-" + std::to_string(p.chunks.size() - 1) + "\n"
+           "#SBATCH --requeue\n"
+           "#SBATCH --open-mode=append\n"
+           "#SBATCH --output=" + p.dir + "/logs/chunk_%a.log\n" + sbatchResources(a) +
+           "case \"$SLURM_ARRAY_TASK_ID\" in\n" + cases +
+           "  *) echo \"farm: no chunk $SLURM_ARRAY_TASK_ID\" >&2; exit 2 ;;\n"
+           "esac\n"
+           "echo \"farm: chunk $SLURM_ARRAY_TASK_ID start (restart ${SLURM_RESTART_COUNT:-0}) on $(hostname)\" >&2\n"
+           "\"$@\"\n"
+           "rc=$?\n"
+           "echo \"farm: chunk $SLURM_ARRAY_TASK_ID exit $rc\" >&2\n"
+           "case $rc in\n"
+           "  0|2) exit $rc ;;\n"
+           "esac\n"
+           "if [ \"${SLURM_RESTART_COUNT:-0}\" -lt " + std::to_string(a.retries) + " ]; then\n"
+           "  echo \"farm: chunk $SLURM_ARRAY_TASK_ID requeued; it resumes from its last whole frame\" >&2\n"
+           "  scontrol requeue \"${SLURM_ARRAY_JOB_ID}_${SLURM_ARRAY_TASK_ID}\"\n"
+           "  sleep 30 # the requeue ends this job; do not let it finish as failed first\n"
+           "fi\n"
+           "exit $rc\n";
+}
+
+std::string joinScript(const FarmArgs& a, const Plan& p)
+{
+    return "#!/bin/sh\n"
+           "# Written by vdbturb farm plan: assembles the chunks and cross-fades their overlaps (after every chunk succeeded).\n"
+           "#SBATCH --job-name=" + a.name + "-join\n"
+           "#SBATCH --output=" + p.dir + "/logs/join.log\n"
+           "#SBATCH --open-mode=append\n" + sbatchResources(a) +
+           "exec " + joinCommand(joinCommandLine(a, p)) + "\n";
+}
+
+int runPlan(FarmArgs& a)
+{
+    const Plan p = makePlan(a);
+    fs::create_directories(fs::path(p.dir) / "logs");
+    writeText(p.dir + "/plan.json", planJson(a, p).dump(2) + "\n");
+    writeText(p.dir + "/chunks.sbatch", chunksScript(a, p), true);
+    writeText(p.dir + "/join.sbatch", joinScript(a, p), true);
+    printData("plan: " + std::to_string(p.frames.size()) + " frames " + turbio::formatFrameList(p.frames) + " in " +
+              std::to_string(p.chunks.size()) + " chunks, pre-roll " + std::to_string(a.preroll) + ", overlap " + std::to_string(a.overlap));
+    for (const auto& c : p.chunks)
+        printData("  chunk " + std::to_string(c.index) + ": computes " + turbio::formatFrameList(p.sub(c.computeBegin, c.end)) +
+                  ", keeps " + turbio::formatFrameList(p.sub(c.keepBegin, c.end)));
+    printData("wrote " + p.dir + "/plan.json, chunks.sbatch, join.sbatch; submit with: vdbturb farm submit --dir " + p.dir);
     return kOk;
 }
 
@@ -287,85 +342,158 @@ void copyAtomic(const std::string& from, const std::string& to)
     fs::rename(tmp, to);
 }
 
-int runJoin(FarmArgs& a)
+// What the join reads from plan.json: the frames, the chunks, the output and the target the chunks read.
+struct JoinPlan
 {
-    const std::string dir = absolute(a.dir);
-    const nlohmann::json plan = nlohmann::json::parse(readText(dir + "/plan.json"));
-    const std::vector<int> frames = turbio::parseFrameList(plan.at("frames").get<std::string>());
-    const int n = plan.at("chunks").get<int>(), P = plan.at("preroll").get<int>(), O = plan.at("overlap").get<int>();
-    const std::vector<turb::TimeChunk> chunks = turb::planTimeChunks(frames.size(), n, P, O);
-    const std::string out = plan.at("out").get<std::string>();
-    const turbio::FramePattern outPattern = turbio::FramePattern::parse(out);
-    const turbio::Sequence target = turbio::resolveSequence(plan.at("target").get<std::string>(), plan.at("frames").get<std::string>());
-    float threshold = 0.01f;
+    std::string dir, out;
+    std::vector<int> frames;
+    std::vector<turb::TimeChunk> chunks;
+    int overlap = 0;
+    turbio::Sequence target;
+    float densityThreshold = 0.01f; ///< transfer's, unless the chunks were given another
+    turbio::FramePattern chunkFrames(size_t k) const { return turbio::FramePattern::parse(chunkPattern(dir, chunks[k].index, out)); }
+};
+
+JoinPlan readJoinPlan(const FarmArgs& a)
+{
+    JoinPlan p;
+    p.dir = absolute(a.dir);
+    const nlohmann::json plan = nlohmann::json::parse(readText(p.dir + "/plan.json"));
+    p.frames = turbio::parseFrameList(plan.at("frames").get<std::string>());
+    p.overlap = plan.at("overlap").get<int>();
+    p.chunks = turb::planTimeChunks(p.frames.size(), plan.at("chunks").get<int>(), plan.at("preroll").get<int>(), p.overlap);
+    p.out = plan.at("out").get<std::string>();
+    p.target = turbio::resolveSequence(plan.at("target").get<std::string>(), plan.at("frames").get<std::string>());
     const auto& ta = plan.at("transfer_args");
     for (size_t i = 0; i + 1 < ta.size(); ++i)
-        if (ta[i] == "--density-threshold") threshold = std::stof(ta[i + 1].get<std::string>());
+        if (ta[i] == "--density-threshold") p.densityThreshold = std::stof(ta[i + 1].get<std::string>());
+    return p;
+}
 
-    // Check every chunk is complete before writing anything: a join of a partial chunk would leave holes.
-    for (const auto& c : chunks) {
-        const turbio::FramePattern p = turbio::FramePattern::parse(chunkPattern(dir, c.index, out));
+// Every chunk complete before anything is written: a join of a partial chunk would leave holes.
+void checkChunksComplete(const JoinPlan& p)
+{
+    for (size_t k = 0; k < p.chunks.size(); ++k) {
+        const turb::TimeChunk& c = p.chunks[k];
+        const turbio::FramePattern pattern = p.chunkFrames(k);
         for (size_t i = c.keepBegin; i < c.end; ++i)
-            if (!fs::exists(p.format(frames[i])))
-                throw turb::IoError("chunk " + std::to_string(c.index) + " is not complete: " + p.format(frames[i]) +
-                                    " is missing (rerun it: sbatch --array=" + std::to_string(c.index) + " " + dir + "/chunks.sbatch)");
+            if (!fs::exists(pattern.format(p.frames[i])))
+                throw turb::IoError("chunk " + std::to_string(c.index) + " is not complete: " + pattern.format(p.frames[i]) +
+                                    " is missing (rerun it: sbatch --array=" + std::to_string(c.index) + " " + p.dir + "/chunks.sbatch)");
     }
+}
+
+// Overlap frame j after chunk k: chunks k and k + 1 cross-faded over up(u_t), written like the chunks' frames.
+void blendFrame(const FarmArgs& a, const JoinPlan& p, size_t k, int j, RunReport& report)
+{
+    const turb::TimeChunk &c = p.chunks[k], &next = p.chunks[k + 1];
+    const turbio::FramePattern pa = p.chunkFrames(k), pb = p.chunkFrames(k + 1);
+    const size_t i = next.keepBegin + size_t(j);
+    const int t = p.frames[i];
+    const auto t0 = std::chrono::steady_clock::now();
+    turbio::ReadOptions ro;
+    ro.cropToSmoke = false; // the chunks' whole (shared) domain
+    turb::Frame fa = turbio::readFrame(pa.format(t), t, ro);
+    turb::Frame fb = turbio::readFrame(pb.format(t), t, ro);
+    turbio::ReadOptions tro = a.targetRead;
+    tro.cropToSmoke = false;
+    const turb::Frame ft = readingAs("target", [&] { return turbio::readFrame(p.target.path(t), t, tro); });
+    const auto r = fb.metadata.find(turb::meta::kRatio);
+    if (r == fb.metadata.end()) throw turb::IoError(pb.format(t) + ": no " + std::string(turb::meta::kRatio) + " metadata: not a transfer output");
+    const turb::VectorField up = turb::cropped(turb::upsample(ft.velocity, std::stoi(r->second)), fb.velocity.bbox());
+    // Chunks written with --velocity-margin hold up(u_t) where no velocity was written: blend what they mean.
+    for (turb::Frame* fr : {&fa, &fb})
+        if (fr->metadata.count(turb::meta::kVelocityMargin)) turb::fillUnwrittenVelocity(fr->velocity, up);
+    const turb::CrossFade w = turb::crossFade(j, p.overlap);
+    turb::BlendStats st;
+    turb::Frame blended = turb::blendOverlap(fa, fb, up, w, p.densityThreshold, &st);
+    char note[160];
+    std::snprintf(note, sizeof(note), "%.4f,%.4f,%.4f,%.4f", w.detailA, w.detailB, w.densityA, w.densityB);
+    blended.metadata["vdbturb_farm_blend"] = std::string(note);
+    const std::string dst = turbio::FramePattern::parse(p.out).format(t);
+    turbio::ensureParentDirectory(dst);
+    turbio::writeFrame(dst, blended, a.write);
+    const double expected = w.detailA * w.detailA * st.energyA + w.detailB * w.detailB * st.energyB;
+    char human[200];
+    std::snprintf(human, sizeof(human), "blend chunks %d+%d, w_detail %.3f/%.3f x %.3f (correlation %.3f), w_density %.3f/%.3f -> ",
+        c.index, next.index, w.detailA, w.detailB, st.energyScale, st.correlation, w.densityA, w.densityB);
+    report.frameDone(t, int(i), int(p.frames.size()), secondsSince(t0), std::string(human) + dst,
+        {{"chunks", {c.index, next.index}}, {"out", dst}, {"detail_a", w.detailA}, {"detail_b", w.detailB},
+            {"density_a", w.densityA}, {"density_b", w.densityB}, {"correlation", st.correlation},
+            {"energy_scale", st.energyScale}, {"energy_ratio", expected > 0.0 ? st.energyOut / expected : 1.0}});
+}
+
+int runJoin(FarmArgs& a)
+{
+    const JoinPlan p = readJoinPlan(a);
+    checkChunksComplete(p);
+    const turbio::FramePattern outPattern = turbio::FramePattern::parse(p.out);
     RunReport report("farm join", a.json);
-    const int count = int(frames.size());
-    for (size_t k = 0; k < chunks.size(); ++k) {
-        const auto& c = chunks[k];
-        const turbio::FramePattern p = turbio::FramePattern::parse(chunkPattern(dir, c.index, out));
-        // Frames this chunk alone owns; the last O (shared with the next chunk) are blended below.
-        const size_t ownEnd = k + 1 < chunks.size() ? chunks[k + 1].keepBegin : c.end;
-        const size_t ownBegin = k > 0 ? c.keepBegin + size_t(O) : c.keepBegin;
+    const int count = int(p.frames.size());
+    for (size_t k = 0; k < p.chunks.size(); ++k) {
+        const turb::TimeChunk& c = p.chunks[k];
+        const turbio::FramePattern pattern = p.chunkFrames(k);
+        // Frames this chunk alone owns are copied; the last O (shared with the next chunk) are blended.
+        const size_t ownEnd = k + 1 < p.chunks.size() ? p.chunks[k + 1].keepBegin : c.end;
+        const size_t ownBegin = k > 0 ? c.keepBegin + size_t(p.overlap) : c.keepBegin;
         for (size_t i = ownBegin; i < ownEnd; ++i) {
             const auto t0 = std::chrono::steady_clock::now();
-            const std::string dst = outPattern.format(frames[i]);
+            const std::string dst = outPattern.format(p.frames[i]);
             turbio::ensureParentDirectory(dst);
-            copyAtomic(p.format(frames[i]), dst);
-            report.frameDone(frames[i], int(i), count, secondsSince(t0), "chunk " + std::to_string(c.index) + " -> " + dst,
+            copyAtomic(pattern.format(p.frames[i]), dst);
+            report.frameDone(p.frames[i], int(i), count, secondsSince(t0), "chunk " + std::to_string(c.index) + " -> " + dst,
                 {{"chunk", c.index}, {"out", dst}});
         }
-        if (k + 1 == chunks.size()) break;
-        const turbio::FramePattern pb = turbio::FramePattern::parse(chunkPattern(dir, chunks[k + 1].index, out));
-        for (int j = 0; j < O; ++j) {
-            const size_t i = chunks[k + 1].keepBegin + size_t(j);
-            const int t = frames[i];
-            const auto t0 = std::chrono::steady_clock::now();
-            turbio::ReadOptions ro;
-            ro.cropToSmoke = false; // the chunks' whole (shared) domain
-            turb::Frame fa = turbio::readFrame(p.format(t), t, ro);
-            turb::Frame fb = turbio::readFrame(pb.format(t), t, ro);
-            turbio::ReadOptions tro = a.targetRead;
-            tro.cropToSmoke = false;
-            const turb::Frame ft = readingAs("target", [&] { return turbio::readFrame(target.path(t), t, tro); });
-            const auto r = fb.metadata.find(turb::meta::kRatio);
-            if (r == fb.metadata.end()) throw turb::IoError(pb.format(t) + ": no " + std::string(turb::meta::kRatio) + " metadata: not a transfer output");
-            const turb::VectorField up = turb::cropped(turb::upsample(ft.velocity, std::stoi(r->second)), fb.velocity.bbox());
-            // Chunks written with --velocity-margin hold up(u_t) where no velocity was written: blend what they mean.
-            for (turb::Frame* fr : {&fa, &fb})
-                if (fr->metadata.count(turb::meta::kVelocityMargin)) turb::fillUnwrittenVelocity(fr->velocity, up);
-            const turb::CrossFade w = turb::crossFade(j, O);
-            turb::BlendStats st;
-            turb::Frame blended = turb::blendOverlap(fa, fb, up, w, threshold, &st);
-            char note[160];
-            std::snprintf(note, sizeof(note), "%.4f,%.4f,%.4f,%.4f", w.detailA, w.detailB, w.densityA, w.densityB);
-            blended.metadata["vdbturb_farm_blend"] = std::string(note);
-            const std::string dst = outPattern.format(t);
-            turbio::ensureParentDirectory(dst);
-            turbio::writeFrame(dst, blended, a.write);
-            const double expected = w.detailA * w.detailA * st.energyA + w.detailB * w.detailB * st.energyB;
-            char human[200];
-            std::snprintf(human, sizeof(human), "blend chunks %d+%d, w_detail %.3f/%.3f x %.3f (correlation %.3f), w_density %.3f/%.3f -> ",
-                c.index, chunks[k + 1].index, w.detailA, w.detailB, st.energyScale, st.correlation, w.densityA, w.densityB);
-            report.frameDone(t, int(i), count, secondsSince(t0), std::string(human) + dst,
-                {{"chunks", {c.index, chunks[k + 1].index}}, {"out", dst}, {"detail_a", w.detailA}, {"detail_b", w.detailB},
-                    {"density_a", w.densityA}, {"density_b", w.densityB}, {"correlation", st.correlation},
-                    {"energy_scale", st.energyScale}, {"energy_ratio", expected > 0.0 ? st.energyOut / expected : 1.0}});
-        }
+        if (k + 1 < p.chunks.size())
+            for (int j = 0; j < p.overlap; ++j) blendFrame(a, p, k, j, report);
     }
     report.finish();
     return kOk;
+}
+
+} // namespace
+
+namespace {
+
+void addPlanOptions(CLI::App* plan, FarmArgs& a)
+{
+    plan->add_option("--target", a.target, "Low-res target cache, as for transfer")->required();
+    plan->add_option("--source", a.source, "High-res source cache, as for transfer")->required();
+    plan->add_option("--frames", a.frames, "Target frames (empty: all on disk)")->check(frameListCheck());
+    plan->add_option("--out", a.out, "Final output pattern, as for transfer")->required();
+    plan->add_option("--dir", a.dir, "Farm directory: scripts, plan.json, logs, chunk scratch");
+    plan->add_option("--chunks", a.chunks, "Number of time chunks (array tasks)")->check(CLI::Range(1, 100000));
+    plan->add_option("--preroll", a.preroll, "P: frames computed before a chunk's first kept frame")->check(CLI::Range(0, 10000));
+    plan->add_option("--overlap", a.overlap, "O: frames two consecutive chunks share and the join cross-fades")
+        ->check(CLI::Range(0, 10000));
+    plan->add_option("--cpus", a.cpus, "CPUs per task (sbatch --cpus-per-task and transfer --threads)")
+        ->check(CLI::Range(1, 1024))
+        ->group(kGroupRun);
+    plan->add_option("--partition", a.partition, "sbatch --partition")->group(kGroupRun);
+    plan->add_option("--time", a.time, "sbatch --time per task")->group(kGroupRun);
+    plan->add_option("--mem", a.mem, "sbatch --mem per task")->group(kGroupRun);
+    setting(plan->add_option("--retries", a.retries, "Times a failed task requeues itself")->check(CLI::Range(0, 100)), "retries");
+    setting(plan->add_option("--vdbturb", a.exe, "vdbturb binary the tasks run (empty: this one)"), "vdbturb");
+    setting(plan->add_option("--name", a.name, "Job name prefix"), "name");
+    // Not a setting: the options after -- go to every chunk's transfer as given (farm join takes its read and write
+    // options from them).
+    plan->add_option("transfer_args", a.transferArgs, "After --: further transfer options, given to every chunk");
+}
+
+// The join reads the target and writes the frames as the chunks' transfer did: plan passes those options from the
+// ones after --, so here they are settings.
+void addJoinOptions(CLI::App* join, FarmArgs& a)
+{
+    join->add_option("--dir", a.dir, "Farm directory written by farm plan");
+    join->add_flag("--json", a.json, "One JSON line per frame and a summary on stdout");
+    addReadOptions(join, a.targetRead, "target");
+    addWriteOptions(join, a.write);
+    join->add_option("--velocity-margin", a.write.velocityMargin,
+            "Write the blended velocity only within N voxels of the smoke, as transfer (-1: the whole box)")
+        ->check(CLI::Range(-1, 64));
+    for (const char* name : {"target-density-grid", "target-vel-grid", "target-fps", "style", "no-clobber", "half", "clipping",
+             "velocity-margin"})
+        setting(join->get_option(std::string("--") + name), name);
 }
 
 } // namespace
@@ -383,35 +511,14 @@ Command farmCommand()
         app->require_subcommand(1);
         app->fallthrough(); // -v, -q, --threads may follow the plan/submit/join word
         CLI::App* plan = app->add_subcommand("plan", "Write sbatch scripts (an array of chunks + a dependent join) and plan.json");
-        plan->add_option("--dir", a.dir, "Farm directory: scripts, plan.json, logs, chunk scratch (default farm)");
-        plan->add_option("--target", a.target, "Low-res target cache, as for transfer")->required();
-        plan->add_option("--source", a.source, "High-res source cache, as for transfer")->required();
-        plan->add_option("--out", a.out, "Final output pattern, as for transfer")->required();
-        plan->add_option("--frames", a.frames, "Target frames (default: all on disk)")->check(frameListCheck());
-        plan->add_option("--chunks", a.chunks, "Number of time chunks (array tasks; default 2)")->check(CLI::Range(1, 100000));
-        plan->add_option("--preroll", a.preroll, "P: frames computed before a chunk's first kept frame (default 8)")->check(CLI::Range(0, 10000));
-        plan->add_option("--overlap", a.overlap, "O: frames two consecutive chunks share and the join cross-fades (default 10)")
-            ->check(CLI::Range(0, 10000));
-        plan->add_option("--cpus", a.cpus, "CPUs per task (sbatch --cpus-per-task and transfer --threads; default 2)")->check(CLI::Range(1, 1024));
-        plan->add_option("--retries", a.retries, "Times a failed task requeues itself (default 2)")->check(CLI::Range(0, 100));
-        plan->add_option("--vdbturb", a.exe, "vdbturb binary the tasks run (default: this one)");
-        plan->add_option("--partition", a.partition, "sbatch --partition");
-        plan->add_option("--time", a.time, "sbatch --time per task");
-        plan->add_option("--mem", a.mem, "sbatch --mem per task");
-        plan->add_option("--name", a.name, "Job name prefix (default vdbturb)");
-        plan->add_option("transfer_args", a.transferArgs, "After --: further transfer options, given to every chunk");
+        addPlanOptions(plan, a);
         CLI::App* submit = app->add_subcommand("submit", "Submit a plan with sbatch: the chunk array, then the join with afterok");
-        submit->add_option("--dir", a.dir, "Farm directory written by farm plan (default farm)");
+        submit->add_option("--dir", a.dir, "Farm directory written by farm plan");
         submit->add_flag("--json", a.json, "Print the job ids as JSON on stdout");
         CLI::App* join = app->add_subcommand("join", "Assemble the chunks' frames into the output, cross-fading the overlaps");
-        join->add_option("--dir", a.dir, "Farm directory written by farm plan (default farm)");
-        join->add_flag("--json", a.json, "One JSON line per frame and a summary on stdout");
-        addReadOptions(join, a.targetRead, "target");
-        addWriteOptions(join, a.write);
-        join->add_option("--velocity-margin", a.write.velocityMargin,
-                "Write the blended frames' velocity only within N voxels of the smoke, as transfer does (default -1: "
-                "the whole box; farm plan passes the chunks' value)")
-            ->check(CLI::Range(-1, 64));
+        addJoinOptions(join, a);
+        // Each subcommand has its own two tiers (--help-all, --print-settings, --settings); --threads stays farm's.
+        for (CLI::App* sub : {plan, submit, join}) addGlobalOptions(sub, 0);
         (*subs)[0] = plan;
         (*subs)[1] = submit;
         (*subs)[2] = join;

@@ -183,29 +183,95 @@ void writeTargetFiles(const std::string& dir, int frame, const TargetFrame& t, b
     turbio::writeImage(m.format(frame), mv, o);
 }
 
+// Frames that do not follow each other (a step, a gap) start a new shot: F^{t-1} does not apply.
+struct Previous
+{
+    std::optional<turb::ChannelImage> motion, alpha;
+    int frame = 0;
+    const turb::ChannelImage* motionInto(int fr) const { return motion && frame == fr - 1 ? &*motion : nullptr; }
+};
+
+// Writes the stylized frame and what --write-target and --preview ask for; returns the frame's JSON.
+nlohmann::json writeStylized(const StylizeArgs& a, int fr, const TargetFrame& t, const TargetSource& target,
+    const turb::RgbaImage& ex, const turb::StylizedFrame& outFrame, const Previous& prev, const std::string& outPath)
+{
+    turbio::ensureParentDirectory(outPath);
+    turbio::ImageWriteOptions wo;
+    wo.noClobber = a.noClobber;
+    turbio::writeImage(outPath, outFrame.image, wo);
+    nlohmann::json extra = statsJson(outFrame.stats);
+    extra["out"] = outPath;
+    if (prev.motionInto(fr) && prev.alpha && prev.alpha->sameSize(t.alpha)) {
+        // Is the target's motion right? The previous alpha advected by it against left in place.
+        const turb::AdvectionCheck ac = turb::checkAdvection(*prev.alpha, *prev.motion, t.alpha);
+        extra["alpha_error_advected"] = ac.advected;
+        extra["alpha_error_still"] = ac.still;
+    }
+    if (!a.writeTarget.empty()) writeTargetFiles(a.writeTarget, fr, t, a.noClobber);
+    if (!a.preview.empty()) {
+        const std::string png = turbio::FramePattern::parse(a.preview + "/stylize.####.png").format(fr);
+        turbio::ensureParentDirectory(png);
+        turbio::writeImage(png, previewSheet(t, target, ex, outFrame.image, fr));
+        extra["preview"] = png;
+    }
+    return extra;
+}
+
+// The frames in order: each one's temporal term reads the previous output, warped by the previous motion.
+void stylizeFrames(const StylizeArgs& a, const TargetSource& target, ExemplarSource& exemplar,
+    const turbio::FramePattern& outPattern)
+{
+    turb::Stylizer styl(a.settings);
+    RunReport report("stylize", a.json);
+    Previous prev;
+    const auto& frames = target.frames();
+    for (size_t i = 0; i < frames.size(); ++i) {
+        const int fr = frames[i];
+        const auto t0 = std::chrono::steady_clock::now();
+        ConsoleProgress progress(int(i), int(frames.size()), fr);
+        progress.begin("reading");
+        const TargetFrame t = target.read(fr);
+        // Copies: the exemplar source keeps only a few frames of a video cached.
+        const turb::RgbaImage ex = exemplar.frame(i);
+        std::optional<turb::RgbaImage> exPrevious;
+        if (exemplar.video() && i > 0) exPrevious = exemplar.frame(i - 1);
+        turb::StylizeFrame in;
+        in.alpha = &t.alpha;
+        in.motionIn = prev.motionInto(fr);
+        in.motionOut = &t.motion;
+        in.exemplar = &ex;
+        in.exemplarPrevious = exPrevious && exPrevious->sameSize(ex) ? &*exPrevious : nullptr;
+        turb::StylizedFrame outFrame;
+        try {
+            outFrame = styl.next(in, &progress);
+        } catch (const turb::ValueError& e) {
+            throw turb::ValueError(t.alphaName + " with exemplar " + exemplar.label() + ": " + e.what(), e.settings());
+        }
+        progress.begin("writing");
+        const std::string outPath = outPattern.format(fr);
+        const nlohmann::json extra = writeStylized(a, fr, t, target, ex, outFrame, prev, outPath);
+        progress.clear();
+        report.frameDone(fr, int(i), int(frames.size()), secondsSince(t0), humanLine(outFrame.stats) + " -> " + outPath, extra);
+        prev.motion = t.motion;
+        prev.alpha = t.alpha;
+        prev.frame = fr;
+    }
+    report.finish();
+}
+
 int runStylize(StylizeArgs& a)
 {
-    if (a.method == "fluidymation") return runFluidymation(a);
-    turb::StylizeSettings& s = a.settings;
-    s.nnf = a.nnf == "standard" ? turb::NnfMode::Standard : turb::NnfMode::Uniform;
+    if (a.method == Method::Fluidymation) return runFluidymation(a);
+    const turb::StylizeSettings& s = a.settings;
     turb::validate(s);
-    if (a.out.empty()) {
-        logError("give --out PATTERN (.png, .exr or .tif with #### for the frame)");
-        return kUsage;
-    }
-    try {
-        turbio::outputFormatOf(a.out);
-    } catch (const turb::ValueError& e) {
-        logError(messageWithFlags(e));
-        return kUsage;
-    }
+    if (const int rc = checkOutputPatterns(a.out); rc != kOk) return rc;
     const turbio::FramePattern outPattern = turbio::FramePattern::parse(a.out);
     TargetSource target(a);
     if (!outPattern.numbered() && target.frames().size() > 1)
         throw turb::ValueError("--out " + a.out + " has no frame token (####) but there are " + std::to_string(target.frames().size()) + " frames");
     ExemplarSource exemplar(a, s.patchSize);
     logInfo("stylize: " + target.label() + ", exemplar " + exemplar.label() + (exemplar.video() ? " (video, " + std::to_string(exemplar.count()) + " frames)" : "") +
-            ", " + std::to_string(target.frames().size()) + " frames, nnf " + a.nnf);
+            ", " + std::to_string(target.frames().size()) + " frames, nnf " + (s.nnf == turb::NnfMode::Standard ? "standard" : "uniform"));
     target.validate2D();
     // Every exemplar frame is read once before the first output, so a bad one writes nothing.
     for (size_t i = 0; i < exemplar.count(); ++i) exemplar.frame(i);
@@ -213,69 +279,71 @@ int runStylize(StylizeArgs& a)
         for (int f : target.frames()) logInfo("frame " + std::to_string(f) + " -> " + outPattern.format(f));
         return kOk;
     }
+    turb::withThreads(globals().threads, [&] { stylizeFrames(a, target, exemplar, outPattern); });
+    return kOk;
+}
 
-    int result = kOk;
-    turb::withThreads(globals().threads, [&] {
-        turb::Stylizer styl(s);
-        RunReport report("stylize", a.json);
-        std::optional<turb::ChannelImage> previousMotion, previousAlpha;
-        int previousFrame = 0;
-        const auto& frames = target.frames();
-        for (size_t i = 0; i < frames.size(); ++i) {
-            const int fr = frames[i];
-            const auto t0 = std::chrono::steady_clock::now();
-            ConsoleProgress progress(int(i), int(frames.size()), fr);
-            progress.begin("reading");
-            const TargetFrame t = target.read(fr);
-            // Copies: the exemplar source keeps only a few frames of a video cached.
-            const turb::RgbaImage ex = exemplar.frame(i);
-            std::optional<turb::RgbaImage> exPrevious;
-            if (exemplar.video() && i > 0) exPrevious = exemplar.frame(i - 1);
-            const turb::RgbaImage* exPrev = exPrevious && exPrevious->sameSize(ex) ? &*exPrevious : nullptr;
-            turb::StylizeFrame in;
-            in.alpha = &t.alpha;
-            // Frames that do not follow each other (a step, a gap) start a new shot: F^{t-1} does not apply.
-            in.motionIn = previousMotion && previousFrame == fr - 1 ? &*previousMotion : nullptr;
-            in.motionOut = &t.motion;
-            in.exemplar = &ex;
-            in.exemplarPrevious = exPrev;
-            turb::StylizedFrame outFrame;
-            try {
-                outFrame = styl.next(in, &progress);
-            } catch (const turb::ValueError& e) {
-                throw turb::ValueError(t.alphaName + " with exemplar " + exemplar.label() + ": " + e.what(),
-                    e.settings());
-            }
-            progress.begin("writing");
-            const std::string outPath = outPattern.format(fr);
-            turbio::ensureParentDirectory(outPath);
-            turbio::ImageWriteOptions wo;
-            wo.noClobber = a.noClobber;
-            turbio::writeImage(outPath, outFrame.image, wo);
-            nlohmann::json extra = statsJson(outFrame.stats);
-            extra["out"] = outPath;
-            if (in.motionIn && previousAlpha && previousAlpha->sameSize(t.alpha)) {
-                // Is the target's motion right? The previous alpha advected by it against left in place.
-                const turb::AdvectionCheck ac = turb::checkAdvection(*previousAlpha, *previousMotion, t.alpha);
-                extra["alpha_error_advected"] = ac.advected;
-                extra["alpha_error_still"] = ac.still;
-            }
-            if (!a.writeTarget.empty()) writeTargetFiles(a.writeTarget, fr, t, a.noClobber);
-            if (!a.preview.empty()) {
-                const std::string png = turbio::FramePattern::parse(a.preview + "/stylize.####.png").format(fr);
-                turbio::ensureParentDirectory(png);
-                turbio::writeImage(png, previewSheet(t, target, ex, outFrame.image, fr));
-                extra["preview"] = png;
-            }
-            progress.clear();
-            report.frameDone(fr, int(i), int(frames.size()), secondsSince(t0), humanLine(outFrame.stats) + " -> " + outPath, extra);
-            previousMotion = t.motion;
-            previousAlpha = t.alpha;
-            previousFrame = fr;
-        }
-        report.finish();
-    });
-    return result;
+// The exemplar, the target (2D masks and flows, a cache through a camera, or a built-in scene) and the frames.
+void addInputOptions(CLI::App* app, StylizeArgs& a)
+{
+    app->add_option("--exemplar", a.exemplar,
+           "Exemplar: a picture, a #### sequence (a video), builtin:fire[:N]; fluidymation: its frames or builtin:ink[:WxH[xN]]")
+        ->required();
+    app->add_option("--exemplar-alpha", a.exemplarAlpha, "Grayscale mask (or #### sequence) giving the exemplar's alpha");
+    app->add_option("--flow", a.flow, "2D target motion per frame: R,G in pixels per frame (x right, y down), or 1-layer VDBs");
+    app->add_option("--alpha", a.alpha, "2D target alpha masks per frame (grayscale images)");
+    app->add_option("--cache", a.cache, "3D target: a cache seen through --camera (alpha = opacity, motion = projected velocity)");
+    addCameraOptions(app, a.camera);
+    app->add_option("--scene", a.scene, "Built-in 2D target: rotate, swirl, rise, fill, grow or stroke")
+        ->check(CLI::IsMember({"rotate", "swirl", "rise", "fill", "grow", "stroke"}));
+    app->add_option("--frames", a.frames, "Frames, e.g. 1-150; a scene: a count N or a list (empty: all on disk; scene 1)")
+        ->check(frameListCheck());
+    setting(app->add_option("--scene-size", a.sceneSize, "Built-in target size WxH"), "scene-size");
+    setting(app->add_option("--scene-speed", a.sceneSpeed, "Built-in target: radians per frame at the centre (rise: widths per frame)"),
+        "scene-speed");
+    setting(app->add_flag("--flow-y-up", a.flowYUp, "The flow images' G channel points up (Nuke, Houdini)"), "flow-y-up");
+    addReadOptions(app, a.read);
+    // Only a --cache target reads grids: its grid and frame-rate choices are settings here.
+    for (const char* name : {"density-grid", "vel-grid", "fps"}) setting(app->get_option(std::string("--") + name), name);
+}
+
+void addOutputOptions(CLI::App* app, StylizeArgs& a)
+{
+    app->add_option("--out", a.out, "Output RGBA frames, e.g. styl/fire.####.exr (EXR: half, premultiplied; PNG: straight)");
+    app->add_option("--preview", a.preview, "Write a PNG per frame into DIR: target | motion (LIC) | stylized | exemplar")
+        ->group(kGroupOutput);
+    app->add_flag("--no-clobber", a.noClobber, "Never replace an existing output file")->group(kGroupOutput);
+    app->add_flag("--json", a.json, "One JSON line per frame and a summary on stdout");
+    setting(app->add_option("--write-target", a.writeTarget, "Write the target per frame into DIR: alpha.####.png, motion.####.exr"),
+        "write-target");
+}
+
+// LazyFluids' knobs (Jamriška et al. 2015), under turb::StylizeSettings' field names; their measured effects are in
+// docs/stylize.md.
+void addLazyFluidsSettings(CLI::App* app, turb::StylizeSettings& s)
+{
+    const auto knob = [app](const std::string& names, auto& v, const std::string& help, const std::string& key) {
+        return setting(app->add_option(names, v, help), key);
+    };
+    setting(addEnum<turb::NnfMode>(app, "--nnf", s.nnf, {{"uniform", turb::NnfMode::Uniform}, {"standard", turb::NnfMode::Standard}},
+                "uniform: reversed NNF, uniform patch usage (the paper); standard: nearest neighbours (the wash-out ablation)"),
+        "nnf");
+    knob("--patch,--patchSize", s.patchSize, "Patch size in pixels, odd (paper 5)", "patchSize")->check(CLI::Range(3, 15));
+    knob("--lambda", s.lambda, "Temporal coherence lambda (paper 0.2; 0 = independent frames)", "lambda")->check(CLI::NonNegativeNumber);
+    knob("--eta", s.eta, "Weight of the blurred-alpha guide (paper 3)", "eta")->check(CLI::NonNegativeNumber);
+    knob("--blur-radius,--blurRadius", s.blurRadius, "r: Gaussian standard deviation (pixels) of the guide alpha", "blurRadius")
+        ->check(CLI::PositiveNumber);
+    knob("--lower", s.lower, "l: boundary segment where the blurred alpha lies in (l, u)", "lower")->check(CLI::Range(0.0, 1.0));
+    knob("--upper", s.upper, "u: interior segment where the blurred alpha >= u", "upper")->check(CLI::Range(0.0, 1.0));
+    knob("--levels", s.levels, "Pyramid levels (0 = short sides >= 32 px, at most 5)", "levels")->check(CLI::Range(0, 8));
+    knob("--iterations", s.iterations, "EM iterations on each coarser level", "iterations")->check(CLI::Range(1, 50));
+    knob("--fine-iterations,--fineIterations", s.fineIterations, "EM iterations on the finest level", "fineIterations")
+        ->check(CLI::Range(1, 50));
+    knob("--sweeps", s.sweeps, "PatchMatch sweeps per retrieval round", "sweeps")->check(CLI::Range(1, 32));
+    setting(app->add_flag("--rotations", s.rotations, "Also use the exemplar rotated by 90, 180 and 270 degrees"), "rotations");
+    knob("--motion-blur,--motionBlur", s.motionBlur, "Blur along F^t by this fraction of a frame's motion (0 = none)", "motionBlur")
+        ->check(CLI::NonNegativeNumber);
+    knob("--seed", s.seed, "Random seed: the same seed gives the same frames at any --threads", "seed");
 }
 
 } // namespace
@@ -285,66 +353,15 @@ Command stylizeCommand()
     auto args = std::make_shared<StylizeArgs>();
     Command c;
     c.name = "stylize";
-    c.help = "Appearance transfer onto fluid motion: an exemplar's look on 2D flows or on a VDB cache seen through a camera (LazyFluids; "
-             "--method fluidymation: a moving exemplar's look and dynamics)";
+    c.help = "Appearance transfer onto fluid motion: an exemplar's look on 2D flows or on a VDB cache seen through a camera "
+             "(LazyFluids; --method fluidymation: a moving exemplar's look and dynamics)";
     c.setup = [args](CLI::App* app) {
         StylizeArgs& a = *args;
-        turb::StylizeSettings& s = a.settings;
-        app->add_option("--method", a.method,
-               "lazyfluids (LazyFluids: a still or video RGBA exemplar, uniform patch usage; default) or fluidymation (Fluidymation: a "
-               "moving exemplar's look and dynamics; options marked [fluidymation])")
-            ->check(CLI::IsMember({"lazyfluids", "fluidymation"}));
-        app->add_option("--exemplar", a.exemplar,
-               "RGBA exemplar: one picture (PNG, EXR, TIFF, JPEG...), a sequence with #### (a video exemplar: target frame i "
-               "uses exemplar frame i, looping), or builtin:fire[:N] (procedural, smooth and textured halves); fluidymation: the RGB "
-               "frames of the moving exemplar, or builtin:ink[:WxH[xFRAMES]] (ink spreading on wet paper)")
-            ->required();
-        app->add_option("--exemplar-alpha", a.exemplarAlpha, "Grayscale mask (or ####-sequence) giving the exemplar's alpha");
-        app->add_option("--flow", a.flow, "2D motion F^t per frame: images with R,G in pixels per frame (x right, y down), or one-layer VDBs");
-        app->add_option("--alpha", a.alpha, "2D target alpha masks per frame (grayscale images)");
-        app->add_flag("--flow-y-up", a.flowYUp, "The flow images' G channel points up (Nuke/Houdini style) rather than down");
-        app->add_option("--cache", a.cache, "A 3D cache (density + velocity) seen through --camera: alpha = rendered opacity, motion = projected velocity");
-        app->add_option("--scene", a.scene,
-               "A built-in 2D target: rotate, swirl (a blob in a rotating/shearing vortex), rise, fill (all fluid), grow (a spreading "
-               "blot that comes to rest) or stroke (a brush stroke whose tip advances)")
-            ->check(CLI::IsMember({"rotate", "swirl", "rise", "fill", "grow", "stroke"}));
-        app->add_option("--scene-size", a.sceneSize, "Built-in target size WxH (default 256x256)");
-        app->add_option("--scene-speed", a.sceneSpeed, "Built-in target: radians per frame at the centre (rise: image widths per frame) (default 0.02)");
-        app->add_option("--frames", a.frames, "Frames (e.g. 1-150); a scene: a count N or a list (default: every frame on disk; scene 1)")->check(frameListCheck());
-        app->add_option("--camera", a.camera, "Cache camera: front (along +y), side (along +x), top (down -z), or perspective (default front)")
-            ->check(CLI::IsMember({"front", "side", "top", "perspective"}));
-        app->add_option("--camera-pos", a.cameraPos, "Perspective camera position X,Y,Z (world units)");
-        app->add_option("--look-at", a.lookAt, "Perspective camera target X,Y,Z (world units)");
-        app->add_option("--camera-up", a.cameraUp, "Perspective camera up direction (default 0,0,1)");
-        app->add_option("--fov", a.fov, "Perspective horizontal field of view in degrees (default 40)")->check(CLI::Range(1.0, 170.0));
-        app->add_option("--width", a.width, "Cache camera image width (default: 4 pixels per voxel; perspective 512)")->check(CLI::Range(16, 16384));
-        app->add_option("--height", a.height, "Perspective image height (default: the width)")->check(CLI::Range(0, 16384));
-        app->add_option("--extinction", a.extinction, "Cache opacity: optical depth per unit density per world unit (default 6, as preview)")
-            ->check(CLI::PositiveNumber);
-        app->add_option("--step", a.step, "Cache ray-march step in voxels (default 0.5)")->check(CLI::Range(0.05, 1.0));
-        app->add_option("--out", a.out, "Output RGBA frames, e.g. styl/fire.####.exr (EXR half, premultiplied) or .png (straight alpha)");
-        app->add_flag("--no-clobber", a.noClobber, "Never replace an existing output file");
-        app->add_option("--preview", a.preview, "Write a PNG per frame into DIR: target | motion (LIC) | stylized | exemplar");
-        app->add_option("--write-target", a.writeTarget, "Write the target per frame into DIR: alpha.####.png and motion.####.exr (float R,G)");
-        app->add_option("--nnf", a.nnf, "uniform (reversed NNF with uniform patch usage, the paper) or standard (Kwatra nearest neighbours: the wash-out ablation)")
-            ->check(CLI::IsMember({"uniform", "standard"}));
-        app->add_option("--patch", s.patchSize, "Patch size in pixels, odd (default 5, paper)")->check(CLI::Range(3, 15));
-        app->add_option("--lambda", s.lambda, "Temporal coherence lambda (default 0.2, paper; 0 = independent frames)")->check(CLI::NonNegativeNumber);
-        app->add_option("--eta", s.eta, "Weight of the blurred-alpha guide (default 3, paper)")->check(CLI::NonNegativeNumber);
-        app->add_option("--blur-radius", s.blurRadius, "r: Gaussian standard deviation (pixels) of the guide alpha (default 3, paper)")
-            ->check(CLI::PositiveNumber);
-        app->add_option("--lower", s.lower, "l: boundary segment where the blurred alpha lies in (l, u) (default 0.1)")->check(CLI::Range(0.0, 1.0));
-        app->add_option("--upper", s.upper, "u: interior segment where the blurred alpha >= u (default 0.9)")->check(CLI::Range(0.0, 1.0));
-        app->add_option("--levels", s.levels, "Pyramid levels (default 0 = auto: short sides >= 32 px, at most 5)")->check(CLI::Range(0, 8));
-        app->add_option("--iterations", s.iterations, "EM iterations on each coarser level (default 4)")->check(CLI::Range(1, 50));
-        app->add_option("--fine-iterations", s.fineIterations, "EM iterations on the finest level (default 2)")->check(CLI::Range(1, 50));
-        app->add_option("--sweeps", s.sweeps, "PatchMatch sweeps per retrieval round (default 2)")->check(CLI::Range(1, 32));
-        app->add_flag("--rotations", s.rotations, "Also use the exemplar rotated by 90, 180 and 270 degrees (section 4.5)");
-        app->add_option("--motion-blur", s.motionBlur, "Blur along F^t by this fraction of a frame's motion (default 0 = none; Fig. 9)")
-            ->check(CLI::NonNegativeNumber);
-        app->add_option("--seed", s.seed, "Random seed: the same seed gives the same frames at any --threads (default 1)");
-        app->add_flag("--json", a.json, "One JSON line per frame (patch usage, std/gradient ratios, temporal change, IoU, times) and a summary");
-        addReadOptions(app, a.read);
+        addEnum<Method>(app, "--method", a.method, {{"lazyfluids", Method::LazyFluids}, {"fluidymation", Method::Fluidymation}},
+            "lazyfluids: a still or video RGBA exemplar; fluidymation: a moving exemplar's look and dynamics");
+        addInputOptions(app, a);
+        addOutputOptions(app, a);
+        addLazyFluidsSettings(app, a.settings);
         addFluidymationOptions(app, a);
     };
     c.run = [args] { return runStylize(*args); };

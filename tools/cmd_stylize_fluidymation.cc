@@ -331,64 +331,120 @@ void addFluidymationOptions(CLI::App* app, StylizeArgs& a)
     FluidyArgs& f = a.fluidy;
     turb::FluidySettings& s = f.settings;
     const std::string m = "[fluidymation] ";
-    app->add_option("--exemplar-mask", f.exemplarMask, m + "Binary masks of the exemplar frames (####-sequence; default: the exemplar's alpha)");
-    app->add_option("--exemplar-flow", f.exemplarFlow, m + "Exemplar flows, R,G in pixels per frame (default: estimated from the masks, Appendix A)");
-    app->add_option("--target-mask", f.targetMask, m + "Binary target masks (####-sequence; values >= --mask-threshold are inside)");
-    app->add_option("--target-flow", f.targetFlow, m + "Target flows, R,G in pixels per frame (default: estimated from the masks)");
-    app->add_option("--mask-threshold", f.maskThreshold, m + "Target alpha / rendered opacity at or above this is inside the mask (default 0.5)")
+    app->add_option("--exemplar-mask", f.exemplarMask, m + "Binary masks of the exemplar frames (empty: the exemplar's alpha)");
+    app->add_option("--target-mask", f.targetMask, m + "Binary target masks (#### sequence): the 2D target");
+    const auto knob = [app, &m](const std::string& names, auto& v, const std::string& help, const std::string& key) {
+        return setting(app->add_option(names, v, m + help), key);
+    };
+    knob("--exemplar-flow", f.exemplarFlow, "Exemplar flows, R,G in pixels per frame (empty: estimated from the masks)",
+        "exemplar-flow");
+    knob("--target-flow", f.targetFlow, "Target flows, R,G in pixels per frame (empty: estimated from the masks)", "target-flow");
+    knob("--mask-threshold", f.maskThreshold, "Target alpha / rendered opacity at or above this is inside the mask",
+        "mask-threshold")
         ->check(CLI::Range(0.001, 1.0));
-    app->add_flag("--estimate-flow", f.estimateFlow, m + "Estimate the target's flow from its masks (Appendix A) even when one is given");
-    app->add_option("--out-rot", f.outRot, m + "Write T^rot per frame: float EXR/TIFF, R = theta (radians), G, B = cos, sin (0 where no patch)");
-    app->add_option("--debug-nnf", f.debugNnf, m + "Write the NNF per frame into DIR: nnf.####.exr (R = source frame, G = x, B = y), nnf_theta, nnf_vis.png");
-    app->add_option("--n", s.patchSize, m + "Patch size n (default 5, Table 1)")->check(CLI::Range(3, 15));
-    app->add_option("--b", s.boundaryBlur, m + "Boundary blur radius b in pixels (default 30, Table 1; sigma = b/3)")->check(CLI::Range(0.1, 1000.0));
-    app->add_option("--r", s.cuboidFrames, m + "Occurrence cuboid half-length r in frames (default 5, Table 1); the exemplar needs 2r+1 frames")
+    setting(app->add_flag("--estimate-flow", f.estimateFlow, m + "Estimate the target's flow from its masks even when one is given"),
+        "estimate-flow");
+    knob("--out-rot", f.outRot, "Write T^rot per frame: float EXR/TIFF, R = theta (radians), G, B = cos, sin", "out-rot");
+    knob("--debug-nnf", f.debugNnf, "Write the NNF per frame into DIR: nnf.####.exr (R = frame, G = x, B = y), nnf_theta, nnf_vis",
+        "debug-nnf");
+    // turb::FluidySettings under its field names (Table 1's values are the defaults; docs/fluidymation.md).
+    knob("--n,--fluidy.patchSize", s.patchSize, "Patch size n", "fluidy.patchSize")->check(CLI::Range(3, 15));
+    knob("--b,--fluidy.boundaryBlur", s.boundaryBlur, "Boundary blur radius b in pixels (sigma = b/3)", "fluidy.boundaryBlur")
+        ->check(CLI::Range(0.1, 1000.0));
+    knob("--r,--fluidy.cuboidFrames", s.cuboidFrames, "Occurrence cuboid half-length r in frames (the exemplar needs 2r+1)",
+        "fluidy.cuboidFrames")
         ->check(CLI::Range(0, 50));
-    app->add_option("--w-bound", s.wBound, m + "w^bound (default 4); 0 = ablation")->check(CLI::NonNegativeNumber);
-    app->add_option("--w-ext", s.wExt, m + "w^ext (default 0.25)")->check(CLI::NonNegativeNumber);
-    app->add_option("--w-dir", s.wDir, m + "w^dir (default 1)")->check(CLI::NonNegativeNumber);
-    app->add_option("--w-temp", s.wTemp, m + "w^temp (default 4)")->check(CLI::NonNegativeNumber);
-    app->add_option("--w-uni", s.wUni, m + "w^uni (default 1)")->check(CLI::NonNegativeNumber);
-    app->add_option("--m-lower", s.mLower, m + "m_l as a fraction of the target's larger side (default 0.01)")->check(CLI::Range(0.0, 10.0));
-    app->add_option("--m-upper", s.mUpper, m + "m_u as a fraction of the target's larger side (default 0.1)")->check(CLI::Range(0.0, 10.0));
-    app->add_option("--dir-clamp", s.dirClamp, m + "Clamp of |tan| in D^dir (default 10)")->check(CLI::PositiveNumber);
-    app->add_option("--extent-scale", s.extentScale, m + "The exemplar's D^ext unit in pixels (default 0 = its 95th percentile extent)")
+    knob("--w-bound,--fluidy.wBound", s.wBound, "w^bound (0 = ablation)", "fluidy.wBound")->check(CLI::NonNegativeNumber);
+    knob("--w-ext,--fluidy.wExt", s.wExt, "w^ext", "fluidy.wExt")->check(CLI::NonNegativeNumber);
+    knob("--w-dir,--fluidy.wDir", s.wDir, "w^dir", "fluidy.wDir")->check(CLI::NonNegativeNumber);
+    knob("--w-temp,--fluidy.wTemp", s.wTemp, "w^temp", "fluidy.wTemp")->check(CLI::NonNegativeNumber);
+    knob("--w-uni,--fluidy.wUni", s.wUni, "w^uni", "fluidy.wUni")->check(CLI::NonNegativeNumber);
+    knob("--m-lower,--fluidy.mLower", s.mLower, "m_l as a fraction of the target's larger side", "fluidy.mLower")
+        ->check(CLI::Range(0.0, 10.0));
+    knob("--m-upper,--fluidy.mUpper", s.mUpper, "m_u as a fraction of the target's larger side", "fluidy.mUpper")
+        ->check(CLI::Range(0.0, 10.0));
+    knob("--dir-clamp,--fluidy.dirClamp", s.dirClamp, "Clamp of |tan| in D^dir", "fluidy.dirClamp")->check(CLI::PositiveNumber);
+    knob("--extent-scale,--fluidy.extentScale", s.extentScale, "The exemplar's D^ext unit in pixels (0 = its 95th percentile)",
+        "fluidy.extentScale")
         ->check(CLI::NonNegativeNumber);
-    app->add_option("--target-extent-scale", s.targetExtentScale,
-           m + "The target's D^ext unit in pixels (default 0 = its own 95th percentile: relative extents; equal units: absolute)")
+    knob("--target-extent-scale,--fluidy.targetExtentScale", s.targetExtentScale,
+        "The target's D^ext unit in pixels (0 = its own 95th percentile)", "fluidy.targetExtentScale")
         ->check(CLI::NonNegativeNumber);
-    app->add_option("--fluidy-levels", s.levels, m + "Pyramid levels (default 0 = floor(log2(d_min / n)))")->check(CLI::Range(0, 8));
-    app->add_option("--fluidy-iterations", s.iterations, m + "EM iterations on coarser levels (default 3)")->check(CLI::Range(1, 50));
-    app->add_option("--fluidy-fine-iterations", s.fineIterations, m + "EM iterations on the finest level (default 2)")->check(CLI::Range(1, 50));
-    app->add_option("--fluidy-sweeps", s.sweeps, m + "PatchMatch sweeps per E-step on coarser levels (default 2)")->check(CLI::Range(1, 32));
-    app->add_option("--fluidy-fine-sweeps", s.fineSweeps, m + "PatchMatch sweeps per E-step on the finest level (default 1)")->check(CLI::Range(1, 32));
-    app->add_flag("--no-reuse", [&s](int64_t) { s.reusePrevious = false; }, m + "Start every frame from a random NNF (no reuse of the previous frame's)");
+    knob("--fluidy-levels,--fluidy.levels", s.levels, "Pyramid levels (0 = floor(log2(d_min / n)))", "fluidy.levels")
+        ->check(CLI::Range(0, 8));
+    knob("--fluidy-iterations,--fluidy.iterations", s.iterations, "EM iterations on coarser levels", "fluidy.iterations")
+        ->check(CLI::Range(1, 50));
+    knob("--fluidy-fine-iterations,--fluidy.fineIterations", s.fineIterations, "EM iterations on the finest level",
+        "fluidy.fineIterations")
+        ->check(CLI::Range(1, 50));
+    knob("--fluidy-sweeps,--fluidy.sweeps", s.sweeps, "PatchMatch sweeps per E-step on coarser levels", "fluidy.sweeps")
+        ->check(CLI::Range(1, 32));
+    knob("--fluidy-fine-sweeps,--fluidy.fineSweeps", s.fineSweeps, "PatchMatch sweeps per E-step on the finest level",
+        "fluidy.fineSweeps")
+        ->check(CLI::Range(1, 32));
+    boolSetting(app, "--fluidy.reusePrevious", s.reusePrevious, m + "Start each frame from the previous one's NNF (false: random)",
+        "fluidy.reusePrevious");
+    legacy(app->add_flag_function("--no-reuse", [&s](int64_t) { s.reusePrevious = false; }, "fluidy.reusePrevious = false"),
+        "fluidy.reusePrevious", "false");
 }
+
+namespace {
+
+// The target as the shared reader takes it: it knows a 2D target as --alpha/--flow.
+StylizeArgs targetArgsOf(const StylizeArgs& a)
+{
+    const FluidyArgs& f = a.fluidy;
+    if (!a.flow.empty() || !a.alpha.empty() || !a.exemplarAlpha.empty())
+        throw turb::ValueError("--method fluidymation takes --target-mask/--target-flow and --exemplar-mask (not --alpha, --flow, --exemplar-alpha)");
+    const int kinds = int(!f.targetMask.empty()) + int(!a.cache.empty()) + int(!a.scene.empty());
+    if (kinds != 1) throw turb::ValueError("give one target: --target-mask [--target-flow] (2D), --cache (3D through --camera) or --scene");
+    if (!f.targetFlow.empty() && f.targetMask.empty()) throw turb::ValueError("--target-flow needs --target-mask");
+    StylizeArgs targetArgs = a;
+    targetArgs.alpha = f.targetMask;
+    targetArgs.flow = f.targetFlow;
+    return targetArgs;
+}
+
+// The frames in order (each starts from the previous one's NNF), or with --dry-run the plan, once the solver is set up.
+void fluidymateFrames(const StylizeArgs& a, const TargetSource& target, const ExemplarVideo& ex,
+    const turb::MotionSequence& tgt, const turbio::FramePattern& outPattern)
+{
+    std::unique_ptr<turb::Fluidymator> fl;
+    try {
+        fl = std::make_unique<turb::Fluidymator>(a.fluidy.settings, ex.rgb, ex.motion, tgt);
+    } catch (const turb::ValueError& e) {
+        throw turb::ValueError("exemplar " + ex.label + ", target " + target.label() + ": " + e.what(), e.settings());
+    }
+    logVerbose("levels " + std::to_string(fl->levels()) + ", extent units " + fmt("%.2f px", fl->extentScale()) + " (exemplar), " +
+               fmt("%.2f px", fl->targetExtentScale()) + " (target)");
+    if (globals().dryRun) {
+        for (int fr : target.frames()) logInfo("frame " + std::to_string(fr) + " -> " + outPattern.format(fr));
+        return;
+    }
+    RunReport report("stylize fluidymation", a.json);
+    const auto& frames = target.frames();
+    for (size_t i = 0; i < frames.size(); ++i) {
+        const int fr = frames[i];
+        const auto t0 = std::chrono::steady_clock::now();
+        ConsoleProgress progress(int(i), int(frames.size()), fr);
+        const turb::FluidyFrame out = fl->next(&progress);
+        progress.begin("writing");
+        const nlohmann::json extra = writeFrame(a, fr, out, ex, tgt, int(i), target);
+        progress.clear();
+        report.frameDone(fr, int(i), int(frames.size()), secondsSince(t0), humanLine(out.stats) + " -> " + extra["out"].get<std::string>(), extra);
+    }
+    report.finish();
+}
+
+} // namespace
 
 int runFluidymation(StylizeArgs& a)
 {
     FluidyArgs& f = a.fluidy;
     f.settings.seed = a.settings.seed;
     turb::validate(f.settings);
-    if (a.out.empty()) {
-        logError("give --out PATTERN (.png, .exr or .tif with #### for the frame)");
-        return kUsage;
-    }
-    try {
-        turbio::outputFormatOf(a.out);
-        if (!f.outRot.empty()) turbio::outputFormatOf(f.outRot);
-    } catch (const turb::ValueError& e) {
-        logError(messageWithFlags(e));
-        return kUsage;
-    }
-    if (!a.flow.empty() || !a.alpha.empty() || !a.exemplarAlpha.empty())
-        throw turb::ValueError("--method fluidymation takes --target-mask/--target-flow and --exemplar-mask (not --alpha, --flow, --exemplar-alpha)");
-    const int kinds = int(!f.targetMask.empty()) + int(!a.cache.empty()) + int(!a.scene.empty());
-    if (kinds != 1) throw turb::ValueError("give one target: --target-mask [--target-flow] (2D), --cache (3D through --camera) or --scene");
-    if (!f.targetFlow.empty() && f.targetMask.empty()) throw turb::ValueError("--target-flow needs --target-mask");
-    StylizeArgs targetArgs = a; // the shared target reader knows the 2D target as --alpha/--flow
-    targetArgs.alpha = f.targetMask;
-    targetArgs.flow = f.targetFlow;
+    if (const int rc = checkOutputPatterns(a.out, f.outRot); rc != kOk) return rc;
+    const StylizeArgs targetArgs = targetArgsOf(a);
     TargetSource target(targetArgs, true);
     const turbio::FramePattern outPattern = turbio::FramePattern::parse(a.out);
     if (!outPattern.numbered() && target.frames().size() > 1)
@@ -401,36 +457,8 @@ int runFluidymation(StylizeArgs& a)
     logInfo("stylize fluidymation: " + target.label() + (tgt.flowsEstimated() ? " (flow from the masks)" : "") + ", exemplar " + ex.label +
             " (" + std::to_string(ex.motion.frames()) + " frames " + sizeText(ex.motion.width(), ex.motion.height()) +
             (ex.motion.flowsEstimated() ? ", flow from the masks" : "") + "), " + std::to_string(target.frames().size()) + " frames");
-    int result = kOk;
-    turb::withThreads(globals().threads, [&] {
-        std::unique_ptr<turb::Fluidymator> fl;
-        try {
-            fl = std::make_unique<turb::Fluidymator>(f.settings, ex.rgb, ex.motion, tgt);
-        } catch (const turb::ValueError& e) {
-            throw turb::ValueError("exemplar " + ex.label + ", target " + target.label() + ": " + e.what(),
-                e.settings());
-        }
-        logVerbose("levels " + std::to_string(fl->levels()) + ", extent units " + fmt("%.2f px", fl->extentScale()) + " (exemplar), " +
-                   fmt("%.2f px", fl->targetExtentScale()) + " (target)");
-        if (globals().dryRun) {
-            for (int fr : target.frames()) logInfo("frame " + std::to_string(fr) + " -> " + outPattern.format(fr));
-            return;
-        }
-        RunReport report("stylize fluidymation", a.json);
-        const auto& frames = target.frames();
-        for (size_t i = 0; i < frames.size(); ++i) {
-            const int fr = frames[i];
-            const auto t0 = std::chrono::steady_clock::now();
-            ConsoleProgress progress(int(i), int(frames.size()), fr);
-            const turb::FluidyFrame out = fl->next(&progress);
-            progress.begin("writing");
-            const nlohmann::json extra = writeFrame(a, fr, out, ex, tgt, int(i), target);
-            progress.clear();
-            report.frameDone(fr, int(i), int(frames.size()), secondsSince(t0), humanLine(out.stats) + " -> " + extra["out"].get<std::string>(), extra);
-        }
-        report.finish();
-    });
-    return result;
+    turb::withThreads(globals().threads, [&] { fluidymateFrames(a, target, ex, tgt, outPattern); });
+    return kOk;
 }
 
 } // namespace vdbturb::stylize
