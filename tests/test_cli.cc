@@ -797,14 +797,14 @@ TEST(Cli, SettingsFilesGiveEveryOptionAndTheCommandLineWins)
     testutil::TempDir dir;
     const CmdResult printed = run("sim plume --print-settings");
     ASSERT_EQ(printed.code, 0) << printed.out;
-    EXPECT_NE(printed.out.find("# res=32x32x48"), std::string::npos) << printed.out; // defaults, commented out
+    EXPECT_NE(printed.out.find("# res=\"32x32x48\""), std::string::npos) << printed.out; // defaults, commented out
     std::string text = printed.out;
     const auto set = [&](const std::string& from, const std::string& to) {
         const size_t at = text.find(from);
         ASSERT_NE(at, std::string::npos) << from;
         text.replace(at, from.size(), to);
     };
-    set("# res=32x32x48", "res=8x8x12");
+    set("# res=\"32x32x48\"", "res=\"8x8x12\"");
     set("# frames=60", "frames=2");
     {
         std::ofstream f(dir / "sim.toml");
@@ -820,7 +820,28 @@ TEST(Cli, SettingsFilesGiveEveryOptionAndTheCommandLineWins)
     EXPECT_EQ(turbio::readFrame(dir / "p.0001.vdb", 1, ro).velocity.bbox().dim(), turb::Coord(8, 8, 12));
     // What was read back prints as given.
     const CmdResult again = run("sim plume --settings " + dir / "sim.toml" + " --print-settings");
-    EXPECT_NE(again.out.find("\nres=8x8x12\n"), std::string::npos) << again.out;
+    EXPECT_NE(again.out.find("\nres=\"8x8x12\"\n"), std::string::npos) << again.out;
+    // Values that TOML would cut or split unquoted come back whole: a frame pattern's '#' (a comment outside
+    // quotes), a list's commas; enum settings print by name; a comment after a value is one.
+    const std::string given = "transfer --out 'o/up.####.vdb' --frames 1,3 --align rotate --print-settings";
+    const CmdResult first = run(given);
+    ASSERT_EQ(first.code, 0) << first.out;
+    EXPECT_NE(first.out.find("\nout=\"o/up.####.vdb\"\n"), std::string::npos) << first.out;
+    EXPECT_NE(first.out.find("\nframes=\"1,3\"\n"), std::string::npos) << first.out;
+    EXPECT_NE(first.out.find("\nalignment=\"rotate\"\n"), std::string::npos) << first.out;
+    {
+        std::ofstream f(dir / "transfer.toml");
+        f << first.out << "temporalBlend = 0.9 # a note\n";
+    }
+    const CmdResult second = run("transfer --settings " + dir / "transfer.toml" + " --print-settings");
+    ASSERT_EQ(second.code, 0) << second.out;
+    EXPECT_EQ(second.out, [&] {
+        std::string t = first.out;
+        const size_t at = t.find("# temporalBlend=");
+        EXPECT_NE(at, std::string::npos);
+        t.replace(at, t.find('\n', at) - at, "temporalBlend=0.9");
+        return t;
+    }());
     // A file that cannot be read, or holds sections for several commands, is a usage error naming it.
     EXPECT_EQ(run("sim plume --settings " + dir / "missing.toml").code, 2);
     {

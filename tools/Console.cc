@@ -5,7 +5,9 @@
 #include <csignal>
 #include <cstdio>
 #include <cstring>
+#include <fstream>
 #include <iostream>
+#include <sstream>
 #include <algorithm>
 #include <mutex>
 #include <map>
@@ -48,7 +50,69 @@ std::map<const CLI::Option*, Tier>& tiers()
     return t;
 }
 
+// Enum options' names by the value CLI11 stores after the transform ("2" -> "rotation"), for --print-settings.
+std::map<const CLI::Option*, std::map<std::string, std::string>>& enumNames()
+{
+    static std::map<const CLI::Option*, std::map<std::string, std::string>> n;
+    return n;
+}
+
 const char* const kGroupSettings = "Settings (second tier: also from --settings FILE; docs name their measured effects)";
+// Old spellings: never listed (--help-all names them beside their setting), but named in error messages, which
+// CLI11 leaves nameless for options in the hidden group "".
+const char* const kGroupLegacy = "Old spellings";
+
+// --help lists the everyday groups; --help-all the second tier too. Settings sit in a named group, not in CLI11's
+// hidden one, so that a bad value's error names its option.
+class TieredFormatter : public CLI::Formatter
+{
+public:
+    bool showSecondTier = false;
+    std::string make_group(std::string group, bool positional, std::vector<const CLI::Option*> opts) const override
+    {
+        if (group == kGroupLegacy || (group == kGroupSettings && !showSecondTier)) return {};
+        return CLI::Formatter::make_group(std::move(group), positional, std::move(opts));
+    }
+};
+
+// A value as TOML: numbers and booleans bare, everything else a quoted string (frame patterns hold '#', which
+// would start a comment, and lists hold ',').
+std::string tomlValue(const std::string& v)
+{
+    if (v == "true" || v == "false") return v;
+    char* end = nullptr;
+    if (!v.empty() && v.find_first_of(", ") == std::string::npos) {
+        (void)std::strtod(v.c_str(), &end);
+        if (end && *end == '\0') return v;
+    }
+    std::string q = "\"";
+    for (const char c : v) q += (c == '"' || c == '\\') ? std::string("\\") + c : std::string(1, c);
+    return q + "\"";
+}
+
+// A settings file's text without its comments: '#' outside quotes to the end of the line (CLI11 2.1's TOML reader
+// also cuts at a '#' inside quotes, so the file is handed to it without comments and with comments turned off).
+std::string withoutComments(std::istream& in)
+{
+    std::string out, line;
+    while (std::getline(in, line)) {
+        char quote = 0;
+        for (size_t i = 0; i < line.size(); ++i) {
+            const char c = line[i];
+            if (quote) {
+                if (c == '\\' && quote == '"') ++i;
+                else if (c == quote) quote = 0;
+            } else if (c == '"' || c == '\'') {
+                quote = c;
+            } else if (c == '#') {
+                line.erase(i);
+                break;
+            }
+        }
+        out += line + "\n";
+    }
+    return out;
+}
 
 // Whether a legacy option's keys ("seams.bandWidth,seams.bandWidth2D") include `key`.
 bool sets(const Tier& legacy, const std::string& key)
@@ -99,13 +163,23 @@ std::string settingsFile(const CLI::App* app)
                     for (const auto& r : other->results()) value += (value.empty() ? "" : ",") + r;
                     if (!tier.value.empty()) value = tier.value;
                 }
+            const auto names = enumNames().find(o);
+            const auto named = [&](const std::string& v) {
+                if (names == enumNames().end()) return tomlValue(v);
+                const auto n = names->second.find(v);
+                return tomlValue(n != names->second.end() ? n->second : v);
+            };
             if (!value.empty()) {
+                value = named(value);
             } else if (o->get_expected_max() == 0) { // a flag
                 value = given ? "true" : "false";
-            } else {
-                for (const auto& r : o->results()) value += (value.empty() ? "" : ",") + r;
-                if (!given) value = o->get_default_str();
-                if (value.empty()) value = "\"\"";
+            } else if (!given) {
+                value = o->get_default_str().empty() ? "\"\"" : named(o->get_default_str());
+            } else if (o->results().size() == 1) {
+                value = named(o->results().front());
+            } else { // a repeated option: a TOML array, one element per occurrence
+                for (const auto& r : o->results()) value += (value.empty() ? "[" : ", ") + named(r);
+                value += "]";
             }
             out += "# " + o->get_description() + "\n" + (given ? "" : "# ") + settingsName(o) + "=" + value + "\n\n";
         }
@@ -121,17 +195,26 @@ CLI::Option* setting(CLI::Option* o, const std::string& key)
     if (std::find(names.begin(), names.end(), key) == names.end())
         throw std::logic_error("setting " + key + " is not a long name of " + o->get_name());
     tiers()[o] = Tier{false, key};
-    return o->group("");
+    return o->group(kGroupSettings);
 }
 
 CLI::Option* legacy(CLI::Option* o, const std::string& setsKey, const std::string& value)
 {
     tiers()[o] = Tier{true, setsKey, value};
-    return o->group("");
+    return o->group(kGroupLegacy);
 }
+
+namespace detail {
+void registerEnumNames(const CLI::Option* o, std::map<std::string, std::string> byValue)
+{
+    enumNames()[o] = std::move(byValue);
+}
+} // namespace detail
 
 void addGlobalOptions(CLI::App* app, unsigned which)
 {
+    auto formatter = std::make_shared<TieredFormatter>();
+    app->formatter(formatter);
     app->add_flag_callback("-v,--verbose", [] { globals().verbosity = 2; }, "Print details: solver iterations, timings")
         ->group(kGroupRun);
     app->add_flag_callback("-q,--quiet", [] { globals().verbosity = 0; }, "Print errors only")->group(kGroupRun);
@@ -160,23 +243,24 @@ void addGlobalOptions(CLI::App* app, unsigned which)
         ->group(kGroupRun);
     app->add_flag_callback(
            "--help-all",
-           [app] {
-               // The second tier becomes a listed group, each old spelling named beside its setting.
+           [app, formatter] {
+               // The second tier is listed, each old spelling named beside its setting.
+               formatter->showSecondTier = true;
                for (CLI::Option* o : app->get_options()) {
                    if (!isSetting(o)) continue;
                    std::string spellings;
                    for (const auto& [other, tier] : tiers())
                        if (tier.legacy && sets(tier, settingsName(o))) spellings += " --" + other->get_lnames().front();
                    if (!spellings.empty()) o->description(o->get_description() + " (also:" + spellings + ")");
-                   o->group(kGroupSettings);
                }
                throw CLI::CallForHelp();
            },
            "Print the help with the second tier of settings too, and exit")
         ->group(kGroupRun);
-    app->footer([app] {
+    app->footer([app, formatter] {
+        if (formatter->showSecondTier) return std::string();
         size_t n = 0;
-        for (const CLI::Option* o : app->get_options()) n += isSetting(o) && o->get_group().empty();
+        for (const CLI::Option* o : app->get_options()) n += isSetting(o);
         return n ? std::to_string(n) + " more settings (solvers, ablations, experiments): --help-all lists them, "
                                         "--print-settings writes them all as a --settings file."
                  : std::string();
@@ -200,7 +284,12 @@ std::vector<std::string> expandSettingsFiles(const std::vector<std::string>& arg
         }
         std::vector<CLI::ConfigItem> items;
         try {
-            items = CLI::ConfigTOML().from_file(file);
+            std::ifstream in(file);
+            if (!in) throw CLI::FileError::Missing(file);
+            std::istringstream text(withoutComments(in));
+            CLI::ConfigTOML toml;
+            toml.comment('\0');
+            items = toml.from_config(text);
         } catch (const CLI::Error& e) {
             throw turb::ValueError("--settings " + file + ": " + e.what());
         }
