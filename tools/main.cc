@@ -69,18 +69,16 @@ void addReadOptions(CLI::App* app, turbio::ReadOptions& opt, const std::string& 
             "GRID");
     };
     app->add_option(p + "density-grid", opt.densityGrid,
-           "Density grid: a name, NAME[N] (the N-th grid of that name; '[0]' = first unnamed grid) or '#N' (the file's "
-           "N-th grid as `vdbturb info` numbers them). Default: density, density_noise")
+           "Density grid: NAME, NAME[N] or #N as `vdbturb info` numbers grids (docs/io.md); empty: density, density_noise")
         ->check(selector("density-grid"))
         ->group(kGroupInput);
     app->add_option(p + "vel-grid", opt.velocityGrid,
            "Velocity grid: as --" + prefix + (prefix.empty() ? "" : "-") +
-               "density-grid, or the stem of NAME.x/.y/.z. Default: vel, velocity, v")
+               "density-grid, or the stem of NAME.x/.y/.z; empty: vel, velocity, v")
         ->check(selector("vel-grid"))
         ->group(kGroupInput);
     app->add_option(p + "fps", opt.fps,
-           "Frames per second of the shot, for the default time per frame (24 assumed, with a warning: Blender's "
-           "and Houdini's caches do not record it)")
+           "Frames per second of the shot, for the default time per frame (0: 24, with a warning)")
         ->check(CLI::PositiveNumber)
         ->group(kGroupInput);
     setting(addEnum<turbio::VelocityUnits>(app, p + "vel-units", opt.velocityUnits,
@@ -89,13 +87,11 @@ void addReadOptions(CLI::App* app, turbio::ReadOptions& opt, const std::string& 
                 "Velocity units: world, cells (grid cells per time unit, Blender), auto (detect)"),
         p.substr(2) + "vel-units");
     setting(app->add_option(p + "dt", opt.dt,
-                   "Time per frame in the velocity's time unit (default: vdbturb_dt metadata; Blender 0.1*25/fps; else "
-                   "1/fps)")
+                   "Time per frame in the velocity's time unit (0: from metadata or the writer's convention, docs/io.md)")
                 ->check(CLI::PositiveNumber),
         p.substr(2) + "dt");
     setting(app->add_flag_function(p + "no-crop", [&opt](int64_t) { opt.cropToSmoke = false; },
-                "Hold the union of the grids' active boxes densely, stray voxels included (default: only the density's "
-                "smoke and a margin; clusters of stray voxels far from the smoke are left out and reported)"),
+                "Hold the grids' whole active boxes, stray voxels included (default: the smoke and a margin)"),
         p.substr(2) + "no-crop");
     setting(app->add_option(p + "crop-margin", opt.cropMargin, "Voxels kept around the smoke when cropping")
                 ->check(CLI::NonNegativeNumber),
@@ -106,14 +102,12 @@ void addWriteOptions(CLI::App* app, turbio::WriteOptions& opt)
 {
     addEnum<turbio::WriteStyle>(app, "--style", opt.style,
         {{"houdini", turbio::WriteStyle::Houdini}, {"blender", turbio::WriteStyle::Blender}},
-        "Output grid convention: houdini (vel + density, world units) or blender (staggered velocity in cells + "
-        "density)")
+        "Output grid convention: houdini (vel, world units) or blender (staggered vel in cells)")
         ->group(kGroupOutput);
     app->add_flag("--no-clobber", opt.noClobber, "Never replace an existing output file")->group(kGroupOutput);
     app->add_flag("--half", opt.halfFloat, "Store floats as half precision (smaller files)")->group(kGroupOutput);
     app->add_option("--clipping", opt.densityTolerance,
-           "Write density at or below this value as empty space (inactive voxels), as Blender's cache Clipping "
-           "does (smaller files; 0: every non-zero voxel)")
+           "Density at or below this is written as empty space, as Blender's Clipping (0: every non-zero voxel)")
         ->check(CLI::Validator(
             [](std::string& text) -> std::string {
                 double v = 0.0; // CLI11's number checks let NaN through
