@@ -17,9 +17,9 @@ namespace clitest {
 
 struct Result
 {
-    int code = -1;       ///< exit status, or -1 when killed by a signal
-    int signal = 0;      ///< the signal that ended it, 0 if it exited
-    std::string out;     ///< stdout + stderr (or stdout only with run(..., false))
+    int code = -1;   ///< exit status, or -1 when killed by a signal
+    int signal = 0;  ///< the signal that ended it, 0 if it exited
+    std::string out; ///< stdout + stderr (or stdout only with run(..., false))
 };
 
 /// Runs shell command `cmd`; its stdout is captured (add 2>&1 for stderr).
@@ -86,8 +86,7 @@ public:
     int wait()
     {
         if (!mDone) {
-            while (::waitpid(mPid, &mStatus, 0) < 0 && errno == EINTR) {
-            }
+            while (::waitpid(mPid, &mStatus, 0) < 0 && errno == EINTR) {}
             mDone = true;
         }
         return mStatus;

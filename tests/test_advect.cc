@@ -58,7 +58,8 @@ TEST(Advect2D, InPlaneAdvectionShiftsExactlyAndAgreesWithVolumeAdvection)
         u.data()[n] = Vec3f(1.0f, 0.0f, 0.0f); // 2 voxels of 0.5 per unit time
         swirl.data()[n] = Vec3f(float(-0.05 * (c.y() - 14.5)), float(0.05 * (c.x() - 19.5)), 0.0f);
     }
-    for (auto scheme : {AdvectSettings::Scheme::SemiLagrangian, AdvectSettings::Scheme::MacCormack, AdvectSettings::Scheme::BFECC}) {
+    for (auto scheme :
+        {AdvectSettings::Scheme::SemiLagrangian, AdvectSettings::Scheme::MacCormack, AdvectSettings::Scheme::BFECC}) {
         AdvectSettings s;
         s.scheme = scheme;
         s.inPlane = true;

@@ -31,8 +31,10 @@ struct Waves
         std::mt19937 rng(seed);
         std::uniform_real_distribution<double> u(0.0, 1.0);
         for (int i = 0; i < count; ++i) {
-            const double lambda = minLambda + (maxLambda - minLambda) * u(rng), a = 2.0 * M_PI * u(rng), k = 2.0 * M_PI / lambda;
-            waves.push_back({k * std::cos(a), k * std::sin(a), 2.0 * M_PI * u(rng), {0.05 + 0.05 * u(rng), 0.05 * u(rng), 0.05 * u(rng)}});
+            const double lambda = minLambda + (maxLambda - minLambda) * u(rng), a = 2.0 * M_PI * u(rng),
+                         k = 2.0 * M_PI / lambda;
+            waves.push_back({k * std::cos(a), k * std::sin(a), 2.0 * M_PI * u(rng),
+                {0.05 + 0.05 * u(rng), 0.05 * u(rng), 0.05 * u(rng)}});
         }
     }
     ChannelImage frame(int W, int H, double dx, double dy) const
@@ -91,7 +93,8 @@ TEST(AnimateAnalysis, Eq4ReconstructsTheExampleExactly)
         for (int b = 0; b < 3; ++b) {
             const int cx = int(rng() % 64), cy = int(rng() % 48);
             for (int y = 0; y < 48; ++y)
-                for (int x = 0; x < 64; ++x) f.at(x, y, b) += 0.3f * float(std::exp(-((x - cx) * (x - cx) + (y - cy) * (y - cy)) / 8.0));
+                for (int x = 0; x < 64; ++x)
+                    f.at(x, y, b) += 0.3f * float(std::exp(-((x - cx) * (x - cx) + (y - cy) * (y - cy)) / 8.0));
         }
     const std::vector<ChannelImage> original = frames;
     const ExampleDecomposition ex = decomposeExample(frames, AnalysisSettings{});
@@ -117,7 +120,8 @@ TEST(AnimateAnalysis, Eq4ReconstructsTheExampleExactly)
         for (size_t q = 0; q < lit.data().size(); ++q) lit.data()[q] += r.data()[q];
     }
     double e5 = 0.0;
-    for (size_t q = 0; q < lit.data().size(); ++q) e5 = std::max(e5, std::abs(double(lit.data()[q]) + ex.average.data()[q] - original[size_t(i)].data()[q]));
+    for (size_t q = 0; q < lit.data().size(); ++q)
+        e5 = std::max(e5, std::abs(double(lit.data()[q]) + ex.average.data()[q] - original[size_t(i)].data()[q]));
     EXPECT_LT(e5, 1e-5);
 }
 
@@ -134,9 +138,11 @@ TEST(AnimateAnalysis, TranslatedNoiseGivesItsShiftAndSmallResiduals)
     EXPECT_LT(err[err.size() / 2], 0.05) << "median flow error";
     EXPECT_LT(err[size_t(0.95 * double(err.size()))], 0.1) << "95th percentile flow error";
     // The residuals are what the flow does not explain: far below the frame differences.
-    EXPECT_LT(ex.stats.rmsResidual, 0.2 * ex.stats.rmsDifference) << ex.stats.rmsResidual << " vs " << ex.stats.rmsDifference;
-    std::cout << "[ measured ] flow error median " << err[err.size() / 2] << " px, 95th percentile " << err[size_t(0.95 * double(err.size()))]
-              << " px; rms residual / rms difference " << ex.stats.rmsResidual / ex.stats.rmsDifference << std::endl;
+    EXPECT_LT(ex.stats.rmsResidual, 0.2 * ex.stats.rmsDifference)
+        << ex.stats.rmsResidual << " vs " << ex.stats.rmsDifference;
+    std::cout << "[ measured ] flow error median " << err[err.size() / 2] << " px, 95th percentile "
+              << err[size_t(0.95 * double(err.size()))] << " px; rms residual / rms difference "
+              << ex.stats.rmsResidual / ex.stats.rmsDifference << std::endl;
 }
 
 TEST(AnimateAnalysis, RefusesShortOrMixedExamples)
@@ -209,8 +215,10 @@ TEST(AnimateDesign, StrokeErrorsNameTheStroke)
         EXPECT_NE(std::string(e.what()).find("stroke 0"), std::string::npos) << e.what();
         EXPECT_NE(std::string(e.what()).find("outside"), std::string::npos) << e.what();
     }
-    EXPECT_THROW(validateStrokes({stroke(StrokeKind::Speed, {{5, 5}, {9, 5}}, 1.0)}, 64, 64), ValueError) << "no orientation stroke";
-    EXPECT_THROW(validateStrokes({stroke(StrokeKind::Orientation, {{5, 5}, {5, 5}})}, 64, 64), ValueError) << "no direction";
+    EXPECT_THROW(validateStrokes({stroke(StrokeKind::Speed, {{5, 5}, {9, 5}}, 1.0)}, 64, 64), ValueError)
+        << "no orientation stroke";
+    EXPECT_THROW(validateStrokes({stroke(StrokeKind::Orientation, {{5, 5}, {5, 5}})}, 64, 64), ValueError)
+        << "no direction";
 }
 
 TEST(AnimateDesign, RefinementFollowsTheGradientAndFallsBackWhereItVanishes)
@@ -271,7 +279,8 @@ TEST(AnimateTransfer, SameFlowsTransferTheResidualsInPlace)
     for (float& v : r.data()) v = float(rng() % 1000) / 1000.0f;
     const ChannelImage rp = map.apply(r);
     double maxErr = 0.0;
-    for (size_t q = 0; q < r.data().size(); ++q) maxErr = std::max(maxErr, double(std::abs(rp.data()[q] - r.data()[q])));
+    for (size_t q = 0; q < r.data().size(); ++q)
+        maxErr = std::max(maxErr, double(std::abs(rp.data()[q] - r.data()[q])));
     EXPECT_LT(maxErr, 1e-5);
 }
 
@@ -375,11 +384,13 @@ TEST(AnimatePyramids, SteerableAndLaplacianReconstruct)
         const SteerablePyramid p = buildSteerablePyramid(img, L, 4);
         const ChannelImage back = collapse(p);
         double e = 0.0;
-        for (size_t q = 0; q < img.data().size(); ++q) e = std::max(e, double(std::abs(back.data()[q] - img.data()[q])));
+        for (size_t q = 0; q < img.data().size(); ++q)
+            e = std::max(e, double(std::abs(back.data()[q] - img.data()[q])));
         EXPECT_LT(e, 1e-4) << L << " levels";
         const LaplacianPyramid lp = buildLaplacianPyramid(img, L);
         const ChannelImage lback = collapse(lp);
-        for (size_t q = 0; q < img.data().size(); ++q) e = std::max(e, double(std::abs(lback.data()[q] - img.data()[q])));
+        for (size_t q = 0; q < img.data().size(); ++q)
+            e = std::max(e, double(std::abs(lback.data()[q] - img.data()[q])));
         EXPECT_LT(e, 1e-4) << L << " levels";
     }
     // A pattern varying along x only lands in orientation 0 (theta = 0) of the steerable bands.
@@ -430,18 +441,21 @@ TEST(AnimateHistogram, MatchesMeanAndStdPerFrameAndPerCell)
         for (int c = 0; c < 3; ++c) {
             near(meanStd(out, c, 0, 0, W, H), meanStd(target, c, 0, 0, W, H), "frame");
             for (const HmCell& cell : hm.cells())
-                near(meanStd(out, c, cell.x0, cell.y0, cell.x1, cell.y1), meanStd(target, c, cell.x0, cell.y0, cell.x1, cell.y1),
+                near(meanStd(out, c, cell.x0, cell.y0, cell.x1, cell.y1),
+                    meanStd(target, c, cell.x0, cell.y0, cell.x1, cell.y1),
                     "cell " + std::to_string(cell.x0) + "," + std::to_string(cell.y0));
         }
         // Before matching the frame is far from the target in some cell: the test can fail.
         double worst = 0.0;
         for (const HmCell& cell : hm.cells()) {
-            const MeanStd f = meanStd(frame, 0, cell.x0, cell.y0, cell.x1, cell.y1), t = meanStd(target, 0, cell.x0, cell.y0, cell.x1, cell.y1);
+            const MeanStd f = meanStd(frame, 0, cell.x0, cell.y0, cell.x1, cell.y1),
+                          t = meanStd(target, 0, cell.x0, cell.y0, cell.x1, cell.y1);
             worst = std::max(worst, std::abs(f.std - t.std) / t.std);
         }
         EXPECT_GT(worst, 0.2);
-        std::cout << "[ measured ] " << (mode == HmPyramid::Steerable ? "steerable" : "laplacian") << ": worst relative mean error "
-                  << worstMean << ", std error " << worstStd << " (frame and 12 cells, 3 channels)" << std::endl;
+        std::cout << "[ measured ] " << (mode == HmPyramid::Steerable ? "steerable" : "laplacian")
+                  << ": worst relative mean error " << worstMean << ", std error " << worstStd
+                  << " (frame and 12 cells, 3 channels)" << std::endl;
         worstMean = worstStd = 0.0;
     }
 }
@@ -465,14 +479,16 @@ SmallRun runSmall(int threads, int N = 14, int tau = 4, bool hm = true)
     AnimateInput in;
     in.exampleFrames = translatedNoise(64, 48, N, 1.0, 0.5);
     in.target = Waves(31).frame(56, 40, 0, 0);
-    const std::vector<FlowStroke> strokes{stroke(StrokeKind::Orientation, {{5, 5}, {50, 30}}), stroke(StrokeKind::Speed, {{5, 20}, {50, 20}}, 1.2)};
+    const std::vector<FlowStroke> strokes{
+        stroke(StrokeKind::Orientation, {{5, 5}, {50, 30}}), stroke(StrokeKind::Speed, {{5, 20}, {50, 20}}, 1.2)};
     in.strokes = &strokes;
     AnimateSettings s;
     s.tau = tau;
     s.histogramMatch = hm;
     s.hm.cellSize = 28;
     withThreads(threads, [&] {
-        run.stats = animate(std::move(in), s, [&](const AnimatedFrame& f) { run.frames.push_back(f); }, nullptr,
+        run.stats = animate(
+            std::move(in), s, [&](const AnimatedFrame& f) { run.frames.push_back(f); }, nullptr,
             [&](const std::string& name, int, const ChannelImage& img) {
                 if (name == "refined") run.designed = img;
             });
@@ -522,14 +538,16 @@ TEST(AnimatePipeline, MotionFollowsTheDesign)
     AnimateInput in;
     in.exampleFrames = translatedNoise(96, 80, 40, 1.5, -0.5);
     in.target = Waves(41).frame(96, 80, 0, 0);
-    const std::vector<FlowStroke> strokes{stroke(StrokeKind::Orientation, {{10, 70}, {85, 20}}), stroke(StrokeKind::Speed, {{10, 40}, {85, 40}}, 1.5)};
+    const std::vector<FlowStroke> strokes{
+        stroke(StrokeKind::Orientation, {{10, 70}, {85, 20}}), stroke(StrokeKind::Speed, {{10, 40}, {85, 40}}, 1.5)};
     in.strokes = &strokes;
     AnimateSettings s;
     s.tau = 8;
     s.hm.cellSize = 48;
     std::vector<ChannelImage> out;
     ChannelImage designed;
-    animate(std::move(in), s, [&](const AnimatedFrame& f) { out.push_back(f.image); }, nullptr,
+    animate(
+        std::move(in), s, [&](const AnimatedFrame& f) { out.push_back(f.image); }, nullptr,
         [&](const std::string& name, int, const ChannelImage& img) {
             if (name == "refined") designed = img;
         });
@@ -540,7 +558,8 @@ TEST(AnimatePipeline, MotionFollowsTheDesign)
     EXPECT_GT(a.medianSpeedRatio, 0.8);
     EXPECT_LT(a.medianSpeedRatio, 1.2);
     EXPECT_GT(a.pixels, 0.5);
-    std::cout << "[ measured ] output flow vs design: median angle " << a.medianAngleDeg << " deg, speed ratio " << a.medianSpeedRatio << std::endl;
+    std::cout << "[ measured ] output flow vs design: median angle " << a.medianAngleDeg << " deg, speed ratio "
+              << a.medianSpeedRatio << std::endl;
 }
 
 TEST(AnimateQuality, TemporalStatsOfASinusoid)
@@ -579,14 +598,16 @@ std::vector<ChannelImage> dynamicTexture(int W, int H, int N, double rho, unsign
         ChannelImage f(W, H, 3);
         for (int y = 0; y < H; ++y)
             for (int x = 0; x < W; ++x)
-                for (int c = 0; c < 3; ++c) f.at(x, y, c) = 0.3f + 0.2f * float(x) / W + 0.1f * float(c) + d.at(x, y, c);
+                for (int c = 0; c < 3; ++c)
+                    f.at(x, y, c) = 0.3f + 0.2f * float(x) / W + 0.1f * float(c) + d.at(x, y, c);
         frames.push_back(f);
         const ChannelImage n = noise();
         ChannelImage next(W, H, 3);
         for (int y = 0; y < H; ++y)
             for (int x = 0; x < W; ++x)
                 for (int c = 0; c < 3; ++c)
-                    next.at(x, y, c) = float(rho) * d.at((x - 1 + W) % W, y, c) + float(std::sqrt(1.0 - rho * rho)) * n.at(x, y, c);
+                    next.at(x, y, c) =
+                        float(rho) * d.at((x - 1 + W) % W, y, c) + float(std::sqrt(1.0 - rho * rho)) * n.at(x, y, c);
         d = next;
     }
     return frames;
@@ -617,7 +638,9 @@ TEST(AnimateQuality, OutputFlickersLikeTheExample)
     animate(std::move(in), s, [&](const AnimatedFrame& f) { outStats.add(f.image); });
     const TemporalSummary e = exStats.summary(), o = outStats.summary();
     std::string ac;
-    for (int L = 1; L <= tau; ++L) ac += " " + std::to_string(o.autocorrelation[size_t(L - 1)]) + "/" + std::to_string(e.autocorrelation[size_t(L - 1)]);
+    for (int L = 1; L <= tau; ++L)
+        ac += " " + std::to_string(o.autocorrelation[size_t(L - 1)]) + "/" +
+              std::to_string(e.autocorrelation[size_t(L - 1)]);
     EXPECT_GT(o.temporalStd, 0.8 * e.temporalStd) << o.temporalStd << " vs " << e.temporalStd;
     EXPECT_LT(o.temporalStd, 1.25 * e.temporalStd) << o.temporalStd << " vs " << e.temporalStd;
     // Short lags carry the motion: close. Longer lags see the patch mosaic of the transfer (terms cross
@@ -629,6 +652,7 @@ TEST(AnimateQuality, OutputFlickersLikeTheExample)
         EXPECT_LT(d, L <= 3 ? 0.05 : 0.15) << "lag " << L << ":" << ac;
     }
     EXPECT_LT(sum / tau, 0.08) << ac;
-    std::cout << "[ measured ] temporal std output/example " << o.temporalStd / e.temporalStd << "; mean |autocorrelation difference| over lags 1.."
-              << tau << " " << sum / tau << "; lag 1 " << o.autocorrelation[0] << "/" << e.autocorrelation[0] << std::endl;
+    std::cout << "[ measured ] temporal std output/example " << o.temporalStd / e.temporalStd
+              << "; mean |autocorrelation difference| over lags 1.." << tau << " " << sum / tau << "; lag 1 "
+              << o.autocorrelation[0] << "/" << e.autocorrelation[0] << std::endl;
 }

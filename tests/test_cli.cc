@@ -48,16 +48,19 @@ TEST(Cli, UsageErrorsExitTwoAndMissingInputsExitOne)
     EXPECT_EQ(run("info --frames 1-3 --no-such-flag x").code, 2);
     // A malformed frame list is a usage error on every command that takes one, naming the bad piece, before
     // any file is looked at.
-    for (const std::string cmd : {"info " + lo(), "measure --output o.####.vdb --target " + lo(), "resample " + lo() + " --out r.####.vdb",
-             "transfer --target " + lo() + " --source " + hi() + " --out o.####.vdb", "preview " + lo()}) {
+    for (const std::string cmd :
+        {"info " + lo(), "measure --output o.####.vdb --target " + lo(), "resample " + lo() + " --out r.####.vdb",
+            "transfer --target " + lo() + " --source " + hi() + " --out o.####.vdb", "preview " + lo()}) {
         const CmdResult bad = run(cmd + " --frames 10-1");
         EXPECT_EQ(bad.code, 2) << cmd << "\n" << bad.out;
         EXPECT_NE(bad.out.find("'10-1'"), std::string::npos) << bad.out;
     }
-    EXPECT_EQ(run("transfer --target " + lo() + " --source " + hi() + " --out o.####.vdb --source-frames 1-4x0").code, 2);
+    EXPECT_EQ(
+        run("transfer --target " + lo() + " --source " + hi() + " --out o.####.vdb --source-frames 1-4x0").code, 2);
     // Numbers the library would refuse only at frame 1 (NaN passes CLI11's own range checks) are usage errors.
     for (const std::string bad : {"--density-threshold -1", "--density-guide nan", "--alpha inf", "--beta -0.5"})
-        EXPECT_EQ(run("transfer --target " + lo() + " --source " + hi() + " --out o.####.vdb --dry-run " + bad).code, 2) << bad;
+        EXPECT_EQ(run("transfer --target " + lo() + " --source " + hi() + " --out o.####.vdb --dry-run " + bad).code, 2)
+            << bad;
     const CmdResult missing = run("info /nonexistent/cache.vdb");
     EXPECT_EQ(missing.code, 1);
     EXPECT_NE(missing.out.find("/nonexistent/cache.vdb"), std::string::npos) << missing.out;
@@ -67,7 +70,8 @@ TEST(Cli, TransferKeepsEightTargetVoxelsAroundTheSourcesSmoke)
 {
     // Ratio 4: 8 target voxels are 32 source voxels (docs/design.md: 8 source voxels moved block and tcoh at
     // ratio 8); an explicit margin wins.
-    const std::string args = "transfer --target " + lo() + " --source " + hi() + " --out /tmp/unused/o.####.vdb --frames 1 --dry-run -v";
+    const std::string args =
+        "transfer --target " + lo() + " --source " + hi() + " --out /tmp/unused/o.####.vdb --frames 1 --dry-run -v";
     const CmdResult byRatio = run(args);
     EXPECT_EQ(byRatio.code, 0) << byRatio.out;
     EXPECT_NE(byRatio.out.find("source crop margin: 32 source voxels"), std::string::npos) << byRatio.out;
@@ -78,7 +82,9 @@ TEST(Cli, TransferKeepsEightTargetVoxelsAroundTheSourcesSmoke)
 TEST(Cli, InfoJsonGoesToStdoutAndReportsMissingFrames)
 {
     testutil::TempDir dir;
-    for (int f : {1, 2, 4}) std::filesystem::copy_file(testutil::dataPath("blender-plume-32/fluid_data_000" + std::to_string(f) + ".vdb"), dir / ("p." + std::to_string(f) + ".vdb"));
+    for (int f : {1, 2, 4})
+        std::filesystem::copy_file(testutil::dataPath("blender-plume-32/fluid_data_000" + std::to_string(f) + ".vdb"),
+            dir / ("p." + std::to_string(f) + ".vdb"));
     const std::string cmd = std::string(VDBTURB_EXE) + " info '" + dir.path() + "/p.@.vdb' --json -q 2>/dev/null";
     FILE* p = ::popen(cmd.c_str(), "r");
     std::string json;
@@ -95,7 +101,8 @@ TEST(Cli, TransferWritesResumesAndNeverClobbers)
     testutil::TempDir dir;
     const std::string out = dir / "up/turb.####.vdb";
     // Dry run: resolves, prints the plan, writes nothing.
-    const CmdResult dry = run("transfer --target " + lo() + " --source " + hi() + " --out " + out + " --frames 1-3 --dry-run");
+    const CmdResult dry =
+        run("transfer --target " + lo() + " --source " + hi() + " --out " + out + " --frames 1-3 --dry-run");
     EXPECT_EQ(dry.code, 0) << dry.out;
     EXPECT_NE(dry.out.find("ratio 4 (target voxel 0.125, source voxel 0.03125)"), std::string::npos) << dry.out;
     EXPECT_FALSE(std::filesystem::exists(dir / "up"));
@@ -103,18 +110,22 @@ TEST(Cli, TransferWritesResumesAndNeverClobbers)
     // Frames 1-2, then --resume to 3; compare with an uninterrupted 1-3 run.
     // The resumed run writes velocity only near the smoke (--velocity-margin) and keeps the last frame's full state
     // beside the outputs; the reference writes the whole box. Where both wrote velocity, frame 3 must agree.
-    const CmdResult a = run("transfer --target " + lo() + " --source " + hi() + " --out " + out + " --frames 1-2 -q --velocity-margin 2");
+    const CmdResult a = run(
+        "transfer --target " + lo() + " --source " + hi() + " --out " + out + " --frames 1-2 -q --velocity-margin 2");
     ASSERT_EQ(a.code, 0) << a.out;
     const CmdResult b = run("transfer --target " + lo() + " --source " + hi() + " --out " + out +
                             " --frames 1-3 --resume --velocity-margin 2");
     ASSERT_EQ(b.code, 0) << b.out;
     EXPECT_NE(b.out.find("continuing after frame 2"), std::string::npos) << b.out;
     const std::string ref = dir / "ref/turb.####.vdb";
-    const CmdResult whole3 = run("transfer --target " + lo() + " --source " + hi() + " --out " + ref + " --frames 1-3 -q --json");
+    const CmdResult whole3 =
+        run("transfer --target " + lo() + " --source " + hi() + " --out " + ref + " --frames 1-3 -q --json");
     ASSERT_EQ(whole3.code, 0) << whole3.out;
     // On a real Blender pair: the density keeps the target's mass, peak and coarse means, and its
-    // edge shows no coarse cells (the per-cell density guide drew them into the silhouette: density_imprint 2.1 on these frames, now 0.88-1.03).
-    const CmdResult m = run("measure --output " + ref + " --target " + lo() + " --source " + hi() + " --no-spectra --json");
+    // edge shows no coarse cells (the per-cell density guide drew them into the silhouette: density_imprint 2.1 on
+    // these frames, now 0.88-1.03).
+    const CmdResult m =
+        run("measure --output " + ref + " --target " + lo() + " --source " + hi() + " --no-spectra --json");
     ASSERT_EQ(m.code, 0) << m.out;
     int measured = 0;
     std::istringstream jsonLines(m.out);
@@ -135,8 +146,9 @@ TEST(Cli, TransferWritesResumesAndNeverClobbers)
     EXPECT_NE(whole3.out.find("\"lf_err\":"), std::string::npos) << whole3.out;
     EXPECT_NE(whole3.out.find("\"detail_change\":"), std::string::npos) << whole3.out;
     // The coarse-part options reach the library: lf_err stays within the tolerance asked for.
-    const CmdResult tight = run("transfer --target " + lo() + " --source " + hi() + " --out " + dir / "tight/t.####.vdb" +
-                                " --frames 1-2 -q --json --coarse-tolerance 0.01 --box-keep 0.5 --whole-fresh-patches");
+    const CmdResult tight =
+        run("transfer --target " + lo() + " --source " + hi() + " --out " + dir / "tight/t.####.vdb" +
+            " --frames 1-2 -q --json --coarse-tolerance 0.01 --box-keep 0.5 --whole-fresh-patches");
     ASSERT_EQ(tight.code, 0) << tight.out;
     size_t at = 0, lines = 0;
     while ((at = tight.out.find("\"lf_err\":", at)) != std::string::npos) {
@@ -145,7 +157,10 @@ TEST(Cli, TransferWritesResumesAndNeverClobbers)
         ++lines;
     }
     EXPECT_EQ(lines, 2u) << tight.out;
-    EXPECT_NE(run("transfer --target " + lo() + " --source " + hi() + " --out " + dir / "bad/t.####.vdb" + " --box-keep 2").code, 0);
+    EXPECT_NE(
+        run("transfer --target " + lo() + " --source " + hi() + " --out " + dir / "bad/t.####.vdb" + " --box-keep 2")
+            .code,
+        0);
     turbio::ReadOptions whole_box; // the whole recorded domain, not only the smoke's neighbourhood
     whole_box.cropToSmoke = false;
     const turb::Frame resumed = turbio::readFrame(dir / "up/turb.0003.vdb", 3, whole_box);
@@ -167,7 +182,8 @@ TEST(Cli, TransferWritesResumesAndNeverClobbers)
 
     // --no-clobber refuses and keeps the file.
     const auto before = std::filesystem::last_write_time(dir / "up/turb.0001.vdb");
-    const CmdResult c = run("transfer --target " + lo() + " --source " + hi() + " --out " + out + " --frames 1 --no-clobber");
+    const CmdResult c =
+        run("transfer --target " + lo() + " --source " + hi() + " --out " + out + " --frames 1 --no-clobber");
     EXPECT_EQ(c.code, 1);
     EXPECT_NE(c.out.find("no-clobber"), std::string::npos) << c.out;
     EXPECT_EQ(std::filesystem::last_write_time(dir / "up/turb.0001.vdb"), before);
@@ -181,7 +197,8 @@ TEST(Cli, TrimmedHalfFramesResumeExactlyFromTheStateKeptBesideThem)
     // Frames written small (velocity near the smoke, temperature and flame at it, half floats, density
     // clipped) still resume bit-identically, from the full-precision state of the last frame kept beside them.
     testutil::TempDir dir;
-    const std::string base = "transfer --target " + lo() + " --source " + hi() + " --velocity-margin 1 --half --clipping 1e-3";
+    const std::string base =
+        "transfer --target " + lo() + " --source " + hi() + " --velocity-margin 1 --half --clipping 1e-3";
     ASSERT_EQ(run(base + " --out " + dir / "a/t.####.vdb --frames 1-3 -q").code, 0);
     ASSERT_EQ(run(base + " --out " + dir / "b/t.####.vdb --frames 1-2 -q").code, 0);
     const CmdResult resumed = run(base + " --out " + dir / "b/t.####.vdb --frames 1-3 --resume");
@@ -195,8 +212,9 @@ TEST(Cli, TrimmedHalfFramesResumeExactlyFromTheStateKeptBesideThem)
     EXPECT_EQ(a3.density.values(), b3.density.values());
     EXPECT_EQ(read("a/.t.resume.vdb", 3).velocity.values(), read("b/.t.resume.vdb", 3).velocity.values());
     // Written otherwise, the sequence would hold two formats: refused, naming each write setting that differs.
-    const CmdResult other = run("transfer --target " + lo() + " --source " + hi() + " --velocity-margin 2 --clipping 1e-3 --out " +
-                                dir / "b/t.####.vdb --frames 1-4 --resume");
+    const CmdResult other =
+        run("transfer --target " + lo() + " --source " + hi() + " --velocity-margin 2 --clipping 1e-3 --out " +
+            dir / "b/t.####.vdb --frames 1-4 --resume");
     EXPECT_EQ(other.code, 1) << other.out;
     EXPECT_NE(other.out.find("half: 1 -> 0"), std::string::npos) << other.out;
     EXPECT_NE(other.out.find("velocity-margin: 1 -> 2"), std::string::npos) << other.out;
@@ -221,7 +239,8 @@ TEST(Cli, TrimmedHalfFramesResumeExactlyFromTheStateKeptBesideThem)
     EXPECT_GT(temperatureVoxels, 0);
     EXPECT_LE(temperatureVoxels, densityVoxels) << "temperature is written at the smoke only, as Blender writes it";
     const CmdResult shown = run("info " + dir / "a/t.0003.vdb");
-    EXPECT_NE(shown.out.find("velocity written only within 1 voxel of the smoke, 16-bit floats"), std::string::npos) << shown.out;
+    EXPECT_NE(shown.out.find("velocity written only within 1 voxel of the smoke, 16-bit floats"), std::string::npos)
+        << shown.out;
 
     // Without the state (deleted, or one frame ahead of the outputs) the run goes on from the small file, says so,
     // and the frame is no longer the uninterrupted run's.
@@ -288,8 +307,9 @@ TEST(Cli, PreviewFramesASequenceWithOneCamera)
     std::filesystem::create_directories(dir / "in");
     for (int fr = 1; fr <= 2; ++fr) {
         const int top = fr == 1 ? 7 : 23;
-        const turb::Frame f = testutil::makeFrame(fr, turb::CoordBBox({0, 0, 0}, {15, 15, top}), lat,
-            [](const turb::Vec3d&) { return turb::Vec3f(0.0f); }, [](const turb::Coord&) { return 1.0f; });
+        const turb::Frame f = testutil::makeFrame(
+            fr, turb::CoordBBox({0, 0, 0}, {15, 15, top}), lat, [](const turb::Vec3d&) { return turb::Vec3f(0.0f); },
+            [](const turb::Coord&) { return 1.0f; });
         turbio::writeFrame(dir / ("in/s." + std::to_string(fr) + ".vdb"), f, w);
     }
     const CmdResult r = run("preview " + dir / "in/s.#.vdb" + " --mode density --width 64 --out " + dir / "p/p.#.png");
@@ -309,23 +329,25 @@ TEST(Cli, SheetColumnsOfOneSceneShareOneCamera)
     testutil::TempDir dir;
     const auto write = [&](const std::string& name, double voxel, double shift, turb::CoordBBox box) {
         std::filesystem::create_directories(dir / name);
-        const turb::Frame f = testutil::makeFrame(1, box, turb::Lattice{voxel, turb::Vec3d(shift)},
-            [](const turb::Vec3d&) { return turb::Vec3f(0.0f); }, [](const turb::Coord&) { return 1.0f; });
+        const turb::Frame f = testutil::makeFrame(
+            1, box, turb::Lattice{voxel, turb::Vec3d(shift)}, [](const turb::Vec3d&) { return turb::Vec3f(0.0f); },
+            [](const turb::Coord&) { return 1.0f; });
         turbio::writeFrame(dir / (name + "/c.1.vdb"), f, turbio::WriteOptions{});
     };
-    write("coarse", 0.4, 0.2, turb::CoordBBox({0, 0, 0}, {7, 7, 7}));      // world 0 - 3.2
-    write("fine", 0.1, 0.05, turb::CoordBBox({0, 0, 0}, {15, 15, 15}));    // world 0 - 1.6
-    write("far", 0.1, 100.05, turb::CoordBBox({0, 0, 0}, {3, 3, 3}));      // world 100 - 100.4
-    write("tiny", 0.01, 0.005, turb::CoordBBox({0, 0, 0}, {3, 3, 3}));     // world 0 - 0.04: another scale
-    const CmdResult r = run("preview a=" + dir / "coarse/c.#.vdb" + " b=" + dir / "fine/c.#.vdb" + " c=" +
-                            dir / "far/c.#.vdb" + " d=" + dir / "tiny/c.#.vdb" + " --mode density,speed --width 32 --sheet " +
-                            dir / "s.png" + " --json -q");
+    write("coarse", 0.4, 0.2, turb::CoordBBox({0, 0, 0}, {7, 7, 7}));   // world 0 - 3.2
+    write("fine", 0.1, 0.05, turb::CoordBBox({0, 0, 0}, {15, 15, 15})); // world 0 - 1.6
+    write("far", 0.1, 100.05, turb::CoordBBox({0, 0, 0}, {3, 3, 3}));   // world 100 - 100.4
+    write("tiny", 0.01, 0.005, turb::CoordBBox({0, 0, 0}, {3, 3, 3}));  // world 0 - 0.04: another scale
+    const CmdResult r =
+        run("preview a=" + dir / "coarse/c.#.vdb" + " b=" + dir / "fine/c.#.vdb" + " c=" + dir / "far/c.#.vdb" +
+            " d=" + dir / "tiny/c.#.vdb" + " --mode density,speed --width 32 --sheet " + dir / "s.png" + " --json -q");
     ASSERT_EQ(r.code, 0) << r.out;
     const auto at = r.out.find("{\"");
     ASSERT_NE(at, std::string::npos) << r.out;
     const nlohmann::json j = nlohmann::json::parse(r.out.substr(at, r.out.find('\n', at) - at));
     const auto& framed = j.at("framed");
-    for (int k = 0; k < 6; ++k) EXPECT_NEAR(framed.at("a")[k].get<double>(), framed.at("b")[k].get<double>(), 1e-6) << r.out;
+    for (int k = 0; k < 6; ++k)
+        EXPECT_NEAR(framed.at("a")[k].get<double>(), framed.at("b")[k].get<double>(), 1e-6) << r.out;
     EXPECT_NEAR(framed.at("b")[3].get<double>(), 3.2, 1e-6) << "the coarse cache's whole box: " << r.out;
     EXPECT_NEAR(framed.at("c")[0].get<double>(), 100.0, 1e-6) << "a cache elsewhere keeps its own camera: " << r.out;
     EXPECT_NEAR(framed.at("d")[3].get<double>(), 0.04, 1e-6) << "a cache of another scale keeps its own: " << r.out;
@@ -362,7 +384,8 @@ TEST(Cli, MeasurePlotsAreDrawnByGnuplotWithTheirScripts)
     // The figures are gnuplot's (a plotting package, not code of ours): each picture has its script beside it, and a
     // machine without gnuplot is told what to install before anything is measured.
     testutil::TempDir dir;
-    const std::string base = "measure --output " + hi() + " --target " + lo() + " --source " + hi() + " --frames 2-3 -q";
+    const std::string base =
+        "measure --output " + hi() + " --target " + lo() + " --source " + hi() + " --frames 2-3 -q";
     const CmdResult r = run(base + " --plot " + dir / "p");
     ASSERT_EQ(r.code, 0) << r.out;
     for (const char* f : {"metrics.png", "metrics.png.gp", "spectrum.0002.png", "spectrum.0003.png.gp"})
@@ -399,7 +422,8 @@ TEST(Cli, ACorruptFrameStopsTheRunWithoutDamagingEarlierOutput)
             dir / ("lo/t_000" + std::to_string(f) + ".vdb"));
     // Frame 2 cut in half: the header check before the first frame finds it, and nothing is written.
     std::filesystem::resize_file(dir / "lo/t_0002.vdb", std::filesystem::file_size(dir / "lo/t_0002.vdb") / 2);
-    const CmdResult r = run("transfer --target " + dir / "lo/t_####.vdb" + " --source " + hi() + " --out " + dir / "out/o.####.vdb");
+    const CmdResult r =
+        run("transfer --target " + dir / "lo/t_####.vdb" + " --source " + hi() + " --out " + dir / "out/o.####.vdb");
     EXPECT_EQ(r.code, 1) << r.out;
     EXPECT_NE(r.out.find("t_0002.vdb"), std::string::npos) << r.out;
     EXPECT_NE(r.out.find("truncated"), std::string::npos) << r.out;
@@ -415,7 +439,8 @@ TEST(Cli, ACorruptFrameStopsTheRunWithoutDamagingEarlierOutput)
     }
     bytes[56451] ^= char(0x80);
     std::ofstream(dir / "lo/t_0002.vdb", std::ios::binary) << bytes;
-    const CmdResult d = run("transfer --target " + dir / "lo/t_####.vdb" + " --source " + hi() + " --out " + dir / "out/o.####.vdb");
+    const CmdResult d =
+        run("transfer --target " + dir / "lo/t_####.vdb" + " --source " + hi() + " --out " + dir / "out/o.####.vdb");
     EXPECT_EQ(d.code, 1) << d.out;
     EXPECT_NE(d.out.find("t_0002.vdb: grid 'temperature' could not be read"), std::string::npos) << d.out;
     EXPECT_TRUE(std::filesystem::exists(dir / "out/o.0001.vdb"));
@@ -435,7 +460,8 @@ void writeExemplar(const std::string& path, int n, bool withAlpha)
     turb::RgbaImage z(n, n);
     for (int y = 0; y < n; ++y)
         for (int x = 0; x < n; ++x) {
-            const float a = std::min(1.0f, std::max(0.0f, float(n * 0.42 - std::hypot(x - n / 2.0, y - n / 2.0)) / 3.0f + 0.5f));
+            const float a =
+                std::min(1.0f, std::max(0.0f, float(n * 0.42 - std::hypot(x - n / 2.0, y - n / 2.0)) / 3.0f + 0.5f));
             z.at(x, y) = turb::Rgba(0.5f + 0.4f * std::sin(0.9f * float(x)), 0.3f, 0.2f + 0.01f * float(y), a);
         }
     turbio::ImageWriteOptions o;
@@ -451,7 +477,8 @@ void writeTarget(const std::string& dir, int n, int w, int h, bool emptySecond =
         turb::RgbaImage flow(w, h, turb::Rgba(1.0f, 0.5f, 0.0f, 1.0f)), alpha(w, h);
         for (int y = 0; y < h; ++y)
             for (int x = 0; x < w; ++x) {
-                const float a = (emptySecond && f == 2) ? 0.0f : (std::hypot(x - w / 2.0 - f, y - h / 2.0) < w * 0.3 ? 1.0f : 0.0f);
+                const float a =
+                    (emptySecond && f == 2) ? 0.0f : (std::hypot(x - w / 2.0 - f, y - h / 2.0) < w * 0.3 ? 1.0f : 0.0f);
                 alpha.at(x, y) = turb::Rgba(a, a, a, 1.0f);
             }
         turbio::ImageWriteOptions fo;
@@ -471,7 +498,8 @@ TEST(Cli, StylizeWritesFramesAndJson)
     testutil::TempDir dir;
     writeExemplar(dir / "ex.png", 32, true);
     writeTarget(dir / "t", 3, 48, 40);
-    const std::string in = " --flow " + dir / "t/flow.###.exr" + " --alpha " + dir / "t/alpha.###.png" + " --exemplar " + dir / "ex.png";
+    const std::string in =
+        " --flow " + dir / "t/flow.###.exr" + " --alpha " + dir / "t/alpha.###.png" + " --exemplar " + dir / "ex.png";
     const CmdResult dry = run("stylize" + in + " --out " + dir / "o/s.####.png --dry-run");
     EXPECT_EQ(dry.code, 0) << dry.out;
     EXPECT_FALSE(std::filesystem::exists(dir / "o"));
@@ -490,7 +518,8 @@ TEST(Cli, StylizeWritesFramesAndJson)
     EXPECT_EQ(turbio::readImage(dir / "p/s.0003.exr").pixels(), turbio::readImage(dir / "o/s.0003.exr").pixels());
     // A cache through a camera.
     const CmdResult cache = run("stylize --cache " + testutil::dataPath("blender-plume2-32/fluid_data_####.vdb") +
-                                " --frames 20-21 --camera side --width 64 --exemplar " + dir / "ex.png" + " --out " + dir / "c/c.####.png -q");
+                                " --frames 20-21 --camera side --width 64 --exemplar " + dir / "ex.png" + " --out " +
+                                dir / "c/c.####.png -q");
     ASSERT_EQ(cache.code, 0) << cache.out;
     EXPECT_EQ(turbio::readImage(dir / "c/c.0021.png").width(), 64);
 }
@@ -514,7 +543,8 @@ TEST(Cli, StylizeRefusesBadInputBeforeWritingAnything)
     // An exemplar smaller than a patch.
     expectRefused(flow + alpha + " --exemplar " + dir / "tiny.png", "tiny.png");
     // An empty alpha everywhere (frame 2 of the target).
-    expectRefused(" --flow " + dir / "e/flow.###.exr --alpha " + dir / "e/alpha.###.png --exemplar " + dir / "ex.png", "alpha.002.png");
+    expectRefused(" --flow " + dir / "e/flow.###.exr --alpha " + dir / "e/alpha.###.png --exemplar " + dir / "ex.png",
+        "alpha.002.png");
     // Flow and alpha of different sizes.
     expectRefused(" --flow " + dir / "small/flow.###.exr" + alpha + " --exemplar " + dir / "ex.png", "flow.001.exr");
     // A missing frame.
@@ -528,8 +558,8 @@ TEST(Cli, StylizeRefusesBadInputBeforeWritingAnything)
     turbio::ImageWriteOptions mo;
     mo.alpha = false;
     turbio::writeImage(dir / "mask.png", mask, mo);
-    const CmdResult masked = run("stylize" + flow + alpha + " --exemplar " + dir / "opaque.png --exemplar-alpha " + dir / "mask.png" +
-                                 " --frames 1 --out " + dir / "m/s.####.png -q");
+    const CmdResult masked = run("stylize" + flow + alpha + " --exemplar " + dir / "opaque.png --exemplar-alpha " +
+                                 dir / "mask.png" + " --frames 1 --out " + dir / "m/s.####.png -q");
     EXPECT_EQ(masked.code, 0) << masked.out;
     // An unknown output format is a usage error.
     EXPECT_EQ(run("stylize" + flow + alpha + " --exemplar " + dir / "ex.png --out " + dir / "o/s.####.bmpx").code, 2);
@@ -556,19 +586,25 @@ size_t countFiles(const std::string& dir, const std::string& prefix)
 TEST(Cli, AnimateWritesNMinusTauFramesJsonAndDumps)
 {
     testutil::TempDir dir;
-    ASSERT_EQ(run("animate --export-builtin " + dir / "in" + " --example builtin:river:48x40x12 --target builtin:river:56x40").code, 0);
-    const std::string in = " --example " + dir / "in/river.####.png" + " --target " + dir / "in/still.png" + " --target-alpha " + dir / "in/matte.png" +
-                           " --flow-strokes " + strokesPath() + " --tau 4 --hm-cell 28";
+    ASSERT_EQ(
+        run("animate --export-builtin " + dir / "in" + " --example builtin:river:48x40x12 --target builtin:river:56x40")
+            .code,
+        0);
+    const std::string in = " --example " + dir / "in/river.####.png" + " --target " + dir / "in/still.png" +
+                           " --target-alpha " + dir / "in/matte.png" + " --flow-strokes " + strokesPath() +
+                           " --tau 4 --hm-cell 28";
     const CmdResult dry = run("animate" + in + " --out " + dir / "o/a.####.exr --dry-run");
     ASSERT_EQ(dry.code, 0) << dry.out;
     EXPECT_NE(dry.out.find("-> 8 frames"), std::string::npos) << dry.out;
     EXPECT_FALSE(std::filesystem::exists(dir / "o"));
-    const CmdResult r = run("animate" + in + " --out " + dir / "o/a.####.exr --json --dump " + dir / "d" + " --sheet " + dir / "sheet.png");
+    const CmdResult r = run(
+        "animate" + in + " --out " + dir / "o/a.####.exr --json --dump " + dir / "d" + " --sheet " + dir / "sheet.png");
     ASSERT_EQ(r.code, 0) << r.out;
     EXPECT_EQ(countFiles(dir / "o", "a."), 8u) << "N - tau frames";
     EXPECT_TRUE(std::filesystem::exists(dir / "o/a.0001.exr"));
     EXPECT_TRUE(std::filesystem::exists(dir / "o/a.0008.exr"));
-    for (const char* f : {"A.exr", "v.exr", "rough.exr", "refined.exr", "Aprime.exr", "v.png"}) EXPECT_TRUE(std::filesystem::exists(dir / "d/" + f)) << f;
+    for (const char* f : {"A.exr", "v.exr", "rough.exr", "refined.exr", "Aprime.exr", "v.png"})
+        EXPECT_TRUE(std::filesystem::exists(dir / "d/" + f)) << f;
     EXPECT_EQ(countFiles(dir / "d", "R."), 11u) << "N - 1 residuals";
     EXPECT_EQ(countFiles(dir / "d", "Rprime."), 11u);
     EXPECT_TRUE(std::filesystem::exists(dir / "sheet.png"));
@@ -580,7 +616,8 @@ TEST(Cli, AnimateWritesNMinusTauFramesJsonAndDumps)
     EXPECT_EQ(lines, 8u) << r.out;
     EXPECT_NE(r.out.find("\"stages_s\":"), std::string::npos) << r.out;
     // The output keeps the still outside the matte: a corner pixel on the bank equals the still's.
-    const turb::RgbaImage still = turbio::readImage(dir / "in/still.png"), out = turbio::readImage(dir / "o/a.0005.exr");
+    const turb::RgbaImage still = turbio::readImage(dir / "in/still.png"),
+                          out = turbio::readImage(dir / "o/a.0005.exr");
     ASSERT_TRUE(out.sameSize(still));
     EXPECT_NEAR(out.at(1, 1)[1], still.at(1, 1)[1], 2e-3);
 }
@@ -588,9 +625,13 @@ TEST(Cli, AnimateWritesNMinusTauFramesJsonAndDumps)
 TEST(Cli, AnimateFromACacheThroughTheCamera)
 {
     testutil::TempDir dir;
-    ASSERT_EQ(run("animate --export-builtin " + dir / "in" + " --example builtin:river:48x40x2 --target builtin:river:64x48").code, 0);
-    const CmdResult r = run("animate --example-cache " + lo() + " --camera front --width 48 --target " + dir / "in/still.png" + " --flow-strokes " +
-                            strokesPath() + " --tau 4 --hm laplacian --out " + dir / "o/a.####.png --json -q");
+    ASSERT_EQ(
+        run("animate --export-builtin " + dir / "in" + " --example builtin:river:48x40x2 --target builtin:river:64x48")
+            .code,
+        0);
+    const CmdResult r =
+        run("animate --example-cache " + lo() + " --camera front --width 48 --target " + dir / "in/still.png" +
+            " --flow-strokes " + strokesPath() + " --tau 4 --hm laplacian --out " + dir / "o/a.####.png --json -q");
     ASSERT_EQ(r.code, 0) << r.out;
     EXPECT_EQ(countFiles(dir / "o", "a."), 6u) << "10 cache frames - tau";
     EXPECT_NE(r.out.find("\"flow_given\":true"), std::string::npos) << r.out;
@@ -599,8 +640,12 @@ TEST(Cli, AnimateFromACacheThroughTheCamera)
 TEST(Cli, AnimateRefusesBadInputNamingTheFileAndWritesNothing)
 {
     testutil::TempDir dir;
-    ASSERT_EQ(run("animate --export-builtin " + dir / "in" + " --example builtin:river:48x40x20 --target builtin:river:48x40").code, 0);
-    const std::string ex = dir / "in/river.####.png", still = dir / "in/still.png", out = " --out " + dir / "o/a.####.png";
+    ASSERT_EQ(
+        run("animate --export-builtin " + dir / "in" + " --example builtin:river:48x40x20 --target builtin:river:48x40")
+            .code,
+        0);
+    const std::string ex = dir / "in/river.####.png", still = dir / "in/still.png",
+                      out = " --out " + dir / "o/a.####.png";
     const auto refused = [&](const std::string& args, const std::string& names, const std::string& also) {
         const CmdResult r = run("animate " + args + out);
         EXPECT_EQ(r.code, 1) << args << "\n" << r.out;
@@ -609,28 +654,33 @@ TEST(Cli, AnimateRefusesBadInputNamingTheFileAndWritesNothing)
         EXPECT_FALSE(std::filesystem::exists(dir / "o")) << args;
     };
     // An example shorter than tau + 2 frames.
-    refused("--example " + ex + " --frames 1-10 --target " + still + " --flow-strokes " + strokesPath(), ex, "tau + 2 = 18");
+    refused("--example " + ex + " --frames 1-10 --target " + still + " --flow-strokes " + strokesPath(), ex,
+        "tau + 2 = 18");
     // A target without strokes or flow.
     refused("--example " + ex + " --target " + still, still, "no flow design");
     // A malformed strokes JSON: the line of the error.
     {
         std::ofstream f(dir / "bad.json");
-        f << "{\n  \"strokes\": [\n    {\"brush\": \"orientation\", \"points\": [[1, 2], [30, 2]]},\n    {\"brush\": \"speed\" \"speed\": 1}\n  ]\n}\n";
+        f << "{\n  \"strokes\": [\n    {\"brush\": \"orientation\", \"points\": [[1, 2], [30, 2]]},\n    {\"brush\": "
+             "\"speed\" \"speed\": 1}\n  ]\n}\n";
     }
-    refused("--example " + ex + " --target " + still + " --flow-strokes " + dir / "bad.json", dir / "bad.json:4", "malformed JSON");
+    refused("--example " + ex + " --target " + still + " --flow-strokes " + dir / "bad.json", dir / "bad.json:4",
+        "malformed JSON");
     // A stroke outside the image: the stroke and its line.
     {
         std::ofstream f(dir / "out.json");
         f << "{\n  \"strokes\": [\n    {\"brush\": \"orientation\", \"points\": [[1, 2], [30, 2]]},\n"
              "    {\"brush\": \"speed\", \"speed\": 1,\n     \"points\": [[1, 2], [300, 4]]}\n  ]\n}\n";
     }
-    refused("--example " + ex + " --target " + still + " --flow-strokes " + dir / "out.json", dir / "out.json:4", "stroke 1 (speed)");
+    refused("--example " + ex + " --target " + still + " --flow-strokes " + dir / "out.json", dir / "out.json:4",
+        "stroke 1 (speed)");
     // Example frames of different sizes (checked last: it replaces a frame).
     {
         turb::RgbaImage odd(50, 40, turb::Rgba(0.5f, 0.5f, 0.5f, 1.0f));
         turbio::writeImage(dir / "in/river.0007.png", odd);
     }
-    refused("--example " + ex + " --target " + still + " --flow-strokes " + strokesPath(), dir / "in/river.0007.png", "50x40");
+    refused("--example " + ex + " --target " + still + " --flow-strokes " + strokesPath(), dir / "in/river.0007.png",
+        "50x40");
 }
 
 namespace {
@@ -665,15 +715,16 @@ TEST(Cli, FluidymationWritesFramesRotationNnfAndJson)
     EXPECT_TRUE(std::filesystem::exists(dir / "ink/ink_mask.0012.png"));
     EXPECT_TRUE(std::filesystem::exists(dir / "ink/ink_flow.0001.exr"));
     writeMasks(dir / "t", 4, 48, 48);
-    const std::string in = " --method fluidymation --exemplar " + dir / "ink/ink.####.png" + " --exemplar-mask " + dir / "ink/ink_mask.####.png" +
-                           " --target-mask " + dir / "t/m.###.png --b 8";
+    const std::string in = " --method fluidymation --exemplar " + dir / "ink/ink.####.png" + " --exemplar-mask " +
+                           dir / "ink/ink_mask.####.png" + " --target-mask " + dir / "t/m.###.png --b 8";
     const CmdResult dry = run("stylize" + in + " --out " + dir / "o/s.####.png --dry-run");
     EXPECT_EQ(dry.code, 0) << dry.out;
     EXPECT_FALSE(std::filesystem::exists(dir / "o"));
-    const CmdResult r = run("stylize" + in + " --out " + dir / "o/s.####.png --out-rot " + dir / "o/rot.####.exr --debug-nnf " + dir / "o/nnf" +
-                            " --json -q --threads 2");
+    const CmdResult r = run("stylize" + in + " --out " + dir / "o/s.####.png --out-rot " +
+                            dir / "o/rot.####.exr --debug-nnf " + dir / "o/nnf" + " --json -q --threads 2");
     ASSERT_EQ(r.code, 0) << r.out;
-    for (const char* key : {"\"mean_abs_sin\":", "\"speed_correlation\":", "\"coverage\":", "\"stationary_change\":", "\"energy\":"})
+    for (const char* key :
+        {"\"mean_abs_sin\":", "\"speed_correlation\":", "\"coverage\":", "\"stationary_change\":", "\"energy\":"})
         EXPECT_NE(r.out.find(key), std::string::npos) << key << "\n" << r.out.substr(0, 600);
     const turb::RgbaImage out = turbio::readImage(dir / "o/s.0004.png");
     EXPECT_EQ(out.width(), 48);
@@ -681,7 +732,8 @@ TEST(Cli, FluidymationWritesFramesRotationNnfAndJson)
     EXPECT_GT(out.at(24, 24)[3], 0.5f);
     EXPECT_LT(out.at(1, 1)[3], 0.01f);
     // T^rot in radians where a patch is centred; the NNF names exemplar frames 0..11 and pixels inside it.
-    const turb::RgbaImage rot = turbio::readImage(dir / "o/rot.0004.exr"), nnf = turbio::readImage(dir / "o/nnf/nnf.0004.exr");
+    const turb::RgbaImage rot = turbio::readImage(dir / "o/rot.0004.exr"),
+                          nnf = turbio::readImage(dir / "o/nnf/nnf.0004.exr");
     EXPECT_GE(rot.at(24, 24)[0], 0.0f);
     EXPECT_LT(rot.at(24, 24)[0], 6.2832f);
     EXPECT_NEAR(std::hypot(rot.at(24, 24)[1], rot.at(24, 24)[2]), 1.0f, 1e-3);
@@ -695,8 +747,10 @@ TEST(Cli, FluidymationWritesFramesRotationNnfAndJson)
     ASSERT_EQ(one.code, 0) << one.out;
     EXPECT_EQ(turbio::readImage(dir / "p/s.0004.png").pixels(), out.pixels());
     // A cache through a camera, with the built-in exemplar.
-    const CmdResult cache = run("stylize --method fluidymation --cache " + testutil::dataPath("blender-plume2-32/fluid_data_####.vdb") +
-                                " --frames 20-21 --camera front --width 64 --exemplar builtin:ink:64x48x11 --b 8 --out " + dir / "c/c.####.png -q --json");
+    const CmdResult cache =
+        run("stylize --method fluidymation --cache " + testutil::dataPath("blender-plume2-32/fluid_data_####.vdb") +
+            " --frames 20-21 --camera front --width 64 --exemplar builtin:ink:64x48x11 --b 8 --out " +
+            dir / "c/c.####.png -q --json");
     ASSERT_EQ(cache.code, 0) << cache.out;
     EXPECT_EQ(turbio::readImage(dir / "c/c.0021.png").width(), 64);
     EXPECT_NE(cache.out.find("\"masked_pixels\":"), std::string::npos);
@@ -717,7 +771,9 @@ TEST(Cli, FluidymationRefusesBadInputBeforeWritingAnything)
     };
     const std::string ex = " --exemplar " + dir / "ink/ink.####.png --exemplar-mask " + dir / "ink/ink_mask.####.png";
     // An exemplar shorter than 2r + 1 frames (8 < 11).
-    expectRefused(" --exemplar " + dir / "short/ink.####.png --exemplar-mask " + dir / "short/ink_mask.####.png --target-mask " + dir / "t/m.###.png", "2r + 1");
+    expectRefused(" --exemplar " + dir / "short/ink.####.png --exemplar-mask " +
+                      dir / "short/ink_mask.####.png --target-mask " + dir / "t/m.###.png",
+        "2r + 1");
     // An empty target mask in every frame.
     expectRefused(ex + " --target-mask " + dir / "e/m.###.png", "empty in every frame");
     // Mask and frame counts that differ.
@@ -727,7 +783,9 @@ TEST(Cli, FluidymationRefusesBadInputBeforeWritingAnything)
     expectRefused(" --exemplar builtin:ink:48x40x11 --alpha " + dir / "t/m.###.png", "--target-mask");
     // A target flow of another size than its masks.
     ASSERT_EQ(run("sim ink --res 48x40 --frames 11 --out " + dir / "ink/ink.####.png -q").code, 0);
-    expectRefused(ex + " --target-mask " + dir / "t/m.###.png --target-flow " + dir / "ink/ink_flow.####.exr --frames 1-3", "ink_flow.0001.exr");
+    expectRefused(
+        ex + " --target-mask " + dir / "t/m.###.png --target-flow " + dir / "ink/ink_flow.####.exr --frames 1-3",
+        "ink_flow.0001.exr");
 }
 
 TEST(Cli, SynthProjectionThatStopsShortWarnsNamingTheFrameAndFailsUnderStrict)
@@ -735,8 +793,9 @@ TEST(Cli, SynthProjectionThatStopsShortWarnsNamingTheFrameAndFailsUnderStrict)
     // A projection that does not converge is a warning naming the frame (-v: the solver's numbers),
     // and exit 1 under --strict. One CG iteration cannot converge; the default cap does, walls included.
     testutil::TempDir dir;
-    const std::string base = "synth --flow vortex --flow-res 16x16x1 --factor 2 --walls x-,x+,y-,y+ --project --frames 2 --out '" +
-                             dir.path() + "/s.####.vdb'";
+    const std::string base =
+        "synth --flow vortex --flow-res 16x16x1 --factor 2 --walls x-,x+,y-,y+ --project --frames 2 --out '" +
+        dir.path() + "/s.####.vdb'";
     const CmdResult shortRun = run(base + " --project-iterations 1 -v");
     EXPECT_EQ(shortRun.code, 0) << shortRun.out;
     EXPECT_NE(shortRun.out.find("frame 1: the projection did not converge"), std::string::npos) << shortRun.out;
@@ -769,10 +828,12 @@ TEST(Cli, TwoDCachesThroughSimTransferMeasureAndPreview)
     // One layer at z = 0, inside the 48 x 64 refined domain (the transfer holds the target over its smoke).
     EXPECT_EQ(o.velocity.bbox().min().z(), 0);
     EXPECT_EQ(o.velocity.bbox().max().z(), 0);
-    EXPECT_TRUE(turb::CoordBBox(turb::Coord(0), turb::Coord(47, 63, 0)).isInside(o.velocity.bbox())) << o.velocity.bbox();
+    EXPECT_TRUE(turb::CoordBBox(turb::Coord(0), turb::Coord(47, 63, 0)).isInside(o.velocity.bbox()))
+        << o.velocity.bbox();
     for (const turb::Vec3f& v : o.velocity.values()) ASSERT_EQ(v.z(), 0.0f);
     // A 2D sequence resumes bit-identically (the state and the one-layer lattice read back from the last output).
-    const std::string pair = "transfer --target '" + d + "/t/p.####.vdb' --source '" + d + "/s/s.####.vdb' --out '" + d + "/r/r.####.vdb' -q";
+    const std::string pair = "transfer --target '" + d + "/t/p.####.vdb' --source '" + d + "/s/s.####.vdb' --out '" +
+                             d + "/r/r.####.vdb' -q";
     ASSERT_EQ(run(pair + " --frames 1-2").code, 0);
     const CmdResult resumed = run(pair + " --frames 1-4 --resume");
     ASSERT_EQ(resumed.code, 0) << resumed.out;
@@ -780,13 +841,13 @@ TEST(Cli, TwoDCachesThroughSimTransferMeasureAndPreview)
     ASSERT_EQ(r.velocity.bbox(), o.velocity.bbox());
     EXPECT_EQ(r.velocity.values(), o.velocity.values());
     EXPECT_EQ(r.density.values(), o.density.values());
-    const CmdResult m = run("measure --output '" + d + "/o/o.####.vdb' --target '" + d + "/t/p.####.vdb' --source '" + d +
-                            "/s/s.####.vdb' --frames 3-4 --no-spectra");
+    const CmdResult m = run("measure --output '" + d + "/o/o.####.vdb' --target '" + d + "/t/p.####.vdb' --source '" +
+                            d + "/s/s.####.vdb' --frames 3-4 --no-spectra");
     ASSERT_EQ(m.code, 0) << m.out;
     for (const char* key : {"\"lf_err\":", "\"hf_ratio\":", "\"div_rel\":", "\"block\":", "\"isotropy\":"})
         EXPECT_NE(m.out.find(key), std::string::npos) << key << "\n" << m.out;
-    const CmdResult p = run("preview 'target=" + d + "/t/p.####.vdb' 'output=" + d + "/o/o.####.vdb' --mode density,vorticity --frames 4 --sheet '" +
-                            d + "/sheet.png' -q");
+    const CmdResult p = run("preview 'target=" + d + "/t/p.####.vdb' 'output=" + d +
+                            "/o/o.####.vdb' --mode density,vorticity --frames 4 --sheet '" + d + "/sheet.png' -q");
     ASSERT_EQ(p.code, 0) << p.out;
     EXPECT_TRUE(std::filesystem::exists(d + "/sheet.png"));
 }
@@ -880,7 +941,8 @@ TEST(Cli, MeasurePreviewInfoSimResampleListTheirSettingsOnlyInHelpAll)
         }
     }
     EXPECT_NE(run("measure --help-all").out.find("(also: --no-spectra)"), std::string::npos);
-    const CmdResult printed = run("measure --output a --target b --no-spectra --no-structure --align index --print-settings");
+    const CmdResult printed =
+        run("measure --output a --target b --no-spectra --no-structure --align index --print-settings");
     ASSERT_EQ(printed.code, 0) << printed.out;
     for (const char* line : {"\ncomputeSpectra=false\n", "\nstructure=false\n", "\nalignment="})
         EXPECT_NE(printed.out.find(line), std::string::npos) << line << "\n" << printed.out;

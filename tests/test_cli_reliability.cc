@@ -19,7 +19,11 @@ namespace {
 
 std::string lo() { return testutil::dataPath("blender-plume-32/fluid_data_####.vdb"); }
 std::string hi() { return testutil::dataPath("blender-plume-128/fluid_data_####.vdb"); }
-std::string loFrame(int f) { return testutil::dataPath("blender-plume-32/fluid_data_00" + std::string(f < 10 ? "0" : "") + std::to_string(f) + ".vdb"); }
+std::string loFrame(int f)
+{
+    return testutil::dataPath(
+        "blender-plume-32/fluid_data_00" + std::string(f < 10 ? "0" : "") + std::to_string(f) + ".vdb");
+}
 
 void writeGrids(const std::string& path, openvdb::GridPtrVec grids)
 {
@@ -66,7 +70,8 @@ TEST(CliReliability, UnnamedGridsAreListedWithTheirOwnValuesAndCanBeChosen)
     EXPECT_NE(info.out.find("[2, 2] |v|"), std::string::npos) << "the vec3 grid's own magnitudes\n" << info.out;
     const auto refused = run("info " + dir / "convert.vdb" + " --validate --vel-grid vel");
     EXPECT_EQ(refused.code, 1);
-    EXPECT_NE(refused.out.find("#0 (unnamed) ([0]) float fog volume, #1 (unnamed) ([1]) vec3s"), std::string::npos) << refused.out;
+    EXPECT_NE(refused.out.find("#0 (unnamed) ([0]) float fog volume, #1 (unnamed) ([1]) vec3s"), std::string::npos)
+        << refused.out;
     const auto chosen = run("info " + dir / "convert.vdb" + " --validate --density-grid '#0' --vel-grid '[1]'");
     EXPECT_EQ(chosen.code, 0) << chosen.out;
     EXPECT_NE(chosen.out.find("velocity and density"), std::string::npos) << chosen.out;
@@ -83,17 +88,19 @@ TEST(CliReliability, LatticeChangesAreReportedUpFrontAndTransferRefusesBeforeWri
     // A re-cached frame 3 at twice the voxel size.
     ASSERT_EQ(run("resample " + loFrame(3) + " --frames 3 --down 2 --out " + dir / "t/t.3.vdb -q").code, 0);
 
-    const std::string want = "voxel size changes from 0.125 at frame 2 (" + dir / "t/t.2.vdb) to 0.25 at frame 3 (" +
-                             dir / "t/t.3.vdb)";
+    const std::string want =
+        "voxel size changes from 0.125 at frame 2 (" + dir / "t/t.2.vdb) to 0.25 at frame 3 (" + dir / "t/t.3.vdb)";
     const auto info = run("info '" + dir / "t/t.@.vdb' --headers-only", false);
     EXPECT_NE(info.out.find(want), std::string::npos) << info.out;
     const auto json = run("info '" + dir / "t/t.@.vdb' --headers-only --json", false);
     EXPECT_NE(json.out.find("\"to_voxel\": 0.25"), std::string::npos) << json.out.substr(0, 600);
 
-    const auto dry = run("transfer --target '" + dir / "t/t.@.vdb' --source " + hi() + " --out " + dir / "o/o.####.vdb --dry-run");
+    const auto dry =
+        run("transfer --target '" + dir / "t/t.@.vdb' --source " + hi() + " --out " + dir / "o/o.####.vdb --dry-run");
     EXPECT_EQ(dry.code, 1) << dry.out;
     EXPECT_NE(dry.out.find(want), std::string::npos) << dry.out;
-    const auto real = run("transfer --target '" + dir / "t/t.@.vdb' --source " + hi() + " --out " + dir / "o/o.####.vdb");
+    const auto real =
+        run("transfer --target '" + dir / "t/t.@.vdb' --source " + hi() + " --out " + dir / "o/o.####.vdb");
     EXPECT_EQ(real.code, 1) << real.out;
     EXPECT_NE(real.out.find(want), std::string::npos) << real.out;
     EXPECT_FALSE(std::filesystem::exists(dir / "o")) << "refused before writing anything";
@@ -145,7 +152,8 @@ TEST(CliReliability, DryRunFailsOnEveryFatalInputAsTheRunDoes)
     EXPECT_EQ(cropped.code, 0) << cropped.out;
     EXPECT_EQ(cropped.out.find("3250x3250x1560"), std::string::npos) << cropped.out;
     for (const std::string dry : {" --dry-run", ""}) {
-        const auto r = run("transfer --target " + c42 + " --target-no-crop --source " + hi() + out + " --frames 1-2" + dry);
+        const auto r =
+            run("transfer --target " + c42 + " --target-no-crop --source " + hi() + out + " --frames 1-2" + dry);
         EXPECT_EQ(r.code, 1) << r.out;
         EXPECT_NE(r.out.find("3250x3250x1560"), std::string::npos) << r.out;
         EXPECT_NE(r.out.find("not enough memory for this run"), std::string::npos) << r.out;
@@ -156,7 +164,8 @@ TEST(CliReliability, DryRunFailsOnEveryFatalInputAsTheRunDoes)
     // --out through a regular file.
     std::ofstream(dir / "afile") << "x";
     for (const std::string dry : {" --dry-run", ""}) {
-        const auto r = run("transfer --target " + lo() + " --source " + hi() + " --out " + dir / "afile/o.####.vdb --frames 1" + dry);
+        const auto r = run(
+            "transfer --target " + lo() + " --source " + hi() + " --out " + dir / "afile/o.####.vdb --frames 1" + dry);
         EXPECT_EQ(r.code, 1) << r.out;
         EXPECT_NE(r.out.find("afile is a file, not a directory"), std::string::npos) << r.out;
     }
@@ -169,7 +178,8 @@ TEST(CliReliability, DryRunFailsOnEveryFatalInputAsTheRunDoes)
 TEST(CliReliability, DryRunPrintsTheLatticeRatioTimingAndEstimatesThatHold)
 {
     testutil::TempDir dir;
-    const std::string args = "transfer --target " + lo() + " --source " + hi() + " --out " + dir / "o/o.####.vdb --frames 1-2";
+    const std::string args =
+        "transfer --target " + lo() + " --source " + hi() + " --out " + dir / "o/o.####.vdb --frames 1-2";
     const auto dry = run(args + " --dry-run", false);
     ASSERT_EQ(dry.code, 0) << dry.out;
     EXPECT_NE(dry.out.find("ratio 4 (target voxel 0.125, source voxel 0.03125)"), std::string::npos) << dry.out;
@@ -177,13 +187,19 @@ TEST(CliReliability, DryRunPrintsTheLatticeRatioTimingAndEstimatesThatHold)
     EXPECT_NE(dry.out.find("output lattice: "), std::string::npos) << dry.out;
     EXPECT_EQ(dry.out.find("output lattice: 128x128x128"), std::string::npos) << dry.out;
     const auto whole = run(args + " --target-no-crop --dry-run", false);
-    EXPECT_NE(whole.out.find("output lattice: 128x128x128 voxels of 0.03125, world (-0.0625,-0.0625,-0.0625)-(3.938,3.938,3.938)"),
-        std::string::npos) << whole.out;
-    EXPECT_NE(dry.out.find("target dt: 0.104167 per frame (Blender's frame length 0.1 x 25/fps, time scale 1 assumed), fps 24 "
-                           "(assumed: the cache records no frame rate)"),
-        std::string::npos) << dry.out;
-    EXPECT_NE(dry.out.find("target velocity: grid 'velocity', grid cells per time unit x voxel 0.125 = world units (detected"),
-        std::string::npos) << dry.out;
+    EXPECT_NE(whole.out.find(
+                  "output lattice: 128x128x128 voxels of 0.03125, world (-0.0625,-0.0625,-0.0625)-(3.938,3.938,3.938)"),
+        std::string::npos)
+        << whole.out;
+    EXPECT_NE(dry.out.find(
+                  "target dt: 0.104167 per frame (Blender's frame length 0.1 x 25/fps, time scale 1 assumed), fps 24 "
+                  "(assumed: the cache records no frame rate)"),
+        std::string::npos)
+        << dry.out;
+    EXPECT_NE(dry.out.find(
+                  "target velocity: grid 'velocity', grid cells per time unit x voxel 0.125 = world units (detected"),
+        std::string::npos)
+        << dry.out;
     const double estimateMb = numberAfter(dry.out, "memory: about ");
     ASSERT_GT(estimateMb, 0.0) << dry.out;
     const double sizeMb = numberAfter(dry.out, "output size: about ");
@@ -197,7 +213,9 @@ TEST(CliReliability, DryRunPrintsTheLatticeRatioTimingAndEstimatesThatHold)
     ASSERT_GT(peakMb, 0.0) << real.out;
     EXPECT_GT(estimateMb, 0.5 * peakMb) << "estimate " << estimateMb << " MB, measured " << peakMb << " MB";
     EXPECT_LT(estimateMb, 2.0 * peakMb) << "estimate " << estimateMb << " MB, measured " << peakMb << " MB";
-    const double fileMb = double(std::max(std::filesystem::file_size(dir / "o/o.0001.vdb"), std::filesystem::file_size(dir / "o/o.0002.vdb"))) / 1e6;
+    const double fileMb = double(std::max(std::filesystem::file_size(dir / "o/o.0001.vdb"),
+                              std::filesystem::file_size(dir / "o/o.0002.vdb"))) /
+                          1e6;
     EXPECT_GT(sizeMb, fileMb / 3.0) << "estimate " << sizeMb << " MB, written " << fileMb << " MB";
     EXPECT_LT(sizeMb, fileMb * 3.0) << "estimate " << sizeMb << " MB, written " << fileMb << " MB";
 }
@@ -206,22 +224,29 @@ TEST(CliReliability, TimeStepFpsAndUnitsShowWhereTheyCameFrom)
 {
     testutil::TempDir dir;
     const auto info = run("info " + loFrame(1) + " --headers-only", false);
-    EXPECT_NE(info.out.find("dt: 0.104167 per frame (Blender's frame length 0.1 x 25/fps, time scale 1 assumed); fps 24 "
-                            "(assumed: the cache records no frame rate)"),
-        std::string::npos) << info.out;
-    EXPECT_NE(info.out.find("velocity units: grid cells per time unit, x voxel 0.125 = world units (detected"), std::string::npos)
+    EXPECT_NE(
+        info.out.find("dt: 0.104167 per frame (Blender's frame length 0.1 x 25/fps, time scale 1 assumed); fps 24 "
+                      "(assumed: the cache records no frame rate)"),
+        std::string::npos)
+        << info.out;
+    EXPECT_NE(info.out.find("velocity units: grid cells per time unit, x voxel 0.125 = world units (detected"),
+        std::string::npos)
         << info.out;
     const auto fps = run("info " + loFrame(1) + " --headers-only --fps 25", false);
     EXPECT_NE(fps.out.find("dt: 0.1 per frame"), std::string::npos) << fps.out;
     EXPECT_NE(fps.out.find("fps 25 (--fps)"), std::string::npos) << fps.out;
-    const auto houdini = run("info " + testutil::dataPath("houdini-vel/vel_VDB_bound_v02.vdb") + " --headers-only", false);
+    const auto houdini =
+        run("info " + testutil::dataPath("houdini-vel/vel_VDB_bound_v02.vdb") + " --headers-only", false);
     EXPECT_NE(houdini.out.find("dt: 0.0416667 per frame (1/fps seconds)"), std::string::npos) << houdini.out;
     EXPECT_NE(houdini.out.find("velocity units: world units per time unit"), std::string::npos) << houdini.out;
-    const auto flag = run("transfer --target " + lo() + " --source " + hi() + " --out " + dir / "o.####.vdb --frames 1 --dry-run"
-                          " --target-fps 25 --source-dt 0.2",
+    const auto flag = run("transfer --target " + lo() + " --source " + hi() + " --out " +
+                              dir / "o.####.vdb --frames 1 --dry-run"
+                                    " --target-fps 25 --source-dt 0.2",
         false);
-    EXPECT_NE(flag.out.find("target dt: 0.1 per frame (Blender's frame length 0.1 x 25/fps, time scale 1 assumed), fps 25 (--target-fps)"),
-        std::string::npos) << flag.out;
+    EXPECT_NE(flag.out.find("target dt: 0.1 per frame (Blender's frame length 0.1 x 25/fps, time scale 1 assumed), fps "
+                            "25 (--target-fps)"),
+        std::string::npos)
+        << flag.out;
     EXPECT_NE(flag.out.find("source dt: 0.2 per frame (--source-dt)"), std::string::npos) << flag.out;
 
     // A run warns once per input when a convention is assumed; vdbturb's own output records its dt.
@@ -251,7 +276,8 @@ TEST(CliReliability, TyposAndNearMissesGetTheFix)
     EXPECT_NE(sub.out.find("did you mean 'plan'?"), std::string::npos) << sub.out;
     const auto subFlag = run("farm plan --chunk 3 --target a --source b --out c");
     EXPECT_EQ(subFlag.code, 2);
-    EXPECT_NE(subFlag.out.find("'farm plan' has no option --chunk; did you mean --chunks?"), std::string::npos) << subFlag.out;
+    EXPECT_NE(subFlag.out.find("'farm plan' has no option --chunk; did you mean --chunks?"), std::string::npos)
+        << subFlag.out;
     // Options that mean nothing for a command are not accepted.
     EXPECT_EQ(run("info --threads 2 " + loFrame(1)).code, 2);
     EXPECT_EQ(run("preview --dry-run " + loFrame(1) + " --out x.png").code, 2);
@@ -277,19 +303,23 @@ TEST(CliReliability, StylizeAnimateAndFarmListEverydayOptionsAndSettingsApart)
         return help.find("\n  " + option) != std::string::npos;
     };
     const std::map<std::string, std::pair<std::vector<std::string>, std::vector<std::string>>> tiers{
-        {"stylize", {{"--method", "--exemplar ", "--cache", "--camera ", "--width", "--scene ", "--target-mask", "--out"},
-                        {"--patch,--patchSize", "--lambda", "--nnf", "--camera-pos", "--n,--fluidy.patchSize",
-                            "--fluidy.reusePrevious", "--out-rot"}}},
-        {"animate", {{"--example ", "--example-cache", "--target ", "--flow-strokes", "--hm ", "--out"},
-                        {"--tau", "--shutter,--average.shutter", "--hm-rep,--hm.reps", "--hm.blendPixels", "--orient"}}},
-        {"farm plan", {{"--target", "--chunks", "--preroll", "--overlap", "--cpus"}, {"--retries", "--vdbturb", "--name"}}},
+        {"stylize",
+            {{"--method", "--exemplar ", "--cache", "--camera ", "--width", "--scene ", "--target-mask", "--out"},
+                {"--patch,--patchSize", "--lambda", "--nnf", "--camera-pos", "--n,--fluidy.patchSize",
+                    "--fluidy.reusePrevious", "--out-rot"}}},
+        {"animate",
+            {{"--example ", "--example-cache", "--target ", "--flow-strokes", "--hm ", "--out"},
+                {"--tau", "--shutter,--average.shutter", "--hm-rep,--hm.reps", "--hm.blendPixels", "--orient"}}},
+        {"farm plan",
+            {{"--target", "--chunks", "--preroll", "--overlap", "--cpus"}, {"--retries", "--vdbturb", "--name"}}},
         {"farm join", {{"--dir", "--json"}, {"--half", "--style", "--velocity-margin", "--target-vel-grid"}}}};
     for (const auto& [command, options] : tiers) {
         const auto help = run(command + " --help", false);
         const auto all = run(command + " --help-all", false);
         ASSERT_EQ(help.code, 0) << command;
         ASSERT_EQ(all.code, 0) << command;
-        for (const auto& o : options.first) EXPECT_TRUE(listed(help.out, o)) << command << " --help lacks " << o << help.out;
+        for (const auto& o : options.first)
+            EXPECT_TRUE(listed(help.out, o)) << command << " --help lacks " << o << help.out;
         for (const auto& o : options.second) {
             EXPECT_FALSE(listed(help.out, o)) << command << " --help lists " << o;
             EXPECT_TRUE(listed(all.out, o)) << command << " --help-all lacks " << o << all.out;
@@ -312,9 +342,9 @@ TEST(CliReliability, StylizeAnimateAndFarmListEverydayOptionsAndSettingsApart)
         std::ofstream f(dir / "a.toml");
         f << "tau = 12\nhm.blendPixels = false\n";
     }
-    const std::string animate = "animate --example builtin:river:48x40x20 --target builtin:river:48x40 --flow-strokes " +
-                                std::string(VDBTURB_SOURCE_DIR) + "/scenes/animate/river_strokes.json --out " +
-                                dir / "o.####.exr --dry-run";
+    const std::string animate =
+        "animate --example builtin:river:48x40x20 --target builtin:river:48x40 --flow-strokes " +
+        std::string(VDBTURB_SOURCE_DIR) + "/scenes/animate/river_strokes.json --out " + dir / "o.####.exr --dry-run";
     const auto fromFile = run(animate + " --settings " + dir / "a.toml");
     const auto fromFlags = run(animate + " --tau 12 --hm-exact-cells");
     ASSERT_EQ(fromFile.code, 0) << fromFile.out;
@@ -327,7 +357,8 @@ TEST(CliReliability, InfoPutsAlignedTablesWithWorldBoundsOnStdout)
     const auto r = run("info " + loFrame(3) + " --frames 3", false); // stdout only
     ASSERT_EQ(r.code, 0) << r.out;
     EXPECT_NE(r.out.find("domain (frame 3): 32x32x32 voxels, world (-0.0625,-0.0625,-0.0625)-(3.938,3.938,3.938)"),
-        std::string::npos) << r.out;
+        std::string::npos)
+        << r.out;
     // Every row of the grid table starts its columns where the header's do.
     std::vector<std::string> rows;
     size_t at = r.out.find("  #  grid");
@@ -346,7 +377,9 @@ TEST(CliReliability, InfoPutsAlignedTablesWithWorldBoundsOnStdout)
         }
     }
     // Density box (9,9,1)-(22,22,10) at voxel 0.125: cells from 8.5 x 0.125 to 22.5 x 0.125 (z: 0.5 to 10.5).
-    EXPECT_NE(r.out.find("(1.062,1.062,0.0625)-(2.812,2.812,1.312)"), std::string::npos) << "world bounds of the smoke\n" << r.out;
+    EXPECT_NE(r.out.find("(1.062,1.062,0.0625)-(2.812,2.812,1.312)"), std::string::npos)
+        << "world bounds of the smoke\n"
+        << r.out;
 }
 
 TEST(CliReliability, ValidateSaysADensityOnlyFileCannotDriveTransfer)
@@ -362,7 +395,8 @@ TEST(CliReliability, ResolutionsAreCellsAlongXYZForEveryOption)
     const auto flow = run("synth --flow uniform --flow-res 12x8x1 --factor 2 --dry-run --out x.####.vdb", false);
     ASSERT_EQ(flow.code, 0) << flow.out;
     EXPECT_NE(flow.out.find("output lattice: 24x16x1 voxels"), std::string::npos) << flow.out;
-    const auto scene = run("synth --scene plume --scene-res 12x8x16 --frames 1 --factor 2 --dry-run --out x.####.vdb", false);
+    const auto scene =
+        run("synth --scene plume --scene-res 12x8x16 --frames 1 --factor 2 --dry-run --out x.####.vdb", false);
     ASSERT_EQ(scene.code, 0) << scene.out;
     EXPECT_NE(scene.out.find("output lattice: 24x16x32 voxels"), std::string::npos) << scene.out;
     // Both are second-tier settings of synth: --help-all lists them.
@@ -378,7 +412,8 @@ TEST(CliReliability, SynthDetailStaysNearTheSmoke)
     testutil::TempDir dir;
     ASSERT_EQ(run("sim plume --res 16x16x24 --frames 3 --out '" + dir / "t/p.####.vdb' -q").code, 0);
     const std::string synth = "synth --target '" + dir / "t/p.####.vdb' --factor 2 --frames 2-3 --no-crop -q --json";
-    for (const auto& [out, extra, region] : {std::array<std::string, 3>{"a", "", "smoke"}, {"b", " --detail-everywhere", "everywhere"}}) {
+    for (const auto& [out, extra, region] :
+        {std::array<std::string, 3>{"a", "", "smoke"}, {"b", " --detail-everywhere", "everywhere"}}) {
         const auto r = run(synth + extra + " --out '" + dir / out + "/s.####.vdb'");
         ASSERT_EQ(r.code, 0) << r.out;
         EXPECT_NE(r.out.find("\"detail_region\":\"" + region + "\""), std::string::npos) << r.out;
@@ -429,7 +464,8 @@ TEST(CliReliability, ResampleCarriesTheOtherGridsUnlessAskedNotTo)
     EXPECT_EQ(gridCount(dir / "all.0001.vdb"), gridCount(in)); // 24
     // What is not exact is said: the staggered previous velocity is moved as cell values.
     EXPECT_NE(all.out.find("'velocity_previous' is staggered"), std::string::npos) << all.out;
-    const auto four = run("resample " + in + " --frames 1 --down 5 --drop-other-grids --out " + dir / "four.####.vdb -q");
+    const auto four =
+        run("resample " + in + " --frames 1 --down 5 --drop-other-grids --out " + dir / "four.####.vdb -q");
     ASSERT_EQ(four.code, 0) << four.out;
     EXPECT_EQ(gridCount(dir / "four.0001.vdb"), 4u);
     // The frame's own grids are the same either way.
@@ -454,7 +490,9 @@ TEST(CliReliability, ResampleKeepsTheRecordedDomainRatioAndPatchLatticeTrue)
     f.metadata[turb::meta::kPatchSize] = "8";
     f.metadata[turb::meta::kPatchOrigin] = "4,4,4";
     turbio::writeFrame(dir / "u.0001.vdb", f, turbio::WriteOptions{});
-    const auto meta = [&](const std::string& path) { return turbio::readFrame(path, 1, turbio::ReadOptions{}).metadata; };
+    const auto meta = [&](const std::string& path) {
+        return turbio::readFrame(path, 1, turbio::ReadOptions{}).metadata;
+    };
     ASSERT_EQ(run("resample " + dir / "u.0001.vdb" + " --down 2 --out " + dir / "h.0001.vdb -q").code, 0);
     const auto h = meta(dir / "h.0001.vdb");
     EXPECT_EQ(h.at(turb::meta::kRatio), "2");

@@ -47,9 +47,9 @@ std::string commandLine(const Case& c, int cmd, const std::string& dir, const st
     const auto outArg = [&](const char* name) { return o.empty() ? subject : "'" + o + "/" + name + "'"; };
     switch (cmd) {
     case kInfo: return "info " + subject + " --validate";
-    case kTransfer: return "transfer --target " + T + " --source " + S + " --out " + (o.empty() ? T : outArg("o.####.vdb"));
-    case kSynth:
-        return "synth --target " + subject + " --factor 1 --exemplar swirls:8 --out " + outArg("y.####.vdb");
+    case kTransfer:
+        return "transfer --target " + T + " --source " + S + " --out " + (o.empty() ? T : outArg("o.####.vdb"));
+    case kSynth: return "synth --target " + subject + " --factor 1 --exemplar swirls:8 --out " + outArg("y.####.vdb");
     case kMeasure: return "measure --output " + S + " --target " + T + " --no-spectra";
     case kResample: return "resample " + subject + " --out " + outArg("r.####.vdb");
     case kPreview: return "preview " + subject + " --width 48 --out " + outArg("p.####.png");
@@ -92,7 +92,8 @@ std::string checkOutputs(const std::string& out, int code, int badFrame)
             continue;
         }
         const int frame = std::stoi(m[1]);
-        if (code != 0 && badFrame > 0 && frame >= badFrame) problems += " frame " + name + " written after the failure;";
+        if (code != 0 && badFrame > 0 && frame >= badFrame)
+            problems += " frame " + name + " written after the failure;";
         if (m[2] == "vdb") {
             try {
                 turbio::ReadOptions any;
@@ -133,8 +134,7 @@ void record(const Case& c, int cmd, const clitest::Result& r)
 }
 
 class Corpus : public ::testing::TestWithParam<size_t>
-{
-};
+{};
 
 } // namespace
 
@@ -144,9 +144,10 @@ TEST_P(Corpus, EveryCommandFailsCleanlyOrSucceeds)
     const std::string dir = kRoot + "/" + c.name;
     std::filesystem::create_directories(kRoot + "/results");
     const bool nobody = (c.flags & kAsNobody) && ::geteuid() == 0;
-    const std::string bad = c.badFrame > 0 ? std::string(1, c.subject == Subject::Target ? 't' : 's') + "." +
-                                                 std::string(c.badFrame < 10 ? "000" : "00") + std::to_string(c.badFrame) + ".vdb"
-                                           : std::string();
+    const std::string bad = c.badFrame > 0
+                                ? std::string(1, c.subject == Subject::Target ? 't' : 's') + "." +
+                                      std::string(c.badFrame < 10 ? "000" : "00") + std::to_string(c.badFrame) + ".vdb"
+                                : std::string();
     for (int cmd = 0; cmd < kCommands; ++cmd) {
         std::string out = dir + "/out_" + commandName(cmd);
         std::filesystem::remove_all(out);
@@ -158,8 +159,8 @@ TEST_P(Corpus, EveryCommandFailsCleanlyOrSucceeds)
         }
         const std::string line = commandLine(c, cmd, dir, out);
         const std::string run = std::string("VDBTURB_READ_TIMEOUT_S=2 timeout 120 ") +
-                                (nobody ? "setpriv --reuid=65534 --regid=65534 --clear-groups " : "") + VDBTURB_EXE + " " + line +
-                                " 2>&1";
+                                (nobody ? "setpriv --reuid=65534 --regid=65534 --clear-groups " : "") + VDBTURB_EXE +
+                                " " + line + " 2>&1";
         const clitest::Result r = clitest::shell(run);
         record(c, cmd, r);
         SCOPED_TRACE(std::string(commandName(cmd)) + ": vdbturb " + line + "\n" + r.out.substr(0, 2000));
@@ -171,7 +172,8 @@ TEST_P(Corpus, EveryCommandFailsCleanlyOrSucceeds)
         if (r.code != 0) {
             EXPECT_NE(r.out.find("vdbturb: error: "), std::string::npos) << "a one-line error";
             EXPECT_NE(r.out.find(dir), std::string::npos) << "the message names a file of the case";
-            if (!bad.empty() && c.flags == kNone) EXPECT_NE(r.out.find(bad), std::string::npos) << "the message names " << bad;
+            if (!bad.empty() && c.flags == kNone)
+                EXPECT_NE(r.out.find(bad), std::string::npos) << "the message names " << bad;
             if (want != kEither) EXPECT_TRUE(says(r.out, c.says)) << "the message says: " << c.says;
         }
         if (!(c.flags & (kOutReadOnly | kOutUnderFile | kOutIsInput))) {

@@ -24,7 +24,9 @@ TEST(DensityGuide, MovesCellMeansOntoTheTargetAndKeepsTheFineStructure)
     }
     ScalarField fine(refineBox(coarse.bbox(), f), lat.refined(f));
     const ScalarField up = upsample(coarse, f);
-    const auto pattern = [](const Coord& c) { return 1.0f + 0.3f * float(std::sin(1.7 * c.x() + 2.3 * c.y() - 0.9 * c.z())); };
+    const auto pattern = [](const Coord& c) {
+        return 1.0f + 0.3f * float(std::sin(1.7 * c.x() + 2.3 * c.y() - 0.9 * c.z()));
+    };
     for (size_t n = 0; n < fine.size(); ++n) {
         const Coord c = fine.coordOf(n);
         fine.data()[n] = up.data()[n] * (c.x() < 16 ? 0.6f : 1.3f) * pattern(c);

@@ -115,7 +115,8 @@ TEST(FarmBlend, IndependentDetailsKeepTheirEnergyAndTheCoarseMotionIsExact)
     EXPECT_NEAR(st.energyScale, 1.0, 0.01);
     const float s = float(st.energyScale);
     for (size_t n = 0; n < out.velocity.size(); n += 97) {
-        const Vec3f h = s * float(w.detailA) * (a.velocity.data()[n] - up.data()[n]) + s * float(w.detailB) * (b.velocity.data()[n] - up.data()[n]);
+        const Vec3f h = s * float(w.detailA) * (a.velocity.data()[n] - up.data()[n]) +
+                        s * float(w.detailB) * (b.velocity.data()[n] - up.data()[n]);
         EXPECT_NEAR((out.velocity.data()[n] - up.data()[n] - h).length(), 0.0f, 1e-5f);
     }
     // b's resume state is not the blend's: it must not be resumable.
@@ -143,7 +144,9 @@ TEST(FarmBlend, CorrelatedDetailsAreScaledBackToTheInterpolatedEnergy)
     const Frame c = noiseFrame(box, l, up, 4, 0.5f);
     Frame b = c;
     for (size_t n = 0; n < b.velocity.size(); ++n)
-        b.velocity.data()[n] = up.data()[n] + (a.velocity.data()[n] - up.data()[n] + c.velocity.data()[n] - up.data()[n]) * float(M_SQRT1_2);
+        b.velocity.data()[n] =
+            up.data()[n] +
+            (a.velocity.data()[n] - up.data()[n] + c.velocity.data()[n] - up.data()[n]) * float(M_SQRT1_2);
     blendOverlap(a, b, up, w, 0.01f, &st);
     EXPECT_NEAR(st.correlation, M_SQRT1_2, 0.02);
     EXPECT_NEAR(st.energyOut / (0.5 * st.energyA + 0.5 * st.energyB), 1.0, 1e-5);

@@ -13,7 +13,10 @@ namespace {
 std::string lo() { return testutil::dataPath("blender-plume-32/fluid_data_####.vdb"); }
 std::string hi() { return testutil::dataPath("blender-plume-128/fluid_data_####.vdb"); }
 
-std::string transferArgs(const std::string& out) { return "transfer --target " + lo() + " --source " + hi() + " --out " + out + " --frames 1-2"; }
+std::string transferArgs(const std::string& out)
+{
+    return "transfer --target " + lo() + " --source " + hi() + " --out " + out + " --frames 1-2";
+}
 
 void expectSameFrame(const std::string& a, const std::string& b, int frame)
 {
@@ -90,7 +93,8 @@ std::string resampleArgs(const std::string& out)
 
 // After a write failure: exit 1, the message names the file and the reason, every earlier frame is whole and
 // identical to the reference, the failed frame and later ones are absent, no temporary file is left.
-void expectCleanWriteFailure(const clitest::Result& r, const std::string& dir, const std::string& ref, const std::string& reason)
+void expectCleanWriteFailure(
+    const clitest::Result& r, const std::string& dir, const std::string& ref, const std::string& reason)
 {
     EXPECT_EQ(r.code, 1) << r.out;
     EXPECT_NE(r.out.find(reason), std::string::npos) << r.out;
@@ -118,8 +122,9 @@ TEST(Faults, AFileSizeLimitStopsTheRunCleanly)
     const auto large = std::filesystem::file_size(dir / "ref/r.0030.vdb");
     ASSERT_GT(large, 2 * small);
     // ulimit -f with SIGXFSZ ignored: the write that crosses the limit fails with EFBIG.
-    const auto r = clitest::shell("prlimit --fsize=" + std::to_string((small + large) / 2) + " sh -c \"trap '' XFSZ; exec " +
-                                  VDBTURB_EXE + " " + resampleArgs(dir / "lim/r.####.vdb") + "\" 2>&1");
+    const auto r =
+        clitest::shell("prlimit --fsize=" + std::to_string((small + large) / 2) + " sh -c \"trap '' XFSZ; exec " +
+                       VDBTURB_EXE + " " + resampleArgs(dir / "lim/r.####.vdb") + "\" 2>&1");
     expectCleanWriteFailure(r, dir / "lim", dir / "ref", "file-size limit");
 }
 

@@ -132,7 +132,8 @@ TEST(MotionGuides, AppendixAOnAnExpandingDiscGivesTheRadialSpeed)
     for (int y = 0; y < H; ++y)
         for (int x = 0; x < W; ++x) {
             const double dx = x - c, dy = y - c, r = std::hypot(dx, dy);
-            const double vr = (f.at(x, y, 0) * dx + f.at(x, y, 1) * dy) / r, vt = (-f.at(x, y, 0) * dy + f.at(x, y, 1) * dx) / r;
+            const double vr = (f.at(x, y, 0) * dx + f.at(x, y, 1) * dy) / r,
+                         vt = (-f.at(x, y, 0) * dy + f.at(x, y, 1) * dx) / r;
             if (rim[size_t(y) * W + size_t(x)]) {
                 radial += vr;
                 tangential += std::abs(vt);
@@ -296,7 +297,7 @@ TEST(Fluidymation, PyramidLevelCountIsFloorLog2OfDminOverN)
     EXPECT_EQ(fluidyLevels(225, 94, 700, 300, 5), 4);  // the jump: 94 / 5 = 18.8
     EXPECT_EQ(fluidyLevels(200, 200, 500, 600, 5), 5); // the sunflower: 200 / 5 = 40
     EXPECT_EQ(fluidyLevels(40, 40, 40, 40, 5), 3);
-    EXPECT_EQ(fluidyLevels(9, 9, 9, 9, 5), 1);         // never fewer than one level
+    EXPECT_EQ(fluidyLevels(9, 9, 9, 9, 5), 1); // never fewer than one level
     // The coarsest level's short side lies in [2n, 4n).
     const int L = fluidyLevels(400, 120, 900, 900, 5);
     EXPECT_GE(120 >> (L - 1), 10);
@@ -443,15 +444,17 @@ TEST(Fluidymation, DeterministicAtOneAndTwoThreadsAndFollowsTheFlow)
         });
     for (int j = 0; j < 4; ++j) {
         ASSERT_EQ(runs[0][size_t(j)].image.size(), runs[1][size_t(j)].image.size());
-        for (size_t p = 0; p < runs[0][size_t(j)].image.size(); ++p) ASSERT_EQ(runs[0][size_t(j)].image.pixels()[p], runs[1][size_t(j)].image.pixels()[p]);
-        for (size_t p = 0; p < runs[0][size_t(j)].nnf.match.size(); ++p) ASSERT_EQ(runs[0][size_t(j)].nnf.match[p], runs[1][size_t(j)].nnf.match[p]);
+        for (size_t p = 0; p < runs[0][size_t(j)].image.size(); ++p)
+            ASSERT_EQ(runs[0][size_t(j)].image.pixels()[p], runs[1][size_t(j)].image.pixels()[p]);
+        for (size_t p = 0; p < runs[0][size_t(j)].nnf.match.size(); ++p)
+            ASSERT_EQ(runs[0][size_t(j)].nnf.match[p], runs[1][size_t(j)].nnf.match[p]);
     }
     // Both discs move radially: the rotated source flow lines up with the target's (random: 0.64).
     const FluidyStats& st = runs[0][3].stats;
     EXPECT_GT(st.movingPixels, 100);
     ASSERT_TRUE(st.meanAbsSin.has_value());
     EXPECT_LT(*st.meanAbsSin, 0.3);
-    EXPECT_GT(st.reusedFraction, 0.0);  // the previous frame's field was reused
+    EXPECT_GT(st.reusedFraction, 0.0);            // the previous frame's field was reused
     EXPECT_TRUE(st.stationaryChange.has_value()); // measured from frame 2 on
     // The output alpha covers the target mask.
     const ChannelImage m = tg.motion.mask(3);

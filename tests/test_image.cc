@@ -49,7 +49,8 @@ TEST(Image, CaptionsAreLabelsDrawnByTheIoLayer)
 
     // A caption longer than its cell wraps inside the cell's column: the neighbour's column below the
     // pictures stays background, and the sheet grows taller instead.
-    const Image wrapped = turbio::withTextDrawn(contactSheet({{{&b, "alpha 0.004 vorticity 0-403/s"}, {&b, ""}}}, {}, "", 1));
+    const Image wrapped =
+        turbio::withTextDrawn(contactSheet({{{&b, "alpha 0.004 vorticity 0-403/s"}, {&b, ""}}}, {}, "", 1));
     const Image single = contactSheet({{{&b, "a"}, {&b, ""}}}, {}, "", 1);
     EXPECT_GT(wrapped.height(), single.height());
     const int pad = 6, secondX = pad + (b.width() + pad);
@@ -91,7 +92,8 @@ TEST(Image, RoundTripsThroughPngExrTiffAndJpeg)
         EXPECT_TRUE(info.hasAlpha) << name;
         EXPECT_EQ(info.associatedAlpha, std::string(name) == "a.exr") << name;
         for (size_t i = 1; i < rgba.size(); ++i) // pixel 0 has alpha 0: its colour is not kept by EXR
-            ASSERT_NEAR((back.pixels()[i] - rgba.pixels()[i]).length(), 0.0f, std::string(name) == "a.png" ? 4e-3f : 2e-3f)
+            ASSERT_NEAR(
+                (back.pixels()[i] - rgba.pixels()[i]).length(), 0.0f, std::string(name) == "a.png" ? 4e-3f : 2e-3f)
                 << name << " pixel " << i;
     }
     RgbaImage flow(3, 2, Rgba(-12.5f, 3.25f, 0.0f, 1.0f));
@@ -105,7 +107,9 @@ TEST(Image, RoundTripsThroughPngExrTiffAndJpeg)
 
     // Errors name the file; nothing is left behind by a refused write.
     EXPECT_THROW(turbio::readImage(dir / "missing.png"), turb::IoError);
-    { std::ofstream(dir / "junk.png") << "not a png"; }
+    {
+        std::ofstream(dir / "junk.png") << "not a png";
+    }
     try {
         turbio::readImage(dir / "junk.png");
         ADD_FAILURE() << "junk accepted";
@@ -113,7 +117,8 @@ TEST(Image, RoundTripsThroughPngExrTiffAndJpeg)
         EXPECT_NE(std::string(e.what()).find("junk.png"), std::string::npos) << e.what();
     }
     EXPECT_THROW(turbio::writeImage(dir / "x.bmpx", grad), turb::ValueError);
-    EXPECT_THROW(turbio::writeImage(dir / "h.png", rgba, turbio::ImageWriteOptions{false, turbio::PixelBits::Half}), turb::IoError);
+    EXPECT_THROW(turbio::writeImage(dir / "h.png", rgba, turbio::ImageWriteOptions{false, turbio::PixelBits::Half}),
+        turb::IoError);
     turbio::ImageWriteOptions keep;
     keep.noClobber = true;
     EXPECT_THROW(turbio::writeImage(dir / "g.png", grad, keep), turb::IoError);

@@ -42,8 +42,8 @@ const DenFn kAll = [](const Coord&) { return 1.0f; };
 // Smooth, non-trivial coarse motion (world units per time unit).
 Vec3f smoothFlow(const Vec3d& x)
 {
-    return Vec3f(float(1.0 + 0.5 * std::sin(0.7 * x.y()) + 0.2 * x.z()), float(0.3 * std::cos(0.5 * x.x() + 0.4 * x.z())),
-        float(2.0 + 0.4 * std::sin(0.6 * x.x() - 0.3 * x.y())));
+    return Vec3f(float(1.0 + 0.5 * std::sin(0.7 * x.y()) + 0.2 * x.z()),
+        float(0.3 * std::cos(0.5 * x.x() + 0.4 * x.z())), float(2.0 + 0.4 * std::sin(0.6 * x.x() - 0.3 * x.y())));
 }
 
 // Broadband high-frequency detail, deterministic.
@@ -68,7 +68,8 @@ TEST(Measure, UpsampledTargetHasNoLowFrequencyErrorAndNoHighFrequencyEnergy)
 {
     const Lattice lat{0.25, {0.1, -0.2, 0.3}};
     const CoordBBox box({0, 0, 0}, {7, 7, 9});
-    const Frame target = makeFrame(5, box, lat, smoothFlow, [](const Coord& c) { return c.z() >= 2 && c.z() <= 7 ? 1.0f : 0.0f; });
+    const Frame target =
+        makeFrame(5, box, lat, smoothFlow, [](const Coord& c) { return c.z() >= 2 && c.z() <= 7 ? 1.0f : 0.0f; });
     const Frame output = upFrame(target, 4);
     // A source with turbulence: the same flow plus broadband detail at 4x.
     const Frame source = upFrame(target, 4, noiseDetail(0.5f, 7));
@@ -134,9 +135,8 @@ TEST(Measure, DetailWithZeroBlockMeansLeavesCoarseMotionAlone)
     VectorField gf(refineBox(box, f), lat.refined(f));
     for (size_t n = 0; n < gf.size(); ++n) gf.data()[n] = g(gf.coordOf(n));
     const VectorField gmean = boxDownsample(gf, f);
-    const Frame zeroMean = upFrame(target, f, [&](const Coord& c) {
-        return gf[c] - gmean(floorDiv(c.x(), f), floorDiv(c.y(), f), floorDiv(c.z(), f));
-    });
+    const Frame zeroMean = upFrame(target, f,
+        [&](const Coord& c) { return gf[c] - gmean(floorDiv(c.x(), f), floorDiv(c.y(), f), floorDiv(c.z(), f)); });
     // The same detail without removing the block means: coarse motion changes.
     const Frame biased = upFrame(target, f, [&](const Coord& c) { return gf[c] + Vec3f(0.5f, 0.0f, 0.0f); });
 
@@ -292,9 +292,10 @@ TEST(Measure, TaylorGreenDivergenceIsAtTheDiscretisationError)
     };
     const auto divRelAt = [&](int n, bool interiorOnly) {
         const double h = 2.0 * M_PI / n;
-        const Frame fr = makeFrame(1, CoordBBox({0, 0, 0}, {n - 1, n - 1, n - 1}), Lattice{h, {0.5 * h, 0.5 * h, 0.5 * h}}, tg,
-            [&](const Coord& c) {
-                const bool inner = c.x() > 0 && c.y() > 0 && c.z() > 0 && c.x() < n - 1 && c.y() < n - 1 && c.z() < n - 1;
+        const Frame fr = makeFrame(1, CoordBBox({0, 0, 0}, {n - 1, n - 1, n - 1}),
+            Lattice{h, {0.5 * h, 0.5 * h, 0.5 * h}}, tg, [&](const Coord& c) {
+                const bool inner =
+                    c.x() > 0 && c.y() > 0 && c.z() > 0 && c.x() < n - 1 && c.y() < n - 1 && c.z() < n - 1;
                 return (inner || !interiorOnly) ? 1.0f : 0.0f;
             });
         return *relativeDivergence(fr.velocity, smokeMask(fr.density, 0.01f));
@@ -308,7 +309,8 @@ TEST(Measure, TaylorGreenDivergenceIsAtTheDiscretisationError)
     EXPECT_LT(e64, 0.6 * e32);
 
     // u = x: div = 3, |grad u| = sqrt(3), so div_rel = sqrt(3).
-    const Frame lin = makeFrame(1, CoordBBox({0, 0, 0}, {5, 5, 5}), Lattice{0.3, {0.0, 0.0, 0.0}},
+    const Frame lin = makeFrame(
+        1, CoordBBox({0, 0, 0}, {5, 5, 5}), Lattice{0.3, {0.0, 0.0, 0.0}},
         [](const Vec3d& x) { return Vec3f(float(x.x()), float(x.y()), float(x.z())); }, kAll);
     EXPECT_NEAR(*relativeDivergence(lin.velocity, smokeMask(lin.density, 0.01f)), std::sqrt(3.0), 1e-5);
 }
@@ -321,7 +323,8 @@ TEST(Measure, BlockSeesPlantedSeamsEveryEightVoxels)
     const Lattice coarse{0.4, {0.0, 0.0, 0.0}};
     const CoordBBox box({0, 0, 0}, {11, 11, 11});
     // A still target: U_h is the output itself.
-    const Frame target = makeFrame(1, box, coarse, [](const Vec3d&) { return Vec3f(0.0f); }, kAll);
+    const Frame target = makeFrame(
+        1, box, coarse, [](const Vec3d&) { return Vec3f(0.0f); }, kAll);
     const Lattice fine = coarse.refined(4);
     // Oblique waves: every plane sees all phases, so seam planes look like any other plane.
     const auto smooth = [&](const Coord& c) {
@@ -335,7 +338,8 @@ TEST(Measure, BlockSeesPlantedSeamsEveryEightVoxels)
     for (auto& j : jumps) j = Vec3f(u(rng), u(rng), u(rng));
     const auto planted = [&](int offset) {
         return [&, offset](const Coord& c) {
-            const int bx = floorDiv(c.x() - offset, 8) + 1, by = floorDiv(c.y() - offset, 8) + 1, bz = floorDiv(c.z() - offset, 8) + 1;
+            const int bx = floorDiv(c.x() - offset, 8) + 1, by = floorDiv(c.y() - offset, 8) + 1,
+                      bz = floorDiv(c.z() - offset, 8) + 1;
             return smooth(c) + jumps.at(size_t((bx * 7 + by) * 7 + bz));
         };
     };
@@ -382,7 +386,8 @@ TEST(Measure, DetailCarriedExactlyByTheTargetVelocityIsTemporallyCoherent)
     const DenFn inner = [](const Coord& q) {
         return (q.x() >= 3 && q.x() <= 8 && q.y() >= 3 && q.y() <= 8 && q.z() >= 3 && q.z() <= 8) ? 1.0f : 0.0f;
     };
-    const Frame t0 = makeFrame(1, box, coarse, [&](const Vec3d&) { return c; }, inner, 0.1);
+    const Frame t0 = makeFrame(
+        1, box, coarse, [&](const Vec3d&) { return c; }, inner, 0.1);
     Frame t1 = t0;
     t1.number = 2;
     const auto g = [](const Vec3d& x) {
@@ -459,7 +464,8 @@ TEST(Measure, SourceCoherenceCarriesItsDetailWithItsOwnLowBand)
     for (size_t n = 0; n < G.size(); ++n) {
         const Coord q = G.coordOf(n);
         const Vec3d x = q.asVec3d();
-        G.data()[n] = g(q) * 0.2f + Vec3f(float(std::sin(0.4 * x.y() + 0.3 * x.z())), float(std::cos(0.5 * x.x())), 0.0f);
+        G.data()[n] =
+            g(q) * 0.2f + Vec3f(float(std::sin(0.4 * x.y() + 0.3 * x.z())), float(std::cos(0.5 * x.x())), 0.0f);
     }
     const VectorField Gm = boxDownsample(G, f);
     for (size_t n = 0; n < G.size(); ++n) {
@@ -471,7 +477,8 @@ TEST(Measure, SourceCoherenceCarriesItsDetailWithItsOwnLowBand)
         return (q.x() >= 8 && q.x() <= 24 && q.y() >= 4 && q.y() <= 27 && q.z() >= 4 && q.z() <= 27) ? 1.0f : 0.0f;
     };
     const auto sourceFrame = [&](int number, int shift) {
-        Frame fr = makeFrame(number, box, fine, [&](const Vec3d&) { return c; }, inner, 0.1);
+        Frame fr = makeFrame(
+            number, box, fine, [&](const Vec3d&) { return c; }, inner, 0.1);
         for (size_t n = 0; n < fr.velocity.size(); ++n) {
             const Coord q = fr.velocity.coordOf(n);
             fr.velocity.data()[n] += G(q.x() - shift, q.y(), q.z());
@@ -631,7 +638,8 @@ TEST(MeasureDensity, ImprintIsOneWithoutCellsAndLargeForCellSteps)
     ScalarField blocky(smooth.bbox(), smooth.lattice());
     for (size_t n = 0; n < blocky.size(); ++n) {
         const Coord c = blocky.coordOf(n);
-        blocky.data()[n] = coarse(c.x() / f, c.y() / f, c.z() / f) * (1.0f + 0.01f * float(std::sin(2.0 * c.x() + c.y())));
+        blocky.data()[n] =
+            coarse(c.x() / f, c.y() / f, c.z() / f) * (1.0f + 0.01f * float(std::sin(2.0 * c.x() + c.y())));
     }
     const std::optional<double> b = densityImprint(blocky, f, 0.01f);
     ASSERT_TRUE(b);

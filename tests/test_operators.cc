@@ -13,7 +13,7 @@ TEST(Operators, AnalyticDivergenceAndCurl)
     for (size_t n = 0; n < u.size(); ++n) {
         const Vec3d x = lat.indexToWorld(u.coordOf(n).asVec3d());
         u.data()[n] = Vec3f(float(x.x()), float(x.y()), float(-2 * x.z())); // div 0
-        w.data()[n] = Vec3f(float(-x.y()), float(x.x()), 0.0f);            // curl (0,0,2)
+        w.data()[n] = Vec3f(float(-x.y()), float(x.x()), 0.0f);             // curl (0,0,2)
     }
     const ScalarField d = divergence(u);
     const VectorField c = curl(w);

@@ -82,8 +82,7 @@ TEST(Projection, ClosedWallsAndObstacleKeepTheirFacesAndRemoveDivergence)
     EXPECT_LE(maxAbs(macDivergence(mac, &solid)) / r.divMaxBefore, 1e-4);
     // Wall faces were not touched.
     for (int j = cells.min().y(); j <= cells.max().y(); ++j)
-        for (int k = cells.min().z(); k <= cells.max().z(); ++k)
-            ASSERT_EQ(mac(cells.min().x(), j, k)[0], 0.0f);
+        for (int k = cells.min().z(); k <= cells.max().z(); ++k) ASSERT_EQ(mac(cells.min().x(), j, k)[0], 0.0f);
     int solidFaces = 0;
     for (size_t q = 0; q < solid.size(); ++q) {
         const Coord c = solid.coordOf(q);
@@ -251,7 +250,6 @@ TEST(Projection, RejectsMismatchedMasks)
     s.tolerance = 0.0;
     EXPECT_THROW(projectMac(mac, s), ValueError);
 }
-
 
 namespace {
 

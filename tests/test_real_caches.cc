@@ -147,7 +147,8 @@ TEST(RealCaches, BlenderPlumePairIsAFactorFourPair)
         for (float d : c.density.values()) inCrop += d;
         EXPECT_EQ(inFull, inCrop);
         for (size_t n = 0; n < c.velocity.size(); n += 7)
-            ASSERT_EQ(c.velocity.data()[n], full->velocity[c.velocity.coordOf(n)]) << "the held box reads the same voxels";
+            ASSERT_EQ(c.velocity.data()[n], full->velocity[c.velocity.coordOf(n)])
+                << "the held box reads the same voxels";
     }
     // A buoyant plume: mean vertical (z) velocity of the smoke is upward.
     double w = 0.0;
@@ -191,7 +192,8 @@ TEST(RealCaches, VelocityExtensionContinuesBlendersClippedVelocityOnly)
     // dominates (docs/transfer.md: the transfer's frame 1 measures hf_ratio 0.17 against the clipped
     // source when it calibrates to the extended one, 1.01 when it calibrates to the clipped one).
     const auto hf = [](const turb::Frame& f) {
-        const turb::VectorField low = turb::cropped(turb::upsample(turb::boxDownsample(f.velocity, 4), 4), f.velocity.bbox());
+        const turb::VectorField low =
+            turb::cropped(turb::upsample(turb::boxDownsample(f.velocity, 4), 4), f.velocity.bbox());
         double e = 0.0;
         size_t cnt = 0;
         for (size_t n = 0; n < f.velocity.size(); ++n)
@@ -304,7 +306,8 @@ TEST(RealCaches, KnownReaderCrashAndHangBecomeErrors)
         ADD_FAILURE() << "expected an error";
     } catch (const turb::IoError& e) {
         const std::string m = e.what();
-        EXPECT_TRUE(m.find("did not finish") != std::string::npos || m.find("could not be read") != std::string::npos) << m;
+        EXPECT_TRUE(m.find("did not finish") != std::string::npos || m.find("could not be read") != std::string::npos)
+            << m;
         EXPECT_NE(m.find(dir / "hang.vdb"), std::string::npos) << m;
     }
     EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 30.0);

@@ -25,7 +25,10 @@ ScalarField ball(const CoordBBox& box, const Vec3d& centre, double r)
     return d;
 }
 
-float diff(const Rgb& a, const Rgb& b) { return std::max({std::abs(a.x() - b.x()), std::abs(a.y() - b.y()), std::abs(a.z() - b.z())}); }
+float diff(const Rgb& a, const Rgb& b)
+{
+    return std::max({std::abs(a.x() - b.x()), std::abs(a.y() - b.y()), std::abs(a.z() - b.z())});
+}
 
 struct Disc
 {
@@ -94,9 +97,9 @@ TEST(Render, SphereRendersADiscOfItsRadiusWhereItIs)
         double cx, cy; // pixels
     };
     const Expect cases[] = {
-        {View::Front, 160, (c.x() + 0.5) * ppv, (47.5 - c.z()) * ppv},  // x right, z up
-        {View::Side, 128, (31.5 - c.y()) * ppv, (47.5 - c.z()) * ppv},  // -y right, z up
-        {View::Top, 160, (c.x() + 0.5) * ppv, (31.5 - c.y()) * ppv},    // x right, y up
+        {View::Front, 160, (c.x() + 0.5) * ppv, (47.5 - c.z()) * ppv}, // x right, z up
+        {View::Side, 128, (31.5 - c.y()) * ppv, (47.5 - c.z()) * ppv}, // -y right, z up
+        {View::Top, 160, (c.x() + 0.5) * ppv, (31.5 - c.y()) * ppv},   // x right, y up
     };
     for (const auto& e : cases) {
         s.view = e.view;

@@ -67,7 +67,8 @@ TEST(Resample, SplitSumsBackExactlyAndLowPartHasNoBlockDetail)
     VectorField u(CoordBBox({0, 0, 0}, {15, 15, 15}), lat);
     for (size_t n = 0; n < u.size(); ++n) {
         const Coord c = u.coordOf(n);
-        u.data()[n] = Vec3f(std::sin(2.3f * c.x()) + 0.1f * c.y(), std::cos(1.7f * c.z()), float((c.x() * 7 + c.y() * 3) % 5));
+        u.data()[n] =
+            Vec3f(std::sin(2.3f * c.x()) + 0.1f * c.y(), std::cos(1.7f * c.z()), float((c.x() * 7 + c.y() * 3) % 5));
     }
     const FrequencySplit s = splitFrequencies(u, 4);
     // Exact up to one float rounding of the subtraction.
@@ -104,7 +105,9 @@ TEST(Resample, ResamplingToAnotherVoxelSizeIsExactOnLinearFieldsAndNeverExtrapol
 {
     const Lattice lat{0.04, {1.0, -2.0, 0.5}};
     const CoordBBox box({-3, 0, 2}, {20, 17, 25});
-    const auto linear = [](const Vec3d& x) { return Vec3f(float(1.0 + 2.0 * x.x() - x.y()), float(0.5 * x.z()), float(x.x() + x.y() + x.z())); };
+    const auto linear = [](const Vec3d& x) {
+        return Vec3f(float(1.0 + 2.0 * x.x() - x.y()), float(0.5 * x.z()), float(x.x() + x.y() + x.z()));
+    };
     VectorField u(box, lat);
     for (auto it = box.begin(); it; ++it) {
         const Coord c = *it;
@@ -116,7 +119,8 @@ TEST(Resample, ResamplingToAnotherVoxelSizeIsExactOnLinearFieldsAndNeverExtrapol
     EXPECT_EQ(r.lattice().origin, lat.origin);
     // Every new centre lies inside the hull of the old centres, and the hull is covered to within a voxel.
     const Vec3d oldLo = lat.indexToWorld(box.min().asVec3d()), oldHi = lat.indexToWorld(box.max().asVec3d());
-    const Vec3d newLo = r.lattice().indexToWorld(r.bbox().min().asVec3d()), newHi = r.lattice().indexToWorld(r.bbox().max().asVec3d());
+    const Vec3d newLo = r.lattice().indexToWorld(r.bbox().min().asVec3d()),
+                newHi = r.lattice().indexToWorld(r.bbox().max().asVec3d());
     for (int a = 0; a < 3; ++a) {
         EXPECT_GE(newLo[a], oldLo[a] - 1e-9);
         EXPECT_LE(newHi[a], oldHi[a] + 1e-9);

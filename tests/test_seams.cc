@@ -35,7 +35,8 @@ struct PastedWithSeams
         p.layout = PatchLayout::covering(pasted.bbox(), 8);
         p.active.assign(p.layout.patchCount(), 1);
         p.offset.resize(p.layout.patchCount());
-        for (size_t i = 0; i < p.offset.size(); ++i) p.offset[i] = Coord(int(i % 5) * 3 - 6, int(i % 3) * 4 - 4, int(i % 7) - 3);
+        for (size_t i = 0; i < p.offset.size(); ++i)
+            p.offset[i] = Coord(int(i % 5) * 3 - 6, int(i % 3) * 4 - 4, int(i % 7) - 3);
         p.boxFactor = 4;
         for (size_t n = 0; n < pasted.size(); ++n) {
             const Coord c = pasted.coordOf(n);
@@ -153,7 +154,8 @@ protected:
                 Vec3d y = x;
                 y[a] += 1.0;
                 // A target with divergence: gradient of the smooth field plus a compressive part.
-                targets[n * 3 + size_t(a)] = smooth.at(y) - smooth.at(x) + Vec3f(a == 0 ? 0.3f : 0.0f, a == 1 ? 0.3f : 0.0f, a == 2 ? 0.3f : 0.0f);
+                targets[n * 3 + size_t(a)] = smooth.at(y) - smooth.at(x) +
+                                             Vec3f(a == 0 ? 0.3f : 0.0f, a == 1 ? 0.3f : 0.0f, a == 2 ? 0.3f : 0.0f);
             }
         }
         const PatchLayout layout = PatchLayout::covering(box, 8);
@@ -168,8 +170,7 @@ protected:
 
 TEST_F(SeamSolve, CgSolutionSatisfiesTheNormalEquations)
 {
-    for (SeamSolver solver : {SeamSolver::Cgnr, SeamSolver::EigenLscg})
-        expectNormalEquations(solver);
+    for (SeamSolver solver : {SeamSolver::Cgnr, SeamSolver::EigenLscg}) expectNormalEquations(solver);
 }
 
 // Both E-step solvers, at a tolerance of 1e-7, stop with the normal equations satisfied.
@@ -233,8 +234,8 @@ TEST_F(SeamSolve, EigenLeastSquaresReachesTheCgnrEnergy)
     VectorField cgnr = X, eigen = X;
     const SeamIteration a =
         solveSeamEStep(cgnr, omega, targets, 10.0f, defaults.maxCgIterations, defaults.cgTolerance, SeamSolver::Cgnr);
-    const SeamIteration b =
-        solveSeamEStep(eigen, omega, targets, 10.0f, defaults.maxCgIterations, defaults.cgTolerance, SeamSolver::EigenLscg);
+    const SeamIteration b = solveSeamEStep(
+        eigen, omega, targets, 10.0f, defaults.maxCgIterations, defaults.cgTolerance, SeamSolver::EigenLscg);
     for (const SeamIteration& it : {a, b}) {
         EXPECT_LE(it.cgResidual, defaults.cgTolerance);
         EXPECT_LT(it.cgIterations, 60) << "measured: 37 (CGNR), 34 (Eigen)";
@@ -457,7 +458,6 @@ TEST(SeamSmoothing, TwoDSolveSmoothsSeamsAndKeepsTheFieldFlat)
     EXPECT_NEAR(energies[1], energies[0], 0.01 * energies[0]);
 }
 
-
 TEST(SeamSmoothing, EigenLeastSquaresMatchesCgnrWithEveryKindOfRow)
 {
     // The explicit matrix must hold the rows the matrix-free solve applies: with edge, divergence (and base), box and
@@ -472,7 +472,8 @@ TEST(SeamSmoothing, EigenLeastSquaresMatchesCgnrWithEveryKindOfRow)
             EXPECT_LE(it.cgResidual, er.settings.cgTolerance) << "EM iteration " << k;
             EXPECT_LT(it.cgIterations, 50) << "EM iteration " << k << " (measured: 23-28)";
         }
-        EXPECT_NEAR(sb.iterations[k].energy, sa.iterations[k].energy, 0.01 * sa.iterations[k].energy) << "EM iteration " << k;
+        EXPECT_NEAR(sb.iterations[k].energy, sa.iterations[k].energy, 0.01 * sa.iterations[k].energy)
+            << "EM iteration " << k;
     }
     EXPECT_LT(sb.iterations.back().energy, 0.5 * sb.initialEnergy);
     double diff = 0, norm = 0;

@@ -43,7 +43,7 @@ TEST(FramePattern, MatchInvertsFormat)
     const auto p = FramePattern::parse("dir/f_####.vdb");
     EXPECT_EQ(p.match("dir/f_0042.vdb"), 42);
     EXPECT_EQ(p.match("dir/f_12345.vdb"), 12345);
-    EXPECT_FALSE(p.match("dir/f_42.vdb"));  // not padded as the pattern says
+    EXPECT_FALSE(p.match("dir/f_42.vdb")); // not padded as the pattern says
     EXPECT_FALSE(p.match("dir/g_0042.vdb"));
     EXPECT_FALSE(p.match("dir/f_00a2.vdb"));
 }
@@ -196,6 +196,7 @@ TEST(Sequence, NoMatchSaysWhichPaddingsExist)
         turbio::resolveSequence(dir / "density_####.vdb");
         FAIL();
     } catch (const turb::IoError& e) {
-        EXPECT_NE(std::string(e.what()).find("holds " + dir.path() + "/fluid_data_####.vdb"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("holds " + dir.path() + "/fluid_data_####.vdb"), std::string::npos)
+            << e.what();
     }
 }

@@ -67,7 +67,8 @@ Moments moments(const SmokeSim& sim, const ScalarField& d)
 {
     if (!st.converged) return ::testing::AssertionFailure() << "a projection did not converge";
     if (!(st.relativeResidual <= s.pressureTolerance))
-        return ::testing::AssertionFailure() << "relative residual " << st.relativeResidual << " above " << s.pressureTolerance;
+        return ::testing::AssertionFailure()
+               << "relative residual " << st.relativeResidual << " above " << s.pressureTolerance;
     if (st.pressureIterations >= perSubstep * st.substeps)
         return ::testing::AssertionFailure() << st.pressureIterations << " iterations over " << st.substeps
                                              << " substeps, bound " << perSubstep << " per substep";

@@ -19,8 +19,8 @@ using testutil::TempDir;
 
 namespace {
 
-constexpr double kVoxel = 0.1;  // target voxel
-constexpr int kRatio = 2;       // source voxel = kVoxel / kRatio
+constexpr double kVoxel = 0.1; // target voxel
+constexpr int kRatio = 2;      // source voxel = kVoxel / kRatio
 constexpr double kDt = 1.0 / 24.0;
 
 // A smooth swirl plus a rise, in world units per second; the same function in every cache, so a voxel's
@@ -35,12 +35,13 @@ Vec3f swirl(const Vec3d& x)
 Vec3f detail(const Vec3d& x)
 {
     const double s = 2.0 * M_PI / (4.0 * kVoxel / kRatio);
-    return Vec3f(float(0.3 * std::sin(s * x.y())), float(0.3 * std::sin(1.3 * s * x.z())), float(0.3 * std::sin(0.8 * s * x.x())));
+    return Vec3f(float(0.3 * std::sin(s * x.y())), float(0.3 * std::sin(1.3 * s * x.z())),
+        float(0.3 * std::sin(0.8 * s * x.x())));
 }
 
 struct Puff
 {
-    Vec3d centre; // world
+    Vec3d centre;  // world
     double radius; // world, density 0 beyond
 };
 
@@ -58,9 +59,9 @@ struct CacheSpec
 {
     double voxel = kVoxel;
     std::vector<Puff> puffs;
-    CoordBBox velBox;              // velocity written voxel by voxel from swirl (+ detail for a source)
-    CoordBBox tileBox;             // larger box filled with swirl's value at the origin as tiles (empty: none)
-    std::vector<Coord> strays;     // stray density voxels (value 0.5)
+    CoordBBox velBox;          // velocity written voxel by voxel from swirl (+ detail for a source)
+    CoordBBox tileBox;         // larger box filled with swirl's value at the origin as tiles (empty: none)
+    std::vector<Coord> strays; // stray density voxels (value 0.5)
     bool withDetail = false;
 };
 
@@ -109,7 +110,8 @@ turbio::ReadOptions readOptions()
 }
 
 // The source: one puff at the target's scale, ratio kRatio finer, with detail.
-std::string writeSource(const TempDir& dir, const std::string& name, const std::vector<Puff>& puffs, const CoordBBox& box)
+std::string writeSource(
+    const TempDir& dir, const std::string& name, const std::vector<Puff>& puffs, const CoordBBox& box)
 {
     CacheSpec s;
     s.voxel = kVoxel / kRatio;
@@ -224,7 +226,8 @@ class SparseTransfer : public ::testing::Test
 protected:
     void SetUp() override
     {
-        source = writeSource(dir, "src.vdb", {Puff{kPlume.centre, kPlume.radius * 1.2}}, CoordBBox({12, 12, 12}, {51, 51, 51}));
+        source = writeSource(
+            dir, "src.vdb", {Puff{kPlume.centre, kPlume.radius * 1.2}}, CoordBBox({12, 12, 12}, {51, 51, 51}));
     }
     TransferResult run(const std::string& target, int threads = 0)
     {

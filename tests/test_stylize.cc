@@ -48,7 +48,8 @@ ChannelImage diskAlpha(int W, int H, double cx, double cy, double r, double edge
 {
     ChannelImage a(W, H, 1);
     for (int y = 0; y < H; ++y)
-        for (int x = 0; x < W; ++x) a.at(x, y, 0) = float(std::min(1.0, std::max(0.0, (r - std::hypot(x - cx, y - cy)) / edge + 0.5)));
+        for (int x = 0; x < W; ++x)
+            a.at(x, y, 0) = float(std::min(1.0, std::max(0.0, (r - std::hypot(x - cx, y - cy)) / edge + 0.5)));
     return a;
 }
 
@@ -115,7 +116,8 @@ TEST(UniformNnf, EveryCountIsKOrKPlusOneAndNoMatchCrossesSegments)
         unsigned seed;
     };
     // Targets larger than the source (K >= 1) and smaller (K = 0, R = |X|).
-    for (const Case& c : {Case{30, 28, 64, 60, 1}, Case{30, 28, 64, 60, 7}, Case{24, 24, 90, 40, 3}, Case{40, 40, 24, 22, 5}}) {
+    for (const Case& c :
+        {Case{30, 28, 64, 60, 1}, Case{30, 28, 64, 60, 7}, Case{24, 24, 90, 40, 3}, Case{40, 40, 24, 22, 5}}) {
         const ChannelImage S = noiseImage(c.sw, c.sh, 4, c.seed), T = noiseImage(c.tw, c.th, 4, c.seed + 100);
         const ChannelImage Wt = ones(T);
         const PatchSpace space{&S, &T, &Wt, r};
@@ -141,7 +143,8 @@ TEST(UniformNnf, EveryCountIsKOrKPlusOneAndNoMatchCrossesSegments)
             for (size_t p = 0; p < ls.size(); ++p) {
                 if (ls[p] < 0) ASSERT_EQ(counts[p], 0) << "a non-centre was used";
                 if (ls[p] != L) continue;
-                ASSERT_TRUE(counts[p] == K || counts[p] == K + 1) << "segment " << L << " count " << counts[p] << " K " << K;
+                ASSERT_TRUE(counts[p] == K || counts[p] == K + 1)
+                    << "segment " << L << " count " << counts[p] << " K " << K;
                 atK1 += counts[p] == K + 1;
                 ASSERT_EQ(counts[p], u.counts[p]);
             }
@@ -177,7 +180,7 @@ TEST(Voting, AnIdentityFieldReproducesTheSource)
     for (int y = 0; y < 16; ++y)
         for (int x = 0; x < 20; ++x)
             for (int c = 0; c < 3; ++c) ASSERT_NEAR(T.at(x, y, c), S.at(x, y, c), 1e-6f) << x << "," << y;
-    EXPECT_EQ(votes[0], 1);  // corner: only the centre (2, 2) covers it
+    EXPECT_EQ(votes[0], 1); // corner: only the centre (2, 2) covers it
     EXPECT_EQ(votes[size_t(8) * 20 + 10], 25);
 }
 
@@ -220,7 +223,8 @@ TEST(Warp, ForwardWarpOfATranslationIsExactToInterpolationError)
         const WarpResult w = forwardWarp(img, m);
         double maxErr = 0.0;
         for (int y = 4; y < H - 1; ++y)
-            for (int x = 4; x < W - 1; ++x) maxErr = std::max(maxErr, std::abs(w.image.at(x, y, 0) - f(x - 2.3, y - 1.6)));
+            for (int x = 4; x < W - 1; ++x)
+                maxErr = std::max(maxErr, std::abs(w.image.at(x, y, 0) - f(x - 2.3, y - 1.6)));
         EXPECT_LT(maxErr, 0.03) << "bilinear error bound ~ (0.21^2 + 0.17^2) / 4";
         // And backward sampling of the same motion agrees.
         const ChannelImage b = backwardWarp(img, m);
@@ -253,7 +257,8 @@ namespace {
 Frame slabFrame(const std::function<Vec3f(const Vec3d&)>& vel, double dt)
 {
     const Lattice lat{0.1, {0.0, 0.0, 0.0}};
-    return testutil::makeFrame(1, CoordBBox({0, 0, 0}, {31, 15, 23}), lat, vel, [](const Coord&) { return 1.0f; }, dt);
+    return testutil::makeFrame(
+        1, CoordBBox({0, 0, 0}, {31, 15, 23}), lat, vel, [](const Coord&) { return 1.0f; }, dt);
 }
 
 } // namespace
@@ -287,10 +292,12 @@ TEST(CameraBridge, RotationAboutTheViewAxisProjectsToARotation)
     // the projected centre. x right and z up on screen, y down in pixels.
     const Vec3d c(1.6, 0.8, 1.2);
     const double omega = 3.0, dt = 0.02;
-    const Frame f = slabFrame([&](const Vec3d& x) {
-        const Vec3d d = x - c;
-        return Vec3f(float(omega * d.z()), 0.0f, float(-omega * d.x()));
-    }, dt);
+    const Frame f = slabFrame(
+        [&](const Vec3d& x) {
+            const Vec3d d = x - c;
+            return Vec3f(float(omega * d.z()), 0.0f, float(-omega * d.x()));
+        },
+        dt);
     BridgeSettings b;
     b.camera.width = 128;
     const CameraView v = viewThroughCamera(f, b);
@@ -367,7 +374,8 @@ Sequence2D rotatingDisk(int n, int frames, double radiansPerFrame)
     return s;
 }
 
-std::vector<StylizedFrame> runSequence(const Sequence2D& seq, const RgbaImage& ex, const StylizeSettings& s, int threads)
+std::vector<StylizedFrame> runSequence(
+    const Sequence2D& seq, const RgbaImage& ex, const StylizeSettings& s, int threads)
 {
     std::vector<StylizedFrame> out;
     withThreads(threads, [&] {
@@ -397,7 +405,8 @@ TEST(Stylize, UniformUsageBoundaryAndDeterminismAcrossThreads)
     for (size_t t = 0; t < one.size(); ++t) {
         ASSERT_EQ(one[t].image.pixels().size(), two[t].image.pixels().size());
         for (size_t i = 0; i < one[t].image.size(); ++i)
-            ASSERT_EQ(one[t].image.pixels()[i], two[t].image.pixels()[i]) << "frame " << t << " pixel " << i << ": threads changed the output";
+            ASSERT_EQ(one[t].image.pixels()[i], two[t].image.pixels()[i])
+                << "frame " << t << " pixel " << i << ": threads changed the output";
         const StylizeStats& st = one[t].stats;
         EXPECT_DOUBLE_EQ(st.coverage, 1.0) << "uniform usage uses every exemplar patch";
         for (const auto& u : st.usage) {

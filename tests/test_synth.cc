@@ -155,7 +155,8 @@ VectorField randomPeriodicField(int n, unsigned seed)
         for (int j = 0; j < n; ++j)
             for (int l = 0; l < n; ++l) {
                 Vec3d v(0.0);
-                for (const auto& m : modes) v += m.a * std::sin(2 * kPi * (m.k[0] * i + m.k[1] * j + m.k[2] * l) / n + m.ph);
+                for (const auto& m : modes)
+                    v += m.a * std::sin(2 * kPi * (m.k[0] * i + m.k[1] * j + m.k[2] * l) / n + m.ph);
                 f(i, j, l) = Vec3f(float(v[0]), float(v[1]), float(v[2]));
             }
     return f;
@@ -182,7 +183,8 @@ TEST(Exemplar, ProceduralPatternsAreUnitRmsDivergenceFreeAndTile)
         for (int y = 0; y < e.ny; ++y)
             for (int c = 0; c < 2; ++c) {
                 wrap = std::max(wrap, double(std::abs(e.at(0, y)[c] - e.at(e.nx - 1, y)[c])));
-                for (int x = 0; x + 1 < e.nx; ++x) inside = std::max(inside, double(std::abs(e.at(x + 1, y)[c] - e.at(x, y)[c])));
+                for (int x = 0; x + 1 < e.nx; ++x)
+                    inside = std::max(inside, double(std::abs(e.at(x + 1, y)[c] - e.at(x, y)[c])));
             }
         EXPECT_LE(wrap, inside + 1e-6);
     }
@@ -210,7 +212,8 @@ TEST(Exemplar, GrayBitmapCurlCirclesTheBlob)
             const double rx = x - 15.5, ry = y - 15.5;
             radial += std::abs(v[0] * rx + v[1] * ry);
             tangential += std::abs(-v[0] * ry + v[1] * rx);
-            const double div = 0.5 * (e.at(x + 1, y)[0] - e.at(x - 1, y)[0]) + 0.5 * (e.at(x, y + 1)[1] - e.at(x, y - 1)[1]);
+            const double div =
+                0.5 * (e.at(x + 1, y)[0] - e.at(x - 1, y)[0]) + 0.5 * (e.at(x, y + 1)[1] - e.at(x, y - 1)[1]);
             maxDiv = std::max(maxDiv, std::abs(div));
         }
     EXPECT_LT(radial, 0.02 * tangential); // central differences of a sampled Gaussian are radial to ~0.5%
@@ -352,7 +355,8 @@ TEST(Synth, VolumetricExemplarGives3DOutputWithItsSpread)
     for (size_t q = 0; q < src.size(); ++q) {
         const Coord c = src.coordOf(q);
         const double x = k * (c.x() + 0.5), y = k * (c.y() + 0.5), z = k * (c.z() + 0.5);
-        src.data()[q] = Vec3f(float(std::sin(x) * std::cos(y) * std::cos(z)), float(-std::cos(x) * std::sin(y) * std::cos(z)), 0.0f);
+        src.data()[q] = Vec3f(
+            float(std::sin(x) * std::cos(y) * std::cos(z)), float(-std::cos(x) * std::sin(y) * std::cos(z)), 0.0f);
     }
     Exemplar e = exemplarFromVolume(src);
     e.periodic = true;
@@ -397,7 +401,8 @@ TEST(Synth, NormalComponentVanishesAtWallsAndObstacles)
         xn += H.world(b.min().x(), j, k)[0] * H.world(b.min().x(), j, k)[0];
         tangential += H.world(b.min().x(), j, k)[1] * H.world(b.min().x(), j, k)[1];
     }
-    for (int i = b.min().x(); i <= b.max().x(); ++i) yn += H.world(i, b.max().y(), k)[1] * H.world(i, b.max().y(), k)[1];
+    for (int i = b.min().x(); i <= b.max().x(); ++i)
+        yn += H.world(i, b.max().y(), k)[1] * H.world(i, b.max().y(), k)[1];
     const double n = b.dim().y();
     const double overall = rms(H.world);
     EXPECT_LT(std::sqrt(xn / n), 0.05 * overall);
@@ -407,7 +412,8 @@ TEST(Synth, NormalComponentVanishesAtWallsAndObstacles)
     // Without walls the same column carries normal motion (so the check above can fail).
     const DetailField free = synth2D(ex, L, SynthSettings{});
     double xf = 0.0;
-    for (int j = b.min().y(); j <= b.max().y(); ++j) xf += free.world(b.min().x(), j, k)[0] * free.world(b.min().x(), j, k)[0];
+    for (int j = b.min().y(); j <= b.max().y(); ++j)
+        xf += free.world(b.min().x(), j, k)[0] * free.world(b.min().x(), j, k)[0];
     EXPECT_GT(std::sqrt(xf / n), 0.3 * rms(free.world));
 
     // An obstacle: a disk given by its signed distance, in world units.
@@ -443,7 +449,8 @@ TEST(Synth, NormalComponentVanishesAtWallsAndObstacles)
 TEST(Synth, SameSeedSameOutputAtAnyThreadCount)
 {
     const Exemplar ex = procedural(ProceduralPattern::Hearts, 32, 16);
-    const VectorField L2 = analyticFlow(AnalyticFlowSettings{AnalyticFlowSettings::Kind::Vortex, Coord(12, 12, 1), 1.0, 1.0, 0.0});
+    const VectorField L2 =
+        analyticFlow(AnalyticFlowSettings{AnalyticFlowSettings::Kind::Vortex, Coord(12, 12, 1), 1.0, 1.0, 0.0});
     for (auto method : {SearchMethod::Tree, SearchMethod::KCoherence}) {
         SynthSettings s;
         s.search = method;
@@ -458,7 +465,8 @@ TEST(Synth, SameSeedSameOutputAtAnyThreadCount)
         EXPECT_FALSE(bitEqual(a.world, c.world));
     }
     // 3D, three views, density-gradient secondary axis.
-    const VectorField L3 = analyticFlow(AnalyticFlowSettings{AnalyticFlowSettings::Kind::Vortex, Coord(6, 6, 6), 1.0, 1.0, 0.0});
+    const VectorField L3 =
+        analyticFlow(AnalyticFlowSettings{AnalyticFlowSettings::Kind::Vortex, Coord(6, 6, 6), 1.0, 1.0, 0.0});
     ScalarField rho(L3.bbox(), L3.lattice());
     for (size_t q = 0; q < rho.size(); ++q) rho.data()[q] = float(rho.coordOf(q).y()) * 0.1f;
     std::vector<SynthView> views;
@@ -518,7 +526,8 @@ TEST(Synth, LaterFramesFollowTheAdvectedDetail)
 
 TEST(Combine, OmegaConstantRelativeAndEnergyWeighted)
 {
-    const VectorField L = analyticFlow(AnalyticFlowSettings{AnalyticFlowSettings::Kind::Shear, Coord(8, 8, 1), 1.0, 2.0, 0.0});
+    const VectorField L =
+        analyticFlow(AnalyticFlowSettings{AnalyticFlowSettings::Kind::Shear, Coord(8, 8, 1), 1.0, 2.0, 0.0});
     const VectorField up = upsampleCoarse(L, 4);
     VectorField H(up.bbox(), up.lattice(), Vec3f(0.0f, 1.0f, 0.0f));
     double rmsL = 0.0;
@@ -555,7 +564,8 @@ TEST(Combine, TheDetailsCoarsePartIsTakenOutByDefault)
     // The detail must not change L's coarse motion. A constant detail is all coarse part and goes
     // entirely; one alternating voxel by voxel has zero cell means and stays; a smooth one (a wavelength of two
     // coarse cells) loses most of its cell means.
-    const VectorField L = analyticFlow(AnalyticFlowSettings{AnalyticFlowSettings::Kind::Shear, Coord(8, 8, 1), 1.0, 2.0, 0.0});
+    const VectorField L =
+        analyticFlow(AnalyticFlowSettings{AnalyticFlowSettings::Kind::Shear, Coord(8, 8, 1), 1.0, 2.0, 0.0});
     const VectorField up = upsampleCoarse(L, 4);
     const auto field = [&](const std::function<Vec3f(const Coord&)>& f) {
         VectorField H(up.bbox(), up.lattice());
@@ -564,12 +574,14 @@ TEST(Combine, TheDetailsCoarsePartIsTakenOutByDefault)
     };
     const VectorField flat = field([](const Coord&) { return Vec3f(0.0f, 1.0f, 0.0f); });
     const VectorField alternating = field([](const Coord& c) { return Vec3f(0.0f, (c.x() & 1) ? 1.0f : -1.0f, 0.0f); });
-    const VectorField smooth = field([](const Coord& c) { return Vec3f(0.0f, float(std::sin(2.0 * M_PI * c.x() / 8.0)), 0.0f); });
+    const VectorField smooth =
+        field([](const Coord& c) { return Vec3f(0.0f, float(std::sin(2.0 * M_PI * c.x() / 8.0)), 0.0f); });
     CombineSettings c;
     c.relative = false;
     c.omega = 1.0;
     ASSERT_TRUE(c.removeCoarsePart);
-    const VectorField Ff = combineMotion(L, flat, c), Fa = combineMotion(L, alternating, c), Fs = combineMotion(L, smooth, c);
+    const VectorField Ff = combineMotion(L, flat, c), Fa = combineMotion(L, alternating, c),
+                      Fs = combineMotion(L, smooth, c);
     for (size_t n = 0; n < up.size(); ++n) {
         ASSERT_NEAR(Ff.data()[n][1], up.data()[n][1], 1e-5);
         ASSERT_NEAR(Fa.data()[n][1] - up.data()[n][1], alternating.data()[n][1], 1e-5);
@@ -768,7 +780,8 @@ TEST(Synth, ThreeDFramesDoNotFlipAcrossAVortex)
     // skewness of curl_z changes sign across the plane. The secondary n x e1, with n the direction L has least of
     // (here z), keeps the frame continuous, and the sense of rotation the same on both sides.
     const Exemplar ex = procedural(ProceduralPattern::Circles, 64, 16);
-    const VectorField L = analyticFlow(AnalyticFlowSettings{AnalyticFlowSettings::Kind::Vortex, Coord(12, 12, 6), 1.0, 1.0, 0.0});
+    const VectorField L =
+        analyticFlow(AnalyticFlowSettings{AnalyticFlowSettings::Kind::Vortex, Coord(12, 12, 6), 1.0, 1.0, 0.0});
     std::vector<SynthView> views;
     for (int a = 0; a < 3; ++a) views.push_back({ex, a, a == 2 ? 10.0f : 1.0f});
     const auto skewness = [&](bool autoSecondary) {
@@ -791,16 +804,17 @@ TEST(Synth, ThreeDFramesDoNotFlipAcrossAVortex)
         }
         std::array<double, 2> out{};
         for (int h = 0; h < 2; ++h) {
-            const double n = m[size_t(h)][0], mu = m[size_t(h)][1] / n, m2 = m[size_t(h)][2] / n, m3 = m[size_t(h)][3] / n;
+            const double n = m[size_t(h)][0], mu = m[size_t(h)][1] / n, m2 = m[size_t(h)][2] / n,
+                         m3 = m[size_t(h)][3] / n;
             out[size_t(h)] = (m3 - 3.0 * mu * m2 + 2.0 * mu * mu * mu) / std::pow(m2 - mu * mu, 1.5);
         }
-        std::printf("curl_z skewness below / above y = centre (%s): %.3f %.3f\n", autoSecondary ? "auto" : "+y",
-            out[0], out[1]);
+        std::printf("curl_z skewness below / above y = centre (%s): %.3f %.3f\n", autoSecondary ? "auto" : "+y", out[0],
+            out[1]);
         return out;
     };
     const auto fixedAxis = skewness(false);
     const auto chosen = skewness(true);
-    EXPECT_LT(fixedAxis[0] * fixedAxis[1], 0.0);    // the flip the issue found
+    EXPECT_LT(fixedAxis[0] * fixedAxis[1], 0.0); // the flip the issue found
     // One sense of rotation on both sides, the unflipped side's (2D's frame: e2 = z x e1 for a flow in the xy plane).
     EXPECT_GT(chosen[0], 0.8);
     EXPECT_GT(chosen[1], 0.8);
@@ -814,7 +828,8 @@ TEST(Synth, EachThreeDIterationDescendsOnItsOwnCentres)
     // always; the moment match gives part of it back); the next iteration jitters the centres to new positions,
     // whose neighbourhoods start higher. This holds that every iteration descends on its own centres.
     const Exemplar ex = procedural(ProceduralPattern::Circles, 64, 16);
-    const VectorField L = analyticFlow(AnalyticFlowSettings{AnalyticFlowSettings::Kind::Vortex, Coord(12, 12, 6), 1.0, 1.0, 0.0});
+    const VectorField L =
+        analyticFlow(AnalyticFlowSettings{AnalyticFlowSettings::Kind::Vortex, Coord(12, 12, 6), 1.0, 1.0, 0.0});
     std::vector<SynthView> views;
     for (int a = 0; a < 3; ++a) views.push_back({ex, a, a == 2 ? 10.0f : 1.0f});
     SynthSettings s;
@@ -827,7 +842,8 @@ TEST(Synth, EachThreeDIterationDescendsOnItsOwnCentres)
     for (const SynthLevelStats& st : H.levels)
         for (const auto& d : st.descent) {
             ++iterations;
-            EXPECT_LT(d[1], 0.97 * d[0]) << "level " << st.level << ": the weighted average did not lower the objective";
+            EXPECT_LT(d[1], 0.97 * d[0]) << "level " << st.level
+                                         << ": the weighted average did not lower the objective";
             EXPECT_LT(d[2], d[0]) << "level " << st.level << ": the iteration ended above where it started";
         }
     EXPECT_GE(iterations, 8);

@@ -119,8 +119,8 @@ TEST(GridAliases, ResolvesEveryConventionAndOverrides)
     EXPECT_EQ(resolveGrid({"flames"}, GridRole::Flame), (std::vector<std::string>{"flames"}));
     EXPECT_EQ(resolveGrid({"smoke", "density"}, GridRole::Density, "smoke"), (std::vector<std::string>{"smoke"}));
     EXPECT_TRUE(resolveGrid({"density"}, GridRole::Density, "smoke").empty());
-    EXPECT_EQ(resolveGrid({"u.x", "u.y", "u.z"}, GridRole::Velocity, "u"),
-        (std::vector<std::string>{"u.x", "u.y", "u.z"}));
+    EXPECT_EQ(
+        resolveGrid({"u.x", "u.y", "u.z"}, GridRole::Velocity, "u"), (std::vector<std::string>{"u.x", "u.y", "u.z"}));
 }
 
 TEST(StaggeredVelocity, CentredValuesAreExactForALinearField)
@@ -409,8 +409,8 @@ TEST(BadInput, EveryErrorNamesTheFileAndTheProblem)
     EXPECT_NE(errorOf([&] { readFrame(missing, 1, ReadOptions{}); }).find(missing), std::string::npos);
 
     std::ofstream(dir / "text.vdb") << "this is not a vdb file at all";
-    EXPECT_NE(errorOf([&] { readFrame(dir / "text.vdb", 1, ReadOptions{}); }).find("not an OpenVDB file"),
-        std::string::npos);
+    EXPECT_NE(
+        errorOf([&] { readFrame(dir / "text.vdb", 1, ReadOptions{}); }).find("not an OpenVDB file"), std::string::npos);
 
     // Missing grid: the message lists what the file has, and the error names the setting that chooses the grid,
     // through the guarded reader and in the header scan (dry runs) alike.
@@ -418,7 +418,8 @@ TEST(BadInput, EveryErrorNamesTheFileAndTheProblem)
     const std::string noVel = errorOf([&] { readFrame(dir / "d.vdb", 1, ReadOptions{}); });
     EXPECT_NE(noVel.find("no velocity"), std::string::npos) << noVel;
     EXPECT_NE(noVel.find("the file has: #0 'density' float fog volume"), std::string::npos) << noVel;
-    EXPECT_EQ(settingsOf([&] { readFrame(dir / "d.vdb", 1, ReadOptions{}); }), std::vector<std::string>{"velocityGrid"});
+    EXPECT_EQ(
+        settingsOf([&] { readFrame(dir / "d.vdb", 1, ReadOptions{}); }), std::vector<std::string>{"velocityGrid"});
     const FrameScan scan = scanFrame(dir / "d.vdb", 1, ReadOptions{});
     EXPECT_EQ(scan.error, noVel);
     EXPECT_EQ(scan.errorSettings, std::vector<std::string>{"velocityGrid"});
@@ -444,7 +445,8 @@ TEST(BadInput, EveryErrorNamesTheFileAndTheProblem)
     EXPECT_NE(nanMsg.find("NaN"), std::string::npos) << nanMsg;
 
     // Velocity components on different lattices cannot form one vector.
-    auto cx = openvdb::FloatGrid::create(0.0f), cy = openvdb::FloatGrid::create(0.0f), cz = openvdb::FloatGrid::create(0.0f);
+    auto cx = openvdb::FloatGrid::create(0.0f), cy = openvdb::FloatGrid::create(0.0f),
+         cz = openvdb::FloatGrid::create(0.0f);
     for (auto* c : {&cx, &cy, &cz}) (*c)->fill(openvdb::CoordBBox({0, 0, 0}, {2, 2, 2}), 1.0f, true);
     cx->setName("vel.x");
     cy->setName("vel.y");
@@ -596,7 +598,10 @@ TEST(Writing, AFileSizeLimitIsAClearErrorAndLeavesNoFile)
     const pid_t pid = ::fork();
     if (pid == 0) {
         ::signal(SIGXFSZ, SIG_IGN);
-        struct rlimit rl{64 * 1024, 64 * 1024};
+        struct rlimit rl
+        {
+            64 * 1024, 64 * 1024
+        };
         ::setrlimit(RLIMIT_FSIZE, &rl);
         try {
             writeFrame(dir / "big.vdb", f, WriteOptions{});
@@ -630,11 +635,13 @@ TEST(BadInput, AFrameTooLargeToLoadNamesTheGridAndItsSpan)
     whole.cropToSmoke = false;
     const std::string e = errorOf([&] { readFrame(dir / "sparse.vdb", 1, whole); });
     EXPECT_NE(e.find("sparse.vdb: not enough memory to load the frame"), std::string::npos) << e;
-    EXPECT_NE(e.find("grid 'density' [0, 0, 0]-[20000, 20000, 20000] (20001x20001x20001 voxels)"), std::string::npos) << e;
+    EXPECT_NE(e.find("grid 'density' [0, 0, 0]-[20000, 20000, 20000] (20001x20001x20001 voxels)"), std::string::npos)
+        << e;
     EXPECT_NE(e.find("grid 'vel' [0, 0, 0]-[3, 3, 3] (4x4x4 voxels)"), std::string::npos) << e;
     ReadReport rep;
     const turb::Frame f = readFrame(dir / "sparse.vdb", 1, ReadOptions{}, &rep);
-    EXPECT_EQ(f.density.bbox(), openvdb::CoordBBox({0, 0, 0}, {3, 3, 3})) << "the smoke, its margin clipped to the span";
+    EXPECT_EQ(f.density.bbox(), openvdb::CoordBBox({0, 0, 0}, {3, 3, 3}))
+        << "the smoke, its margin clipped to the span";
     EXPECT_NE(rep.region.describeStrays().find("1 active voxel 19997 voxels away"), std::string::npos)
         << rep.region.describeStrays();
 }

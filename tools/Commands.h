@@ -70,7 +70,8 @@ CLI::Validator frameListCheck();
 
 /// Warns (once per run, through `warned`) when `options.densityTolerance` (--clipping) is at or above every density
 /// value of a frame that holds smoke: its density grid would be written empty.
-void warnIfClippedAway(const turb::Frame& frame, const turbio::WriteOptions& options, const std::string& path, bool& warned);
+void warnIfClippedAway(
+    const turb::Frame& frame, const turbio::WriteOptions& options, const std::string& path, bool& warned);
 
 /// Reads the whole of `s` as a number (NaN and inf included); false when it is not one.
 bool parseNumber(const std::string& s, double& v);

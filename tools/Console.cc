@@ -57,7 +57,8 @@ std::map<const CLI::Option*, std::map<std::string, std::string>>& enumNames()
     return n;
 }
 
-const char* const kGroupSettings = "Settings (second tier: also from --settings FILE; docs name their measured effects)";
+const char* const kGroupSettings =
+    "Settings (second tier: also from --settings FILE; docs name their measured effects)";
 // Old spellings: never listed (--help-all names them beside their setting), but named in error messages, which
 // CLI11 leaves nameless for options in the hidden group "".
 const char* const kGroupLegacy = "Old spellings";
@@ -144,13 +145,15 @@ std::string settingsName(const CLI::Option* o)
 // values outside the range a user may give). Everyday options first, then the second tier.
 std::string settingsFile(const CLI::App* app)
 {
-    static const std::set<std::string> kNotSettings{"help", "help-all", "settings", "print-settings", "verbose", "quiet",
-        "dry-run"};
+    static const std::set<std::string> kNotSettings{
+        "help", "help-all", "settings", "print-settings", "verbose", "quiet", "dry-run"};
     std::string out;
     for (const bool second : {false, true}) {
-        out += second ? "# --- second tier: solver and experimental settings ---\n\n" : "# --- everyday options ---\n\n";
+        out +=
+            second ? "# --- second tier: solver and experimental settings ---\n\n" : "# --- everyday options ---\n\n";
         for (const CLI::Option* o : app->get_options()) {
-            if (o->get_lnames().empty() || kNotSettings.count(o->get_single_name()) || isLegacy(o) || isSetting(o) != second)
+            if (o->get_lnames().empty() || kNotSettings.count(o->get_single_name()) || isLegacy(o) ||
+                isSetting(o) != second)
                 continue;
             bool given = o->count() > 0;
             std::string value;
@@ -215,16 +218,20 @@ void addGlobalOptions(CLI::App* app, unsigned which)
 {
     auto formatter = std::make_shared<TieredFormatter>();
     app->formatter(formatter);
-    app->add_flag_callback("-v,--verbose", [] { globals().verbosity = 2; }, "Print details: solver iterations, timings")
+    app->add_flag_callback(
+           "-v,--verbose", [] { globals().verbosity = 2; }, "Print details: solver iterations, timings")
         ->group(kGroupRun);
-    app->add_flag_callback("-q,--quiet", [] { globals().verbosity = 0; }, "Print errors only")->group(kGroupRun);
+    app->add_flag_callback(
+           "-q,--quiet", [] { globals().verbosity = 0; }, "Print errors only")
+        ->group(kGroupRun);
     if (which & kThreads)
         app->add_option("--threads", globals().threads, "Worker threads (0 = all cores); results do not depend on it")
             ->check(CLI::NonNegativeNumber)
             ->group(kGroupRun);
     if (which & kDryRun)
         app->add_flag("--dry-run", globals().dryRun,
-               "Check everything the run needs (every input's headers, the output paths, memory), print the plan, write "
+               "Check everything the run needs (every input's headers, the output paths, memory), print the plan, "
+               "write "
                "nothing")
             ->group(kGroupRun);
     // Read by expandSettingsFiles before parsing; declared here so --help lists it and the parser accepts it.
@@ -262,7 +269,7 @@ void addGlobalOptions(CLI::App* app, unsigned which)
         size_t n = 0;
         for (const CLI::Option* o : app->get_options()) n += isSetting(o);
         return n ? std::to_string(n) + " more settings (solvers, ablations, experiments): --help-all lists them, "
-                                        "--print-settings writes them all as a --settings file."
+                                       "--print-settings writes them all as a --settings file."
                  : std::string();
     });
 }
@@ -305,13 +312,11 @@ std::vector<std::string> expandSettingsFiles(const std::vector<std::string>& arg
             // The command line wins: an option it gives is not taken from the file (giving both would be a repeat).
             const std::string flag = "--" + name;
             if (known && !known(command, flag))
-                throw turb::ValueError("--settings " + file + ": '" + name + "' is not an option of vdbturb" +
-                                       [&] {
-                                           std::string c;
-                                           for (const auto& w : command) c += " " + w;
-                                           return c;
-                                       }() +
-                                       " (--print-settings lists them)");
+                throw turb::ValueError("--settings " + file + ": '" + name + "' is not an option of vdbturb" + [&] {
+                    std::string c;
+                    for (const auto& w : command) c += " " + w;
+                    return c;
+                }() + " (--print-settings lists them)");
             const bool given = std::any_of(args.begin(), args.end(),
                 [&](const std::string& a) { return a == flag || a.rfind(flag + "=", 0) == 0; });
             if (given) continue;
@@ -409,8 +414,7 @@ void warnOnce(const std::string& key, const std::string& warning)
 
 ConsoleProgress::ConsoleProgress(int frameIndex, int frameCount, int frameNumber)
     : mIndex(frameIndex), mCount(frameCount), mFrame(frameNumber), mTty(stderrIsTty() && globals().verbosity >= 1)
-{
-}
+{}
 
 ConsoleProgress::~ConsoleProgress() { clear(); }
 

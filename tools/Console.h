@@ -55,8 +55,8 @@ void registerEnumNames(const CLI::Option* o, std::map<std::string, std::string> 
 /// An option bound to an enum setting: `choices` name its values (the first of a value's names is the one
 /// printed as its default and by --print-settings). A name outside `choices` is refused with the list.
 template<typename E>
-CLI::Option* addEnum(CLI::App* app, const std::string& names, E& value, const std::vector<std::pair<std::string, E>>& choices,
-    const std::string& help)
+CLI::Option* addEnum(CLI::App* app, const std::string& names, E& value,
+    const std::vector<std::pair<std::string, E>>& choices, const std::string& help)
 {
     std::map<std::string, std::string> toValue, toName; // "rotation" -> "2" (what CLI11 then converts), and back
     std::string type, current;
@@ -83,10 +83,11 @@ CLI::Option* addEnum(CLI::App* app, const std::string& names, E& value, const st
 }
 
 /// A boolean setting given as `KEY=true|false` (on the command line --KEY=false), its default printed as a word.
-inline CLI::Option* boolSetting(CLI::App* app, const std::string& names, bool& value, const std::string& help,
-    const std::string& key)
+inline CLI::Option* boolSetting(
+    CLI::App* app, const std::string& names, bool& value, const std::string& help, const std::string& key)
 {
-    return setting(app->add_option(names, value, help)->type_name("true|false")->default_str(value ? "true" : "false"), key);
+    return setting(
+        app->add_option(names, value, help)->type_name("true|false")->default_str(value ? "true" : "false"), key);
 }
 
 /// The option groups of --help, in the order they are listed.

@@ -63,10 +63,14 @@ void render(const std::string& path, const std::string& script, int width, int h
     const std::string drawn = direct ? path : path + ".png";
     std::string terminal;
     // noenhanced: metric names and paths hold underscores, which gnuplot's enhanced text would set as subscripts.
-    if (ext == ".svg") terminal = "svg noenhanced size " + std::to_string(width) + "," + std::to_string(height) + " dynamic";
+    if (ext == ".svg")
+        terminal = "svg noenhanced size " + std::to_string(width) + "," + std::to_string(height) + " dynamic";
     else if (ext == ".pdf")
-        terminal = "pdfcairo noenhanced size " + std::to_string(width / 100.0) + "in," + std::to_string(height / 100.0) + "in";
-    else terminal = "pngcairo noenhanced size " + std::to_string(width) + "," + std::to_string(height) + " font \"DejaVu Sans,11\"";
+        terminal =
+            "pdfcairo noenhanced size " + std::to_string(width / 100.0) + "in," + std::to_string(height / 100.0) + "in";
+    else
+        terminal = "pngcairo noenhanced size " + std::to_string(width) + "," + std::to_string(height) +
+                   " font \"DejaVu Sans,11\"";
     const std::string gp = path + ".gp";
     {
         std::ofstream f(gp);
@@ -109,21 +113,21 @@ std::string panel(const std::string& title, const std::vector<double>& x, const 
         const std::string name = "p" + std::to_string(index) + "_" + std::to_string(k);
         os << dataBlock(name, x, series[k].y);
         plots += std::string(plots.empty() ? "" : ", ") + "$" + name + " using 1:2 with linespoints pt 7 ps 0.6 lw 2 " +
-                 (series[k].dashed ? "dt 2 " : "") + "lc rgb \"" + series[k].color + "\" title " + quoted(series[k].label);
+                 (series[k].dashed ? "dt 2 " : "") + "lc rgb \"" + series[k].color + "\" title " +
+                 quoted(series[k].label);
     }
     for (double r : rules)
-        plots += ", " + std::to_string(r) + " with lines dt 3 lw 1.5 lc rgb \"" + kRule + "\" title \"" +
-                 [&] {
-                     std::ostringstream t;
-                     t << r;
-                     return t.str();
-                 }() +
-                 "\"";
+        plots += ", " + std::to_string(r) + " with lines dt 3 lw 1.5 lc rgb \"" + kRule + "\" title \"" + [&] {
+            std::ostringstream t;
+            t << r;
+            return t.str();
+        }() + "\"";
     os << "set title " << quoted(title) << "\nset xlabel \"frame\"\nset yrange [0:*]\nplot " << plots << "\n";
     return os.str();
 }
 
-std::vector<double> column(const std::vector<turb::FrameMeasures>& frames, std::optional<double> turb::FrameMeasures::*member)
+std::vector<double> column(
+    const std::vector<turb::FrameMeasures>& frames, std::optional<double> turb::FrameMeasures::*member)
 {
     std::vector<double> y;
     for (const auto& f : frames) y.push_back((f.*member) ? *(f.*member) : std::numeric_limits<double>::quiet_NaN());
@@ -153,23 +157,26 @@ void writeSpectrumFigure(const std::string& path, const turb::FrameMeasures& m, 
         os << dataBlock(label, sp->k, sp->energy);
         for (double e : sp->energy)
             if (e > 0.0) emax = std::max(emax, e), emin = std::min(emin, e);
-        plots += std::string(plots.empty() ? "" : ", ") + "$" + label + " using 1:($2 > 0 ? $2 : NaN) with lines lw 2 " +
-                 (dashed ? "dt 2 " : "") + "lc rgb \"" + color + "\" title \"" + label + "\"";
+        plots += std::string(plots.empty() ? "" : ", ") + "$" + label +
+                 " using 1:($2 > 0 ? $2 : NaN) with lines lw 2 " + (dashed ? "dt 2 " : "") + "lc rgb \"" + color +
+                 "\" title \"" + label + "\"";
     }
     os << "set title " << quoted(title) << "\nset xlabel \"k (radians per world unit)\"\nset ylabel \"E(k)\"\n"
        << "set logscale xy\nset grid\nset key top right\n";
     // At most eight decades below the peak: deeper values are round-off and would flatten the rest.
     if (emax > 0.0 && emin < emax * 1e-8) os << "set yrange [" << emax * 1e-8 << ":*]\n";
     if (m.targetNyquist > 0.0)
-        os << "set arrow from " << m.targetNyquist << ", graph 0 to " << m.targetNyquist << ", graph 1 nohead dt 3 lw 1.5 lc rgb \""
-           << kRule << "\"\nset label \"target Nyquist\" at " << m.targetNyquist << ", graph 0.95 offset 0.5,0 tc rgb \"" << kRule
-           << "\"\n";
-    if (plots.empty()) os << "set label \"no data\" at graph 0.5, graph 0.5 center\nunset logscale\nplot [0:1] [0:1] NaN notitle\n";
+        os << "set arrow from " << m.targetNyquist << ", graph 0 to " << m.targetNyquist
+           << ", graph 1 nohead dt 3 lw 1.5 lc rgb \"" << kRule << "\"\nset label \"target Nyquist\" at "
+           << m.targetNyquist << ", graph 0.95 offset 0.5,0 tc rgb \"" << kRule << "\"\n";
+    if (plots.empty())
+        os << "set label \"no data\" at graph 0.5, graph 0.5 center\nunset logscale\nplot [0:1] [0:1] NaN notitle\n";
     else os << "plot " << plots << "\n";
     render(path, os.str(), 1000, 700);
 }
 
-void writeMetricsFigure(const std::string& path, const std::vector<turb::FrameMeasures>& frames, const std::string& title)
+void writeMetricsFigure(
+    const std::string& path, const std::vector<turb::FrameMeasures>& frames, const std::string& title)
 {
     using FM = turb::FrameMeasures;
     std::vector<double> x;
@@ -181,15 +188,20 @@ void writeMetricsFigure(const std::string& path, const std::vector<turb::FrameMe
     // Frames are whole numbers: a tick every frame, or every few on long shots.
     if (!x.empty()) os << "set xtics " << std::max(1, int(std::ceil((x.back() - x.front()) / 10.0))) << "\n";
     os << panel("lf_err (good <= 0.05)", x, {{"output", column(frames, &FM::lfErr), kOutput}}, {0.05}, 0);
-    os << panel("hf_ratio (good 0.8 - 1.25)", x, {{"output / source", column(frames, &FM::hfRatio), kOutput}}, {0.8, 1.25}, 1);
+    os << panel(
+        "hf_ratio (good 0.8 - 1.25)", x, {{"output / source", column(frames, &FM::hfRatio), kOutput}}, {0.8, 1.25}, 1);
     os << panel("div_rel (good <= source)", x,
-        {{"output", column(frames, &FM::divRel), kOutput}, {"source", column(frames, &FM::divRelSource), kSource, true}}, {}, 2);
+        {{"output", column(frames, &FM::divRel), kOutput},
+            {"source", column(frames, &FM::divRelSource), kSource, true}},
+        {}, 2);
     os << panel(anyBlock ? "block (good <= 1.05)" : "block: no patch size given", x,
         {{"output", column(frames, &FM::block), kOutput}}, {1.05}, 3);
     os << panel("tcoh (good <= source)", x,
-        {{"output", column(frames, &FM::tcoh), kOutput}, {"source", column(frames, &FM::tcohSource), kSource, true}}, {}, 4);
+        {{"output", column(frames, &FM::tcoh), kOutput}, {"source", column(frames, &FM::tcohSource), kSource, true}},
+        {}, 4);
     os << panel("E_hf (world units^2)", x,
-        {{"output", column(frames, &FM::hfEnergy), kOutput}, {"source", column(frames, &FM::hfEnergySource), kSource, true}},
+        {{"output", column(frames, &FM::hfEnergy), kOutput},
+            {"source", column(frames, &FM::hfEnergySource), kSource, true}},
         {}, 5);
     os << "unset multiplot\n";
     render(path, os.str(), 1920, 860);

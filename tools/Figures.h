@@ -20,6 +20,7 @@ bool gnuplotAvailable(std::string& why);
 void writeSpectrumFigure(const std::string& path, const turb::FrameMeasures& m, const std::string& title);
 
 /// One panel per metric over the frames, with the targets of docs/measure.md as reference lines.
-void writeMetricsFigure(const std::string& path, const std::vector<turb::FrameMeasures>& frames, const std::string& title);
+void writeMetricsFigure(
+    const std::string& path, const std::vector<turb::FrameMeasures>& frames, const std::string& title);
 
 } // namespace vdbturb

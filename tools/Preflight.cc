@@ -31,7 +31,8 @@ bool dryOrVerbose() { return globals().dryRun || globals().verbosity >= 2; }
 } // namespace
 
 turbio::SequenceScan checkInput(const std::string& command, const std::string& role, const turbio::Sequence& seq,
-    const std::vector<int>& frames, const turbio::ReadOptions& read, LatticePolicy policy, const std::string& readPrefix)
+    const std::vector<int>& frames, const turbio::ReadOptions& read, LatticePolicy policy,
+    const std::string& readPrefix)
 {
     turbio::SequenceScan scan = turbio::scanSequence(seq, frames, read, /*readVoxelsIfNeeded=*/true);
     if (const turbio::FrameScan* failed = scan.firstFailure()) {
@@ -40,13 +41,14 @@ turbio::SequenceScan checkInput(const std::string& command, const std::string& r
         throw error;
     }
     if (!scan.changes.empty()) {
-        const std::string what = role + " " + seq.pattern.str() + ": the lattice is not the same in every frame: " +
-                                 scan.describeChanges();
+        const std::string what =
+            role + " " + seq.pattern.str() + ": the lattice is not the same in every frame: " + scan.describeChanges();
         if (policy == LatticePolicy::Refuse)
-            throw turb::IoError(what + ". " + command +
-                                " carries state from frame to frame on one lattice, so it refuses such a sequence before "
-                                "writing anything: run the frames of each lattice separately (--frames), or bring the cache "
-                                "onto one lattice first (e.g. Houdini's VDB Resample)");
+            throw turb::IoError(
+                what + ". " + command +
+                " carries state from frame to frame on one lattice, so it refuses such a sequence before "
+                "writing anything: run the frames of each lattice separately (--frames), or bring the cache "
+                "onto one lattice first (e.g. Houdini's VDB Resample)");
         warnOnce("lattice " + role, what + "; each frame is read on its own lattice");
     }
     return scan;
@@ -60,8 +62,8 @@ TimingSources timingSources(const turbio::ReadReport& t, const std::string& read
     TimingSources s;
     s.dt = given(t.dtSource, t.dtSetting);
     s.fps = given(t.fpsSource, t.fpsSetting);
-    s.units = t.unitsSetting.empty() ? t.unitsSource
-                                     : flagFor(t.unitsSetting, readPrefix) + (t.cells ? " cells" : " world");
+    s.units =
+        t.unitsSetting.empty() ? t.unitsSource : flagFor(t.unitsSetting, readPrefix) + (t.cells ? " cells" : " world");
     return s;
 }
 
@@ -74,10 +76,11 @@ std::vector<std::string> timingLines(const std::string& role, const turbio::Fram
     if (t.fpsSource != "not used") dt += ", fps " + num("%g", t.fps) + " (" + source.fps + ")";
     lines.push_back(dt);
     if (!f.velocityGrid.empty())
-        lines.push_back(role + " velocity: grid '" + f.velocityGrid + "', " +
-                        (t.cells ? "grid cells per time unit x voxel " + num("%g", f.lattice.voxelSize) + " = world units"
-                                 : std::string("world units")) +
-                        " (" + source.units + ")");
+        lines.push_back(
+            role + " velocity: grid '" + f.velocityGrid + "', " +
+            (t.cells ? "grid cells per time unit x voxel " + num("%g", f.lattice.voxelSize) + " = world units"
+                     : std::string("world units")) +
+            " (" + source.units + ")");
     for (const auto& n : t.notes) lines.push_back(role + ": " + n);
     return lines;
 }
@@ -92,13 +95,14 @@ void reportTiming(const std::string& role, const turbio::SequenceScan& scan, boo
         for (const auto& n : f.timing.notes) warnOnce("note " + role, role + ": " + n);
     if (usesDt && f.timing.conventionAssumed)
         warnOnce("fps " + role,
-            role + " " + f.path + ": the cache records no frame rate; dt " + num("%.6g", f.timing.dt) + " assumes 24 fps" +
+            role + " " + f.path + ": the cache records no frame rate; dt " + num("%.6g", f.timing.dt) +
+                " assumes 24 fps" +
                 (f.timing.dtSource.find("Blender") != std::string::npos ? " and Blender's time scale 1" : "") +
                 ". Give " + flagFor("fps", readPrefix) + " or " + flagFor("dt", readPrefix) + " if the shot differs");
 }
 
-void checkOutputs(const std::vector<std::string>& outputs, const std::vector<std::string>& inputs, bool noClobber,
-    bool skipExisting)
+void checkOutputs(
+    const std::vector<std::string>& outputs, const std::vector<std::string>& inputs, bool noClobber, bool skipExisting)
 {
     std::vector<fs::path> in;
     for (const auto& p : inputs) {
@@ -110,7 +114,8 @@ void checkOutputs(const std::vector<std::string>& outputs, const std::vector<std
         std::error_code ec;
         const fs::path path(out);
         if (fs::exists(path, ec)) {
-            if (fs::is_directory(path, ec)) throw turb::IoError(out + ": is a directory; the output must be a file name");
+            if (fs::is_directory(path, ec))
+                throw turb::IoError(out + ": is a directory; the output must be a file name");
             const fs::path c = fs::canonical(path, ec);
             for (const auto& i : in)
                 if (c == i) throw turb::IoError(out + ": is an input of this run; give another --out");
@@ -122,10 +127,12 @@ void checkOutputs(const std::vector<std::string>& outputs, const std::vector<std
         if (dir.string() == checkedDir) continue;
         checkedDir = dir.string();
         fs::path probe = dir;
-        while (!fs::exists(probe, ec) && probe.has_parent_path() && probe != probe.parent_path()) probe = probe.parent_path();
+        while (!fs::exists(probe, ec) && probe.has_parent_path() && probe != probe.parent_path())
+            probe = probe.parent_path();
         if (!fs::exists(probe, ec)) continue;
         if (!fs::is_directory(probe, ec))
-            throw turb::IoError(out + ": cannot create its directory: " + probe.string() + " is a file, not a directory");
+            throw turb::IoError(
+                out + ": cannot create its directory: " + probe.string() + " is a file, not a directory");
         if (::access(probe.c_str(), W_OK | X_OK) != 0)
             throw turb::IoError(out + ": cannot write into " + probe.string() + " (" + std::strerror(errno) + ")");
         // access() says yes to root on file systems that refuse new files (/sys, /proc, read-only mounts): create
@@ -146,8 +153,9 @@ void checkMemory(double estimateBytes, const std::string& what, const std::strin
                              (usable > 0 ? "; this machine has " + turbio::formatBytes(double(usable)) : "");
     if (dryOrVerbose()) printData(line);
     if (usable > 0 && estimateBytes > 0.9 * double(usable))
-        throw turb::IoError("not enough memory for this run: it needs about " + turbio::formatBytes(estimateBytes) + " (" +
-                            what + "), this machine has " + turbio::formatBytes(double(usable)) + ". " + whatFits);
+        throw turb::IoError("not enough memory for this run: it needs about " + turbio::formatBytes(estimateBytes) +
+                            " (" + what + "), this machine has " + turbio::formatBytes(double(usable)) + ". " +
+                            whatFits);
 }
 
 } // namespace vdbturb

@@ -15,8 +15,7 @@
 namespace vdbturb {
 
 /// What a command does with a sequence whose lattice changes between frames.
-enum class LatticePolicy
-{
+enum class LatticePolicy {
     Refuse, ///< temporal commands (transfer, synth): carried state lives on one lattice; refuse before writing
     Report  ///< per-frame commands (measure, resample, preview): each frame is read on its own lattice; say so
 };
@@ -38,19 +37,19 @@ struct TimingSources
 TimingSources timingSources(const turbio::ReadReport& timing, const std::string& readPrefix = "");
 
 /// How a scanned input's time step and velocity units were decided, one line each (for -v and dry runs).
-std::vector<std::string> timingLines(const std::string& role, const turbio::FrameScan& frame,
-    const std::string& readPrefix = "");
+std::vector<std::string> timingLines(
+    const std::string& role, const turbio::FrameScan& frame, const std::string& readPrefix = "");
 
 /// Prints timingLines in a dry run (always) or at -v, and warns once when the time step rests on an assumed
 /// frame rate and the command uses it (`usesDt`); the warning names --PREFIX-fps / --PREFIX-dt.
-void reportTiming(const std::string& role, const turbio::SequenceScan& scan, bool usesDt,
-    const std::string& readPrefix = "");
+void reportTiming(
+    const std::string& role, const turbio::SequenceScan& scan, bool usesDt, const std::string& readPrefix = "");
 
 /// Refuses outputs that cannot be written: a parent path that is a file, a directory that cannot be
 /// written, an output that is a directory, an output that is one of `inputs`, and (with `noClobber`) an
 /// output that exists, unless `skipExisting` (a resume) will skip it.
-void checkOutputs(const std::vector<std::string>& outputs, const std::vector<std::string>& inputs, bool noClobber,
-    bool skipExisting);
+void checkOutputs(
+    const std::vector<std::string>& outputs, const std::vector<std::string>& inputs, bool noClobber, bool skipExisting);
 
 /// Refuses a run whose peak memory estimate exceeds what this process may use, with the estimate, the
 /// reason and `whatFits` (what would run instead). Logged at -v and in dry runs either way.

@@ -14,11 +14,10 @@ namespace vdbturb {
 
 RunReport::RunReport(std::string command, bool json)
     : mCommand(std::move(command)), mJson(json), mStart(std::chrono::steady_clock::now())
-{
-}
+{}
 
-void RunReport::frameDone(int frame, int index, int count, double seconds, const std::string& human,
-    const nlohmann::json& extra)
+void RunReport::frameDone(
+    int frame, int index, int count, double seconds, const std::string& human, const nlohmann::json& extra)
 {
     mSeconds.push_back(seconds);
     char head[96];
@@ -36,7 +35,8 @@ nlohmann::json RunReport::finish(int failed, const nlohmann::json& extra)
 {
     std::vector<double> s = mSeconds;
     std::sort(s.begin(), s.end());
-    const double median = s.empty() ? 0.0 : (s.size() % 2 ? s[s.size() / 2] : 0.5 * (s[s.size() / 2 - 1] + s[s.size() / 2]));
+    const double median =
+        s.empty() ? 0.0 : (s.size() % 2 ? s[s.size() / 2] : 0.5 * (s[s.size() / 2 - 1] + s[s.size() / 2]));
     const int threads = globals().threads > 0 ? globals().threads : tbb::info::default_concurrency();
     nlohmann::json j = extra;
     j["summary"] = true;
@@ -50,9 +50,10 @@ nlohmann::json RunReport::finish(int failed, const nlohmann::json& extra)
     j["threads"] = threads;
     j["machine"] = turbio::machineDescription();
     char line[256];
-    std::snprintf(line, sizeof(line), "%s: %zu frame%s, median %.2f s/frame, total %.1f s (CPU %.1f s), peak RSS %.0f MB, %d threads",
-        mCommand.c_str(), mSeconds.size(), mSeconds.size() == 1 ? "" : "s", median, j["total_s"].get<double>(), j["cpu_s"].get<double>(),
-        j["peak_rss_mb"].get<double>(), threads);
+    std::snprintf(line, sizeof(line),
+        "%s: %zu frame%s, median %.2f s/frame, total %.1f s (CPU %.1f s), peak RSS %.0f MB, %d threads",
+        mCommand.c_str(), mSeconds.size(), mSeconds.size() == 1 ? "" : "s", median, j["total_s"].get<double>(),
+        j["cpu_s"].get<double>(), j["peak_rss_mb"].get<double>(), threads);
     logInfo(line);
     if (mJson) std::cout << j.dump() << std::endl;
     return j;

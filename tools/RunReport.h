@@ -3,7 +3,8 @@
 ///
 /// stderr gets one human line per frame (the farm-log unit); with --json, stdout gets one JSON object
 /// per frame and a final summary line that the bench/ harness parses:
-///   {"summary":true,"frames":N,"median_s_per_frame":..,"total_s":..,"peak_rss_mb":..,"cpu_s":..,"threads":..,"machine":".."}
+///   {"summary":true,"frames":N,"median_s_per_frame":..,"total_s":..,"peak_rss_mb":..,"cpu_s":..,
+///    "threads":..,"machine":".."}
 #pragma once
 
 #include <nlohmann/json.hpp>

@@ -50,7 +50,8 @@ std::vector<double> parseNumbers(const std::string& s, size_t n, const std::stri
             throw turb::ValueError(what + ": '" + s + "' is not " + std::to_string(n) + " comma-separated numbers");
         }
     }
-    if (v.size() != n) throw turb::ValueError(what + ": '" + s + "' is not " + std::to_string(n) + " comma-separated numbers");
+    if (v.size() != n)
+        throw turb::ValueError(what + ": '" + s + "' is not " + std::to_string(n) + " comma-separated numbers");
     return v;
 }
 
@@ -80,15 +81,19 @@ void addCameraOptions(CLI::App* app, CameraArgs& c)
     app->add_option("--width", c.width, "Cache camera image width (0: 4 pixels per voxel; perspective 512)")
         ->check(CLI::Range(16, 16384))
         ->group(kGroupInput);
-    setting(app->add_option("--camera-pos", c.position, "Perspective camera position X,Y,Z (world units)"), "camera-pos");
+    setting(
+        app->add_option("--camera-pos", c.position, "Perspective camera position X,Y,Z (world units)"), "camera-pos");
     setting(app->add_option("--look-at", c.lookAt, "Perspective camera target X,Y,Z (world units)"), "look-at");
     setting(app->add_option("--camera-up", c.up, "Perspective camera up direction"), "camera-up");
-    setting(app->add_option("--fov", c.fov, "Perspective horizontal field of view in degrees")->check(CLI::Range(1.0, 170.0)),
+    setting(app->add_option("--fov", c.fov, "Perspective horizontal field of view in degrees")
+                ->check(CLI::Range(1.0, 170.0)),
         "fov");
-    setting(app->add_option("--height", c.height, "Perspective image height (0: the width)")->check(CLI::Range(0, 16384)),
+    setting(
+        app->add_option("--height", c.height, "Perspective image height (0: the width)")->check(CLI::Range(0, 16384)),
         "height");
-    setting(app->add_option("--extinction", c.extinction, "Cache opacity: optical depth per unit density per world unit")
-                ->check(CLI::PositiveNumber),
+    setting(
+        app->add_option("--extinction", c.extinction, "Cache opacity: optical depth per unit density per world unit")
+            ->check(CLI::PositiveNumber),
         "extinction");
     setting(app->add_option("--step", c.step, "Cache ray-march step in voxels")->check(CLI::Range(0.05, 1.0)), "step");
 }
@@ -106,7 +111,9 @@ turb::BridgeSettings bridgeSettings(const CameraArgs& a)
         c.up = parseVec(a.up, "--camera-up");
         c.fovDegrees = a.fov;
     } else {
-        c.view = a.kind == CameraKind::Side ? turb::View::Side : a.kind == CameraKind::Top ? turb::View::Top : turb::View::Front;
+        c.view = a.kind == CameraKind::Side  ? turb::View::Side
+                 : a.kind == CameraKind::Top ? turb::View::Top
+                                             : turb::View::Front;
     }
     c.width = a.width;
     c.height = a.height;
@@ -119,7 +126,8 @@ turb::BridgeSettings bridgeSettings(const CameraArgs& a)
 turb::Image motionPicture(const turb::ChannelImage& m)
 {
     const int W = m.width(), H = m.height();
-    turb::VectorField v(turb::CoordBBox(turb::Coord(0, 0, 0), turb::Coord(W - 1, H - 1, 0)), turb::Lattice{1.0, {0, 0, 0}});
+    turb::VectorField v(
+        turb::CoordBBox(turb::Coord(0, 0, 0), turb::Coord(W - 1, H - 1, 0)), turb::Lattice{1.0, {0, 0, 0}});
     for (int y = 0; y < H; ++y)
         for (int x = 0; x < W; ++x) v(x, H - 1 - y, 0) = turb::Vec3f(m.at(x, y, 0), -m.at(x, y, 1), 0.0f);
     turb::LicSettings ls;
@@ -131,7 +139,8 @@ turb::Image motionPicture(const turb::ChannelImage& m)
 TargetSource::TargetSource(const StylizeArgs& a, bool flowOptional) : mArgs(a)
 {
     const int kinds = int(!a.flow.empty() || !a.alpha.empty()) + int(!a.cache.empty()) + int(!a.scene.empty());
-    if (kinds != 1) throw turb::ValueError("give one target: --flow and --alpha (2D), --cache (3D through --camera) or --scene");
+    if (kinds != 1)
+        throw turb::ValueError("give one target: --flow and --alpha (2D), --cache (3D through --camera) or --scene");
     if (!a.cache.empty()) {
         mCache = turbio::resolveSequence(a.cache, a.frames);
         requireAll(*mCache);
@@ -146,10 +155,10 @@ TargetSource::TargetSource(const StylizeArgs& a, bool flowOptional) : mArgs(a)
         const std::vector<int> list = a.frames.empty() ? std::vector<int>{1} : turbio::parseFrameList(a.frames);
         if (list.size() == 1 && a.frames.find('-') == std::string::npos)
             for (int f = 1; f <= list[0]; ++f) mFrames.push_back(f);
-        else
-            mFrames = list;
+        else mFrames = list;
     } else {
-        if (a.alpha.empty() || (a.flow.empty() && !flowOptional)) throw turb::ValueError("a 2D target needs both --flow and --alpha");
+        if (a.alpha.empty() || (a.flow.empty() && !flowOptional))
+            throw turb::ValueError("a 2D target needs both --flow and --alpha");
         mAlpha = turbio::resolveSequence(a.alpha, a.frames.empty() ? "" : a.frames);
         requireAll(*mAlpha);
         if (a.flow.empty()) {
@@ -158,13 +167,16 @@ TargetSource::TargetSource(const StylizeArgs& a, bool flowOptional) : mArgs(a)
             mFlow = turbio::resolveSequence(a.flow, a.frames);
             requireAll(*mFlow);
             for (int f : mFlow->frames)
-                if (std::find(mAlpha->frames.begin(), mAlpha->frames.end(), f) != mAlpha->frames.end()) mFrames.push_back(f);
+                if (std::find(mAlpha->frames.begin(), mAlpha->frames.end(), f) != mAlpha->frames.end())
+                    mFrames.push_back(f);
             for (int f : mFlow->frames)
                 if (std::find(mFrames.begin(), mFrames.end(), f) == mFrames.end())
-                    throw turb::IoError(mAlpha->path(f) + ": missing (the alpha mask of flow frame " + std::to_string(f) + ")");
+                    throw turb::IoError(
+                        mAlpha->path(f) + ": missing (the alpha mask of flow frame " + std::to_string(f) + ")");
             for (int f : mAlpha->frames)
                 if (std::find(mFrames.begin(), mFrames.end(), f) == mFrames.end())
-                    throw turb::IoError(mFlow->path(f) + ": missing (the motion field of alpha frame " + std::to_string(f) + ")");
+                    throw turb::IoError(
+                        mFlow->path(f) + ": missing (the motion field of alpha frame " + std::to_string(f) + ")");
         }
     }
     if (mFrames.empty()) throw turb::IoError("no target frames");
@@ -190,12 +202,14 @@ void TargetSource::validate2D(bool allowEmpty) const
             H = t.alpha.height();
             first = t.alphaName;
         } else if (t.alpha.width() != W || t.alpha.height() != H) {
-            throw turb::IoError(t.alphaName + ": " + std::to_string(t.alpha.width()) + "x" + std::to_string(t.alpha.height()) +
-                                ", but " + first + " is " + std::to_string(W) + "x" + std::to_string(H));
+            throw turb::IoError(t.alphaName + ": " + std::to_string(t.alpha.width()) + "x" +
+                                std::to_string(t.alpha.height()) + ", but " + first + " is " + std::to_string(W) + "x" +
+                                std::to_string(H));
         }
         float amax = 0.0f;
         for (float v : t.alpha.data()) amax = std::max(amax, v);
-        if (!(amax > 0.0f) && !allowEmpty) throw turb::IoError(t.alphaName + ": the alpha mask is empty (zero everywhere)");
+        if (!(amax > 0.0f) && !allowEmpty)
+            throw turb::IoError(t.alphaName + ": the alpha mask is empty (zero everywhere)");
     }
 }
 
@@ -233,22 +247,26 @@ TargetFrame TargetSource::read(int frame) const
     t.motionName = mFlow->path(frame);
     t.motion = readMotion(t.motionName, frame);
     if (!t.motion.sameSize(t.alpha))
-        throw turb::IoError(t.motionName + ": motion " + std::to_string(t.motion.width()) + "x" + std::to_string(t.motion.height()) +
-                            " and alpha " + t.alphaName + " " + std::to_string(t.alpha.width()) + "x" + std::to_string(t.alpha.height()) +
+        throw turb::IoError(t.motionName + ": motion " + std::to_string(t.motion.width()) + "x" +
+                            std::to_string(t.motion.height()) + " and alpha " + t.alphaName + " " +
+                            std::to_string(t.alpha.width()) + "x" + std::to_string(t.alpha.height()) +
                             " differ in size");
     return t;
 }
 
 void TargetSource::requireAll(const turbio::Sequence& s)
 {
-    if (!s.missing.empty()) throw turb::IoError(s.path(s.missing.front()) + ": missing (frames " + turbio::formatFrameList(s.missing) + ")");
+    if (!s.missing.empty())
+        throw turb::IoError(
+            s.path(s.missing.front()) + ": missing (frames " + turbio::formatFrameList(s.missing) + ")");
     if (s.frames.empty()) throw turb::IoError(s.pattern.str() + ": no frames on disk");
 }
 
 std::pair<int, int> TargetSource::parseSize(const std::string& s)
 {
     const size_t x = s.find('x');
-    const auto v = parseNumbers(x == std::string::npos ? s + "," + s : s.substr(0, x) + "," + s.substr(x + 1), 2, "--scene-size");
+    const auto v =
+        parseNumbers(x == std::string::npos ? s + "," + s : s.substr(0, x) + "," + s.substr(x + 1), 2, "--scene-size");
     return {int(v[0]), int(v[1])};
 }
 
@@ -263,7 +281,9 @@ turb::ChannelImage TargetSource::readMotion(const std::string& path, int frame) 
         ro.cropToSmoke = false; // a 2D motion VDB is an image: every pixel, one size for every frame
         const turb::Frame f = turbio::readFrame(path, frame, ro);
         const turb::CoordBBox b = f.velocity.bbox();
-        if (b.dim().z() != 1) throw turb::IoError(path + ": a 2D motion VDB has one z layer, this one has " + std::to_string(b.dim().z()));
+        if (b.dim().z() != 1)
+            throw turb::IoError(
+                path + ": a 2D motion VDB has one z layer, this one has " + std::to_string(b.dim().z()));
         // Voxel (i, j) is pixel (i - min, max - j): VDB y points up, image y down.
         const double scale = f.dt / f.lattice().voxelSize;
         m = turb::ChannelImage(b.dim().x(), b.dim().y(), 2);

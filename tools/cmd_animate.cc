@@ -69,7 +69,9 @@ std::vector<double> numbers(const std::string& s, char sep, size_t n, const std:
             break;
         }
     }
-    if (v.size() != n) throw turb::ValueError(what + ": '" + s + "' is not " + std::to_string(n) + " numbers separated by '" + sep + "'");
+    if (v.size() != n)
+        throw turb::ValueError(
+            what + ": '" + s + "' is not " + std::to_string(n) + " numbers separated by '" + sep + "'");
     return v;
 }
 
@@ -145,7 +147,8 @@ void readCacheExample(const AnimateArgs& a, const turbio::Sequence& seq, Example
             num = turb::ChannelImage(view.alpha.width(), view.alpha.height(), 2);
             den = turb::ChannelImage(view.alpha.width(), view.alpha.height(), 1);
         } else if (!view.alpha.sameSize(den)) {
-            throw turb::IoError(path + ": the camera image changed size (the cache's box changed); give --width and --height");
+            throw turb::IoError(
+                path + ": the camera image changed size (the cache's box changed); give --width and --height");
         }
         for (size_t i = 0; i < den.pixelCount(); ++i) {
             const float w = view.alpha.pixel(i)[0];
@@ -167,7 +170,9 @@ Example readExample(const AnimateArgs& a, int tau)
 {
     Example ex;
     const int sources = int(!a.example.empty()) + int(!a.exampleCache.empty());
-    if (sources != 1) throw turb::ValueError("give one video example: --example PATTERN (images) or --example-cache PATTERN (VDB through --camera)");
+    if (sources != 1)
+        throw turb::ValueError(
+            "give one video example: --example PATTERN (images) or --example-cache PATTERN (VDB through --camera)");
     int bw = 320, bh = 240, bn = 60;
     if (!a.example.empty() && builtin(a.example, bw, bh, bn)) {
         ex.frames = turb::scenes::riverExample({bw, bh, bn, 1, 1.0});
@@ -176,20 +181,24 @@ Example readExample(const AnimateArgs& a, int tau)
         return ex;
     }
     const turbio::Sequence seq = turbio::resolveSequence(a.example.empty() ? a.exampleCache : a.example, a.frames);
-    if (!seq.missing.empty()) throw turb::IoError(seq.path(seq.missing.front()) + ": missing (frames " + turbio::formatFrameList(seq.missing) + ")");
+    if (!seq.missing.empty())
+        throw turb::IoError(
+            seq.path(seq.missing.front()) + ": missing (frames " + turbio::formatFrameList(seq.missing) + ")");
     ex.label = seq.pattern.str();
     ex.numbers = seq.frames;
     if (int(seq.frames.size()) < tau + 2)
-        throw turb::IoError(seq.pattern.str() + ": the video example has " + std::to_string(seq.frames.size()) + " frame" +
-                            (seq.frames.size() == 1 ? "" : "s") + "; tau = " + std::to_string(tau) + " needs at least tau + 2 = " + std::to_string(tau + 2));
+        throw turb::IoError(seq.pattern.str() + ": the video example has " + std::to_string(seq.frames.size()) +
+                            " frame" + (seq.frames.size() == 1 ? "" : "s") + "; tau = " + std::to_string(tau) +
+                            " needs at least tau + 2 = " + std::to_string(tau + 2));
     if (!a.example.empty()) {
         // Headers first: a frame of another size stops the run before any pixel is read.
         const turbio::ImageFileInfo first = turbio::inspectImage(seq.path(seq.frames.front()));
         for (int f : seq.frames) {
             const turbio::ImageFileInfo info = turbio::inspectImage(seq.path(f));
             if (info.width != first.width || info.height != first.height)
-                throw turb::IoError(seq.path(f) + ": " + std::to_string(info.width) + "x" + std::to_string(info.height) + ", but " +
-                                    seq.path(seq.frames.front()) + " is " + std::to_string(first.width) + "x" + std::to_string(first.height) +
+                throw turb::IoError(seq.path(f) + ": " + std::to_string(info.width) + "x" +
+                                    std::to_string(info.height) + ", but " + seq.path(seq.frames.front()) + " is " +
+                                    std::to_string(first.width) + "x" + std::to_string(first.height) +
                                     ": every example frame must have one size");
         }
         for (int f : seq.frames) ex.frames.push_back(rgbOfImage(turbio::readImage(seq.path(f))));
@@ -205,7 +214,7 @@ Example readExample(const AnimateArgs& a, int tau)
 struct Target
 {
     turb::ChannelImage rgb;
-    std::vector<float> alpha;          // output alpha per pixel (the still's own, 1 without one)
+    std::vector<float> alpha; // output alpha per pixel (the still's own, 1 without one)
     std::optional<turb::ChannelImage> matte;
     std::string colorSpace, label;
     std::optional<turbio::StrokeFile> strokes;
@@ -235,28 +244,33 @@ Target readTarget(const AnimateArgs& a)
     if (!a.targetAlpha.empty()) {
         const turb::RgbaImage m = turbio::readImage(a.targetAlpha);
         if (m.width() != W || m.height() != H)
-            throw turb::IoError(a.targetAlpha + ": the matte is " + std::to_string(m.width()) + "x" + std::to_string(m.height()) + ", the target " +
-                                a.target + " is " + std::to_string(W) + "x" + std::to_string(H));
+            throw turb::IoError(a.targetAlpha + ": the matte is " + std::to_string(m.width()) + "x" +
+                                std::to_string(m.height()) + ", the target " + a.target + " is " + std::to_string(W) +
+                                "x" + std::to_string(H));
         t.matte = turb::channelOf(m, 0);
         float mx = 0.0f;
         for (float v : t.matte->data()) mx = std::max(mx, v);
-        if (!(mx > 0.0f)) throw turb::IoError(a.targetAlpha + ": the matte is empty (zero everywhere): nothing would move");
+        if (!(mx > 0.0f))
+            throw turb::IoError(a.targetAlpha + ": the matte is empty (zero everywhere): nothing would move");
     }
     if (a.strokes.empty() && a.flow.empty())
-        throw turb::IoError(a.target + ": no flow design for the target: give --flow-strokes FILE.json or --flow IMAGE");
+        throw turb::IoError(
+            a.target + ": no flow design for the target: give --flow-strokes FILE.json or --flow IMAGE");
     if (!a.strokes.empty() && !a.flow.empty()) throw turb::ValueError("give --flow-strokes or --flow, not both");
     if (!a.strokes.empty()) {
         t.strokes = turbio::readFlowStrokes(a.strokes, W, H);
     } else {
         const turb::RgbaImage f = turbio::readImage(a.flow);
         if (f.width() != W || f.height() != H)
-            throw turb::IoError(a.flow + ": the flow is " + std::to_string(f.width()) + "x" + std::to_string(f.height()) + ", the target " + a.target +
-                                " is " + std::to_string(W) + "x" + std::to_string(H));
+            throw turb::IoError(a.flow + ": the flow is " + std::to_string(f.width()) + "x" +
+                                std::to_string(f.height()) + ", the target " + a.target + " is " + std::to_string(W) +
+                                "x" + std::to_string(H));
         turb::ChannelImage v(W, H, 2);
         for (size_t i = 0; i < f.size(); ++i) {
             v.pixel(i)[0] = f.pixels()[i][0];
             v.pixel(i)[1] = a.flowYUp ? -f.pixels()[i][1] : f.pixels()[i][1];
-            if (!std::isfinite(v.pixel(i)[0]) || !std::isfinite(v.pixel(i)[1])) throw turb::IoError(a.flow + ": the flow holds NaN or Inf");
+            if (!std::isfinite(v.pixel(i)[0]) || !std::isfinite(v.pixel(i)[1]))
+                throw turb::IoError(a.flow + ": the flow holds NaN or Inf");
         }
         t.flow = std::move(v);
     }
@@ -273,7 +287,8 @@ turb::Image picture(const turb::ChannelImage& img)
         for (int x = 0; x < img.width(); ++x) {
             const float* v = img.pixel(x, y);
             const int C = img.channels();
-            p.at(x, y) = turb::Rgb(std::clamp(v[0], 0.0f, 1.0f), std::clamp(v[std::min(1, C - 1)], 0.0f, 1.0f), std::clamp(v[std::min(2, C - 1)], 0.0f, 1.0f));
+            p.at(x, y) = turb::Rgb(std::clamp(v[0], 0.0f, 1.0f), std::clamp(v[std::min(1, C - 1)], 0.0f, 1.0f),
+                std::clamp(v[std::min(2, C - 1)], 0.0f, 1.0f));
         }
     return p;
 }
@@ -284,7 +299,8 @@ turb::Image signedPicture(const turb::ChannelImage& img, float range)
     const turb::ChannelImage y = turb::luminance(img);
     turb::Image p(img.width(), img.height());
     for (int yy = 0; yy < img.height(); ++yy)
-        for (int x = 0; x < img.width(); ++x) p.at(x, yy) = turb::Rgb(std::clamp(0.5f + 0.5f * y.at(x, yy, 0) / range, 0.0f, 1.0f));
+        for (int x = 0; x < img.width(); ++x)
+            p.at(x, yy) = turb::Rgb(std::clamp(0.5f + 0.5f * y.at(x, yy, 0) / range, 0.0f, 1.0f));
     return p;
 }
 
@@ -292,7 +308,8 @@ turb::Image signedPicture(const turb::ChannelImage& img, float range)
 turb::Image flowPicture(const turb::ChannelImage& m)
 {
     const int W = m.width(), H = m.height();
-    turb::VectorField v(turb::CoordBBox(turb::Coord(0, 0, 0), turb::Coord(W - 1, H - 1, 0)), turb::Lattice{1.0, {0, 0, 0}});
+    turb::VectorField v(
+        turb::CoordBBox(turb::Coord(0, 0, 0), turb::Coord(W - 1, H - 1, 0)), turb::Lattice{1.0, {0, 0, 0}});
     float vmax = 1e-6f;
     for (int y = 0; y < H; ++y)
         for (int x = 0; x < W; ++x) {
@@ -305,9 +322,11 @@ turb::Image flowPicture(const turb::ChannelImage& m)
     turb::Image lic = turb::renderLic(v, ls);
     for (int y = 0; y < lic.height() && y < H; ++y)
         for (int x = 0; x < lic.width() && x < W; ++x) {
-            const turb::Rgb c = turb::colormap(turb::Colormap::Viridis, std::hypot(m.at(x, y, 0), m.at(x, y, 1)) / vmax);
+            const turb::Rgb c =
+                turb::colormap(turb::Colormap::Viridis, std::hypot(m.at(x, y, 0), m.at(x, y, 1)) / vmax);
             const float l = lic.at(x, y)[0];
-            lic.at(x, y) = turb::Rgb(c[0] * (0.35f + 0.65f * l), c[1] * (0.35f + 0.65f * l), c[2] * (0.35f + 0.65f * l));
+            lic.at(x, y) =
+                turb::Rgb(c[0] * (0.35f + 0.65f * l), c[1] * (0.35f + 0.65f * l), c[2] * (0.35f + 0.65f * l));
         }
     return lic;
 }
@@ -388,13 +407,15 @@ turb::Image contactSheet(const SheetParts& p, const turb::Image& target, const s
 nlohmann::json statsJson(const turb::AnimateStats& st)
 {
     nlohmann::json j;
-    j["example"] = {{"pairs", st.analysis.pairs}, {"pairs_tracked", st.analysis.pairsUsed}, {"tracks_per_pair", st.analysis.tracksPerPair},
-        {"mean_speed", st.analysis.meanSpeed}, {"rms_difference", st.analysis.rmsDifference}, {"rms_residual", st.analysis.rmsResidual},
+    j["example"] = {{"pairs", st.analysis.pairs}, {"pairs_tracked", st.analysis.pairsUsed},
+        {"tracks_per_pair", st.analysis.tracksPerPair}, {"mean_speed", st.analysis.meanSpeed},
+        {"rms_difference", st.analysis.rmsDifference}, {"rms_residual", st.analysis.rmsResidual},
         {"flow_given", st.analysis.flowGiven}};
     j["design_mean_speed"] = st.designMeanSpeed;
-    j["transfer"] = {{"patches", st.transfer.patches}, {"pasted", st.transfer.pasted}, {"mean_cost", st.transfer.meanCost},
-        {"max_cost", st.transfer.maxCost}, {"covered", st.transfer.covered}};
-    j["eq8"] = {{"alpha", st.alpha}, {"beta", st.beta}, {"mean_d", st.meanD}, {"sigma_d", st.sigmaD}, {"sigma_c", st.sigmaC}};
+    j["transfer"] = {{"patches", st.transfer.patches}, {"pasted", st.transfer.pasted},
+        {"mean_cost", st.transfer.meanCost}, {"max_cost", st.transfer.maxCost}, {"covered", st.transfer.covered}};
+    j["eq8"] = {
+        {"alpha", st.alpha}, {"beta", st.beta}, {"mean_d", st.meanD}, {"sigma_d", st.sigmaD}, {"sigma_c", st.sigmaC}};
     j["hm_grid"] = {st.gridCols, st.gridRows};
     j["stages_s"] = {{"analysis", st.secondsAnalysis}, {"design", st.secondsDesign}, {"transfer", st.secondsTransfer},
         {"average", st.secondsAverage}, {"synthesis", st.secondsSynthesis}, {"matching", st.secondsMatching}};
@@ -421,9 +442,11 @@ void configure(AnimateArgs& a)
 int exportBuiltin(const AnimateArgs& a)
 {
     int w = 320, h = 240, n = 60;
-    if (!builtin(a.example.empty() ? "builtin:river" : a.example, w, h, n)) throw turb::ValueError("--export-builtin needs --example builtin:river[:WxHxN] (or none)");
+    if (!builtin(a.example.empty() ? "builtin:river" : a.example, w, h, n))
+        throw turb::ValueError("--export-builtin needs --example builtin:river[:WxHxN] (or none)");
     int tw = w, th = h, tn = 0;
-    if (!a.target.empty() && !builtin(a.target, tw, th, tn)) throw turb::ValueError("--export-builtin: --target must be builtin:river[:WxH] (or none)");
+    if (!a.target.empty() && !builtin(a.target, tw, th, tn))
+        throw turb::ValueError("--export-builtin: --target must be builtin:river[:WxH] (or none)");
     const std::string dir = a.exportBuiltin;
     const auto frames = turb::scenes::riverExample({w, h, n, 1, 1.0});
     turbio::ImageWriteOptions o;
@@ -432,7 +455,8 @@ int exportBuiltin(const AnimateArgs& a)
     const auto rgba = [](const turb::ChannelImage& c) {
         turb::RgbaImage r(c.width(), c.height());
         for (size_t i = 0; i < r.size(); ++i)
-            r.pixels()[i] = turb::Rgba(c.pixel(i)[0], c.pixel(i)[c.channels() > 1 ? 1 : 0], c.pixel(i)[c.channels() > 2 ? 2 : 0], 1.0f);
+            r.pixels()[i] = turb::Rgba(
+                c.pixel(i)[0], c.pixel(i)[c.channels() > 1 ? 1 : 0], c.pixel(i)[c.channels() > 2 ? 2 : 0], 1.0f);
         r.colorSpace = "sRGB";
         return r;
     };
@@ -441,7 +465,8 @@ int exportBuiltin(const AnimateArgs& a)
     for (int i = 0; i < n; ++i) turbio::writeImage(pat.format(i + 1), rgba(frames[size_t(i)]), o);
     turbio::writeImage(dir + "/still.png", rgba(turb::scenes::riverStill(tw, th, 2)), o);
     turbio::writeImage(dir + "/matte.png", rgba(turb::scenes::riverMatte(tw, th)), o);
-    logInfo("animate: wrote " + std::to_string(n) + " example frames " + pat.str() + ", " + dir + "/still.png and " + dir + "/matte.png");
+    logInfo("animate: wrote " + std::to_string(n) + " example frames " + pat.str() + ", " + dir + "/still.png and " +
+            dir + "/matte.png");
     return kOk;
 }
 
@@ -465,7 +490,8 @@ Measures startMeasures(const AnimateArgs& a, const Example& example, const Targe
     // Calibration of the measurement: the same tracking on the example against the cache's own flow.
     if (example.flow)
         turb::withThreads(globals().threads, [&] {
-            m.exampleAgreement = turb::compareFlows(turb::estimateMeanFlow(example.frames, s.analysis), *example.flow, nullptr, 0.25);
+            m.exampleAgreement =
+                turb::compareFlows(turb::estimateMeanFlow(example.frames, s.analysis), *example.flow, nullptr, 0.25);
         });
     return m;
 }
@@ -478,18 +504,21 @@ void finishMeasures(const AnimateArgs& a, const Measures& m, const turb::Channel
     const turb::ChannelImage measured = turb::estimateMeanFlow(m.outLuma, as);
     const turb::FlowAgreement fa = turb::compareFlows(measured, designed, target.matte ? &*target.matte : nullptr);
     const turb::TemporalSummary te = m.exTemporal->summary(), to = m.outTemporal->summary();
-    summary["quality"] = {{"flow_median_angle_deg", fa.medianAngleDeg}, {"flow_median_speed_ratio", fa.medianSpeedRatio},
-        {"flow_pixels", fa.pixels}, {"temporal_std", to.temporalStd}, {"temporal_std_example", te.temporalStd},
-        {"autocorrelation", to.autocorrelation}, {"autocorrelation_example", te.autocorrelation}};
+    summary["quality"] = {{"flow_median_angle_deg", fa.medianAngleDeg},
+        {"flow_median_speed_ratio", fa.medianSpeedRatio}, {"flow_pixels", fa.pixels}, {"temporal_std", to.temporalStd},
+        {"temporal_std_example", te.temporalStd}, {"autocorrelation", to.autocorrelation},
+        {"autocorrelation_example", te.autocorrelation}};
     if (m.exampleAgreement) {
         summary["quality"]["example_flow_median_angle_deg"] = m.exampleAgreement->medianAngleDeg;
         summary["quality"]["example_flow_median_speed_ratio"] = m.exampleAgreement->medianSpeedRatio;
         logInfo("animate: the same tracking on the example against the cache's flow: median angle " +
-                fmt("%.1f deg", m.exampleAgreement->medianAngleDeg) + ", speed ratio " + fmt("%.2f", m.exampleAgreement->medianSpeedRatio));
+                fmt("%.1f deg", m.exampleAgreement->medianAngleDeg) + ", speed ratio " +
+                fmt("%.2f", m.exampleAgreement->medianSpeedRatio));
     }
     logInfo("animate: motion vs design: median angle " + fmt("%.1f deg", fa.medianAngleDeg) + ", speed ratio " +
-            fmt("%.2f", fa.medianSpeedRatio) + "; temporal std " + fmt("%.4f", to.temporalStd) + " (example " + fmt("%.4f", te.temporalStd) +
-            "); autocorrelation lag 1 " + fmt("%.2f", to.autocorrelation[0]) + " (example " + fmt("%.2f", te.autocorrelation[0]) + ")");
+            fmt("%.2f", fa.medianSpeedRatio) + "; temporal std " + fmt("%.4f", to.temporalStd) + " (example " +
+            fmt("%.4f", te.temporalStd) + "); autocorrelation lag 1 " + fmt("%.2f", to.autocorrelation[0]) +
+            " (example " + fmt("%.2f", te.autocorrelation[0]) + ")");
     if (!a.dump.empty()) turbio::writeImage(a.dump + "/measured_flow.png", flowPicture(measured));
 }
 
@@ -512,9 +541,12 @@ struct Inspector
             else if (name == "Aprime") sheet.Aprime = img;
         }
         if (a.dump.empty() || name == "Dsecond" || name == "gradient") return;
-        const std::string file = index < 0 ? a.dump + "/" + name + ".exr" : turbio::FramePattern::parse(a.dump + "/" + name + ".####.exr").format(index);
+        const std::string file = index < 0
+                                     ? a.dump + "/" + name + ".exr"
+                                     : turbio::FramePattern::parse(a.dump + "/" + name + ".####.exr").format(index);
         writeData(file, img, a.noClobber);
-        if (name == "v" || name == "rough" || name == "refined") turbio::writeImage(a.dump + "/" + name + ".png", flowPicture(img));
+        if (name == "v" || name == "rough" || name == "refined")
+            turbio::writeImage(a.dump + "/" + name + ".png", flowPicture(img));
     }
 };
 
@@ -553,33 +585,37 @@ struct FrameWriter
         const std::vector<int> sheetFrames{0, count / 3, 2 * count / 3, count - 1};
         if (!a.sheet.empty() && std::find(sheetFrames.begin(), sheetFrames.end(), f.index) != sheetFrames.end())
             sheet.outputs.emplace_back(number, picture(f.image));
-        nlohmann::json extra{{"out", path}, {"example_index", f.exampleIndex}, {"mean_error", f.meanError}, {"std_error", f.stdError},
-            {"cell_mean_error", f.cellMeanError}, {"cell_std_error", f.cellStdError}};
+        nlohmann::json extra{{"out", path}, {"example_index", f.exampleIndex}, {"mean_error", f.meanError},
+            {"std_error", f.stdError}, {"cell_mean_error", f.cellMeanError}, {"cell_std_error", f.cellStdError}};
         report.frameDone(number, f.index, count, f.seconds + secondsSince(tw),
-            "mean/std vs target " + fmt("%.2f%%", 100 * f.meanError) + "/" + fmt("%.2f%%", 100 * f.stdError) + ", worst cell " +
-                fmt("%.2f%%", 100 * f.cellMeanError) + "/" + fmt("%.2f%%", 100 * f.cellStdError) + " -> " + path,
+            "mean/std vs target " + fmt("%.2f%%", 100 * f.meanError) + "/" + fmt("%.2f%%", 100 * f.stdError) +
+                ", worst cell " + fmt("%.2f%%", 100 * f.cellMeanError) + "/" + fmt("%.2f%%", 100 * f.cellStdError) +
+                " -> " + path,
             extra);
     }
 };
 
 void logStages(const turb::AnimateStats& st)
 {
-    logInfo("animate: example flow " + fmt("%.2f px/frame", st.analysis.meanSpeed) + (st.analysis.flowGiven ? " (from the cache)" : "") +
-            ", residual rms " + fmt("%.4f", st.analysis.rmsResidual) + " vs difference rms " + fmt("%.4f", st.analysis.rmsDifference) +
-            "; design " + fmt("%.2f px/frame", st.designMeanSpeed) + "; transfer cost " + fmt("%.3f", st.transfer.meanCost) + "; stages " +
-            fmt("%.1f", st.secondsAnalysis) + "/" + fmt("%.1f", st.secondsDesign) + "/" + fmt("%.1f", st.secondsTransfer) + "/" +
-            fmt("%.1f", st.secondsAverage) + "/" + fmt("%.1f", st.secondsSynthesis) + "/" + fmt("%.1f", st.secondsMatching) +
-            " s (analysis/design/transfer/A'/synthesis/matching)");
+    logInfo("animate: example flow " + fmt("%.2f px/frame", st.analysis.meanSpeed) +
+            (st.analysis.flowGiven ? " (from the cache)" : "") + ", residual rms " +
+            fmt("%.4f", st.analysis.rmsResidual) + " vs difference rms " + fmt("%.4f", st.analysis.rmsDifference) +
+            "; design " + fmt("%.2f px/frame", st.designMeanSpeed) + "; transfer cost " +
+            fmt("%.3f", st.transfer.meanCost) + "; stages " + fmt("%.1f", st.secondsAnalysis) + "/" +
+            fmt("%.1f", st.secondsDesign) + "/" + fmt("%.1f", st.secondsTransfer) + "/" +
+            fmt("%.1f", st.secondsAverage) + "/" + fmt("%.1f", st.secondsSynthesis) + "/" +
+            fmt("%.1f", st.secondsMatching) + " s (analysis/design/transfer/A'/synthesis/matching)");
 }
 
 void logPlan(const AnimateArgs& a, const Example& example, const Target& target)
 {
     const int N = int(example.frames.size()), tau = a.settings.tau;
-    logInfo("animate: example " + example.label + " (" + std::to_string(N) + " frames, " + std::to_string(example.frames[0].width()) + "x" +
-            std::to_string(example.frames[0].height()) + "), target " + target.label + " (" + std::to_string(target.rgb.width()) + "x" +
+    logInfo("animate: example " + example.label + " (" + std::to_string(N) + " frames, " +
+            std::to_string(example.frames[0].width()) + "x" + std::to_string(example.frames[0].height()) +
+            "), target " + target.label + " (" + std::to_string(target.rgb.width()) + "x" +
             std::to_string(target.rgb.height()) + (target.matte ? ", matte" : "") + "), " +
-            (target.strokes ? std::to_string(target.strokes->strokes.size()) + " strokes" : "dense flow " + a.flow) + ", tau " + std::to_string(tau) +
-            " -> " + std::to_string(N - tau) + " frames");
+            (target.strokes ? std::to_string(target.strokes->strokes.size()) + " strokes" : "dense flow " + a.flow) +
+            ", tau " + std::to_string(tau) + " -> " + std::to_string(N - tau) + " frames");
 }
 
 // The animation: the library's stages, each frame written as it comes, then the summary (and --measure, --sheet).
@@ -590,7 +626,8 @@ void animateFrames(const AnimateArgs& a, Example& example, const Target& target,
     Measures measures = startMeasures(a, example, target);
     SheetParts sheet;
     if (!a.sheet.empty())
-        for (int i : {0, N / 2, N - 1}) sheet.example.emplace_back(example.numbers[size_t(i)], picture(example.frames[size_t(i)]));
+        for (int i : {0, N / 2, N - 1})
+            sheet.example.emplace_back(example.numbers[size_t(i)], picture(example.frames[size_t(i)]));
 
     turb::AnimateInput in;
     in.exampleFrames = std::move(example.frames);
@@ -605,14 +642,16 @@ void animateFrames(const AnimateArgs& a, Example& example, const Target& target,
         RunReport report("animate", a.json);
         const int count = N - s.tau;
         ConsoleProgress stages(0, count, a.start);
-        const turb::AnimateStats st = turb::animate(std::move(in), s,
-            FrameWriter{a, target, outPattern, count, measures, sheet, report, stages}, &stages, Inspector{a, sheet, designed});
+        const turb::AnimateStats st =
+            turb::animate(std::move(in), s, FrameWriter{a, target, outPattern, count, measures, sheet, report, stages},
+                &stages, Inspector{a, sheet, designed});
         nlohmann::json summary = statsJson(st);
         logStages(st);
         if (a.measure) finishMeasures(a, measures, designed, target, summary);
         if (!a.sheet.empty()) {
             turbio::ensureParentDirectory(a.sheet);
-            turbio::writeImage(a.sheet, contactSheet(sheet, picture(target.rgb), "animate: " + example.label + " -> " + target.label));
+            turbio::writeImage(
+                a.sheet, contactSheet(sheet, picture(target.rgb), "animate: " + example.label + " -> " + target.label));
             summary["sheet"] = a.sheet;
         }
         report.finish(0, summary);
@@ -625,7 +664,8 @@ int runAnimate(AnimateArgs& a)
     configure(a);
     if (const int rc = stylize::checkOutputPatterns(a.out); rc != kOk) return rc;
     const turbio::FramePattern outPattern = turbio::FramePattern::parse(a.out);
-    if (!outPattern.numbered()) throw turb::ValueError("--out " + a.out + " has no frame token (####): animate writes a sequence");
+    if (!outPattern.numbered())
+        throw turb::ValueError("--out " + a.out + " has no frame token (####): animate writes a sequence");
     // Everything is read and checked before the first file is written.
     const Target target = readTarget(a);
     Example example = readExample(a, a.settings.tau);
@@ -647,14 +687,19 @@ void addInputOptions(CLI::App* app, AnimateArgs& a)
     app->add_option("--frames", a.frames, "Example frames to use, e.g. 1-100 (empty: all on disk)")
         ->check(frameListCheck());
     stylize::addCameraOptions(app, a.camera);
-    app->add_option("--target", a.target, "The still to animate (its alpha is kept in the output), or builtin:river[:WxH]");
-    app->add_option("--target-alpha", a.targetAlpha, "Matte of the fluid (grey image, target size): only the fluid moves");
-    app->add_option("--flow-strokes", a.strokes, "Flow design: orientation and speed strokes (JSON, scenes/animate/README.md)");
-    app->add_option("--flow", a.flow, "Flow design: a dense flow image, R,G = x,y in pixels per frame (x right, y down)");
+    app->add_option(
+        "--target", a.target, "The still to animate (its alpha is kept in the output), or builtin:river[:WxH]");
+    app->add_option(
+        "--target-alpha", a.targetAlpha, "Matte of the fluid (grey image, target size): only the fluid moves");
+    app->add_option(
+        "--flow-strokes", a.strokes, "Flow design: orientation and speed strokes (JSON, scenes/animate/README.md)");
+    app->add_option(
+        "--flow", a.flow, "Flow design: a dense flow image, R,G = x,y in pixels per frame (x right, y down)");
     setting(app->add_flag("--flow-y-up", a.flowYUp, "The --flow image's G channel points up"), "flow-y-up");
     addReadOptions(app, a.read);
     // Only --example-cache reads grids: its grid and frame-rate choices are settings here.
-    for (const char* name : {"density-grid", "vel-grid", "fps"}) setting(app->get_option(std::string("--") + name), name);
+    for (const char* name : {"density-grid", "vel-grid", "fps"})
+        setting(app->get_option(std::string("--") + name), name);
 }
 
 void addOutputOptions(CLI::App* app, AnimateArgs& a)
@@ -662,11 +707,16 @@ void addOutputOptions(CLI::App* app, AnimateArgs& a)
     app->add_option("--out", a.out, "Output frames, e.g. anim/still.####.exr (EXR: half, premultiplied) or .png");
     app->add_option("--start", a.start, "Frame number of the first output frame")->group(kGroupOutput);
     app->add_flag("--no-clobber", a.noClobber, "Never replace an existing output file")->group(kGroupOutput);
-    app->add_option("--sheet", a.sheet, "Write a contact sheet PNG: example, design and output frames")->group(kGroupOutput);
+    app->add_option("--sheet", a.sheet, "Write a contact sheet PNG: example, design and output frames")
+        ->group(kGroupOutput);
     app->add_flag("--json", a.json, "One JSON line per frame and a summary with stage times on stdout");
-    app->add_option("--export-builtin", a.exportBuiltin, "Write the built-in river example and still into DIR and stop");
-    setting(app->add_option("--dump", a.dump, "Also write every stage's images into DIR (float EXR) and flow pictures (PNG)"), "dump");
-    setting(app->add_flag("--measure", a.measure, "Measure the output's flow against the design and its temporal statistics"),
+    app->add_option(
+        "--export-builtin", a.exportBuiltin, "Write the built-in river example and still into DIR and stop");
+    setting(app->add_option(
+                "--dump", a.dump, "Also write every stage's images into DIR (float EXR) and flow pictures (PNG)"),
+        "dump");
+    setting(app->add_flag(
+                "--measure", a.measure, "Measure the output's flow against the design and its temporal statistics"),
         "measure");
 }
 
@@ -677,7 +727,8 @@ void addHmSettings(CLI::App* app, AnimateArgs& a)
     setting(app->add_option("--hm-rep,--hm.reps", hm.reps, "HM Rep: repetitions of the steerable matching (paper 3)")
                 ->check(CLI::Range(1, 10)),
         "hm.reps");
-    setting(app->add_option("--hm-grid", a.hmGrid, "HM Grid: COLSxROWS, auto (cells of about hm.cellSize pixels) or off"),
+    setting(
+        app->add_option("--hm-grid", a.hmGrid, "HM Grid: COLSxROWS, auto (cells of about hm.cellSize pixels) or off"),
         "hm-grid");
     setting(app->add_option("--hm-cell,--hm.cellSize", hm.cellSize, "Cell size of the automatic HM grid in pixels")
                 ->check(CLI::Range(16, 100000)),
@@ -686,8 +737,10 @@ void addHmSettings(CLI::App* app, AnimateArgs& a)
                 ->check(CLI::Range(1, 20)),
         "hm.pixelPasses");
     boolSetting(app, "--hm.blendPixels", hm.blendPixels,
-        "Blend the cells' pixel-domain matches (false: each cell's statistics exact, seams can show)", "hm.blendPixels");
-    legacy(app->add_flag_function("--hm-exact-cells", [&hm](std::int64_t) { hm.blendPixels = false; }, "hm.blendPixels = false"),
+        "Blend the cells' pixel-domain matches (false: each cell's statistics exact, seams can show)",
+        "hm.blendPixels");
+    legacy(app->add_flag_function(
+               "--hm-exact-cells", [&hm](std::int64_t) { hm.blendPixels = false; }, "hm.blendPixels = false"),
         "hm.blendPixels", "false");
 }
 
@@ -698,19 +751,22 @@ void addAnimateSettings(CLI::App* app, AnimateArgs& a)
     const auto knob = [app](const std::string& names, auto& v, const std::string& help, const std::string& key) {
         return setting(app->add_option(names, v, help), key);
     };
-    setting(addEnum<Refine>(app, "--refine", a.refine, {{"auto", Refine::Auto}, {"on", Refine::On}, {"off", Refine::Off}},
-                "Refine the design by the target's gradients: auto (strokes yes, --flow no), on, off"),
+    setting(
+        addEnum<Refine>(app, "--refine", a.refine, {{"auto", Refine::Auto}, {"on", Refine::On}, {"off", Refine::Off}},
+            "Refine the design by the target's gradients: auto (strokes yes, --flow no), on, off"),
         "refine");
     setting(addEnum<turb::GradientOrientation>(app, "--orient,--refine.orient", s.refine.orient,
-                {{"parallel", turb::GradientOrientation::Parallel}, {"perpendicular", turb::GradientOrientation::Perpendicular}},
+                {{"parallel", turb::GradientOrientation::Parallel},
+                    {"perpendicular", turb::GradientOrientation::Perpendicular}},
                 "Refined orientation: parallel to the image gradient (the paper) or perpendicular (along edges)"),
         "refine.orient");
-    knob("--wf,--refine.wf", s.refine.wf, "w_f: blur of the refined orientation, Gaussian std in pixels (paper 12)", "refine.wf")
+    knob("--wf,--refine.wf", s.refine.wf, "w_f: blur of the refined orientation, Gaussian std in pixels (paper 12)",
+        "refine.wf")
         ->check(CLI::Range(0.1, 500.0));
     knob("--tau", s.tau, "Lifetime of a residual in frames (paper 16); the output has N - tau frames", "tau")
         ->check(CLI::Range(1, 10000));
-    knob("--shutter,--average.shutter", s.average.shutter, "Sh: motion blur of the target along the flow for A', in frames",
-        "average.shutter")
+    knob("--shutter,--average.shutter", s.average.shutter,
+        "Sh: motion blur of the target along the flow for A', in frames", "average.shutter")
         ->check(CLI::Range(0.0, 200.0));
     knob("--wa,--average.wa", s.average.wa, "w_a: Gaussian std in pixels after the motion blur for A'", "average.wa")
         ->check(CLI::Range(0.0, 500.0));
@@ -720,10 +776,11 @@ void addAnimateSettings(CLI::App* app, AnimateArgs& a)
     knob("--search-downsample,--transfer.downsample", s.transfer.downsample, "Match flows downsampled by 1, 2 or 4",
         "transfer.downsample")
         ->check(CLI::IsMember({1, 2, 4}));
-    knob("--features,--analysis.features", s.analysis.features, "Lucas-Kanade features per example frame pair (paper 100)",
-        "analysis.features")
+    knob("--features,--analysis.features", s.analysis.features,
+        "Lucas-Kanade features per example frame pair (paper 100)", "analysis.features")
         ->check(CLI::Range(1, 100000));
-    knob("--lk-window,--analysis.window", s.analysis.window, "Lucas-Kanade window in pixels (paper 10)", "analysis.window")
+    knob("--lk-window,--analysis.window", s.analysis.window, "Lucas-Kanade window in pixels (paper 10)",
+        "analysis.window")
         ->check(CLI::Range(3, 64));
     addHmSettings(app, a);
 }
@@ -735,12 +792,14 @@ Command animateCommand()
     auto args = std::make_shared<AnimateArgs>();
     Command c;
     c.name = "animate";
-    c.help = "Animate a still picture of fluid from a video example (Okabe et al.): strokes or a flow design, residual transfer, histogram matching";
+    c.help = "Animate a still picture of fluid from a video example (Okabe et al.): strokes or a flow design, residual "
+             "transfer, histogram matching";
     c.setup = [args](CLI::App* app) {
         AnimateArgs& a = *args;
         addInputOptions(app, a);
         addOutputOptions(app, a);
-        addEnum<HmMode>(app, "--hm", a.hm, {{"steerable", HmMode::Steerable}, {"laplacian", HmMode::Laplacian}, {"off", HmMode::Off}},
+        addEnum<HmMode>(app, "--hm", a.hm,
+            {{"steerable", HmMode::Steerable}, {"laplacian", HmMode::Laplacian}, {"off", HmMode::Off}},
             "Histogram matching: steerable (Heeger-Bergen), laplacian (one pass, the fast preview) or off");
         addAnimateSettings(app, a);
     };

@@ -51,7 +51,9 @@ struct FarmArgs
 
 std::string shellQuote(const std::string& s)
 {
-    if (!s.empty() && s.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-+=/.,:@%#") == std::string::npos)
+    if (!s.empty() &&
+        s.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-+=/.,:@%#") ==
+            std::string::npos)
         return s;
     std::string q = "'";
     for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
@@ -86,7 +88,9 @@ std::string readText(const std::string& path)
 void writeText(const std::string& path, const std::string& text, bool executable = false)
 {
     turbio::writeFileAtomic(path, text);
-    if (executable) fs::permissions(path, fs::perms::owner_exec | fs::perms::group_exec | fs::perms::others_exec, fs::perm_options::add);
+    if (executable)
+        fs::permissions(
+            path, fs::perms::owner_exec | fs::perms::group_exec | fs::perms::others_exec, fs::perm_options::add);
 }
 
 // The chunk's scratch pattern: every frame it computes, pre-roll included, so --resume can continue a killed task.
@@ -117,9 +121,10 @@ std::vector<std::string> joinArgs(const std::vector<std::string>& args)
 void checkPassThrough(const std::vector<std::string>& transferArgs)
 {
     for (const auto& t : transferArgs)
-        if (t == "--frames" || t == "--out" || t == "--target" || t == "--source" || t == "--resume" || t == "--threads" ||
-            t.rfind("--frames=", 0) == 0 || t.rfind("--out=", 0) == 0)
-            throw turb::ValueError("'" + t + "' after -- is set by farm plan itself; give --target/--source/--out/--frames to farm plan");
+        if (t == "--frames" || t == "--out" || t == "--target" || t == "--source" || t == "--resume" ||
+            t == "--threads" || t.rfind("--frames=", 0) == 0 || t.rfind("--out=", 0) == 0)
+            throw turb::ValueError(
+                "'" + t + "' after -- is set by farm plan itself; give --target/--source/--out/--frames to farm plan");
 }
 
 // A plan's paths (absolute: the tasks run elsewhere), frames and chunks.
@@ -128,7 +133,10 @@ struct Plan
     std::string dir, exe, target, source, out;
     std::vector<int> frames;
     std::vector<turb::TimeChunk> chunks;
-    std::vector<int> sub(size_t b, size_t e) const { return std::vector<int>(frames.begin() + long(b), frames.begin() + long(e)); }
+    std::vector<int> sub(size_t b, size_t e) const
+    {
+        return std::vector<int>(frames.begin() + long(b), frames.begin() + long(e));
+    }
 };
 
 Plan makePlan(const FarmArgs& a)
@@ -137,10 +145,12 @@ Plan makePlan(const FarmArgs& a)
     Plan p;
     const turbio::Sequence target = turbio::resolveSequence(a.target, a.frames);
     if (!target.missing.empty())
-        throw turb::IoError(target.pattern.str() + ": missing target frames " + turbio::formatFrameList(target.missing));
+        throw turb::IoError(
+            target.pattern.str() + ": missing target frames " + turbio::formatFrameList(target.missing));
     p.frames = target.frames;
     p.chunks = turb::planTimeChunks(p.frames.size(), a.chunks, a.preroll, a.overlap);
-    if (!turbio::FramePattern::parse(a.out).numbered()) throw turb::ValueError("--out '" + a.out + "' has no frame token (####)");
+    if (!turbio::FramePattern::parse(a.out).numbered())
+        throw turb::ValueError("--out '" + a.out + "' has no frame token (####)");
     p.dir = absolute(a.dir);
     p.exe = a.exe.empty() ? selfExe() : a.exe;
     p.target = absolute(a.target);
@@ -153,8 +163,8 @@ Plan makePlan(const FarmArgs& a)
 std::vector<std::string> chunkCommand(const FarmArgs& a, const Plan& p, const turb::TimeChunk& c)
 {
     std::vector<std::string> argv = {p.exe, "transfer", "--target", p.target, "--source", p.source, "--out",
-        chunkPattern(p.dir, c.index, a.out), "--frames", turbio::formatFrameList(p.sub(c.computeBegin, c.end)), "--resume",
-        "--threads", std::to_string(a.cpus),
+        chunkPattern(p.dir, c.index, a.out), "--frames", turbio::formatFrameList(p.sub(c.computeBegin, c.end)),
+        "--resume", "--threads", std::to_string(a.cpus),
         // Every chunk holds the target's whole domain: held over the smoke of its own frames only, chunks would
         // get different output boxes and the join could not blend them.
         "--target-no-crop", "--source-no-crop"};
@@ -225,8 +235,9 @@ nlohmann::json planJson(const FarmArgs& a, const Plan& p)
     for (size_t k = 0; k + 1 < p.chunks.size(); ++k)
         for (int j = 0; j < a.overlap; ++j) {
             const turb::CrossFade w = turb::crossFade(j, a.overlap);
-            overlaps.push_back({{"frame", p.frames[p.chunks[k + 1].keepBegin + size_t(j)]}, {"a", int(k)}, {"b", int(k + 1)},
-                {"t", w.t}, {"detail_a", w.detailA}, {"detail_b", w.detailB}, {"density_a", w.densityA}, {"density_b", w.densityB}});
+            overlaps.push_back({{"frame", p.frames[p.chunks[k + 1].keepBegin + size_t(j)]}, {"a", int(k)},
+                {"b", int(k + 1)}, {"t", w.t}, {"detail_a", w.detailA}, {"detail_b", w.detailB},
+                {"density_a", w.densityA}, {"density_b", w.densityB}});
         }
     plan["overlaps"] = overlaps;
     plan["slurm"] = {{"chunks_script", p.dir + "/chunks.sbatch"}, {"join_script", p.dir + "/join.sbatch"}};
@@ -248,15 +259,20 @@ std::string sbatchResources(const FarmArgs& a)
 std::string chunksScript(const FarmArgs& a, const Plan& p)
 {
     std::string cases;
-    for (const auto& c : p.chunks) cases += "  " + std::to_string(c.index) + ") set -- " + joinCommand(chunkCommand(a, p, c)) + " ;;\n";
+    for (const auto& c : p.chunks)
+        cases += "  " + std::to_string(c.index) + ") set -- " + joinCommand(chunkCommand(a, p, c)) + " ;;\n";
     return "#!/bin/sh\n"
            "# Written by vdbturb farm plan: one array task per time chunk (plan.json has the same plan as JSON).\n"
-           "#SBATCH --job-name=" + a.name + "-chunks\n"
-           "#SBATCH --array=0-" + std::to_string(p.chunks.size() - 1) + "\n"
+           "#SBATCH --job-name=" +
+           a.name +
+           "-chunks\n"
+           "#SBATCH --array=0-" +
+           std::to_string(p.chunks.size() - 1) +
+           "\n"
            "#SBATCH --requeue\n"
            "#SBATCH --open-mode=append\n"
-           "#SBATCH --output=" + p.dir + "/logs/chunk_%a.log\n" + sbatchResources(a) +
-           "case \"$SLURM_ARRAY_TASK_ID\" in\n" + cases +
+           "#SBATCH --output=" +
+           p.dir + "/logs/chunk_%a.log\n" + sbatchResources(a) + "case \"$SLURM_ARRAY_TASK_ID\" in\n" + cases +
            "  *) echo \"farm: no chunk $SLURM_ARRAY_TASK_ID\" >&2; exit 2 ;;\n"
            "esac\n"
            "echo \"farm: chunk $SLURM_ARRAY_TASK_ID start (restart ${SLURM_RESTART_COUNT:-0}) on $(hostname)\" >&2\n"
@@ -266,7 +282,9 @@ std::string chunksScript(const FarmArgs& a, const Plan& p)
            "case $rc in\n"
            "  0|2) exit $rc ;;\n"
            "esac\n"
-           "if [ \"${SLURM_RESTART_COUNT:-0}\" -lt " + std::to_string(a.retries) + " ]; then\n"
+           "if [ \"${SLURM_RESTART_COUNT:-0}\" -lt " +
+           std::to_string(a.retries) +
+           " ]; then\n"
            "  echo \"farm: chunk $SLURM_ARRAY_TASK_ID requeued; it resumes from its last whole frame\" >&2\n"
            "  scontrol requeue \"${SLURM_ARRAY_JOB_ID}_${SLURM_ARRAY_TASK_ID}\"\n"
            "  sleep 30 # the requeue ends this job; do not let it finish as failed first\n"
@@ -277,11 +295,16 @@ std::string chunksScript(const FarmArgs& a, const Plan& p)
 std::string joinScript(const FarmArgs& a, const Plan& p)
 {
     return "#!/bin/sh\n"
-           "# Written by vdbturb farm plan: assembles the chunks and cross-fades their overlaps (after every chunk succeeded).\n"
-           "#SBATCH --job-name=" + a.name + "-join\n"
-           "#SBATCH --output=" + p.dir + "/logs/join.log\n"
-           "#SBATCH --open-mode=append\n" + sbatchResources(a) +
-           "exec " + joinCommand(joinCommandLine(a, p)) + "\n";
+           "# Written by vdbturb farm plan: assembles the chunks and cross-fades their overlaps (after every chunk "
+           "succeeded).\n"
+           "#SBATCH --job-name=" +
+           a.name +
+           "-join\n"
+           "#SBATCH --output=" +
+           p.dir +
+           "/logs/join.log\n"
+           "#SBATCH --open-mode=append\n" +
+           sbatchResources(a) + "exec " + joinCommand(joinCommandLine(a, p)) + "\n";
 }
 
 int runPlan(FarmArgs& a)
@@ -292,11 +315,14 @@ int runPlan(FarmArgs& a)
     writeText(p.dir + "/chunks.sbatch", chunksScript(a, p), true);
     writeText(p.dir + "/join.sbatch", joinScript(a, p), true);
     printData("plan: " + std::to_string(p.frames.size()) + " frames " + turbio::formatFrameList(p.frames) + " in " +
-              std::to_string(p.chunks.size()) + " chunks, pre-roll " + std::to_string(a.preroll) + ", overlap " + std::to_string(a.overlap));
+              std::to_string(p.chunks.size()) + " chunks, pre-roll " + std::to_string(a.preroll) + ", overlap " +
+              std::to_string(a.overlap));
     for (const auto& c : p.chunks)
-        printData("  chunk " + std::to_string(c.index) + ": computes " + turbio::formatFrameList(p.sub(c.computeBegin, c.end)) +
-                  ", keeps " + turbio::formatFrameList(p.sub(c.keepBegin, c.end)));
-    printData("wrote " + p.dir + "/plan.json, chunks.sbatch, join.sbatch; submit with: vdbturb farm submit --dir " + p.dir);
+        printData("  chunk " + std::to_string(c.index) + ": computes " +
+                  turbio::formatFrameList(p.sub(c.computeBegin, c.end)) + ", keeps " +
+                  turbio::formatFrameList(p.sub(c.keepBegin, c.end)));
+    printData(
+        "wrote " + p.dir + "/plan.json, chunks.sbatch, join.sbatch; submit with: vdbturb farm submit --dir " + p.dir);
     return kOk;
 }
 
@@ -322,11 +348,13 @@ std::string trim(std::string s)
 int runSubmit(FarmArgs& a)
 {
     const std::string dir = absolute(a.dir);
-    if (!fs::exists(dir + "/plan.json")) throw turb::IoError(dir + "/plan.json: no plan (vdbturb farm plan --dir " + dir + " first)");
+    if (!fs::exists(dir + "/plan.json"))
+        throw turb::IoError(dir + "/plan.json: no plan (vdbturb farm plan --dir " + dir + " first)");
     // --parsable prints "jobid[;cluster]".
     std::string chunks = trim(runCapture("sbatch --parsable " + shellQuote(dir + "/chunks.sbatch")));
     chunks = chunks.substr(0, chunks.find(';'));
-    std::string join = trim(runCapture("sbatch --parsable --dependency=afterok:" + chunks + " " + shellQuote(dir + "/join.sbatch")));
+    std::string join =
+        trim(runCapture("sbatch --parsable --dependency=afterok:" + chunks + " " + shellQuote(dir + "/join.sbatch")));
     join = join.substr(0, join.find(';'));
     nlohmann::json j = {{"chunks_job", chunks}, {"join_job", join}};
     writeText(dir + "/submitted.json", j.dump() + "\n");
@@ -351,7 +379,10 @@ struct JoinPlan
     int overlap = 0;
     turbio::Sequence target;
     float densityThreshold = 0.01f; ///< transfer's, unless the chunks were given another
-    turbio::FramePattern chunkFrames(size_t k) const { return turbio::FramePattern::parse(chunkPattern(dir, chunks[k].index, out)); }
+    turbio::FramePattern chunkFrames(size_t k) const
+    {
+        return turbio::FramePattern::parse(chunkPattern(dir, chunks[k].index, out));
+    }
 };
 
 JoinPlan readJoinPlan(const FarmArgs& a)
@@ -361,7 +392,8 @@ JoinPlan readJoinPlan(const FarmArgs& a)
     const nlohmann::json plan = nlohmann::json::parse(readText(p.dir + "/plan.json"));
     p.frames = turbio::parseFrameList(plan.at("frames").get<std::string>());
     p.overlap = plan.at("overlap").get<int>();
-    p.chunks = turb::planTimeChunks(p.frames.size(), plan.at("chunks").get<int>(), plan.at("preroll").get<int>(), p.overlap);
+    p.chunks =
+        turb::planTimeChunks(p.frames.size(), plan.at("chunks").get<int>(), plan.at("preroll").get<int>(), p.overlap);
     p.out = plan.at("out").get<std::string>();
     p.target = turbio::resolveSequence(plan.at("target").get<std::string>(), plan.at("frames").get<std::string>());
     const auto& ta = plan.at("transfer_args");
@@ -378,8 +410,10 @@ void checkChunksComplete(const JoinPlan& p)
         const turbio::FramePattern pattern = p.chunkFrames(k);
         for (size_t i = c.keepBegin; i < c.end; ++i)
             if (!fs::exists(pattern.format(p.frames[i])))
-                throw turb::IoError("chunk " + std::to_string(c.index) + " is not complete: " + pattern.format(p.frames[i]) +
-                                    " is missing (rerun it: sbatch --array=" + std::to_string(c.index) + " " + p.dir + "/chunks.sbatch)");
+                throw turb::IoError("chunk " + std::to_string(c.index) +
+                                    " is not complete: " + pattern.format(p.frames[i]) +
+                                    " is missing (rerun it: sbatch --array=" + std::to_string(c.index) + " " + p.dir +
+                                    "/chunks.sbatch)");
     }
 }
 
@@ -399,7 +433,9 @@ void blendFrame(const FarmArgs& a, const JoinPlan& p, size_t k, int j, RunReport
     tro.cropToSmoke = false;
     const turb::Frame ft = readingAs("target", [&] { return turbio::readFrame(p.target.path(t), t, tro); });
     const auto r = fb.metadata.find(turb::meta::kRatio);
-    if (r == fb.metadata.end()) throw turb::IoError(pb.format(t) + ": no " + std::string(turb::meta::kRatio) + " metadata: not a transfer output");
+    if (r == fb.metadata.end())
+        throw turb::IoError(
+            pb.format(t) + ": no " + std::string(turb::meta::kRatio) + " metadata: not a transfer output");
     const turb::VectorField up = turb::cropped(turb::upsample(ft.velocity, std::stoi(r->second)), fb.velocity.bbox());
     // Chunks written with --velocity-margin hold up(u_t) where no velocity was written: blend what they mean.
     for (turb::Frame* fr : {&fa, &fb})
@@ -415,8 +451,9 @@ void blendFrame(const FarmArgs& a, const JoinPlan& p, size_t k, int j, RunReport
     turbio::writeFrame(dst, blended, a.write);
     const double expected = w.detailA * w.detailA * st.energyA + w.detailB * w.detailB * st.energyB;
     char human[200];
-    std::snprintf(human, sizeof(human), "blend chunks %d+%d, w_detail %.3f/%.3f x %.3f (correlation %.3f), w_density %.3f/%.3f -> ",
-        c.index, next.index, w.detailA, w.detailB, st.energyScale, st.correlation, w.densityA, w.densityB);
+    std::snprintf(human, sizeof(human),
+        "blend chunks %d+%d, w_detail %.3f/%.3f x %.3f (correlation %.3f), w_density %.3f/%.3f -> ", c.index,
+        next.index, w.detailA, w.detailB, st.energyScale, st.correlation, w.densityA, w.densityB);
     report.frameDone(t, int(i), int(p.frames.size()), secondsSince(t0), std::string(human) + dst,
         {{"chunks", {c.index, next.index}}, {"out", dst}, {"detail_a", w.detailA}, {"detail_b", w.detailB},
             {"density_a", w.densityA}, {"density_b", w.densityB}, {"correlation", st.correlation},
@@ -441,8 +478,8 @@ int runJoin(FarmArgs& a)
             const std::string dst = outPattern.format(p.frames[i]);
             turbio::ensureParentDirectory(dst);
             copyAtomic(pattern.format(p.frames[i]), dst);
-            report.frameDone(p.frames[i], int(i), count, secondsSince(t0), "chunk " + std::to_string(c.index) + " -> " + dst,
-                {{"chunk", c.index}, {"out", dst}});
+            report.frameDone(p.frames[i], int(i), count, secondsSince(t0),
+                "chunk " + std::to_string(c.index) + " -> " + dst, {{"chunk", c.index}, {"out", dst}});
         }
         if (k + 1 < p.chunks.size())
             for (int j = 0; j < p.overlap; ++j) blendFrame(a, p, k, j, report);
@@ -463,7 +500,8 @@ void addPlanOptions(CLI::App* plan, FarmArgs& a)
     plan->add_option("--out", a.out, "Final output pattern, as for transfer")->required();
     plan->add_option("--dir", a.dir, "Farm directory: scripts, plan.json, logs, chunk scratch");
     plan->add_option("--chunks", a.chunks, "Number of time chunks (array tasks)")->check(CLI::Range(1, 100000));
-    plan->add_option("--preroll", a.preroll, "P: frames computed before a chunk's first kept frame")->check(CLI::Range(0, 10000));
+    plan->add_option("--preroll", a.preroll, "P: frames computed before a chunk's first kept frame")
+        ->check(CLI::Range(0, 10000));
     plan->add_option("--overlap", a.overlap, "O: frames two consecutive chunks share and the join cross-fades")
         ->check(CLI::Range(0, 10000));
     plan->add_option("--cpus", a.cpus, "CPUs per task (sbatch --cpus-per-task and transfer --threads)")
@@ -472,7 +510,8 @@ void addPlanOptions(CLI::App* plan, FarmArgs& a)
     plan->add_option("--partition", a.partition, "sbatch --partition")->group(kGroupRun);
     plan->add_option("--time", a.time, "sbatch --time per task")->group(kGroupRun);
     plan->add_option("--mem", a.mem, "sbatch --mem per task")->group(kGroupRun);
-    setting(plan->add_option("--retries", a.retries, "Times a failed task requeues itself")->check(CLI::Range(0, 100)), "retries");
+    setting(plan->add_option("--retries", a.retries, "Times a failed task requeues itself")->check(CLI::Range(0, 100)),
+        "retries");
     setting(plan->add_option("--vdbturb", a.exe, "vdbturb binary the tasks run (empty: this one)"), "vdbturb");
     setting(plan->add_option("--name", a.name, "Job name prefix"), "name");
     // Not a setting: the options after -- go to every chunk's transfer as given (farm join takes its read and write
@@ -491,8 +530,8 @@ void addJoinOptions(CLI::App* join, FarmArgs& a)
     join->add_option("--velocity-margin", a.write.velocityMargin,
             "Write the blended velocity only within N voxels of the smoke, as transfer (-1: the whole box)")
         ->check(CLI::Range(-1, 64));
-    for (const char* name : {"target-density-grid", "target-vel-grid", "target-fps", "style", "no-clobber", "half", "clipping",
-             "velocity-margin"})
+    for (const char* name : {"target-density-grid", "target-vel-grid", "target-fps", "style", "no-clobber", "half",
+             "clipping", "velocity-margin"})
         setting(join->get_option(std::string("--") + name), name);
 }
 
@@ -510,12 +549,15 @@ Command farmCommand()
         FarmArgs& a = *args;
         app->require_subcommand(1);
         app->fallthrough(); // -v, -q, --threads may follow the plan/submit/join word
-        CLI::App* plan = app->add_subcommand("plan", "Write sbatch scripts (an array of chunks + a dependent join) and plan.json");
+        CLI::App* plan =
+            app->add_subcommand("plan", "Write sbatch scripts (an array of chunks + a dependent join) and plan.json");
         addPlanOptions(plan, a);
-        CLI::App* submit = app->add_subcommand("submit", "Submit a plan with sbatch: the chunk array, then the join with afterok");
+        CLI::App* submit =
+            app->add_subcommand("submit", "Submit a plan with sbatch: the chunk array, then the join with afterok");
         submit->add_option("--dir", a.dir, "Farm directory written by farm plan");
         submit->add_flag("--json", a.json, "Print the job ids as JSON on stdout");
-        CLI::App* join = app->add_subcommand("join", "Assemble the chunks' frames into the output, cross-fading the overlaps");
+        CLI::App* join =
+            app->add_subcommand("join", "Assemble the chunks' frames into the output, cross-fading the overlaps");
         addJoinOptions(join, a);
         // Each subcommand has its own two tiers (--help-all, --print-settings, --settings); --threads stays farm's.
         for (CLI::App* sub : {plan, submit, join}) addGlobalOptions(sub, 0);

@@ -60,7 +60,8 @@ std::string fmtNum(const char* f, double v)
 // corner of its last.
 std::pair<turb::Vec3d, turb::Vec3d> worldBounds(const turb::CoordBBox& b, double voxel, const turb::Vec3d& origin)
 {
-    return {origin + (b.min().asVec3d() - turb::Vec3d(0.5)) * voxel, origin + (b.max().asVec3d() + turb::Vec3d(0.5)) * voxel};
+    return {origin + (b.min().asVec3d() - turb::Vec3d(0.5)) * voxel,
+        origin + (b.max().asVec3d() + turb::Vec3d(0.5)) * voxel};
 }
 
 nlohmann::json vecJson(const turb::Vec3d& v) { return {v.x(), v.y(), v.z()}; }
@@ -110,8 +111,8 @@ std::string gridTable(const turbio::FileInfo& fi)
     if (std::any_of(fi.grids.begin(), fi.grids.end(), [](const turbio::GridInfo& g) { return g.halfFloat; }))
         out += ", 16-bit floats";
     out += "\n";
-    std::vector<std::vector<std::string>> rows{
-        {"#", "grid", "type", "class", "role", "voxel", "origin", "active box (index)", "world bounds", "active", "values"}};
+    std::vector<std::vector<std::string>> rows{{"#", "grid", "type", "class", "role", "voxel", "origin",
+        "active box (index)", "world bounds", "active", "values"}};
     for (const auto& g : fi.grids) {
         std::string range = "-";
         if (g.hasRange)
@@ -138,11 +139,14 @@ std::string gridTable(const turbio::FileInfo& fi)
 // but cannot be a transfer target or source).
 std::string usability(bool density, bool velocity)
 {
-    if (density && velocity) return "velocity and density: usable by transfer (target or source), synth, measure and preview";
-    if (velocity) return "velocity without density: usable by synth (no smoke mask), measure's --output and preview's "
-                         "speed/vorticity/lic; transfer needs density in target and source";
-    if (density) return "density only, no velocity grid: it cannot drive transfer (target or source) or synth; usable by "
-                        "preview --mode density";
+    if (density && velocity)
+        return "velocity and density: usable by transfer (target or source), synth, measure and preview";
+    if (velocity)
+        return "velocity without density: usable by synth (no smoke mask), measure's --output and preview's "
+               "speed/vorticity/lic; transfer needs density in target and source";
+    if (density)
+        return "density only, no velocity grid: it cannot drive transfer (target or source) or synth; usable by "
+               "preview --mode density";
     return "neither density nor velocity: no command can use it";
 }
 
@@ -164,27 +168,32 @@ std::string checksumLines(const std::string& path, nlohmann::json& fj)
 std::string sequenceLine(const turbio::Sequence& seq)
 {
     return "sequence " + seq.pattern.str() + ": " + std::to_string(seq.frames.size()) + " frame" +
-           (seq.frames.size() == 1 ? "" : "s") + (seq.pattern.numbered() ? " (" + turbio::formatFrameList(seq.frames) + ")" : "") +
+           (seq.frames.size() == 1 ? "" : "s") +
+           (seq.pattern.numbered() ? " (" + turbio::formatFrameList(seq.frames) + ")" : "") +
            ", missing: " + (seq.missing.empty() ? "none" : turbio::formatFrameList(seq.missing));
 }
 
 // From the first readable frame's headers: the lattice and its changes, the domain, dt and units with their sources.
-std::string latticeLines(const turbio::FrameScan& first, const turbio::SequenceScan& scan, const turbio::ReadOptions& ro)
+std::string latticeLines(
+    const turbio::FrameScan& first, const turbio::SequenceScan& scan, const turbio::ReadOptions& ro)
 {
     const turbio::ReadReport& t = first.timing;
     const TimingSources source = timingSources(t);
-    std::string head = "\nlattice: voxel " + fmtNum("%g", first.lattice.voxelSize) + ", origin " + fmtVec(first.lattice.origin) +
+    std::string head = "\nlattice: voxel " + fmtNum("%g", first.lattice.voxelSize) + ", origin " +
+                       fmtVec(first.lattice.origin) +
                        (scan.changes.empty() ? std::string(", the same in every frame")
                                              : "; CHANGES within the sequence: " + scan.describeChanges());
     // The domain as the cache spans it; what a read holds (the smoke and its margin) after it.
     const auto wb = worldBounds(first.span, first.lattice.voxelSize, first.lattice.origin);
     const turb::Coord d = first.span.dim();
-    head += "\ndomain (frame " + std::to_string(first.frame) + "): " + std::to_string(d.x()) + "x" + std::to_string(d.y()) +
-            "x" + std::to_string(d.z()) + " voxels, world " + fmtVec(wb.first) + "-" + fmtVec(wb.second);
+    head += "\ndomain (frame " + std::to_string(first.frame) + "): " + std::to_string(d.x()) + "x" +
+            std::to_string(d.y()) + "x" + std::to_string(d.z()) + " voxels, world " + fmtVec(wb.first) + "-" +
+            fmtVec(wb.second);
     if (first.span != first.domain) {
         const turb::Coord e = first.domain.dim();
-        head += "; held in memory: " + std::to_string(e.x()) + "x" + std::to_string(e.y()) + "x" + std::to_string(e.z()) +
-                " voxels (the smoke and a margin of " + std::to_string(ro.cropMargin) + " voxels)";
+        head += "; held in memory: " + std::to_string(e.x()) + "x" + std::to_string(e.y()) + "x" +
+                std::to_string(e.z()) + " voxels (the smoke and a margin of " + std::to_string(ro.cropMargin) +
+                " voxels)";
     }
     if (first.sequenceDomain) {
         const turb::CoordBBox& sd = *first.sequenceDomain;
@@ -196,15 +205,17 @@ std::string latticeLines(const turbio::FrameScan& first, const turbio::SequenceS
     head += "\ndt: " + fmtNum("%.6g", t.dt) + " per frame (" + source.dt + ")";
     if (t.fpsSource != "not used") head += "; fps " + fmtNum("%g", t.fps) + " (" + source.fps + ")";
     if (!first.velocityGrid.empty())
-        head += "\nvelocity units: " +
-                (t.cells ? "grid cells per time unit, x voxel " + fmtNum("%g", first.lattice.voxelSize) + " = world units"
-                         : std::string("world units per time unit")) +
-                " (" + source.units + ")";
+        head +=
+            "\nvelocity units: " +
+            (t.cells ? "grid cells per time unit, x voxel " + fmtNum("%g", first.lattice.voxelSize) + " = world units"
+                     : std::string("world units per time unit")) +
+            " (" + source.units + ")";
     for (const auto& n : t.notes) head += "\nnote: " + n;
     return head;
 }
 
-nlohmann::json sequenceJson(const turbio::Sequence& seq, const turbio::SequenceScan& scan, const turbio::FrameScan* first)
+nlohmann::json sequenceJson(
+    const turbio::Sequence& seq, const turbio::SequenceScan& scan, const turbio::FrameScan* first)
 {
     nlohmann::json out;
     out["pattern"] = seq.pattern.str();
@@ -212,9 +223,10 @@ nlohmann::json sequenceJson(const turbio::Sequence& seq, const turbio::SequenceS
     out["missing"] = seq.missing;
     out["lattice_changes"] = nlohmann::json::array();
     for (const auto& c : scan.changes)
-        out["lattice_changes"].push_back({{"from_frame", c.fromFrame}, {"to_frame", c.toFrame}, {"from_path", c.fromPath},
-            {"to_path", c.toPath}, {"from_voxel", c.from.voxelSize}, {"to_voxel", c.to.voxelSize},
-            {"from_origin", vecJson(c.from.origin)}, {"to_origin", vecJson(c.to.origin)}});
+        out["lattice_changes"].push_back(
+            {{"from_frame", c.fromFrame}, {"to_frame", c.toFrame}, {"from_path", c.fromPath}, {"to_path", c.toPath},
+                {"from_voxel", c.from.voxelSize}, {"to_voxel", c.to.voxelSize}, {"from_origin", vecJson(c.from.origin)},
+                {"to_origin", vecJson(c.to.origin)}});
     if (first) {
         const TimingSources source = timingSources(first->timing);
         out["timing"] = {{"dt", first->timing.dt}, {"dt_source", source.dt}, {"fps", first->timing.fps},
@@ -261,8 +273,8 @@ void fileJson(const turbio::FileInfo& fi, nlohmann::json& fj)
 
 // Where the smoke is (it needs the voxels): strays far from it are left out of every read. Returns the lines to
 // print ("" without density).
-std::string smokeLines(const std::string& path, int frame, const turbio::ReadOptions& ro, const turbio::SequenceScan& scan,
-    nlohmann::json& fj)
+std::string smokeLines(const std::string& path, int frame, const turbio::ReadOptions& ro,
+    const turbio::SequenceScan& scan, nlohmann::json& fj)
 {
     const turbio::SmokeRegion region = turbio::smokeRegion(path, ro);
     if (!region.hasDensity) return "";
@@ -272,7 +284,8 @@ std::string smokeLines(const std::string& path, int frame, const turbio::ReadOpt
     const turb::CoordBBox held = turbio::heldRegion(region, reach, ro);
     fj["smoke_voxels"] = region.smokeVoxels;
     if (!held.empty())
-        fj["held_box"] = {{held.min().x(), held.min().y(), held.min().z()}, {held.max().x(), held.max().y(), held.max().z()}};
+        fj["held_box"] = {
+            {held.min().x(), held.min().y(), held.min().z()}, {held.max().x(), held.max().y(), held.max().z()}};
     nlohmann::json strays = nlohmann::json::array();
     for (const auto& c : region.strays)
         strays.push_back({{"voxels", c.voxels}, {"distance", c.distance}, {"mass_share", c.massShare},
@@ -282,9 +295,9 @@ std::string smokeLines(const std::string& path, int frame, const turbio::ReadOpt
     std::string lines = region.describeStrays();
     if (!held.empty()) {
         const turb::Coord d = held.dim();
-        lines = (lines.empty() ? "" : lines + "\n") + "held in memory: " + std::to_string(d.x()) + "x" + std::to_string(d.y()) +
-                "x" + std::to_string(d.z()) + " voxels " + "(the smoke and a margin of " + std::to_string(ro.cropMargin) +
-                " voxels)";
+        lines = (lines.empty() ? "" : lines + "\n") + "held in memory: " + std::to_string(d.x()) + "x" +
+                std::to_string(d.y()) + "x" + std::to_string(d.z()) + " voxels " + "(the smoke and a margin of " +
+                std::to_string(ro.cropMargin) + " voxels)";
     }
     return lines;
 }
@@ -373,14 +386,16 @@ Command infoCommand()
         app->add_option("pattern", args->pattern,
                "Cache: a pattern (####, @, %04d, $F4, ${F4}; quote $ patterns in the shell) or one real file name")
             ->required();
-        app->add_option("--frames", args->frames, "Frames to inspect, e.g. 1001-1100x2,1200 (default: all on disk)")->check(frameListCheck());
+        app->add_option("--frames", args->frames, "Frames to inspect, e.g. 1001-1100x2,1200 (default: all on disk)")
+            ->check(frameListCheck());
         app->add_flag("--json", args->json, "Print a JSON report on stdout (the tables then go to stderr)");
         app->add_flag("--all-values", args->allValues, "Read every frame's voxels for value ranges (slower)");
         app->add_flag("--headers-only", args->noValues, "Read no voxels at all (no value ranges)");
         app->add_flag("--validate", args->validate,
             "Also read every frame as the other commands do and say which commands can use it; exit 1 on a bad frame");
         addReadOptions(app, args->read);
-        setting(app->add_flag("--checksum", args->checksum, "Fingerprint every grid of every frame, bit for bit, for regression tests"),
+        setting(app->add_flag("--checksum", args->checksum,
+                    "Fingerprint every grid of every frame, bit for bit, for regression tests"),
             "checksum");
     };
     c.run = [args] { return runInfo(*args); };

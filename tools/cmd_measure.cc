@@ -34,12 +34,12 @@ namespace {
 struct MeasureArgs
 {
     std::string output, target, source, frames, plotDir, plotFormat = "png", patchOrigin;
-    bool json = false;        // accepted for symmetry with the other commands; JSON is always written
-    bool spectraJson = false; // include the E(k) arrays in the JSON lines
+    bool json = false;          // accepted for symmetry with the other commands; JSON is always written
+    bool spectraJson = false;   // include the E(k) arrays in the JSON lines
     bool computeSpectra = true; // --plot and --spectra compute them whatever this says
     turb::MeasureSettings settings;
     turbio::ReadOptions read;
-    int sourceExtend = 0;     // the metrics' definitions read the source as written: no extension by default
+    int sourceExtend = 0; // the metrics' definitions read the source as written: no extension by default
 };
 
 nlohmann::json opt(const std::optional<double>& v) { return v ? nlohmann::json(*v) : nlohmann::json(nullptr); }
@@ -65,7 +65,9 @@ nlohmann::json frameJson(const turb::FrameMeasures& m, bool spectra)
     j["patch_origin"] = {m.patchOrigin.x(), m.patchOrigin.y(), m.patchOrigin.z()};
     j["dt"] = m.dt > 0.0 ? nlohmann::json(m.dt) : nlohmann::json(nullptr);
     j["k_nyquist_target"] = m.targetNyquist;
-    const auto energy = [](const turb::Spectrum& s) { return s.empty() ? nlohmann::json(nullptr) : nlohmann::json(s.meanEnergy); };
+    const auto energy = [](const turb::Spectrum& s) {
+        return s.empty() ? nlohmann::json(nullptr) : nlohmann::json(s.meanEnergy);
+    };
     j["spectrum_mean_energy"] = {{"output", energy(m.spectrumOutput)}, {"target", energy(m.spectrumTarget)},
         {"source", energy(m.spectrumSource)}};
     if (spectra)
@@ -84,10 +86,10 @@ std::string humanLine(const turb::FrameMeasures& m)
         return std::string(b);
     };
     return "lf_err " + f(m.lfErr) + "  hf_ratio " + f(m.hfRatio) + "  div_rel " + f(m.divRel) + " (source " +
-           f(m.divRelSource) + ")  block " + f(m.block) + "  tcoh " + f(m.tcoh) + " (source " + f(m.tcohSource) + ")  mass " +
-           f(m.massRatio) + "  peak " + f(m.peakRatio) + "  density_err " + f(m.densityErr) + "  imprint " + f(m.densityImprint) + "  aniso " + f(m.aniso) +
-           " (source " + f(m.anisoSource) + ")  isotropy " + f(m.isotropy) + " (source " + f(m.isotropySource) + ")  air_detail " +
-           f(m.airDetail);
+           f(m.divRelSource) + ")  block " + f(m.block) + "  tcoh " + f(m.tcoh) + " (source " + f(m.tcohSource) +
+           ")  mass " + f(m.massRatio) + "  peak " + f(m.peakRatio) + "  density_err " + f(m.densityErr) +
+           "  imprint " + f(m.densityImprint) + "  aniso " + f(m.aniso) + " (source " + f(m.anisoSource) +
+           ")  isotropy " + f(m.isotropy) + " (source " + f(m.isotropySource) + ")  air_detail " + f(m.airDetail);
 }
 
 std::optional<turb::Coord> parseCoord(const std::string& text)
@@ -142,7 +144,8 @@ MeasurePlan planMeasure(const MeasureArgs& a)
         std::set_intersection(p.out.frames.begin(), p.out.frames.end(), p.tgt.frames.begin(), p.tgt.frames.end(),
             std::back_inserter(p.frames));
         if (p.frames.size() < p.out.frames.size())
-            logInfo("measuring the " + std::to_string(p.frames.size()) + " frames both the output and the target hold (" +
+            logInfo("measuring the " + std::to_string(p.frames.size()) +
+                    " frames both the output and the target hold (" +
                     (p.frames.empty() ? std::string("none") : turbio::formatFrameList(p.frames)) + ")");
     }
     p.readOut = p.readTgt = p.readSrc = a.read;
@@ -156,12 +159,15 @@ MeasurePlan planMeasure(const MeasureArgs& a)
 // measured one by one, so a lattice that changes within a sequence is read frame by frame; tcoh skips the change.
 void preflight(const MeasureArgs& a, const MeasurePlan& p)
 {
-    const turbio::SequenceScan outScan = checkInput("measure", "output", p.out, p.frames, p.readOut, LatticePolicy::Report);
-    const turbio::SequenceScan tgtScan = checkInput("measure", "target", p.tgt, p.frames, p.readTgt, LatticePolicy::Report);
+    const turbio::SequenceScan outScan =
+        checkInput("measure", "output", p.out, p.frames, p.readOut, LatticePolicy::Report);
+    const turbio::SequenceScan tgtScan =
+        checkInput("measure", "target", p.tgt, p.frames, p.readTgt, LatticePolicy::Report);
     reportTiming("output", outScan, true);
     reportTiming("target", tgtScan, true);
     if (p.src) {
-        const turbio::SequenceScan srcScan = checkInput("measure", "source", *p.src, p.src->frames, p.readSrc, LatticePolicy::Report);
+        const turbio::SequenceScan srcScan =
+            checkInput("measure", "source", *p.src, p.src->frames, p.readSrc, LatticePolicy::Report);
         reportTiming("source", srcScan, true);
     }
     // An up-res sits on a lattice an integer number of times finer than its target's.
@@ -177,7 +183,8 @@ void preflight(const MeasureArgs& a, const MeasurePlan& p)
     if (!a.plotDir.empty()) {
         if (std::string why; !gnuplotAvailable(why)) throw turb::Error(why);
         std::vector<std::string> plots{a.plotDir + "/metrics.png"};
-        for (int f : p.frames) plots.push_back(a.plotDir + "/" + turbio::FramePattern::parse("spectrum.####.png").format(f));
+        for (int f : p.frames)
+            plots.push_back(a.plotDir + "/" + turbio::FramePattern::parse("spectrum.####.png").format(f));
         checkOutputs(plots, {}, false, false);
     }
 }
@@ -207,13 +214,15 @@ turb::FrameMeasures measureOne(const MeasurePlan& p, const turb::MeasureSettings
     if (p.src) {
         // A transfer output names its source frame; otherwise the same frame number.
         int sn = f;
-        if (auto it = o.metadata.find(turb::meta::kSourceFrame); it != o.metadata.end()) sn = std::atoi(it->second.c_str());
+        if (auto it = o.metadata.find(turb::meta::kSourceFrame); it != o.metadata.end())
+            sn = std::atoi(it->second.c_str());
         if (holds(*p.src, sn)) sf = turbio::readFrame(p.src->path(sn), sn, p.readSrc);
         else logWarning("frame " + std::to_string(f) + ": source frame " + std::to_string(sn) + " missing");
     }
     // tcoh compares with the previous *processed* frame, over the real time between the two, and only on one
     // lattice (a sequence whose lattice changes is measured frame by frame).
-    const bool consecutive = prev.out && prev.tgt && prev.out->number < f && prev.out->lattice().approxEqual(o.lattice()) &&
+    const bool consecutive = prev.out && prev.tgt && prev.out->number < f &&
+                             prev.out->lattice().approxEqual(o.lattice()) &&
                              prev.tgt->lattice().approxEqual(t.lattice());
     turb::MeasureInput in;
     in.output = &o;
@@ -316,8 +325,8 @@ int runMeasure(MeasureArgs& a)
             prev.reset();
         } catch (const turb::Error& e) {
             ++failed;
-            logError("frame " + std::to_string(f) + " (output " + p.out.path(f) + ", target " + p.tgt.path(f) + "): " +
-                     messageWithFlags(e));
+            logError("frame " + std::to_string(f) + " (output " + p.out.path(f) + ", target " + p.tgt.path(f) +
+                     "): " + messageWithFlags(e));
             prev.reset();
         }
     }
@@ -351,11 +360,16 @@ void addMeasureSettings(CLI::App* app, MeasureArgs& a)
                 ->check(CLI::Range(0, 64)),
         "sourceRead.extendVelocity");
     // MeasureSettings::spectra under another key: --spectra is the everyday flag for the JSON arrays.
-    boolSetting(app, "--computeSpectra", a.computeSpectra, "Energy spectra (false: skip the FFTs unless --plot or --spectra needs them)", "computeSpectra");
-    legacy(app->add_flag_function("--no-spectra", [&a](int64_t) { a.computeSpectra = false; }, ""), "computeSpectra",
-        "false");
-    boolSetting(app, "--structure", s.structure, "The structure numbers aniso and isotropy (false: skip them)", "structure");
-    legacy(app->add_flag_function("--no-structure", [&s](int64_t) { s.structure = false; }, ""), "structure", "false");
+    boolSetting(app, "--computeSpectra", a.computeSpectra,
+        "Energy spectra (false: skip the FFTs unless --plot or --spectra needs them)", "computeSpectra");
+    legacy(app->add_flag_function(
+               "--no-spectra", [&a](int64_t) { a.computeSpectra = false; }, ""),
+        "computeSpectra", "false");
+    boolSetting(
+        app, "--structure", s.structure, "The structure numbers aniso and isotropy (false: skip them)", "structure");
+    legacy(app->add_flag_function(
+               "--no-structure", [&s](int64_t) { s.structure = false; }, ""),
+        "structure", "false");
     setting(app->add_option("--plot-format", a.plotFormat, "Picture format of --plot (exr and tif from gnuplot's PNG)")
                 ->check(CLI::IsMember({"png", "svg", "pdf", "exr", "tif"})),
         "plot-format");
@@ -375,8 +389,10 @@ Command measureCommand()
         app->add_option("--output", a.output, "The up-res cache (pattern or one file): velocity, density optional")
             ->required();
         app->add_option("--target", a.target, "The low-res cache it was made from: velocity and density")->required();
-        app->add_option("--source", a.source, "The high-res source cache, for the source's numbers (hf_ratio, div_rel_source)");
-        app->add_option("--frames", a.frames, "Frames to measure, e.g. 1-30x2 (default: those output and target both hold)")
+        app->add_option(
+            "--source", a.source, "The high-res source cache, for the source's numbers (hf_ratio, div_rel_source)");
+        app->add_option(
+               "--frames", a.frames, "Frames to measure, e.g. 1-30x2 (default: those output and target both hold)")
             ->check(frameListCheck());
         app->add_option("--threshold", a.settings.densityThreshold, "Smoke region: density above this")
             ->check(CLI::NonNegativeNumber);

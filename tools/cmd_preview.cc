@@ -54,11 +54,11 @@ struct Input
     std::string label;
     turbio::Sequence seq;
     float speedMax = 0.0f, vorticityMax = 0.0f; // fixed colour ranges for the whole run
-    std::optional<turb::CoordBBox> frameBox;     // one camera for the whole run (see below)
-    turb::Lattice lattice;                       // frameBox's
-    turb::CoordBBox held;                        // the union of the frames' held boxes (before shareCamera)
-    int extraMargin = 0;                         // voxels more than the read margin, so a read covers frameBox
-    bool still = false;                          // one unnumbered file: drawn in every row
+    std::optional<turb::CoordBBox> frameBox;    // one camera for the whole run (see below)
+    turb::Lattice lattice;                      // frameBox's
+    turb::CoordBBox held;                       // the union of the frames' held boxes (before shareCamera)
+    int extraMargin = 0;                        // voxels more than the read margin, so a read covers frameBox
+    bool still = false;                         // one unnumbered file: drawn in every row
 };
 
 std::string fmt(const char* f, double v)
@@ -145,7 +145,8 @@ void shareCamera(std::vector<Input>& inputs)
         for (int a = 0; a < 3; ++a) {
             const double lo = std::min(w.first[a], first.first[a]), hi = std::max(w.second[a], first.second[a]);
             const double shorter = std::min(w.second[a] - w.first[a], first.second[a] - first.first[a]);
-            sameScene = sameScene && w.first[a] < first.second[a] && first.first[a] < w.second[a] && hi - lo <= 2.0 * shorter;
+            sameScene =
+                sameScene && w.first[a] < first.second[a] && first.first[a] < w.second[a] && hi - lo <= 2.0 * shorter;
         }
         if (!sameScene) continue;
         group.push_back(&inputs[i]);
@@ -155,8 +156,10 @@ void shareCamera(std::vector<Input>& inputs)
         }
     }
     for (Input* in : group) {
-        const Vec3d lo = in->lattice.worldToIndex(all.first) + Vec3d(0.5), hi = in->lattice.worldToIndex(all.second) - Vec3d(0.5);
-        turb::CoordBBox b(turb::Coord(int(std::floor(lo.x() + 1e-6)), int(std::floor(lo.y() + 1e-6)), int(std::floor(lo.z() + 1e-6))),
+        const Vec3d lo = in->lattice.worldToIndex(all.first) + Vec3d(0.5),
+                    hi = in->lattice.worldToIndex(all.second) - Vec3d(0.5);
+        turb::CoordBBox b(
+            turb::Coord(int(std::floor(lo.x() + 1e-6)), int(std::floor(lo.y() + 1e-6)), int(std::floor(lo.z() + 1e-6))),
             turb::Coord(int(std::ceil(hi.x() - 1e-6)), int(std::ceil(hi.y() - 1e-6)), int(std::ceil(hi.z() - 1e-6))));
         if (turb::isFlat(*in->frameBox)) { // a one-layer (2D) cache keeps its layer
             b.min().z() = in->frameBox->min().z();
@@ -167,10 +170,7 @@ void shareCamera(std::vector<Input>& inputs)
 }
 
 /// A thin outline of the domain on a picture (where the smoke can go).
-void outline(turb::Image& img)
-{
-    img.drawRect(0, 0, img.width(), img.height(), turb::Rgb(0.35f));
-}
+void outline(turb::Image& img) { img.drawRect(0, 0, img.width(), img.height(), turb::Rgb(0.35f)); }
 
 turb::Image render(const turb::Frame& f, Mode m, const PreviewArgs& a, const Input& in)
 {
@@ -349,11 +349,11 @@ int checkOutputPaths(const PreviewArgs& a, const PreviewPlan& p, const std::vect
     std::vector<std::string> outputs;
     if (a.sheet.empty())
         for (int f : p.frames) outputs.push_back(turbio::FramePattern::parse(a.out).format(f));
-    else
-        outputs.push_back(a.sheet);
+    else outputs.push_back(a.sheet);
     checkOutputs(outputs, inputPaths, false, false);
     try {
-        turbio::outputFormatOf(a.sheet.empty() ? a.out : a.sheet); // an unknown extension fails before any drawing (after "out is an input", the worse mistake)
+        turbio::outputFormatOf(a.sheet.empty() ? a.out : a.sheet); // an unknown extension fails before any drawing
+                                                                   // (after "out is an input", the worse mistake)
     } catch (const turb::ValueError& e) {
         logError(messageWithFlags(e));
         return kUsage;
@@ -378,15 +378,16 @@ void colourRanges(const PreviewArgs& a, PreviewPlan& p)
         const turb::Frame f = turbio::readFrame(in.seq.path(fileFrame(in, ref)), fileFrame(in, ref), ro);
         const turb::ScalarField* d = f.hasDensity() ? &f.density : nullptr;
         in.speedMax = a.speedMax > 0.0f ? a.speedMax : percentile(turb::magnitude(f.velocity), d, 0.995);
-        in.vorticityMax = a.vorticityMax > 0.0f ? a.vorticityMax : percentile(turb::magnitude(turb::curl(f.velocity)), d, 0.99);
+        in.vorticityMax =
+            a.vorticityMax > 0.0f ? a.vorticityMax : percentile(turb::magnitude(turb::curl(f.velocity)), d, 0.99);
         if (a.speedMax <= 0.0f) speedAll = std::max(speedAll, in.speedMax);
     }
     for (auto& in : p.inputs) in.speedMax = speedAll > 0.0f ? speedAll : 1.0f;
 }
 
 // One row: every cache's pictures of `frame` in every mode (empty where the cache lacks the frame), labelled.
-std::vector<turb::Image> renderRow(const PreviewArgs& a, const PreviewPlan& p, int frame, ConsoleProgress& progress,
-    std::vector<std::string>& labels)
+std::vector<turb::Image> renderRow(
+    const PreviewArgs& a, const PreviewPlan& p, int frame, ConsoleProgress& progress, std::vector<std::string>& labels)
 {
     std::vector<turb::Image> images;
     for (const auto& in : p.inputs) {
@@ -421,7 +422,8 @@ nlohmann::json framedJson(const std::vector<Input>& inputs)
             const turb::Vec3d lo = in.lattice.indexToWorld(in.frameBox->min().asVec3d() - turb::Vec3d(0.5)),
                               hi = in.lattice.indexToWorld(in.frameBox->max().asVec3d() + turb::Vec3d(0.5));
             const auto clean = [](double x) { return std::round(x * 1e9) / 1e9; }; // no 1.9999999999999858
-            extra["framed"][in.label] = {clean(lo.x()), clean(lo.y()), clean(lo.z()), clean(hi.x()), clean(hi.y()), clean(hi.z())};
+            extra["framed"][in.label] = {
+                clean(lo.x()), clean(lo.y()), clean(lo.z()), clean(hi.x()), clean(hi.y()), clean(hi.z())};
         }
     return extra;
 }
@@ -563,7 +565,8 @@ Command previewCommand()
     Command c;
     c.globals = kVerbosity | kThreads;
     c.name = "preview";
-    c.help = "Pictures of caches (PNG, EXR, TIFF, JPEG): lit density, speed/vorticity slices, LIC, and labelled contact sheets "
+    c.help = "Pictures of caches (PNG, EXR, TIFF, JPEG): lit density, speed/vorticity slices, LIC, and labelled "
+             "contact sheets "
              "(a 2D cache, one z layer, is shown in its x-y plane)";
     c.setup = [args](CLI::App* app) {
         PreviewArgs& a = *args;
@@ -573,7 +576,8 @@ Command previewCommand()
         app->add_option("--mode", a.modes,
                "Comma list of density (lit ray march), speed, vorticity (slices), lic (flow texture), all")
             ->check(modesCheck());
-        app->add_option("--frames", a.frames, "Frames, e.g. 10,30,60 or 1-60 (default: all; a sheet: three spread frames)")
+        app->add_option(
+               "--frames", a.frames, "Frames, e.g. 10,30,60 or 1-60 (default: all; a sheet: three spread frames)")
             ->check(frameListCheck());
         addEnum<turb::View>(app, "--view", a.view, kViews, "Camera: front (along +y), side (along +x), top (down -z)");
         app->add_option("--width", a.width, "Width of each picture in pixels")->check(CLI::Range(16, 8192));

@@ -64,7 +64,8 @@ void rescaleIndexMetadata(std::map<std::string, std::string>& meta, int down, bo
     }
     if (const auto it = meta.find(m::kPatchOrigin); it != meta.end()) {
         int x = 0, y = 0, z = 0;
-        if (std::sscanf(it->second.c_str(), "%d,%d,%d", &x, &y, &z) == 3 && x % down == 0 && y % down == 0 && z % down == 0)
+        if (std::sscanf(it->second.c_str(), "%d,%d,%d", &x, &y, &z) == 3 && x % down == 0 && y % down == 0 &&
+            z % down == 0)
             it->second = std::to_string(x / down) + "," + std::to_string(y / down) + "," + std::to_string(z / down);
         else {
             meta.erase(it); // the seams no longer fall on voxel faces: no patch lattice at all
@@ -106,14 +107,15 @@ turb::AxisRotation parseRotation(const std::string& text)
 
 // Everything else the file holds goes along, resampled with the frame: a proxy keeps Blender's flags, colours,
 // level sets.
-turbio::OtherGrids carriedGrids(const ResampleArgs& a, const std::string& path, const turb::Frame& frame,
-    const turb::AxisRotation& rot, bool first)
+turbio::OtherGrids carriedGrids(
+    const ResampleArgs& a, const std::string& path, const turb::Frame& frame, const turb::AxisRotation& rot, bool first)
 {
     turbio::OtherGrids others = turbio::OtherGrids::read(path, a.read, frame.lattice());
     // A carried grid named as the frame's grids are written (a --density-grid other than 'density' leaves the
     // file's 'density' among the others) would give the file two grids of one name.
     const bool blender = a.write.style == turbio::WriteStyle::Blender;
-    const std::vector<std::string> clash = others.dropNamed({"density", blender ? "velocity" : "vel", "temperature", "flame"});
+    const std::vector<std::string> clash =
+        others.dropNamed({"density", blender ? "velocity" : "vel", "temperature", "flame"});
     if (!clash.empty() && first)
         logWarning(path + ": " + joined(clash) + " left out: the frame's own grids are written under " +
                    (clash.size() == 1 ? "that name" : "those names"));
@@ -178,10 +180,14 @@ Command resampleCommand()
     c.setup = [args](CLI::App* app) {
         app->add_option("input", args->in, "Cache: a pattern or one real file name")->required();
         app->add_option("--frames", args->frames, "Frames, e.g. 1-30 (default: all on disk)")->check(frameListCheck());
-        app->add_option("--down", args->down, "Mean over NxNxN blocks onto an N times coarser lattice")->check(CLI::Range(1, 64));
-        app->add_option("--rotate", args->rotate, "AXIS:TURNS quarter turns about x, y or z (e.g. y:1), grids and vectors");
+        app->add_option("--down", args->down, "Mean over NxNxN blocks onto an N times coarser lattice")
+            ->check(CLI::Range(1, 64));
+        app->add_option(
+            "--rotate", args->rotate, "AXIS:TURNS quarter turns about x, y or z (e.g. y:1), grids and vectors");
         addReadOptions(app, args->read);
-        app->add_option("--out", args->out, "Output pattern, e.g. proxy/plume.####.vdb")->required()->group(kGroupOutput);
+        app->add_option("--out", args->out, "Output pattern, e.g. proxy/plume.####.vdb")
+            ->required()
+            ->group(kGroupOutput);
         addWriteOptions(app, args->write);
         // Rarely wanted: a proxy normally keeps Blender's flags, colours and level sets (docs/io.md).
         setting(app->add_flag("--drop-other-grids", args->dropOtherGrids,

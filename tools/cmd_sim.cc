@@ -78,7 +78,8 @@ turbio::FramePattern sibling(const turbio::FramePattern& p, const std::string& t
         sep = std::string(1, prefix.back());
         prefix.pop_back();
     }
-    return turbio::FramePattern::parse(prefix + "_" + tag + sep + std::string(size_t(std::max(1, p.width())), '#') + ext);
+    return turbio::FramePattern::parse(
+        prefix + "_" + tag + sep + std::string(size_t(std::max(1, p.width())), '#') + ext);
 }
 
 /// `sim ink`: the 2D moving exemplar of Fluidymation (scenes/Ink2D.h), as RGB, mask and flow images.
@@ -99,8 +100,8 @@ int runInk(const SimArgs& a)
     if (!rgb.numbered() && a.frames > 1) throw turb::ValueError("--out '" + outText + "' has no frame token (####)");
     turbio::outputFormatOf(outText);
     const turbio::FramePattern mask = sibling(rgb, "mask", ".png"), flow = sibling(rgb, "flow", ".exr");
-    logInfo("scene ink at " + res + ", " + std::to_string(a.frames) + " frames, seed " + std::to_string(a.seed) + ": " + rgb.str() + ", " +
-            mask.str() + ", " + flow.str());
+    logInfo("scene ink at " + res + ", " + std::to_string(a.frames) + " frames, seed " + std::to_string(a.seed) + ": " +
+            rgb.str() + ", " + mask.str() + ", " + flow.str());
     if (globals().dryRun) return kOk;
     turb::scenes::InkSequence ink;
     turb::withThreads(globals().threads, [&] { ink = turb::scenes::inkExemplar(s); });
@@ -114,7 +115,8 @@ int runInk(const SimArgs& a)
         turbio::writeImage(rgb.format(number), ink.rgb[size_t(i)], o);
         turbio::writeImage(mask.format(number), turb::toRgba(ink.mask[size_t(i)]), o);
         turb::RgbaImage f(s.width, s.height, turb::Rgba(0, 0, 0, 1));
-        for (size_t p = 0; p < f.size(); ++p) f.pixels()[p] = turb::Rgba(ink.flow[size_t(i)].pixel(p)[0], ink.flow[size_t(i)].pixel(p)[1], 0, 1);
+        for (size_t p = 0; p < f.size(); ++p)
+            f.pixels()[p] = turb::Rgba(ink.flow[size_t(i)].pixel(p)[0], ink.flow[size_t(i)].pixel(p)[1], 0, 1);
         o.bits = turbio::PixelBits::Float;
         turbio::writeImage(flow.format(number), f, o);
         nlohmann::json extra;
@@ -128,10 +130,11 @@ int runInk(const SimArgs& a)
 void listScenes()
 {
     for (const auto& s : turb::scenes::sceneList())
-        std::cout << s.name << "\t" << s.description << " (" << s.width << " units wide; pair "
-                  << resText(s.pairLow) << " / " << resText(s.pairHigh) << ")\n";
-    std::cout << "ink\t2D: a drop of ink spreading on wet paper, painted like watercolour (PNG frames, masks and EXR flows: "
-                 "Fluidymation's moving exemplar; --res WxH, default 320x240)\n";
+        std::cout << s.name << "\t" << s.description << " (" << s.width << " units wide; pair " << resText(s.pairLow)
+                  << " / " << resText(s.pairHigh) << ")\n";
+    std::cout
+        << "ink\t2D: a drop of ink spreading on wet paper, painted like watercolour (PNG frames, masks and EXR flows: "
+           "Fluidymation's moving exemplar; --res WxH, default 320x240)\n";
 }
 
 // The scene's settings with the command's solver settings.
@@ -147,16 +150,17 @@ turb::scenes::SmokeSettings solverSettings(const SimArgs& a, const turb::Coord& 
     return s;
 }
 
-std::string domainLine(const SimArgs& a, const turb::scenes::SmokeSim& sim, const turb::scenes::SmokeSettings& s,
-    const turb::Coord& res)
+std::string domainLine(
+    const SimArgs& a, const turb::scenes::SmokeSim& sim, const turb::scenes::SmokeSettings& s, const turb::Coord& res)
 {
     const double h = sim.lattice().voxelSize;
     const turb::Vec3d lo = sim.lattice().indexToWorld(turb::Vec3d(-0.5));
     const turb::Vec3d hi = lo + turb::Vec3d(res.x(), res.y(), res.z()) * h;
     std::ostringstream domain;
     domain << "scene " << a.scene << " at " << resText(res) << ", voxel " << h << ", domain (" << lo.x() << ","
-           << lo.y() << "," << lo.z() << ")-(" << hi.x() << "," << hi.y() << "," << hi.z() << ")" << (sim.twoD() ? ", 2D, y up, " : ", z up, ")
-           << a.frames << " frames at " << fmt("%.4g", 1.0 / s.frameDt) << " fps, seed " << a.seed;
+           << lo.y() << "," << lo.z() << ")-(" << hi.x() << "," << hi.y() << "," << hi.z() << ")"
+           << (sim.twoD() ? ", 2D, y up, " : ", z up, ") << a.frames << " frames at " << fmt("%.4g", 1.0 / s.frameDt)
+           << " fps, seed " << a.seed;
     return domain.str();
 }
 
@@ -210,8 +214,8 @@ int writeFrames(const SimArgs& a, turb::scenes::SmokeSim& sim, const turbio::Fra
                 logWarning("frame " + std::to_string(number) + ": pressure solve stopped at residual " +
                            fmt("%.2e", st.relativeResidual) + " (tolerance " + fmt("%.1e", a.pressureTolerance) + ")");
             }
-            logVerbose("frame " + std::to_string(number) + ": advect " + fmt("%.2f s", st.advectSeconds) + ", project " +
-                       fmt("%.2f s", st.projectSeconds));
+            logVerbose("frame " + std::to_string(number) + ": advect " + fmt("%.2f s", st.advectSeconds) +
+                       ", project " + fmt("%.2f s", st.projectSeconds));
             report.frameDone(number, i, a.frames, secondsSince(t0), frameLine(st, path), frameJson(st, path));
         }
     });
@@ -230,7 +234,8 @@ int runSim(const SimArgs& a)
     const turb::Coord res = parseResolution(a.res);
     const turb::scenes::SmokeSettings s = solverSettings(a, res);
 
-    const std::string outText = a.out.empty() ? "sim/" + a.scene + "_" + resText(res) + "/" + a.scene + ".####.vdb" : a.out;
+    const std::string outText =
+        a.out.empty() ? "sim/" + a.scene + "_" + resText(res) + "/" + a.scene + ".####.vdb" : a.out;
     const turbio::FramePattern pattern = turbio::FramePattern::parse(outText);
     if (!pattern.numbered() && a.frames > 1)
         throw turb::ValueError("--out '" + outText + "' has no frame token (####, %04d, $F4) but " +
@@ -239,7 +244,8 @@ int runSim(const SimArgs& a)
     turb::scenes::SmokeSim sim(s); // validates the settings before anything is written
     logInfo(domainLine(a, sim, s, res));
     if (globals().dryRun) {
-        logInfo("would write " + pattern.format(a.start) + (a.frames > 1 ? " .. " + pattern.format(a.start + a.frames - 1) : ""));
+        logInfo("would write " + pattern.format(a.start) +
+                (a.frames > 1 ? " .. " + pattern.format(a.start + a.frames - 1) : ""));
         return kOk;
     }
 
@@ -247,7 +253,8 @@ int runSim(const SimArgs& a)
     const int unconverged = writeFrames(a, sim, pattern, report);
     report.finish();
     if (unconverged)
-        logWarning(std::to_string(unconverged) + " frame(s) stopped before the pressure tolerance; try --max-substeps or --tolerance");
+        logWarning(std::to_string(unconverged) +
+                   " frame(s) stopped before the pressure tolerance; try --max-substeps or --tolerance");
     return kOk;
 }
 
@@ -257,7 +264,8 @@ CLI::Validator resolutionCheck()
     return CLI::Validator(
         [](std::string& v) {
             try {
-                if (std::count(v.begin(), v.end(), 'x') + std::count(v.begin(), v.end(), 'X') == 1) return std::string(); // 2D (ink)
+                if (std::count(v.begin(), v.end(), 'x') + std::count(v.begin(), v.end(), 'X') == 1)
+                    return std::string(); // 2D (ink)
                 parseResolution(v);
             } catch (const turb::ValueError& e) {
                 return std::string(e.what());
@@ -271,7 +279,8 @@ CLI::Validator frameCountCheck()
 {
     return CLI::Validator(
         [](std::string& v) {
-            return v.find_first_not_of("0123456789") == std::string::npos && !v.empty() && std::stoll(v.substr(0, 9)) > 0
+            return v.find_first_not_of("0123456789") == std::string::npos && !v.empty() &&
+                           std::stoll(v.substr(0, 9)) > 0
                        ? std::string()
                        : "sim --frames is a number of frames (e.g. 24), not a frame list; got '" + v + "'";
         },
@@ -286,15 +295,16 @@ void addSolverSettings(CLI::App* app, SimArgs& a)
                 {{"semi", Scheme::SemiLagrangian}, {"maccormack", Scheme::MacCormack}, {"bfecc", Scheme::BFECC}},
                 "Advection of density, temperature and velocity: semi (semi-Lagrangian), maccormack, bfecc"),
         "scheme");
-    setting(app->add_option("--tolerance,--pressureTolerance", a.pressureTolerance,
-                   "Pressure solve: max|div| after / before")
+    setting(app->add_option(
+                   "--tolerance,--pressureTolerance", a.pressureTolerance, "Pressure solve: max|div| after / before")
                 ->check(CLI::Range(1e-12, 0.5)),
         "pressureTolerance");
     setting(addEnum<Preconditioner>(app, "--preconditioner", a.preconditioner,
                 {{"ic", Preconditioner::IncompleteCholesky}, {"jacobi", Preconditioner::Jacobi}},
                 "Pressure solve preconditioner: ic (incomplete Cholesky, one thread) or jacobi (all threads)"),
         "preconditioner");
-    setting(app->add_option("--cfl", a.cfl, "Voxels the fastest flow may cross per substep")->check(CLI::PositiveNumber),
+    setting(
+        app->add_option("--cfl", a.cfl, "Voxels the fastest flow may cross per substep")->check(CLI::PositiveNumber),
         "cfl");
     setting(app->add_option("--max-substeps,--maxSubsteps", a.maxSubsteps, "Substeps per frame at most")
                 ->check(CLI::Range(1, 64)),
@@ -308,21 +318,25 @@ Command simCommand()
     auto args = std::make_shared<SimArgs>();
     Command c;
     c.name = "sim";
-    c.help = "Simulate a built-in smoke scene (plume, swirl, obstacle, wind) into a VDB sequence, or the 2D ink exemplar into images";
+    c.help = "Simulate a built-in smoke scene (plume, swirl, obstacle, wind) into a VDB sequence, or the 2D ink "
+             "exemplar into images";
     c.setup = [args](CLI::App* app) {
         SimArgs& a = *args;
         std::vector<std::string> names;
         for (const auto& s : turb::scenes::sceneList()) names.push_back(s.name);
         names.push_back("ink");
-        app->add_option("scene", a.scene, "Scene: plume, swirl, obstacle, wind, or the 2D ink (see --list)")->check(CLI::IsMember(names));
+        app->add_option("scene", a.scene, "Scene: plume, swirl, obstacle, wind, or the 2D ink (see --list)")
+            ->check(CLI::IsMember(names));
         app->add_flag("--list", a.list, "List the scenes and exit");
         app->add_option("--res", a.res, "Cells NXxNYxNZ along x, y, z (z up), or N for a cube; NZ = 1 simulates in 2D")
             ->check(resolutionCheck());
-        app->add_option("--frames", a.frames, "Number of frames to simulate, at 24 per second")->check(frameCountCheck());
+        app->add_option("--frames", a.frames, "Number of frames to simulate, at 24 per second")
+            ->check(frameCountCheck());
         app->add_option("--start", a.start, "Number of the first frame written");
         app->add_option("--seed", a.seed, "Emitter noise seed; the same seed gives identical caches");
         app->add_flag("--json", a.json, "One JSON line per frame and a summary on stdout");
-        app->add_option("--out", a.out, "Output pattern, e.g. sim/plume.####.vdb (default: sim/SCENE_RES/SCENE.####.vdb)")
+        app->add_option(
+               "--out", a.out, "Output pattern, e.g. sim/plume.####.vdb (default: sim/SCENE_RES/SCENE.####.vdb)")
             ->group(kGroupOutput);
         addWriteOptions(app, a.write);
         addSolverSettings(app, a);

@@ -28,7 +28,6 @@ namespace {
 
 using namespace stylize;
 
-
 /// The exemplar: a still or a sequence (video), each frame with its alpha (from the file or a mask).
 class ExemplarSource
 {
@@ -51,8 +50,9 @@ public:
             const std::string path = pathOf(i);
             const turbio::ImageFileInfo info = turbio::inspectImage(path);
             if (info.width < patchSize || info.height < patchSize)
-                throw turb::IoError(path + ": the exemplar (" + std::to_string(info.width) + "x" + std::to_string(info.height) +
-                                    ") is smaller than a " + std::to_string(patchSize) + "x" + std::to_string(patchSize) + " patch");
+                throw turb::IoError(path + ": the exemplar (" + std::to_string(info.width) + "x" +
+                                    std::to_string(info.height) + ") is smaller than a " + std::to_string(patchSize) +
+                                    "x" + std::to_string(patchSize) + " patch");
             if (!info.hasAlpha && !mAlphaSeq)
                 throw turb::IoError(path + ": the exemplar has no alpha channel; give its mask with --exemplar-alpha");
         }
@@ -81,12 +81,15 @@ private:
         turbio::ImageFileInfo info;
         turb::RgbaImage img = turbio::readImage(path, &info);
         if (mAlphaSeq) {
-            const std::string apath = mAlphaSeq->frames.empty() ? mAlphaSeq->pattern.str()
-                                                                 : mAlphaSeq->path(mAlphaSeq->frames[k % mAlphaSeq->frames.size()]);
+            const std::string apath = mAlphaSeq->frames.empty()
+                                          ? mAlphaSeq->pattern.str()
+                                          : mAlphaSeq->path(mAlphaSeq->frames[k % mAlphaSeq->frames.size()]);
             const turb::RgbaImage mask = turbio::readImage(apath);
             if (!mask.sameSize(img))
-                throw turb::IoError(apath + ": the exemplar mask (" + std::to_string(mask.width()) + "x" + std::to_string(mask.height()) +
-                                    ") and " + path + " (" + std::to_string(img.width()) + "x" + std::to_string(img.height()) + ") differ in size");
+                throw turb::IoError(apath + ": the exemplar mask (" + std::to_string(mask.width()) + "x" +
+                                    std::to_string(mask.height()) + ") and " + path + " (" +
+                                    std::to_string(img.width()) + "x" + std::to_string(img.height()) +
+                                    ") differ in size");
             for (size_t p = 0; p < img.size(); ++p) img.pixels()[p][3] = mask.pixels()[p][0];
         }
         float amax = 0.0f;
@@ -102,8 +105,8 @@ private:
     std::map<size_t, turb::RgbaImage> mCache;
 };
 
-
-turb::Image previewSheet(const TargetFrame& t, const TargetSource& src, const turb::RgbaImage& ex, const turb::RgbaImage& out, int frame)
+turb::Image previewSheet(
+    const TargetFrame& t, const TargetSource& src, const turb::RgbaImage& ex, const turb::RgbaImage& out, int frame)
 {
     const turb::Rgb bg(0.07f, 0.075f, 0.09f);
     turb::Image target;
@@ -117,7 +120,8 @@ turb::Image previewSheet(const TargetFrame& t, const TargetSource& src, const tu
     } else {
         target = turb::channelPicture(turb::toRgba(t.alpha), 0);
     }
-    const turb::Image lic = motionPicture(t.motion), styl = turb::overBackground(out, bg), exPic = turb::overBackground(ex, bg);
+    const turb::Image lic = motionPicture(t.motion), styl = turb::overBackground(out, bg),
+                      exPic = turb::overBackground(ex, bg);
     const std::vector<turb::SheetCell> row{{&target, t.cacheFrame ? "cache render" : "target alpha"},
         {&lic, "motion (LIC)"}, {&styl, "stylized"}, {&exPic, "exemplar"}};
     return turb::contactSheet({row}, {}, "stylize frame " + std::to_string(frame), 1);
@@ -127,8 +131,9 @@ nlohmann::json statsJson(const turb::StylizeStats& st)
 {
     nlohmann::json usage = nlohmann::json::array();
     for (const auto& u : st.usage)
-        usage.push_back({{"segment", u.label == 1 ? "interior" : "boundary"}, {"sources", u.sources}, {"targets", u.targets},
-            {"K", u.K}, {"R", u.R}, {"min_count", u.minCount}, {"max_count", u.maxCount}, {"coverage", u.coverage}});
+        usage.push_back({{"segment", u.label == 1 ? "interior" : "boundary"}, {"sources", u.sources},
+            {"targets", u.targets}, {"K", u.K}, {"R", u.R}, {"min_count", u.minCount}, {"max_count", u.maxCount},
+            {"coverage", u.coverage}});
     nlohmann::json j;
     j["size"] = {st.width, st.height};
     j["levels"] = st.levels;
@@ -146,8 +151,8 @@ nlohmann::json statsJson(const turb::StylizeStats& st)
     j["boundary_gradient_match"] = st.boundaryGradientMatch;
     j["boundary_gradient_histogram"] = st.boundaryGradient;
     j["exemplar_boundary_gradient_histogram"] = st.exemplarBoundaryGradient;
-    j["steps_s"] = {{"guides", st.secondsGuides}, {"nnf", st.secondsNnf}, {"vote", st.secondsVote}, {"warp", st.secondsWarp},
-        {"stats", st.secondsStats}};
+    j["steps_s"] = {{"guides", st.secondsGuides}, {"nnf", st.secondsNnf}, {"vote", st.secondsVote},
+        {"warp", st.secondsWarp}, {"stats", st.secondsStats}};
     return j;
 }
 
@@ -155,8 +160,8 @@ std::string humanLine(const turb::StylizeStats& st)
 {
     std::string s = "coverage " + fmt("%.1f%%", 100.0 * st.coverage);
     for (const auto& u : st.usage)
-        s += std::string(u.label == 1 ? ", interior" : ", boundary") + " counts " + std::to_string(u.minCount) + "-" + std::to_string(u.maxCount) +
-             " (K " + std::to_string(u.K) + ")";
+        s += std::string(u.label == 1 ? ", interior" : ", boundary") + " counts " + std::to_string(u.minCount) + "-" +
+             std::to_string(u.maxCount) + " (K " + std::to_string(u.K) + ")";
     s += fmt(", std %.2f", st.stdRatio) + fmt(" grad %.2f", st.gradientRatio) + fmt(", IoU %.3f", st.iou) +
          fmt(" edge %.2f", st.boundaryGradientMatch);
     if (st.temporalChange) s += fmt(", change %.4f", *st.temporalChange);
@@ -178,7 +183,8 @@ void writeTargetFiles(const std::string& dir, int frame, const TargetFrame& t, b
     }
     turbio::writeImage(a.format(frame), gray, o);
     turb::RgbaImage mv(t.motion.width(), t.motion.height());
-    for (size_t i = 0; i < mv.size(); ++i) mv.pixels()[i] = turb::Rgba(t.motion.pixel(i)[0], t.motion.pixel(i)[1], 0.0f, 1.0f);
+    for (size_t i = 0; i < mv.size(); ++i)
+        mv.pixels()[i] = turb::Rgba(t.motion.pixel(i)[0], t.motion.pixel(i)[1], 0.0f, 1.0f);
     o.bits = turbio::PixelBits::Float;
     turbio::writeImage(m.format(frame), mv, o);
 }
@@ -218,8 +224,8 @@ nlohmann::json writeStylized(const StylizeArgs& a, int fr, const TargetFrame& t,
 }
 
 // The frames in order: each one's temporal term reads the previous output, warped by the previous motion.
-void stylizeFrames(const StylizeArgs& a, const TargetSource& target, ExemplarSource& exemplar,
-    const turbio::FramePattern& outPattern)
+void stylizeFrames(
+    const StylizeArgs& a, const TargetSource& target, ExemplarSource& exemplar, const turbio::FramePattern& outPattern)
 {
     turb::Stylizer styl(a.settings);
     RunReport report("stylize", a.json);
@@ -251,7 +257,8 @@ void stylizeFrames(const StylizeArgs& a, const TargetSource& target, ExemplarSou
         const std::string outPath = outPattern.format(fr);
         const nlohmann::json extra = writeStylized(a, fr, t, target, ex, outFrame, prev, outPath);
         progress.clear();
-        report.frameDone(fr, int(i), int(frames.size()), secondsSince(t0), humanLine(outFrame.stats) + " -> " + outPath, extra);
+        report.frameDone(
+            fr, int(i), int(frames.size()), secondsSince(t0), humanLine(outFrame.stats) + " -> " + outPath, extra);
         prev.motion = t.motion;
         prev.alpha = t.alpha;
         prev.frame = fr;
@@ -268,10 +275,13 @@ int runStylize(StylizeArgs& a)
     const turbio::FramePattern outPattern = turbio::FramePattern::parse(a.out);
     TargetSource target(a);
     if (!outPattern.numbered() && target.frames().size() > 1)
-        throw turb::ValueError("--out " + a.out + " has no frame token (####) but there are " + std::to_string(target.frames().size()) + " frames");
+        throw turb::ValueError("--out " + a.out + " has no frame token (####) but there are " +
+                               std::to_string(target.frames().size()) + " frames");
     ExemplarSource exemplar(a, s.patchSize);
-    logInfo("stylize: " + target.label() + ", exemplar " + exemplar.label() + (exemplar.video() ? " (video, " + std::to_string(exemplar.count()) + " frames)" : "") +
-            ", " + std::to_string(target.frames().size()) + " frames, nnf " + (s.nnf == turb::NnfMode::Standard ? "standard" : "uniform"));
+    logInfo("stylize: " + target.label() + ", exemplar " + exemplar.label() +
+            (exemplar.video() ? " (video, " + std::to_string(exemplar.count()) + " frames)" : "") + ", " +
+            std::to_string(target.frames().size()) + " frames, nnf " +
+            (s.nnf == turb::NnfMode::Standard ? "standard" : "uniform"));
     target.validate2D();
     // Every exemplar frame is read once before the first output, so a bad one writes nothing.
     for (size_t i = 0; i < exemplar.count(); ++i) exemplar.frame(i);
@@ -287,34 +297,45 @@ int runStylize(StylizeArgs& a)
 void addInputOptions(CLI::App* app, StylizeArgs& a)
 {
     app->add_option("--exemplar", a.exemplar,
-           "Exemplar: a picture, a #### sequence (a video), builtin:fire[:N]; fluidymation: its frames or builtin:ink[:WxH[xN]]")
+           "Exemplar: a picture, a #### sequence (a video), builtin:fire[:N]; fluidymation: its frames or "
+           "builtin:ink[:WxH[xN]]")
         ->required();
-    app->add_option("--exemplar-alpha", a.exemplarAlpha, "Grayscale mask (or #### sequence) giving the exemplar's alpha");
-    app->add_option("--flow", a.flow, "2D target motion per frame: R,G in pixels per frame (x right, y down), or 1-layer VDBs");
+    app->add_option(
+        "--exemplar-alpha", a.exemplarAlpha, "Grayscale mask (or #### sequence) giving the exemplar's alpha");
+    app->add_option(
+        "--flow", a.flow, "2D target motion per frame: R,G in pixels per frame (x right, y down), or 1-layer VDBs");
     app->add_option("--alpha", a.alpha, "2D target alpha masks per frame (grayscale images)");
-    app->add_option("--cache", a.cache, "3D target: a cache seen through --camera (alpha = opacity, motion = projected velocity)");
+    app->add_option(
+        "--cache", a.cache, "3D target: a cache seen through --camera (alpha = opacity, motion = projected velocity)");
     addCameraOptions(app, a.camera);
     app->add_option("--scene", a.scene, "Built-in 2D target: rotate, swirl, rise, fill, grow or stroke")
         ->check(CLI::IsMember({"rotate", "swirl", "rise", "fill", "grow", "stroke"}));
-    app->add_option("--frames", a.frames, "Frames, e.g. 1-150; a scene: a count N or a list (empty: all on disk; scene 1)")
+    app->add_option(
+           "--frames", a.frames, "Frames, e.g. 1-150; a scene: a count N or a list (empty: all on disk; scene 1)")
         ->check(frameListCheck());
     setting(app->add_option("--scene-size", a.sceneSize, "Built-in target size WxH"), "scene-size");
-    setting(app->add_option("--scene-speed", a.sceneSpeed, "Built-in target: radians per frame at the centre (rise: widths per frame)"),
+    setting(app->add_option("--scene-speed", a.sceneSpeed,
+                "Built-in target: radians per frame at the centre (rise: widths per frame)"),
         "scene-speed");
-    setting(app->add_flag("--flow-y-up", a.flowYUp, "The flow images' G channel points up (Nuke, Houdini)"), "flow-y-up");
+    setting(
+        app->add_flag("--flow-y-up", a.flowYUp, "The flow images' G channel points up (Nuke, Houdini)"), "flow-y-up");
     addReadOptions(app, a.read);
     // Only a --cache target reads grids: its grid and frame-rate choices are settings here.
-    for (const char* name : {"density-grid", "vel-grid", "fps"}) setting(app->get_option(std::string("--") + name), name);
+    for (const char* name : {"density-grid", "vel-grid", "fps"})
+        setting(app->get_option(std::string("--") + name), name);
 }
 
 void addOutputOptions(CLI::App* app, StylizeArgs& a)
 {
-    app->add_option("--out", a.out, "Output RGBA frames, e.g. styl/fire.####.exr (EXR: half, premultiplied; PNG: straight)");
-    app->add_option("--preview", a.preview, "Write a PNG per frame into DIR: target | motion (LIC) | stylized | exemplar")
+    app->add_option(
+        "--out", a.out, "Output RGBA frames, e.g. styl/fire.####.exr (EXR: half, premultiplied; PNG: straight)");
+    app->add_option(
+           "--preview", a.preview, "Write a PNG per frame into DIR: target | motion (LIC) | stylized | exemplar")
         ->group(kGroupOutput);
     app->add_flag("--no-clobber", a.noClobber, "Never replace an existing output file")->group(kGroupOutput);
     app->add_flag("--json", a.json, "One JSON line per frame and a summary on stdout");
-    setting(app->add_option("--write-target", a.writeTarget, "Write the target per frame into DIR: alpha.####.png, motion.####.exr"),
+    setting(app->add_option("--write-target", a.writeTarget,
+                "Write the target per frame into DIR: alpha.####.png, motion.####.exr"),
         "write-target");
 }
 
@@ -325,23 +346,32 @@ void addLazyFluidsSettings(CLI::App* app, turb::StylizeSettings& s)
     const auto knob = [app](const std::string& names, auto& v, const std::string& help, const std::string& key) {
         return setting(app->add_option(names, v, help), key);
     };
-    setting(addEnum<turb::NnfMode>(app, "--nnf", s.nnf, {{"uniform", turb::NnfMode::Uniform}, {"standard", turb::NnfMode::Standard}},
-                "uniform: reversed NNF, uniform patch usage (the paper); standard: nearest neighbours (the wash-out ablation)"),
+    setting(addEnum<turb::NnfMode>(app, "--nnf", s.nnf,
+                {{"uniform", turb::NnfMode::Uniform}, {"standard", turb::NnfMode::Standard}},
+                "uniform: reversed NNF, uniform patch usage (the paper); standard: nearest neighbours (the wash-out "
+                "ablation)"),
         "nnf");
-    knob("--patch,--patchSize", s.patchSize, "Patch size in pixels, odd (paper 5)", "patchSize")->check(CLI::Range(3, 15));
-    knob("--lambda", s.lambda, "Temporal coherence lambda (paper 0.2; 0 = independent frames)", "lambda")->check(CLI::NonNegativeNumber);
+    knob("--patch,--patchSize", s.patchSize, "Patch size in pixels, odd (paper 5)", "patchSize")
+        ->check(CLI::Range(3, 15));
+    knob("--lambda", s.lambda, "Temporal coherence lambda (paper 0.2; 0 = independent frames)", "lambda")
+        ->check(CLI::NonNegativeNumber);
     knob("--eta", s.eta, "Weight of the blurred-alpha guide (paper 3)", "eta")->check(CLI::NonNegativeNumber);
-    knob("--blur-radius,--blurRadius", s.blurRadius, "r: Gaussian standard deviation (pixels) of the guide alpha", "blurRadius")
+    knob("--blur-radius,--blurRadius", s.blurRadius, "r: Gaussian standard deviation (pixels) of the guide alpha",
+        "blurRadius")
         ->check(CLI::PositiveNumber);
-    knob("--lower", s.lower, "l: boundary segment where the blurred alpha lies in (l, u)", "lower")->check(CLI::Range(0.0, 1.0));
+    knob("--lower", s.lower, "l: boundary segment where the blurred alpha lies in (l, u)", "lower")
+        ->check(CLI::Range(0.0, 1.0));
     knob("--upper", s.upper, "u: interior segment where the blurred alpha >= u", "upper")->check(CLI::Range(0.0, 1.0));
-    knob("--levels", s.levels, "Pyramid levels (0 = short sides >= 32 px, at most 5)", "levels")->check(CLI::Range(0, 8));
+    knob("--levels", s.levels, "Pyramid levels (0 = short sides >= 32 px, at most 5)", "levels")
+        ->check(CLI::Range(0, 8));
     knob("--iterations", s.iterations, "EM iterations on each coarser level", "iterations")->check(CLI::Range(1, 50));
     knob("--fine-iterations,--fineIterations", s.fineIterations, "EM iterations on the finest level", "fineIterations")
         ->check(CLI::Range(1, 50));
     knob("--sweeps", s.sweeps, "PatchMatch sweeps per retrieval round", "sweeps")->check(CLI::Range(1, 32));
-    setting(app->add_flag("--rotations", s.rotations, "Also use the exemplar rotated by 90, 180 and 270 degrees"), "rotations");
-    knob("--motion-blur,--motionBlur", s.motionBlur, "Blur along F^t by this fraction of a frame's motion (0 = none)", "motionBlur")
+    setting(app->add_flag("--rotations", s.rotations, "Also use the exemplar rotated by 90, 180 and 270 degrees"),
+        "rotations");
+    knob("--motion-blur,--motionBlur", s.motionBlur, "Blur along F^t by this fraction of a frame's motion (0 = none)",
+        "motionBlur")
         ->check(CLI::NonNegativeNumber);
     knob("--seed", s.seed, "Random seed: the same seed gives the same frames at any --threads", "seed");
 }
@@ -353,11 +383,13 @@ Command stylizeCommand()
     auto args = std::make_shared<StylizeArgs>();
     Command c;
     c.name = "stylize";
-    c.help = "Appearance transfer onto fluid motion: an exemplar's look on 2D flows or on a VDB cache seen through a camera "
-             "(LazyFluids; --method fluidymation: a moving exemplar's look and dynamics)";
+    c.help =
+        "Appearance transfer onto fluid motion: an exemplar's look on 2D flows or on a VDB cache seen through a camera "
+        "(LazyFluids; --method fluidymation: a moving exemplar's look and dynamics)";
     c.setup = [args](CLI::App* app) {
         StylizeArgs& a = *args;
-        addEnum<Method>(app, "--method", a.method, {{"lazyfluids", Method::LazyFluids}, {"fluidymation", Method::Fluidymation}},
+        addEnum<Method>(app, "--method", a.method,
+            {{"lazyfluids", Method::LazyFluids}, {"fluidymation", Method::Fluidymation}},
             "lazyfluids: a still or video RGBA exemplar; fluidymation: a moving exemplar's look and dynamics");
         addInputOptions(app, a);
         addOutputOptions(app, a);

@@ -91,8 +91,9 @@ ExemplarVideo loadExemplar(const StylizeArgs& a, bool estimateFlow)
             if (!(*s)->missing.empty()) throw turb::IoError((*s)->path((*s)->missing.front()) + ": missing");
             const size_t n = (*s)->frames.empty() ? 1 : (*s)->frames.size();
             if (n != frames.size())
-                throw turb::IoError((*s)->pattern.str() + ": " + std::to_string(n) + (s == &masks ? " masks" : " flows") + " but the exemplar " +
-                                    ex.label + " has " + std::to_string(frames.size()) + " frames (the counts must match)");
+                throw turb::IoError((*s)->pattern.str() + ": " + std::to_string(n) +
+                                    (s == &masks ? " masks" : " flows") + " but the exemplar " + ex.label + " has " +
+                                    std::to_string(frames.size()) + " frames (the counts must match)");
         }
         for (size_t k = 0; k < frames.size(); ++k) {
             const std::string path = seq.frames.empty() ? seq.pattern.str() : seq.path(frames[k]);
@@ -102,7 +103,8 @@ ExemplarVideo loadExemplar(const StylizeArgs& a, bool estimateFlow)
                 ex.motion = turb::MotionSequence(img.width(), img.height());
                 ex.colorSpace = img.colorSpace;
             } else if (img.width() != ex.motion.width() || img.height() != ex.motion.height()) {
-                throw turb::IoError(path + ": " + sizeText(img.width(), img.height()) + ", but the first exemplar frame is " +
+                throw turb::IoError(path + ": " + sizeText(img.width(), img.height()) +
+                                    ", but the first exemplar frame is " +
                                     sizeText(ex.motion.width(), ex.motion.height()));
             }
             turb::ChannelImage mask;
@@ -116,13 +118,14 @@ ExemplarVideo loadExemplar(const StylizeArgs& a, bool estimateFlow)
                 throw turb::IoError(path + ": the exemplar has no alpha channel; give its masks with --exemplar-mask");
             }
             if (!mask.sameSize(turb::channelOf(img, 0)))
-                throw turb::IoError(maskPath + ": the mask (" + sizeText(mask.width(), mask.height()) + ") and " + path + " (" +
-                                    sizeText(img.width(), img.height()) + ") differ in size");
+                throw turb::IoError(maskPath + ": the mask (" + sizeText(mask.width(), mask.height()) + ") and " +
+                                    path + " (" + sizeText(img.width(), img.height()) + ") differ in size");
             turb::ChannelImage flow;
             if (flows) {
                 const std::string fp = flows->frames.empty() ? flows->pattern.str() : flows->path(flows->frames[k]);
                 flow = flowImage(fp);
-                if (!flow.sameSize(mask)) throw turb::IoError(fp + ": the flow and the exemplar frame " + path + " differ in size");
+                if (!flow.sameSize(mask))
+                    throw turb::IoError(fp + ": the flow and the exemplar frame " + path + " differ in size");
             }
             ex.rgb.push_back(turb::channelRange(turb::toChannels(img), 0, 3));
             try {
@@ -148,8 +151,8 @@ turb::MotionSequence loadTarget(const TargetSource& src, const FluidyArgs& f)
         const TargetFrame t = src.read(src.frames()[i]);
         if (i == 0) seq = turb::MotionSequence(t.alpha.width(), t.alpha.height());
         if (t.alpha.width() != seq.width() || t.alpha.height() != seq.height())
-            throw turb::IoError(t.alphaName + ": " + sizeText(t.alpha.width(), t.alpha.height()) + ", but the first target frame is " +
-                                sizeText(seq.width(), seq.height()));
+            throw turb::IoError(t.alphaName + ": " + sizeText(t.alpha.width(), t.alpha.height()) +
+                                ", but the first target frame is " + sizeText(seq.width(), seq.height()));
         try {
             seq.addFrame(t.alpha, useFlow ? &t.motion : nullptr, f.maskThreshold);
         } catch (const turb::ValueError& e) {
@@ -160,7 +163,9 @@ turb::MotionSequence loadTarget(const TargetSource& src, const FluidyArgs& f)
     long long masked = 0;
     for (int i = 0; i < seq.frames(); ++i) masked += seq.maskedPixels(i);
     if (masked == 0)
-        throw turb::IoError(src.label() + ": the target mask is empty in every frame (nothing reaches --mask-threshold " + fmt("%g", f.maskThreshold) + ")");
+        throw turb::IoError(src.label() +
+                            ": the target mask is empty in every frame (nothing reaches --mask-threshold " +
+                            fmt("%g", f.maskThreshold) + ")");
     seq.finish(f.guides);
     return seq;
 }
@@ -169,7 +174,8 @@ turb::Rgb hue(double t)
 {
     const double h = 6.0 * (t - std::floor(t));
     const int k = int(h) % 6;
-    const float fr = float(h - std::floor(h)), v = 0.92f, s = 0.75f, p = v * (1 - s), q = v * (1 - s * fr), u = v * (1 - s * (1 - fr));
+    const float fr = float(h - std::floor(h)), v = 0.92f, s = 0.75f, p = v * (1 - s), q = v * (1 - s * fr),
+                u = v * (1 - s * (1 - fr));
     switch (k) {
     case 0: return {v, u, p};
     case 1: return {q, v, p};
@@ -198,8 +204,8 @@ turb::Image nnfPicture(const turb::RotatedNnf& nnf, int sw, int sh, int frames)
         for (int x = 0; x < nnf.width; ++x) {
             const turb::PatchRef& m = nnf.match[size_t(y) * size_t(nnf.width) + size_t(x)];
             if (m.valid())
-                img.at(x, y) = turb::Rgb(float(m.x) / float(std::max(1, sw - 1)), float(m.y) / float(std::max(1, sh - 1)),
-                    float(m.frame) / float(std::max(1, frames - 1)));
+                img.at(x, y) = turb::Rgb(float(m.x) / float(std::max(1, sw - 1)),
+                    float(m.y) / float(std::max(1, sh - 1)), float(m.frame) / float(std::max(1, frames - 1)));
         }
     return img;
 }
@@ -226,7 +232,8 @@ nlohmann::json statsJson(const turb::FluidyStats& st)
     j["contrast_ratio"] = st.contrastRatio;
     j["mean_shift"] = st.meanShift;
     j["reused_fraction"] = st.reusedFraction;
-    j["steps_s"] = {{"guides", st.secondsGuides}, {"search", st.secondsSearch}, {"vote", st.secondsVote}, {"stats", st.secondsStats}};
+    j["steps_s"] = {{"guides", st.secondsGuides}, {"search", st.secondsSearch}, {"vote", st.secondsVote},
+        {"stats", st.secondsStats}};
     return j;
 }
 
@@ -235,21 +242,22 @@ std::string humanLine(const turb::FluidyStats& st)
     if (st.maskedPixels == 0) return "empty mask: transparent";
     std::string s = std::to_string(st.maskedPixels) + " px, E " + fmt("%.2f", st.energy.total());
     if (st.meanAbsSin) s += fmt(", |sin| %.3f", *st.meanAbsSin);
-    s += fmt(", speed corr %.2f", st.speedCorrelation) + fmt(", coverage %.1f%%", 100.0 * st.coverage) + fmt(", contrast %.2f", st.contrastRatio);
+    s += fmt(", speed corr %.2f", st.speedCorrelation) + fmt(", coverage %.1f%%", 100.0 * st.coverage) +
+         fmt(", contrast %.2f", st.contrastRatio);
     if (st.stationaryChange) s += fmt(", still change %.4f", *st.stationaryChange);
     return s;
 }
 
-turb::Image previewSheet(const turb::ChannelImage& mask, const turb::ChannelImage& flow, const turb::FluidyFrame& out, const ExemplarVideo& ex,
-    int frame, const turb::Image* render)
+turb::Image previewSheet(const turb::ChannelImage& mask, const turb::ChannelImage& flow, const turb::FluidyFrame& out,
+    const ExemplarVideo& ex, int frame, const turb::Image* render)
 {
     const turb::Image m = turb::channelPicture(turb::toRgba(mask), 0);
     const turb::Image lic = motionPicture(flow);
     const turb::Image styl = turb::overBackground(out.image, turb::Rgb(0.95f));
     const turb::Image rot = rotationPicture(out.rotation);
     const turb::Image nnf = nnfPicture(out.nnf, ex.motion.width(), ex.motion.height(), ex.motion.frames());
-    std::vector<turb::SheetCell> row{{&m, "target mask"}, {&lic, "flow (LIC)"}, {&styl, "stylized"}, {&rot, "T^rot (hue)"},
-        {&nnf, "NNF (x, y, i)"}};
+    std::vector<turb::SheetCell> row{
+        {&m, "target mask"}, {&lic, "flow (LIC)"}, {&styl, "stylized"}, {&rot, "T^rot (hue)"}, {&nnf, "NNF (x, y, i)"}};
     if (render) row.insert(row.begin(), {render, "cache render"});
     return turb::contactSheet({row}, {}, "fluidymation frame " + std::to_string(frame), 1);
 }
@@ -264,8 +272,8 @@ void writeFloat(const std::string& path, const turb::RgbaImage& img, bool noClob
 }
 
 /// Writes everything a frame asked for.
-nlohmann::json writeFrame(const StylizeArgs& a, int fr, const turb::FluidyFrame& out, const ExemplarVideo& ex, const turb::MotionSequence& target,
-    int index, const TargetSource& source)
+nlohmann::json writeFrame(const StylizeArgs& a, int fr, const turb::FluidyFrame& out, const ExemplarVideo& ex,
+    const turb::MotionSequence& target, int index, const TargetSource& source)
 {
     nlohmann::json extra = statsJson(out.stats);
     const std::string outPath = turbio::FramePattern::parse(a.out).format(fr);
@@ -318,7 +326,8 @@ nlohmann::json writeFrame(const StylizeArgs& a, int fr, const turb::FluidyFrame&
             dr.extinction = source.bridge().extinction;
             render = turb::renderDensity(t.cacheFrame->density, dr);
         }
-        turbio::writeImage(png, previewSheet(target.mask(index), target.flow(index), out, ex, fr, render ? &*render : nullptr));
+        turbio::writeImage(
+            png, previewSheet(target.mask(index), target.flow(index), out, ex, fr, render ? &*render : nullptr));
         extra["preview"] = png;
     }
     return extra;
@@ -331,30 +340,36 @@ void addFluidymationOptions(CLI::App* app, StylizeArgs& a)
     FluidyArgs& f = a.fluidy;
     turb::FluidySettings& s = f.settings;
     const std::string m = "[fluidymation] ";
-    app->add_option("--exemplar-mask", f.exemplarMask, m + "Binary masks of the exemplar frames (empty: the exemplar's alpha)");
+    app->add_option(
+        "--exemplar-mask", f.exemplarMask, m + "Binary masks of the exemplar frames (empty: the exemplar's alpha)");
     app->add_option("--target-mask", f.targetMask, m + "Binary target masks (#### sequence): the 2D target");
     const auto knob = [app, &m](const std::string& names, auto& v, const std::string& help, const std::string& key) {
         return setting(app->add_option(names, v, m + help), key);
     };
     knob("--exemplar-flow", f.exemplarFlow, "Exemplar flows, R,G in pixels per frame (empty: estimated from the masks)",
         "exemplar-flow");
-    knob("--target-flow", f.targetFlow, "Target flows, R,G in pixels per frame (empty: estimated from the masks)", "target-flow");
+    knob("--target-flow", f.targetFlow, "Target flows, R,G in pixels per frame (empty: estimated from the masks)",
+        "target-flow");
     knob("--mask-threshold", f.maskThreshold, "Target alpha / rendered opacity at or above this is inside the mask",
         "mask-threshold")
         ->check(CLI::Range(0.001, 1.0));
-    setting(app->add_flag("--estimate-flow", f.estimateFlow, m + "Estimate the target's flow from its masks even when one is given"),
+    setting(app->add_flag("--estimate-flow", f.estimateFlow,
+                m + "Estimate the target's flow from its masks even when one is given"),
         "estimate-flow");
-    knob("--out-rot", f.outRot, "Write T^rot per frame: float EXR/TIFF, R = theta (radians), G, B = cos, sin", "out-rot");
-    knob("--debug-nnf", f.debugNnf, "Write the NNF per frame into DIR: nnf.####.exr (R = frame, G = x, B = y), nnf_theta, nnf_vis",
-        "debug-nnf");
+    knob("--out-rot", f.outRot, "Write T^rot per frame: float EXR/TIFF, R = theta (radians), G, B = cos, sin",
+        "out-rot");
+    knob("--debug-nnf", f.debugNnf,
+        "Write the NNF per frame into DIR: nnf.####.exr (R = frame, G = x, B = y), nnf_theta, nnf_vis", "debug-nnf");
     // turb::FluidySettings under its field names (Table 1's values are the defaults; docs/fluidymation.md).
     knob("--n,--fluidy.patchSize", s.patchSize, "Patch size n", "fluidy.patchSize")->check(CLI::Range(3, 15));
-    knob("--b,--fluidy.boundaryBlur", s.boundaryBlur, "Boundary blur radius b in pixels (sigma = b/3)", "fluidy.boundaryBlur")
+    knob("--b,--fluidy.boundaryBlur", s.boundaryBlur, "Boundary blur radius b in pixels (sigma = b/3)",
+        "fluidy.boundaryBlur")
         ->check(CLI::Range(0.1, 1000.0));
-    knob("--r,--fluidy.cuboidFrames", s.cuboidFrames, "Occurrence cuboid half-length r in frames (the exemplar needs 2r+1)",
-        "fluidy.cuboidFrames")
+    knob("--r,--fluidy.cuboidFrames", s.cuboidFrames,
+        "Occurrence cuboid half-length r in frames (the exemplar needs 2r+1)", "fluidy.cuboidFrames")
         ->check(CLI::Range(0, 50));
-    knob("--w-bound,--fluidy.wBound", s.wBound, "w^bound (0 = ablation)", "fluidy.wBound")->check(CLI::NonNegativeNumber);
+    knob("--w-bound,--fluidy.wBound", s.wBound, "w^bound (0 = ablation)", "fluidy.wBound")
+        ->check(CLI::NonNegativeNumber);
     knob("--w-ext,--fluidy.wExt", s.wExt, "w^ext", "fluidy.wExt")->check(CLI::NonNegativeNumber);
     knob("--w-dir,--fluidy.wDir", s.wDir, "w^dir", "fluidy.wDir")->check(CLI::NonNegativeNumber);
     knob("--w-temp,--fluidy.wTemp", s.wTemp, "w^temp", "fluidy.wTemp")->check(CLI::NonNegativeNumber);
@@ -363,16 +378,18 @@ void addFluidymationOptions(CLI::App* app, StylizeArgs& a)
         ->check(CLI::Range(0.0, 10.0));
     knob("--m-upper,--fluidy.mUpper", s.mUpper, "m_u as a fraction of the target's larger side", "fluidy.mUpper")
         ->check(CLI::Range(0.0, 10.0));
-    knob("--dir-clamp,--fluidy.dirClamp", s.dirClamp, "Clamp of |tan| in D^dir", "fluidy.dirClamp")->check(CLI::PositiveNumber);
-    knob("--extent-scale,--fluidy.extentScale", s.extentScale, "The exemplar's D^ext unit in pixels (0 = its 95th percentile)",
-        "fluidy.extentScale")
+    knob("--dir-clamp,--fluidy.dirClamp", s.dirClamp, "Clamp of |tan| in D^dir", "fluidy.dirClamp")
+        ->check(CLI::PositiveNumber);
+    knob("--extent-scale,--fluidy.extentScale", s.extentScale,
+        "The exemplar's D^ext unit in pixels (0 = its 95th percentile)", "fluidy.extentScale")
         ->check(CLI::NonNegativeNumber);
     knob("--target-extent-scale,--fluidy.targetExtentScale", s.targetExtentScale,
         "The target's D^ext unit in pixels (0 = its own 95th percentile)", "fluidy.targetExtentScale")
         ->check(CLI::NonNegativeNumber);
     knob("--fluidy-levels,--fluidy.levels", s.levels, "Pyramid levels (0 = floor(log2(d_min / n)))", "fluidy.levels")
         ->check(CLI::Range(0, 8));
-    knob("--fluidy-iterations,--fluidy.iterations", s.iterations, "EM iterations on coarser levels", "fluidy.iterations")
+    knob(
+        "--fluidy-iterations,--fluidy.iterations", s.iterations, "EM iterations on coarser levels", "fluidy.iterations")
         ->check(CLI::Range(1, 50));
     knob("--fluidy-fine-iterations,--fluidy.fineIterations", s.fineIterations, "EM iterations on the finest level",
         "fluidy.fineIterations")
@@ -382,9 +399,10 @@ void addFluidymationOptions(CLI::App* app, StylizeArgs& a)
     knob("--fluidy-fine-sweeps,--fluidy.fineSweeps", s.fineSweeps, "PatchMatch sweeps per E-step on the finest level",
         "fluidy.fineSweeps")
         ->check(CLI::Range(1, 32));
-    boolSetting(app, "--fluidy.reusePrevious", s.reusePrevious, m + "Start each frame from the previous one's NNF (false: random)",
-        "fluidy.reusePrevious");
-    legacy(app->add_flag_function("--no-reuse", [&s](int64_t) { s.reusePrevious = false; }, "fluidy.reusePrevious = false"),
+    boolSetting(app, "--fluidy.reusePrevious", s.reusePrevious,
+        m + "Start each frame from the previous one's NNF (false: random)", "fluidy.reusePrevious");
+    legacy(app->add_flag_function(
+               "--no-reuse", [&s](int64_t) { s.reusePrevious = false; }, "fluidy.reusePrevious = false"),
         "fluidy.reusePrevious", "false");
 }
 
@@ -395,9 +413,12 @@ StylizeArgs targetArgsOf(const StylizeArgs& a)
 {
     const FluidyArgs& f = a.fluidy;
     if (!a.flow.empty() || !a.alpha.empty() || !a.exemplarAlpha.empty())
-        throw turb::ValueError("--method fluidymation takes --target-mask/--target-flow and --exemplar-mask (not --alpha, --flow, --exemplar-alpha)");
+        throw turb::ValueError("--method fluidymation takes --target-mask/--target-flow and --exemplar-mask (not "
+                               "--alpha, --flow, --exemplar-alpha)");
     const int kinds = int(!f.targetMask.empty()) + int(!a.cache.empty()) + int(!a.scene.empty());
-    if (kinds != 1) throw turb::ValueError("give one target: --target-mask [--target-flow] (2D), --cache (3D through --camera) or --scene");
+    if (kinds != 1)
+        throw turb::ValueError(
+            "give one target: --target-mask [--target-flow] (2D), --cache (3D through --camera) or --scene");
     if (!f.targetFlow.empty() && f.targetMask.empty()) throw turb::ValueError("--target-flow needs --target-mask");
     StylizeArgs targetArgs = a;
     targetArgs.alpha = f.targetMask;
@@ -415,8 +436,8 @@ void fluidymateFrames(const StylizeArgs& a, const TargetSource& target, const Ex
     } catch (const turb::ValueError& e) {
         throw turb::ValueError("exemplar " + ex.label + ", target " + target.label() + ": " + e.what(), e.settings());
     }
-    logVerbose("levels " + std::to_string(fl->levels()) + ", extent units " + fmt("%.2f px", fl->extentScale()) + " (exemplar), " +
-               fmt("%.2f px", fl->targetExtentScale()) + " (target)");
+    logVerbose("levels " + std::to_string(fl->levels()) + ", extent units " + fmt("%.2f px", fl->extentScale()) +
+               " (exemplar), " + fmt("%.2f px", fl->targetExtentScale()) + " (target)");
     if (globals().dryRun) {
         for (int fr : target.frames()) logInfo("frame " + std::to_string(fr) + " -> " + outPattern.format(fr));
         return;
@@ -431,7 +452,8 @@ void fluidymateFrames(const StylizeArgs& a, const TargetSource& target, const Ex
         progress.begin("writing");
         const nlohmann::json extra = writeFrame(a, fr, out, ex, tgt, int(i), target);
         progress.clear();
-        report.frameDone(fr, int(i), int(frames.size()), secondsSince(t0), humanLine(out.stats) + " -> " + extra["out"].get<std::string>(), extra);
+        report.frameDone(fr, int(i), int(frames.size()), secondsSince(t0),
+            humanLine(out.stats) + " -> " + extra["out"].get<std::string>(), extra);
     }
     report.finish();
 }
@@ -448,15 +470,18 @@ int runFluidymation(StylizeArgs& a)
     TargetSource target(targetArgs, true);
     const turbio::FramePattern outPattern = turbio::FramePattern::parse(a.out);
     if (!outPattern.numbered() && target.frames().size() > 1)
-        throw turb::ValueError("--out " + a.out + " has no frame token (####) but there are " + std::to_string(target.frames().size()) + " frames");
+        throw turb::ValueError("--out " + a.out + " has no frame token (####) but there are " +
+                               std::to_string(target.frames().size()) + " frames");
     target.validate2D(true);
 
     // Everything is read and checked before the first frame is written.
     const ExemplarVideo ex = loadExemplar(a, false);
     const turb::MotionSequence tgt = loadTarget(target, f);
-    logInfo("stylize fluidymation: " + target.label() + (tgt.flowsEstimated() ? " (flow from the masks)" : "") + ", exemplar " + ex.label +
-            " (" + std::to_string(ex.motion.frames()) + " frames " + sizeText(ex.motion.width(), ex.motion.height()) +
-            (ex.motion.flowsEstimated() ? ", flow from the masks" : "") + "), " + std::to_string(target.frames().size()) + " frames");
+    logInfo("stylize fluidymation: " + target.label() + (tgt.flowsEstimated() ? " (flow from the masks)" : "") +
+            ", exemplar " + ex.label + " (" + std::to_string(ex.motion.frames()) + " frames " +
+            sizeText(ex.motion.width(), ex.motion.height()) +
+            (ex.motion.flowsEstimated() ? ", flow from the masks" : "") + "), " +
+            std::to_string(target.frames().size()) + " frames");
     turb::withThreads(globals().threads, [&] { fluidymateFrames(a, target, ex, tgt, outPattern); });
     return kOk;
 }

@@ -59,7 +59,8 @@ struct SynthArgs
 };
 
 const std::vector<std::pair<std::string, turb::CombineSettings::Weighting>> kWeightings{
-    {"constant", turb::CombineSettings::Weighting::Constant}, {"energy", turb::CombineSettings::Weighting::KineticEnergy},
+    {"constant", turb::CombineSettings::Weighting::Constant},
+    {"energy", turb::CombineSettings::Weighting::KineticEnergy},
     {"vorticity", turb::CombineSettings::Weighting::Vorticity}};
 
 std::string weightingName(turb::CombineSettings::Weighting w)
@@ -124,7 +125,8 @@ turb::Exemplar loadExemplar(const std::string& spec, const SynthArgs& a)
         double scale = 1.0;
         const std::string path = pathAndScale(scale);
         const turb::Image img = turb::rgbOf(turbio::readImage(path));
-        e = kind == "rg" ? turb::exemplarFromVectorImage(img, scale) : turb::exemplarFromGrayImage(img, scale, a.periodic);
+        e = kind == "rg" ? turb::exemplarFromVectorImage(img, scale)
+                         : turb::exemplarFromGrayImage(img, scale, a.periodic);
         e.periodic = a.periodic;
         e.name = spec;
     } else if (kind == "vdb" || kind == "vdb3") {
@@ -132,7 +134,8 @@ turb::Exemplar loadExemplar(const std::string& spec, const SynthArgs& a)
         int axis = 2, index = std::numeric_limits<int>::min();
         if (kind == "vdb") {
             const auto parts = split(rest, ':');
-            if (parts.size() >= 3 && (parts[parts.size() - 2] == "x" || parts[parts.size() - 2] == "y" || parts[parts.size() - 2] == "z")) {
+            if (parts.size() >= 3 &&
+                (parts[parts.size() - 2] == "x" || parts[parts.size() - 2] == "y" || parts[parts.size() - 2] == "z")) {
                 axis = parts[parts.size() - 2][0] - 'x';
                 index = toInt(parts.back(), "--exemplar " + spec);
                 path = rest.substr(0, rest.size() - parts.back().size() - 3);
@@ -174,7 +177,8 @@ public:
     explicit CoarseSource(const SynthArgs& a) : mArgs(a)
     {
         int kinds = int(!a.target.empty()) + int(!a.scene.empty()) + int(!a.flow.empty());
-        if (kinds != 1) throw turb::ValueError("give exactly one coarse input: --target CACHE, --scene NAME or --flow KIND");
+        if (kinds != 1)
+            throw turb::ValueError("give exactly one coarse input: --target CACHE, --scene NAME or --flow KIND");
         if (!a.target.empty()) {
             mSeq = turbio::resolveSequence(a.target, a.frames);
             if (!mSeq->missing.empty())
@@ -186,17 +190,18 @@ public:
             // A single number N means frames 1..N.
             if (list.size() == 1 && a.frames.find('-') == std::string::npos)
                 for (int f = 1; f <= list[0]; ++f) mFrames.push_back(f);
-            else
-                mFrames = list;
-            if (mFrames.empty() || mFrames.front() < 1) throw turb::ValueError("--frames: scene and flow frames start at 1");
+            else mFrames = list;
+            if (mFrames.empty() || mFrames.front() < 1)
+                throw turb::ValueError("--frames: scene and flow frames start at 1");
             if (!a.scene.empty()) {
-                mSceneSettings = turb::scenes::sceneSettings(a.scene, parseRes(a.sceneRes, "--scene-res"), std::uint64_t(a.sceneSeed));
+                mSceneSettings = turb::scenes::sceneSettings(
+                    a.scene, parseRes(a.sceneRes, "--scene-res"), std::uint64_t(a.sceneSeed));
                 mSceneSettings->threads = globals().threads;
                 mSim = std::make_unique<turb::scenes::SmokeSim>(*mSceneSettings);
                 mLabel = "scene " + a.scene + " " + a.sceneRes;
             } else {
                 turb::AnalyticFlowSettings f;
-                f.kind = a.flow == "vortex" ? turb::AnalyticFlowSettings::Kind::Vortex
+                f.kind = a.flow == "vortex"  ? turb::AnalyticFlowSettings::Kind::Vortex
                          : a.flow == "shear" ? turb::AnalyticFlowSettings::Kind::Shear
                                              : turb::AnalyticFlowSettings::Kind::Uniform;
                 f.res = parseRes(a.flowRes, "--flow-res");
@@ -314,8 +319,8 @@ void fillSettings(SynthArgs& a)
         if (p.size() != 3 || !parseNumber(p[0], v[0]) || !parseNumber(p[1], v[1]) || !parseNumber(p[2], v[2]))
             throw turb::ValueError("--secondary: 'density' or a vector X,Y,Z");
         const double len = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
-        if (!std::isfinite(float(v[0])) || !std::isfinite(float(v[1])) || !std::isfinite(float(v[2])) || !std::isfinite(len) ||
-            !(len > 1e-6))
+        if (!std::isfinite(float(v[0])) || !std::isfinite(float(v[1])) || !std::isfinite(float(v[2])) ||
+            !std::isfinite(len) || !(len > 1e-6))
             throw turb::ValueError("--secondary: X,Y,Z must be finite and not zero (got '" + a.secondary + "')");
         s.orientation.densitySecondary = false;
         s.orientation.autoSecondary = false;
@@ -347,7 +352,8 @@ std::vector<turb::SynthView> synthViews(const SynthArgs& a, const std::vector<tu
     if (!a.viewWeights.empty())
         for (const auto& t : split(a.viewWeights, ',')) {
             double v;
-            if (!parseNumber(t, v) || !(v > 0)) throw turb::ValueError("--view-weights: '" + t + "' is not a positive number");
+            if (!parseNumber(t, v) || !(v > 0))
+                throw turb::ValueError("--view-weights: '" + t + "' is not a positive number");
             weights.push_back(float(v));
         }
     if (!volume) {
@@ -359,11 +365,13 @@ std::vector<turb::SynthView> synthViews(const SynthArgs& a, const std::vector<tu
         // One planar exemplar serves all three axis views; otherwise one exemplar per view.
         const size_t n = normals.empty() ? (ex.size() == 1 ? 3 : ex.size()) : normals.size();
         if (normals.empty()) {
-            if (n > 3) throw turb::ValueError("more than three exemplars: say which local axis each looks along with --views");
+            if (n > 3)
+                throw turb::ValueError("more than three exemplars: say which local axis each looks along with --views");
             for (size_t i = 0; i < n; ++i) normals.push_back(int(i));
         }
-        if (ex.size() != 1 && ex.size() != n) throw turb::ValueError("--views names " + std::to_string(n) + " views but " +
-                                                                     std::to_string(ex.size()) + " exemplars are given");
+        if (ex.size() != 1 && ex.size() != n)
+            throw turb::ValueError("--views names " + std::to_string(n) + " views but " + std::to_string(ex.size()) +
+                                   " exemplars are given");
         for (size_t i = 0; i < n; ++i) views.push_back({ex[ex.size() == 1 ? 0 : i], normals[i], 1.0f});
     }
     if (!weights.empty()) {
@@ -399,8 +407,8 @@ std::optional<turb::ScalarField> readObstacle(const SynthArgs& a, CoarseSource& 
 
 // Before anything is read in full: every frame's headers, one lattice, the output paths. Sets the one box a
 // cache is held over (synth's sources and look-back need one box over the sequence).
-std::optional<turbio::SequenceScan> preflightSynth(SynthArgs& a, const CoarseSource& source, const std::vector<int>& frames,
-    const turbio::FramePattern& outPattern)
+std::optional<turbio::SequenceScan> preflightSynth(
+    SynthArgs& a, const CoarseSource& source, const std::vector<int>& frames, const turbio::FramePattern& outPattern)
 {
     std::optional<turbio::SequenceScan> scan;
     std::vector<std::string> outputs, inputs;
@@ -424,8 +432,8 @@ std::optional<turbio::SequenceScan> preflightSynth(SynthArgs& a, const CoarseSou
 }
 
 // The output lattice (dry run and -vv) and the memory check, from the largest coarse frame.
-void checkSynthLatticeAndMemory(const SynthArgs& a, const turb::Frame& f0, const std::optional<turbio::SequenceScan>& scan,
-    bool volume, int frameCount)
+void checkSynthLatticeAndMemory(const SynthArgs& a, const turb::Frame& f0,
+    const std::optional<turbio::SequenceScan>& scan, bool volume, int frameCount)
 {
     const turb::SynthSettings& s = a.seq.synth;
     turb::CoordBBox coarse = f0.velocity.bbox();
@@ -440,8 +448,8 @@ void checkSynthLatticeAndMemory(const SynthArgs& a, const turb::Frame& f0, const
         printData("output lattice: " + std::to_string(d.box.dim().x()) + "x" + std::to_string(d.box.dim().y()) + "x" +
                   std::to_string(d.box.dim().z()) + " voxels of " + fmt("%g", d.lattice.voxelSize) + " (factor " +
                   std::to_string(a.seq.factor) + "), world (" + fmt("%.4g", lo.x()) + "," + fmt("%.4g", lo.y()) + "," +
-                  fmt("%.4g", lo.z()) + ")-(" + fmt("%.4g", hi.x()) + "," + fmt("%.4g", hi.y()) + "," + fmt("%.4g", hi.z()) +
-                  "); output size about " + turbio::formatBytes(outVoxels * 16.0) + " per frame");
+                  fmt("%.4g", lo.z()) + ")-(" + fmt("%.4g", hi.x()) + "," + fmt("%.4g", hi.y()) + "," +
+                  fmt("%.4g", hi.z()) + "); output size about " + turbio::formatBytes(outVoxels * 16.0) + " per frame");
     const int lb = cf0HasDensity(f0, a) ? a.seq.lookback : 0;
     // The synthesis runs on the box grown by --face-padding on its open faces (walls not grown).
     double grown = 1.0;
@@ -453,8 +461,9 @@ void checkSynthLatticeAndMemory(const SynthArgs& a, const turb::Frame& f0, const
     const double need = turb::synthPeakBytes(coarseVoxels, a.seq.factor, frameCount, lb);
     const long long usable = turbio::usableMemoryBytes();
     const int fMax = usable > 0 ? turb::largestSynthFactor(0.9 * double(usable), coarseVoxels, frameCount, lb) : 0;
-    checkMemory(need, std::to_string(coarse.dim().x()) + "x" + std::to_string(coarse.dim().y()) + "x" +
-                          std::to_string(coarse.dim().z()) + " coarse voxels at factor " + std::to_string(a.seq.factor),
+    checkMemory(need,
+        std::to_string(coarse.dim().x()) + "x" + std::to_string(coarse.dim().y()) + "x" +
+            std::to_string(coarse.dim().z()) + " coarse voxels at factor " + std::to_string(a.seq.factor),
         fMax >= 1 ? "--factor " + std::to_string(fMax) + " fits" : "no factor fits: crop the coarse cache");
 }
 
@@ -474,8 +483,8 @@ nlohmann::json projectionReport(const SynthArgs& a, const turb::SynthFrameResult
             logWarning("frame " + std::to_string(fr) + ": the projection did not converge (" +
                        std::to_string(pr.iterations) + " iterations); the written velocity is not divergence-free" +
                        (a.strict ? "" : " (--strict makes this an error)"));
-            logVerbose("frame " + std::to_string(fr) + ": projection max|div| " + fmt("%.3g", pr.divMaxBefore) + " -> " +
-                       fmt("%.3g", pr.divMaxAfter) + " (x" + fmt("%.2e", pr.relativeDivergence()) +
+            logVerbose("frame " + std::to_string(fr) + ": projection max|div| " + fmt("%.3g", pr.divMaxBefore) +
+                       " -> " + fmt("%.3g", pr.divMaxAfter) + " (x" + fmt("%.2e", pr.relativeDivergence()) +
                        "), solver residual " + fmt("%.2e", pr.relativeResidual));
         }
     }
@@ -511,7 +520,8 @@ std::string writeSynthPreview(const SynthArgs& a, const std::vector<turb::SynthV
     le.width = std::max(64, a.previewWidth / 2);
     const turb::Image exImg = labelled(turb::renderLic(turb::exemplarAsField(views[0].exemplar), le), "exemplar");
     const turb::Image hImg = labelled(turb::renderLic(H.world, ls), "detail H'");
-    const turb::Image lImg = labelled(turb::renderLic(turb::upsampleCoarse(cf.velocity, a.seq.factor), ls), "coarse up(L)");
+    const turb::Image lImg =
+        labelled(turb::renderLic(turb::upsampleCoarse(cf.velocity, a.seq.factor), ls), "coarse up(L)");
     const turb::Image fImg = labelled(turb::renderLic(F, ls), "F = up(L) + w H'");
     std::vector<turb::SheetCell> row{{&exImg, ""}, {&lImg, ""}, {&hImg, ""}, {&fImg, ""}};
     turb::Image dImg;
@@ -531,10 +541,9 @@ std::string writeSynthPreview(const SynthArgs& a, const std::vector<turb::SynthV
     return png;
 }
 
-
 // A frame's JSON line: the output, the synthesis's levels and energies, the detail's strength and region.
-nlohmann::json frameJson(const SynthArgs& a, const turb::SynthFrameResult& r, const turb::DetailField& H, bool hasDensity,
-    const nlohmann::json& projJson, const std::string& outPath)
+nlohmann::json frameJson(const SynthArgs& a, const turb::SynthFrameResult& r, const turb::DetailField& H,
+    bool hasDensity, const nlohmann::json& projJson, const std::string& outPath)
 {
     const turb::VectorField& F = r.motion;
     nlohmann::json extra;
@@ -543,7 +552,8 @@ nlohmann::json frameJson(const SynthArgs& a, const turb::SynthFrameResult& r, co
     extra["continued"] = H.fromPrevious;
     nlohmann::json lv = nlohmann::json::array();
     for (const auto& l : H.levels) {
-        nlohmann::json lj = {{"level", l.level}, {"size", {l.dim.x(), l.dim.y(), l.dim.z()}}, {"radius", l.radius}, {"energy", l.energy}};
+        nlohmann::json lj = {{"level", l.level}, {"size", {l.dim.x(), l.dim.y(), l.dim.z()}}, {"radius", l.radius},
+            {"energy", l.energy}};
         if (!l.descent.empty()) lj["descent"] = l.descent; // [at search, after the average, after all terms]
         lv.push_back(lj);
     }
@@ -565,7 +575,9 @@ void tagOutput(turb::Frame& outFrame, const SynthArgs& a, const std::vector<turb
     std::string names;
     for (const auto& v : views) names += (names.empty() ? "" : ",") + v.exemplar.name;
     outFrame.metadata[turb::meta::kExemplars] = names;
-    outFrame.metadata[turb::meta::kOmega] = fmt("%g", a.seq.combine.omega) + (a.seq.combine.relative ? " x rms|L|" : "") + " " + weightingName(a.seq.combine.weighting);
+    outFrame.metadata[turb::meta::kOmega] = fmt("%g", a.seq.combine.omega) +
+                                            (a.seq.combine.relative ? " x rms|L|" : "") + " " +
+                                            weightingName(a.seq.combine.weighting);
     outFrame.metadata[turb::meta::kSeed] = std::to_string(a.seq.synth.seed);
     outFrame.metadata[turb::meta::kRatio] = std::to_string(a.seq.factor); // Blender-style placement (io.md)
 }
@@ -609,14 +621,15 @@ SynthPlan planSynth(SynthArgs& a, CoarseSource& source)
 
 void logPlan(const SynthArgs& a, const CoarseSource& source, const SynthPlan& p)
 {
-    logInfo("synth: " + source.label() + ", frames " + turbio::formatFrameList(p.frames) + ", " + (p.volume ? "3D" : "2D") +
-            ", factor " + std::to_string(a.seq.factor) + ", " + std::to_string(p.views.size()) + " view" +
-            (p.views.size() == 1 ? "" : "s") + ", " +
+    logInfo("synth: " + source.label() + ", frames " + turbio::formatFrameList(p.frames) + ", " +
+            (p.volume ? "3D" : "2D") + ", factor " + std::to_string(a.seq.factor) + ", " +
+            std::to_string(p.views.size()) + " view" + (p.views.size() == 1 ? "" : "s") + ", " +
             (a.seq.synth.search == turb::SearchMethod::Tree ? "tree search" : "k-coherence"));
     for (const auto& v : p.views)
-        logInfo("  exemplar " + v.exemplar.name + " (" + std::to_string(v.exemplar.nx) + "x" + std::to_string(v.exemplar.ny) +
-                (v.exemplar.planar() ? "" : "x" + std::to_string(v.exemplar.nz)) + (v.exemplar.periodic ? ", periodic" : "") +
-                ")" + (v.exemplar.planar() && p.volume ? ", looks along e" + std::to_string(v.normal + 1) : "") +
+        logInfo("  exemplar " + v.exemplar.name + " (" + std::to_string(v.exemplar.nx) + "x" +
+                std::to_string(v.exemplar.ny) + (v.exemplar.planar() ? "" : "x" + std::to_string(v.exemplar.nz)) +
+                (v.exemplar.periodic ? ", periodic" : "") + ")" +
+                (v.exemplar.planar() && p.volume ? ", looks along e" + std::to_string(v.normal + 1) : "") +
                 (p.views.size() > 1 ? ", weight " + fmt("%g", v.weight) : ""));
 }
 
@@ -626,8 +639,9 @@ void logLevels(const turb::DetailField& H, int fr)
     for (const auto& l : H.levels) {
         std::string e;
         for (double x : l.energy) e += fmt(" %.4f", x);
-        logVerbose("frame " + std::to_string(fr) + ": level " + std::to_string(l.level) + " " + std::to_string(l.dim.x()) +
-                   "x" + std::to_string(l.dim.y()) + "x" + std::to_string(l.dim.z()) + " energy" + e);
+        logVerbose("frame " + std::to_string(fr) + ": level " + std::to_string(l.level) + " " +
+                   std::to_string(l.dim.x()) + "x" + std::to_string(l.dim.y()) + "x" + std::to_string(l.dim.z()) +
+                   " energy" + e);
     }
 }
 
@@ -640,7 +654,8 @@ void synthFrame(const SynthArgs& a, CoarseSource& source, SynthPlan& p, turb::Sy
     ConsoleProgress progress(int(i), int(p.frames.size()), fr);
     progress.begin("reading");
     turb::Frame cf = i == 0 ? std::move(p.first) : source.read(fr, &progress);
-    if (!cf.hasVelocity()) throw turb::ValueError(source.label() + ": frame " + std::to_string(fr) + " has no velocity");
+    if (!cf.hasVelocity())
+        throw turb::ValueError(source.label() + ": frame " + std::to_string(fr) + " has no velocity");
     const double readSeconds = secondsSince(t0);
 
     turb::SynthFrameInput in;
@@ -657,15 +672,17 @@ void synthFrame(const SynthArgs& a, CoarseSource& source, SynthPlan& p, turb::Sy
         r = sequence.next(in, &progress);
     } catch (const turb::ValueError& e) {
         const auto& seq = source.sequence();
-        throw turb::ValueError("frame " + std::to_string(fr) + (seq ? " (" + seq->path(fr) + ")" : std::string()) + ": " +
-                               e.what(), e.settings());
+        throw turb::ValueError(
+            "frame " + std::to_string(fr) + (seq ? " (" + seq->path(fr) + ")" : std::string()) + ": " + e.what(),
+            e.settings());
     }
     const turb::DetailField& H = sequence.lastDetail();
     turb::Frame& outFrame = r.frame;
     if (r.smokeless) {
         progress.clear();
         logWarning("frame " + std::to_string(fr) + ": the density has no smoke (nothing above " +
-                   fmt("%g", a.seq.combine.smokeThreshold) + "), so no detail is written; --detail-everywhere puts it everywhere");
+                   fmt("%g", a.seq.combine.smokeThreshold) +
+                   "), so no detail is written; --detail-everywhere puts it everywhere");
     }
     const nlohmann::json projJson = projectionReport(a, r, fr, progress, unconverged);
     const auto tWrite = std::chrono::steady_clock::now();
@@ -689,11 +706,11 @@ void synthFrame(const SynthArgs& a, CoarseSource& source, SynthPlan& p, turb::Sy
         extra["preview"] = writeSynthPreview(a, p.views, cf, H, r.motion, outFrame, fr, p.volume);
     }
     progress.clear();
-    const std::string human = std::string(H.fromPrevious ? "continued" : "synthesised") + fmt(", E %.4f", H.finalEnergy()) +
-                              fmt(", |H'| rms %.3f", extra["detail_rms"].get<double>()) +
-                              fmt(", synthesis %.2f s", r.seconds.synthesis) +
-                              (a.seq.project ? " projection " + std::to_string(projJson["iterations"].get<int>()) + " it" : "") +
-                              " -> " + outPath;
+    const std::string human =
+        std::string(H.fromPrevious ? "continued" : "synthesised") + fmt(", E %.4f", H.finalEnergy()) +
+        fmt(", |H'| rms %.3f", extra["detail_rms"].get<double>()) + fmt(", synthesis %.2f s", r.seconds.synthesis) +
+        (a.seq.project ? " projection " + std::to_string(projJson["iterations"].get<int>()) + " it" : "") + " -> " +
+        outPath;
     logLevels(H, fr);
     report.frameDone(fr, int(i), int(p.frames.size()), secondsSince(t0), human, extra);
 }
@@ -722,12 +739,14 @@ int runSynth(SynthArgs& a)
     turb::SynthSequence sequence(prepared, a.seq);
     std::vector<int> unconverged; // frames whose projection stopped short
     bool warnedClipping = false;
-    for (size_t i = 0; i < p.frames.size(); ++i) synthFrame(a, source, p, sequence, i, report, unconverged, warnedClipping);
+    for (size_t i = 0; i < p.frames.size(); ++i)
+        synthFrame(a, source, p, sequence, i, report, unconverged, warnedClipping);
     report.finish();
     if (unconverged.empty()) return kOk;
     std::string list;
     for (int fr : unconverged) list += (list.empty() ? "" : ", ") + std::to_string(fr);
-    const std::string msg = std::to_string(unconverged.size()) + " frame(s) with a projection that did not converge: " + list;
+    const std::string msg =
+        std::to_string(unconverged.size()) + " frame(s) with a projection that did not converge: " + list;
     if (a.strict) {
         logError(msg + " (--strict)");
         return kFailed;
@@ -753,7 +772,8 @@ void addInputSettings(CLI::App* app, SynthArgs& a)
     knob(app, "--scene-res", a.sceneRes, "Scene cells NXxNYxNZ along x, y, z (z is up), as sim --res", "scene-res");
     knob(app, "--scene-seed", a.sceneSeed, "Scene emitter noise seed", "scene-seed");
     knob(app, "--flow-res", a.flowRes, "Analytic flow cells NXxNYxNZ along x, y, z; NZ = 1 is 2D", "flow-res");
-    knob(app, "--flow-speed", a.flowSpeed, "Analytic flow speed, world units/s (the domain is 4 units wide)", "flow-speed");
+    knob(app, "--flow-speed", a.flowSpeed, "Analytic flow speed, world units/s (the domain is 4 units wide)",
+        "flow-speed");
     knob(app, "--flow-angle", a.flowAngle, "Uniform flow direction in the xy plane, degrees from +x", "flow-angle");
     knob(app, "--slice-z", a.sliceZ, "Synthesise in 2D on coarse layer K of a 3D input", "slice-z")
         ->check(CLI::NonNegativeNumber);
@@ -764,7 +784,8 @@ void addInputSettings(CLI::App* app, SynthArgs& a)
     setting(app->add_flag("--periodic", a.periodic, "Picture/VDB exemplars tile seamlessly (procedurals always do)"),
         "periodic");
     knob(app, "--views", a.views,
-        "3D: local axis each exemplar looks along, e.g. 0,1,2 (0 = along L; one exemplar for all views by default)", "views");
+        "3D: local axis each exemplar looks along, e.g. 0,1,2 (0 = along L; one exemplar for all views by default)",
+        "views");
     knob(app, "--view-weights", a.viewWeights, "3D: relative weight per view, e.g. 1,1,4", "view-weights");
     knob(app, "--obstacle", a.obstacle, "Obstacle signed distance: FILE.vdb[:GRID] in world units (grid 'surface')",
         "obstacle");
@@ -778,33 +799,40 @@ void addSynthesisSettings(CLI::App* app, SynthArgs& a)
                 {{"tree", turb::SearchMethod::Tree}, {"kcoherence", turb::SearchMethod::KCoherence}},
                 "Neighbourhood search: tree (the paper) or k-coherence (section 3.7)"),
         "synth.search");
-    knob(app, "--k,--synth.kSimilar", s.kSimilar, "k-coherence: similar neighbourhoods per exemplar pixel", "synth.kSimilar")
+    knob(app, "--k,--synth.kSimilar", s.kSimilar, "k-coherence: similar neighbourhoods per exemplar pixel",
+        "synth.kSimilar")
         ->check(CLI::Range(1, 64));
     knob(app, "--tree-iterations,--synth.treeIterationsPerLevel", s.treeIterationsPerLevel,
-        "k-coherence: iterations per level that still search the tree (0 = pure k-coherence)", "synth.treeIterationsPerLevel")
+        "k-coherence: iterations per level that still search the tree (0 = pure k-coherence)",
+        "synth.treeIterationsPerLevel")
         ->check(CLI::Range(0, 100));
     knob(app, "--levels,--synth.levels", s.levels, "Pyramid levels (0 = the paper's: 3, or 2 for exemplars <= 16^2)",
         "synth.levels")
         ->check(CLI::Range(0, 8));
-    knob(app, "--iterations", a.iterations, "Iterations per level: LARGE,SMALL in 2D, SMALL in 3D (paper 3-5)", "iterations");
+    knob(app, "--iterations", a.iterations, "Iterations per level: LARGE,SMALL in 2D, SMALL in 3D (paper 3-5)",
+        "iterations");
     knob(app, "--radius", a.radius, "Neighbourhood radii LARGE,SMALL (8,4 = 17^2 and 9^2)", "radius");
-    knob(app, "--spacing,--synth.spacing", s.spacing, "Distance between neighbourhood centres (0 = auto)", "synth.spacing")
+    knob(app, "--spacing,--synth.spacing", s.spacing, "Distance between neighbourhood centres (0 = auto)",
+        "synth.spacing")
         ->check(CLI::Range(0, 16));
     knob(app, "--tap-step,--synth.volumeTapStep", s.volumeTapStep,
         "vdb3 exemplars: a tap every N voxels over the 9^3 footprint (1 = all 729)", "synth.volumeTapStep")
         ->check(CLI::Range(1, 4));
-    knob(app, "--pca,--synth.pcaComponents", s.pcaComponents, "PCA dimensions for the tree search", "synth.pcaComponents")
+    knob(app, "--pca,--synth.pcaComponents", s.pcaComponents, "PCA dimensions for the tree search",
+        "synth.pcaComponents")
         ->check(CLI::Range(1, 256));
     knob(app, "--robust,--synth.robustExponent", s.robustExponent,
         "Robust exponent r of Kwatra's weights (2 = least squares)", "synth.robustExponent")
         ->check(CLI::Range(0.01, 2.0));
     boolSetting(app, "--synth.matchVariance", s.matchVariance,
         "3D: views keep their mean and spread (false: the paper's plain average)", "synth.matchVariance");
-    legacy(app->add_flag_function("--no-variance-match", [&s](int64_t) { s.matchVariance = false; }, ""),
+    legacy(app->add_flag_function(
+               "--no-variance-match", [&s](int64_t) { s.matchVariance = false; }, ""),
         "synth.matchVariance", "false");
     boolSetting(app, "--synth.orientation.follow", s.orientation.follow,
         "Neighbourhoods and vectors follow L's local frame (false: world axes)", "synth.orientation.follow");
-    legacy(app->add_flag_function("--no-orient", [&s](int64_t) { s.orientation.follow = false; }, ""),
+    legacy(app->add_flag_function(
+               "--no-orient", [&s](int64_t) { s.orientation.follow = false; }, ""),
         "synth.orientation.follow", "false");
     knob(app, "--secondary", a.secondary,
         "3D second local axis: density (its gradient, else the direction L has least of) or a fixed vector X,Y,Z",
@@ -850,13 +878,16 @@ void addCombineSettings(CLI::App* app, SynthArgs& a)
     turb::SynthSequenceSettings& q = a.seq;
     turb::CombineSettings& c = q.combine;
     boolSetting(app, "--combine.removeCoarsePart", c.removeCoarsePart,
-        "Take the detail's coarse part out, so the coarse motion stays L's (false: the paper's F)", "combine.removeCoarsePart");
-    legacy(app->add_flag_function("--keep-coarse", [&c](int64_t) { c.removeCoarsePart = false; }, ""),
+        "Take the detail's coarse part out, so the coarse motion stays L's (false: the paper's F)",
+        "combine.removeCoarsePart");
+    legacy(app->add_flag_function(
+               "--keep-coarse", [&c](int64_t) { c.removeCoarsePart = false; }, ""),
         "combine.removeCoarsePart", "false");
     boolSetting(app, "--combine.relative", c.relative, "omega is relative to L's rms speed (false: velocity units)",
         "combine.relative");
-    legacy(app->add_flag_function("--omega-absolute", [&c](int64_t) { c.relative = false; }, ""), "combine.relative",
-        "false");
+    legacy(app->add_flag_function(
+               "--omega-absolute", [&c](int64_t) { c.relative = false; }, ""),
+        "combine.relative", "false");
     setting(addEnum<turb::CombineSettings::Weighting>(app, "--omega-mode,--combine.weighting", c.weighting, kWeightings,
                 "Shape of omega: constant, energy (|L|^2), vorticity (|curl L|)"),
         "combine.weighting");
@@ -868,26 +899,32 @@ void addCombineSettings(CLI::App* app, SynthArgs& a)
         ->check(coarseCells(false));
     boolSetting(app, "--detailNearSmoke", q.detailNearSmoke,
         "Detail near the smoke only, when L has density (false: the whole box, the paper)", "detailNearSmoke");
-    legacy(app->add_flag_function("--detail-everywhere", [&q](int64_t) { q.detailNearSmoke = false; }, ""),
+    legacy(app->add_flag_function(
+               "--detail-everywhere", [&q](int64_t) { q.detailNearSmoke = false; }, ""),
         "detailNearSmoke", "false");
     knob(app, "--project-iterations,--projectIterations", q.projectIterations, "Conjugate-gradient cap of --project",
         "projectIterations")
         ->check(CLI::Range(1, 100000));
-    boolSetting(app, "--detailOnly", q.detailOnly, "Write F - up(L), what the synthesis added (false: F)", "detailOnly");
+    boolSetting(
+        app, "--detailOnly", q.detailOnly, "Write F - up(L), what the synthesis added (false: F)", "detailOnly");
     legacy(app->add_option_function<std::string>(
-               "--output", [&q](const std::string& v) { q.detailOnly = v == "detail"; }, "combined or detail")
+                  "--output", [&q](const std::string& v) { q.detailOnly = v == "detail"; }, "combined or detail")
                ->check(CLI::IsMember({"combined", "detail"})),
         "detailOnly");
-    knob(app, "--lookback", q.lookback, "Density: frames of look-back integration m (paper 10-20; 0 = naive)", "lookback")
+    knob(app, "--lookback", q.lookback, "Density: frames of look-back integration m (paper 10-20; 0 = naive)",
+        "lookback")
         ->check(CLI::Range(0, 200));
     boolSetting(app, "--density", q.density, "Carry a fine density (false: velocity only)", "density");
-    legacy(app->add_flag_function("--no-density", [&q](int64_t) { q.density = false; }, ""), "density", "false");
+    legacy(app->add_flag_function(
+               "--no-density", [&q](int64_t) { q.density = false; }, ""),
+        "density", "false");
     knob(app, "--preview-format", a.previewFormat, "Picture format of --preview: png, exr (linear half), tif",
         "preview-format")
         ->check(CLI::IsMember({"png", "exr", "tif"}));
     knob(app, "--preview-width", a.previewWidth, "Width of each preview panel in pixels", "preview-width")
         ->check(CLI::Range(32, 4096));
-    knob(app, "--preview-view", a.previewView, "Preview slice: top, front, side (top in 2D, front in 3D)", "preview-view")
+    knob(app, "--preview-view", a.previewView, "Preview slice: top, front, side (top in 2D, front in 3D)",
+        "preview-view")
         ->check(CLI::IsMember({"top", "front", "side"}));
     setting(app->add_flag("--stats", a.stats,
                 "Texture statistics per frame: nearest-neighbour distance to each exemplar against a shuffled field"),
@@ -905,21 +942,29 @@ Command synthCommand()
     c.setup = [args](CLI::App* app) {
         SynthArgs& a = *args;
         app->add_option("--target", a.target, "Coarse motion L: a VDB cache (pattern or one file); density optional");
-        app->add_option("--scene", a.scene, "Coarse motion from a built-in scene simulated on the fly (plume, swirl, obstacle, wind)");
+        app->add_option("--scene", a.scene,
+            "Coarse motion from a built-in scene simulated on the fly (plume, swirl, obstacle, wind)");
         app->add_option("--flow", a.flow, "Coarse motion from an analytic flow (no density)")
             ->check(CLI::IsMember({"uniform", "vortex", "shear"}));
-        app->add_option("--frames", a.frames, "Cache: frames to use (default all). Scene/flow: a count N or a list (default 1)")
+        app->add_option(
+               "--frames", a.frames, "Cache: frames to use (default all). Scene/flow: a count N or a list (default 1)")
             ->check(frameListCheck());
         app->add_option("--factor", a.seq.factor, "Up-res factor: output voxel = coarse voxel / factor")
             ->check(CLI::Range(1, 32));
         app->add_option("--exemplar", a.exemplars,
-            "Exemplar, repeatable (one per view): circles|swirls|squares|hearts|stripes|sinusoids[:PERIOD[:SIZE]] (default "
-            "circles:16), rg:PICTURE[:SCALE], gray:PICTURE[:SCALE], vdb:FILE.vdb[:AXIS:INDEX], vdb3:FILE.vdb (docs/synth.md)");
+            "Exemplar, repeatable (one per view): circles|swirls|squares|hearts|stripes|sinusoids[:PERIOD[:SIZE]] "
+            "(default "
+            "circles:16), rg:PICTURE[:SCALE], gray:PICTURE[:SCALE], vdb:FILE.vdb[:AXIS:INDEX], vdb3:FILE.vdb "
+            "(docs/synth.md)");
         app->add_option("--omega", a.seq.combine.omega, "Detail strength: times rms|L|")->check(CLI::NonNegativeNumber);
-        app->add_option("--walls", a.walls, "Walls: x-,x+,y-,y+,z-,z+, all or none (default: a scene's closed faces, else none)");
-        app->add_flag("--project", a.seq.project, "Make F divergence-free (Helmholtz-Hodge projection); walls are closed faces");
-        app->add_flag("--strict", a.strict, "Exit 1 when a projection does not converge (always a warning naming the frame)");
-        app->add_option("--preview", a.preview, "Write a picture per frame into DIR: LIC of exemplar, up(L), H', F, and density");
+        app->add_option(
+            "--walls", a.walls, "Walls: x-,x+,y-,y+,z-,z+, all or none (default: a scene's closed faces, else none)");
+        app->add_flag(
+            "--project", a.seq.project, "Make F divergence-free (Helmholtz-Hodge projection); walls are closed faces");
+        app->add_flag(
+            "--strict", a.strict, "Exit 1 when a projection does not converge (always a warning naming the frame)");
+        app->add_option(
+            "--preview", a.preview, "Write a picture per frame into DIR: LIC of exemplar, up(L), H', F, and density");
         app->add_flag("--json", a.json, "One JSON line per frame and a summary on stdout");
         addReadOptions(app, a.read);
         app->add_option("--out", a.out, "Output pattern (directories are created)")->group(kGroupOutput);

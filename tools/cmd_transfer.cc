@@ -52,14 +52,17 @@ struct TransferArgs
 // on the ratio-8 pair (docs/design.md). The default margin is therefore 8 target voxels.
 constexpr int kSourceMarginCoarseVoxels = 8;
 
-void defaultSourceMargin(TransferArgs& a, const turbio::Sequence& target, const turbio::Sequence& source,
-    const std::vector<int>& sourceFor)
+void defaultSourceMargin(
+    TransferArgs& a, const turbio::Sequence& target, const turbio::Sequence& source, const std::vector<int>& sourceFor)
 {
     if (a.sourceCropMargin->count() > 0 || target.frames.empty() || !a.sourceRead.cropToSmoke) return;
     try {
-        const double tv = turbio::scanFrame(target.path(target.frames.front()), target.frames.front(), a.targetRead).lattice.voxelSize;
-        const double sv = turbio::scanFrame(source.path(sourceFor.front()), sourceFor.front(), a.sourceRead).lattice.voxelSize;
-        a.sourceRead.cropMargin = std::max(a.sourceRead.cropMargin, kSourceMarginCoarseVoxels * turb::transferRatio(tv, sv, a.settings.resampleSource));
+        const double tv = turbio::scanFrame(target.path(target.frames.front()), target.frames.front(), a.targetRead)
+                              .lattice.voxelSize;
+        const double sv =
+            turbio::scanFrame(source.path(sourceFor.front()), sourceFor.front(), a.sourceRead).lattice.voxelSize;
+        a.sourceRead.cropMargin = std::max(a.sourceRead.cropMargin,
+            kSourceMarginCoarseVoxels * turb::transferRatio(tv, sv, a.settings.resampleSource));
     } catch (const std::exception&) {
         // The preflight reports an unreadable frame or a bad ratio with its own message.
     }
@@ -152,11 +155,12 @@ turb::CoordBBox preflight(const TransferArgs& a, const turbio::Sequence& target,
     const double sVoxels = sl ? double(sl->domain.volume()) : 0.0;
     const turb::Lattice outLattice = turb::refinedLattice(t0.lattice, tBox, f);
     const turb::Coord outDim = turb::refineDomain(tBox, f).dim(); // a 2D target keeps its one z layer
-    printData("ratio " + fmt("%.4g", tv / sv) + " (target voxel " + fmt("%g", tv) + ", source voxel " + fmt("%g", sv) + ")" +
+    printData("ratio " + fmt("%.4g", tv / sv) + " (target voxel " + fmt("%g", tv) + ", source voxel " + fmt("%g", sv) +
+              ")" +
               (resampled ? ": not an integer, the source is resampled trilinearly to ratio " + std::to_string(f) : ""));
     printData("output lattice: " + dims(outDim) + " voxels of " + fmt("%g", outLattice.voxelSize) + ", world " +
-              worldBox(tBox, t0.lattice) + " (the target's held box: its smoke and margin" + (tl && tl->frame != t0.frame ? " at frame " +
-              std::to_string(tl->frame) + ", its largest" : "") + ")");
+              worldBox(tBox, t0.lattice) + " (the target's held box: its smoke and margin" +
+              (tl && tl->frame != t0.frame ? " at frame " + std::to_string(tl->frame) + ", its largest" : "") + ")");
 
     // Output size (Blosc gains little on noisy floats). Velocity covers the target velocity's box padded by two
     // voxels, at f^3 voxels each (zero beyond it: not written), or trimmed, the smoke and the margin's shell
@@ -169,15 +173,16 @@ turb::CoordBBox preflight(const TransferArgs& a, const turbio::Sequence& target,
     double outBytes = 0.0, stateBytes = 0.0;
     for (const auto& fr : ts.frames) {
         const double cells = double(f) * f * (turb::isFlat(tBox) ? 1.0 : f);
-        const double smoke = std::min(box, 1.6 * cells * (fr.densityActive > 0 ? double(fr.densityActive) : double(fr.domain.volume())));
+        const double smoke =
+            std::min(box, 1.6 * cells * (fr.densityActive > 0 ? double(fr.densityActive) : double(fr.domain.volume())));
         const double whole = std::min(box, cells * velocityBoxVoxels(fr));
         const double vel = trimmed ? std::min(whole, smoke * (1.0 + 0.25 * a.write.velocityMargin)) : whole;
         outBytes = std::max(outBytes, floatBytes * (3.0 * vel + 2.0 * smoke));
         stateBytes = std::max(stateBytes, 12.0 * whole + 4.0 * smoke);
     }
     printData("output size: about " + turbio::formatBytes(outBytes) + " per frame, " +
-              turbio::formatBytes(outBytes * double(targetFrames.size())) + " for " + std::to_string(targetFrames.size()) +
-              " frame" + (targetFrames.size() == 1 ? "" : "s"));
+              turbio::formatBytes(outBytes * double(targetFrames.size())) + " for " +
+              std::to_string(targetFrames.size()) + " frame" + (targetFrames.size() == 1 ? "" : "s"));
     if (const std::string state = resumeStatePath(outPattern, a.write); !state.empty())
         printData("resume state: " + state + ", about " + turbio::formatBytes(stateBytes) +
                   " (the last frame in full precision, rewritten every frame)");
@@ -201,14 +206,15 @@ turb::CoordBBox preflight(const TransferArgs& a, const turbio::Sequence& target,
             }
             const double n2 = sVoxels / double(down) / double(down) / double(down);
             if (turb::transferPeakBytes(tVoxels, f2, matchedVoxels(sv2, n2, f2)) <= 0.9 * double(usable))
-                fits = "A source box-downsampled by " + std::to_string(down) + " (voxel " + fmt("%g", sv2) + ", ratio " +
-                       std::to_string(f2) + ") fits: vdbturb resample " + source.pattern.str() + " --down " +
-                       std::to_string(down) + " --out PROXY.####.vdb";
+                fits = "A source box-downsampled by " + std::to_string(down) + " (voxel " + fmt("%g", sv2) +
+                       ", ratio " + std::to_string(f2) + ") fits: vdbturb resample " + source.pattern.str() +
+                       " --down " + std::to_string(down) + " --out PROXY.####.vdb";
         }
         if (fits.empty()) fits = "No coarser source fits: crop or coarsen the target first.";
     }
-    checkMemory(need, "target " + dims(tBox.dim()) + " at ratio " + std::to_string(f) + " = " + dims(outDim) +
-                          " output voxels, source " + (sl ? dims(sl->domain.dim()) : std::string("?")),
+    checkMemory(need,
+        "target " + dims(tBox.dim()) + " at ratio " + std::to_string(f) + " = " + dims(outDim) +
+            " output voxels, source " + (sl ? dims(sl->domain.dim()) : std::string("?")),
         fits);
 
     std::vector<std::string> outputs, inputs;
@@ -219,8 +225,8 @@ turb::CoordBBox preflight(const TransferArgs& a, const turbio::Sequence& target,
     if (globals().dryRun)
         for (size_t i = first; i < target.frames.size(); ++i)
             if (i < first + 3 || i + 2 >= target.frames.size())
-                printData("would write " + outPattern.format(target.frames[i]) + " from target " + target.path(target.frames[i]) +
-                          " and source " + source.path(sourceFor[i]));
+                printData("would write " + outPattern.format(target.frames[i]) + " from target " +
+                          target.path(target.frames[i]) + " and source " + source.path(sourceFor[i]));
             else if (i == first + 3)
                 printData("  ... " + std::to_string(target.frames.size() - first - 5) + " more frames");
     turb::CoordBBox domain;
@@ -240,8 +246,9 @@ std::string inputId(const turbio::Sequence& seq)
 std::string writeSettingsText(const turbio::WriteOptions& w)
 {
     std::ostringstream os;
-    os << "style=" << (w.style == turbio::WriteStyle::Blender ? "blender" : "houdini") << ";half=" << (w.halfFloat ? 1 : 0)
-       << ";clipping=" << w.densityTolerance << ";velocity-margin=" << w.velocityMargin;
+    os << "style=" << (w.style == turbio::WriteStyle::Blender ? "blender" : "houdini")
+       << ";half=" << (w.halfFloat ? 1 : 0) << ";clipping=" << w.densityTolerance
+       << ";velocity-margin=" << w.velocityMargin;
     return os.str();
 }
 
@@ -252,7 +259,9 @@ void checkResumable(const std::string& prevPath, const turb::Frame& prevOut, con
     std::vector<std::string> diff;
     const auto saved = prevOut.metadata.find(turb::meta::kSettings);
     if (saved != prevOut.metadata.end()) diff = turb::settingsDifferences(saved->second, turb::outputSettingsText(s));
-    else logWarning(prevPath + ": no vdbturb_settings metadata (written by an older vdbturb): the settings cannot be checked");
+    else
+        logWarning(
+            prevPath + ": no vdbturb_settings metadata (written by an older vdbturb): the settings cannot be checked");
     // Older outputs carry no write settings: nothing to compare them with.
     if (const auto written = prevOut.metadata.find(turb::meta::kWriteSettings); written != prevOut.metadata.end())
         for (const std::string& d : turb::settingsDifferences(written->second, writeSettingsText(w))) diff.push_back(d);
@@ -260,7 +269,8 @@ void checkResumable(const std::string& prevPath, const turb::Frame& prevOut, con
              std::pair<const char*, std::string>{turb::meta::kSourceInput, inputId(source)}}) {
         const auto m = prevOut.metadata.find(key);
         if (m != prevOut.metadata.end() && m->second != now)
-            diff.push_back(std::string(key == turb::meta::kTargetInput ? "target" : "source") + ": " + m->second + " -> " + now);
+            diff.push_back(
+                std::string(key == turb::meta::kTargetInput ? "target" : "source") + ": " + m->second + " -> " + now);
     }
     if (diff.empty()) return;
     std::string list;
@@ -290,8 +300,7 @@ std::optional<turb::Frame> resumeStateFrame(const std::string& prevPath, int pre
                       std::to_string(prev) + ": a run stopped between the two writes, or frames were removed";
             else if (st.metadata[turb::meta::kState] != prevOut.metadata.at(turb::meta::kState))
                 why = "it is another run's";
-            else
-                return st;
+            else return st;
         } catch (const turb::Error& e) {
             why = messageWithFlags(e);
         }
@@ -313,14 +322,15 @@ struct FramePlan
 };
 
 // The source frame of every target frame, as --source-offset and --source-wrap map them.
-std::vector<int> sourceFrames(const TransferArgs& a, const std::vector<int>& targetFrames, const turbio::Sequence& source)
+std::vector<int> sourceFrames(
+    const TransferArgs& a, const std::vector<int>& targetFrames, const turbio::Sequence& source)
 {
     std::vector<int> out;
     try {
         for (int t : targetFrames) out.push_back(turbio::mapSourceFrame(t, source.frames, a.sourceOffset, a.wrap));
     } catch (const turb::ValueError& e) {
-        throw turb::ValueError(std::string(e.what()) + "; --source-offset or another --source-wrap maps it",
-            e.settings());
+        throw turb::ValueError(
+            std::string(e.what()) + "; --source-offset or another --source-wrap maps it", e.settings());
     }
     return out;
 }
@@ -360,7 +370,8 @@ FramePlan planFrames(const TransferArgs& a)
     p.source = turbio::resolveSequence(a.source, a.sourceFrames);
     p.out = turbio::FramePattern::parse(a.out);
     if (!p.target.missing.empty())
-        throw turb::IoError(p.target.pattern.str() + ": missing target frames " + turbio::formatFrameList(p.target.missing));
+        throw turb::IoError(
+            p.target.pattern.str() + ": missing target frames " + turbio::formatFrameList(p.target.missing));
     if (p.target.frames.size() > 1 && !p.out.numbered())
         throw turb::ValueError("--out '" + a.out + "' has no frame token (####, %04d, $F4) but " +
                                std::to_string(p.target.frames.size()) + " frames are requested");
@@ -369,7 +380,8 @@ FramePlan planFrames(const TransferArgs& a)
             ", source " + p.source.pattern.str() + " frames " + turbio::formatFrameList(p.source.frames) +
             (p.source.frames.size() < p.target.frames.size() ? " (" + wrapName(a.wrap) + ")" : ""));
     if (a.resume)
-        while (p.first < p.target.frames.size() && std::filesystem::exists(p.out.format(p.target.frames[p.first]))) ++p.first;
+        while (p.first < p.target.frames.size() && std::filesystem::exists(p.out.format(p.target.frames[p.first])))
+            ++p.first;
     p.writeFrom = p.first;
     if (p.first == 0 && !p.target.frames.empty()) addPreroll(a, p);
     return p;
@@ -557,20 +569,23 @@ int runTransfer(TransferArgs& a)
         const auto t0 = std::chrono::steady_clock::now();
         ConsoleProgress progress(int(i), count, t);
         progress.begin("reading");
-        const turb::Frame tf = readingAs("target", [&] { return turbio::readFrame(p.target.path(t), t, a.targetRead); });
-        const turb::Frame sf = readingAs("source",
-            [&] { return turbio::readFrame(p.source.path(p.sourceFor[i]), p.sourceFor[i], a.sourceRead); });
+        const turb::Frame tf =
+            readingAs("target", [&] { return turbio::readFrame(p.target.path(t), t, a.targetRead); });
+        const turb::Frame sf = readingAs(
+            "source", [&] { return turbio::readFrame(p.source.path(p.sourceFor[i]), p.sourceFor[i], a.sourceRead); });
         turb::TransferResult r;
         try {
             r = transfer.process(tf, sf, &progress);
         } catch (const turb::ValueError& e) {
             // The library names frames, not files: say which files this frame came from.
             throw turb::ValueError("frame " + std::to_string(t) + " (target " + p.target.path(t) + ", source " +
-                                   p.source.path(p.sourceFor[i]) + "): " + e.what(), e.settings());
+                                       p.source.path(p.sourceFor[i]) + "): " + e.what(),
+                e.settings());
         }
         if (i < p.writeFrom) {
             progress.clear();
-            logInfo("pre-roll frame " + std::to_string(t) + " done in " + fmt("%.2f s", secondsSince(t0)) + " (not written)");
+            logInfo("pre-roll frame " + std::to_string(t) + " done in " + fmt("%.2f s", secondsSince(t0)) +
+                    " (not written)");
             continue;
         }
         tagOutput(r.frame, a, p, i, transfer.saveState(), sequenceDomain);
@@ -581,7 +596,8 @@ int runTransfer(TransferArgs& a)
         progress.clear();
         if (r.stats.sourceResampled && i == p.first)
             logInfo("source resampled trilinearly from ratio " + fmt("%.4g", r.stats.sourceRatio) + " to " +
-                    std::to_string(r.stats.ratio) + " (output voxel = target voxel / " + std::to_string(r.stats.ratio) + ")");
+                    std::to_string(r.stats.ratio) + " (output voxel = target voxel / " + std::to_string(r.stats.ratio) +
+                    ")");
         logFrameDetails(r, t);
         report.frameDone(t, int(i), count, secondsSince(t0), frameLine(r, outPath), extra);
     }
@@ -603,14 +619,17 @@ CLI::Option* num(CLI::App* app, const std::string& names, T& v, const std::strin
 // Matching (Sato et al. section 3.2): patch sizes, descriptor, candidates and the energy's weights.
 void addSearchSettings(CLI::App* app, turb::TransferSettings& s)
 {
-    num(app, "--alpha", s.alpha, "Weight of the density-mask term in matching (paper 0.004)", "alpha")->check(finiteIn(0.0));
-    num(app, "--beta", s.beta, "Weight of the temporal term: previous detail advected (paper 0.5)", "beta")->check(finiteIn(0.0));
+    num(app, "--alpha", s.alpha, "Weight of the density-mask term in matching (paper 0.004)", "alpha")
+        ->check(finiteIn(0.0));
+    num(app, "--beta", s.beta, "Weight of the temporal term: previous detail advected (paper 0.5)", "beta")
+        ->check(finiteIn(0.0));
     num(app, "--density-threshold,--densityThreshold", s.densityThreshold, "D_th: smoke where density > this",
         "densityThreshold")
         ->check(finiteIn(0.0));
-    num(app, "--patch,--localPatch", s.localPatch, "B: local patch edge in output voxels", "localPatch")->check(CLI::Range(2, 64));
-    num(app, "--global-patch,--globalPatch", s.globalPatch, "b: global patch edge in target voxels, odd (0 = 2*ceil(B/f)+1)",
-        "globalPatch");
+    num(app, "--patch,--localPatch", s.localPatch, "B: local patch edge in output voxels", "localPatch")
+        ->check(CLI::Range(2, 64));
+    num(app, "--global-patch,--globalPatch", s.globalPatch,
+        "b: global patch edge in target voxels, odd (0 = 2*ceil(B/f)+1)", "globalPatch");
     num(app, "--pca,--pcaComponents", s.pcaComponents, "PCA dimensions of patch descriptors", "pcaComponents")
         ->check(CLI::Range(1, 256));
     num(app, "--stride,--localStride", s.localStride, "Spacing of candidate source patches in the local search",
@@ -626,11 +645,13 @@ void addSeamSettings(CLI::App* app, turb::SeamSettings& seams)
 {
     num(app, "--gamma,--seams.gamma", seams.gamma, "Weight of divergence in seam smoothing (paper 10)", "seams.gamma")
         ->check(finiteIn(0.0));
-    num(app, "--seams.bandWidth", seams.bandWidth, "Seam band: voxels on each side of a patch border (3D)", "seams.bandWidth")
+    num(app, "--seams.bandWidth", seams.bandWidth, "Seam band: voxels on each side of a patch border (3D)",
+        "seams.bandWidth")
         ->check(CLI::Range(1, 32));
-    num(app, "--seams.bandWidth2D", seams.bandWidth2D, "Seam band on 2D caches", "seams.bandWidth2D")->check(CLI::Range(1, 32));
+    num(app, "--seams.bandWidth2D", seams.bandWidth2D, "Seam band on 2D caches", "seams.bandWidth2D")
+        ->check(CLI::Range(1, 32));
     legacy(app->add_option_function<int>(
-               "--band", [&seams](int v) { seams.bandWidth = seams.bandWidth2D = v; }, "Both seam band widths")
+                  "--band", [&seams](int v) { seams.bandWidth = seams.bandWidth2D = v; }, "Both seam band widths")
                ->check(CLI::Range(1, 32)),
         "seams.bandWidth,seams.bandWidth2D");
     num(app, "--boundary-patch,--seams.boundaryPatch", seams.boundaryPatch, "C: boundary patch edge, even (0 = B)",
@@ -656,11 +677,14 @@ void addSeamSettings(CLI::App* app, turb::SeamSettings& seams)
                 "Seam E-step solver: cgnr (matrix-free, parallel) or eigen (Eigen's LeastSquaresConjugateGradient)"),
         "seams.solver");
     num(app, "--box-keep,--seams.boxKeep", seams.boxKeep,
-        "Fraction of each coarse cell's mean of U_h the seam solve keeps (1: leaves the coarse motion; 0: pulls it to 0)",
+        "Fraction of each coarse cell's mean of U_h the seam solve keeps (1: leaves the coarse motion; 0: pulls it to "
+        "0)",
         "seams.boxKeep")
         ->check(CLI::Range(0.0, 1.0));
-    boolSetting(app, "--seams.enabled", seams.enabled, "Seam smoothing (false: paste patches as they are)", "seams.enabled");
-    legacy(app->add_flag_function("--no-seams", [&seams](int64_t) { seams.enabled = false; }, "seams.enabled = false"),
+    boolSetting(
+        app, "--seams.enabled", seams.enabled, "Seam smoothing (false: paste patches as they are)", "seams.enabled");
+    legacy(app->add_flag_function(
+               "--no-seams", [&seams](int64_t) { seams.enabled = false; }, "seams.enabled = false"),
         "seams.enabled", "false");
 }
 
@@ -671,9 +695,10 @@ void addDetailSettings(CLI::App* app, turb::TransferSettings& s)
         "lf_err bound: U_h's coarse-cell means are reduced only down to this fraction of the target's (0 = exactly)",
         "coarseTolerance")
         ->check(CLI::Range(0.0, 1.0));
-    boolSetting(app, "--removeCoarseDetail", s.removeCoarseDetail, "Reduce U_h's coarse part (false lets lf_err grow)", "removeCoarseDetail");
-    legacy(app->add_flag_function("--keep-coarse-detail", [&s](int64_t) { s.removeCoarseDetail = false; },
-               "removeCoarseDetail = false"),
+    boolSetting(app, "--removeCoarseDetail", s.removeCoarseDetail, "Reduce U_h's coarse part (false lets lf_err grow)",
+        "removeCoarseDetail");
+    legacy(app->add_flag_function(
+               "--keep-coarse-detail", [&s](int64_t) { s.removeCoarseDetail = false; }, "removeCoarseDetail = false"),
         "removeCoarseDetail", "false");
     num(app, "--coherence", s.coherence,
         "Take a neighbour's continued source patch within this fraction of the best E_h (0 = off, the paper)",
@@ -682,13 +707,17 @@ void addDetailSettings(CLI::App* app, turb::TransferSettings& s)
     setting(app->add_flag("--whole-fresh-patches,--solveFreshPatchesWhole", s.solveFreshPatchesWhole,
                 "Solve every voxel of patches without carried detail, not only the seam band"),
         "solveFreshPatchesWhole");
-    boolSetting(app, "--resampleSource", s.resampleSource, "Resample a source at a non-integer ratio trilinearly to the nearest integer one (false: refuse it)", "resampleSource");
-    legacy(app->add_flag_function("--no-resample-source", [&s](int64_t) { s.resampleSource = false; },
-               "resampleSource = false"),
+    boolSetting(app, "--resampleSource", s.resampleSource,
+        "Resample a source at a non-integer ratio trilinearly to the nearest integer one (false: refuse it)",
+        "resampleSource");
+    legacy(app->add_flag_function(
+               "--no-resample-source", [&s](int64_t) { s.resampleSource = false; }, "resampleSource = false"),
         "resampleSource", "false");
-    boolSetting(app, "--followSourceFlow", s.followSourceFlow, "Patches follow the source's flow from frame to frame (false: re-paste where last frame found them)", "followSourceFlow");
-    legacy(app->add_flag_function("--no-follow-source", [&s](int64_t) { s.followSourceFlow = false; },
-               "followSourceFlow = false"),
+    boolSetting(app, "--followSourceFlow", s.followSourceFlow,
+        "Patches follow the source's flow from frame to frame (false: re-paste where last frame found them)",
+        "followSourceFlow");
+    legacy(app->add_flag_function(
+               "--no-follow-source", [&s](int64_t) { s.followSourceFlow = false; }, "followSourceFlow = false"),
         "followSourceFlow", "false");
     num(app, "--follow-tolerance,--followTolerance", s.followTolerance,
         "Keep a patch's continuation while its E_h is within (1 + this) of the best", "followTolerance")
@@ -697,17 +726,20 @@ void addDetailSettings(CLI::App* app, turb::TransferSettings& s)
         "Fraction of a source patch's voxels that must hold smoke for it to be a candidate (0 = any, the paper)",
         "sourceSmoke")
         ->check(CLI::Range(0.0f, 1.0f));
-    boolSetting(app, "--trackGlobalPatches", s.trackGlobalPatches, "Follow last frame's global patch (false: global search every frame)", "trackGlobalPatches");
-    legacy(app->add_flag_function("--no-tracking", [&s](int64_t) { s.trackGlobalPatches = false; },
-               "trackGlobalPatches = false"),
+    boolSetting(app, "--trackGlobalPatches", s.trackGlobalPatches,
+        "Follow last frame's global patch (false: global search every frame)", "trackGlobalPatches");
+    legacy(app->add_flag_function(
+               "--no-tracking", [&s](int64_t) { s.trackGlobalPatches = false; }, "trackGlobalPatches = false"),
         "trackGlobalPatches", "false");
     setting(addEnum<turb::DetailEnergy>(app, "--detail-energy,--detailEnergy", s.detailEnergy,
                 {{"source", turb::DetailEnergy::Source}, {"pasted", turb::DetailEnergy::Pasted},
                     {"none", turb::DetailEnergy::None}},
                 "U_h's energy per smoke voxel: the source's high frequencies, the pasted patches', or as made"),
         "detailEnergy");
-    boolSetting(app, "--compensateTargetDivergence", s.compensateTargetDivergence, "The seam gamma term penalises div(up(u_t) + U_h) (false: div(U_h), the paper)", "compensateTargetDivergence");
-    legacy(app->add_flag_function("--no-target-divergence", [&s](int64_t) { s.compensateTargetDivergence = false; },
+    boolSetting(app, "--compensateTargetDivergence", s.compensateTargetDivergence,
+        "The seam gamma term penalises div(up(u_t) + U_h) (false: div(U_h), the paper)", "compensateTargetDivergence");
+    legacy(app->add_flag_function(
+               "--no-target-divergence", [&s](int64_t) { s.compensateTargetDivergence = false; },
                "compensateTargetDivergence = false"),
         "compensateTargetDivergence", "false");
 }
@@ -723,7 +755,8 @@ void addTimeSettings(CLI::App* app, TransferArgs& a)
         "Regenerate carried detail stretched below this fraction of the fresh patches' anisotropy (0 = off)",
         "regenerate")
         ->check(CLI::Range(0.0, 1.0));
-    num(app, "--regenerateBlend", s.regenerateBlend, "Carried weight per frame in a regenerated patch (3D)", "regenerateBlend")
+    num(app, "--regenerateBlend", s.regenerateBlend, "Carried weight per frame in a regenerated patch (3D)",
+        "regenerateBlend")
         ->check(CLI::Range(0.0, 0.999));
     num(app, "--regenerateBlend2D", s.regenerateBlend2D, "The same on 2D caches", "regenerateBlend2D")
         ->check(CLI::Range(0.0, 0.999));
@@ -739,18 +772,19 @@ void addTimeSettings(CLI::App* app, TransferArgs& a)
         "alignment");
     num(app, "--lookback,--lookBackFrames", s.lookBackFrames, "m for --density lookback", "lookBackFrames")
         ->check(CLI::Range(1, 100));
-    setting(addEnum<turb::AdvectSettings::Scheme>(app, "--density-scheme,--densityScheme", s.densityScheme,
-                {{"bfecc", turb::AdvectSettings::Scheme::BFECC},
-                    {"maccormack", turb::AdvectSettings::Scheme::MacCormack},
-                    {"semi-lagrangian", turb::AdvectSettings::Scheme::SemiLagrangian}},
-                "Advection scheme of the output density"),
+    setting(
+        addEnum<turb::AdvectSettings::Scheme>(app, "--density-scheme,--densityScheme", s.densityScheme,
+            {{"bfecc", turb::AdvectSettings::Scheme::BFECC}, {"maccormack", turb::AdvectSettings::Scheme::MacCormack},
+                {"semi-lagrangian", turb::AdvectSettings::Scheme::SemiLagrangian}},
+            "Advection scheme of the output density"),
         "densityScheme");
     num(app, "--density-guide,--densityGuide.strength", s.densityGuide.strength,
         "Fraction of the way the output density's coarse means move onto the target's per frame (0 = off)",
         "densityGuide.strength")
         ->check(finiteIn(0.0, 1.0));
     num(app, "--extend-velocity,--sourceRead.extendVelocity", a.sourceRead.extendVelocity,
-        "Continue the source's velocity this many voxels past its active region (Blender clips it to the smoke; 0 = off)",
+        "Continue the source's velocity this many voxels past its active region (Blender clips it to the smoke; 0 = "
+        "off)",
         "sourceRead.extendVelocity")
         ->check(CLI::Range(0, 64));
 }
@@ -776,12 +810,14 @@ Command transferCommand()
              "one-z-layer caches)";
     c.setup = [args](CLI::App* app) {
         TransferArgs& a = *args;
-        app->add_option("--target", a.target, "Low-res target cache (velocity + density): pattern or one file")->required();
+        app->add_option("--target", a.target, "Low-res target cache (velocity + density): pattern or one file")
+            ->required();
         app->add_option("--source", a.source, "High-res source cache whose turbulence is transferred")->required();
         app->add_option("--out", a.out, "Output pattern, e.g. up/turb.####.vdb (directories are created)")->required();
         app->add_option("--frames", a.frames, "Target frames, e.g. 1001-1100x2 (default: all on disk)")
             ->check(frameListCheck());
-        app->add_option("--source-frames", a.sourceFrames, "Restrict the source to these frames")->check(frameListCheck());
+        app->add_option("--source-frames", a.sourceFrames, "Restrict the source to these frames")
+            ->check(frameListCheck());
         app->add_option("--source-offset", a.sourceOffset, "Source frame = target frame + offset");
         addEnum<turbio::SourceWrap>(app, "--source-wrap", a.wrap,
             {{"loop", turbio::SourceWrap::Loop}, {"pingpong", turbio::SourceWrap::PingPong},
@@ -794,12 +830,14 @@ Command transferCommand()
                "Run up to N cache frames before the first requested one without writing them, so the detail and "
                "density are established as in a longer run")
             ->check(CLI::NonNegativeNumber);
-        app->add_flag("--resume", a.resume, "Skip frames already written and continue from the state saved in the last one");
+        app->add_flag(
+            "--resume", a.resume, "Skip frames already written and continue from the state saved in the last one");
         app->add_flag("--json", a.json, "One JSON line per frame and a summary on stdout");
         addReadOptions(app, a.targetRead, "target");
         addReadOptions(app, a.sourceRead, "source");
-        a.sourceCropMargin = app->get_option("--source-crop-margin")->description(
-            "Source voxels kept around the source's smoke (default: 8 target voxels)");
+        a.sourceCropMargin =
+            app->get_option("--source-crop-margin")
+                ->description("Source voxels kept around the source's smoke (default: 8 target voxels)");
         addWriteOptions(app, a.write);
         app->add_option("--velocity-margin", a.write.velocityMargin,
                "Write velocity only within N voxels of the smoke (smaller files; 1 covers motion blur); -1 = the whole "

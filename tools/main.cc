@@ -17,7 +17,8 @@ using namespace vdbturb;
 
 namespace vdbturb {
 
-void warnIfClippedAway(const turb::Frame& frame, const turbio::WriteOptions& options, const std::string& path, bool& warned)
+void warnIfClippedAway(
+    const turb::Frame& frame, const turbio::WriteOptions& options, const std::string& path, bool& warned)
 {
     if (warned || !(options.densityTolerance > 0.0f) || !frame.hasDensity()) return;
     const auto& v = frame.density.values();
@@ -62,14 +63,16 @@ void addReadOptions(CLI::App* app, turbio::ReadOptions& opt, const std::string& 
     const auto selector = [p](const char* what) {
         return CLI::Validator(
             [p, what](std::string& v) {
-                return v.empty() ? p + what + " '': give a grid name, OpenVDB's NAME[N] ('[0]' is the first unnamed grid) "
-                                              "or '#N' (the N-th grid as `vdbturb info` lists them)"
+                return v.empty() ? p + what +
+                                       " '': give a grid name, OpenVDB's NAME[N] ('[0]' is the first unnamed grid) "
+                                       "or '#N' (the N-th grid as `vdbturb info` lists them)"
                                  : std::string();
             },
             "GRID");
     };
     app->add_option(p + "density-grid", opt.densityGrid,
-           "Density grid: NAME, NAME[N] or #N as `vdbturb info` numbers grids (docs/io.md); empty: density, density_noise")
+           "Density grid: NAME, NAME[N] or #N as `vdbturb info` numbers grids (docs/io.md); empty: density, "
+           "density_noise")
         ->check(selector("density-grid"))
         ->group(kGroupInput);
     app->add_option(p + "vel-grid", opt.velocityGrid,
@@ -77,8 +80,8 @@ void addReadOptions(CLI::App* app, turbio::ReadOptions& opt, const std::string& 
                "density-grid, or the stem of NAME.x/.y/.z; empty: vel, velocity, v")
         ->check(selector("vel-grid"))
         ->group(kGroupInput);
-    app->add_option(p + "fps", opt.fps,
-           "Frames per second of the shot, for the default time per frame (0: 24, with a warning)")
+    app->add_option(
+           p + "fps", opt.fps, "Frames per second of the shot, for the default time per frame (0: 24, with a warning)")
         ->check(CLI::PositiveNumber)
         ->group(kGroupInput);
     setting(addEnum<turbio::VelocityUnits>(app, p + "vel-units", opt.velocityUnits,
@@ -86,11 +89,13 @@ void addReadOptions(CLI::App* app, turbio::ReadOptions& opt, const std::string& 
                     {"cells", turbio::VelocityUnits::Cells}},
                 "Velocity units: world, cells (grid cells per time unit, Blender), auto (detect)"),
         p.substr(2) + "vel-units");
-    setting(app->add_option(p + "dt", opt.dt,
-                   "Time per frame in the velocity's time unit (0: from metadata or the writer's convention, docs/io.md)")
-                ->check(CLI::PositiveNumber),
+    setting(
+        app->add_option(p + "dt", opt.dt,
+               "Time per frame in the velocity's time unit (0: from metadata or the writer's convention, docs/io.md)")
+            ->check(CLI::PositiveNumber),
         p.substr(2) + "dt");
-    setting(app->add_flag_function(p + "no-crop", [&opt](int64_t) { opt.cropToSmoke = false; },
+    setting(app->add_flag_function(
+                p + "no-crop", [&opt](int64_t) { opt.cropToSmoke = false; },
                 "Hold the grids' whole active boxes, stray voxels included (default: the smoke and a margin)"),
         p.substr(2) + "no-crop");
     setting(app->add_option(p + "crop-margin", opt.cropMargin, "Voxels kept around the smoke when cropping")
@@ -111,7 +116,8 @@ void addWriteOptions(CLI::App* app, turbio::WriteOptions& opt)
         ->check(CLI::Validator(
             [](std::string& text) -> std::string {
                 double v = 0.0; // CLI11's number checks let NaN through
-                return parseNumber(text, v) && std::isfinite(v) && v >= 0.0 ? std::string() : "must be a finite density >= 0";
+                return parseNumber(text, v) && std::isfinite(v) && v >= 0.0 ? std::string()
+                                                                            : "must be a finite density >= 0";
             },
             "DENSITY>=0"))
         ->group(kGroupOutput);
@@ -179,17 +185,23 @@ CLI::Validator finiteIn(double lo, double hi)
         }
         return s;
     };
-    std::string text = hi >= 1e30 ? "NUMBER>=" + trimmed(std::to_string(lo))
-                                   : "NUMBER in [" + trimmed(std::to_string(lo)) + ", " + trimmed(std::to_string(hi)) + "]";
+    std::string text = hi >= 1e30
+                           ? "NUMBER>=" + trimmed(std::to_string(lo))
+                           : "NUMBER in [" + trimmed(std::to_string(lo)) + ", " + trimmed(std::to_string(hi)) + "]";
     return CLI::Validator(
         [lo, hi, text](std::string& s) -> std::string {
             double v = 0.0;
-            return parseNumber(s, v) && std::isfinite(v) && v >= lo && v <= hi ? std::string() : "must be a finite " + text;
+            return parseNumber(s, v) && std::isfinite(v) && v >= lo && v <= hi ? std::string()
+                                                                               : "must be a finite " + text;
         },
         text);
 }
 
-std::vector<Command> allCommands() { return {infoCommand(), transferCommand(), measureCommand(), simCommand(), previewCommand(), synthCommand(), stylizeCommand(), animateCommand(), resampleCommand(), farmCommand()}; }
+std::vector<Command> allCommands()
+{
+    return {infoCommand(), transferCommand(), measureCommand(), simCommand(), previewCommand(), synthCommand(),
+        stylizeCommand(), animateCommand(), resampleCommand(), farmCommand()};
+}
 
 } // namespace vdbturb
 
@@ -204,7 +216,8 @@ size_t editDistance(const std::string& a, const std::string& b)
     for (size_t i = 1; i <= a.size(); ++i)
         for (size_t j = 1; j <= b.size(); ++j) {
             d[i][j] = std::min({d[i - 1][j] + 1, d[i][j - 1] + 1, d[i - 1][j - 1] + (a[i - 1] != b[j - 1])});
-            if (i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1]) d[i][j] = std::min(d[i][j], d[i - 2][j - 2] + 1);
+            if (i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1])
+                d[i][j] = std::min(d[i][j], d[i - 2][j - 2] + 1);
         }
     return d[a.size()][b.size()];
 }
@@ -288,17 +301,20 @@ std::string checkSpelling(int argc, char** argv, CLI::App& app, const std::vecto
             const std::string near = nearest(second, nested);
             std::string all;
             for (const auto& n : nested) all += (all.empty() ? "" : ", ") + n;
-            return "'" + first + "' has no subcommand '" + second + "'" + (near.empty() ? "" : "; did you mean '" + near + "'?") +
-                   " Subcommands: " + all + ".";
+            return "'" + first + "' has no subcommand '" + second + "'" +
+                   (near.empty() ? "" : "; did you mean '" + near + "'?") + " Subcommands: " + all + ".";
         }
     }
     for (int i = from; i < argc; ++i) {
         const std::string arg = argv[i];
         if (arg == "--") break;
-        if (arg.size() < 2 || arg[0] != '-' || std::isdigit(static_cast<unsigned char>(arg[1])) || arg[1] == '.') continue;
+        if (arg.size() < 2 || arg[0] != '-' || std::isdigit(static_cast<unsigned char>(arg[1])) || arg[1] == '.')
+            continue;
         if (arg[1] == '-') {
             const std::string name = arg.substr(0, arg.find('='));
-            if (name == "--help" || name == "--version" || isLongOption(sub, name) || (parent && isLongOption(parent, name))) continue;
+            if (name == "--help" || name == "--version" || isLongOption(sub, name) ||
+                (parent && isLongOption(parent, name)))
+                continue;
             const std::string near = nearest(name, longOptions(sub));
             return "'" + label + "' has no option " + name + (near.empty() ? "." : "; did you mean " + near + "?") +
                    " See vdbturb " + label + " --help.";
@@ -349,7 +365,8 @@ int main(int argc, char** argv)
                     if (words.empty() || cmd->name != words[0]) continue;
                     if (isLongOption(sub, flag)) return true;
                     for (CLI::App* nested : sub->get_subcommands({}))
-                        if (words.size() > 1 && nested->get_name() == words[1] && isLongOption(nested, flag)) return true;
+                        if (words.size() > 1 && nested->get_name() == words[1] && isLongOption(nested, flag))
+                            return true;
                     return false;
                 }
                 return true; // no such command: the parser says so

@@ -112,8 +112,8 @@ std::vector<GridChecksum> gridChecksums(const std::string& path)
                            hashValues<openvdb::BoolGrid>(*g, c, sum) || hashValues<openvdb::Vec3SGrid>(*g, c, sum) ||
                            hashValues<openvdb::Vec3DGrid>(*g, c, sum) || hashValues<openvdb::Vec3IGrid>(*g, c, sum);
         if (!known)
-            throw turb::IoError(path + ": grid '" + c.name + "' has value type " + c.valueType +
-                                ", which vdbturb cannot fingerprint");
+            throw turb::IoError(
+                path + ": grid '" + c.name + "' has value type " + c.valueType + ", which vdbturb cannot fingerprint");
         v.add(&sum, sizeof sum);
         v.add(&c.activeVoxels, sizeof c.activeVoxels);
         c.values = v.h;

@@ -81,7 +81,10 @@ extern "C" __attribute__((weak)) void __sanitizer_set_death_callback(void (*)(vo
     // A damaged size field can ask for absurd allocations: make them fail with bad_alloc in the
     // child instead of waking the OOM killer.
     const size_t limit = currentVirtualBytes() + (size_t(16) << 30);
-    struct rlimit rl{limit, limit};
+    struct rlimit rl
+    {
+        limit, limit
+    };
     ::setrlimit(RLIMIT_AS, &rl);
     std::string payload;
     try {
@@ -156,13 +159,16 @@ GuardedResult readInChild(const std::string& path, const ReadBody& body, double 
     char buf[1 << 16];
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeoutSeconds);
     for (;;) {
-        const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
-            deadline - std::chrono::steady_clock::now()).count();
+        const auto left =
+            std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now()).count();
         if (left <= 0) {
             timedOut = true;
             break;
         }
-        struct pollfd pfd{fds[0], POLLIN, 0};
+        struct pollfd pfd
+        {
+            fds[0], POLLIN, 0
+        };
         const int pr = ::poll(&pfd, 1, int(std::min<long long>(left, 1000)));
         if (pr < 0 && errno != EINTR) break;
         if (pr <= 0) continue;
@@ -177,8 +183,7 @@ GuardedResult readInChild(const std::string& path, const ReadBody& body, double 
     ::close(fds[0]);
     if (timedOut) ::kill(pid, SIGKILL);
     int status = 0;
-    while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-    }
+    while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {}
 
     if (timedOut) return {};
     if (WIFSIGNALED(status)) {
@@ -216,7 +221,8 @@ GuardedResult guardedRead(const std::string& path, const ReadBody& body, double 
     r = readInChild(path, body, timeoutSeconds, timedOut);
     if (!timedOut) return r;
     std::ostringstream os;
-    os << path << ": corrupt file: OpenVDB's reader did not finish within " << int(timeoutSeconds + 0.5) << " s (twice)";
+    os << path << ": corrupt file: OpenVDB's reader did not finish within " << int(timeoutSeconds + 0.5)
+       << " s (twice)";
     throw turb::IoError(os.str());
 }
 

@@ -79,8 +79,7 @@ std::unique_ptr<OIIO::ImageInput> openInput(const std::string& path)
     auto in = OIIO::ImageInput::open(path, &config);
     if (!in) throw IoError(path + ": cannot read image (" + clean(oiioError("unknown format"), path) + ")");
     const OIIO::ImageSpec& spec = in->spec();
-    if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0)
-        throw IoError(path + ": image has no pixels");
+    if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0) throw IoError(path + ": image has no pixels");
     if (spec.depth > 1) throw IoError(path + ": volume images are not supported");
     if (double(spec.width) * spec.height * spec.nchannels > 2.0e9) throw IoError(path + ": image too large");
     return in;
@@ -92,7 +91,8 @@ int channelNamed(const OIIO::ImageSpec& spec, const std::string& name)
     for (int c = 0; c < spec.nchannels; ++c) {
         const std::string n = lower(spec.channel_name(c));
         const std::string want = lower(name);
-        if (n == want || (n.size() > want.size() + 1 && n.compare(n.size() - want.size() - 1, std::string::npos, "." + want) == 0))
+        if (n == want ||
+            (n.size() > want.size() + 1 && n.compare(n.size() - want.size() - 1, std::string::npos, "." + want) == 0))
             return c;
     }
     return -1;
@@ -141,10 +141,7 @@ OIIO::ImageBuf pictureBuffer(const turb::Image& picture)
     return buf;
 }
 
-float srgbToLinear(float v)
-{
-    return v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f);
-}
+float srgbToLinear(float v) { return v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f); }
 
 OIIO::TypeDesc storageType(const std::string& path, const std::string& format, PixelBits bits)
 {
@@ -153,7 +150,9 @@ OIIO::TypeDesc storageType(const std::string& path, const std::string& format, P
     };
     switch (bits) {
     case PixelBits::Auto:
-        return format == "openexr" ? OIIO::TypeDesc::HALF : format == "tiff" ? OIIO::TypeDesc::UINT16 : OIIO::TypeDesc::UINT8;
+        return format == "openexr" ? OIIO::TypeDesc::HALF
+               : format == "tiff"  ? OIIO::TypeDesc::UINT16
+                                   : OIIO::TypeDesc::UINT8;
     case PixelBits::Uint8: return format == "openexr" ? refuse("8-bit") : OIIO::TypeDesc::UINT8;
     case PixelBits::Uint16: return format == "openexr" || format == "jpeg" ? refuse("16-bit") : OIIO::TypeDesc::UINT16;
     case PixelBits::Half: return format == "openexr" || format == "tiff" ? OIIO::TypeDesc::HALF : refuse("half-float");
@@ -172,7 +171,8 @@ void writePixels(const std::string& path, const OIIO::ImageSpec& spec, const std
         if (!out->open(tmp, spec)) throw IoError(path + ": cannot write (" + clean(out->geterror(), tmp) + ")");
         const bool ok = out->write_image(OIIO::TypeDesc::FLOAT, data.data());
         const std::string err = ok ? std::string() : out->geterror();
-        if (!out->close() || !ok) throw IoError(path + ": write failed (" + clean(err.empty() ? out->geterror() : err, tmp) + ")");
+        if (!out->close() || !ok)
+            throw IoError(path + ": write failed (" + clean(err.empty() ? out->geterror() : err, tmp) + ")");
     });
 }
 
@@ -271,7 +271,8 @@ turb::Image withTextDrawn(const turb::Image& picture)
     }
     OIIO::ImageBuf buf = pictureBuffer(picture);
     turb::Image out(picture.width(), picture.height());
-    buf.get_pixels(OIIO::ROI(0, picture.width(), 0, picture.height(), 0, 1, 0, 3), OIIO::TypeDesc::FLOAT, out.pixels().data());
+    buf.get_pixels(
+        OIIO::ROI(0, picture.width(), 0, picture.height(), 0, 1, 0, 3), OIIO::TypeDesc::FLOAT, out.pixels().data());
     return out;
 }
 

@@ -110,7 +110,8 @@ openvdb::GridBase::Ptr rotatedGrid(const GridT& in, const turb::AxisRotation& r)
     // which Blender's velocities carry too. Colours go by name (Houdini's Cd, "color", "colour").
     std::string name = in.getName();
     std::transform(name.begin(), name.end(), name.begin(), [](unsigned char ch) { return char(std::tolower(ch)); });
-    const bool rotateValues = name != "cd" && name.find("color") == std::string::npos && name.find("colour") == std::string::npos;
+    const bool rotateValues =
+        name != "cd" && name.find("color") == std::string::npos && name.find("colour") == std::string::npos;
     auto out = GridT::create(turned(in.background(), r, rotateValues));
     auto outAcc = out->getAccessor();
     turbio::detail::forEachActiveVoxel(in, [&](const Coord& o, const typename GridT::ValueType& value) {
@@ -158,8 +159,8 @@ void turnBlenderDomain(openvdb::GridBase& g, const turb::AxisRotation& r)
 {
     if (auto res = g.getMetadata<openvdb::Vec3IMetadata>("file_base_resolution")) {
         const openvdb::Vec3i v = res->value();
-        g.insertMeta("file_base_resolution",
-            openvdb::Vec3IMetadata(openvdb::Vec3i(v[r.perm[0]], v[r.perm[1]], v[r.perm[2]])));
+        g.insertMeta(
+            "file_base_resolution", openvdb::Vec3IMetadata(openvdb::Vec3i(v[r.perm[0]], v[r.perm[1]], v[r.perm[2]])));
     }
 }
 
@@ -167,7 +168,8 @@ void turnBlenderDomain(openvdb::GridBase& g, const turb::AxisRotation& r)
 
 void OtherGrids::downsample(const turb::Coord& factors)
 {
-    if (factors.x() < 1 || factors.y() < 1 || factors.z() < 1) throw turb::ValueError("down-sampling factors must be >= 1");
+    if (factors.x() < 1 || factors.y() < 1 || factors.z() < 1)
+        throw turb::ValueError("down-sampling factors must be >= 1");
     if (factors == turb::Coord(1)) return;
     for (size_t i = 0; i < mImpl->grids.size(); ++i) {
         if (!mImpl->followFrame[i]) continue;
@@ -183,9 +185,8 @@ void OtherGrids::downsample(const turb::Coord& factors)
             // Blender's staggered velocities are in grid cells per step: a cell N times larger holds 1/N of them.
             if (out->getGridClass() == openvdb::GRID_STAGGERED && (*out)["file_base_resolution"])
                 if (auto v = openvdb::GridBase::grid<openvdb::Vec3SGrid>(out))
-                    openvdb::tools::foreach(v->beginValueOn(), [&](const openvdb::Vec3SGrid::ValueOnIter& it) {
-                        it.setValue(*it / float(factors.x()));
-                    });
+                    openvdb::tools::foreach (v->beginValueOn(),
+                        [&](const openvdb::Vec3SGrid::ValueOnIter& it) { it.setValue(*it / float(factors.x())); });
             rescaleBlenderDomain(*out, factors);
             mImpl->grids[i] = out;
         } else {

@@ -10,7 +10,7 @@ namespace turbio {
 
 struct OtherGrids::Impl
 {
-    openvdb::GridPtrVec grids;    ///< in file order, full precision (the half-float flag restored on write)
+    openvdb::GridPtrVec grids;     ///< in file order, full precision (the half-float flag restored on write)
     std::vector<bool> followFrame; ///< per grid: on the frame's lattice, so it is resampled and turned with it
 };
 

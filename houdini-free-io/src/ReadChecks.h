@@ -13,8 +13,8 @@ namespace turbio::detail {
 
 /// "PATH: no velocity (...) grid; the file has: LISTING.", naming the setting that chooses the grid
 /// ("velocityGrid"; the caller's own name for it, such as a flag, follows the listing).
-turb::IoError missingGrid(const std::string& path, GridRole role, const ReadOptions& options,
-    const std::string& listing);
+turb::IoError missingGrid(
+    const std::string& path, GridRole role, const ReadOptions& options, const std::string& listing);
 
 /// "PATH: none of the requested grids is present; the file has: LISTING.", naming densityGrid and velocityGrid.
 turb::IoError noRequestedGrid(const std::string& path, const std::string& listing);
@@ -28,6 +28,7 @@ turb::CoordBBox boxOnLattice(const turb::CoordBBox& b, const turb::Lattice& own,
 /// "" when a dense frame over `domain` fits (ReadOptions::maxVoxels and 80% of the usable memory); else the
 /// message, naming every grid's span.
 std::string denseSizeProblem(const std::string& path, const turb::CoordBBox& domain,
-    const std::vector<std::pair<std::string, turb::CoordBBox>>& spans, double bytesPerVoxel, const ReadOptions& options);
+    const std::vector<std::pair<std::string, turb::CoordBBox>>& spans, double bytesPerVoxel,
+    const ReadOptions& options);
 
 } // namespace turbio::detail

@@ -66,7 +66,8 @@ void resolveFrame(FrameScan& fs, const FileInfo& info, const ReadOptions& option
                 if (const GridInfo* e = findSelector(info.grids, n[0])) used.push_back(e);
     if (used.empty()) throw detail::noRequestedGrid(fs.path, listing);
     for (const GridInfo* g : used)
-        if (!g->supportedTransform) throw turb::IoError(detail::unsupportedTransformMessage(fs.path, g->name, g->mapType));
+        if (!g->supportedTransform)
+            throw turb::IoError(detail::unsupportedTransformMessage(fs.path, g->name, g->mapType));
 
     fs.lattice = latticeOf(*used.front());
     if (v && !sameLattice(latticeOf(*v), fs.lattice)) fs.velocityVoxel = v->voxelSize;
@@ -188,8 +189,8 @@ const FrameScan* SequenceScan::largestDomain() const
     return best;
 }
 
-SequenceScan scanSequence(const Sequence& seq, const std::vector<int>& frames, const ReadOptions& options,
-    bool readVoxelsIfNeeded)
+SequenceScan scanSequence(
+    const Sequence& seq, const std::vector<int>& frames, const ReadOptions& options, bool readVoxelsIfNeeded)
 {
     SequenceScan scan;
     for (int f : frames) {
@@ -207,7 +208,8 @@ SequenceScan scanSequence(const Sequence& seq, const std::vector<int>& frames, c
             c.toPath = f.path;
             c.from = prev->lattice;
             c.to = f.lattice;
-            c.voxelSizeChanged = std::abs(prev->lattice.voxelSize - f.lattice.voxelSize) > 1e-6 * prev->lattice.voxelSize;
+            c.voxelSizeChanged =
+                std::abs(prev->lattice.voxelSize - f.lattice.voxelSize) > 1e-6 * prev->lattice.voxelSize;
             scan.changes.push_back(c);
         }
         prev = &f;

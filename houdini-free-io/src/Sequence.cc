@@ -107,8 +107,7 @@ FramePattern FramePattern::parse(const std::string& text)
 {
     FramePattern p;
     const std::vector<Token> tokens = findTokens(text);
-    if (tokens.size() > 1)
-        throw turb::ValueError("pattern '" + text + "' has more than one frame token");
+    if (tokens.size() > 1) throw turb::ValueError("pattern '" + text + "' has more than one frame token");
     if (tokens.empty()) {
         p.mPrefix = text;
         p.mText = text;
@@ -118,8 +117,8 @@ FramePattern FramePattern::parse(const std::string& text)
     p.mPrefix = text.substr(0, tokens[0].pos);
     p.mSuffix = text.substr(tokens[0].pos + tokens[0].len);
     if (tokens[0].width > 32)
-        throw turb::ValueError("pattern '" + text + "': frame padding " + std::to_string(tokens[0].width) +
-                               " is wider than 32 digits");
+        throw turb::ValueError(
+            "pattern '" + text + "': frame padding " + std::to_string(tokens[0].width) + " is wider than 32 digits");
     p.mWidth = tokens[0].width;
     p.mNumbered = true;
     return p;
@@ -163,10 +162,8 @@ std::string FramePattern::format(int frame) const
 {
     if (!mNumbered) return mPrefix;
     char buf[48];
-    if (frame < 0)
-        std::snprintf(buf, sizeof(buf), "-%0*d", mWidth, -frame);
-    else
-        std::snprintf(buf, sizeof(buf), "%0*d", mWidth, frame);
+    if (frame < 0) std::snprintf(buf, sizeof(buf), "-%0*d", mWidth, -frame);
+    else std::snprintf(buf, sizeof(buf), "%0*d", mWidth, frame);
     return mPrefix + buf + mSuffix;
 }
 
@@ -334,10 +331,11 @@ std::string noMatchMessage(const FramePattern& pattern)
         std::string w;
         for (const auto& [digits, files] : widths) {
             FramePattern p = FramePattern::parse(prefix + std::string(size_t(digits), '#') + pattern.suffix());
-            w += (w.empty() ? "" : ", ") + p.str() + " (" + std::to_string(files) + " file" + (files == 1 ? "" : "s") + ", " +
-                 std::to_string(digits) + "-digit frame numbers)";
+            w += (w.empty() ? "" : ", ") + p.str() + " (" + std::to_string(files) + " file" + (files == 1 ? "" : "s") +
+                 ", " + std::to_string(digits) + "-digit frame numbers)";
         }
-        const std::string want = pattern.width() <= 1 ? "unpadded numbers" : std::to_string(pattern.width()) + "-digit numbers";
+        const std::string want =
+            pattern.width() <= 1 ? "unpadded numbers" : std::to_string(pattern.width()) + "-digit numbers";
         return head + ", which asks for " + want + "; these exist: " + w + ". Use as many # (or $F" +
                std::to_string(widths.rbegin()->first) + ") as the files have digits";
     }
@@ -354,8 +352,9 @@ Sequence resolveSequence(const std::string& text, const std::string& frameSpec)
     std::error_code ec;
     if (fs::is_directory(text, ec)) {
         const auto seqs = sequencesInDirectory(text);
-        throw turb::IoError(text + ": is a directory, not a cache: give a file pattern" +
-                            (seqs.empty() ? std::string(" (the directory is empty)") : "; it holds " + listSequences(seqs, 4)));
+        throw turb::IoError(
+            text + ": is a directory, not a cache: give a file pattern" +
+            (seqs.empty() ? std::string(" (the directory is empty)") : "; it holds " + listSequences(seqs, 4)));
     }
     FramePattern pattern = FramePattern::parse(text);
     if (!pattern.numbered()) {
@@ -381,7 +380,8 @@ Sequence resolveSequence(const std::string& text, const std::string& frameSpec)
             const std::string dir = slash == std::string::npos ? "." : text.substr(0, slash + 1);
             std::string why = text + ": no such file";
             if (!fs::is_directory(dir, ec)) why += " (directory " + dir + " does not exist)";
-            else if (const auto seqs = sequencesInDirectory(dir); !seqs.empty()) why += "; " + dir + " holds " + listSequences(seqs, 4);
+            else if (const auto seqs = sequencesInDirectory(dir); !seqs.empty())
+                why += "; " + dir + " holds " + listSequences(seqs, 4);
             throw turb::IoError(why);
         }
     }
@@ -429,8 +429,8 @@ int mapSourceFrame(int targetFrame, const std::vector<int>& sourceFrames, int of
         case SourceWrap::Clamp: s = std::min(std::max(s, first), last); break;
         case SourceWrap::Error:
             throw turb::ValueError("target frame " + std::to_string(targetFrame) + " needs source frame " +
-                                   std::to_string(s) + ", outside the source's frames " + std::to_string(first) +
-                                   "-" + std::to_string(last) + " (the wrap mode is error)");
+                                   std::to_string(s) + ", outside the source's frames " + std::to_string(first) + "-" +
+                                   std::to_string(last) + " (the wrap mode is error)");
         }
     }
     if (!std::binary_search(sourceFrames.begin(), sourceFrames.end(), int(s)))

@@ -18,9 +18,9 @@ namespace {
 std::vector<int> strokeLines(const std::string& text)
 {
     std::vector<int> lines;
-    std::vector<char> stack;      // open containers
-    std::string lastKey;          // the last string seen as a key of the top-level object
-    bool inStrokes = false;       // inside the top-level "strokes" array
+    std::vector<char> stack; // open containers
+    std::string lastKey;     // the last string seen as a key of the top-level object
+    bool inStrokes = false;  // inside the top-level "strokes" array
     int line = 1;
     for (size_t i = 0; i < text.size(); ++i) {
         const char c = text[i];
@@ -80,7 +80,8 @@ StrokeFile parseFlowStrokes(const std::string& text, const std::string& name, in
     double sx = 1.0, sy = 1.0;
     if (doc.contains("canvas")) {
         const auto& c = doc["canvas"];
-        if (!c.is_array() || c.size() != 2 || !c[0].is_number() || !c[1].is_number() || !(c[0].get<double>() > 0) || !(c[1].get<double>() > 0))
+        if (!c.is_array() || c.size() != 2 || !c[0].is_number() || !c[1].is_number() || !(c[0].get<double>() > 0) ||
+            !(c[1].get<double>() > 0))
             fail(name, 0, "\"canvas\" must be [width, height] in pixels");
         sx = double(width) / c[0].get<double>();
         sy = double(height) / c[1].get<double>();
@@ -112,7 +113,8 @@ StrokeFile parseFlowStrokes(const std::string& text, const std::string& name, in
                 s.exampleSpeed = true;
             } else {
                 s.speed = number(j, "speed", name, line, who);
-                if (!(s.speed >= 0.0)) fail(name, line, who + ": \"speed\" must be >= 0 pixels per frame (or \"example\")");
+                if (!(s.speed >= 0.0))
+                    fail(name, line, who + ": \"speed\" must be >= 0 pixels per frame (or \"example\")");
             }
         }
         if (!j.contains("points") || !j["points"].is_array()) fail(name, line, who + ": missing the \"points\" array");

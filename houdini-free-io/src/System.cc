@@ -30,8 +30,7 @@ long long usableMemoryBytes()
         try {
             const long long limit = std::stoll(text);
             if (limit > 0 && (mem < 0 || limit < mem)) mem = limit;
-        } catch (...) {
-        }
+        } catch (...) {}
     }
     return mem;
 }

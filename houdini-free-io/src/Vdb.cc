@@ -36,8 +36,8 @@
 
 namespace turbio {
 
-using turb::IoError;
 using detail::cleanMessage;
+using turb::IoError;
 
 namespace {
 
@@ -73,9 +73,9 @@ void checkHeader(const std::string& path)
     if (magic != int64_t(0x56444220)) throw IoError(path + ": not an OpenVDB file (bad magic number)");
     if (version > openvdb::OPENVDB_FILE_VERSION) {
         std::ostringstream os;
-        os << path << ": written by a newer OpenVDB (file format " << version
-           << "); this build uses OpenVDB " << openvdb::getLibraryVersionString() << ", which reads formats up to "
-           << openvdb::OPENVDB_FILE_VERSION << ". Re-save the cache from the application that wrote it with an "
+        os << path << ": written by a newer OpenVDB (file format " << version << "); this build uses OpenVDB "
+           << openvdb::getLibraryVersionString() << ", which reads formats up to " << openvdb::OPENVDB_FILE_VERSION
+           << ". Re-save the cache from the application that wrote it with an "
            << "OpenVDB 10 compatible format.";
         throw IoError(os.str());
     }
@@ -142,7 +142,8 @@ std::vector<Descriptor> walkDescriptors(const std::string& path)
     if (!hasOffsets) return out;
     uint32_t gridCount = 0;
     readRaw(&gridCount, 4);
-    if (int64_t(gridCount) > size / 16) throw corrupt("grid count " + std::to_string(gridCount) + " cannot fit in the file");
+    if (int64_t(gridCount) > size / 16)
+        throw corrupt("grid count " + std::to_string(gridCount) + " cannot fit in the file");
     for (uint32_t g = 0; g < gridCount; ++g) {
         const std::string name = readString();
         const std::string type = readString();
@@ -165,10 +166,11 @@ std::vector<Descriptor> walkDescriptors(const std::string& path)
         readRaw(&compression, 4);
         readRaw(&count, 4);
         const auto damaged = [&](const std::string& why) {
-            return IoError(path + ": corrupt file: grid '" + cleanMessage(printableUnique(name)) + "' has damaged metadata (" +
-                           why + ")");
+            return IoError(path + ": corrupt file: grid '" + cleanMessage(printableUnique(name)) +
+                           "' has damaged metadata (" + why + ")");
         };
-        if (count < 0 || int64_t(count) * 12 > blockPos - gridPos) throw damaged("entry count " + std::to_string(count));
+        if (count < 0 || int64_t(count) * 12 > blockPos - gridPos)
+            throw damaged("entry count " + std::to_string(count));
         for (int32_t m = 0; m < count; ++m)
             for (int part = 0; part < 3; ++part) { // name, type name, value
                 uint32_t n = 0;
@@ -185,8 +187,8 @@ std::vector<Descriptor> walkDescriptors(const std::string& path)
 
 // Runs a read body on `path` in the guarded child after the cheap in-process checks. The body gets the
 // file's grids in file order (from the header walk) so that "#N" and listings agree with `info`.
-using OrderedBody = std::function<void(openvdb::io::File&, const std::vector<Descriptor>&, openvdb::GridPtrVec&,
-    openvdb::MetaMap&)>;
+using OrderedBody =
+    std::function<void(openvdb::io::File&, const std::vector<Descriptor>&, openvdb::GridPtrVec&, openvdb::MetaMap&)>;
 
 detail::GuardedResult guarded(const std::string& path, const OrderedBody& body, double baseTimeout = 0.0)
 {
@@ -203,9 +205,13 @@ detail::GuardedResult guarded(const std::string& path, const OrderedBody& body, 
         const double v = e ? std::atof(e) : 0.0;
         return v > 0.0 ? v : 10.0;
     }();
-    const double timeout = (baseTimeout > 0.0 ? baseTimeout : base) + double(std::max<int64_t>(fileSize(path), 0)) / 5.0e6;
-    return detail::guardedRead(path,
-        [&](openvdb::io::File& file, openvdb::GridPtrVec& grids, openvdb::MetaMap& meta) { body(file, order, grids, meta); },
+    const double timeout =
+        (baseTimeout > 0.0 ? baseTimeout : base) + double(std::max<int64_t>(fileSize(path), 0)) / 5.0e6;
+    return detail::guardedRead(
+        path,
+        [&](openvdb::io::File& file, openvdb::GridPtrVec& grids, openvdb::MetaMap& meta) {
+            body(file, order, grids, meta);
+        },
         timeout);
 }
 
@@ -493,8 +499,7 @@ double metaDouble(const openvdb::MetaMap& m, const std::string& key, double fall
     if (auto s = m.getMetadata<openvdb::StringMetadata>(key)) {
         try {
             return std::stod(s->value());
-        } catch (...) {
-        }
+        } catch (...) {}
     }
     return fallback;
 }
@@ -547,8 +552,8 @@ const std::vector<std::string>& gridAliases(GridRole role)
     }
 }
 
-std::vector<std::string> resolveGrid(const std::vector<std::string>& names, GridRole role,
-    const std::string& overrideName)
+std::vector<std::string> resolveGrid(
+    const std::vector<std::string>& names, GridRole role, const std::string& overrideName)
 {
     // A name shared by several grids appears as "name[0]", "name[1]", ... (OpenVDB's unique names): the name
     // alone means the first of them, as in OpenVDB's own readGrid(name).
@@ -566,9 +571,11 @@ std::vector<std::string> resolveGrid(const std::vector<std::string>& names, Grid
         if (const std::string n = find(overrideName); !n.empty()) return {n};
         // "#N": the N-th grid in file order.
         if (overrideName.size() > 1 && overrideName[0] == '#' &&
-            std::all_of(overrideName.begin() + 1, overrideName.end(), [](char c) { return std::isdigit(static_cast<unsigned char>(c)); })) {
+            std::all_of(overrideName.begin() + 1, overrideName.end(),
+                [](char c) { return std::isdigit(static_cast<unsigned char>(c)); })) {
             const std::string digits = overrideName.substr(1);
-            if (digits.size() < 7 && size_t(std::stoi(digits)) < names.size()) return {names[size_t(std::stoi(digits))]};
+            if (digits.size() < 7 && size_t(std::stoi(digits)) < names.size())
+                return {names[size_t(std::stoi(digits))]};
             return {};
         }
         // "name[0]" is the first grid of that name, whose unique name carries no index.
@@ -601,16 +608,16 @@ std::string describeGrids(const std::vector<GridInfo>& grids)
 
 namespace detail {
 
-turb::IoError missingGrid(const std::string& path, GridRole role, const ReadOptions& options,
-    const std::string& listing)
+turb::IoError missingGrid(
+    const std::string& path, GridRole role, const ReadOptions& options, const std::string& listing)
 {
     const bool density = role == GridRole::Density;
     const std::string& chosen = density ? options.densityGrid : options.velocityGrid;
     const std::string wanted = !chosen.empty() ? "'" + chosen + "'"
                                : density       ? std::string("density (density, density_noise)")
                                                : std::string("velocity (vel, velocity, v, or vel.x/vel.y/vel.z)");
-    return turb::IoError(path + ": no " + wanted + " grid; the file has: " + listing + ".",
-        {density ? "densityGrid" : "velocityGrid"});
+    return turb::IoError(
+        path + ": no " + wanted + " grid; the file has: " + listing + ".", {density ? "densityGrid" : "velocityGrid"});
 }
 
 turb::IoError noRequestedGrid(const std::string& path, const std::string& listing)
@@ -656,13 +663,14 @@ std::string denseSizeProblem(const std::string& path, const turb::CoordBBox& dom
         return os.str();
     };
     std::ostringstream os;
-    os << path << ": not enough memory to load the frame: its grids span " << span(domain) << ", "
-       << formatBytes(bytes) << " as dense fields";
+    os << path << ": not enough memory to load the frame: its grids span " << span(domain) << ", " << formatBytes(bytes)
+       << " as dense fields";
     if (tooMany) os << "; vdbturb holds at most " << options.maxVoxels << " voxels";
     if (usable > 0) os << "; this machine has " << formatBytes(double(usable));
     os << ". Spans:";
     for (size_t i = 0; i < spans.size(); ++i)
-        os << (i ? "," : "") << " grid '" << spans[i].first << "' " << (spans[i].second.empty() ? "(empty)" : span(spans[i].second));
+        os << (i ? "," : "") << " grid '" << spans[i].first << "' "
+           << (spans[i].second.empty() ? "(empty)" : span(spans[i].second));
     os << ". A grid whose span is far larger than the others' holds stray voxels or a damaged bounding box;"
           " clip or resample it.";
     return os.str();
@@ -685,9 +693,10 @@ ReadReport resolveTiming(bool blenderVelocity, bool blenderCache, double recorde
         break;
     case VelocityUnits::Auto:
         r.cells = blenderVelocity;
-        r.unitsSource = blenderVelocity ? "detected: Blender's staggered 'velocity' with file_base_resolution is in grid cells "
-                                          "per time unit"
-                                        : "no Blender markers: Houdini, EmberGen and vdbturb write world units";
+        r.unitsSource = blenderVelocity
+                            ? "detected: Blender's staggered 'velocity' with file_base_resolution is in grid cells "
+                              "per time unit"
+                            : "no Blender markers: Houdini, EmberGen and vdbturb write world units";
         break;
     }
     r.fps = options.fps > 0.0 ? options.fps : 24.0;
@@ -1042,8 +1051,10 @@ turb::CoordBBox heldRegion(const SmokeRegion& region, const turb::CoordBBox& spa
 
 SmokeRegion smokeRegion(const std::string& path, const ReadOptions& options)
 {
-    const detail::GuardedResult r = guarded(path,
-        [&](openvdb::io::File& file, const std::vector<Descriptor>& order, openvdb::GridPtrVec& out, openvdb::MetaMap&) {
+    const detail::GuardedResult r = guarded(
+        path,
+        [&](openvdb::io::File& file, const std::vector<Descriptor>& order, openvdb::GridPtrVec& out,
+            openvdb::MetaMap&) {
             const std::vector<GridEntry> entries = listGrids(file, order);
             const auto name = resolveGrid(uniqueNames(entries), GridRole::Density, options.densityGrid);
             if (name.empty() && !options.densityGrid.empty())
@@ -1081,11 +1092,11 @@ RoleGrids gridsByRole(const std::string& path, const detail::GuardedResult& r)
 // Where a frame's grids lie, on the frame's lattice.
 struct GridSpans
 {
-    turb::Lattice lattice;                ///< the frame's: the density's (the velocity's without density)
-    std::optional<turb::Coord> baseRes;   ///< Blender's simulation box, when the file records it
-    std::vector<turb::CoordBBox> boxes;   ///< each grid's active box (RoleGrids::all() order)
-    double bytesPerVoxel = 0.0;           ///< of the dense fields the grids become
-    turb::CoordBBox domain;               ///< Blender's box or vdbturb's recorded one, and the boxes' union
+    turb::Lattice lattice;              ///< the frame's: the density's (the velocity's without density)
+    std::optional<turb::Coord> baseRes; ///< Blender's simulation box, when the file records it
+    std::vector<turb::CoordBBox> boxes; ///< each grid's active box (RoleGrids::all() order)
+    double bytesPerVoxel = 0.0;         ///< of the dense fields the grids become
+    turb::CoordBBox domain;             ///< Blender's box or vdbturb's recorded one, and the boxes' union
 };
 
 GridSpans gridSpans(const std::string& path, const RoleGrids& g, const std::vector<openvdb::GridBase::ConstPtr>& all,
@@ -1126,8 +1137,9 @@ GridSpans gridSpans(const std::string& path, const RoleGrids& g, const std::vect
 
 // The box the frame's fields cover: the smoke and its margin (or ReadOptions::holdBox) with cropToSmoke, else the
 // domain; refused when its dense fields would not fit. Fills `rep`'s span, held box, smoke region and strays note.
-turb::CoordBBox heldBox(const std::string& path, const RoleGrids& g, const std::vector<openvdb::GridBase::ConstPtr>& all,
-    const GridSpans& spans, const ReadOptions& options, ReadReport& rep, std::string& stage)
+turb::CoordBBox heldBox(const std::string& path, const RoleGrids& g,
+    const std::vector<openvdb::GridBase::ConstPtr>& all, const GridSpans& spans, const ReadOptions& options,
+    ReadReport& rep, std::string& stage)
 {
     // Hold the smoke, not the span: stray voxels and a large velocity box around a small plume cost nothing.
     turb::CoordBBox domain = spans.domain;
@@ -1139,7 +1151,8 @@ turb::CoordBBox heldBox(const std::string& path, const RoleGrids& g, const std::
         turb::CoordBBox reach = rep.region.smoke;
         if (spans.baseRes) reach.expand(turb::CoordBBox(turb::Coord(0), *spans.baseRes - turb::Coord(1)));
         for (size_t i = 0; i < all.size(); ++i)
-            if (all[i] != openvdb::GridBase::ConstPtr(g.density) && !spans.boxes[i].empty()) reach.expand(spans.boxes[i]);
+            if (all[i] != openvdb::GridBase::ConstPtr(g.density) && !spans.boxes[i].empty())
+                reach.expand(spans.boxes[i]);
         domain = heldRegion(rep.region, reach.empty() ? domain : reach, options);
         if (!options.holdBox.empty()) domain = options.holdBox;
         if (!rep.region.strays.empty()) rep.notes.push_back(rep.region.describeStrays(g.density->getName()));
@@ -1177,8 +1190,8 @@ turb::VectorField heldVelocity(const std::string& path, const RoleGrids& g, cons
     turb::VectorField v = resampledOnto(native, domain, lattice);
     std::ostringstream note;
     note << "grid " << quoted(vg.getName()) << " (voxel " << own.voxelSize << ") resampled trilinearly onto the "
-         << (g.density ? "density's" : "frame's") << " lattice (voxel " << lattice.voxelSize
-         << ")" << (std::abs(own.voxelSize / lattice.voxelSize - 2.0) < 1e-6 ? ": Houdini's velocity voxel scale 2" : "");
+         << (g.density ? "density's" : "frame's") << " lattice (voxel " << lattice.voxelSize << ")"
+         << (std::abs(own.voxelSize / lattice.voxelSize - 2.0) < 1e-6 ? ": Houdini's velocity voxel scale 2" : "");
     rep.notes.push_back(note.str());
     return v;
 }
@@ -1191,13 +1204,15 @@ std::optional<turb::ScalarField> heldScalar(const std::string& path, const openv
 {
     if (!grid) return std::nullopt;
     stage = "grid " + quoted(grid->getName()) + " over " + spanText(domain);
-    if (latticeOf(path, *grid).approxEqual(lattice)) return scalarField(path, *grid, domain, lattice, options.checkFinite);
+    if (latticeOf(path, *grid).approxEqual(lattice))
+        return scalarField(path, *grid, domain, lattice, options.checkFinite);
     turb::CoordBBox box = grid->evalActiveVoxelBoundingBox();
     turb::CoordBBox need = detail::boxOnLattice(domain, lattice, latticeOf(path, *grid));
     need.expand(2);
     box.intersect(need);
-    const turb::ScalarField native = scalarField(path, *grid,
-        box.empty() ? turb::CoordBBox(turb::Coord(0), turb::Coord(0)) : box, latticeOf(path, *grid), options.checkFinite);
+    const turb::ScalarField native =
+        scalarField(path, *grid, box.empty() ? turb::CoordBBox(turb::Coord(0), turb::Coord(0)) : box,
+            latticeOf(path, *grid), options.checkFinite);
     turb::ScalarField f = resampledOnto(native, domain, lattice);
     rep.notes.push_back("grid " + quoted(grid->getName()) + " resampled trilinearly onto the frame's lattice");
     return f;
@@ -1207,15 +1222,15 @@ std::optional<turb::ScalarField> heldScalar(const std::string& path, const openv
 void copyFileMetadata(const openvdb::MetaMap& meta, turb::Frame& frame)
 {
     for (auto it = meta.beginMeta(); it != meta.endMeta(); ++it)
-        if (it->second && it->second->typeName() == openvdb::StringMetadata::staticTypeName() && it->first.rfind("__turb", 0) != 0 &&
-            it->first != turb::meta::kBlenderOffset)
+        if (it->second && it->second->typeName() == openvdb::StringMetadata::staticTypeName() &&
+            it->first.rfind("__turb", 0) != 0 && it->first != turb::meta::kBlenderOffset)
             frame.metadata[it->first] = it->second->str();
 }
 
 } // namespace
 
-static turb::Frame readFrameUnchecked(const std::string& path, int frameNumber, const ReadOptions& options,
-    ReadReport* report, std::string& stage);
+static turb::Frame readFrameUnchecked(
+    const std::string& path, int frameNumber, const ReadOptions& options, ReadReport* report, std::string& stage);
 
 turb::Frame readFrame(const std::string& path, int frameNumber, const ReadOptions& options, ReadReport* report)
 {
@@ -1227,13 +1242,13 @@ turb::Frame readFrame(const std::string& path, int frameNumber, const ReadOption
     }
 }
 
-static turb::Frame readFrameUnchecked(const std::string& path, int frameNumber, const ReadOptions& options,
-    ReadReport* report, std::string& stage)
+static turb::Frame readFrameUnchecked(
+    const std::string& path, int frameNumber, const ReadOptions& options, ReadReport* report, std::string& stage)
 {
-    const detail::GuardedResult r = guarded(path,
-        [&](openvdb::io::File& file, const std::vector<Descriptor>& order, openvdb::GridPtrVec& out, openvdb::MetaMap& meta) {
-            readRoles(file, order, out, meta, path, options);
-        },
+    const detail::GuardedResult r = guarded(
+        path,
+        [&](openvdb::io::File& file, const std::vector<Descriptor>& order, openvdb::GridPtrVec& out,
+            openvdb::MetaMap& meta) { readRoles(file, order, out, meta, path, options); },
         options.readTimeout);
     const RoleGrids g = gridsByRole(path, r);
     const std::vector<openvdb::GridBase::ConstPtr> all = g.all();
@@ -1329,8 +1344,7 @@ bool fileExists(const std::string& path)
 class FdOutBuf : public std::streambuf
 {
 public:
-    explicit FdOutBuf(int fd, bool killAfterFirstFlush = false)
-        : mFd(fd), mKill(killAfterFirstFlush), mBuf(1 << 20)
+    explicit FdOutBuf(int fd, bool killAfterFirstFlush = false) : mFd(fd), mKill(killAfterFirstFlush), mBuf(1 << 20)
     {
         setp(mBuf.data(), mBuf.data() + mBuf.size());
     }
@@ -1405,7 +1419,8 @@ std::string writeFailure(const std::string& path, int err)
 {
     std::string why = std::strerror(err);
     if (err == ENOSPC) why += ": the disk is full";
-    else if (err == EFBIG) why += ": the file-size limit (ulimit -f) or the file system's maximum file size was reached";
+    else if (err == EFBIG)
+        why += ": the file-size limit (ulimit -f) or the file system's maximum file size was reached";
     else if (err == EDQUOT) why += ": the disk quota is exhausted";
     return path + ": write failed (" + why + "); nothing was written under this name";
 }
@@ -1423,8 +1438,8 @@ bool killThisWrite()
 
 // Writes `grids` to the new file `tmp` through a checked stream, fsyncs it, and throws naming `path` on any
 // error (the temporary file is removed).
-void writeVdbChecked(const std::string& tmp, const std::string& path, const openvdb::GridPtrVec& grids,
-    const openvdb::MetaMap& meta)
+void writeVdbChecked(
+    const std::string& tmp, const std::string& path, const openvdb::GridPtrVec& grids, const openvdb::MetaMap& meta)
 {
     const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
     if (fd < 0) throw IoError(path + ": cannot write (" + std::strerror(errno) + ")");
@@ -1617,7 +1632,8 @@ void writeAtomically(const std::string& path, bool noClobber, const std::functio
     commitTemp(tmp, path, noClobber);
 }
 
-void writeFrame(const std::string& path, const turb::Frame& frame, const WriteOptions& options, const OtherGrids* others)
+void writeFrame(
+    const std::string& path, const turb::Frame& frame, const WriteOptions& options, const OtherGrids* others)
 {
     initOpenVdb();
     if (options.noClobber && fileExists(path)) throw IoError(path + ": exists, not replaced", {"noClobber"});
@@ -1640,8 +1656,8 @@ void writeFrame(const std::string& path, const turb::Frame& frame, const WriteOp
     if (trim) {
         near = inSmoke->deepCopy();
         if (options.velocityMargin > 0)
-            openvdb::tools::dilateActiveValues(near->tree(), options.velocityMargin, openvdb::tools::NN_FACE_EDGE_VERTEX,
-                openvdb::tools::EXPAND_TILES);
+            openvdb::tools::dilateActiveValues(near->tree(), options.velocityMargin,
+                openvdb::tools::NN_FACE_EDGE_VERTEX, openvdb::tools::EXPAND_TILES);
         near->tree().voxelizeActiveTiles();
     }
     if (frame.hasDensity()) {
@@ -1725,7 +1741,8 @@ void writeFrame(const std::string& path, const turb::Frame& frame, const WriteOp
             meta.insertMeta(turb::meta::kBlenderOffset, openvdb::StringMetadata(os.str()));
         }
     }
-    if (near) meta.insertMeta(turb::meta::kVelocityMargin, openvdb::StringMetadata(std::to_string(options.velocityMargin)));
+    if (near)
+        meta.insertMeta(turb::meta::kVelocityMargin, openvdb::StringMetadata(std::to_string(options.velocityMargin)));
     if (frame.dt > 0.0) {
         std::ostringstream os;
         os.precision(17);
@@ -1741,8 +1758,10 @@ void writeFrame(const std::string& path, const turb::Frame& frame, const WriteOp
 
 OtherGrids OtherGrids::read(const std::string& path, const ReadOptions& options, const turb::Lattice& frameLattice)
 {
-    const detail::GuardedResult r = guarded(path,
-        [&](openvdb::io::File& file, const std::vector<Descriptor>& order, openvdb::GridPtrVec& out, openvdb::MetaMap& meta) {
+    const detail::GuardedResult r = guarded(
+        path,
+        [&](openvdb::io::File& file, const std::vector<Descriptor>& order, openvdb::GridPtrVec& out,
+            openvdb::MetaMap& meta) {
             const std::vector<std::string> names = uniqueNames(listGrids(file, order));
             const std::vector<std::string> taken = takenNames(names, options);
             for (const auto& n : names)
@@ -1757,7 +1776,8 @@ OtherGrids OtherGrids::read(const std::string& path, const ReadOptions& options,
         if (offset != openvdb::Vec3d(0.0)) g->transform().postTranslate(-offset);
         double vs = 0.0;
         turb::Vec3d origin(0.0);
-        const bool follows = uniformTransform(g->transform(), vs, origin) && turb::Lattice{vs, origin}.approxEqual(frameLattice);
+        const bool follows =
+            uniformTransform(g->transform(), vs, origin) && turb::Lattice{vs, origin}.approxEqual(frameLattice);
         o.mImpl->grids.push_back(g);
         o.mImpl->followFrame.push_back(follows);
         if (!follows && offset != openvdb::Vec3d(0.0)) g->transform().postTranslate(offset); // written as read
@@ -1810,7 +1830,8 @@ void readHeaders(openvdb::io::File& file, const std::vector<Descriptor>& order, 
 {
     meta.insertMeta("__turb_file_version", openvdb::Int64Metadata(file.fileVersion()));
     const auto lv = file.libraryVersion();
-    meta.insertMeta("__turb_lib_version", openvdb::StringMetadata(std::to_string(lv.first) + "." + std::to_string(lv.second)));
+    meta.insertMeta(
+        "__turb_lib_version", openvdb::StringMetadata(std::to_string(lv.first) + "." + std::to_string(lv.second)));
     if (auto fm = file.getMetadata())
         for (auto it = fm->beginMeta(); it != fm->endMeta(); ++it) meta.insertMeta(it->first, *it->second);
     const std::vector<GridEntry> entries = listGrids(file, order);
@@ -1835,8 +1856,8 @@ void readHeaders(openvdb::io::File& file, const std::vector<Descriptor>& order, 
 
 // What one grid's header (and the child's __turb_* statistics) says, for FileInfo. `selector` is its unique name;
 // Blender's placement offset (`fileMeta`) is taken off its transform as readFrame takes it off.
-GridInfo gridInfoOf(openvdb::GridBase& g, int index, const std::string& selector, GridRole role,
-    const openvdb::MetaMap& fileMeta)
+GridInfo gridInfoOf(
+    openvdb::GridBase& g, int index, const std::string& selector, GridRole role, const openvdb::MetaMap& fileMeta)
 {
     GridInfo gi;
     gi.index = index;
@@ -1869,8 +1890,7 @@ GridInfo gridInfoOf(openvdb::GridBase& g, int index, const std::string& selector
         bbox("__turb_bbox_min", "__turb_bbox_max");
     if (auto cnt = g.getMetadata<openvdb::Int64Metadata>(openvdb::GridBase::META_FILE_VOXEL_COUNT))
         gi.activeVoxels = cnt->value();
-    else if (auto c2 = g.getMetadata<openvdb::Int64Metadata>("__turb_count"))
-        gi.activeVoxels = c2->value();
+    else if (auto c2 = g.getMetadata<openvdb::Int64Metadata>("__turb_count")) gi.activeVoxels = c2->value();
     if (g.getMetadata<openvdb::DoubleMetadata>("__turb_min")) {
         gi.hasRange = true;
         gi.minValue = g.metaValue<double>("__turb_min");
@@ -1883,14 +1903,14 @@ GridInfo gridInfoOf(openvdb::GridBase& g, int index, const std::string& selector
 
 FileInfo inspectFile(const std::string& path, bool readValues)
 {
-    const detail::GuardedResult r = guarded(path,
-        [&](openvdb::io::File& file, const std::vector<Descriptor>& order, openvdb::GridPtrVec& out, openvdb::MetaMap& meta) {
-            readHeaders(file, order, out, meta, path, readValues);
-        });
+    const detail::GuardedResult r =
+        guarded(path, [&](openvdb::io::File& file, const std::vector<Descriptor>& order, openvdb::GridPtrVec& out,
+                          openvdb::MetaMap& meta) { readHeaders(file, order, out, meta, path, readValues); });
 
     FileInfo info;
     info.path = path;
-    if (auto m = r.meta->getMetadata<openvdb::Int64Metadata>("__turb_file_version")) info.fileVersion = unsigned(m->value());
+    if (auto m = r.meta->getMetadata<openvdb::Int64Metadata>("__turb_file_version"))
+        info.fileVersion = unsigned(m->value());
     if (auto m = r.meta->getMetadata<openvdb::StringMetadata>("__turb_lib_version")) info.libraryVersion = m->value();
     if (auto c = r.meta->getMetadata<openvdb::StringMetadata>("creator")) info.creator = c->value();
     info.recordedDt = metaDouble(*r.meta, turb::meta::kDt, 0.0);
@@ -1912,7 +1932,8 @@ FileInfo inspectFile(const std::string& path, bool readValues)
         info.grids.push_back(gridInfoOf(*r.grids[i], int(i), names[i], roleOfName(names[i]), *r.meta));
         if (auto res = baseResolution(*r.grids[i])) info.baseResolution = res;
     }
-    std::sort(info.grids.begin(), info.grids.end(), [](const GridInfo& a, const GridInfo& b) { return a.index < b.index; });
+    std::sort(
+        info.grids.begin(), info.grids.end(), [](const GridInfo& a, const GridInfo& b) { return a.index < b.index; });
     return info;
 }
 

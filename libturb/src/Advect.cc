@@ -29,8 +29,14 @@ openvdb::math::Transform::Ptr transformOf(const Lattice& l)
 
 inline float minOf(float a, float b) { return std::min(a, b); }
 inline float maxOf(float a, float b) { return std::max(a, b); }
-inline Vec3f minOf(const Vec3f& a, const Vec3f& b) { return Vec3f(std::min(a[0], b[0]), std::min(a[1], b[1]), std::min(a[2], b[2])); }
-inline Vec3f maxOf(const Vec3f& a, const Vec3f& b) { return Vec3f(std::max(a[0], b[0]), std::max(a[1], b[1]), std::max(a[2], b[2])); }
+inline Vec3f minOf(const Vec3f& a, const Vec3f& b)
+{
+    return Vec3f(std::min(a[0], b[0]), std::min(a[1], b[1]), std::min(a[2], b[2]));
+}
+inline Vec3f maxOf(const Vec3f& a, const Vec3f& b)
+{
+    return Vec3f(std::max(a[0], b[0]), std::max(a[1], b[1]), std::max(a[2], b[2]));
+}
 inline float clampTo(float v, float lo, float hi) { return std::min(std::max(v, lo), hi); }
 inline Vec3f clampTo(const Vec3f& v, const Vec3f& lo, const Vec3f& hi)
 {
@@ -65,7 +71,6 @@ T sampleFlat(const Field<T>& f, double x, double y, T* lo = nullptr, T* hi = nul
         }
     return acc;
 }
-
 
 template<typename T>
 Field<T> advectFlat(const Field<T>& q, const VectorField& velocity, double dt, const AdvectSettings& s)
@@ -146,7 +151,8 @@ Field<T> advectImpl(const Field<T>& q, const VectorField& velocity, double dt, c
     if (grid->empty()) return Field<T>(q.bbox(), q.lattice());
     auto vel = openvdb::Vec3SGrid::create(Vec3f(0.0f));
     {
-        openvdb::tools::Dense<Vec3f, openvdb::tools::LayoutZYX> dense(velocity.bbox(), const_cast<Vec3f*>(velocity.data()));
+        openvdb::tools::Dense<Vec3f, openvdb::tools::LayoutZYX> dense(
+            velocity.bbox(), const_cast<Vec3f*>(velocity.data()));
         openvdb::tools::copyFromDense(dense, *vel, Vec3f(0.0f));
     }
     vel->setTransform(transformOf(velocity.lattice()));
@@ -194,14 +200,16 @@ VectorField advect(const VectorField& q, const VectorField& velocity, double dt,
     return advectImpl<Vec3f, openvdb::Vec3SGrid>(q, velocity, dt, s);
 }
 
-ScalarField estimateSources(const ScalarField* previous, const ScalarField& density, const VectorField& velocity, double dt,
-    const AdvectSettings& advectSettings, const ScalarField* region)
+ScalarField estimateSources(const ScalarField* previous, const ScalarField& density, const VectorField& velocity,
+    double dt, const AdvectSettings& advectSettings, const ScalarField* region)
 {
     if (density.empty()) throw ValueError("sources: empty density");
-    if (region && region->bbox() != density.bbox()) throw ValueError("sources: the region must cover the density's box");
+    if (region && region->bbox() != density.bbox())
+        throw ValueError("sources: the region must cover the density's box");
     ScalarField s = density;
     if (previous && !previous->empty()) {
-        if (previous->bbox() != density.bbox()) throw ValueError("sources: consecutive densities cover different boxes");
+        if (previous->bbox() != density.bbox())
+            throw ValueError("sources: consecutive densities cover different boxes");
         s = advect(*previous, velocity, dt, advectSettings);
         for (size_t n = 0; n < s.size(); ++n) s.data()[n] = std::max(0.0f, density.data()[n] - s.data()[n]);
         if (region)

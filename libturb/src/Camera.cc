@@ -14,9 +14,27 @@ CameraRays::CameraRays(const CameraSettings& camera, const CoordBBox& box, const
     if (camera.width < 0 || camera.height < 0) throw ValueError("camera: width and height must be >= 0");
     if (!camera.perspective) {
         switch (camera.view) {
-        case View::Front: mDepth = 1; mRight = 0; mUp = 2; mDepthSign = 1; mRightSign = 1; break;
-        case View::Side: mDepth = 0; mRight = 1; mUp = 2; mDepthSign = 1; mRightSign = -1; break;
-        case View::Top: mDepth = 2; mRight = 0; mUp = 1; mDepthSign = -1; mRightSign = 1; break;
+        case View::Front:
+            mDepth = 1;
+            mRight = 0;
+            mUp = 2;
+            mDepthSign = 1;
+            mRightSign = 1;
+            break;
+        case View::Side:
+            mDepth = 0;
+            mRight = 1;
+            mUp = 2;
+            mDepthSign = 1;
+            mRightSign = -1;
+            break;
+        case View::Top:
+            mDepth = 2;
+            mRight = 0;
+            mUp = 1;
+            mDepthSign = -1;
+            mRightSign = 1;
+            break;
         }
         const int dr = box.dim()[mRight], du = box.dim()[mUp];
         mWidth = camera.width > 0 ? camera.width : std::max(64, 4 * dr);
@@ -24,7 +42,8 @@ CameraRays::CameraRays(const CameraSettings& camera, const CoordBBox& box, const
         mPixelsPerUnit = mWidth / (dr * lattice.voxelSize);
         return;
     }
-    if (!(camera.fovDegrees > 0.0 && camera.fovDegrees < 170.0)) throw ValueError("camera: field of view must lie in (0, 170) degrees");
+    if (!(camera.fovDegrees > 0.0 && camera.fovDegrees < 170.0))
+        throw ValueError("camera: field of view must lie in (0, 170) degrees");
     Vec3d f = camera.lookAt - camera.position;
     if (!(f.length() > 0.0)) throw ValueError("camera: position and look-at point must differ");
     f.normalize();
@@ -48,7 +67,8 @@ Ray CameraRays::ray(int px, int py) const
     if (!mCam.perspective) {
         // As preview's raster: voxel edges span the image; the ray crosses the whole box along depth.
         const double tx = (px + 0.5) / mWidth, ty = (py + 0.5) / mHeight;
-        ray.origin[mRight] = mRightSign > 0 ? lo[mRight] + tx * (hi[mRight] - lo[mRight]) : hi[mRight] - tx * (hi[mRight] - lo[mRight]);
+        ray.origin[mRight] =
+            mRightSign > 0 ? lo[mRight] + tx * (hi[mRight] - lo[mRight]) : hi[mRight] - tx * (hi[mRight] - lo[mRight]);
         ray.origin[mUp] = hi[mUp] - ty * (hi[mUp] - lo[mUp]);
         ray.origin[mDepth] = mDepthSign > 0 ? lo[mDepth] : hi[mDepth];
         ray.direction = Vec3d(0.0);

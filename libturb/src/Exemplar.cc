@@ -41,7 +41,8 @@ struct HeartTable
         // Fill any bin the sampling missed from its neighbours, then normalise to a max of 1.
         for (int pass = 0; pass < 4; ++pass)
             for (int b = 0; b < kBins; ++b)
-                if (r[size_t(b)] == 0.0) r[size_t(b)] = std::max(r[size_t((b + 1) % kBins)], r[size_t((b + kBins - 1) % kBins)]);
+                if (r[size_t(b)] == 0.0)
+                    r[size_t(b)] = std::max(r[size_t((b + 1) % kBins)], r[size_t((b + kBins - 1) % kBins)]);
         // Round the dip and the tip (a circular Gaussian of about 6 degrees): a kinked outline gives
         // velocity jumps along the heart's axis that finite differences read as divergence.
         std::array<double, kBins> sm{};
@@ -99,15 +100,18 @@ std::function<double(double, double)> streamFunction(ProceduralPattern p, double
     case ProceduralPattern::Squares:
         return cellVortex([](double dx, double dy) { return std::max(std::abs(dx), std::abs(dy)); }, 1);
     case ProceduralPattern::Hearts:
-        return cellVortex([](double dx, double dy) {
-            const double r = std::sqrt(dx * dx + dy * dy);
-            if (r < 1e-12) return 0.0;
-            double th = std::atan2(dy, dx);
-            if (th < 0) th += 2 * kPi;
-            return r / heartTable()(th);
-        }, 1);
+        return cellVortex(
+            [](double dx, double dy) {
+                const double r = std::sqrt(dx * dx + dy * dy);
+                if (r < 1e-12) return 0.0;
+                double th = std::atan2(dy, dx);
+                if (th < 0) th += 2 * kPi;
+                return r / heartTable()(th);
+            },
+            1);
     case ProceduralPattern::Swirls:
-        return [P](double x, double y) { return P / (2 * kPi) * std::sin(2 * kPi * x / P) * std::sin(2 * kPi * y / P); };
+        return
+            [P](double x, double y) { return P / (2 * kPi) * std::sin(2 * kPi * x / P) * std::sin(2 * kPi * y / P); };
     case ProceduralPattern::Stripes:
         return [P](double, double y) { return -P / (2 * kPi) * std::cos(2 * kPi * y / P); };
     case ProceduralPattern::Sinusoids:
@@ -149,8 +153,7 @@ ProceduralPattern parseProceduralPattern(const std::string& name)
     if (name == "heart") return ProceduralPattern::Hearts;
     if (name == "stripe") return ProceduralPattern::Stripes;
     if (name == "sinusoid" || name == "sine") return ProceduralPattern::Sinusoids;
-    throw ValueError("unknown exemplar pattern '" + name +
-                     "' (circles, swirls, squares, hearts, stripes, sinusoids)");
+    throw ValueError("unknown exemplar pattern '" + name + "' (circles, swirls, squares, hearts, stripes, sinusoids)");
 }
 
 const char* proceduralPatternName(ProceduralPattern p)
@@ -176,8 +179,8 @@ Exemplar proceduralExemplar(const ProceduralExemplarSettings& s)
         throw ValueError(os.str());
     }
     const auto psi = streamFunction(s.pattern, double(s.period));
-    Exemplar e = makeExemplar(s.size, s.size, 1, true,
-        std::string(proceduralPatternName(s.pattern)) + ":" + std::to_string(s.period));
+    Exemplar e = makeExemplar(
+        s.size, s.size, 1, true, std::string(proceduralPatternName(s.pattern)) + ":" + std::to_string(s.period));
     // Central differences of psi at pixel centres with a small step: exact enough, and every pattern
     // uses one code path. Pixel (x, y) is centred at (x + 0.5, y + 0.5).
     const double h = 1e-3;
@@ -241,8 +244,8 @@ Exemplar exemplarFromSlice(const VectorField& field, int axis, int index)
     const CoordBBox& b = field.bbox();
     if (field.empty() || index < b.min()[axis] || index > b.max()[axis]) {
         std::ostringstream os;
-        os << "slice exemplar: index " << index << " along " << "xyz"[axis] << " is outside the field's box "
-           << b;
+        os << "slice exemplar: index " << index << " along "
+           << "xyz"[axis] << " is outside the field's box " << b;
         throw ValueError(os.str());
     }
     // View convention (Synth.h): along x the plane is (y, z), along y (x, z), along z (x, y).

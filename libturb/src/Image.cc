@@ -21,21 +21,20 @@ Rgb lerpTable(const std::array<Rgb, 8>& t, float x)
 }
 
 const std::array<Rgb, 8> kViridis = {Rgb(0.267f, 0.005f, 0.329f), Rgb(0.275f, 0.194f, 0.497f),
-    Rgb(0.213f, 0.359f, 0.552f), Rgb(0.153f, 0.497f, 0.558f), Rgb(0.122f, 0.633f, 0.530f),
-    Rgb(0.288f, 0.758f, 0.428f), Rgb(0.626f, 0.854f, 0.223f), Rgb(0.993f, 0.906f, 0.144f)};
+    Rgb(0.213f, 0.359f, 0.552f), Rgb(0.153f, 0.497f, 0.558f), Rgb(0.122f, 0.633f, 0.530f), Rgb(0.288f, 0.758f, 0.428f),
+    Rgb(0.626f, 0.854f, 0.223f), Rgb(0.993f, 0.906f, 0.144f)};
 const std::array<Rgb, 8> kMagma = {Rgb(0.001f, 0.000f, 0.014f), Rgb(0.107f, 0.066f, 0.270f),
-    Rgb(0.316f, 0.071f, 0.485f), Rgb(0.512f, 0.155f, 0.506f), Rgb(0.716f, 0.215f, 0.475f),
-    Rgb(0.907f, 0.331f, 0.378f), Rgb(0.991f, 0.611f, 0.416f), Rgb(0.987f, 0.991f, 0.750f)};
+    Rgb(0.316f, 0.071f, 0.485f), Rgb(0.512f, 0.155f, 0.506f), Rgb(0.716f, 0.215f, 0.475f), Rgb(0.907f, 0.331f, 0.378f),
+    Rgb(0.991f, 0.611f, 0.416f), Rgb(0.987f, 0.991f, 0.750f)};
 const std::array<Rgb, 8> kCoolwarm = {Rgb(0.230f, 0.299f, 0.754f), Rgb(0.392f, 0.513f, 0.914f),
-    Rgb(0.580f, 0.700f, 0.990f), Rgb(0.777f, 0.829f, 0.940f), Rgb(0.930f, 0.820f, 0.760f),
-    Rgb(0.968f, 0.659f, 0.537f), Rgb(0.901f, 0.447f, 0.348f), Rgb(0.706f, 0.016f, 0.150f)};
+    Rgb(0.580f, 0.700f, 0.990f), Rgb(0.777f, 0.829f, 0.940f), Rgb(0.930f, 0.820f, 0.760f), Rgb(0.968f, 0.659f, 0.537f),
+    Rgb(0.901f, 0.447f, 0.348f), Rgb(0.706f, 0.016f, 0.150f)};
 
 } // namespace
 
 Image::Image(int width, int height, const Rgb& fill)
     : mWidth(std::max(0, width)), mHeight(std::max(0, height)), mPixels(size_t(mWidth) * size_t(mHeight), fill)
-{
-}
+{}
 
 void Image::blend(int x, int y, const Rgb& c, float alpha)
 {
@@ -196,12 +195,14 @@ Image contactSheet(const std::vector<std::vector<SheetCell>>& rows, const std::v
     int rowLabelW = 0;
     for (const auto& l : rowLabels) rowLabelW = std::max(rowLabelW, Image::textWidth(l, textScale) + pad);
     const int width = rowLabelW + cols * (cellW + pad) + pad;
-    const std::vector<std::string> titleLines = title.empty() ? std::vector<std::string>{} : wrapText(title, width - 2 * pad, textScale);
+    const std::vector<std::string> titleLines =
+        title.empty() ? std::vector<std::string>{} : wrapText(title, width - 2 * pad, textScale);
     const int titleH = titleLines.empty() ? 0 : int(titleLines.size()) * lineH + 2 * pad;
     const int height = titleH + int(rows.size()) * (cellH + labelH + pad) + pad;
     const Rgb bg(0.12f), fg(0.92f);
     Image sheet(width, height, bg);
-    for (size_t i = 0; i < titleLines.size(); ++i) sheet.drawText(pad, pad + int(i) * lineH, titleLines[i], fg, textScale);
+    for (size_t i = 0; i < titleLines.size(); ++i)
+        sheet.drawText(pad, pad + int(i) * lineH, titleLines[i], fg, textScale);
     for (size_t r = 0; r < rows.size(); ++r) {
         const int y = titleH + pad + int(r) * (cellH + labelH + pad);
         if (r < rowLabels.size())
@@ -209,7 +210,8 @@ Image contactSheet(const std::vector<std::vector<SheetCell>>& rows, const std::v
         for (size_t c = 0; c < rows[r].size(); ++c) {
             const int x = rowLabelW + pad + int(c) * (cellW + pad);
             const SheetCell& cell = rows[r][c];
-            if (cell.image) sheet.blit(*cell.image, x + (cellW - cell.image->width()) / 2, y + (cellH - cell.image->height()) / 2);
+            if (cell.image)
+                sheet.blit(*cell.image, x + (cellW - cell.image->width()) / 2, y + (cellH - cell.image->height()) / 2);
             const std::vector<std::string> lines = wrapText(cell.label, cellW, textScale);
             for (size_t i = 0; i < lines.size(); ++i)
                 sheet.drawText(x, y + cellH + pad / 2 + int(i) * lineH, lines[i], fg, textScale);

@@ -52,8 +52,8 @@ T sampleZeroOutside(const Field<T>& f, const Vec3d& p)
     for (int c = 0; c < 8; ++c) {
         const int i = i0[0] + (c & 1), j = i0[1] + ((c >> 1) & 1), k = i0[2] + ((c >> 2) & 1);
         if (!f.contains(i, j, k)) continue;
-        const double wt = ((c & 1) ? w[0] : 1 - w[0]) * (((c >> 1) & 1) ? w[1] : 1 - w[1]) *
-                          (((c >> 2) & 1) ? w[2] : 1 - w[2]);
+        const double wt =
+            ((c & 1) ? w[0] : 1 - w[0]) * (((c >> 1) & 1) ? w[1] : 1 - w[1]) * (((c >> 2) & 1) ? w[2] : 1 - w[2]);
         if (wt != 0.0) sum += f(i, j, k) * float(wt);
     }
     return sum;
@@ -109,8 +109,8 @@ void requireVelocity(const Frame* f, const char* role)
 {
     if (!f) throw ValueError(std::string("measure: no ") + role + " frame given");
     if (!f->hasVelocity())
-        throw ValueError(std::string("measure: the ") + role + " frame " + std::to_string(f->number) +
-                         " has no velocity grid");
+        throw ValueError(
+            std::string("measure: the ") + role + " frame " + std::to_string(f->number) + " has no velocity grid");
 }
 
 void requireDensity(const Frame& f, const char* role)
@@ -213,8 +213,9 @@ const Frame& fillUnwritten(const Frame& out, const Frame& tgt, const MeasureSett
     const int f = resolutionRatio(tgt, out);
     const Lattice refined = refinedLattice(tgt.velocity.lattice(), tgt.velocity.bbox(), f);
     const CoordBBox box = refineDomain(tgt.velocity.bbox(), f);
-    fillUnwrittenVelocity(storage.velocity, realign(upsample(tgt.velocity, f), out.velocity.lattice(),
-        out.velocity.bbox(), resolveAlignment(s.alignment, out.velocity, refined, box)));
+    fillUnwrittenVelocity(
+        storage.velocity, realign(upsample(tgt.velocity, f), out.velocity.lattice(), out.velocity.bbox(),
+                              resolveAlignment(s.alignment, out.velocity, refined, box)));
     return storage;
 }
 
@@ -245,8 +246,9 @@ Field<T> realign(const Field<T>& field, const Lattice& lattice, const CoordBBox&
     const Vec3d d = from.worldToIndex(lattice.indexToWorld(Vec3d(0.0))); // our voxel 0 in field's index space
     const double scale = lattice.voxelSize / from.voxelSize;
     const bool copy = a == Alignment::Index || nestsExactly(from, lattice);
-    const Coord shift = a == Alignment::Index ? Coord(0)
-                                              : Coord(int(std::lround(d.x())), int(std::lround(d.y())), int(std::lround(d.z())));
+    const Coord shift = a == Alignment::Index
+                            ? Coord(0)
+                            : Coord(int(std::lround(d.x())), int(std::lround(d.y())), int(std::lround(d.z())));
     forEachVoxel(box, [&](int i, int j, int k) {
         out(i, j, k) = copy ? field.valueOr(i + shift.x(), j + shift.y(), k + shift.z(), Field<T>::zeroValue())
                             : sampleZeroOutside(field, d + Vec3d(i, j, k) * scale);
@@ -257,8 +259,8 @@ Field<T> realign(const Field<T>& field, const Lattice& lattice, const CoordBBox&
 template Field<float> realign(const Field<float>&, const Lattice&, const CoordBBox&, Alignment);
 template Field<Vec3f> realign(const Field<Vec3f>&, const Lattice&, const CoordBBox&, Alignment);
 
-Alignment resolveAlignment(Alignment requested, const Field<Vec3f>& output, const Lattice& refined,
-    const CoordBBox& refinedBox)
+Alignment resolveAlignment(
+    Alignment requested, const Field<Vec3f>& output, const Lattice& refined, const CoordBBox& refinedBox)
 {
     if (requested != Alignment::Auto) return requested;
     const Vec3d off = (output.lattice().origin - refined.origin) / refined.voxelSize;
@@ -346,8 +348,8 @@ std::optional<double> blockRatio(const VectorField& u, const Mask& mask, int pat
     return (s[0] / s[1]) / (s[2] / s[3]);
 }
 
-DensityMeasures densityMeasures(const ScalarField& output, const ScalarField& outputOnRefined, const ScalarField& target,
-    int f, float threshold)
+DensityMeasures densityMeasures(
+    const ScalarField& output, const ScalarField& outputOnRefined, const ScalarField& target, int f, float threshold)
 {
     if (f < 1) throw ValueError("densityMeasures: ratio must be >= 1");
     if (outputOnRefined.bbox() != refineDomain(target.bbox(), f))
@@ -416,12 +418,11 @@ double coarseDensityError(const ScalarField& fine, const ScalarField& coarse, in
     return ref > 0.0 ? std::sqrt(err / ref) : 0.0;
 }
 
-
 // air_detail: U_h's rms over coarse cells more than kAirCells from the smoke cells, over its rms in the smoke
-// cells, both where `covered` (the output's own box on the refined lattice) is 1. `uh` lies on the refined target lattice: fine voxel I in coarse cell floor(I / f) (a 2D target's one
-// layer keeps its index).
-static std::optional<double> airDetail(const VectorField& uh, const ScalarField& covered, const VectorField& coarse,
-    const Mask& coarseMask, int f)
+// cells, both where `covered` (the output's own box on the refined lattice) is 1. `uh` lies on the refined target
+// lattice: fine voxel I in coarse cell floor(I / f) (a 2D target's one layer keeps its index).
+static std::optional<double> airDetail(
+    const VectorField& uh, const ScalarField& covered, const VectorField& coarse, const Mask& coarseMask, int f)
 {
     const CoordBBox cb = coarse.bbox();
     ScalarField smoke(cb, coarse.lattice(), 0.0f);
@@ -454,10 +455,9 @@ std::vector<std::pair<std::string, std::optional<double>>> FrameMeasures::scalar
     return {{"lf_err", lfErr}, {"hf_ratio", hfRatio}, {"hf_energy", hfEnergy}, {"hf_energy_source", hfEnergySource},
         {"div_rel", divRel}, {"div_rel_source", divRelSource}, {"block", block}, {"tcoh", tcoh},
         {"tcoh_source", tcohSource}, {"mass_ratio", massRatio}, {"peak_density", peakDensity},
-        {"peak_ratio", peakRatio}, {"density_err", densityErr},
-        {"density_imprint", densityImprint}, {"aniso", aniso}, {"aniso_source", anisoSource},
-        {"aniso_ratio", anisoRatio}, {"isotropy", isotropy}, {"isotropy_source", isotropySource},
-        {"air_detail", airDetail}};
+        {"peak_ratio", peakRatio}, {"density_err", densityErr}, {"density_imprint", densityImprint}, {"aniso", aniso},
+        {"aniso_source", anisoSource}, {"aniso_ratio", anisoRatio}, {"isotropy", isotropy},
+        {"isotropy_source", isotropySource}, {"air_detail", airDetail}};
 }
 
 std::optional<double> lowFrequencyError(const VectorField& detail, const VectorField& up, const Mask& coarseMask, int f)
@@ -521,8 +521,8 @@ void recordAlignment(const Aligned& a, const Frame& T, FrameMeasures& m)
 }
 
 // lf_err on the coarse cells with smoke, and air_detail.
-void coarseMeasures(const Aligned& a, const VectorField& uh, const Mask& coarseMask, const Frame& O, const Frame& T,
-    FrameMeasures& m)
+void coarseMeasures(
+    const Aligned& a, const VectorField& uh, const Mask& coarseMask, const Frame& O, const Frame& T, FrameMeasures& m)
 {
     m.smokeCells = countMask(coarseMask);
     m.lfErr = lowFrequencyError(uh, a.up, coarseMask, a.f);
@@ -530,8 +530,8 @@ void coarseMeasures(const Aligned& a, const VectorField& uh, const Mask& coarseM
     else if (!m.lfErr) m.notes.push_back("lf_err: the target does not move");
     if (m.smokeCells > 0) {
         // Only where the output holds values: beyond the box it was read on, U_h would be -up(U_t).
-        const ScalarField covered = realign(ScalarField(O.velocity.bbox(), O.velocity.lattice(), 1.0f), a.refined,
-            a.box, a.alignment);
+        const ScalarField covered =
+            realign(ScalarField(O.velocity.bbox(), O.velocity.lattice(), 1.0f), a.refined, a.box, a.alignment);
         m.airDetail = airDetail(uh, covered, T.velocity, coarseMask, a.f);
     }
     if (m.smokeCells > 0 && !m.airDetail) m.notes.push_back("air_detail: no still air or no detail in the smoke");
@@ -681,8 +681,8 @@ void sourceCoherence(const MeasuredSources& sources, const Mask& srcMask, const 
     if (dt > 0.0 && Sp.lattice().approxEqual(S.lattice())) {
         const FrequencySplit now = splitFrequencies(S.velocity, m.sourceRatio);
         const FrequencySplit before = splitFrequencies(Sp.velocity, m.sourceRatio);
-        const VectorField moved = advectOnto(before.high, before.coarse, dt, maskBBox(S.velocity.bbox(), srcMask),
-            S.velocity.bbox(), s.advect);
+        const VectorField moved = advectOnto(
+            before.high, before.coarse, dt, maskBBox(S.velocity.bbox(), srcMask), S.velocity.bbox(), s.advect);
         m.tcohSource = relativeChange(now.high, moved, srcMask, S.velocity.bbox());
     } else {
         m.notes.push_back("tcoh_source: unknown time step or the previous source is on another lattice");

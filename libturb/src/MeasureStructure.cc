@@ -15,8 +15,8 @@
 
 namespace turb {
 
-std::optional<double> detailAnisotropy(const VectorField& u, const std::vector<unsigned char>& mask, int f,
-    const Vec3d& direction)
+std::optional<double> detailAnisotropy(
+    const VectorField& u, const std::vector<unsigned char>& mask, int f, const Vec3d& direction)
 {
     if (mask.size() != u.size()) throw ValueError("detailAnisotropy: mask and field sizes differ");
     if (!(direction.length() > 0.0)) return std::nullopt;
@@ -57,7 +57,8 @@ std::optional<double> detailIsotropy(const VectorField& u, const std::vector<uns
     if (block < 2) throw ValueError("detailIsotropy: block must be >= 2");
     const VectorField H = splitFrequencies(u, f).high;
     const CoordBBox& b = u.bbox();
-    const Coord n((b.dim().x() + block - 1) / block, (b.dim().y() + block - 1) / block, (b.dim().z() + block - 1) / block);
+    const Coord n(
+        (b.dim().x() + block - 1) / block, (b.dim().y() + block - 1) / block, (b.dim().z() + block - 1) / block);
     const bool flat = isFlat(b);
     const size_t tiles = size_t(n.x()) * size_t(n.y()) * size_t(n.z());
     std::vector<std::array<double, 2>> part(tiles, {0.0, 0.0}); // weight * isotropy, weight

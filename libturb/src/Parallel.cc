@@ -32,7 +32,8 @@ void parallelFor(size_t n, size_t grain, const std::function<void(size_t, size_t
     if (grain == 0) grain = 1;
     const size_t chunks = (n + grain - 1) / grain;
     // simple_partitioner over whole chunks: the split points depend only on n and grain.
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, chunks, 1),
+    tbb::parallel_for(
+        tbb::blocked_range<size_t>(0, chunks, 1),
         [&](const tbb::blocked_range<size_t>& r) {
             for (size_t c = r.begin(); c != r.end(); ++c) {
                 const size_t b = c * grain;

@@ -89,9 +89,9 @@ void Pca::fit(const float* rows, size_t count, size_t dim, const PcaSettings& se
     Eigen::Map<const RowMatrix> all(rows, Eigen::Index(count), Eigen::Index(dim));
     mMean.assign(dim, 0.0f);
     mBasis.assign(dim * mK, 0.0f);
-    double total = 0.0;      // the sample's total variance
-    Eigen::MatrixXd axes;    // dim x mK, strongest first
-    Eigen::VectorXd values;  // their variances
+    double total = 0.0;     // the sample's total variance
+    Eigen::MatrixXd axes;   // dim x mK, strongest first
+    Eigen::VectorXd values; // their variances
     const auto sampleRow = [&](size_t i) { return all.row(Eigen::Index(size_t(double(i) * stride))); };
     if (dim <= settings.exactMaxDim) {
         Eigen::MatrixXd sample(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(dim));
@@ -236,8 +236,8 @@ int PatchIndex::query(const float* descriptor, int k, int* indices, float* dist2
     return queryReduced(r.data(), k, indices, dist2);
 }
 
-void PatchIndex::queryMany(const float* descriptors, size_t count, int k, std::vector<int>& indices,
-    std::vector<float>& dist2) const
+void PatchIndex::queryMany(
+    const float* descriptors, size_t count, int k, std::vector<int>& indices, std::vector<float>& dist2) const
 {
     const size_t rk = mImpl->pca.outputDim();
     indices.assign(count * size_t(std::max(k, 0)), -1);

@@ -35,12 +35,8 @@ struct FluidTest
 {
     CoordBBox cells;
     const MaskField* solid;
-    bool operator()(const Coord& c) const
-    {
-        return cells.isInside(c) && (!solid || (*solid)[c] == 0);
-    }
+    bool operator()(const Coord& c) const { return cells.isInside(c) && (!solid || (*solid)[c] == 0); }
 };
-
 
 /// Divergence in voxel units (sum of face differences) per fluid cell; 0 elsewhere.
 DoubleField voxelDivergence(const VectorField& mac, const FluidTest& fluid)
@@ -148,20 +144,21 @@ void forEachMacFace(const CoordBBox& macBox, const FluidTest& fluid, const std::
 /// Subtracts the voxel-unit pressure gradient from every face that has fluid on at least one side and
 /// is not a wall. The gradient across a face is p(c+) - p(c-): the backward difference at c+
 /// (math::ISGradient<math::BD_1ST>), the adjoint of voxelDivergence. Pressure outside an open face is 0.
-void subtractGradient(VectorField& mac, const DoubleField& p, const FluidTest& fluid,
-    const std::array<Boundary, 6>& faces)
+void subtractGradient(
+    VectorField& mac, const DoubleField& p, const FluidTest& fluid, const std::array<Boundary, 6>& faces)
 {
-    forEachMacFace(mac.bbox(), fluid, faces, [&](int i, int j, int k, int a, FaceKind kind, const Coord& lo, const Coord& hi) {
-        double g;
-        switch (kind) {
-        case FaceKind::Interior: g = p[hi] - p[lo]; break;
-        case FaceKind::OpenBelow: g = p[hi]; break;
-        case FaceKind::OpenAbove: g = -p[lo]; break;
-        default: return; // wall, solid or outside
-        }
-        Vec3f& u = mac(i, j, k);
-        u[a] = float(double(u[a]) - g);
-    });
+    forEachMacFace(
+        mac.bbox(), fluid, faces, [&](int i, int j, int k, int a, FaceKind kind, const Coord& lo, const Coord& hi) {
+            double g;
+            switch (kind) {
+            case FaceKind::Interior: g = p[hi] - p[lo]; break;
+            case FaceKind::OpenBelow: g = p[hi]; break;
+            case FaceKind::OpenAbove: g = -p[lo]; break;
+            default: return; // wall, solid or outside
+            }
+            Vec3f& u = mac(i, j, k);
+            u[a] = float(double(u[a]) - g);
+        });
 }
 
 } // namespace
@@ -171,8 +168,8 @@ VectorField macToCentred(const VectorField& mac)
     const CoordBBox cells = cellBox(mac.bbox());
     VectorField u(cells, mac.lattice());
     forEachVoxel(cells, [&](int i, int j, int k) {
-        u(i, j, k) = Vec3f(0.5f * (mac(i, j, k)[0] + mac(i + 1, j, k)[0]), 0.5f * (mac(i, j, k)[1] + mac(i, j + 1, k)[1]),
-            0.5f * (mac(i, j, k)[2] + mac(i, j, k + 1)[2]));
+        u(i, j, k) = Vec3f(0.5f * (mac(i, j, k)[0] + mac(i + 1, j, k)[0]),
+            0.5f * (mac(i, j, k)[1] + mac(i, j + 1, k)[1]), 0.5f * (mac(i, j, k)[2] + mac(i, j, k + 1)[2]));
     });
     return u;
 }
@@ -183,16 +180,17 @@ VectorField centredToMac(const VectorField& centred, const ProjectionSettings& s
     if (solid && solid->bbox() != cells) throw ValueError("centredToMac: solid mask box differs from the field's");
     const FluidTest fluid{cells, solid};
     VectorField mac(macBox(cells), centred.lattice());
-    forEachMacFace(mac.bbox(), fluid, s.faces, [&](int i, int j, int k, int a, FaceKind kind, const Coord& lo, const Coord& hi) {
-        float v = 0.0f;
-        switch (kind) {
-        case FaceKind::Interior: v = 0.5f * (centred[lo][a] + centred[hi][a]); break;
-        case FaceKind::OpenBelow: v = centred[hi][a]; break;
-        case FaceKind::OpenAbove: v = centred[lo][a]; break;
-        case FaceKind::Closed: break;
-        }
-        mac(i, j, k)[a] = v;
-    });
+    forEachMacFace(
+        mac.bbox(), fluid, s.faces, [&](int i, int j, int k, int a, FaceKind kind, const Coord& lo, const Coord& hi) {
+            float v = 0.0f;
+            switch (kind) {
+            case FaceKind::Interior: v = 0.5f * (centred[lo][a] + centred[hi][a]); break;
+            case FaceKind::OpenBelow: v = centred[hi][a]; break;
+            case FaceKind::OpenAbove: v = centred[lo][a]; break;
+            case FaceKind::Closed: break;
+            }
+            mac(i, j, k)[a] = v;
+        });
     return mac;
 }
 
@@ -331,7 +329,7 @@ struct MacProjector::Impl
 
         row.assign(size_t(cells.volume()), -1);
         openvdb::tree::LeafManager<const std::remove_reference_t<decltype(*index)>> leaves(*index);
-        leaves.foreach([&](const auto& leaf, size_t) {
+        leaves.foreach ([&](const auto& leaf, size_t) {
             for (auto it = leaf.cbeginValueOn(); it; ++it) row[offset(it.getCoord())] = std::int32_t(*it);
         });
     }
@@ -342,8 +340,8 @@ MacProjector::MacProjector(const CoordBBox& cells, const ProjectionSettings& s, 
 {
     if (cells.empty()) throw ValueError("projection: the cell box " + boxText(cells) + " is empty");
     if (solid && solid->bbox() != cells)
-        throw ValueError("projection: solid mask box " + boxText(solid->bbox()) + " differs from the cell box " +
-                         boxText(cells));
+        throw ValueError(
+            "projection: solid mask box " + boxText(solid->bbox()) + " differs from the cell box " + boxText(cells));
     if (!(s.tolerance > 0.0 && s.tolerance < 1.0)) throw ValueError("projection: tolerance must lie in (0, 1)");
     if (s.maxIterations < 1) throw ValueError("projection: maxIterations must be >= 1");
     mImpl->cells = cells;
@@ -378,8 +376,8 @@ ProjectionResult MacProjector::project(VectorField& mac, ScalarField* pressure, 
     const CoordBBox& cells = m.cells;
     const ProjectionSettings& s = m.settings;
     if (mac.empty() || mac.bbox() != macBox(cells))
-        throw ValueError("projection: velocity box " + boxText(mac.bbox()) + " is not the MAC box of the cells " +
-                         boxText(cells));
+        throw ValueError(
+            "projection: velocity box " + boxText(mac.bbox()) + " is not the MAC box of the cells " + boxText(cells));
     const bool warm = pressure && !pressure->empty();
     if (warm && pressure->bbox() != cells)
         throw ValueError("projection: pressure box " + boxText(pressure->bbox()) + " differs from the cell box");
@@ -448,15 +446,15 @@ ProjectionResult MacProjector::project(VectorField& mac, ScalarField* pressure, 
     return result;
 }
 
-ProjectionResult projectMac(VectorField& mac, const ProjectionSettings& s, const MaskField* solid,
-    ScalarField* pressure, Progress* progress)
+ProjectionResult projectMac(
+    VectorField& mac, const ProjectionSettings& s, const MaskField* solid, ScalarField* pressure, Progress* progress)
 {
     if (mac.empty()) throw ValueError("projectMac: empty velocity field");
     const CoordBBox cells = cellBox(mac.bbox());
     if (cells.empty()) throw ValueError("projectMac: the MAC box " + boxText(mac.bbox()) + " holds no cell");
     if (solid && solid->bbox() != cells)
-        throw ValueError("projectMac: solid mask box " + boxText(solid->bbox()) + " differs from the cell box " +
-                         boxText(cells));
+        throw ValueError(
+            "projectMac: solid mask box " + boxText(solid->bbox()) + " differs from the cell box " + boxText(cells));
     if (!(s.tolerance > 0.0 && s.tolerance < 1.0)) throw ValueError("projectMac: tolerance must lie in (0, 1)");
     if (s.maxIterations < 1) throw ValueError("projectMac: maxIterations must be >= 1");
     if (pressure && !pressure->empty() && pressure->bbox() != cells)

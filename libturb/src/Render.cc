@@ -160,8 +160,10 @@ double pixelsPerUnit(const CoordBBox& box, double voxelSize, View view, int widt
 
 Image renderDensity(const ScalarField& density, const DensityRenderSettings& s)
 {
-    if (!(s.extinction > 0.0f) || !(s.exposure > 0.0f)) throw ValueError("renderDensity: extinction and exposure must be > 0");
-    if (!(s.stepVoxels > 0.0f && s.stepVoxels <= 1.0f)) throw ValueError("renderDensity: stepVoxels must lie in (0, 1]");
+    if (!(s.extinction > 0.0f) || !(s.exposure > 0.0f))
+        throw ValueError("renderDensity: extinction and exposure must be > 0");
+    if (!(s.stepVoxels > 0.0f && s.stepVoxels <= 1.0f))
+        throw ValueError("renderDensity: stepVoxels must lie in (0, 1]");
     CameraSettings cam;
     cam.view = s.view;
     cam.width = s.width;
@@ -229,7 +231,8 @@ Image renderLic(const VectorField& u, const LicSettings& s)
     for (const auto& v : flow) vmax = std::max(vmax, v.length());
     const float zero = 1e-4f * vmax;
     std::vector<float> noise(flow.size());
-    for (size_t q = 0; q < noise.size(); ++q) noise[q] = float(double(hash64(s.seed * 0x2545F4914F6CDD1Dull + q) >> 11) / 9007199254740992.0);
+    for (size_t q = 0; q < noise.size(); ++q)
+        noise[q] = float(double(hash64(s.seed * 0x2545F4914F6CDD1Dull + q) >> 11) / 9007199254740992.0);
 
     const auto flowAt = [&](double x, double y) -> Vec3f {
         const int ix = int(std::floor(x)), iy = int(std::floor(y));

@@ -191,8 +191,10 @@ Field<T> resampledToVoxel(const Field<T>& f, double voxelSize)
     const double k = from.voxelSize / voxelSize; // new index per old index
     const double eps = 1e-9;
     const CoordBBox& b = f.bbox();
-    const Coord lo(int(std::ceil(b.min().x() * k - eps)), int(std::ceil(b.min().y() * k - eps)), int(std::ceil(b.min().z() * k - eps)));
-    const Coord hi(int(std::floor(b.max().x() * k + eps)), int(std::floor(b.max().y() * k + eps)), int(std::floor(b.max().z() * k + eps)));
+    const Coord lo(int(std::ceil(b.min().x() * k - eps)), int(std::ceil(b.min().y() * k - eps)),
+        int(std::ceil(b.min().z() * k - eps)));
+    const Coord hi(int(std::floor(b.max().x() * k + eps)), int(std::floor(b.max().y() * k + eps)),
+        int(std::floor(b.max().z() * k + eps)));
     Field<T> out(CoordBBox(lo, hi), to);
     const double inv = 1.0 / k;
     // Every new centre lies inside the hull of f's centres, so the clamping never moves a sample.
@@ -215,8 +217,8 @@ Frame zLayer(const Frame& f, int k)
 {
     const CoordBBox b = f.bbox();
     if (k < b.min().z() || k > b.max().z())
-        throw ValueError("layer " + std::to_string(k) + " is outside the frame's z range " + std::to_string(b.min().z()) +
-                         ".." + std::to_string(b.max().z()));
+        throw ValueError("layer " + std::to_string(k) + " is outside the frame's z range " +
+                         std::to_string(b.min().z()) + ".." + std::to_string(b.max().z()));
     const CoordBBox s(Coord(b.min().x(), b.min().y(), k), Coord(b.max().x(), b.max().y(), k));
     Frame out;
     out.number = f.number;

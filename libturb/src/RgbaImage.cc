@@ -6,8 +6,7 @@ namespace turb {
 
 RgbaImage::RgbaImage(int width, int height, const Rgba& fill)
     : mWidth(std::max(0, width)), mHeight(std::max(0, height)), mPixels(size_t(mWidth) * size_t(mHeight), fill)
-{
-}
+{}
 
 const Rgba& RgbaImage::clamped(int x, int y) const
 {

@@ -46,8 +46,8 @@ public:
         std::lock_guard<std::mutex> lock(plannerMutex());
         // FFTW_ESTIMATE: no timing-based choices, so the plan (and the rounding) is the same every run;
         // it also leaves the buffer untouched while planning.
-        mPlan = fftwf_plan_dft_r2c_3d(side, side, side, buffer, reinterpret_cast<fftwf_complex*>(buffer),
-            FFTW_ESTIMATE);
+        mPlan =
+            fftwf_plan_dft_r2c_3d(side, side, side, buffer, reinterpret_cast<fftwf_complex*>(buffer), FFTW_ESTIMATE);
         if (!mPlan) throw Error("energySpectrum: FFTW could not plan a " + std::to_string(side) + "^3 transform");
     }
     ~R2cPlan()
@@ -100,7 +100,7 @@ Spectrum energySpectrum(const VectorField& u, const CoordBBox& boxIn, const Spec
 
     const Coord d = box.dim();
     const int S = fftFriendlySize(std::max({d.x(), d.y(), d.z()}));
-    const int H = S / 2 + 1;        // complex values along the last axis
+    const int H = S / 2 + 1;              // complex values along the last axis
     const size_t rowReal = size_t(2 * H); // padded real row of the in-place transform
     const double voxel = u.lattice().voxelSize;
     out.fftSide = S;
@@ -124,8 +124,8 @@ Spectrum energySpectrum(const VectorField& u, const CoordBBox& boxIn, const Spec
                 for (size_t i = i0; i < i1; ++i)
                     for (int j = 0; j < d.y(); ++j)
                         for (int k = 0; k < d.z(); ++k)
-                            acc += wx[i] * wy[size_t(j)] * wz[size_t(k)] *
-                                   u(lo.x() + int(i), lo.y() + j, lo.z() + k)[a];
+                            acc +=
+                                wx[i] * wy[size_t(j)] * wz[size_t(k)] * u(lo.x() + int(i), lo.y() + j, lo.z() + k)[a];
                 return acc;
             }) / wsum;
     }
@@ -146,8 +146,7 @@ Spectrum energySpectrum(const VectorField& u, const CoordBBox& boxIn, const Spec
                     if (int(i) >= d.x() || j >= d.y()) continue;
                     const double wij = wx[i] * wy[size_t(j)];
                     for (int k = 0; k < d.z(); ++k)
-                        row[k] = float(wij * wz[size_t(k)] *
-                                       (u(lo.x() + int(i), lo.y() + j, lo.z() + k)[a] - mean[a]));
+                        row[k] = float(wij * wz[size_t(k)] * (u(lo.x() + int(i), lo.y() + j, lo.z() + k)[a] - mean[a]));
                 }
         });
         plan.execute();

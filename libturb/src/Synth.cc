@@ -57,32 +57,32 @@ struct Frame3
 struct Neigh
 {
     int radius = 0;
-    std::vector<Vec3f> local;            // tap offset in the local frame (level voxels)
-    std::vector<std::array<int, 3>> ex;  // the same tap in exemplar pixels
-    std::vector<Vec3f> coherence;        // k-coherence: neighbour offsets, local frame
+    std::vector<Vec3f> local;           // tap offset in the local frame (level voxels)
+    std::vector<std::array<int, 3>> ex; // the same tap in exemplar pixels
+    std::vector<Vec3f> coherence;       // k-coherence: neighbour offsets, local frame
     std::vector<std::array<int, 3>> coherenceEx;
-    float reach = 0.0f;                  // largest |local|
+    float reach = 0.0f;                       // largest |local|
     int lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0}; // valid centre box (inclusive)
     size_t rows = 0;
     PatchIndex index;
-    std::vector<float> reduced;          // rows x pcaDim (k-coherence)
-    std::vector<int> similar;            // rows x k (k-coherence), nearest first, self excluded
+    std::vector<float> reduced; // rows x pcaDim (k-coherence)
+    std::vector<int> similar;   // rows x k (k-coherence), nearest first, self excluded
     int k = 0;
 };
 
 struct ViewLevel
 {
     Exemplar ex;
-    Neigh neigh[2]; // [0] small radius, [1] large radius (2D only)
+    Neigh neigh[2];                                   // [0] small radius, [1] large radius (2D only)
     double mean[3] = {0, 0, 0}, stdev[3] = {0, 0, 0}; // per channel
 };
 
 struct PreparedView
 {
     SynthView view;
-    int nc = 2;                   // channels
-    int comps[3] = {0, 1, 2};     // local component of each channel
-    int normal = -1;              // local axis dropped (planar views), -1 for volumetric
+    int nc = 2;                    // channels
+    int comps[3] = {0, 1, 2};      // local component of each channel
+    int normal = -1;               // local axis dropped (planar views), -1 for volumetric
     std::vector<ViewLevel> levels; // coarsest first
 };
 
@@ -131,7 +131,8 @@ std::array<int, 3> posOf(const Neigh& N, const Exemplar& ex, size_t row)
 std::array<int, 3> validPos(const Neigh& N, const Exemplar& ex, std::array<int, 3> p)
 {
     const int n[3] = {ex.nx, ex.ny, ex.nz};
-    for (int a = 0; a < 3; ++a) p[size_t(a)] = ex.periodic ? wrapi(p[size_t(a)], n[a]) : std::clamp(p[size_t(a)], N.lo[a], N.hi[a]);
+    for (int a = 0; a < 3; ++a)
+        p[size_t(a)] = ex.periodic ? wrapi(p[size_t(a)], n[a]) : std::clamp(p[size_t(a)], N.lo[a], N.hi[a]);
     return p;
 }
 
@@ -212,8 +213,9 @@ void buildNeigh(Neigh& N, const PreparedView& pv, const Exemplar& ex, int radius
         N.hi[a] = ex.periodic ? n[a] - 1 : n[a] - 1 - ext[a];
         if (N.hi[a] < N.lo[a]) {
             std::ostringstream os;
-            os << "synth: exemplar '" << ex.name << "' (" << ex.nx << "x" << ex.ny << (ex.planar() ? "" : "x" + std::to_string(ex.nz))
-               << ") is too small for a neighbourhood of radius " << N.radius << " at this pyramid level";
+            os << "synth: exemplar '" << ex.name << "' (" << ex.nx << "x" << ex.ny
+               << (ex.planar() ? "" : "x" + std::to_string(ex.nz)) << ") is too small for a neighbourhood of radius "
+               << N.radius << " at this pyramid level";
             throw ValueError(os.str());
         }
     }
@@ -530,7 +532,8 @@ struct Engine
     std::vector<Centre> centres(const Level& L, int spacing, std::uint64_t salt, int& slabAxis) const
     {
         int jit[3];
-        for (int a = 0; a < 3; ++a) jit[a] = int(hash4(s.seed, salt, std::uint64_t(a), 0x51ab) % std::uint64_t(spacing));
+        for (int a = 0; a < 3; ++a)
+            jit[a] = int(hash4(s.seed, salt, std::uint64_t(a), 0x51ab) % std::uint64_t(spacing));
         slabAxis = 0;
         for (int a = 1; a < 3; ++a)
             if (L.n[a] > L.n[slabAxis]) slabAxis = a;
@@ -864,8 +867,8 @@ struct Engine
         }
     }
 
-    int kcoherenceSearch(const Level& L, const Centre& c, const ViewLevel& vl, const Neigh& N,
-        size_t v, const std::vector<float>& red, std::vector<int>& cand) const
+    int kcoherenceSearch(const Level& L, const Centre& c, const ViewLevel& vl, const Neigh& N, size_t v,
+        const std::vector<float>& red, std::vector<int>& cand) const
     {
         cand.clear();
         const std::vector<int>& S = source[v];
@@ -931,8 +934,10 @@ struct Engine
                     const int lin = int(vl.ex.linear(px[0], px[1], px[2]));
                     for (int layer = -(ext - 1); layer <= ext - 1; ++layer) {
                         const Vec3f at = base + nrm * float(layer);
-                        const int q[3] = {int(std::lround(at[0])), int(std::lround(at[1])), L.flat ? 0 : int(std::lround(at[2]))};
-                        if (q[0] < 0 || q[1] < 0 || q[2] < 0 || q[0] >= L.n[0] || q[1] >= L.n[1] || q[2] >= L.n[2]) continue;
+                        const int q[3] = {
+                            int(std::lround(at[0])), int(std::lround(at[1])), L.flat ? 0 : int(std::lround(at[2]))};
+                        if (q[0] < 0 || q[1] < 0 || q[2] < 0 || q[0] >= L.n[0] || q[1] >= L.n[1] || q[2] >= L.n[2])
+                            continue;
                         const size_t qi = L.idx(q[0], q[1], q[2]);
                         float e2 = 0.0f;
                         for (int ch = 0; ch < pv.nc; ++ch) {
@@ -970,8 +975,8 @@ struct Engine
 
 /// Soft wall constraints of one level: voxels near walls or obstacles, their normal in the local
 /// frame, and lambda from a Gaussian of the distance in level voxels (section 3.6).
-std::vector<Constraint> makeConstraints(const Level& L, const FrameGuide& frames, const BoundarySettings& b,
-    const ScalarField* obstacle)
+std::vector<Constraint> makeConstraints(
+    const Level& L, const FrameGuide& frames, const BoundarySettings& b, const ScalarField* obstacle)
 {
     std::vector<Constraint> out;
     if (b.lambda <= 0.0 || (b.walls == 0 && !obstacle)) return out;
@@ -1037,7 +1042,8 @@ SynthExemplars::SynthExemplars(std::vector<SynthView> views, const SynthSettings
     m.kSimilar = s.kSimilar;
     if (!volume) {
         if (views.size() != 1) throw ValueError("synth: a 2D synthesis takes exactly one exemplar");
-        if (!views[0].exemplar.planar()) throw ValueError("synth: a 2D synthesis needs a planar exemplar, not a volume");
+        if (!views[0].exemplar.planar())
+            throw ValueError("synth: a 2D synthesis needs a planar exemplar, not a volume");
         views[0].normal = 2;
     }
     int smallest = std::numeric_limits<int>::max();
@@ -1171,11 +1177,13 @@ Field<T> extendedByFaces(const Field<T>& f, const CoordBBox& box)
     return out;
 }
 
-DetailField synthesizeOnBox(const SynthExemplars& exemplars, const SynthInput& in, const SynthSettings& s, Progress* progress);
+DetailField synthesizeOnBox(
+    const SynthExemplars& exemplars, const SynthInput& in, const SynthSettings& s, Progress* progress);
 
 } // namespace
 
-DetailField synthesizeDetail(const SynthExemplars& exemplars, const SynthInput& in, const SynthSettings& s, Progress* progress)
+DetailField synthesizeDetail(
+    const SynthExemplars& exemplars, const SynthInput& in, const SynthSettings& s, Progress* progress)
 {
     if (s.facePadding < 0) throw ValueError("synth: face padding must be >= 0 cells");
     for (const Vec3d* v : {&s.orientation.secondary, &s.orientation.fallback})
@@ -1224,8 +1232,9 @@ namespace {
 void checkSynthInput(const SynthExemplars::Impl& ex, const SynthInput& in, const FineDomain& dom)
 {
     if (dom.twoD == ex.volume)
-        throw ValueError(dom.twoD ? "synth: the coarse motion is 2D (one voxel thick) but the views were prepared for 3D"
-                                  : "synth: the coarse motion is 3D but the views were prepared for a 2D synthesis");
+        throw ValueError(dom.twoD
+                             ? "synth: the coarse motion is 2D (one voxel thick) but the views were prepared for 3D"
+                             : "synth: the coarse motion is 3D but the views were prepared for a 2D synthesis");
     if (in.coarseDensity && !in.coarseDensity->empty() && in.coarseDensity->bbox() != in.coarse->bbox())
         throw ValueError("synth: the coarse density and velocity must cover the same box");
     const bool continuing = in.previous && !in.previous->world.empty();
@@ -1253,8 +1262,8 @@ void upsampleDetail(const Level& L, Level& next)
         for (size_t x = b; x < e; ++x)
             for (int y = 0; y < next.n[1]; ++y)
                 for (int z = 0; z < next.n[2]; ++z)
-                    next.h[next.idx(int(x), y, z)] = L.sample(float((x + 0.5) / 2 - 0.5),
-                        float((y + 0.5) / 2 - 0.5), next.flat ? 0.0f : float((z + 0.5) / 2 - 0.5));
+                    next.h[next.idx(int(x), y, z)] = L.sample(float((x + 0.5) / 2 - 0.5), float((y + 0.5) / 2 - 0.5),
+                        next.flat ? 0.0f : float((z + 0.5) / 2 - 0.5));
     });
 }
 
@@ -1272,8 +1281,8 @@ void upsampleSources(Engine& eng, const Level& L, const Level& next, int level)
         for (int x = 0; x < next.n[0]; ++x)
             for (int y = 0; y < next.n[1]; ++y)
                 for (int z = 0; z < next.n[2]; ++z) {
-                    const int src = eng.source[v][L.idx(std::min(x / 2, L.n[0] - 1), std::min(y / 2, L.n[1] - 1),
-                        std::min(z / 2, L.n[2] - 1))];
+                    const int src = eng.source[v][L.idx(
+                        std::min(x / 2, L.n[0] - 1), std::min(y / 2, L.n[1] - 1), std::min(z / 2, L.n[2] - 1))];
                     if (src < 0) continue;
                     const size_t yz = size_t(ec.ny) * size_t(ec.nz);
                     const int c[3] = {x, y, z};
@@ -1314,8 +1323,8 @@ void recordIteration(SynthLevelStats& st, int radius, bool tree, double energy, 
 
 /// One pyramid level's iterations (section 3.3): the random initialisation on the coarsest level, then for 2D views
 /// the large-radius iterations, then the small-radius ones.
-SynthLevelStats synthesizeLevel(Engine& eng, Level& L, int level, const std::vector<Constraint>& cons,
-    IterationTicker& tick)
+SynthLevelStats synthesizeLevel(
+    Engine& eng, Level& L, int level, const std::vector<Constraint>& cons, IterationTicker& tick)
 {
     const SynthExemplars::Impl& ex = eng.ex;
     const SynthSettings& s = eng.s;
@@ -1324,16 +1333,16 @@ SynthLevelStats synthesizeLevel(Engine& eng, Level& L, int level, const std::vec
     st.dim = Coord(L.n[0], L.n[1], L.n[2]);
     int it = 0;
     if (level == 0) {
-        eng.iterate(L, level, ex.volume || s.largeIterations <= 0 ? 0 : 1, true, true, hash4(0, 0, 0, 0xabc), nullptr,
-            cons);
+        eng.iterate(
+            L, level, ex.volume || s.largeIterations <= 0 ? 0 : 1, true, true, hash4(0, 0, 0, 0xabc), nullptr, cons);
         tick();
     }
     const auto run = [&](int which, int count) {
         for (int i = 0; i < count; ++i, ++it) {
             const bool tree = !eng.kcoh || it < s.treeIterationsPerLevel;
             Engine::Descent d;
-            const double e = eng.iterate(L, level, which, tree, false, hash4(1, std::uint64_t(level), std::uint64_t(it), 0),
-                nullptr, cons, s.traceDescent ? &d : nullptr);
+            const double e = eng.iterate(L, level, which, tree, false,
+                hash4(1, std::uint64_t(level), std::uint64_t(it), 0), nullptr, cons, s.traceDescent ? &d : nullptr);
             int radius = 0;
             for (const auto& pv : ex.prepared) radius = std::max(radius, pv.levels[size_t(level)].neigh[which].radius);
             recordIteration(st, radius, tree, e, d, s.traceDescent);
@@ -1370,8 +1379,8 @@ Level synthesizePyramid(Engine& eng, const SynthInput& in, const FineDomain& dom
 
 /// Section 3.4: the finest level started from the previous detail advected through L and expressed in the new
 /// frames, then refined (the advected detail is the temporal term's target).
-SynthLevelStats continueFromPrevious(Engine& eng, Level& L, const SynthInput& in, const FineDomain& dom,
-    IterationTicker& tick)
+SynthLevelStats continueFromPrevious(
+    Engine& eng, Level& L, const SynthInput& in, const FineDomain& dom, IterationTicker& tick)
 {
     const SynthExemplars::Impl& ex = eng.ex;
     const SynthSettings& s = eng.s;
@@ -1399,8 +1408,8 @@ SynthLevelStats continueFromPrevious(Engine& eng, Level& L, const SynthInput& in
         // k-coherence has no source map yet on a continued frame: its first iteration searches the tree.
         const bool tree = !eng.kcoh || it < std::max(1, s.treeIterationsPerLevel);
         Engine::Descent d;
-        const double e = eng.iterate(L, nL - 1, 0, tree, false, hash4(2, std::uint64_t(it), 0, 0), &adv, cons,
-            s.traceDescent ? &d : nullptr);
+        const double e = eng.iterate(
+            L, nL - 1, 0, tree, false, hash4(2, std::uint64_t(it), 0, 0), &adv, cons, s.traceDescent ? &d : nullptr);
         int radius = 0;
         for (const auto& pv : ex.prepared) radius = std::max(radius, pv.levels.back().neigh[0].radius);
         recordIteration(st, radius, tree, e, d, s.traceDescent);
@@ -1426,7 +1435,8 @@ void detailToWorld(const Level& L, const FineDomain& dom, const FrameGuide& fram
     });
 }
 
-DetailField synthesizeOnBox(const SynthExemplars& exemplars, const SynthInput& in, const SynthSettings& s, Progress* progress)
+DetailField synthesizeOnBox(
+    const SynthExemplars& exemplars, const SynthInput& in, const SynthSettings& s, Progress* progress)
 {
     if (!in.coarse || in.coarse->empty()) throw ValueError("synth: no coarse motion L");
     for (const Vec3f& v : in.coarse->values())

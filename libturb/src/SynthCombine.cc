@@ -107,8 +107,9 @@ VectorField combineMotion(const VectorField& coarse, const VectorField& detail, 
     }
     if (s.smoke) {
         if (s.smoke->bbox() != coarse.bbox())
-            throw ValueError("combine: the smoke density does not cover L's box (" + std::to_string(s.smoke->bbox().dim().x()) +
-                             " cells along x against " + std::to_string(coarse.bbox().dim().x()) + ")");
+            throw ValueError("combine: the smoke density does not cover L's box (" +
+                             std::to_string(s.smoke->bbox().dim().x()) + " cells along x against " +
+                             std::to_string(coarse.bbox().dim().x()) + ")");
         const ScalarField w = smokeDetailWeight(*s.smoke, s.smokeThreshold, s.smokeMargin, s.smokeFalloff);
         for (size_t n = 0; n < shape.size(); ++n) shape.data()[n] *= w.data()[n];
     }
@@ -124,7 +125,8 @@ VectorField combineMotion(const VectorField& coarse, const VectorField& detail, 
         // leave a few percent (docs/synth.md: three left lf_err 0.047-0.072 on the Blender plume2 cache).
         for (int pass = 0; pass < 5; ++pass) {
             const VectorField coarsePart = upsampleImpl(boxDownsample(D, factor), factor);
-            if (coarsePart.bbox() != D.bbox()) throw ValueError("combine: the detail's coarse part does not cover its box");
+            if (coarsePart.bbox() != D.bbox())
+                throw ValueError("combine: the detail's coarse part does not cover its box");
             parallelFor(D.size(), 4096, [&](size_t b, size_t e) {
                 for (size_t n = b; n < e; ++n) D.data()[n] -= coarsePart.data()[n];
             });
@@ -141,8 +143,8 @@ LookbackDensity::LookbackDensity(const LookbackSettings& s) : mSettings(s)
     if (s.frames < 0) throw ValueError("look-back: frames must be >= 0");
 }
 
-ScalarField LookbackDensity::step(const VectorField& motion, const ScalarField& sources, const ScalarField& coarseOnly,
-    double dt, Progress* progress)
+ScalarField LookbackDensity::step(
+    const VectorField& motion, const ScalarField& sources, const ScalarField& coarseOnly, double dt, Progress* progress)
 {
     if (motion.empty() || sources.empty()) throw ValueError("look-back: empty motion or sources");
     if (motion.bbox() != sources.bbox()) throw ValueError("look-back: motion and sources cover different boxes");
@@ -153,7 +155,8 @@ ScalarField LookbackDensity::step(const VectorField& motion, const ScalarField& 
     if (m == 0) {
         // Pseudocode 3, with each frame's sources added after its advection (they are estimated as
         // what advection alone leaves unexplained).
-        mNaive = mNaive.empty() ? ScalarField(sources.bbox(), sources.lattice()) : advect(mNaive, motion, dt, mSettings.advect);
+        mNaive = mNaive.empty() ? ScalarField(sources.bbox(), sources.lattice())
+                                : advect(mNaive, motion, dt, mSettings.advect);
         addSources(mNaive, sources);
         return mNaive;
     }
@@ -216,7 +219,8 @@ TextureMatch textureMatch(const Exemplar& ex, const VectorField& local, const Te
 
     // Output neighbourhoods: in-plane components (u, v) of slices perpendicular to `axis`.
     const Coord d = b.dim();
-    if (d[u] < 2 * r + 1 || d[v] < 2 * r + 1) throw ValueError("texture match: field slices smaller than the neighbourhood");
+    if (d[u] < 2 * r + 1 || d[v] < 2 * r + 1)
+        throw ValueError("texture match: field slices smaller than the neighbourhood");
     std::vector<Coord> centres;
     const int stride = std::max(1, s.stride);
     for (int w = b.min()[s.axis]; w <= b.max()[s.axis]; w += (d[s.axis] > 1 ? stride : 1))

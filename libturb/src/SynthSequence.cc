@@ -21,8 +21,8 @@ LookbackSettings lookbackOf(const SynthSequenceSettings& s)
 }
 
 // Section 3.5's projection of F, with the walls and the obstacle closed; a 2D field stays 2D.
-ProjectionResult projectMotion(VectorField& F, const SynthSequenceSettings& s, const ScalarField* obstacle, bool volume,
-    Progress* progress)
+ProjectionResult projectMotion(
+    VectorField& F, const SynthSequenceSettings& s, const ScalarField* obstacle, bool volume, Progress* progress)
 {
     ProjectionSettings ps;
     ps.maxIterations = s.projectIterations;
@@ -44,8 +44,7 @@ ProjectionResult projectMotion(VectorField& F, const SynthSequenceSettings& s, c
 
 SynthSequence::SynthSequence(const SynthExemplars& exemplars, const SynthSequenceSettings& settings)
     : mExemplars(exemplars), mSettings(settings), mLookback(lookbackOf(settings))
-{
-}
+{}
 
 SynthFrameResult SynthSequence::next(const SynthFrameInput& in, Progress* progress)
 {
@@ -77,8 +76,8 @@ SynthFrameResult SynthSequence::next(const SynthFrameInput& in, Progress* progre
     if (s.detailNearSmoke && in.coarseDensity) {
         smoke = cropped(*in.coarseDensity, in.coarse->bbox());
         combine.smoke = &smoke;
-        r.smokeless = std::none_of(smoke.values().begin(), smoke.values().end(),
-            [&](float v) { return v > combine.smokeThreshold; });
+        r.smokeless = std::none_of(
+            smoke.values().begin(), smoke.values().end(), [&](float v) { return v > combine.smokeThreshold; });
     }
     r.motion = combineMotion(*in.coarse, H.world, combine);
     if (s.project) {
@@ -97,8 +96,9 @@ SynthFrameResult SynthSequence::next(const SynthFrameInput& in, Progress* progre
     if (in.coarseDensity && s.density) {
         if (progress) progress->begin("density");
         if (!continuing) mLookback = LookbackDensity(lookbackOf(s)); // the first frame starts a new history
-        const ScalarField sources = estimateSources(mPreviousDensity.empty() || !continuing ? nullptr : &mPreviousDensity,
-            *in.coarseDensity, *in.coarse, elapsed, AdvectSettings{}, in.emitters);
+        const ScalarField sources =
+            estimateSources(mPreviousDensity.empty() || !continuing ? nullptr : &mPreviousDensity, *in.coarseDensity,
+                *in.coarse, elapsed, AdvectSettings{}, in.emitters);
         const ScalarField fineSources = upsampleCoarse(sources, s.factor);
         const ScalarField coarseOnly = s.lookback > 0 ? upsampleCoarse(*in.coarseDensity, s.factor) : ScalarField();
         r.frame.density = mLookback.step(r.motion, fineSources, coarseOnly, elapsed, progress);

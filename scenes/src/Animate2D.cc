@@ -13,7 +13,7 @@ namespace {
 
 struct Wave
 {
-    int kx;          // cycles per period along x (periodic texture)
+    int kx; // cycles per period along x (periodic texture)
     double ky, phase, amp;
 };
 
@@ -96,7 +96,8 @@ std::vector<ChannelImage> riverExample(const RiverSettings& s)
                     if (sx < 0) sx += P;
                     const int i0 = int(sx) % P, i1 = (i0 + 1) % P;
                     const double fx = sx - std::floor(sx);
-                    const double r = (1.0 - fx) * tile[size_t(y) * P + size_t(i0)] + fx * tile[size_t(y) * P + size_t(i1)];
+                    const double r =
+                        (1.0 - fx) * tile[size_t(y) * P + size_t(i0)] + fx * tile[size_t(y) * P + size_t(i1)];
                     const double depth = 0.5 + 0.5 * std::cos(M_PI * (2.0 * y / (H - 1) - 1.0)); // darker mid-stream
                     float* p = f.pixel(x, y);
                     p[0] = float(0.10 + 0.05 * (1 - depth) + 0.07 * r);
@@ -155,7 +156,8 @@ ChannelImage riverStill(int W, int H, std::uint64_t seed)
     std::vector<Wave> grass;
     for (int i = 0; i < 60; ++i) {
         const double lambda = 2.0 + 10.0 * u(rng);
-        grass.push_back({std::max(1, int(P / lambda)), (u(rng) - 0.5) * 4.0 / lambda, 2.0 * M_PI * u(rng), 0.5 + 0.5 * u(rng)});
+        grass.push_back(
+            {std::max(1, int(P / lambda)), (u(rng) - 0.5) * 4.0 / lambda, 2.0 * M_PI * u(rng), 0.5 + 0.5 * u(rng)});
     }
     const ChannelImage matte = riverMatte(W, H);
     ChannelImage img(W, H, 3);
@@ -170,7 +172,8 @@ ChannelImage riverStill(int W, int H, std::uint64_t seed)
                 // Water: ripples along the winding stream (coordinates follow the bank), sky reflection.
                 const double r = rippleAt(water, P, X, across * 40.0) / 3.0;
                 const double sky = 0.5 + 0.5 * across;
-                const float wr = float(0.16 + 0.10 * sky + 0.06 * r), wg = float(0.30 + 0.10 * sky + 0.07 * r), wb = float(0.36 + 0.12 * sky + 0.07 * r);
+                const float wr = float(0.16 + 0.10 * sky + 0.06 * r), wg = float(0.30 + 0.10 * sky + 0.07 * r),
+                            wb = float(0.36 + 0.12 * sky + 0.07 * r);
                 // Banks: grassy stripes, lighter far from the water.
                 double gsum = 0.0, gn = 0.0;
                 for (const Wave& g : grass) {
@@ -179,7 +182,8 @@ ChannelImage riverStill(int W, int H, std::uint64_t seed)
                 }
                 const double gv = gsum / gn;
                 const double far = std::min(1.0, std::abs(y - c) / (0.6 * H));
-                const float br = float(0.22 + 0.10 * far + 0.10 * gv), bg = float(0.34 + 0.12 * far + 0.12 * gv), bb = float(0.12 + 0.05 * far + 0.05 * gv);
+                const float br = float(0.22 + 0.10 * far + 0.10 * gv), bg = float(0.34 + 0.12 * far + 0.12 * gv),
+                            bb = float(0.12 + 0.05 * far + 0.05 * gv);
                 const float m = matte.at(x, y, 0);
                 float* p = img.pixel(x, y);
                 p[0] = std::clamp(m * wr + (1 - m) * br, 0.0f, 1.0f);

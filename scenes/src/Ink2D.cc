@@ -26,7 +26,10 @@ double noise(double x, double y, double cell, std::uint64_t seed)
     const double fx = x / cell, fy = y / cell;
     const long ix = long(std::floor(fx)), iy = long(std::floor(fy));
     const double tx = fx - ix, ty = fy - iy;
-    const auto v = [&](long a, long b) { return double(mix(seed ^ mix(std::uint64_t(a) * 73856093ull ^ std::uint64_t(b) * 19349663ull)) >> 11) / 9007199254740992.0; };
+    const auto v = [&](long a, long b) {
+        return double(mix(seed ^ mix(std::uint64_t(a) * 73856093ull ^ std::uint64_t(b) * 19349663ull)) >> 11) /
+               9007199254740992.0;
+    };
     const auto s = [](double t) { return t * t * (3.0 - 2.0 * t); };
     const double a = v(ix, iy) + (v(ix + 1, iy) - v(ix, iy)) * s(tx);
     const double b = v(ix, iy + 1) + (v(ix + 1, iy + 1) - v(ix, iy + 1)) * s(tx);
@@ -66,7 +69,9 @@ struct Sim
         const double dx = x - cx, dy = y - cy, r = std::hypot(dx, dy);
         const double phi = std::atan2(dy, dx);
         // Fingers: the front's speed wobbles along the rim, slowly changing in time.
-        const double wob = 1.0 + 0.35 * (2.0 * noise(8.0 * std::cos(phi) + 50.0 + 0.04 * t, 8.0 * std::sin(phi) + 50.0, 2.2, s.seed + 11) - 1.0);
+        const double wob = 1.0 + 0.35 * (2.0 * noise(8.0 * std::cos(phi) + 50.0 + 0.04 * t, 8.0 * std::sin(phi) + 50.0,
+                                                   2.2, s.seed + 11) -
+                                            1.0);
         // Capillary spreading: the wet front moves, the paint behind it comes to rest ((r / R)^2), and
         // beyond the front the speed falls as R / r.
         const double R = front(t), q = r / R;
@@ -75,7 +80,9 @@ struct Sim
         uy = r > 1e-9 ? ur * dy / r : 0.0;
         // A weak swirl: the curl of a noise potential (divergence-free), fading with the spreading.
         const double e = 1.5, a = 0.25 * frontSpeed(t) * R0 * std::min(1.0, q * q);
-        const auto pot = [&](double px, double py) { return fractal(px + 0.3 * t, py, 0.35 * R0 * 4.0, 2, s.seed + 23); };
+        const auto pot = [&](double px, double py) {
+            return fractal(px + 0.3 * t, py, 0.35 * R0 * 4.0, 2, s.seed + 23);
+        };
         ux += a * (pot(x, y + e) - pot(x, y - e)) / (2.0 * e);
         uy -= a * (pot(x + e, y) - pot(x - e, y)) / (2.0 * e);
     }
@@ -99,7 +106,8 @@ ChannelImage advect(const ChannelImage& f, const Sim& sim, double t, double dt)
 
 InkSequence inkExemplar(const InkSettings& s)
 {
-    if (s.width < 32 || s.height < 32 || s.frames < 1) throw ValueError("ink: size must be at least 32x32 and frames >= 1");
+    if (s.width < 32 || s.height < 32 || s.frames < 1)
+        throw ValueError("ink: size must be at least 32x32 and frames >= 1");
     if (!(s.speed > 0.0) || !(s.decay > 0.0)) throw ValueError("ink: speed and decay must be > 0");
     const Sim sim(s);
     const int W = s.width, H = s.height;
@@ -108,7 +116,9 @@ InkSequence inkExemplar(const InkSettings& s)
     for (int y = 0; y < H; ++y)
         for (int x = 0; x < W; ++x) {
             const double phi = std::atan2(y - sim.cy, x - sim.cx);
-            const double edge = sim.R0 * (1.0 + 0.15 * (noise(5.0 * std::cos(phi) + 20.0, 5.0 * std::sin(phi) + 20.0, 1.7, s.seed + 3) - 0.5));
+            const double edge =
+                sim.R0 *
+                (1.0 + 0.15 * (noise(5.0 * std::cos(phi) + 20.0, 5.0 * std::sin(phi) + 20.0, 1.7, s.seed + 3) - 0.5));
             field.at(x, y, 0) = float(std::clamp((edge - std::hypot(x - sim.cx, y - sim.cy)) / 1.5 + 0.5, 0.0, 1.0));
             field.at(x, y, 1) = float(fractal(x, y, 0.5 * sim.R0, 5, s.seed + 5));
         }
@@ -116,7 +126,8 @@ InkSequence inkExemplar(const InkSettings& s)
     constexpr int kSubsteps = 4;
     for (int i = 0; i < s.frames; ++i) {
         if (i > 0)
-            for (int k = 0; k < kSubsteps; ++k) field = advect(field, sim, (i - 1) + double(k) / kSubsteps, 1.0 / kSubsteps);
+            for (int k = 0; k < kSubsteps; ++k)
+                field = advect(field, sim, (i - 1) + double(k) / kSubsteps, 1.0 / kSubsteps);
         const ChannelImage c = channelRange(field, 0, 1);
         const double unit = std::max(1.0, sim.R0 / 16.0); // the rim's width follows the drop's size
         const ChannelImage b1 = gaussianBlur(c, 1.2 * unit), b2 = gaussianBlur(c, 3.5 * unit);
@@ -132,7 +143,9 @@ InkSequence inkExemplar(const InkSettings& s)
                 const double density = cv * (0.12 + 0.88 * tex * tex) + 1.1 * rim;
                 const double paper = 0.93 + 0.05 * fractal(x * 1.7, y * 0.6, 6.0 * unit, 3, s.seed + 9);
                 Rgba px(0, 0, 0, 1);
-                for (int ch = 0; ch < 3; ++ch) px[ch] = float(std::clamp(paper * (ch == 2 ? 0.97 : 1.0) * std::exp(-1.6 * k[ch] * density), 0.0, 1.0));
+                for (int ch = 0; ch < 3; ++ch)
+                    px[ch] =
+                        float(std::clamp(paper * (ch == 2 ? 0.97 : 1.0) * std::exp(-1.6 * k[ch] * density), 0.0, 1.0));
                 rgb.at(x, y) = px;
                 const bool in = cv >= 0.5;
                 mask.at(x, y, 0) = in ? 1.0f : 0.0f;

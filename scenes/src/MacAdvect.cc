@@ -40,7 +40,6 @@ openvdb::tools::Scheme::SemiLagrangian toVdb(AdvectSettings::Scheme s)
     return openvdb::tools::Scheme::MAC;
 }
 
-
 /// The velocity VolumeAdvection needs for the grid on `box` whose voxels sit half a voxel below the
 /// cells along `axis` (a face component), or at the cell centres (axis = -1), as a collocated grid on
 /// that same lattice.
@@ -55,9 +54,7 @@ openvdb::tools::Scheme::SemiLagrangian toVdb(AdvectSettings::Scheme s)
 openvdb::Vec3SGrid::Ptr collocatedVelocity(const VectorField& mac, const CoordBBox& box, int axis, Transform::Ptr xf)
 {
     const CoordBBox& mb = mac.bbox();
-    const auto u = [&](int c, int i, int j, int k) {
-        return mb.isInside(Coord(i, j, k)) ? mac(i, j, k)[c] : 0.0f;
-    };
+    const auto u = [&](int c, int i, int j, int k) { return mb.isInside(Coord(i, j, k)) ? mac(i, j, k)[c] : 0.0f; };
     std::vector<Vec3f> dense(size_t(box.volume()));
     const size_t dy = size_t(box.dim().y()), dz = size_t(box.dim().z());
     forEachVoxel(box, [&](int i, int j, int k) {
@@ -72,9 +69,9 @@ openvdb::Vec3SGrid::Ptr collocatedVelocity(const VectorField& mac, const CoordBB
             } else {
                 // Face of axis a: the four c-faces around it (cells ijk and ijk - e_a, sides 0 and +e_c).
                 const int ea[3] = {axis == 0, axis == 1, axis == 2};
-                v[c] = 0.25f * (u(c, i, j, k) + u(c, i - ea[0], j - ea[1], k - ea[2]) +
-                                   u(c, i + ec[0], j + ec[1], k + ec[2]) +
-                                   u(c, i - ea[0] + ec[0], j - ea[1] + ec[1], k - ea[2] + ec[2]));
+                v[c] = 0.25f *
+                       (u(c, i, j, k) + u(c, i - ea[0], j - ea[1], k - ea[2]) + u(c, i + ec[0], j + ec[1], k + ec[2]) +
+                           u(c, i - ea[0] + ec[0], j - ea[1] + ec[1], k - ea[2] + ec[2]));
             }
         }
         dense[(size_t(i - box.min().x()) * dy + size_t(j - box.min().y())) * dz + size_t(k - box.min().z())] = v;
@@ -132,8 +129,9 @@ void advectDense(float* values, const CoordBBox& box, Advection& adv, Transform:
     // set by ceil(travel), but trilinear backtraces reach diagonal neighbours too: voxels left out would
     // stay 0 and smoke would vanish (measured: 17-43% of a closed box's mass in 48 frames). Activating
     // every voxel within `reach` in all 26 directions first makes the computed set cover all of them.
-    if (reach > 0) openvdb::tools::dilateActiveValues(grid->tree(), reach, openvdb::tools::NN_FACE_EDGE_VERTEX,
-        openvdb::tools::EXPAND_TILES);
+    if (reach > 0)
+        openvdb::tools::dilateActiveValues(
+            grid->tree(), reach, openvdb::tools::NN_FACE_EDGE_VERTEX, openvdb::tools::EXPAND_TILES);
     auto mask = openvdb::MaskGrid::create(false);
     mask->setTransform(xf->copy());
     mask->tree().fill(box, true, true);

@@ -14,7 +14,7 @@ namespace detail {
 
 struct MacAdvectSettings
 {
-    AdvectSettings::Scheme scalarScheme = AdvectSettings::Scheme::MacCormack; ///< for cell-centred fields
+    AdvectSettings::Scheme scalarScheme = AdvectSettings::Scheme::MacCormack;   ///< for cell-centred fields
     AdvectSettings::Scheme velocityScheme = AdvectSettings::Scheme::MacCormack; ///< for the face components
     bool revert = true;              ///< limiter: revert to semi-Lagrangian out of the local range (else clamp)
     std::array<Boundary, 6> faces{}; ///< closed faces get copied ghost values (nothing flows in); open faces see zero

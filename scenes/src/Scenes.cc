@@ -27,7 +27,8 @@ Emitter plumeSource(const Vec3d& at)
 const std::vector<SceneInfo>& sceneList()
 {
     static const std::vector<SceneInfo> list{
-        {"plume", "a buoyant plume rising from a sphere near the floor", kWidth, Coord(16, 16, 24), Coord(128, 128, 192)},
+        {"plume", "a buoyant plume rising from a sphere near the floor", kWidth, Coord(16, 16, 24),
+            Coord(128, 128, 192)},
         {"swirl", "two opposed, offset jets with strong vorticity confinement: a tumbling vortex", kWidth,
             Coord(16, 16, 24), Coord(128, 128, 192)},
         {"obstacle", "a buoyant plume hitting a sphere and rolling around it", kWidth, Coord(16, 16, 24),
@@ -94,7 +95,8 @@ ScalarField emitterMask(const SmokeSettings& settings, const ScalarField& like, 
     for (size_t n = 0; n < m.size(); ++n) {
         const Vec3d w = like.lattice().indexToWorld(m.coordOf(n).asVec3d());
         for (const auto& e : settings.emitters)
-            if (t >= e.startTime && t - settings.frameDt <= e.endTime && (w - e.shape.centre).length() <= e.shape.radius + h)
+            if (t >= e.startTime && t - settings.frameDt <= e.endTime &&
+                (w - e.shape.centre).length() <= e.shape.radius + h)
                 m.data()[n] = 1.0f;
     }
     return m;
@@ -105,7 +107,8 @@ ScalarField obstacleDistance(const SmokeSettings& settings, const VectorField& l
     ScalarField sdf(like.bbox(), like.lattice(), 1e9f);
     for (size_t n = 0; n < sdf.size(); ++n) {
         const Vec3d w = like.lattice().indexToWorld(Vec3d(sdf.coordOf(n).asVec3d()));
-        for (const auto& s : settings.obstacles) sdf.data()[n] = std::min(sdf.data()[n], float((w - s.centre).length() - s.radius));
+        for (const auto& s : settings.obstacles)
+            sdf.data()[n] = std::min(sdf.data()[n], float((w - s.centre).length() - s.radius));
     }
     return sdf;
 }

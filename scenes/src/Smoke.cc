@@ -59,7 +59,6 @@ double valueNoise(std::uint64_t seed, const Vec3d& p, double t)
     return acc;
 }
 
-
 /// Cells whose centres lie within `r` (+ margin) of `c`, clipped to `cells`.
 CoordBBox sphereBox(const Lattice& lat, const Vec3d& c, double r, const CoordBBox& cells)
 {
@@ -141,7 +140,7 @@ void SmokeSim::emit(double dt)
         if (mTime + dt <= em.startTime || mTime >= em.endTime) continue;
         const std::uint64_t seed = splitmix(mSettings.seed * 0x100000001b3ull + e);
         const double cellSize = std::max(0.5 * em.shape.radius, 1.5 * h); // noise feature size, world
-        const double period = 0.15;                                      // noise time scale, seconds
+        const double period = 0.15;                                       // noise time scale, seconds
         const double t = mTime / period;
         const auto noiseAt = [&](const Vec3d& x, int channel) {
             return valueNoise(seed + std::uint64_t(channel) * 0x9e37ull, (x - em.shape.centre) / cellSize, t);
@@ -172,8 +171,8 @@ void SmokeSim::emit(double dt)
                 x[a] -= 0.5 * h; // face centre
                 const double w = weight(x);
                 if (w <= 0.0) continue;
-                const double target = em.velocity[a] * (1.0 + em.noise * noiseAt(x, 0)) +
-                                      0.5 * em.noise * speed * noiseAt(x, 1 + a);
+                const double target =
+                    em.velocity[a] * (1.0 + em.noise * noiseAt(x, 0)) + 0.5 * em.noise * speed * noiseAt(x, 1 + a);
                 u[a] = float((1.0 - w) * u[a] + w * target);
             }
         });
@@ -299,8 +298,8 @@ FrameStats SmokeSim::advanceFrame(Progress* progress)
         for (const auto& v : mMac.values())
             speed = std::max(speed, double(std::max(std::abs(v.x()), std::max(std::abs(v.y()), std::abs(v.z())))));
         for (const auto& e : mSettings.emitters) speed = std::max(speed, double(e.velocity.length()));
-        const int n = std::min(mSettings.maxSubsteps,
-            std::max(1, int(std::ceil(speed * mSettings.frameDt / (mSettings.cfl * h) - 1e-9))));
+        const int n = std::min(
+            mSettings.maxSubsteps, std::max(1, int(std::ceil(speed * mSettings.frameDt / (mSettings.cfl * h) - 1e-9))));
         const double dt = mSettings.frameDt / n;
         st.substeps = n;
 

@@ -32,7 +32,10 @@ double valueNoise(double x, double y, double cell, std::uint64_t seed)
     const double fx = x / cell, fy = y / cell;
     const long ix = long(std::floor(fx)), iy = long(std::floor(fy));
     const double tx = fx - ix, ty = fy - iy;
-    const auto v = [&](long a, long b) { return double(mix(seed ^ mix(std::uint64_t(a) * 73856093ull ^ std::uint64_t(b) * 19349663ull)) >> 11) / 9007199254740992.0; };
+    const auto v = [&](long a, long b) {
+        return double(mix(seed ^ mix(std::uint64_t(a) * 73856093ull ^ std::uint64_t(b) * 19349663ull)) >> 11) /
+               9007199254740992.0;
+    };
     const auto s = [](double t) { return t * t * (3.0 - 2.0 * t); };
     const double a = v(ix, iy) + (v(ix + 1, iy) - v(ix, iy)) * s(tx);
     const double b = v(ix, iy + 1) + (v(ix + 1, iy + 1) - v(ix, iy + 1)) * s(tx);
@@ -68,7 +71,9 @@ Target2D growingTarget(const Target2DSettings& s, int frame)
     const double tip = std::min(x1, x0 + th + s.speed * W * std::max(0, frame));
     const bool moving = x0 + th + s.speed * W * std::max(0, frame) < x1;
     const auto path = [&](double x) { return cy + 0.18 * H * std::sin(2.0 * kPi2 * (x - x0) / (x1 - x0) * 0.75); };
-    const auto slope = [&](double x) { return 0.18 * H * std::cos(2.0 * kPi2 * (x - x0) / (x1 - x0) * 0.75) * 2.0 * kPi2 * 0.75 / (x1 - x0); };
+    const auto slope = [&](double x) {
+        return 0.18 * H * std::cos(2.0 * kPi2 * (x - x0) / (x1 - x0) * 0.75) * 2.0 * kPi2 * 0.75 / (x1 - x0);
+    };
     for (int y = 0; y < H; ++y)
         for (int x = 0; x < W; ++x) {
             // Distance to the path between x0 and the tip (the path is shallow: vertical distance
@@ -91,7 +96,8 @@ Target2D growingTarget(const Target2DSettings& s, int frame)
 Target2D target2D(const Target2DSettings& s, int frame)
 {
     if (s.width < 16 || s.height < 16) throw ValueError("target2D: size must be at least 16x16");
-    if (s.kind != "rotate" && s.kind != "swirl" && s.kind != "rise" && s.kind != "fill" && s.kind != "grow" && s.kind != "stroke")
+    if (s.kind != "rotate" && s.kind != "swirl" && s.kind != "rise" && s.kind != "fill" && s.kind != "grow" &&
+        s.kind != "stroke")
         throw ValueError("target2D: unknown kind '" + s.kind + "' (rotate, swirl, rise, fill, grow, stroke)");
     if (s.kind == "grow" || s.kind == "stroke") return growingTarget(s, frame);
     const int W = s.width, H = s.height;
@@ -131,18 +137,22 @@ RgbaImage fireExemplar(int n, std::uint64_t seed)
         for (int x = 0; x < n; ++x) {
             // Ragged edge: the radius wobbles with low-frequency noise; the edge is soft over ~4 pixels.
             const double theta = std::atan2(y - c, x - c);
-            const double wobble = 0.12 * R * (valueNoise(std::cos(theta) * 40.0 + 100.0, std::sin(theta) * 40.0 + 100.0, 9.0, seed + 7) - 0.5);
+            const double wobble =
+                0.12 * R *
+                (valueNoise(std::cos(theta) * 40.0 + 100.0, std::sin(theta) * 40.0 + 100.0, 9.0, seed + 7) - 0.5);
             const double a = std::min(1.0, std::max(0.0, (R + wobble - std::hypot(x - c, y - c)) / 4.0 + 0.5));
             // Smooth on the left (a ramp, brighter at the top), textured on the right, blended over the
             // middle fifth so no hard seam becomes a feature of its own.
             const double ramp = 0.25 + 0.7 * (1.0 - double(y) / n);
             double f = 0.0, amp = 0.5;
-            for (double cell = n / 6.0; cell >= 1.5; cell /= 2.0, amp *= 0.6) f += amp * (valueNoise(x, y, cell, seed) - 0.5);
+            for (double cell = n / 6.0; cell >= 1.5; cell /= 2.0, amp *= 0.6)
+                f += amp * (valueNoise(x, y, cell, seed) - 0.5);
             const double tex = std::min(1.0, std::max(0.0, 0.55 + 1.6 * f));
             const double m = std::min(1.0, std::max(0.0, (double(x) / n - 0.4) / 0.2));
             const double v = ramp + (tex - ramp) * m * m * (3.0 - 2.0 * m);
             // A fire ramp: dark red -> orange -> pale yellow.
-            const float r = float(std::min(1.0, 0.35 + 0.9 * v)), g = float(std::min(1.0, std::max(0.0, 1.25 * v - 0.25))),
+            const float r = float(std::min(1.0, 0.35 + 0.9 * v)),
+                        g = float(std::min(1.0, std::max(0.0, 1.25 * v - 0.25))),
                         b = float(std::min(1.0, std::max(0.0, 1.6 * v - 1.0)));
             z.at(x, y) = Rgba(r, g, b, float(a));
         }

@@ -69,7 +69,8 @@ float smoke(const openvdb::Vec3d& w, int frame)
 openvdb::Vec3s flow(const openvdb::Vec3d& w, bool detail)
 {
     openvdb::Vec3d v(0.5 + 0.2 * std::sin(w.y()), 0.2 * std::cos(w.x()), 0.1 * std::sin(w.x() + w.y()));
-    if (detail) v += openvdb::Vec3d(0.15 * std::sin(9.0 * w.z()), 0.15 * std::sin(8.0 * w.x()), 0.15 * std::cos(7.0 * w.y()));
+    if (detail)
+        v += openvdb::Vec3d(0.15 * std::sin(9.0 * w.z()), 0.15 * std::sin(8.0 * w.x()), 0.15 * std::cos(7.0 * w.y()));
     return openvdb::Vec3s(v);
 }
 
@@ -138,7 +139,8 @@ void world1(const std::string& dir, int frames, int badFrame, const std::functio
 void world2(const std::string& dir, const std::string& damaged)
 {
     spit(frameName(dir, 't', 1), damaged);
-    fs::copy_file(gData + "/blender-plume-128/fluid_data_0001.vdb", frameName(dir, 's', 1), fs::copy_options::overwrite_existing);
+    fs::copy_file(
+        gData + "/blender-plume-128/fluid_data_0001.vdb", frameName(dir, 's', 1), fs::copy_options::overwrite_existing);
 }
 
 std::string blenderFrame() { return slurp(gData + "/blender-plume-32/fluid_data_0001.vdb"); }
@@ -154,9 +156,9 @@ T at(const std::string& b, size_t off)
 // Offsets in a VDB file (format >= 222 with grid offsets), as io::Archive lays them out.
 struct Layout
 {
-    size_t fileMetaCount = 0;    // offset of the file metadata's entry count
-    size_t firstDescriptor = 0;  // offset of the first grid descriptor
-    size_t firstGridPosField = 0;// offset of that descriptor's gridPos field
+    size_t fileMetaCount = 0;                      // offset of the file metadata's entry count
+    size_t firstDescriptor = 0;                    // offset of the first grid descriptor
+    size_t firstGridPosField = 0;                  // offset of that descriptor's gridPos field
     int64_t gridPos = 0, blockPos = 0, endPos = 0; // of the first grid
 };
 
@@ -290,7 +292,8 @@ void makeCase(const Case& c, const std::string& dir)
         world1(dir, 3, 2, [](Grids& g, int) { g.density->tree().setValue(openvdb::Coord(3, 3, 3), std::nanf("")); });
     } else if (name == "inf_velocity") {
         world1(dir, 3, 2, [](Grids& g, int) {
-            g.vel->tree().setValue(openvdb::Coord(2, 5, 1), openvdb::Vec3s(0.0f, std::numeric_limits<float>::infinity(), 0.0f));
+            g.vel->tree().setValue(
+                openvdb::Coord(2, 5, 1), openvdb::Vec3s(0.0f, std::numeric_limits<float>::infinity(), 0.0f));
         });
     } else if (name == "empty_smoke") {
         world1(dir, 3, 0, [](Grids& g, int) {
@@ -310,9 +313,12 @@ void makeCase(const Case& c, const std::string& dir)
     } else if (name == "velocity_only") {
         world1(dir, 3, 0, [](Grids& g, int) { g.density = nullptr; });
     } else if (name == "lattice_change") {
-        world1(dir, 3, 3, [](Grids& g, int f) { g = makeFrame(4, 2 * kCoarse, kOrigin + openvdb::Vec3d(0.5 * kCoarse), f, false); });
+        world1(dir, 3, 3,
+            [](Grids& g, int f) { g = makeFrame(4, 2 * kCoarse, kOrigin + openvdb::Vec3d(0.5 * kCoarse), f, false); });
     } else if (name == "vel_voxel_scale") {
-        world1(dir, 3, 0, [](Grids& g, int f) { g.vel = makeFrame(4, 2 * kCoarse, kOrigin + openvdb::Vec3d(0.5 * kCoarse), f, false).vel; });
+        world1(dir, 3, 0, [](Grids& g, int f) {
+            g.vel = makeFrame(4, 2 * kCoarse, kOrigin + openvdb::Vec3d(0.5 * kCoarse), f, false).vel;
+        });
     } else if (name == "stray_voxel") {
         world1(dir, 3, 2, [](Grids& g, int) { g.density->tree().setValue(openvdb::Coord(20000, 20000, 20000), 0.5f); });
     } else if (name == "rotated" || name == "nonuniform_scale" || name == "frustum") {
@@ -322,7 +328,8 @@ void makeCase(const Case& c, const std::string& dir)
                 x = xform(kCoarse, kOrigin);
                 x->preRotate(0.3, openvdb::math::Z_AXIS);
             } else if (name == "nonuniform_scale") {
-                x = openvdb::math::Transform::createLinearTransform(openvdb::math::Mat4d(openvdb::math::Mat4d::identity()));
+                x = openvdb::math::Transform::createLinearTransform(
+                    openvdb::math::Mat4d(openvdb::math::Mat4d::identity()));
                 x->preScale(openvdb::Vec3d(kCoarse, kCoarse, 2 * kCoarse));
             } else {
                 x = openvdb::math::Transform::createFrustumTransform(
@@ -379,8 +386,8 @@ void makeCase(const Case& c, const std::string& dir)
         s.density->setTransform(x);
         s.vel->setTransform(x->copy());
         write(frameName(dir, 's', 1), s.all());
-    } else if (name == "out_read_only" || name == "out_is_input" || name == "out_under_file" || name == "padding_mismatch" ||
-               name == "directory_as_cache") {
+    } else if (name == "out_read_only" || name == "out_is_input" || name == "out_under_file" ||
+               name == "padding_mismatch" || name == "directory_as_cache") {
         world1(dir, 3, 0);
         if (name == "out_read_only") {
             fs::create_directories(dir + "/ro");

@@ -22,8 +22,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size)
                 if (!back) std::abort();
                 if (p.format(*back) != name) std::abort();
             }
-    } catch (const turb::ValueError&) {
-    }
+    } catch (const turb::ValueError&) {}
     if (auto d = turbio::FramePattern::fromFileName(text)) {
         if (d->first.format(d->second) != text) std::abort();
     }
@@ -31,7 +30,6 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size)
         const std::vector<int> frames = turbio::parseFrameList(text);
         const std::string again = turbio::formatFrameList(frames);
         if (turbio::parseFrameList(again) != frames) std::abort();
-    } catch (const turb::ValueError&) {
-    }
+    } catch (const turb::ValueError&) {}
     return 0;
 }

@@ -35,7 +35,8 @@ struct Frames
         source = output;
         for (size_t n = 0; n < source.velocity.size(); ++n) {
             const turb::Coord c = source.velocity.coordOf(n);
-            source.velocity.data()[n] = turb::Vec3f(std::sin(0.7f * c.y()), std::cos(0.5f * c.z()), std::sin(0.3f * c.x()));
+            source.velocity.data()[n] =
+                turb::Vec3f(std::sin(0.7f * c.y()), std::cos(0.5f * c.z()), std::sin(0.3f * c.x()));
         }
     }
 };
@@ -61,7 +62,6 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size)
     // A state that restores must also run: its patch tracks steer the next frame's search.
     try {
         t.process(frames.next, frames.source);
-    } catch (const turb::Error&) {
-    }
+    } catch (const turb::Error&) {}
     return 0;
 }

@@ -43,11 +43,9 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size)
     any.extendVelocity = 2;
     try {
         turbio::inspectFile(path, /*readValues=*/true);
-    } catch (const turb::Error&) {
-    }
+    } catch (const turb::Error&) {}
     try {
         turbio::readFrame(path, 1, any);
-    } catch (const turb::Error&) {
-    }
+    } catch (const turb::Error&) {}
     return 0;
 }

@@ -18,12 +18,12 @@ namespace turbio {
 struct GridChecksum
 {
     std::string name;
-    std::string valueType;     ///< "float", "vec3s", ...
+    std::string valueType;      ///< "float", "vec3s", ...
     long long activeVoxels = 0; ///< active voxels, tiles counted voxel by voxel
-    uint64_t values = 0;       ///< FNV-1a over the transform, the grid class and every active voxel's (coordinate, value
-                               ///< bits) in index order; tiles count as their voxels
-    uint64_t metadata = 0;     ///< FNV-1a over the grid's metadata (name, type, value as text), sorted by name, leaving
-                               ///< out OpenVDB's own statistics (file_bbox_*, file_mem_bytes, file_voxel_count)
+    uint64_t values = 0;   ///< FNV-1a over the transform, the grid class and every active voxel's (coordinate, value
+                           ///< bits) in index order; tiles count as their voxels
+    uint64_t metadata = 0; ///< FNV-1a over the grid's metadata (name, type, value as text), sorted by name, leaving
+                           ///< out OpenVDB's own statistics (file_bbox_*, file_mem_bytes, file_voxel_count)
 };
 
 /// Every grid of the file, in file order. Throws turb::IoError naming the file when it cannot be read, and

@@ -42,14 +42,14 @@ namespace turbio {
 struct ImageFileInfo
 {
     std::string path;
-    std::string format;                     ///< OpenImageIO's format name: "png", "openexr", "tiff", "jpeg", ...
+    std::string format; ///< OpenImageIO's format name: "png", "openexr", "tiff", "jpeg", ...
     int width = 0, height = 0;
-    int channels = 0;                       ///< channels in the file
-    std::vector<std::string> channelNames;  ///< as the file names them (or OpenImageIO's defaults)
-    bool hasAlpha = false;                  ///< the file has an alpha channel
-    bool associatedAlpha = false;           ///< its colours are premultiplied by alpha (EXR; some TIFFs)
-    std::string pixelType;                  ///< "uint8", "uint16", "half", "float", ...
-    std::string colorSpace;                 ///< as declared ("sRGB", "Linear", ...); empty = undeclared
+    int channels = 0;                      ///< channels in the file
+    std::vector<std::string> channelNames; ///< as the file names them (or OpenImageIO's defaults)
+    bool hasAlpha = false;                 ///< the file has an alpha channel
+    bool associatedAlpha = false;          ///< its colours are premultiplied by alpha (EXR; some TIFFs)
+    std::string pixelType;                 ///< "uint8", "uint16", "half", "float", ...
+    std::string colorSpace;                ///< as declared ("sRGB", "Linear", ...); empty = undeclared
 };
 
 /// Reads the header only. Throws turb::IoError naming the file.
@@ -60,8 +60,7 @@ ImageFileInfo inspectImage(const std::string& path);
 turb::RgbaImage readImage(const std::string& path, ImageFileInfo* info = nullptr);
 
 /// Bits per channel on disk.
-enum class PixelBits
-{
+enum class PixelBits {
     Auto,   ///< PNG/JPEG 8-bit, TIFF 16-bit, EXR half
     Uint8,  ///< PNG, TIFF, JPEG
     Uint16, ///< PNG, TIFF
@@ -71,9 +70,9 @@ enum class PixelBits
 
 struct ImageWriteOptions
 {
-    bool noClobber = false;            ///< refuse to replace an existing file
-    PixelBits bits = PixelBits::Auto;  ///< storage per channel; a format that cannot hold it is an error
-    bool alpha = true;                 ///< RgbaImage: write the alpha channel (JPEG never has one)
+    bool noClobber = false;           ///< refuse to replace an existing file
+    PixelBits bits = PixelBits::Auto; ///< storage per channel; a format that cannot hold it is an error
+    bool alpha = true;                ///< RgbaImage: write the alpha channel (JPEG never has one)
 };
 
 /// OpenImageIO's format name for an output path: "png", "openexr", "tiff" or "jpeg". Throws

@@ -25,25 +25,25 @@ struct FrameScan
 {
     int frame = 0;
     std::string path;
-    std::string error;            ///< non-empty: reading this frame will fail; the message names the file and grid
+    std::string error; ///< non-empty: reading this frame will fail; the message names the file and grid
     std::vector<std::string> errorSettings; ///< the ReadOptions fields that fix the error (turb::Error::settings)
-    turb::Lattice lattice;        ///< the frame's lattice (the density's, else the velocity's)
-    turb::CoordBBox domain;       ///< index box of the dense frame: `span` cropped to the smoke and its margin
-                                  ///< (ReadOptions::cropToSmoke); from the density's header box, or from its voxels
-                                  ///< when that box is far larger than its voxels (strays), so it bounds the read's
-    turb::CoordBBox span;         ///< Blender's domain, else the union of the grids' active boxes
+    turb::Lattice lattice;                  ///< the frame's lattice (the density's, else the velocity's)
+    turb::CoordBBox domain; ///< index box of the dense frame: `span` cropped to the smoke and its margin
+                            ///< (ReadOptions::cropToSmoke); from the density's header box, or from its voxels
+                            ///< when that box is far larger than its voxels (strays), so it bounds the read's
+    turb::CoordBBox span;   ///< Blender's domain, else the union of the grids' active boxes
     std::optional<turb::CoordBBox> sequenceDomain; ///< FileInfo::sequenceDomain: where preview frames the sequence
-    turb::CoordBBox others;       ///< Blender's domain and the non-density grids' boxes: how far a margin may reach
-    SmokeRegion region;           ///< the smoke (strays only when the voxels were read: regionFromVoxels)
-    bool regionFromVoxels = false;///< the density's voxels were read to find the smoke
-    bool domainKnown = false;     ///< the headers held the active boxes (or the voxels were read for them)
-    std::string densityGrid;      ///< selector of the density grid a read uses; empty if none
-    std::string velocityGrid;     ///< selector of the velocity grid (or the x component); empty if none
-    double velocityVoxel = 0.0;   ///< the velocity grid's own voxel size (differs from lattice: it is resampled)
-    long long densityActive = -1; ///< active voxels of the density grid, from the header; -1 unknown
-    long long velocityActive = -1;///< active voxels of the velocity grid, from the header; -1 unknown
-    ReadReport timing;            ///< dt and velocity units with their sources
-    std::vector<GridInfo> grids;  ///< every grid of the file, in file order
+    turb::CoordBBox others;        ///< Blender's domain and the non-density grids' boxes: how far a margin may reach
+    SmokeRegion region;            ///< the smoke (strays only when the voxels were read: regionFromVoxels)
+    bool regionFromVoxels = false; ///< the density's voxels were read to find the smoke
+    bool domainKnown = false;      ///< the headers held the active boxes (or the voxels were read for them)
+    std::string densityGrid;       ///< selector of the density grid a read uses; empty if none
+    std::string velocityGrid;      ///< selector of the velocity grid (or the x component); empty if none
+    double velocityVoxel = 0.0;    ///< the velocity grid's own voxel size (differs from lattice: it is resampled)
+    long long densityActive = -1;  ///< active voxels of the density grid, from the header; -1 unknown
+    long long velocityActive = -1; ///< active voxels of the velocity grid, from the header; -1 unknown
+    ReadReport timing;             ///< dt and velocity units with their sources
+    std::vector<GridInfo> grids;   ///< every grid of the file, in file order
 };
 
 /// Scans one file's headers. Never throws for a bad file: the problem goes into FrameScan::error (and
@@ -75,8 +75,8 @@ struct SequenceScan
 
 /// Scans `frames` of `seq` (frames that are not on disk are skipped: the caller reports missing frames).
 /// `readVoxelsIfNeeded` applies to the first frame only (the others keep header boxes or none).
-SequenceScan scanSequence(const Sequence& seq, const std::vector<int>& frames, const ReadOptions& options,
-    bool readVoxelsIfNeeded = false);
+SequenceScan scanSequence(
+    const Sequence& seq, const std::vector<int>& frames, const ReadOptions& options, bool readVoxelsIfNeeded = false);
 
 /// Whether `a` and `b` are one lattice (voxel size and placement).
 bool sameLattice(const turb::Lattice& a, const turb::Lattice& b);

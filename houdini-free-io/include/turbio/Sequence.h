@@ -46,8 +46,8 @@ public:
 
 private:
     std::string mPrefix, mSuffix;
-    std::string mText;     // as given to parse(); empty when detected from a file name
-    int mWidth = 0;        // zero-padding width; 0 or 1 = unpadded
+    std::string mText; // as given to parse(); empty when detected from a file name
+    int mWidth = 0;    // zero-padding width; 0 or 1 = unpadded
     bool mNumbered = false;
 };
 
@@ -83,8 +83,7 @@ Sequence resolveSequence(const std::string& text, const std::string& frameSpec =
 std::vector<std::pair<std::string, int>> sequencesInDirectory(const std::string& dir);
 
 /// How a target frame picks its source frame when the sequences differ in length.
-enum class SourceWrap
-{
+enum class SourceWrap {
     Loop,     ///< run through the source again from its first frame
     PingPong, ///< run back and forth through the source
     Clamp,    ///< hold the first/last source frame

@@ -36,7 +36,7 @@ namespace turbio {
 struct StrokeFile
 {
     std::vector<turb::FlowStroke> strokes;
-    std::vector<int> lines;                 ///< the line each stroke starts on (1-based), for messages
+    std::vector<int> lines; ///< the line each stroke starts on (1-based), for messages
 };
 
 /// Reads and checks a stroke file against a target of width x height pixels.

@@ -30,8 +30,7 @@
 
 namespace turbio {
 
-enum class VelocityUnits
-{
+enum class VelocityUnits {
     Auto,  ///< detect: Blender's staggered `velocity` with `file_base_resolution` is in cells
     World, ///< world units per time unit (Houdini, EmberGen, vdbturb)
     Cells  ///< grid cells per time unit (Blender/Mantaflow)
@@ -42,54 +41,54 @@ enum class GridRole { Density, Velocity, Temperature, Flame, Other };
 
 struct ReadOptions
 {
-    std::string densityGrid;   ///< grid selector overriding the density aliases: a name, OpenVDB's "name[N]" (the
-                               ///< N-th grid of that name; "[0]" = the first unnamed grid) or "#N" (the file's N-th
-                               ///< grid, as `vdbturb info` numbers them); empty = aliases
-    std::string velocityGrid;  ///< the same for velocity; a name may also be the stem of NAME.x/.y/.z
+    std::string densityGrid;  ///< grid selector overriding the density aliases: a name, OpenVDB's "name[N]" (the
+                              ///< N-th grid of that name; "[0]" = the first unnamed grid) or "#N" (the file's N-th
+                              ///< grid, as `vdbturb info` numbers them); empty = aliases
+    std::string velocityGrid; ///< the same for velocity; a name may also be the stem of NAME.x/.y/.z
     VelocityUnits velocityUnits = VelocityUnits::Auto; ///< unit convention of the velocity grid
-    bool requireDensity = true;   ///< a missing density grid is an error (else the field stays empty)
-    bool requireVelocity = true;  ///< a missing velocity grid is an error (else the field stays empty)
-    bool readExtras = true;       ///< also read temperature and flame when present
-    double dt = 0.0;              ///< time per frame; > 0 overrides metadata and writer defaults
-    double fps = 0.0;             ///< frames per second for the writers' default dt; 0 = not given (24 is assumed,
-                                  ///< and ReadReport says so)
-    bool checkFinite = true;      ///< NaN/Inf voxels are an error naming the grid
-    double maxVoxels = 5.0e8;     ///< largest dense domain accepted (velocity needs 12 bytes a voxel)
-    int extendVelocity = 0;       ///< continue velocity this many voxels past the grid's active region (caches
-                                  ///< that clip velocity to the smoke, as Blender's do); 0 = inactive reads as zero
+    bool requireDensity = true;  ///< a missing density grid is an error (else the field stays empty)
+    bool requireVelocity = true; ///< a missing velocity grid is an error (else the field stays empty)
+    bool readExtras = true;      ///< also read temperature and flame when present
+    double dt = 0.0;             ///< time per frame; > 0 overrides metadata and writer defaults
+    double fps = 0.0;            ///< frames per second for the writers' default dt; 0 = not given (24 is assumed,
+                                 ///< and ReadReport says so)
+    bool checkFinite = true;     ///< NaN/Inf voxels are an error naming the grid
+    double maxVoxels = 5.0e8;    ///< largest dense domain accepted (velocity needs 12 bytes a voxel)
+    int extendVelocity = 0;      ///< continue velocity this many voxels past the grid's active region (caches
+                                 ///< that clip velocity to the smoke, as Blender's do); 0 = inactive reads as zero
 
     // The region held densely (see SmokeRegion). Without a density grid the frame covers every grid's span.
-    bool cropToSmoke = true;      ///< hold only the smoke (plus cropMargin), not the union of the grids' active boxes
-    double readTimeout = 0.0;     ///< seconds the guarded reader may take before the file counts as one that hangs
-                                  ///< OpenVDB, plus 1 s per 5 MB; 0 = VDBTURB_READ_TIMEOUT_S, else 10
-    int cropMargin = 8;           ///< voxels of the frame's lattice kept around the smoke, >= 0: patch radius,
-                                  ///< advection reach and the seam band of the stages that read the frame
-    float smokeThreshold = 0.0f;  ///< active density above this is smoke
-    double strayShare = 0.01;     ///< a cluster of smoke holding less than this share of the density mass, and
-                                  ///< farther than strayDistance from the rest, is a stray: reported, not held, in [0, 1)
-    int strayVoxels = 8;          ///< a far cluster of fewer active smoke voxels than this is a stray whatever its mass
-    int strayDistance = 32;       ///< voxels; clusters nearer the kept smoke than this are kept, >= 0
-    turb::CoordBBox holdBox;      ///< non-empty (with cropToSmoke): hold this box instead of the frame's own, for
-                                  ///< stages that need one box over a sequence (synth: the union of the scans' boxes)
+    bool cropToSmoke = true;     ///< hold only the smoke (plus cropMargin), not the union of the grids' active boxes
+    double readTimeout = 0.0;    ///< seconds the guarded reader may take before the file counts as one that hangs
+                                 ///< OpenVDB, plus 1 s per 5 MB; 0 = VDBTURB_READ_TIMEOUT_S, else 10
+    int cropMargin = 8;          ///< voxels of the frame's lattice kept around the smoke, >= 0: patch radius,
+                                 ///< advection reach and the seam band of the stages that read the frame
+    float smokeThreshold = 0.0f; ///< active density above this is smoke
+    double strayShare = 0.01;    ///< a cluster of smoke holding less than this share of the density mass, and
+                              ///< farther than strayDistance from the rest, is a stray: reported, not held, in [0, 1)
+    int strayVoxels = 8;     ///< a far cluster of fewer active smoke voxels than this is a stray whatever its mass
+    int strayDistance = 32;  ///< voxels; clusters nearer the kept smoke than this are kept, >= 0
+    turb::CoordBBox holdBox; ///< non-empty (with cropToSmoke): hold this box instead of the frame's own, for
+                             ///< stages that need one box over a sequence (synth: the union of the scans' boxes)
 };
 
 /// A cluster of smoke left out of the region: stray voxels far from the main smoke (particles, sourcing,
 /// a dilation), which would otherwise stretch the dense box over the whole gap.
 struct StrayCluster
 {
-    turb::CoordBBox box;       ///< its active smoke voxels' bounding box
-    long long voxels = 0;      ///< active voxels above the threshold
-    double massShare = 0.0;    ///< its share of the density mass
-    int distance = 0;          ///< voxels between its box and the kept smoke's box (largest axis gap)
+    turb::CoordBBox box;    ///< its active smoke voxels' bounding box
+    long long voxels = 0;   ///< active voxels above the threshold
+    double massShare = 0.0; ///< its share of the density mass
+    int distance = 0;       ///< voxels between its box and the kept smoke's box (largest axis gap)
 };
 
 /// Where a frame's smoke is: density voxels above ReadOptions::smokeThreshold, clustered by leaf node (8^3)
 /// with their neighbours; clusters holding a real share of the mass, and those near them, are kept.
 struct SmokeRegion
 {
-    bool hasDensity = false;      ///< a density grid was found
-    turb::CoordBBox smoke;        ///< bounding box of the kept clusters (empty: no smoke)
-    long long smokeVoxels = 0;    ///< active smoke voxels in the kept clusters
+    bool hasDensity = false;          ///< a density grid was found
+    turb::CoordBBox smoke;            ///< bounding box of the kept clusters (empty: no smoke)
+    long long smokeVoxels = 0;        ///< active smoke voxels in the kept clusters
     std::vector<StrayCluster> strays; ///< left out, largest mass first
 
     /// "density has 1 active voxel 580 voxels away from the rest" (one line, "" without strays).
@@ -107,20 +106,20 @@ turb::CoordBBox heldRegion(const SmokeRegion& region, const turb::CoordBBox& spa
 /// metadata, or a writer's convention). Filled by readFrame and scanFrame for logs and dry runs.
 struct ReadReport
 {
-    double dt = 0.0;           ///< time per frame in the velocity's time unit
-    std::string dtSource;      ///< e.g. "vdbturb_dt metadata", "ReadOptions::dt", "1/fps seconds"
-    std::string dtSetting;     ///< "dt" when ReadOptions::dt decided dt, else "" (the cache or a convention did)
-    double fps = 24.0;         ///< the frame rate dt was derived from (when it was)
-    std::string fpsSource;     ///< "ReadOptions::fps", "assumed: the cache records no frame rate", "not used"
-    std::string fpsSetting;    ///< "fps" when ReadOptions::fps gave the frame rate dt was derived from, else ""
-    bool cells = false;        ///< the velocity was in grid cells per time unit and was scaled by the voxel size
-    std::string unitsSource;   ///< why the units were taken as they were
-    std::string unitsSetting;  ///< "velocityUnits" when ReadOptions::velocityUnits decided them (not Auto), else ""
+    double dt = 0.0;          ///< time per frame in the velocity's time unit
+    std::string dtSource;     ///< e.g. "vdbturb_dt metadata", "ReadOptions::dt", "1/fps seconds"
+    std::string dtSetting;    ///< "dt" when ReadOptions::dt decided dt, else "" (the cache or a convention did)
+    double fps = 24.0;        ///< the frame rate dt was derived from (when it was)
+    std::string fpsSource;    ///< "ReadOptions::fps", "assumed: the cache records no frame rate", "not used"
+    std::string fpsSetting;   ///< "fps" when ReadOptions::fps gave the frame rate dt was derived from, else ""
+    bool cells = false;       ///< the velocity was in grid cells per time unit and was scaled by the voxel size
+    std::string unitsSource;  ///< why the units were taken as they were
+    std::string unitsSetting; ///< "velocityUnits" when ReadOptions::velocityUnits decided them (not Auto), else ""
     bool conventionAssumed = false; ///< dt rests on an assumed frame rate / time scale (warn the user once)
     std::vector<std::string> notes; ///< conversions worth one log line (e.g. velocity resampled onto density)
-    turb::CoordBBox span;      ///< readFrame: the union of the grids' active boxes (or Blender's domain)
-    turb::CoordBBox held;      ///< readFrame: the box the frame's fields cover (span cropped to the smoke)
-    SmokeRegion region;        ///< readFrame: the smoke and its strays
+    turb::CoordBBox span;           ///< readFrame: the union of the grids' active boxes (or Blender's domain)
+    turb::CoordBBox held;           ///< readFrame: the box the frame's fields cover (span cropped to the smoke)
+    SmokeRegion region;             ///< readFrame: the smoke and its strays
 };
 
 /// The time step and units rules, shared by readFrame and header scans. `blenderVelocity`: the velocity
@@ -135,19 +134,18 @@ const std::vector<std::string>& gridAliases(GridRole role);
 /// unique grid names in file order ("density", "[0]" for an unnamed grid, "vel[1]" for a second "vel");
 /// an override may also be "#N" (the N-th name) or "name[0]" (the first grid of that name). For velocity
 /// the result may be three names (x, y, z components). Empty when nothing matches.
-std::vector<std::string> resolveGrid(const std::vector<std::string>& names, GridRole role,
-    const std::string& overrideName = "");
+std::vector<std::string> resolveGrid(
+    const std::vector<std::string>& names, GridRole role, const std::string& overrideName = "");
 
 /// Reads one frame. `frameNumber` is stored in the frame. Grids of a frame on different lattices (e.g.
 /// Houdini's velocity voxel scale: vel at twice the density's voxel) are resampled trilinearly onto the
 /// density's lattice (the velocity's when there is no density); `report` (optional) gets a note saying so,
 /// and the time step and units with their sources.
-turb::Frame readFrame(const std::string& path, int frameNumber, const ReadOptions& options,
-    ReadReport* report = nullptr);
+turb::Frame readFrame(
+    const std::string& path, int frameNumber, const ReadOptions& options, ReadReport* report = nullptr);
 
 /// Convention of the written grids.
-enum class WriteStyle
-{
+enum class WriteStyle {
     Houdini, ///< `vel` (Vec3s, contravariant relative, world units, cell-centred) + `density`
     Blender  ///< `velocity` (staggered, grid cells per time unit) + `density`, with Blender's metadata
 };
@@ -155,8 +153,8 @@ enum class WriteStyle
 struct WriteOptions
 {
     WriteStyle style = WriteStyle::Houdini; ///< naming and unit convention of the written grids
-    bool noClobber = false;   ///< refuse to replace an existing file
-    bool halfFloat = false;   ///< store floats as half (smaller, ~3 significant digits)
+    bool noClobber = false;                 ///< refuse to replace an existing file
+    bool halfFloat = false;                 ///< store floats as half (smaller, ~3 significant digits)
     /// Density at or below this is written inactive (sparse), as Blender's cache "Clipping" does. >= 0.
     float densityTolerance = 0.0f;
     /// Extent of velocity (Houdini style): -1 writes the whole box (every non-zero voxel), as it does temperature
@@ -165,7 +163,7 @@ struct WriteOptions
     /// there is smoke (N = 1 covers its trilinear lookups); re-advecting the density for a frame needs about its
     /// travel per frame in voxels. The Blender style always writes the whole box.
     int velocityMargin = -1;
-    float smokeThreshold = 1e-3f;         ///< density above this is smoke for velocityMargin
+    float smokeThreshold = 1e-3f; ///< density above this is smoke for velocityMargin
 };
 
 /// The grids of a file that readFrame does not take: Blender's flags, colour, shadow, level sets and previous
@@ -214,6 +212,7 @@ public:
                                                 ///< moved as cell values, so their faces are off by up to a voxel
 
     struct Impl;
+
 private:
     std::unique_ptr<Impl> mImpl;
     friend void writeFrame(const std::string&, const turb::Frame&, const WriteOptions&, const OtherGrids*);
@@ -225,8 +224,8 @@ private:
 /// frame's grids: those that follow the frame on its lattice (and with Blender's placement in the Blender style),
 /// the rest as read. A name the frame's grids also use is kept: OpenVDB files allow it, and readers that look a
 /// name up find the frame's grid, written first.
-void writeFrame(const std::string& path, const turb::Frame& frame, const WriteOptions& options,
-    const OtherGrids* others = nullptr);
+void writeFrame(
+    const std::string& path, const turb::Frame& frame, const WriteOptions& options, const OtherGrids* others = nullptr);
 
 /// Writes `bytes` to `path` atomically (used for images and reports too).
 void writeFileAtomic(const std::string& path, const std::string& bytes, bool noClobber = false);
@@ -242,24 +241,24 @@ void writeAtomically(const std::string& path, bool noClobber, const std::functio
 
 struct GridInfo
 {
-    int index = 0;           ///< position in the file (what "#N" selects)
-    std::string selector;    ///< how to choose this grid (ReadOptions::densityGrid/velocityGrid): its name when unique,
-                             ///< else OpenVDB's "name[N]" ("[0]" for the first unnamed grid)
+    int index = 0;        ///< position in the file (what "#N" selects)
+    std::string selector; ///< how to choose this grid (ReadOptions::densityGrid/velocityGrid): its name when unique,
+                          ///< else OpenVDB's "name[N]" ("[0]" for the first unnamed grid)
     std::string name;
-    std::string valueType;   ///< "float", "vec3s", "int32", ...
-    std::string gridClass;   ///< "fog volume", "staggered", "level set", "unknown"
-    std::string vectorType;  ///< "invariant", "covariant", "contravariant relative", ...
+    std::string valueType;  ///< "float", "vec3s", "int32", ...
+    std::string gridClass;  ///< "fog volume", "staggered", "level set", "unknown"
+    std::string vectorType; ///< "invariant", "covariant", "contravariant relative", ...
     GridRole role = GridRole::Other;
-    std::string units;       ///< velocity only: "world" or "cells" (detected)
-    bool halfFloat = false;  ///< stored as half on disk
+    std::string units;      ///< velocity only: "world" or "cells" (detected)
+    bool halfFloat = false; ///< stored as half on disk
     double voxelSize = 0.0;
-    turb::Vec3d origin{0.0}; ///< world position of voxel (0,0,0)'s centre
-    std::string mapType;     ///< OpenVDB map type name
+    turb::Vec3d origin{0.0};        ///< world position of voxel (0,0,0)'s centre
+    std::string mapType;            ///< OpenVDB map type name
     bool supportedTransform = true; ///< uniform scale + translation
     bool hasBBox = false;
-    turb::CoordBBox activeBBox; ///< from the file's header statistics
-    long long activeVoxels = -1; ///< from header statistics; -1 if not recorded
-    bool hasRange = false;   ///< value range read from the voxels (only when asked)
+    turb::CoordBBox activeBBox;            ///< from the file's header statistics
+    long long activeVoxels = -1;           ///< from header statistics; -1 if not recorded
+    bool hasRange = false;                 ///< value range read from the voxels (only when asked)
     double minValue = 0.0, maxValue = 0.0; ///< scalar range, or vector magnitude range
 };
 
@@ -268,14 +267,14 @@ struct FileInfo
     std::string path;
     unsigned fileVersion = 0;
     std::string libraryVersion;
-    std::string creator;          ///< file-level "creator" metadata, if any
-    std::optional<turb::Coord> baseResolution; ///< Blender's file_base_resolution
-    double recordedDt = 0.0;      ///< vdbturb_dt metadata, 0 if absent
+    std::string creator;                           ///< file-level "creator" metadata, if any
+    std::optional<turb::Coord> baseResolution;     ///< Blender's file_base_resolution
+    double recordedDt = 0.0;                       ///< vdbturb_dt metadata, 0 if absent
     std::optional<turb::CoordBBox> recordedDomain; ///< vdbturb_domain metadata: the box a vdbturb output spans
     std::optional<turb::CoordBBox> sequenceDomain; ///< vdbturb_sequence_domain metadata: the domain of the input it was
                                                    ///< made from (for framing only)
-    int velocityMargin = -1;      ///< vdbturb_velocity_margin: velocity written only this near the smoke; -1 = not trimmed
-    std::vector<GridInfo> grids;  ///< in file order
+    int velocityMargin = -1; ///< vdbturb_velocity_margin: velocity written only this near the smoke; -1 = not trimmed
+    std::vector<GridInfo> grids; ///< in file order
 };
 
 /// Reads a file's header and grid descriptors (fast: no voxel data), and with `readValues` also

@@ -45,22 +45,24 @@ namespace turb {
 /// Approximation of the target's average image (5.4).
 struct AverageSettings
 {
-    double shutter = 16.0; ///< Sh: motion-blur length in frames of the designed flow, >= 0 (0 = none; default measured, docs/animate.md)
-    double wa = 4.0;      ///< w_a: standard deviation in pixels of the Gaussian after the motion blur, >= 0 (default measured)
+    double shutter = 16.0; ///< Sh: motion-blur length in frames of the designed flow, >= 0 (0 = none; default measured,
+                           ///< docs/animate.md)
+    double wa =
+        4.0; ///< w_a: standard deviation in pixels of the Gaussian after the motion blur, >= 0 (default measured)
 };
 
 struct AnimateSettings
 {
-    AnalysisSettings analysis;        ///< example decomposition (features 100, window 10)
-    StrokeSettings strokes;           ///< stroke interpolation (defaultSpeed is replaced by the example's mean speed)
-    RefineSettings refine;            ///< w_f 12, gradient orientation, floor
-    bool refineFlow = true;           ///< refine the rough field by the target's gradients (5.1)
-    TransferSettings transfer;        ///< residual transfer (16 px patches, search at 2x downsampling)
-    AverageSettings average;          ///< A' (Sh, w_a)
-    int tau = 16;                     ///< lifetime of a residual in frames (paper 16), >= 1
-    bool histogramMatch = true;       ///< section 5.6 (off: F' as synthesised)
-    HistogramMatchSettings hm;        ///< HM Rep 3, grid by resolution, steerable (or the Laplacian preview)
-    int batch = 4;                    ///< frames histogram-matched concurrently (memory: one frame each), >= 1
+    AnalysisSettings analysis;  ///< example decomposition (features 100, window 10)
+    StrokeSettings strokes;     ///< stroke interpolation (defaultSpeed is replaced by the example's mean speed)
+    RefineSettings refine;      ///< w_f 12, gradient orientation, floor
+    bool refineFlow = true;     ///< refine the rough field by the target's gradients (5.1)
+    TransferSettings transfer;  ///< residual transfer (16 px patches, search at 2x downsampling)
+    AverageSettings average;    ///< A' (Sh, w_a)
+    int tau = 16;               ///< lifetime of a residual in frames (paper 16), >= 1
+    bool histogramMatch = true; ///< section 5.6 (off: F' as synthesised)
+    HistogramMatchSettings hm;  ///< HM Rep 3, grid by resolution, steerable (or the Laplacian preview)
+    int batch = 4;              ///< frames histogram-matched concurrently (memory: one frame each), >= 1
 };
 
 /// Throws ValueError naming the first setting out of range.
@@ -68,36 +70,37 @@ void validate(const AnimateSettings& s);
 
 struct AnimateInput
 {
-    std::vector<ChannelImage> exampleFrames;      ///< F_0..F_{N-1}: 1..4 channels, one size; consumed
-    const ChannelImage* exampleFlow = nullptr;    ///< optional v (2 channels, example size): e.g. a cache's projected velocity
-    ChannelImage target;                          ///< the still: the example's channel count
-    const ChannelImage* matte = nullptr;          ///< optional fluid matte (1 channel, target size, [0, 1])
+    std::vector<ChannelImage> exampleFrames; ///< F_0..F_{N-1}: 1..4 channels, one size; consumed
+    const ChannelImage* exampleFlow =
+        nullptr;                         ///< optional v (2 channels, example size): e.g. a cache's projected velocity
+    ChannelImage target;                 ///< the still: the example's channel count
+    const ChannelImage* matte = nullptr; ///< optional fluid matte (1 channel, target size, [0, 1])
     const std::vector<FlowStroke>* strokes = nullptr; ///< the flow design, or:
-    const ChannelImage* designedFlow = nullptr;   ///< a dense designed flow (2 channels, target size, pixels per frame)
+    const ChannelImage* designedFlow = nullptr; ///< a dense designed flow (2 channels, target size, pixels per frame)
 };
 
 /// One output frame.
 struct AnimatedFrame
 {
-    int index = 0;                 ///< 0 .. N - tau - 1
-    int exampleIndex = 0;          ///< i of eq. 7 (tau .. N - 1)
-    ChannelImage image;            ///< the target's channels
-    double meanError = 0.0;        ///< max over channels of |mean(out) - mean(target)| / max(|mean(target)|, 0.01)
-    double stdError = 0.0;         ///< max over channels of |std(out) - std(target)| / max(std(target), 0.01)
-    double cellMeanError = 0.0;    ///< the same per histogram-matching cell, worst cell
+    int index = 0;              ///< 0 .. N - tau - 1
+    int exampleIndex = 0;       ///< i of eq. 7 (tau .. N - 1)
+    ChannelImage image;         ///< the target's channels
+    double meanError = 0.0;     ///< max over channels of |mean(out) - mean(target)| / max(|mean(target)|, 0.01)
+    double stdError = 0.0;      ///< max over channels of |std(out) - std(target)| / max(std(target), 0.01)
+    double cellMeanError = 0.0; ///< the same per histogram-matching cell, worst cell
     double cellStdError = 0.0;
-    double seconds = 0.0;          ///< synthesis + matching of this frame
+    double seconds = 0.0; ///< synthesis + matching of this frame
 };
 
 struct AnimateStats
 {
     AnalysisStats analysis;
     TransferStats transfer;
-    int frames = 0;                          ///< N - tau
-    int gridCols = 0, gridRows = 0;          ///< histogram matching grid
-    std::vector<double> alpha, beta;         ///< eq. 8 per channel
+    int frames = 0;                            ///< N - tau
+    int gridCols = 0, gridRows = 0;            ///< histogram matching grid
+    std::vector<double> alpha, beta;           ///< eq. 8 per channel
     std::vector<double> meanD, sigmaD, sigmaC; ///< <D'>, sigma_D', sigma_C per channel
-    double designMeanSpeed = 0.0;            ///< mean |designed flow| inside the matte, pixels per frame
+    double designMeanSpeed = 0.0;              ///< mean |designed flow| inside the matte, pixels per frame
     double secondsAnalysis = 0.0, secondsDesign = 0.0, secondsTransfer = 0.0, secondsAverage = 0.0,
            secondsSynthesis = 0.0, secondsMatching = 0.0;
 };
@@ -112,8 +115,8 @@ using InspectFn = std::function<void(const std::string& name, int index, const C
 /// Throws ValueError when the example is shorter than tau + 2 frames, its frames differ in size, the
 /// target has no strokes or designed flow (or both), a stroke is malformed or outside the target, images
 /// have mismatched sizes or channel counts, or a setting is out of range; Cancelled when asked.
-AnimateStats animate(AnimateInput input, const AnimateSettings& settings, const std::function<void(const AnimatedFrame&)>& sink,
-    Progress* progress = nullptr, const InspectFn& inspect = {});
+AnimateStats animate(AnimateInput input, const AnimateSettings& settings,
+    const std::function<void(const AnimatedFrame&)>& sink, Progress* progress = nullptr, const InspectFn& inspect = {});
 
 /// A' (5.4): the target blurred along the flow over Sh frames of motion (Warp.h's line convolution),
 /// then by a Gaussian of standard deviation w_a. With a `matte` (1 channel, target size) the blur is
@@ -149,6 +152,7 @@ struct ContrastAdjustment
 
 /// Computes eq. 8's parameters over all frames of `differences` and pixels (weighted by `matte` when
 /// given). sigma_D' = 0 gives alpha = 0.
-ContrastAdjustment contrastAdjustment(const std::vector<ChannelImage>& differences, const ChannelImage& c, const ChannelImage* matte = nullptr);
+ContrastAdjustment contrastAdjustment(
+    const std::vector<ChannelImage>& differences, const ChannelImage& c, const ChannelImage* matte = nullptr);
 
 } // namespace turb

@@ -33,13 +33,13 @@ struct FlowAgreement
 /// Compares two 2-channel flows of one size where matte >= 0.5 (everywhere without one) and the designed
 /// speed >= minSpeed (pixels per frame), ignoring a border of `border` pixels (where tracking sees
 /// texture enter). Throws ValueError on mismatched shapes.
-FlowAgreement compareFlows(const ChannelImage& measured, const ChannelImage& designed, const ChannelImage* matte = nullptr,
-    double minSpeed = 0.25, int border = 8);
+FlowAgreement compareFlows(const ChannelImage& measured, const ChannelImage& designed,
+    const ChannelImage* matte = nullptr, double minSpeed = 0.25, int border = 8);
 
 struct TemporalSummary
 {
     int frames = 0;
-    double temporalStd = 0.0;          ///< mean over pixels of the temporal std of the luminance
+    double temporalStd = 0.0;            ///< mean over pixels of the temporal std of the luminance
     std::vector<double> autocorrelation; ///< [L - 1] for lags L = 1..maxLag
 };
 
@@ -58,9 +58,9 @@ private:
     const ChannelImage* mMatte;
     int mW = 0, mH = 0, mFrames = 0;
     std::vector<double> mSum, mSum2;
-    std::vector<std::vector<double>> mLagSum;   // [L - 1][pixel]: sum_t Y(t) Y(t + L)
+    std::vector<std::vector<double>> mLagSum;         // [L - 1][pixel]: sum_t Y(t) Y(t + L)
     std::vector<std::vector<double>> mHead, mTailSum; // sums of the first / last L frames, to centre each lag exactly
-    std::vector<std::vector<float>> mRing;      // the last maxLag luminance frames
+    std::vector<std::vector<float>> mRing;            // the last maxLag luminance frames
 };
 
 } // namespace turb

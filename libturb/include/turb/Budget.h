@@ -15,8 +15,9 @@ namespace turb {
 
 /// Peak bytes of `transfer` at resolution ratio `ratio` (>= 1) over a target domain of `targetVoxels` voxels, with
 /// a source of `sourceVoxels` voxels as matched (after resampling to the ratio, when it was not an integer):
-/// 200 MB + 664 B x sourceVoxels / ratio + 30 B x targetVoxels x ratio^3 (voxels of the held boxes: the smoke and its margin). The source term (patch descriptors and
-/// search structures) dominates on this project's caches; the last is the output's dense fields.
+/// 200 MB + 664 B x sourceVoxels / ratio + 30 B x targetVoxels x ratio^3 (voxels of the held boxes: the smoke and its
+/// margin). The source term (patch descriptors and search structures) dominates on this project's caches; the last is
+/// the output's dense fields.
 double transferPeakBytes(double targetVoxels, int ratio, double sourceVoxels);
 
 /// Peak bytes of `synth` over a coarse domain of `coarseVoxels` at up-sampling `factor`, for a run of `frames`

@@ -27,8 +27,7 @@
 
 namespace turb {
 
-enum class View
-{
+enum class View {
     Front, ///< along +y: x right, z up
     Side,  ///< along +x: -y right, z up
     Top    ///< along -z: x right, y up
@@ -36,14 +35,14 @@ enum class View
 
 struct CameraSettings
 {
-    bool perspective = false;          ///< false: an axis view of the whole box; true: a pinhole camera
-    View view = View::Front;           ///< axis views: the direction
-    Vec3d position{0.0, -10.0, 2.0};   ///< perspective: camera position, world units
-    Vec3d lookAt{0.0, 0.0, 2.0};       ///< perspective: the point at the image centre, world units (!= position)
-    Vec3d up{0.0, 0.0, 1.0};           ///< perspective: world direction shown as up (not parallel to the view)
-    double fovDegrees = 40.0;          ///< perspective: horizontal field of view, (0, 170)
-    int width = 0;                     ///< pixels; 0 = 4 per voxel (axis views, at least 64) or 512 (perspective)
-    int height = 0;                    ///< perspective: pixels, 0 = width; axis views: from the box's aspect
+    bool perspective = false;        ///< false: an axis view of the whole box; true: a pinhole camera
+    View view = View::Front;         ///< axis views: the direction
+    Vec3d position{0.0, -10.0, 2.0}; ///< perspective: camera position, world units
+    Vec3d lookAt{0.0, 0.0, 2.0};     ///< perspective: the point at the image centre, world units (!= position)
+    Vec3d up{0.0, 0.0, 1.0};         ///< perspective: world direction shown as up (not parallel to the view)
+    double fovDegrees = 40.0;        ///< perspective: horizontal field of view, (0, 170)
+    int width = 0;                   ///< pixels; 0 = 4 per voxel (axis views, at least 64) or 512 (perspective)
+    int height = 0;                  ///< perspective: pixels, 0 = width; axis views: from the box's aspect
 };
 
 /// A ray in index space: points origin + t * direction, with `direction` of unit length (t in voxels),

@@ -26,15 +26,15 @@ namespace turb {
 
 struct BridgeSettings
 {
-    CameraSettings camera;    ///< which camera; axis front view by default
-    float extinction = 6.0f;  ///< sigma: optical depth per unit density per world unit (preview's default), > 0
-    float stepVoxels = 0.5f;  ///< ray-march step in voxels, (0, 1]
+    CameraSettings camera;   ///< which camera; axis front view by default
+    float extinction = 6.0f; ///< sigma: optical depth per unit density per world unit (preview's default), > 0
+    float stepVoxels = 0.5f; ///< ray-march step in voxels, (0, 1]
 };
 
 struct CameraView
 {
-    ChannelImage alpha;  ///< 1 channel, opacity in [0, 1]
-    ChannelImage motion; ///< 2 channels, opacity-weighted mean image motion, pixels per frame
+    ChannelImage alpha;     ///< 1 channel, opacity in [0, 1]
+    ChannelImage motion;    ///< 2 channels, opacity-weighted mean image motion, pixels per frame
     double meanSpeed = 0.0; ///< mean |motion| where alpha >= 0.05 (pixels per frame), for reports
 };
 

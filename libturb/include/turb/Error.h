@@ -27,8 +27,7 @@ public:
     /// first (empty when none does).
     explicit Error(const std::string& message, std::vector<std::string> settings = {})
         : std::runtime_error(message), mSettings(std::move(settings))
-    {
-    }
+    {}
 
     /// The settings that fix (or caused) the error: field names such as "densityGrid"; qualified as
     /// "target.densityGrid" after qualifySettings("target").

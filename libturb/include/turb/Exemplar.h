@@ -42,7 +42,10 @@ struct Exemplar
 
     bool planar() const { return channels == 2; }
     size_t count() const { return size_t(nx) * size_t(ny) * size_t(nz); }
-    size_t linear(int x, int y, int z = 0) const { return (size_t(x) * size_t(ny) + size_t(y)) * size_t(nz) + size_t(z); }
+    size_t linear(int x, int y, int z = 0) const
+    {
+        return (size_t(x) * size_t(ny) + size_t(y)) * size_t(nz) + size_t(z);
+    }
     float* at(int x, int y, int z = 0) { return &values[linear(x, y, z) * size_t(channels)]; }
     const float* at(int x, int y, int z = 0) const { return &values[linear(x, y, z) * size_t(channels)]; }
 };
@@ -50,14 +53,13 @@ struct Exemplar
 /// A zero exemplar of the given size (nz == 1 gives a planar one).
 Exemplar makeExemplar(int nx, int ny, int nz, bool periodic, const std::string& name = "");
 
-enum class ProceduralPattern
-{
-    Circles,   ///< ring vortices, all turning the same way, one per cell
-    Swirls,    ///< Taylor-Green cells: counter-rotating vortices in a checkerboard
-    Squares,   ///< vortices whose streamlines are squares
-    Hearts,    ///< vortices whose streamlines are hearts (the paper's figure 1)
-    Stripes,   ///< straight bands moving along +x and -x in turn (shear layers)
-    Sinusoids  ///< flow along sinuous channels (the paper's seaweed exemplar, figure 9)
+enum class ProceduralPattern {
+    Circles,  ///< ring vortices, all turning the same way, one per cell
+    Swirls,   ///< Taylor-Green cells: counter-rotating vortices in a checkerboard
+    Squares,  ///< vortices whose streamlines are squares
+    Hearts,   ///< vortices whose streamlines are hearts (the paper's figure 1)
+    Stripes,  ///< straight bands moving along +x and -x in turn (shear layers)
+    Sinusoids ///< flow along sinuous channels (the paper's seaweed exemplar, figure 9)
 };
 
 /// Parses "circles", "swirls", "squares", "hearts", "stripes", "sinusoids"; throws ValueError.

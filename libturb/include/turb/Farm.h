@@ -51,9 +51,9 @@ std::vector<TimeChunk> planTimeChunks(size_t frameCount, int chunks, int preroll
 /// The weights of the j-th of `overlap` overlap frames (a = the earlier chunk, b = the later one).
 struct CrossFade
 {
-    double t = 0.0;       ///< position in the overlap, (j + 1) / (overlap + 1)
-    double detailA = 1.0; ///< cos(pi t / 2)
-    double detailB = 0.0; ///< sin(pi t / 2); detailA^2 + detailB^2 = 1
+    double t = 0.0;        ///< position in the overlap, (j + 1) / (overlap + 1)
+    double detailA = 1.0;  ///< cos(pi t / 2)
+    double detailB = 0.0;  ///< sin(pi t / 2); detailA^2 + detailB^2 = 1
     double densityA = 1.0; ///< 1 - t
     double densityB = 0.0; ///< t
 };
@@ -67,7 +67,8 @@ struct BlendStats
     double energyA = 0.0;     ///< mean |U_h,a|^2
     double energyB = 0.0;     ///< mean |U_h,b|^2
     double energyOut = 0.0;   ///< mean |U_h|^2 of the blend: w_a^2 E_a + w_b^2 E_b
-    double energyScale = 1.0; ///< factor on both detail weights that made it so: 1 / sqrt(1 + 2 w_a w_b rho sqrt(E_a E_b) / (w_a^2 E_a + w_b^2 E_b))
+    double energyScale = 1.0; ///< factor on both detail weights that made it so: 1 / sqrt(1 + 2 w_a w_b rho sqrt(E_a
+                              ///< E_b) / (w_a^2 E_a + w_b^2 E_b))
 };
 
 /// Cross-fades one overlap frame. `a` and `b` are the two chunks' outputs of the same target frame (same box and

@@ -69,8 +69,7 @@ public:
     using ValueType = T;
 
     Field() = default;
-    Field(const CoordBBox& box, const Lattice& lattice, const T& fill = zeroValue())
-        : mBox(box), mLattice(lattice)
+    Field(const CoordBBox& box, const Lattice& lattice, const T& fill = zeroValue()) : mBox(box), mLattice(lattice)
     {
         const Coord d = box.empty() ? Coord(0) : box.dim();
         mDim = d;
@@ -89,8 +88,8 @@ public:
     /// Linear offset of (i,j,k); z is the fastest-varying index.
     size_t offset(int i, int j, int k) const
     {
-        return (size_t(i - mBox.min().x()) * size_t(mDim.y()) + size_t(j - mBox.min().y())) * size_t(mDim.z())
-               + size_t(k - mBox.min().z());
+        return (size_t(i - mBox.min().x()) * size_t(mDim.y()) + size_t(j - mBox.min().y())) * size_t(mDim.z()) +
+               size_t(k - mBox.min().z());
     }
     Coord coordOf(size_t n) const
     {
@@ -109,15 +108,9 @@ public:
     const T& operator[](const Coord& c) const { return mValues[offset(c.x(), c.y(), c.z())]; }
 
     /// The value at (i,j,k), or `outside` when the voxel is not in the box (VDB background semantics).
-    T valueOr(int i, int j, int k, const T& outside) const
-    {
-        return contains(i, j, k) ? (*this)(i, j, k) : outside;
-    }
+    T valueOr(int i, int j, int k, const T& outside) const { return contains(i, j, k) ? (*this)(i, j, k) : outside; }
     /// The value at the voxel of the box nearest to (i,j,k) (constant extension).
-    const T& clamped(int i, int j, int k) const
-    {
-        return (*this)(clampi(i, 0), clampi(j, 1), clampi(k, 2));
-    }
+    const T& clamped(int i, int j, int k) const { return (*this)(clampi(i, 0), clampi(j, 1), clampi(k, 2)); }
 
     T* data() { return mValues.data(); }
     const T* data() const { return mValues.data(); }
@@ -140,7 +133,10 @@ private:
 };
 
 template<>
-inline Vec3f Field<Vec3f>::zeroValue() { return Vec3f(0.0f); }
+inline Vec3f Field<Vec3f>::zeroValue()
+{
+    return Vec3f(0.0f);
+}
 
 using ScalarField = Field<float>;
 using VectorField = Field<Vec3f>;
@@ -151,10 +147,9 @@ inline int floorDiv(int a, int b) { return (a >= 0) ? a / b : -((-a + b - 1) / b
 /// The coarse box covering every fine voxel of `fine` when a coarse voxel holds factor^3 fine ones.
 inline CoordBBox coarsenBox(const CoordBBox& fine, int factor)
 {
-    return CoordBBox(Coord(floorDiv(fine.min().x(), factor), floorDiv(fine.min().y(), factor),
-                         floorDiv(fine.min().z(), factor)),
-        Coord(floorDiv(fine.max().x(), factor), floorDiv(fine.max().y(), factor),
-            floorDiv(fine.max().z(), factor)));
+    return CoordBBox(
+        Coord(floorDiv(fine.min().x(), factor), floorDiv(fine.min().y(), factor), floorDiv(fine.min().z(), factor)),
+        Coord(floorDiv(fine.max().x(), factor), floorDiv(fine.max().y(), factor), floorDiv(fine.max().z(), factor)));
 }
 
 /// The fine box tiled exactly by the coarse box.
@@ -180,7 +175,9 @@ inline Coord domainFactors(const CoordBBox& box, int factor)
 inline CoordBBox refineDomain(const CoordBBox& coarse, int factor)
 {
     CoordBBox b = refineBox(coarse, factor);
-    if (isFlat(coarse)) b = CoordBBox(Coord(b.min().x(), b.min().y(), coarse.min().z()), Coord(b.max().x(), b.max().y(), coarse.max().z()));
+    if (isFlat(coarse))
+        b = CoordBBox(
+            Coord(b.min().x(), b.min().y(), coarse.min().z()), Coord(b.max().x(), b.max().y(), coarse.max().z()));
     return b;
 }
 
@@ -188,7 +185,8 @@ inline CoordBBox refineDomain(const CoordBBox& coarse, int factor)
 inline CoordBBox coarsenDomain(const CoordBBox& fine, int factor)
 {
     CoordBBox b = coarsenBox(fine, factor);
-    if (isFlat(fine)) b = CoordBBox(Coord(b.min().x(), b.min().y(), fine.min().z()), Coord(b.max().x(), b.max().y(), fine.max().z()));
+    if (isFlat(fine))
+        b = CoordBBox(Coord(b.min().x(), b.min().y(), fine.min().z()), Coord(b.max().x(), b.max().y(), fine.max().z()));
     return b;
 }
 

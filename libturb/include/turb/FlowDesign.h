@@ -38,8 +38,7 @@
 
 namespace turb {
 
-enum class StrokeKind
-{
+enum class StrokeKind {
     Orientation, ///< Orientation Brush: the flow runs along the stroke, in its drawing direction
     Speed        ///< Speed Brush: the flow's speed under the stroke
 };
@@ -63,10 +62,12 @@ struct FlowStroke
 
 struct StrokeSettings
 {
-    double sampleSpacing = 4.0;  ///< samples along a stroke every this many pixels, > 0 (raised so a layer keeps <= maxSamples)
-    int maxSamples = 400;        ///< most RBF centres per layer (the dense solve is cubic in them), >= 8
-    int rbfStep = 4;             ///< the interpolant is evaluated every rbfStep pixels, bilinear between, 1..16
-    double defaultSpeed = 1.0;   ///< base speed without a global speed stroke, and the speed of exampleSpeed strokes, pixels per frame, >= 0
+    double sampleSpacing =
+        4.0; ///< samples along a stroke every this many pixels, > 0 (raised so a layer keeps <= maxSamples)
+    int maxSamples = 400;      ///< most RBF centres per layer (the dense solve is cubic in them), >= 8
+    int rbfStep = 4;           ///< the interpolant is evaluated every rbfStep pixels, bilinear between, 1..16
+    double defaultSpeed = 1.0; ///< base speed without a global speed stroke, and the speed of exampleSpeed strokes,
+                               ///< pixels per frame, >= 0
 };
 
 /// Throws ValueError naming the stroke (0-based index) that is malformed: too few points, all points
@@ -78,30 +79,30 @@ void validateStrokes(const std::vector<FlowStroke>& strokes, int width, int heig
 /// Phi_o and Phi_s, and the rough flow Phi_s Phi_o.
 struct RoughFlow
 {
-    ChannelImage orientation; ///< Phi_o: 2 channels, unit length (0 where the interpolated components cancel)
-    ChannelImage speed;       ///< Phi_s: 1 channel, pixels per frame
+    ChannelImage orientation;  ///< Phi_o: 2 channels, unit length (0 where the interpolated components cancel)
+    ChannelImage speed;        ///< Phi_s: 1 channel, pixels per frame
     ChannelImage flow() const; ///< Phi_s Phi_o, 2 channels
 };
 
 /// The rough field from strokes (see the file comment). Throws ValueError as validateStrokes.
-RoughFlow interpolateStrokes(const std::vector<FlowStroke>& strokes, int width, int height, const StrokeSettings& settings);
+RoughFlow interpolateStrokes(
+    const std::vector<FlowStroke>& strokes, int width, int height, const StrokeSettings& settings);
 
 /// A dense designed flow (2 channels, pixels per frame) as a rough field: Phi_o = flow / |flow|
 /// (0 where |flow| < 1e-6), Phi_s = |flow|.
 RoughFlow roughFromFlow(const ChannelImage& flow);
 
-enum class GradientOrientation
-{
+enum class GradientOrientation {
     Parallel,     ///< Psi_o parallel to the image gradient (the paper)
     Perpendicular ///< Psi_o along the image's edges (across the gradient)
 };
 
 struct RefineSettings
 {
-    double wf = 12.0;            ///< w_f: standard deviation in pixels of the blur of Psi_o (paper 12), > 0
+    double wf = 12.0; ///< w_f: standard deviation in pixels of the blur of Psi_o (paper 12), > 0
     GradientOrientation orient = GradientOrientation::Parallel;
-    double gradientFloor = 0.1;  ///< eps = this x the 90th percentile of |G|: below it the design wins, >= 0
-    int gradientKernel = 5;      ///< the Gaussian before Sobel, in pixels (paper 5x5), odd, >= 1
+    double gradientFloor = 0.1; ///< eps = this x the 90th percentile of |G|: below it the design wins, >= 0
+    int gradientKernel = 5;     ///< the Gaussian before Sobel, in pixels (paper 5x5), odd, >= 1
 };
 
 /// Throws ValueError naming the first setting out of range.

@@ -70,29 +70,32 @@ namespace turb {
 
 struct FluidySettings
 {
-    int patchSize = 5;          ///< n: patch edge in pixels (Table 1: 5), odd, 3..15
-    double boundaryBlur = 30.0; ///< b: radius in pixels of the Gaussian making S/T^shape (Table 1: 30; sigma = b / 3), > 0
-    int cuboidFrames = 5;       ///< r: Omega's cuboids span 2r + 1 source frames (Table 1: 5), 0..50; the exemplar needs >= 2r + 1 frames
-    float wBound = 4.0f;        ///< w^bound (Table 1: 4), >= 0; 0 = ablation
-    float wExt = 0.25f;         ///< w^ext (Table 1: 0.25), >= 0
-    float wDir = 1.0f;          ///< w^dir (Table 1: 1), >= 0
-    float wTemp = 4.0f;         ///< w^temp (Table 1: 4), >= 0
-    float wUni = 1.0f;          ///< w^uni (Table 1: 1), >= 0
-    double mLower = 0.01;       ///< m_l as a fraction of d, the target's larger side (Table 1: 0.01), >= 0
-    double mUpper = 0.1;        ///< m_u as a fraction of d (Table 1: 0.1), > mLower
-    float dirClamp = 10.0f;     ///< D^dir clamp of |tan| per pixel pair (10: 84 degrees apart), > 0
-    float flowEpsilon = 0.05f;  ///< eps: pixels per frame below which a flow's direction fades out of D^dir, > 0
-    double extentScale = 0.0;   ///< pixels: the exemplar's extents enter D^ext in these units; 0 = their 95th percentile, >= 0
+    int patchSize = 5; ///< n: patch edge in pixels (Table 1: 5), odd, 3..15
+    double boundaryBlur =
+        30.0; ///< b: radius in pixels of the Gaussian making S/T^shape (Table 1: 30; sigma = b / 3), > 0
+    int cuboidFrames =
+        5; ///< r: Omega's cuboids span 2r + 1 source frames (Table 1: 5), 0..50; the exemplar needs >= 2r + 1 frames
+    float wBound = 4.0f;       ///< w^bound (Table 1: 4), >= 0; 0 = ablation
+    float wExt = 0.25f;        ///< w^ext (Table 1: 0.25), >= 0
+    float wDir = 1.0f;         ///< w^dir (Table 1: 1), >= 0
+    float wTemp = 4.0f;        ///< w^temp (Table 1: 4), >= 0
+    float wUni = 1.0f;         ///< w^uni (Table 1: 1), >= 0
+    double mLower = 0.01;      ///< m_l as a fraction of d, the target's larger side (Table 1: 0.01), >= 0
+    double mUpper = 0.1;       ///< m_u as a fraction of d (Table 1: 0.1), > mLower
+    float dirClamp = 10.0f;    ///< D^dir clamp of |tan| per pixel pair (10: 84 degrees apart), > 0
+    float flowEpsilon = 0.05f; ///< eps: pixels per frame below which a flow's direction fades out of D^dir, > 0
+    double extentScale =
+        0.0; ///< pixels: the exemplar's extents enter D^ext in these units; 0 = their 95th percentile, >= 0
     double targetExtentScale = 0.0; ///< pixels: the target's extent unit; 0 = the target's 95th percentile, >= 0
-    int boundaryWidth = 0;      ///< pixels of the boundary segment inside the mask, at each level; 0 = n, >= 0
-    int levels = 0;             ///< pyramid levels; 0 = floor(log2(d_min / n)) (section 3.6), 0..8
-    int iterations = 3;         ///< EM iterations (FINDNNF + VOTE) on each coarser level, >= 1
-    int fineIterations = 2;     ///< EM iterations on the finest level, >= 1
-    int sweeps = 2;             ///< PatchMatch sweeps per FINDNNF on coarser levels, >= 1
-    int fineSweeps = 1;         ///< PatchMatch sweeps per FINDNNF on the finest level, >= 1
-    int randomCandidates = 2;   ///< uniform draws from all source centres per pixel and sweep, >= 0
-    bool reusePrevious = true;  ///< start from the previous frame's shifted NNF (section 3.6); false = random each frame
-    std::uint64_t seed = 1;     ///< same seed, same frames at any thread count
+    int boundaryWidth = 0;          ///< pixels of the boundary segment inside the mask, at each level; 0 = n, >= 0
+    int levels = 0;                 ///< pyramid levels; 0 = floor(log2(d_min / n)) (section 3.6), 0..8
+    int iterations = 3;             ///< EM iterations (FINDNNF + VOTE) on each coarser level, >= 1
+    int fineIterations = 2;         ///< EM iterations on the finest level, >= 1
+    int sweeps = 2;                 ///< PatchMatch sweeps per FINDNNF on coarser levels, >= 1
+    int fineSweeps = 1;             ///< PatchMatch sweeps per FINDNNF on the finest level, >= 1
+    int randomCandidates = 2;       ///< uniform draws from all source centres per pixel and sweep, >= 0
+    bool reusePrevious = true; ///< start from the previous frame's shifted NNF (section 3.6); false = random each frame
+    std::uint64_t seed = 1;    ///< same seed, same frames at any thread count
 };
 
 /// Throws ValueError naming the first setting out of its range.
@@ -115,7 +118,8 @@ double temporalModulation(double distanceDifference, double lower, double upper)
 /// (opposite = false): argmin over Delta i >= 0 of |increment - (S+ext(i + Delta i) - S+ext(i))|;
 /// opposite flows: argmin over Delta i <= 0 of |increment - (S-ext(i + Delta i) - S-ext(i))|. Ties go to
 /// the smallest |Delta i|; the result keeps i + Delta i inside [0, frames).
-int bestTimeShift(const float* plus, const float* minus, size_t stride, int frames, int i, double targetIncrement, bool opposite);
+int bestTimeShift(
+    const float* plus, const float* minus, size_t stride, int frames, int i, double targetIncrement, bool opposite);
 
 /// The terms of D(p, q) for one pair of patches, weighted (Fluidymator::terms).
 struct FluidyTerms
@@ -129,21 +133,22 @@ struct FluidyTerms
 struct FluidyStats
 {
     int frame = 0, levels = 0, width = 0, height = 0;
-    long long maskedPixels = 0;     ///< target mask pixels
-    long long centres = 0;          ///< target patch centres (the mask and a ring of n/2 pixels around it)
-    FluidyTerms energy;             ///< mean weighted terms per centre at the finest level's last E-step
-    std::optional<double> meanAbsSin; ///< direction: mean |sin| of (rotated source flow, target flow) where both move (>= movingSpeed); none if none do
+    long long maskedPixels = 0;       ///< target mask pixels
+    long long centres = 0;            ///< target patch centres (the mask and a ring of n/2 pixels around it)
+    FluidyTerms energy;               ///< mean weighted terms per centre at the finest level's last E-step
+    std::optional<double> meanAbsSin; ///< direction: mean |sin| of (rotated source flow, target flow) where both move
+                                      ///< (>= movingSpeed); none if none do
     long long movingPixels = 0;
     double speedCorrelation = 0.0;  ///< extent: Pearson correlation of |T^flow(q)| and |S^flow(p)| over mask pixels
     double extentCorrelation = 0.0; ///< Pearson correlation of T+ext(q) and S+ext(p) over mask pixels
-    std::optional<double> stationaryChange; ///< flicker: mean |T^j - T^{j-1}| (RGB) where both masks hold and the flow is < stillSpeed; none on
-                                            ///< a shot's first frame
+    std::optional<double> stationaryChange; ///< flicker: mean |T^j - T^{j-1}| (RGB) where both masks hold and the flow
+                                            ///< is < stillSpeed; none on a shot's first frame
     long long stationaryPixels = 0;
-    double coverage = 0.0;          ///< fraction of source patch centres (i, x, y) covered by some target cuboid (Omega* > 0)
-    double distinctPatches = 0.0;   ///< distinct source patches used / target centres
-    double contrastRatio = 0.0;     ///< luminance std inside the target mask / inside the exemplar masks (all frames)
-    double meanShift = 0.0;         ///< mean Delta i* of the reused previous NNF
-    double reusedFraction = 0.0;    ///< finest-level centres whose start came from the previous frame (merge)
+    double coverage = 0.0; ///< fraction of source patch centres (i, x, y) covered by some target cuboid (Omega* > 0)
+    double distinctPatches = 0.0; ///< distinct source patches used / target centres
+    double contrastRatio = 0.0;   ///< luminance std inside the target mask / inside the exemplar masks (all frames)
+    double meanShift = 0.0;       ///< mean Delta i* of the reused previous NNF
+    double reusedFraction = 0.0;  ///< finest-level centres whose start came from the previous frame (merge)
     double secondsGuides = 0.0, secondsSearch = 0.0, secondsVote = 0.0, secondsOmega = 0.0, secondsStats = 0.0;
 };
 
@@ -167,8 +172,8 @@ public:
     /// object. Throws ValueError on settings out of range, frame counts that differ, an exemplar shorter
     /// than 2r + 1 frames, an exemplar or target smaller than the patch, an empty exemplar mask, or a
     /// target whose masks are empty in every frame.
-    Fluidymator(const FluidySettings& settings, const std::vector<ChannelImage>& exemplarRgb, const MotionSequence& exemplarMotion,
-        const MotionSequence& target, Progress* progress = nullptr);
+    Fluidymator(const FluidySettings& settings, const std::vector<ChannelImage>& exemplarRgb,
+        const MotionSequence& exemplarMotion, const MotionSequence& target, Progress* progress = nullptr);
     ~Fluidymator();
     Fluidymator(const Fluidymator&) = delete;
     Fluidymator& operator=(const Fluidymator&) = delete;
@@ -183,9 +188,9 @@ public:
     FluidyTerms terms(const PatchRef& p, int x, int y) const;
 
     int levels() const;
-    int frame() const;                 ///< frames synthesised so far
-    double extentScale() const;        ///< the exemplar's D^ext unit in use, pixels
-    double targetExtentScale() const;  ///< the target's D^ext unit in use, pixels
+    int frame() const;                ///< frames synthesised so far
+    double extentScale() const;       ///< the exemplar's D^ext unit in use, pixels
+    double targetExtentScale() const; ///< the target's D^ext unit in use, pixels
     const FluidySettings& settings() const;
 
 private:

@@ -19,12 +19,12 @@ namespace turb {
 
 struct Frame
 {
-    int number = 0;                 ///< frame number as in the file name (1001, ...)
-    VectorField velocity;           ///< cell-centred, world units per time unit; empty if absent
-    ScalarField density;            ///< smoke density (fog volume); empty if absent
-    std::optional<ScalarField> temperature; ///< optional, carried along and upsampled by stages
-    std::optional<ScalarField> flame;       ///< optional, carried along and upsampled by stages
-    double dt = 0.0;                ///< time per frame in the velocity's time unit; 0 = unknown
+    int number = 0;                              ///< frame number as in the file name (1001, ...)
+    VectorField velocity;                        ///< cell-centred, world units per time unit; empty if absent
+    ScalarField density;                         ///< smoke density (fog volume); empty if absent
+    std::optional<ScalarField> temperature;      ///< optional, carried along and upsampled by stages
+    std::optional<ScalarField> flame;            ///< optional, carried along and upsampled by stages
+    double dt = 0.0;                             ///< time per frame in the velocity's time unit; 0 = unknown
     std::map<std::string, std::string> metadata; ///< written to / read from the output file
 
     bool hasVelocity() const { return !velocity.empty(); }

@@ -41,29 +41,30 @@
 
 namespace turb {
 
-enum class HmPyramid
-{
+enum class HmPyramid {
     Steerable, ///< Heeger-Bergen on the steerable pyramid, `reps` times (the paper's final render)
     Laplacian  ///< one pass on a Laplacian pyramid (the paper's fast preview)
 };
 
 struct HistogramMatchSettings
 {
-    int reps = 3;             ///< HM Rep: repetitions of the pyramid loop (paper 3), 1..10; Laplacian mode runs 1
-    int gridCols = 0;         ///< HM Grid columns; 0 = from the resolution (cells of about cellSize px)
-    int gridRows = 0;         ///< HM Grid rows; 0 = from the resolution
-    int cellSize = 64;        ///< the automatic grid's cell size in pixels, >= 16
-    double overlap = 0.25;    ///< sub-band blend zones reach this fraction of a cell's size into each neighbour, [0, 0.5]
-    bool blendPixels = true;  ///< blend the pixel-domain matches too (false: each cell's is exact, but seams show where cells differ)
-    int pixelPasses = 3;      ///< pixel-domain matches at the end (blended ones converge to each cell's statistics), >= 1
-    double reach = 0.0;       ///< a cell's statistics also take this fraction of its size around it, [0, 1] (0 = the cell itself)
+    int reps = 3;          ///< HM Rep: repetitions of the pyramid loop (paper 3), 1..10; Laplacian mode runs 1
+    int gridCols = 0;      ///< HM Grid columns; 0 = from the resolution (cells of about cellSize px)
+    int gridRows = 0;      ///< HM Grid rows; 0 = from the resolution
+    int cellSize = 64;     ///< the automatic grid's cell size in pixels, >= 16
+    double overlap = 0.25; ///< sub-band blend zones reach this fraction of a cell's size into each neighbour, [0, 0.5]
+    bool blendPixels =
+        true; ///< blend the pixel-domain matches too (false: each cell's is exact, but seams show where cells differ)
+    int pixelPasses = 3; ///< pixel-domain matches at the end (blended ones converge to each cell's statistics), >= 1
+    double reach =
+        0.0; ///< a cell's statistics also take this fraction of its size around it, [0, 1] (0 = the cell itself)
     HmPyramid pyramid = HmPyramid::Steerable;
-    int levels = 4;           ///< pyramid levels (clamped so the coarsest band keeps >= 8 px), >= 1
-    int orientations = 4;     ///< steerable orientations (Heeger-Bergen 4), 1..8
-    int bins = 1024;          ///< source histogram bins (transfer functions are tabulated at their edges), >= 16
-    int quantiles = 1024;     ///< target quantile table entries, >= 16
-    bool colorPca = true;     ///< match in the target's colour PCA space (Heeger-Bergen's colour), then the pixel passes in
-                              ///< RGB; false: every RGB channel alone (colour fringes on near-grey images)
+    int levels = 4;       ///< pyramid levels (clamped so the coarsest band keeps >= 8 px), >= 1
+    int orientations = 4; ///< steerable orientations (Heeger-Bergen 4), 1..8
+    int bins = 1024;      ///< source histogram bins (transfer functions are tabulated at their edges), >= 16
+    int quantiles = 1024; ///< target quantile table entries, >= 16
+    bool colorPca = true; ///< match in the target's colour PCA space (Heeger-Bergen's colour), then the pixel passes in
+                          ///< RGB; false: every RGB channel alone (colour fringes on near-grey images)
 };
 
 /// Throws ValueError naming the first setting out of range.
@@ -72,7 +73,7 @@ void validate(const HistogramMatchSettings& s);
 /// A cell of the grid: the core rectangle [x0, x1) x [y0, y1) and the pixels its statistics use.
 struct HmCell
 {
-    int x0 = 0, y0 = 0, x1 = 0, y1 = 0; ///< the cell (cells tile the image)
+    int x0 = 0, y0 = 0, x1 = 0, y1 = 0;     ///< the cell (cells tile the image)
     int sx0 = 0, sy0 = 0, sx1 = 0, sy1 = 0; ///< its statistics region (grown by `reach`, clamped)
 };
 
@@ -84,7 +85,8 @@ public:
     /// size), each cell's statistics, the target's and the frame's, come from its pixels with
     /// matte >= 0.5 only (when it has >= 16 of them in that band): the fluid is matched to the fluid, not to
     /// the still parts around it. Throws ValueError on an empty target, a mismatched matte or bad settings.
-    HistogramMatcher(const ChannelImage& target, const HistogramMatchSettings& settings, const ChannelImage* matte = nullptr);
+    HistogramMatcher(
+        const ChannelImage& target, const HistogramMatchSettings& settings, const ChannelImage* matte = nullptr);
     ~HistogramMatcher();
     HistogramMatcher(HistogramMatcher&&) noexcept;
     HistogramMatcher& operator=(HistogramMatcher&&) noexcept;

@@ -31,10 +31,10 @@ using Rgb = Vec3f;
 /// A caption laid over a picture; drawn by the IO layer (see the file comment).
 struct TextLabel
 {
-    int x = 0, y = 0;   ///< top-left corner of the first capital letter, in pixels
-    std::string text;   ///< one line, UTF-8
-    Rgb color{1.0f};    ///< display-referred colour
-    int scale = 1;      ///< font size 10 x scale pixels (cap height 7 x scale), >= 1
+    int x = 0, y = 0; ///< top-left corner of the first capital letter, in pixels
+    std::string text; ///< one line, UTF-8
+    Rgb color{1.0f};  ///< display-referred colour
+    int scale = 1;    ///< font size 10 x scale pixels (cap height 7 x scale), >= 1
 };
 
 class Image
@@ -88,8 +88,7 @@ private:
     std::vector<TextLabel> mTexts;
 };
 
-enum class Colormap
-{
+enum class Colormap {
     Viridis, ///< perceptually uniform, dark blue -> yellow (magnitudes)
     Magma,   ///< perceptually uniform, black -> light yellow (vorticity, energy)
     Coolwarm ///< diverging blue -> white -> red (signed values)

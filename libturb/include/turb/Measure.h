@@ -4,7 +4,8 @@
 ///
 /// Terms used throughout:
 /// - f: the resolution ratio target voxel / output voxel (an integer; integerRatio throws otherwise).
-/// - the refined target lattice: Lattice::refined(f) of the target over refineBox(target box, f) (refineDomain, refinedLattice: one layer for a 2D target). The
+/// - the refined target lattice: Lattice::refined(f) of the target over refineBox(target box, f) (refineDomain,
+/// refinedLattice: one layer for a 2D target). The
 ///   output is brought onto it first (see Alignment), so fine voxel I lies in coarse voxel floor(I / f).
 /// - up_f: cell-centred trilinear upsample; boxdown_f: mean over f^3 blocks (Resample.h).
 /// - U_h = U_out - up_f(U_target) on the refined target lattice: the detail an up-res added.
@@ -34,8 +35,7 @@
 namespace turb {
 
 /// How output voxels are matched to the refined target lattice.
-enum class Alignment
-{
+enum class Alignment {
     /// Index when the output's box is exactly refineBox(target box, f) but the world transforms do not
     /// nest (Blender/Mantaflow put voxel 0's centre at the origin at every resolution, so its 32^3 and
     /// 128^3 caches of one domain disagree by (f-1)/2 fine voxels in world space); World otherwise.
@@ -49,34 +49,33 @@ enum class Alignment
 
 const char* alignmentName(Alignment a);
 
-
 /// air_detail's still air: coarse cells more than this many cells (Euclidean, centre to centre) from the
 /// target's smoke cells.
 constexpr double kAirCells = 4.0;
 
 struct MeasureSettings
 {
-    float densityThreshold = 0.01f; ///< smoke region is density > this (docs/measure.md: 0.01); >= 0
-    int patchSize = 0;       ///< seam spacing for `block`, in output voxels; 0 = metadata "vdbturb_patch_size"
-                             ///< of the output frame; block is not computed when neither gives >= 2
+    float densityThreshold = 0.01f;   ///< smoke region is density > this (docs/measure.md: 0.01); >= 0
+    int patchSize = 0;                ///< seam spacing for `block`, in output voxels; 0 = metadata "vdbturb_patch_size"
+                                      ///< of the output frame; block is not computed when neither gives >= 2
     std::optional<Coord> patchOrigin; ///< an output voxel where a patch starts (seam planes at origin[a] + n *
-                             ///< patchSize); unset = metadata "vdbturb_patch_origin" ("x,y,z"), else (0,0,0)
-    double dt = 0.0;         ///< time per frame for tcoh's advection; 0 = the previous target frame's dt. tcoh
-                             ///< advects over (frame - previous frame) times this: the real time between them
+                                      ///< patchSize); unset = metadata "vdbturb_patch_origin" ("x,y,z"), else (0,0,0)
+    double dt = 0.0;                  ///< time per frame for tcoh's advection; 0 = the previous target frame's dt. tcoh
+                                      ///< advects over (frame - previous frame) times this: the real time between them
     Alignment alignment = Alignment::Auto; ///< how output voxels meet the refined target lattice
-    bool spectra = true;     ///< compute E(k) of output, target and source
-    bool structure = true;   ///< compute aniso and isotropy (their source figures need a source)
+    bool spectra = true;                   ///< compute E(k) of output, target and source
+    bool structure = true;                 ///< compute aniso and isotropy (their source figures need a source)
     SpectrumSettings spectrum;             ///< window and mean removal of the spectra
-    AdvectSettings advect;   ///< scheme advecting U_h(f-1) for tcoh (default BFECC + clamp)
-    int threads = 0;         ///< worker threads, 0 = all; results are identical at any count
+    AdvectSettings advect;                 ///< scheme advecting U_h(f-1) for tcoh (default BFECC + clamp)
+    int threads = 0;                       ///< worker threads, 0 = all; results are identical at any count
 };
 
 /// What measureFrame needs. Frames are not copied; all pointers must outlive the call.
 struct MeasureInput
 {
-    const Frame* output = nullptr;         ///< required: the up-res (velocity; density optional)
-    const Frame* target = nullptr;         ///< required: the low-res frame it was made from (velocity, density)
-    const Frame* source = nullptr;         ///< optional: the high-res source (velocity, density): hf_ratio, div_rel_source
+    const Frame* output = nullptr; ///< required: the up-res (velocity; density optional)
+    const Frame* target = nullptr; ///< required: the low-res frame it was made from (velocity, density)
+    const Frame* source = nullptr; ///< optional: the high-res source (velocity, density): hf_ratio, div_rel_source
     const Frame* previousOutput = nullptr; ///< optional: the previous processed output (any earlier frame), for tcoh
     const Frame* previousTarget = nullptr; ///< optional: the target of that same earlier frame, for tcoh
     const Frame* previousSource = nullptr; ///< optional: an earlier source frame, for tcoh_source
@@ -87,49 +86,49 @@ struct MeasureInput
 struct FrameMeasures
 {
     int frame = 0;
-    int ratio = 0;                  ///< f = target voxel / output voxel
-    int sourceRatio = 0;            ///< target voxel / source voxel (0 without a source)
+    int ratio = 0;                          ///< f = target voxel / output voxel
+    int sourceRatio = 0;                    ///< target voxel / source voxel (0 without a source)
     Alignment alignment = Alignment::World; ///< the alignment used (World or Index, never Auto)
-    Vec3d alignmentOffset{0.0};     ///< output lattice origin minus refined target origin, in output voxels
-    bool resampled = false;         ///< the output was trilinearly resampled (World, not nesting)
-    size_t smokeVoxels = 0;         ///< output voxels in the smoke region
-    size_t smokeCells = 0;          ///< coarse (target) cells in the smoke region
+    Vec3d alignmentOffset{0.0};             ///< output lattice origin minus refined target origin, in output voxels
+    bool resampled = false;                 ///< the output was trilinearly resampled (World, not nesting)
+    size_t smokeVoxels = 0;                 ///< output voxels in the smoke region
+    size_t smokeCells = 0;                  ///< coarse (target) cells in the smoke region
 
-    std::optional<double> lfErr;        ///< |boxdown(U_out - up(U_t))| / |boxdown(up(U_t))| over smoke cells
-    std::optional<double> hfEnergy;     ///< E_hf(U_out) = mean |U - up(boxdown(U))|^2, world units^2
+    std::optional<double> lfErr;          ///< |boxdown(U_out - up(U_t))| / |boxdown(up(U_t))| over smoke cells
+    std::optional<double> hfEnergy;       ///< E_hf(U_out) = mean |U - up(boxdown(U))|^2, world units^2
     std::optional<double> hfEnergySource; ///< E_hf(U_src) with the source's ratio to the target
-    std::optional<double> hfRatio;      ///< hfEnergy / hfEnergySource
-    std::optional<double> divRel;       ///< rms(div U_out) / rms(|grad U_out|), central differences
-    std::optional<double> divRelSource; ///< the same of the source, for reference
-    std::optional<double> block;        ///< mean |dU_h| across seam planes / mean elsewhere
-    int patchSize = 0;                  ///< the seam spacing block used (0 = none)
-    Coord patchOrigin{0};               ///< the patch origin block used, in output voxels
-    std::optional<double> tcoh;         ///< rms(U_h(f) - advect(U_h(f-1), U_t(f-1), dt)) / rms(U_h(f))
-    double dt = 0.0;                    ///< the time tcoh advected over: frame gap x time per frame (0 = no tcoh)
-    std::optional<double> tcohSource;   ///< the source's own: its detail U_s - up(boxdown(U_s)) carried by
-                                        ///< its boxdown velocity, for reference
-    std::optional<double> massRatio;    ///< output density mass / target density mass (sum of density x voxel
-                                        ///< volume over each whole frame); 0.9-1.1 keeps the target's smoke
-    std::optional<double> peakDensity;  ///< the output's largest density
-    std::optional<double> peakRatio;    ///< peakDensity / the target's largest density (<= 1.05: no pile-up)
-    std::optional<double> densityErr;   ///< rms(boxdown_f(D_out) - D_t) / rms(D_t) over the target's smoke cells:
-                                        ///< the output keeps the target's density at its scale (<= 0.1)
+    std::optional<double> hfRatio;        ///< hfEnergy / hfEnergySource
+    std::optional<double> divRel;         ///< rms(div U_out) / rms(|grad U_out|), central differences
+    std::optional<double> divRelSource;   ///< the same of the source, for reference
+    std::optional<double> block;          ///< mean |dU_h| across seam planes / mean elsewhere
+    int patchSize = 0;                    ///< the seam spacing block used (0 = none)
+    Coord patchOrigin{0};                 ///< the patch origin block used, in output voxels
+    std::optional<double> tcoh;           ///< rms(U_h(f) - advect(U_h(f-1), U_t(f-1), dt)) / rms(U_h(f))
+    double dt = 0.0;                      ///< the time tcoh advected over: frame gap x time per frame (0 = no tcoh)
+    std::optional<double> tcohSource;     ///< the source's own: its detail U_s - up(boxdown(U_s)) carried by
+                                          ///< its boxdown velocity, for reference
+    std::optional<double> massRatio;      ///< output density mass / target density mass (sum of density x voxel
+                                          ///< volume over each whole frame); 0.9-1.1 keeps the target's smoke
+    std::optional<double> peakDensity;    ///< the output's largest density
+    std::optional<double> peakRatio;      ///< peakDensity / the target's largest density (<= 1.05: no pile-up)
+    std::optional<double> densityErr;     ///< rms(boxdown_f(D_out) - D_t) / rms(D_t) over the target's smoke cells:
+                                          ///< the output keeps the target's density at its scale (<= 0.1)
     std::optional<double> densityImprint; ///< densityImprint(): the target's cell faces printed into the output
-                                        ///< density (about 1: none; a blocky staircase silhouette: well above 1)
-    std::optional<double> aniso;        ///< detail anisotropy along the target's mean flow (detailAnisotropy): about 1
-                                        ///< for isotropic detail, well below 1 for streaks stretched along the flow
-    std::optional<double> anisoSource;  ///< the same of the source's detail, along the same direction
-    std::optional<double> anisoRatio;   ///< aniso / anisoSource: 0.8-1.25 keeps the source's structure
-    std::optional<double> isotropy;     ///< detailIsotropy of the output: direction-free, catches streaks along any axis
+                                          ///< density (about 1: none; a blocky staircase silhouette: well above 1)
+    std::optional<double> aniso;       ///< detail anisotropy along the target's mean flow (detailAnisotropy): about 1
+                                       ///< for isotropic detail, well below 1 for streaks stretched along the flow
+    std::optional<double> anisoSource; ///< the same of the source's detail, along the same direction
+    std::optional<double> anisoRatio;  ///< aniso / anisoSource: 0.8-1.25 keeps the source's structure
+    std::optional<double> isotropy;    ///< detailIsotropy of the output: direction-free, catches streaks along any axis
     std::optional<double> isotropySource; ///< the same of the source
-    std::optional<double> airDetail;    ///< rms(U_h) over still air (refined voxels whose coarse cell lies more than
-                                        ///< kAirCells cells from the target's smoke cells) / rms(U_h) over the smoke
-                                        ///< cells, both within the output's box as read: detail that leaks into
-                                        ///< air far from the smoke (<= 0.1)
+    std::optional<double> airDetail;      ///< rms(U_h) over still air (refined voxels whose coarse cell lies more than
+                                          ///< kAirCells cells from the target's smoke cells) / rms(U_h) over the smoke
+                                          ///< cells, both within the output's box as read: detail that leaks into
+                                          ///< air far from the smoke (<= 0.1)
 
-    double targetNyquist = 0.0;         ///< pi / target voxel size, radians per world unit
+    double targetNyquist = 0.0;                              ///< pi / target voxel size, radians per world unit
     Spectrum spectrumOutput, spectrumTarget, spectrumSource; ///< empty when not computed
-    std::vector<std::string> notes;     ///< why a metric is missing, or what was assumed
+    std::vector<std::string> notes;                          ///< why a metric is missing, or what was assumed
 
     /// The scalar metrics by their report names (lf_err, hf_ratio, ...), in report order.
     std::vector<std::pair<std::string, std::optional<double>>> scalars() const;
@@ -159,8 +158,8 @@ template<typename T>
 Field<T> realign(const Field<T>& field, const Lattice& lattice, const CoordBBox& box, Alignment a);
 
 /// Resolves Auto for an output over the refined target lattice/box.
-Alignment resolveAlignment(Alignment requested, const Field<Vec3f>& output, const Lattice& refined,
-    const CoordBBox& refinedBox);
+Alignment resolveAlignment(
+    Alignment requested, const Field<Vec3f>& output, const Lattice& refined, const CoordBBox& refinedBox);
 
 /// density > threshold as a 0/1 mask on density's box.
 std::vector<unsigned char> smokeMask(const ScalarField& density, float threshold);
@@ -174,8 +173,8 @@ struct DensityMeasures
 };
 /// `output` is the up-res density on its own lattice, `outputOnRefined` the same on the refined target lattice
 /// over refineBox(target box, f); `target` the coarse density. Entries are empty when their denominator is zero.
-DensityMeasures densityMeasures(const ScalarField& output, const ScalarField& outputOnRefined, const ScalarField& target,
-    int f, float threshold);
+DensityMeasures densityMeasures(
+    const ScalarField& output, const ScalarField& outputOnRefined, const ScalarField& target, int f, float threshold);
 /// The coarse lattice printed into a fine density: the mean |D(I+e_a) - D(I)| over neighbour pairs of `fine` whose
 /// shared face is a face of the coarse cells (floor(I_a / f) != floor((I+e_a)_a / f)), over the same mean for all
 /// other pairs, counting the pairs where either voxel exceeds `threshold` (the smoke and its edge). About 1 for
@@ -194,15 +193,15 @@ double coarseDensityError(const ScalarField& fine, const ScalarField& coarse, in
 ///   a = mean|(d.grad)H|^2 / (1/2 (mean|grad H|^2 - mean|(d.grad)H|^2))
 /// (central differences). Isotropic detail gives 1; detail stretched along d (streaks) gives well below 1, and
 /// detail squashed along d above 1. nullopt when the mask is empty, d is zero or H has no gradient.
-std::optional<double> detailAnisotropy(const VectorField& u, const std::vector<unsigned char>& mask, int f,
-    const Vec3d& direction);
-
+std::optional<double> detailAnisotropy(
+    const VectorField& u, const std::vector<unsigned char>& mask, int f, const Vec3d& direction);
 
 /// Direction-free structure: the energy-weighted mean, over `block`^3 tiles of the box with at least half their
 /// voxels in the mask, of lambda_min / lambda_max of the tile's gradient structure tensor sum_c grad H_c grad H_c^T
 /// (H = U - up_f(boxdown_f(U)), central differences, masked voxels only). Near 1 where the detail has no preferred
 /// direction, near 0 where it is stretched into sheets or streaks along any direction. nullopt without such tiles.
-std::optional<double> detailIsotropy(const VectorField& u, const std::vector<unsigned char>& mask, int f, int block = 8);
+std::optional<double> detailIsotropy(
+    const VectorField& u, const std::vector<unsigned char>& mask, int f, int block = 8);
 
 /// mean over the mask of |U - up_f(boxdown_f(U))|^2 (nullopt if the mask is empty).
 std::optional<double> highFrequencyEnergy(const VectorField& u, const std::vector<unsigned char>& mask, int f);
@@ -214,11 +213,11 @@ std::optional<double> relativeDivergence(const VectorField& u, const std::vector
 /// Field order (smokeMask of the target's density). Dimensionless, >= 0; 0 when the detail adds no coarse motion.
 /// nullopt when the mask is empty or up is zero on it (a target at rest). Throws ValueError when the boxes differ or
 /// the mask does not cover the coarse box.
-std::optional<double> lowFrequencyError(const VectorField& detail, const VectorField& up,
-    const std::vector<unsigned char>& coarseMask, int f);
+std::optional<double> lowFrequencyError(
+    const VectorField& detail, const VectorField& up, const std::vector<unsigned char>& coarseMask, int f);
 /// Mean |U(I+e_a) - U(I)| over voxel pairs inside the mask whose shared face lies on a seam plane
 /// (I+e_a)[a] = origin[a] + n * patch, over the same mean elsewhere (nullopt when either set is empty or zero).
-std::optional<double> blockRatio(const VectorField& u, const std::vector<unsigned char>& mask, int patch,
-    const Coord& origin = Coord(0));
+std::optional<double> blockRatio(
+    const VectorField& u, const std::vector<unsigned char>& mask, int patch, const Coord& origin = Coord(0));
 
 } // namespace turb

@@ -59,20 +59,22 @@ std::vector<char> boundaryPixels(const ChannelImage& mask, float threshold = 0.5
 /// it the mean of its 4-neighbours that are inside; fixed pixels keep `values`; outside pixels are 0.
 /// Solved coarse to fine on a pyramid, `sweeps` red-black Gauss-Seidel sweeps per level. Any channel
 /// count. Deterministic at any thread count.
-ChannelImage diffuseFromBoundary(const ChannelImage& values, const std::vector<char>& fixed, const std::vector<char>& inside,
-    int sweeps = 40);
+ChannelImage diffuseFromBoundary(
+    const ChannelImage& values, const std::vector<char>& fixed, const std::vector<char>& inside, int sweeps = 40);
 
 struct MotionGuideSettings
 {
-    double smoothingRadius = 3.0;   ///< Appendix A: temporal Gaussian radius in frames (sigma = radius / 3), >= 0; 0 = none
-    float maxBoundarySpeed = 8.0f;  ///< clamp of an estimated boundary speed, pixels per frame, > 0
-    int diffusionSweeps = 40;       ///< Gauss-Seidel sweeps per pyramid level of the interior diffusion, >= 1
+    double smoothingRadius =
+        3.0; ///< Appendix A: temporal Gaussian radius in frames (sigma = radius / 3), >= 0; 0 = none
+    float maxBoundarySpeed = 8.0f; ///< clamp of an estimated boundary speed, pixels per frame, > 0
+    int diffusionSweeps = 40;      ///< Gauss-Seidel sweeps per pyramid level of the interior diffusion, >= 1
 };
 
 /// Appendix A for one frame, before temporal smoothing: the flow on `mask`'s boundary from the distance
 /// fields of `mask` and `other` (the next frame, or the previous one when `otherIsNext` is false),
 /// diffused inside, 0 outside. 2 channels, pixels per frame.
-ChannelImage maskFlow(const ChannelImage& mask, const ChannelImage& other, bool otherIsNext, const MotionGuideSettings& settings = {});
+ChannelImage maskFlow(
+    const ChannelImage& mask, const ChannelImage& other, bool otherIsNext, const MotionGuideSettings& settings = {});
 
 /// Masks, flows and motion extents of one sequence (see the file comment).
 class MotionSequence

@@ -22,10 +22,10 @@ namespace turb {
 
 struct PcaSettings
 {
-    int components = 16;        ///< reduced dimension, >= 1 (clamped to the descriptor dimension)
-    size_t maxSamples = 12000;  ///< rows used to estimate the covariance (an even stride through the set)
-    size_t exactMaxDim = 512;   ///< up to this descriptor dimension the covariance is decomposed exactly; above
-                                ///< it, randomized subspace iteration finds the top axes (Halko et al. 2011)
+    int components = 16;       ///< reduced dimension, >= 1 (clamped to the descriptor dimension)
+    size_t maxSamples = 12000; ///< rows used to estimate the covariance (an even stride through the set)
+    size_t exactMaxDim = 512;  ///< up to this descriptor dimension the covariance is decomposed exactly; above
+                               ///< it, randomized subspace iteration finds the top axes (Halko et al. 2011)
 };
 
 /// Principal axes of a set of row vectors.
@@ -82,8 +82,8 @@ public:
     /// The same for an already reduced descriptor.
     int queryReduced(const float* reduced, int k, int* indices, float* dist2) const;
     /// Many descriptors (row-major count x dim) in parallel; results are count x k, padded with -1.
-    void queryMany(const float* descriptors, size_t count, int k, std::vector<int>& indices,
-        std::vector<float>& dist2) const;
+    void queryMany(
+        const float* descriptors, size_t count, int k, std::vector<int>& indices, std::vector<float>& dist2) const;
 
 private:
     struct Impl;

@@ -94,10 +94,10 @@ Nnf emptyNnf(int width, int height);
 
 struct PatchMatchSettings
 {
-    int iterations = 4;        ///< sweeps of propagation + random search, >= 1
-    int tileSize = 64;         ///< tile edge in pixels for the parallel sweeps (fixed: results do not depend on threads), >= 8
-    int randomCentres = 2;     ///< extra candidates per pixel and sweep drawn uniformly from the segment's centres, >= 0
-    std::uint64_t seed = 1;    ///< same seed, same field
+    int iterations = 4; ///< sweeps of propagation + random search, >= 1
+    int tileSize = 64;  ///< tile edge in pixels for the parallel sweeps (fixed: results do not depend on threads), >= 8
+    int randomCentres = 2;  ///< extra candidates per pixel and sweep drawn uniformly from the segment's centres, >= 0
+    std::uint64_t seed = 1; ///< same seed, same field
 };
 
 /// Masked PatchMatch, target -> source: every target centre (label >= 0) gets the source centre of its

@@ -38,8 +38,7 @@ namespace turb {
 /// Per-cell flags; nonzero marks a solid (obstacle) cell.
 using MaskField = Field<std::uint8_t>;
 
-enum class Boundary
-{
+enum class Boundary {
     Open,  ///< pressure 0 outside (Dirichlet): flow crosses freely
     Closed ///< wall (Neumann): the normal velocity on the face is left as given
 };
@@ -55,8 +54,8 @@ struct ProjectionSettings
     /// Conjugate-gradient iteration cap, >= 1. Reaching it is reported, not thrown.
     int maxIterations = 2000;
     /// Boundary type of the six domain faces (-x, +x, -y, +y, -z, +z; see DomainFace).
-    std::array<Boundary, 6> faces{Boundary::Open, Boundary::Open, Boundary::Open, Boundary::Open,
-        Boundary::Open, Boundary::Open};
+    std::array<Boundary, 6> faces{
+        Boundary::Open, Boundary::Open, Boundary::Open, Boundary::Open, Boundary::Open, Boundary::Open};
     /// Incomplete-Cholesky preconditioner (true: fewer iterations) or Jacobi (false).
     bool incompleteCholesky = true;
 };
@@ -84,8 +83,8 @@ VectorField macToCentred(const VectorField& mac);
 
 /// MAC field from a cell-centred velocity: interior faces average their two cells; a face on an Open
 /// domain face takes its cell's value, on a Closed one (or next to a solid cell) 0.
-VectorField centredToMac(const VectorField& centred, const ProjectionSettings& s = {},
-    const MaskField* solid = nullptr);
+VectorField centredToMac(
+    const VectorField& centred, const ProjectionSettings& s = {}, const MaskField* solid = nullptr);
 
 /// The MAC (solver's) divergence per cell in 1/time; 0 in solid cells. Covers cellBox(mac.bbox()).
 ScalarField macDivergence(const VectorField& mac, const MaskField* solid = nullptr);

@@ -30,16 +30,16 @@ namespace turb {
 
 struct DensityRenderSettings
 {
-    View view = View::Front;      ///< camera direction
-    int width = 0;                ///< image width in pixels; 0 = 4 pixels per voxel (at least 64)
-    float extinction = 6.0f;      ///< optical depth per unit density per world unit (> 0); fixed across frames
-    float albedo = 0.85f;         ///< fraction of extinguished light scattered toward the camera, [0, 1]
-    Vec3d toLight{-1.0, 0.5, 1.2}; ///< direction from the smoke toward the one light: upper left, behind
-    Rgb light{1.6f, 1.45f, 1.25f}; ///< light radiance (warm key light), linear
-    Rgb ambient{0.12f, 0.14f, 0.19f}; ///< unshadowed sky fill, linear
-    float exposure = 1.0f;        ///< linear scale before the tone curve 1 - exp(-x); fixed across frames, > 0
+    View view = View::Front;              ///< camera direction
+    int width = 0;                        ///< image width in pixels; 0 = 4 pixels per voxel (at least 64)
+    float extinction = 6.0f;              ///< optical depth per unit density per world unit (> 0); fixed across frames
+    float albedo = 0.85f;                 ///< fraction of extinguished light scattered toward the camera, [0, 1]
+    Vec3d toLight{-1.0, 0.5, 1.2};        ///< direction from the smoke toward the one light: upper left, behind
+    Rgb light{1.6f, 1.45f, 1.25f};        ///< light radiance (warm key light), linear
+    Rgb ambient{0.12f, 0.14f, 0.19f};     ///< unshadowed sky fill, linear
+    float exposure = 1.0f;                ///< linear scale before the tone curve 1 - exp(-x); fixed across frames, > 0
     Rgb background{0.07f, 0.075f, 0.09f}; ///< display value where the view ray meets no smoke
-    float stepVoxels = 0.5f;      ///< ray-march step in voxels, (0, 1]
+    float stepVoxels = 0.5f;              ///< ray-march step in voxels, (0, 1]
     std::optional<CameraSettings> camera; ///< any camera (e.g. perspective) instead of `view` and `width`
 };
 
@@ -50,12 +50,12 @@ Image renderDensity(const ScalarField& density, const DensityRenderSettings& s =
 
 struct SliceSettings
 {
-    View view = View::Front;   ///< the slice is perpendicular to the view direction
-    double position = 0.5;     ///< slice position along the view axis, as a fraction of the box, [0, 1]
-    int width = 0;             ///< image width in pixels; 0 = 4 pixels per voxel (at least 64)
+    View view = View::Front;          ///< the slice is perpendicular to the view direction
+    double position = 0.5;            ///< slice position along the view axis, as a fraction of the box, [0, 1]
+    int width = 0;                    ///< image width in pixels; 0 = 4 pixels per voxel (at least 64)
     Colormap map = Colormap::Viridis; ///< perceptual colour map
-    float minValue = 0.0f;     ///< value shown as the map's first colour
-    float maxValue = 0.0f;     ///< value shown as the map's last colour; <= minValue = the slice's own max
+    float minValue = 0.0f;            ///< value shown as the map's first colour
+    float maxValue = 0.0f;            ///< value shown as the map's last colour; <= minValue = the slice's own max
 };
 
 /// A slice of a scalar field (bilinear between voxel centres), colour-mapped.

@@ -38,10 +38,10 @@ namespace turb {
 
 struct TransferSettings
 {
-    int patchSize = 16;        ///< target patch edge in pixels (paper 8..32), 8..64
-    int downsample = 2;        ///< search on flows reduced by 1, 2 or 4 (paper 2 or 4)
-    int pcaComponents = 16;    ///< PCA dimensions of the descriptors, >= 1
-    double feather = 0.25;     ///< alpha ramp width as a fraction of the patch edge, [0, 0.5]
+    int patchSize = 16;     ///< target patch edge in pixels (paper 8..32), 8..64
+    int downsample = 2;     ///< search on flows reduced by 1, 2 or 4 (paper 2 or 4)
+    int pcaComponents = 16; ///< PCA dimensions of the descriptors, >= 1
+    double feather = 0.25;  ///< alpha ramp width as a fraction of the patch edge, [0, 0.5]
 };
 
 /// Throws ValueError naming the first setting out of range.
@@ -49,11 +49,11 @@ void validate(const TransferSettings& s);
 
 struct TransferStats
 {
-    int patches = 0;        ///< target patches considered (touching the matte)
-    int pasted = 0;         ///< patches that added weight somewhere
-    double meanCost = 0.0;  ///< mean |s - e|^2 per pixel (pixels^2 / frame^2) over pasted patches
-    double maxCost = 0.0;   ///< the worst pasted patch's cost per pixel
-    double covered = 0.0;   ///< fraction of target pixels that received residuals
+    int patches = 0;       ///< target patches considered (touching the matte)
+    int pasted = 0;        ///< patches that added weight somewhere
+    double meanCost = 0.0; ///< mean |s - e|^2 per pixel (pixels^2 / frame^2) over pasted patches
+    double maxCost = 0.0;  ///< the worst pasted patch's cost per pixel
+    double covered = 0.0;  ///< fraction of target pixels that received residuals
 };
 
 /// Which example pixels make each target pixel of the transferred residuals.
@@ -94,7 +94,7 @@ private:
 /// file comment). Both flows have 2 channels (pixels per frame); `targetMatte` (1 channel, target size)
 /// may be null. Throws ValueError when a flow has the wrong shape, the example is smaller than a patch
 /// at the search resolution, or settings are out of range; Cancelled when `progress` asks.
-TransferMap matchResiduals(const ChannelImage& exampleFlow, const ChannelImage& targetFlow, const TransferSettings& settings,
-    const ChannelImage* targetMatte = nullptr, Progress* progress = nullptr);
+TransferMap matchResiduals(const ChannelImage& exampleFlow, const ChannelImage& targetFlow,
+    const TransferSettings& settings, const ChannelImage* targetMatte = nullptr, Progress* progress = nullptr);
 
 } // namespace turb

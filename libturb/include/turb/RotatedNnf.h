@@ -40,7 +40,10 @@ struct PatchRef
     std::uint8_t rotation = 0;
 
     bool valid() const { return frame >= 0; }
-    bool operator==(const PatchRef& o) const { return frame == o.frame && x == o.x && y == o.y && rotation == o.rotation; }
+    bool operator==(const PatchRef& o) const
+    {
+        return frame == o.frame && x == o.x && y == o.y && rotation == o.rotation;
+    }
     bool operator!=(const PatchRef& o) const { return !(*this == o); }
 };
 

@@ -8,7 +8,8 @@
 ///   X fixed (the pasted field) outside Ω, by conjugate gradients on the normal equations (CGNR).
 ///   g is the average, over the boundary patches covering an edge, of the chosen patch Z's difference;
 ///   div is the central difference the quality metric `div_rel` uses.
-/// - M-step: for each C^3 boundary patch (C^2 x 1 on a 2D layout) straddling a border, pick Z among the continuations of the
+/// - M-step: for each C^3 boundary patch (C^2 x 1 on a 2D layout) straddling a border, pick Z among the continuations
+/// of the
 ///   neighbouring local patches' source matches on U_sh, minimising |grad X - grad Z|^2.
 /// It stops when the energy changes by less than `emTolerance` (relative).
 ///
@@ -24,8 +25,7 @@
 namespace turb {
 
 /// How the E-step solves its least-squares system.
-enum class SeamSolver
-{
+enum class SeamSolver {
     Cgnr,      ///< matrix-free conjugate gradients on the normal equations, in float with double sums (the default)
     EigenLscg, ///< the same rows assembled as a sparse matrix (double) and solved by Eigen's
                ///< LeastSquaresConjugateGradient with its diagonal (column-norm) preconditioner; same iteration cap and
@@ -34,41 +34,41 @@ enum class SeamSolver
 
 struct SeamSettings
 {
-    bool enabled = true;         ///< false pastes patches without smoothing (ablation)
-    int bandWidth = 2;           ///< Ω half-width: voxels on each side of a patch border, >= 1
-    int bandWidth2D = 3;         ///< the same on a 2D (flat) layout, >= 1: with 8-voxel patches a 3-voxel band covers
-                                 ///< 94% of a B^2 patch, about the 88% a 2-voxel band covers of a B^3 one (measured on
-                                 ///< the built-in 2D pair: div_rel 0.04 and block <= 1.02, against 0.08 and 1.08 at 2)
-    int boundaryPatch = 0;       ///< C: boundary patch edge (even); 0 = the local patch size B
-    float gamma = 10.0f;         ///< weight of the divergence term, >= 0 (paper: 10)
-    int maxEmIterations = 3;     ///< EM iterations (M-step + E-step), >= 1
-    double emTolerance = 0.02;   ///< stop when |E_b(k) - E_b(k-1)| / E_b(k-1) is below this
-    int maxCgIterations = 100;   ///< CG iterations per E-step
-    double cgTolerance = 1e-3;   ///< CG stops at this relative residual of the normal equations
+    bool enabled = true;       ///< false pastes patches without smoothing (ablation)
+    int bandWidth = 2;         ///< Ω half-width: voxels on each side of a patch border, >= 1
+    int bandWidth2D = 3;       ///< the same on a 2D (flat) layout, >= 1: with 8-voxel patches a 3-voxel band covers
+                               ///< 94% of a B^2 patch, about the 88% a 2-voxel band covers of a B^3 one (measured on
+                               ///< the built-in 2D pair: div_rel 0.04 and block <= 1.02, against 0.08 and 1.08 at 2)
+    int boundaryPatch = 0;     ///< C: boundary patch edge (even); 0 = the local patch size B
+    float gamma = 10.0f;       ///< weight of the divergence term, >= 0 (paper: 10)
+    int maxEmIterations = 3;   ///< EM iterations (M-step + E-step), >= 1
+    double emTolerance = 0.02; ///< stop when |E_b(k) - E_b(k-1)| / E_b(k-1) is below this
+    int maxCgIterations = 100; ///< CG iterations per E-step
+    double cgTolerance = 1e-3; ///< CG stops at this relative residual of the normal equations
     SeamSolver solver = SeamSolver::Cgnr; ///< the E-step's solver
-    float boxWeight = 10.0f;     ///< nu/f^3: weight of the rows holding U_h's box means (coarse cells), >= 0
-    float boxKeep = 1.0f;        ///< the box rows pull each coarse cell's mean of X to this fraction of its mean on
-                                 ///< entry: 1 = the solve moves detail within cells but leaves their means (the coarse
-                                 ///< motion) as they came in; 0 = pulls them to zero
-    float valueWeight = 0.0f;    ///< mu: weight of rows keeping X near its value on entry, times the temporal blend
-                                 ///< weight of its patch (carried detail changes less); 0 = the paper's energy
+    float boxWeight = 10.0f;              ///< nu/f^3: weight of the rows holding U_h's box means (coarse cells), >= 0
+    float boxKeep = 1.0f;     ///< the box rows pull each coarse cell's mean of X to this fraction of its mean on
+                              ///< entry: 1 = the solve moves detail within cells but leaves their means (the coarse
+                              ///< motion) as they came in; 0 = pulls them to zero
+    float valueWeight = 0.0f; ///< mu: weight of rows keeping X near its value on entry, times the temporal blend
+                              ///< weight of its patch (carried detail changes less); 0 = the paper's energy
 };
 
 /// One EM iteration, for the per-frame log.
 struct SeamIteration
 {
     int cgIterations = 0;
-    double cgResidual = 0.0;  ///< relative residual |A^T r| / |A^T r0| when CG stopped
-    double energy = 0.0;      ///< E_b after the E-step
+    double cgResidual = 0.0; ///< relative residual |A^T r| / |A^T r0| when CG stopped
+    double energy = 0.0;     ///< E_b after the E-step
 };
 
 struct SeamStats
 {
-    size_t bandVoxels = 0;    ///< |Ω|
+    size_t bandVoxels = 0; ///< |Ω|
     size_t boundaryPatches = 0;
     double initialEnergy = 0.0; ///< E_b of the pasted field against the first M-step's Z
     std::vector<SeamIteration> iterations;
-    bool converged = false;   ///< EM stopped on emTolerance rather than maxEmIterations
+    bool converged = false; ///< EM stopped on emTolerance rather than maxEmIterations
     double setupSeconds = 0.0, mStepSeconds = 0.0, eStepSeconds = 0.0; ///< where the time went
 };
 
@@ -131,12 +131,12 @@ struct SeamProblem
 };
 
 /// Ω as a per-voxel mask over `box` (1 = in the band).
-std::vector<uint8_t> seamBand(const CoordBBox& box, const PatchLayout& layout, const std::vector<uint8_t>& active,
-    int bandWidth);
+std::vector<uint8_t> seamBand(
+    const CoordBBox& box, const PatchLayout& layout, const std::vector<uint8_t>& active, int bandWidth);
 
 /// Smooths the seams of `detail` (the pasted U_h) in place. Returns the EM/CG log.
-SeamStats smoothSeams(VectorField& detail, const SeamProblem& problem, const SeamSettings& settings,
-    Progress* progress = nullptr);
+SeamStats smoothSeams(
+    VectorField& detail, const SeamProblem& problem, const SeamSettings& settings, Progress* progress = nullptr);
 
 /// The E-step alone, for tests and diagnostics: minimises the energy above over the voxels with
 /// omega = 1, for given edge targets g (per voxel p and axis a: the target of X(p + e_a) - X(p)),
@@ -145,7 +145,7 @@ SeamIteration solveSeamEStep(VectorField& X, const std::vector<uint8_t>& omega, 
     float gamma, int maxIterations, double tolerance, SeamSolver solver = SeamSolver::Cgnr);
 
 /// The energy the E-step minimises, evaluated over the rows touching Ω (for tests).
-double seamEnergy(const VectorField& X, const std::vector<uint8_t>& omega, const std::vector<Vec3f>& edgeTargets,
-    float gamma);
+double seamEnergy(
+    const VectorField& X, const std::vector<uint8_t>& omega, const std::vector<Vec3f>& edgeTargets, float gamma);
 
 } // namespace turb

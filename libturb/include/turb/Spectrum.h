@@ -30,8 +30,8 @@ namespace turb {
 struct SpectrumSettings
 {
     enum class Window { Hann, None };
-    Window window = Window::Hann;  ///< taper per axis before the FFT; None only for periodic test fields
-    bool subtractMean = true;      ///< remove the (window-weighted) mean velocity before the transform
+    Window window = Window::Hann; ///< taper per axis before the FFT; None only for periodic test fields
+    bool subtractMean = true;     ///< remove the (window-weighted) mean velocity before the transform
 };
 
 struct Spectrum

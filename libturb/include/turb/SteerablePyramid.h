@@ -29,11 +29,11 @@ namespace turb {
 
 struct SteerablePyramid
 {
-    int width = 0, height = 0;               ///< the image's size (bands cover the padded size)
-    int paddedWidth = 0, paddedHeight = 0;   ///< level 0 band size
-    ChannelImage highpass;                   ///< H0, 1 channel, padded size
+    int width = 0, height = 0;                    ///< the image's size (bands cover the padded size)
+    int paddedWidth = 0, paddedHeight = 0;        ///< level 0 band size
+    ChannelImage highpass;                        ///< H0, 1 channel, padded size
     std::vector<std::vector<ChannelImage>> bands; ///< [level][orientation], 1 channel, padded size / 2^level
-    ChannelImage lowpass;                    ///< the residual low-pass, padded size / 2^levels
+    ChannelImage lowpass;                         ///< the residual low-pass, padded size / 2^levels
     int levels() const { return int(bands.size()); }
 };
 

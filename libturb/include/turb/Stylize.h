@@ -20,8 +20,8 @@
 /// Beyond the paper: the pyramid, its levels and iterations are ours to choose (defaults measured in
 /// docs/stylize.md); every frame starts its coarsest level from random exemplar patches of each target
 /// patch's segment (Kwatra et al.'s initialisation; the paper notes uniform usage needs none in
-/// particular, and it gives the standard NNF a fair, textured start); optional exemplar rotations by 90/180/270 degrees (section 4.5, Lukáč et al.) and
-/// motion blur along the flow (Fig. 9).
+/// particular, and it gives the standard NNF a fair, textured start); optional exemplar rotations by 90/180/270 degrees
+/// (section 4.5, Lukáč et al.) and motion blur along the flow (Fig. 9).
 ///
 /// @code
 /// turb::StylizeSettings s;                 // the paper's defaults: patch 5, lambda 0.2, eta 3, r 3, l 0.1, u 0.9
@@ -44,29 +44,28 @@
 
 namespace turb {
 
-enum class NnfMode
-{
+enum class NnfMode {
     Uniform, ///< reversed NNF with uniform patch usage (LazyFluids section 4.1; the default)
     Standard ///< each target patch takes its nearest exemplar patch (Kwatra et al. 2005): the wash-out ablation
 };
 
 struct StylizeSettings
 {
-    int patchSize = 5;             ///< patch edge in pixels (paper 5), odd, 3..15
-    float lambda = 0.2f;           ///< temporal coherence lambda (paper 0.2), >= 0; 0 = frames independent
-    float eta = 3.0f;              ///< weight of the blurred-alpha guide eta (paper 3), >= 0
-    float alphaWeight = 3.0f;      ///< weight of alpha against one colour channel (paper 3), >= 0
-    double blurRadius = 3.0;       ///< r: standard deviation in pixels of the blur making the guide alpha (paper 3), > 0
-    float lower = 0.1f;            ///< l: boundary where the blurred alpha lies in (l, u) (paper 0.1), [0, u)
-    float upper = 0.9f;            ///< u: interior where the blurred alpha >= u (paper 0.9), (l, 1]
+    int patchSize = 5;        ///< patch edge in pixels (paper 5), odd, 3..15
+    float lambda = 0.2f;      ///< temporal coherence lambda (paper 0.2), >= 0; 0 = frames independent
+    float eta = 3.0f;         ///< weight of the blurred-alpha guide eta (paper 3), >= 0
+    float alphaWeight = 3.0f; ///< weight of alpha against one colour channel (paper 3), >= 0
+    double blurRadius = 3.0;  ///< r: standard deviation in pixels of the blur making the guide alpha (paper 3), > 0
+    float lower = 0.1f;       ///< l: boundary where the blurred alpha lies in (l, u) (paper 0.1), [0, u)
+    float upper = 0.9f;       ///< u: interior where the blurred alpha >= u (paper 0.9), (l, 1]
     NnfMode nnf = NnfMode::Uniform;
-    int levels = 0;                ///< pyramid levels; 0 = as many as keep both images' short side >= 32 px (at most 5)
-    int iterations = 4;            ///< EM iterations (NNF + vote) on each coarser level, >= 1
-    int fineIterations = 2;        ///< EM iterations on the finest level, >= 1
-    int sweeps = 2;                ///< PatchMatch sweeps per uniform round (standard mode: 2 x sweeps), >= 1
-    bool rotations = false;        ///< also use the exemplar rotated by 90, 180 and 270 degrees (section 4.5)
-    float motionBlur = 0.0f;       ///< shutter: blur along F^t by this fraction of a frame's motion (Fig. 9), >= 0; 0 = none
-    std::uint64_t seed = 1;        ///< same seed, same output at any thread count
+    int levels = 0;          ///< pyramid levels; 0 = as many as keep both images' short side >= 32 px (at most 5)
+    int iterations = 4;      ///< EM iterations (NNF + vote) on each coarser level, >= 1
+    int fineIterations = 2;  ///< EM iterations on the finest level, >= 1
+    int sweeps = 2;          ///< PatchMatch sweeps per uniform round (standard mode: 2 x sweeps), >= 1
+    bool rotations = false;  ///< also use the exemplar rotated by 90, 180 and 270 degrees (section 4.5)
+    float motionBlur = 0.0f; ///< shutter: blur along F^t by this fraction of a frame's motion (Fig. 9), >= 0; 0 = none
+    std::uint64_t seed = 1;  ///< same seed, same output at any thread count
 };
 
 /// Throws ValueError naming the first setting out of its range.
@@ -75,39 +74,39 @@ void validate(const StylizeSettings& s);
 /// One target frame's inputs. Images are not owned; all target images share one size.
 struct StylizeFrame
 {
-    const ChannelImage* alpha = nullptr;       ///< X_a^t: 1 channel in [0, 1] (values outside are clamped)
-    const ChannelImage* motionIn = nullptr;    ///< F^{t-1} (2 channels, pixels per frame): moves the previous
-                                               ///< output onto this frame; null = first frame or a cut (lambda = 0)
-    const ChannelImage* motionOut = nullptr;   ///< F^t, only for motion blur; may be null
-    const RgbaImage* exemplar = nullptr;       ///< Z^t: straight RGBA
+    const ChannelImage* alpha = nullptr;         ///< X_a^t: 1 channel in [0, 1] (values outside are clamped)
+    const ChannelImage* motionIn = nullptr;      ///< F^{t-1} (2 channels, pixels per frame): moves the previous
+                                                 ///< output onto this frame; null = first frame or a cut (lambda = 0)
+    const ChannelImage* motionOut = nullptr;     ///< F^t, only for motion blur; may be null
+    const RgbaImage* exemplar = nullptr;         ///< Z^t: straight RGBA
     const RgbaImage* exemplarPrevious = nullptr; ///< Z^{t-1} of a video exemplar; null = a still (Z^t itself)
 };
 
 /// What a frame's synthesis measured (the numbers `vdbturb stylize --json` prints).
 struct StylizeStats
 {
-    std::vector<SegmentUsage> usage; ///< exemplar patch usage at the finest level's last E-step, per segment
-    double coverage = 0.0;           ///< fraction of exemplar patches used at least once, all segments
-    int rounds = 0;                  ///< reversed-NNF retrieval rounds, summed over the frame
-    double energy = 0.0;             ///< eq. 7 per target patch at the finest level's last E-step (mean D)
-    double stdRatio = 0.0;           ///< interior luminance standard deviation, output / exemplar
-    double gradientRatio = 0.0;      ///< interior mean |grad luminance|^2, output / exemplar
+    std::vector<SegmentUsage> usage;      ///< exemplar patch usage at the finest level's last E-step, per segment
+    double coverage = 0.0;                ///< fraction of exemplar patches used at least once, all segments
+    int rounds = 0;                       ///< reversed-NNF retrieval rounds, summed over the frame
+    double energy = 0.0;                  ///< eq. 7 per target patch at the finest level's last E-step (mean D)
+    double stdRatio = 0.0;                ///< interior luminance standard deviation, output / exemplar
+    double gradientRatio = 0.0;           ///< interior mean |grad luminance|^2, output / exemplar
     std::optional<double> temporalChange; ///< mean |X^t - warped X^{t-1}| (premultiplied RGBA, per channel) where
-                                     ///< lambda_q / lambda >= 0.5 and X_a^t >= 0.05; none on a first frame
-    double temporalPixels = 0.0;     ///< fraction of target pixels in that region
-    double iou = 0.0;                ///< IoU of (output alpha >= 0.5) with (target alpha >= 0.5)
-    std::vector<double> boundaryGradient;         ///< histogram of |grad alpha| in the target's boundary segment
-                                                  ///< (16 bins of 1/32 per pixel, the last open), normalised
+                                          ///< lambda_q / lambda >= 0.5 and X_a^t >= 0.05; none on a first frame
+    double temporalPixels = 0.0;          ///< fraction of target pixels in that region
+    double iou = 0.0;                     ///< IoU of (output alpha >= 0.5) with (target alpha >= 0.5)
+    std::vector<double> boundaryGradient; ///< histogram of |grad alpha| in the target's boundary segment
+                                          ///< (16 bins of 1/32 per pixel, the last open), normalised
     std::vector<double> exemplarBoundaryGradient; ///< the same over the exemplar's boundary segment
     double boundaryGradientMatch = 0.0;           ///< histogram intersection of the two, [0, 1]; 1 = identical
-    int levels = 0;                  ///< pyramid levels used
-    int width = 0, height = 0;       ///< target size
+    int levels = 0;                               ///< pyramid levels used
+    int width = 0, height = 0;                    ///< target size
     double secondsGuides = 0.0, secondsNnf = 0.0, secondsVote = 0.0, secondsWarp = 0.0, secondsStats = 0.0;
 };
 
 struct StylizedFrame
 {
-    RgbaImage image;       ///< straight RGBA, the exemplar's colour space
+    RgbaImage image; ///< straight RGBA, the exemplar's colour space
     StylizeStats stats;
 };
 

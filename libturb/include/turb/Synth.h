@@ -55,22 +55,24 @@ namespace turb {
 /// One input view (section 3.2): an exemplar and the local axis it looks along.
 struct SynthView
 {
-    Exemplar exemplar;   ///< planar (2 channels) or volumetric (3 channels)
-    int normal = 2;      ///< planar exemplars: local axis the view looks along (0 = e1 along L, 1 = e2, 2 = e3); ignored for volumetric ones
-    float weight = 1.0f; ///< weight of this view in the assignment (Eq. 2 generalised), > 0; a large weight lets one view dominate
+    Exemplar exemplar; ///< planar (2 channels) or volumetric (3 channels)
+    int normal = 2; ///< planar exemplars: local axis the view looks along (0 = e1 along L, 1 = e2, 2 = e3); ignored for
+                    ///< volumetric ones
+    float weight =
+        1.0f; ///< weight of this view in the assignment (Eq. 2 generalised), > 0; a large weight lets one view dominate
 };
 
-enum class SearchMethod
-{
-    Tree,       ///< exact k-d tree over PCA-reduced neighbourhoods (the paper's default)
-    KCoherence  ///< k-coherence candidates (section 3.7): constant time per sample, discrete assignment
+enum class SearchMethod {
+    Tree,      ///< exact k-d tree over PCA-reduced neighbourhoods (the paper's default)
+    KCoherence ///< k-coherence candidates (section 3.7): constant time per sample, discrete assignment
 };
 
 struct OrientationSettings
 {
-    bool follow = true;        ///< sample neighbourhoods in the local frame of L and rotate H into it (3.1, 3.3); false = world axes
+    bool follow =
+        true; ///< sample neighbourhoods in the local frame of L and rotate H into it (3.1, 3.3); false = world axes
     bool densitySecondary = true; ///< 3D: e2 from the coarse density gradient where there is one, else `secondary`
-    Vec3d secondary{0, 1, 0};  ///< 3D: the given secondary direction (world) when autoSecondary is off
+    Vec3d secondary{0, 1, 0};     ///< 3D: the given secondary direction (world) when autoSecondary is off
     /// 3D (beyond the paper): the secondary direction is n x e1, with n the direction L has least of
     /// (the eigenvector of the smallest eigenvalue of sum L L^T over the box: the normal of a planar vortex, a
     /// horizontal axis for a rising plume). For a flow in a plane this is 2D's frame (e2 = z x e1). A fixed axis s
@@ -78,38 +80,46 @@ struct OrientationSettings
     /// which mirrors the texture's sense of rotation across a plane. With a density gradient, n x e1 replaces
     /// `secondary` as the gradient's fallback.
     bool autoSecondary = true;
-    Vec3d fallback{1, 0, 0};   ///< direction of e1 where L is (nearly) still
+    Vec3d fallback{1, 0, 0};     ///< direction of e1 where L is (nearly) still
     double stillFraction = 0.05; ///< |L| below about this fraction of rms|L| blends e1 toward `fallback`, in (0, 1]
 };
 
 struct BoundarySettings
 {
-    unsigned walls = 0;    ///< domain faces that are walls: bit 2a is the min face of axis a, bit 2a+1 the max face
-    double lambda = 50.0;  ///< E_n weight (Eq. 3) on the wall relative to the texture term: the normal component shrinks by 1/(1+lambda) there; >= 0
-    double width = 1.5;    ///< Gaussian sigma of lambda in voxels of each pyramid level: wider at coarse levels, sharper at fine ones (paper), > 0
+    unsigned walls = 0;   ///< domain faces that are walls: bit 2a is the min face of axis a, bit 2a+1 the max face
+    double lambda = 50.0; ///< E_n weight (Eq. 3) on the wall relative to the texture term: the normal component shrinks
+                          ///< by 1/(1+lambda) there; >= 0
+    double width = 1.5;   ///< Gaussian sigma of lambda in voxels of each pyramid level: wider at coarse levels, sharper
+                          ///< at fine ones (paper), > 0
 };
 
 struct SynthSettings
 {
-    int levels = 0;            ///< pyramid levels; 0 = paper: 3, or 2 when the exemplar is <= 16^2 (fewer when the output is tiny)
-    int largeRadius = 8;       ///< 2D: first neighbourhood (2r+1)^2 per level; 8 = 17^2 (paper)
-    int largeIterations = 4;   ///< 2D: iterations per level at the large neighbourhood; paper 3-5
-    int smallRadius = 4;       ///< second neighbourhood; 4 = 9^2 (paper); in 3D the only size (9^2 slices, 9^3 volumes)
-    int smallIterations = 4;   ///< iterations per level at the small neighbourhood; paper 3-5
-    int volumeTapStep = 2;     ///< volumetric exemplars: a tap every n voxels over the 9^3 footprint (2: 5^3 taps), >= 1
-    int spacing = 0;           ///< distance between optimised neighbourhood centres in voxels; 0 = auto ((2r+1)/4 in 2D, Kwatra; 3 in 3D)
+    int levels = 0; ///< pyramid levels; 0 = paper: 3, or 2 when the exemplar is <= 16^2 (fewer when the output is tiny)
+    int largeRadius = 8;     ///< 2D: first neighbourhood (2r+1)^2 per level; 8 = 17^2 (paper)
+    int largeIterations = 4; ///< 2D: iterations per level at the large neighbourhood; paper 3-5
+    int smallRadius = 4;     ///< second neighbourhood; 4 = 9^2 (paper); in 3D the only size (9^2 slices, 9^3 volumes)
+    int smallIterations = 4; ///< iterations per level at the small neighbourhood; paper 3-5
+    int volumeTapStep = 2;   ///< volumetric exemplars: a tap every n voxels over the 9^3 footprint (2: 5^3 taps), >= 1
+    int spacing =
+        0; ///< distance between optimised neighbourhood centres in voxels; 0 = auto ((2r+1)/4 in 2D, Kwatra; 3 in 3D)
     double robustExponent = 0.8; ///< Kwatra's robust weights |x_p - z_p|^(r-2); 2 = plain least squares; in (0, 2]
-    bool matchVariance = true; ///< components shared by several views keep the views' mean and spread (a moment match in the spirit of Kopf et al.'s histogram matching; false = the paper's plain average)
-    int pcaComponents = 16;    ///< PCA dimensions for the tree search, >= 1
+    bool matchVariance =
+        true; ///< components shared by several views keep the views' mean and spread (a moment match in the spirit of
+              ///< Kopf et al.'s histogram matching; false = the paper's plain average)
+    int pcaComponents = 16;                   ///< PCA dimensions for the tree search, >= 1
     SearchMethod search = SearchMethod::Tree; ///< tree search or k-coherence (section 3.7)
-    int kSimilar = 5;          ///< k-coherence: exemplar neighbourhoods kept per pixel, >= 1
-    int treeIterationsPerLevel = 1; ///< k-coherence: first iterations of each level that still use the tree (0 = pure k-coherence)
-    int continueIterations = 3; ///< frames after the first: iterations at the finest level from the advected detail, >= 1
-    double temporalWeight = 0.5; ///< frames after the first: pull toward the advected detail (the O(x) term of Eq. 1), >= 0
-    std::uint64_t seed = 1;    ///< random initialisation and centre jitter; the same seed gives the same output
-    int threads = 0;           ///< worker threads, 0 = all; results do not depend on it
+    int kSimilar = 5;                         ///< k-coherence: exemplar neighbourhoods kept per pixel, >= 1
+    int treeIterationsPerLevel =
+        1; ///< k-coherence: first iterations of each level that still use the tree (0 = pure k-coherence)
+    int continueIterations =
+        3; ///< frames after the first: iterations at the finest level from the advected detail, >= 1
+    double temporalWeight =
+        0.5;                ///< frames after the first: pull toward the advected detail (the O(x) term of Eq. 1), >= 0
+    std::uint64_t seed = 1; ///< random initialisation and centre jitter; the same seed gives the same output
+    int threads = 0;        ///< worker threads, 0 = all; results do not depend on it
     OrientationSettings orientation; ///< local frames (sections 3.1, 3.3)
-    BoundarySettings boundary; ///< soft wall constraint (section 3.6, Eq. 3)
+    BoundarySettings boundary;       ///< soft wall constraint (section 3.6, Eq. 3)
     /// Beyond the paper: coarse cells synthesised around L's box on every face that is not a wall
     /// (L and its density extended by their face values), then cut off. A voxel at a face otherwise gets votes
     /// from fewer neighbourhoods than an interior one, and the texture shows straight lines along the faces.
@@ -125,7 +135,8 @@ class SynthExemplars
 public:
     /// `volume`: the output is 3D (else 2D: exactly one planar view looking along e3).
     /// Throws ValueError on inconsistent views.
-    SynthExemplars(std::vector<SynthView> views, const SynthSettings& settings, bool volume, Progress* progress = nullptr);
+    SynthExemplars(
+        std::vector<SynthView> views, const SynthSettings& settings, bool volume, Progress* progress = nullptr);
     ~SynthExemplars();
     SynthExemplars(SynthExemplars&&) noexcept;
     SynthExemplars& operator=(SynthExemplars&&) noexcept;
@@ -150,20 +161,20 @@ struct SynthInput
 {
     const VectorField* coarse = nullptr;        ///< L: coarse motion, world units (required)
     const ScalarField* coarseDensity = nullptr; ///< optional, same lattice: 3D secondary axis from its gradient
-    const ScalarField* obstacle = nullptr;      ///< optional obstacle signed distance (world units, < 0 inside), any lattice
-    int factor = 4;                             ///< output voxel = coarse voxel / factor, >= 1
-    const DetailField* previous = nullptr;      ///< the previous frame's detail: initialise by advection (section 3.4)
-    double dt = 0.0;                            ///< time from the previous frame to this one (L * dt is a displacement)
+    const ScalarField* obstacle = nullptr; ///< optional obstacle signed distance (world units, < 0 inside), any lattice
+    int factor = 4;                        ///< output voxel = coarse voxel / factor, >= 1
+    const DetailField* previous = nullptr; ///< the previous frame's detail: initialise by advection (section 3.4)
+    double dt = 0.0;                       ///< time from the previous frame to this one (L * dt is a displacement)
 };
 
 /// Per pyramid level: what was run and the texture energy after each iteration.
 struct SynthLevelStats
 {
-    int level = 0;               ///< 0 = coarsest
-    Coord dim{0};                ///< output size at this level
-    std::vector<int> radius;     ///< neighbourhood radius of each iteration
-    std::vector<bool> tree;      ///< each iteration searched the tree (else k-coherence)
-    std::vector<double> energy;  ///< mean squared neighbourhood distance per channel after each search
+    int level = 0;              ///< 0 = coarsest
+    Coord dim{0};               ///< output size at this level
+    std::vector<int> radius;    ///< neighbourhood radius of each iteration
+    std::vector<bool> tree;     ///< each iteration searched the tree (else k-coherence)
+    std::vector<double> energy; ///< mean squared neighbourhood distance per channel after each search
     /// With SynthSettings::traceDescent, per iteration: Kwatra's objective (the robust-weighted mean distance) of
     /// that iteration's centres and matches at the search, after the weighted average (the M-step proper) and
     /// after the moment match, temporal and wall terms. Empty otherwise.
@@ -179,7 +190,10 @@ struct DetailField
                         ///< from (empty without padding; `world` is its crop to the output box)
     std::vector<SynthLevelStats> levels; ///< per level, coarsest first
     bool fromPrevious = false;           ///< initialised by advecting the previous frame
-    double finalEnergy() const { return levels.empty() || levels.back().energy.empty() ? 0.0 : levels.back().energy.back(); }
+    double finalEnergy() const
+    {
+        return levels.empty() || levels.back().energy.empty() ? 0.0 : levels.back().energy.back();
+    }
 };
 
 /// Synthesises the detail field H of one frame on the lattice refined `factor` times from L's. Throws ValueError
@@ -196,7 +210,10 @@ struct FineDomain
     bool twoD = false;
 };
 FineDomain fineDomain(const CoordBBox& coarseBox, const Lattice& coarseLattice, int factor);
-inline FineDomain fineDomain(const VectorField& coarse, int factor) { return fineDomain(coarse.bbox(), coarse.lattice(), factor); }
+inline FineDomain fineDomain(const VectorField& coarse, int factor)
+{
+    return fineDomain(coarse.bbox(), coarse.lattice(), factor);
+}
 
 /// up(L): L sampled cell-centred trilinearly on the fine domain (constant extension at the faces).
 VectorField upsampleCoarse(const VectorField& coarse, int factor);
@@ -204,14 +221,15 @@ ScalarField upsampleCoarse(const ScalarField& coarse, int factor);
 
 struct CombineSettings
 {
-    enum class Weighting
-    {
+    enum class Weighting {
         Constant,      ///< omega everywhere (paper's default, supplement B)
         KineticEnergy, ///< omega * e(x) / mean(e), e = |L|^2 / 2 (Kim et al. 2008)
         Vorticity      ///< omega * |curl L|(x) / mean|curl L| (Fedkiw et al. 2001)
     };
-    Weighting weighting = Weighting::Constant; ///< spatial shape of omega (section 3.5); means are over moving voxels (|L| > 5% of max)
-    double omega = 0.5;   ///< detail strength, >= 0; relative: times rms|L| over moving voxels (|L| > 5% of max); else world units per time
+    Weighting weighting =
+        Weighting::Constant; ///< spatial shape of omega (section 3.5); means are over moving voxels (|L| > 5% of max)
+    double omega = 0.5;   ///< detail strength, >= 0; relative: times rms|L| over moving voxels (|L| > 5% of max); else
+                          ///< world units per time
     bool relative = true; ///< omega relative to the rms speed of L (true) or absolute velocity units (false)
     bool removeCoarsePart = true; ///< beyond the paper: take omega * H''s coarse-cell means (spread
                                   ///< trilinearly, five passes) out of the detail, so F keeps L's coarse motion;
@@ -271,11 +289,11 @@ private:
 /// neighbourhood (exact search, per channel), for the field and for a shuffled copy of it.
 struct TextureMatch
 {
-    double distance = 0.0;        ///< mean nearest-neighbour squared distance per channel, synthesised field
-    double shuffled = 0.0;        ///< the same for the field's vectors shuffled over its voxels
-    double fieldRms[2] = {0, 0};  ///< rms of the field's two in-plane components over the compared slices
+    double distance = 0.0;          ///< mean nearest-neighbour squared distance per channel, synthesised field
+    double shuffled = 0.0;          ///< the same for the field's vectors shuffled over its voxels
+    double fieldRms[2] = {0, 0};    ///< rms of the field's two in-plane components over the compared slices
     double exemplarRms[2] = {0, 0}; ///< rms of the exemplar's two components
-    int samples = 0;              ///< neighbourhoods compared
+    int samples = 0;                ///< neighbourhoods compared
     double ratio() const { return shuffled > 0.0 ? distance / shuffled : 0.0; }
 };
 
@@ -294,8 +312,7 @@ TextureMatch textureMatch(const Exemplar& exemplar, const VectorField& local, co
 /// Built-in analytic coarse flows (for tests, demos and benchmarks without a cache).
 struct AnalyticFlowSettings
 {
-    enum class Kind
-    {
+    enum class Kind {
         Uniform, ///< constant velocity `speed` along angle `angleDegrees` in the xy plane
         Vortex,  ///< solid-body rotation about the domain's z axis (speed at the half-width)
         Shear    ///< u_x varies linearly in y from -speed to +speed

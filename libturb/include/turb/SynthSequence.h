@@ -41,12 +41,13 @@ struct SynthSequenceSettings
 /// One frame of coarse input. Fields are borrowed for the call.
 struct SynthFrameInput
 {
-    const VectorField* coarse = nullptr;        ///< L, world units per time unit (required)
-    const ScalarField* coarseDensity = nullptr; ///< optional, on L's lattice: the secondary axis, the smoke, the sources
-    const ScalarField* obstacle = nullptr;      ///< optional signed distance (world units, < 0 inside), any lattice
-    const ScalarField* emitters = nullptr;      ///< optional: where a scene's emitters are, on the density's box
-    int frame = 0;                              ///< frame number; a gap to the previous call is advected over
-    double dt = 0.0;                            ///< time per frame, > 0
+    const VectorField* coarse = nullptr; ///< L, world units per time unit (required)
+    const ScalarField* coarseDensity =
+        nullptr;                           ///< optional, on L's lattice: the secondary axis, the smoke, the sources
+    const ScalarField* obstacle = nullptr; ///< optional signed distance (world units, < 0 inside), any lattice
+    const ScalarField* emitters = nullptr; ///< optional: where a scene's emitters are, on the density's box
+    int frame = 0;                         ///< frame number; a gap to the previous call is advected over
+    double dt = 0.0;                       ///< time per frame, > 0
 };
 
 /// Where one frame's time went, seconds.
@@ -64,11 +65,12 @@ struct SynthTimings
 
 struct SynthFrameResult
 {
-    Frame frame;                    ///< number, dt, velocity (F, or F - up(L) with detailOnly), density when made
-    VectorField motion;             ///< F on the fine box
+    Frame frame;        ///< number, dt, velocity (F, or F - up(L) with detailOnly), density when made
+    VectorField motion; ///< F on the fine box
     std::optional<ProjectionResult> projection; ///< with SynthSequenceSettings::project
-    bool smokeless = false;         ///< the frame's density holds no smoke, so no detail was placed (detailNearSmoke)
-    std::optional<double> densityMass; ///< sum of the fine density times the voxel volume; none when no density was made
+    bool smokeless = false; ///< the frame's density holds no smoke, so no detail was placed (detailNearSmoke)
+    std::optional<double>
+        densityMass; ///< sum of the fine density times the voxel volume; none when no density was made
     SynthTimings seconds;
 };
 

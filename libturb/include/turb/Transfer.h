@@ -49,8 +49,7 @@ namespace turb {
 
 /// How the source is aligned to the target before matching (beyond the paper, whose stated
 /// limitation is sources whose flow differs in direction or speed).
-enum class FlowAlignment
-{
+enum class FlowAlignment {
     None,      ///< compare velocities as they are (the paper)
     Normalize, ///< divide each sequence's velocities by its RMS speed in the smoke region
     Rotate,    ///< rotate the source by the axis rotation that best maps its mean flow onto the target's
@@ -59,16 +58,14 @@ enum class FlowAlignment
 
 /// What the detail's energy is calibrated to, after seam smoothing and the coarse-part removal (both
 /// remove some of it). One scalar per frame, bounded to [1/3, 3].
-enum class DetailEnergy
-{
+enum class DetailEnergy {
     None,   ///< leave U_h as the pipeline made it
     Pasted, ///< the energy of the pasted patches inside the smoke (undo the post-processing's losses)
     Source  ///< the source's mean high-frequency energy per smoke voxel: as much turbulence as the source
 };
 
 /// How the first frame's high-resolution density is advanced.
-enum class DensityMode
-{
+enum class DensityMode {
     Advect,  ///< carry the previous output density through U, plus the target's own emission
     LookBack ///< Ma et al.'s supplement: re-start from the target density m frames back and advect m times
 };
@@ -76,19 +73,19 @@ enum class DensityMode
 struct TransferSettings
 {
     // Matching (eqs. 1 and 2)
-    float alpha = 0.004f;         ///< weight of the density-mask term, >= 0 (paper: 0.004)
-    float beta = 0.5f;            ///< weight of the temporal term on the advected previous detail, >= 0 (paper: 0.5)
+    float alpha = 0.004f;           ///< weight of the density-mask term, >= 0 (paper: 0.004)
+    float beta = 0.5f;              ///< weight of the temporal term on the advected previous detail, >= 0 (paper: 0.5)
     float densityThreshold = 0.01f; ///< D_th: smoke where density > this (mask for patches and matching)
-    int localPatch = 8;           ///< B: local patch edge in fine voxels, >= 2
-    int globalPatch = 0;          ///< b: global patch edge in coarse voxels, odd; 0 = 2*ceil(B/f)+1 (> B/f as required)
-    int pcaComponents = 16;       ///< PCA dimensions of global and local descriptors, >= 1
-    int localStride = 2;          ///< spacing of candidate local-patch centres in the source, >= 1
-    int refineCandidates = 24;    ///< local candidates re-scored with the full-resolution energy E_h, >= 1
+    int localPatch = 8;             ///< B: local patch edge in fine voxels, >= 2
+    int globalPatch = 0;       ///< b: global patch edge in coarse voxels, odd; 0 = 2*ceil(B/f)+1 (> B/f as required)
+    int pcaComponents = 16;    ///< PCA dimensions of global and local descriptors, >= 1
+    int localStride = 2;       ///< spacing of candidate local-patch centres in the source, >= 1
+    int refineCandidates = 24; ///< local candidates re-scored with the full-resolution energy E_h, >= 1
     bool trackGlobalPatches = true; ///< the paper's temporal rule; false = global search every frame
-    bool followSourceFlow = true; ///< beyond the paper: a patch that carried detail continues from where that detail
-                                  ///< came from in the source, moved by the source's own flow (sub-voxel, tricubic);
-                                  ///< without it the re-pasted detail stays put while the carried detail moves, and
-                                  ///< the blend smears it into streaks along the flow
+    bool followSourceFlow = true;   ///< beyond the paper: a patch that carried detail continues from where that detail
+                                    ///< came from in the source, moved by the source's own flow (sub-voxel, tricubic);
+                                    ///< without it the re-pasted detail stays put while the carried detail moves, and
+                                    ///< the blend smears it into streaks along the flow
     float sourceSmoke = 0.5f;     ///< beyond the paper: a source patch is a candidate when this fraction of its voxels
                                   ///< holds smoke (relaxed to half the smokiest patch's share on thin first frames);
                                   ///< 0 = any smoke, the paper's rule, which let velocity alone pick patches outside
@@ -101,45 +98,47 @@ struct TransferSettings
     float temporalBlend = 0.95f;  ///< beyond the paper: weight of last frame's detail (advected through the target)
                                   ///< mixed into patches that had detail, in [0, 0.999]; 0 = the paper
     float regenerate = 0.6f;      ///< beyond the paper: carried detail that the flow has stretched is
-                                  ///< regenerated from the freshly pasted patch faster. A patch's structure ratio is the
-                                  ///< gradient energy of U_h along up(u_t)'s mean direction over the mean across it;
-                                  ///< where the carried detail's is below this fraction of the fresh detail's (the
-                                  ///< smaller of the patch's own and all pasted patches' pooled), the patch takes
-                                  ///< regenerateBlend instead of temporalBlend. In [0, 1]; 0 = off (carried detail
-                                  ///< stretches into streaks over a long shot)
-    float regenerateBlend = 0.5f; ///< carried weight per frame in a regenerated patch, in [0, 0.999] (at most
-                                  ///< temporalBlend is used)
+                             ///< regenerated from the freshly pasted patch faster. A patch's structure ratio is the
+                             ///< gradient energy of U_h along up(u_t)'s mean direction over the mean across it;
+                             ///< where the carried detail's is below this fraction of the fresh detail's (the
+                             ///< smaller of the patch's own and all pasted patches' pooled), the patch takes
+                             ///< regenerateBlend instead of temporalBlend. In [0, 1]; 0 = off (carried detail
+                             ///< stretches into streaks over a long shot)
+    float regenerateBlend = 0.5f;   ///< carried weight per frame in a regenerated patch, in [0, 0.999] (at most
+                                    ///< temporalBlend is used)
     float regenerateBlend2D = 0.6f; ///< the same for a 2D sequence (0.5 put block over 1.05 on 6 of 30 frames of
-                                  ///< the built-in 2D pair, 0.6 on 4)
+                                    ///< the built-in 2D pair, 0.6 on 4)
     FlowAlignment alignment = FlowAlignment::None; ///< see FlowAlignment
-    bool resampleSource = true;   ///< beyond the paper: a source at a non-integer ratio is resampled trilinearly to
-                                  ///< the nearest integer ratio; false = such a source is an error
+    bool resampleSource = true; ///< beyond the paper: a source at a non-integer ratio is resampled trilinearly to
+                                ///< the nearest integer ratio; false = such a source is an error
 
     // Seam smoothing (section 3.3)
-    SeamSettings seams;           ///< band width, boundary patch size, gamma, EM and CG tolerances
+    SeamSettings seams; ///< band width, boundary patch size, gamma, EM and CG tolerances
 
     // Output
-    bool compensateTargetDivergence = true; ///< the seam solve's gamma term penalises div(up(u_t) + U_h), not
-                                            ///< div(U_h) alone, so the band also cancels the up-sampled target's divergence
+    bool compensateTargetDivergence =
+        true; ///< the seam solve's gamma term penalises div(up(u_t) + U_h), not
+              ///< div(U_h) alone, so the band also cancels the up-sampled target's divergence
     bool solveFreshPatchesWhole = false; ///< beyond the paper: patches without carried detail (first frames, smoke
-                                   ///< entering) join the seam solve whole, so its divergence term reaches their
-                                   ///< insides; lowers early frames' div_rel, costs some tcoh later
-    bool removeCoarseDetail = true; ///< reduce the smooth part of U_h whose box means are not zero (bounds lf_err)
+                                         ///< entering) join the seam solve whole, so its divergence term reaches their
+                                         ///< insides; lowers early frames' div_rel, costs some tcoh later
+    bool removeCoarseDetail = true;      ///< reduce the smooth part of U_h whose box means are not zero (bounds lf_err)
     float coarseTolerance = 0.04f; ///< beyond the paper: U_h's coarse-cell means are reduced only until they are this
                                    ///< fraction of the target's coarse speed (rms over the smoke cells, lf_err's
                                    ///< definition); 0 = removed exactly. What stays is carried detail that advection
                                    ///< moved into the means: removing it is a change every frame (tcoh)
     DetailEnergy detailEnergy = DetailEnergy::Source; ///< what U_h's energy is scaled to (one scalar per frame)
-    DensityMode densityMode = DensityMode::Advect; ///< how the output density is produced
+    DensityMode densityMode = DensityMode::Advect;    ///< how the output density is produced
     /// Scheme of the output density's advection (OpenVDB VolumeAdvection, clamped): BFECC traces back three times
     /// per substep; MacCormack twice (28% less density time at frame 30 on the Blender pair with the same
     /// numbers there, but mass 1.13x the target's on the inflow test, so not the default); semi-Lagrangian once,
     /// showing the coarse cells' staircase at the smoke's edge (docs/performance.md).
     AdvectSettings::Scheme densityScheme = AdvectSettings::Scheme::BFECC;
-    DensityGuideSettings densityGuide; ///< beyond the paper: the output density's coarse means are moved onto the
-                                   ///< target's every frame (strength 0 = off), so it does not drift from the target
-    int lookBackFrames = 12;      ///< m for DensityMode::LookBack (Ma et al. suggest 10-20)
-    int threads = 0;              ///< worker threads, 0 = all; results do not depend on it
+    DensityGuideSettings
+        densityGuide;        ///< beyond the paper: the output density's coarse means are moved onto the
+                             ///< target's every frame (strength 0 = off), so it does not drift from the target
+    int lookBackFrames = 12; ///< m for DensityMode::LookBack (Ma et al. suggest 10-20)
+    int threads = 0;         ///< worker threads, 0 = all; results do not depend on it
 };
 
 /// Where one frame's time went, in seconds (steady clock).
@@ -157,32 +156,33 @@ struct TransferTimings
     /// (name, seconds) in report order; the names are the JSON keys of `steps_s`.
     std::vector<std::pair<const char*, double>> named() const
     {
-        return {{"split", split}, {"advect_detail", advectDetail}, {"global", global}, {"local", local}, {"paste", paste},
-            {"seams", seams}, {"output", output}, {"density", density}, {"total", total}};
+        return {{"split", split}, {"advect_detail", advectDetail}, {"global", global}, {"local", local},
+            {"paste", paste}, {"seams", seams}, {"output", output}, {"density", density}, {"total", total}};
     }
 };
 
 /// Numbers a TD or a log wants per frame.
 struct TransferStats
 {
-    int ratio = 0;                 ///< resolution ratio f
-    double sourceRatio = 0.0;      ///< target voxel / source voxel as given
-    bool sourceResampled = false;  ///< sourceRatio was not an integer: the source was resampled to f
-    int localPatches = 0;          ///< local patches holding smoke
-    int globalSearches = 0;        ///< patches that ran the global search this frame
-    int trackedPatches = 0;        ///< patches whose global patch followed the previous frame
-    int continuations = 0;         ///< patches with a continuation in the source's flow this frame
-    int followedPatches = 0;       ///< patches that took it (followSourceFlow, followTolerance)
-    int regeneratedPatches = 0;    ///< patches whose stretched carried detail was regenerated (regenerate)
-    double meanLocalEnergy = 0.0;  ///< mean E_h of the chosen local patches
-    double energyScale = 1.0;      ///< factor applied to U_h to meet TransferSettings::detailEnergy
-    double coarseKept = 0.0;       ///< fraction of U_h's coarse part left in (coarseTolerance): 0 = removed exactly,
-                                   ///< 1 = all kept (also with removeCoarseDetail off)
-    double lfErr = 0.0;            ///< rms of U_h's coarse-cell means / rms of the target's, over its smoke cells
-                                   ///< (0 when the target is at rest there)
-    std::optional<double> detailChange; ///< rms(U_h - U_h(i-1) advected) / rms(U_h) over the output's smoke: `measure`'s
-                                   ///< tcoh when both advect the same way (BFECC: temporal blend on, the default); empty
-                                   ///< without carried detail (first frame, after an empty frame, beta = blend = 0)
+    int ratio = 0;                ///< resolution ratio f
+    double sourceRatio = 0.0;     ///< target voxel / source voxel as given
+    bool sourceResampled = false; ///< sourceRatio was not an integer: the source was resampled to f
+    int localPatches = 0;         ///< local patches holding smoke
+    int globalSearches = 0;       ///< patches that ran the global search this frame
+    int trackedPatches = 0;       ///< patches whose global patch followed the previous frame
+    int continuations = 0;        ///< patches with a continuation in the source's flow this frame
+    int followedPatches = 0;      ///< patches that took it (followSourceFlow, followTolerance)
+    int regeneratedPatches = 0;   ///< patches whose stretched carried detail was regenerated (regenerate)
+    double meanLocalEnergy = 0.0; ///< mean E_h of the chosen local patches
+    double energyScale = 1.0;     ///< factor applied to U_h to meet TransferSettings::detailEnergy
+    double coarseKept = 0.0;      ///< fraction of U_h's coarse part left in (coarseTolerance): 0 = removed exactly,
+                                  ///< 1 = all kept (also with removeCoarseDetail off)
+    double lfErr = 0.0;           ///< rms of U_h's coarse-cell means / rms of the target's, over its smoke cells
+                                  ///< (0 when the target is at rest there)
+    std::optional<double>
+        detailChange; ///< rms(U_h - U_h(i-1) advected) / rms(U_h) over the output's smoke: `measure`'s
+                      ///< tcoh when both advect the same way (BFECC: temporal blend on, the default); empty
+                      ///< without carried detail (first frame, after an empty frame, beta = blend = 0)
     double densityErrBefore = 0.0; ///< coarse density error (measure's density_err) before the density guide
     double densityErr = 0.0;       ///< the same after it: what the written density has
     double detailGrowth = 0.0;     ///< rms(U_h) / rms(U_h(i-1) advected) over the output's smoke; no field of this
@@ -193,9 +193,9 @@ struct TransferStats
 
 struct TransferResult
 {
-    Frame frame;          ///< velocity (world units, source resolution), density, upsampled temperature/flame
+    Frame frame; ///< velocity (world units, source resolution), density, upsampled temperature/flame
     TransferStats stats;
-    bool empty = false;   ///< the target frame had no smoke: the frame is the upsampled target (defined no-op)
+    bool empty = false; ///< the target frame had no smoke: the frame is the upsampled target (defined no-op)
 };
 
 /// The settings that change a transfer's output, as (name, value) pairs in a fixed order; names are the command

@@ -44,8 +44,8 @@ struct SegmentUsage
     long long sources = 0, targets = 0; ///< |Z_L| and |X_L| (whole-patch centres)
     long long K = 0, R = 0;             ///< quotient and remainder of eq. 5
     long long minCount = 0, maxCount = 0;
-    long long countsAtKPlusOne = 0;     ///< how many counts are K + 1 (== R when the constraint holds)
-    double coverage = 0.0;              ///< fraction of source patches used at least once
+    long long countsAtKPlusOne = 0; ///< how many counts are K + 1 (== R when the constraint holds)
+    double coverage = 0.0;          ///< fraction of source patches used at least once
 };
 
 struct UniformNnf

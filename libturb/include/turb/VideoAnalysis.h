@@ -34,11 +34,11 @@ namespace turb {
 
 struct AnalysisSettings
 {
-    int features = 100;         ///< Shi-Tomasi features per frame pair (paper 100), >= 1
-    int window = 10;            ///< Lucas-Kanade window in pixels (paper 10), 3..64
-    int levels = 3;             ///< Lucas-Kanade pyramid levels above the base (Bouguet), 0..6
-    double maxRoundTrip = 0.5;  ///< drop tracks whose forward-backward round trip misses by more (pixels), > 0
-    int rbfStep = 4;            ///< the interpolated flow is evaluated every rbfStep pixels, bilinear between, 1..16
+    int features = 100;        ///< Shi-Tomasi features per frame pair (paper 100), >= 1
+    int window = 10;           ///< Lucas-Kanade window in pixels (paper 10), 3..64
+    int levels = 3;            ///< Lucas-Kanade pyramid levels above the base (Bouguet), 0..6
+    double maxRoundTrip = 0.5; ///< drop tracks whose forward-backward round trip misses by more (pixels), > 0
+    int rbfStep = 4;           ///< the interpolated flow is evaluated every rbfStep pixels, bilinear between, 1..16
 };
 
 /// Throws ValueError naming the first setting out of range.

@@ -27,15 +27,15 @@ struct VoteSettings
 /// Writes channels [firstTarget, firstTarget + count) of `target` from channels [firstSource, ...) of
 /// `source`, by uniform-weight voting through `nnf` (target-sized, patch half-size `radius`). Returns
 /// the number of votes per target pixel (0 = uncovered). Throws ValueError on size or channel mismatch.
-std::vector<int> vote(const ChannelImage& source, const Nnf& nnf, int radius, int firstSource, int firstTarget, int count,
-    ChannelImage& target, const VoteSettings& settings = {});
+std::vector<int> vote(const ChannelImage& source, const Nnf& nnf, int radius, int firstSource, int firstTarget,
+    int count, ChannelImage& target, const VoteSettings& settings = {});
 
 /// Voting of rotated patches from a video (Fluidymation): target pixel q gathers, from every
 /// centre q' = q - d with a match (i, x, y, theta), the source frame i sampled bilinearly at
 /// (x, y) + R_{-theta} d (RotatedNnf.h), and takes the mean. `frames[i]` is source frame i; channels
 /// [firstSource, firstSource + count) go to [firstTarget, ...) of `target`. Returns the votes per target
 /// pixel. Throws ValueError on size or channel mismatch or a match naming a missing frame.
-std::vector<int> voteRotated(const std::vector<const ChannelImage*>& frames, const RotatedNnf& nnf, int radius, int firstSource,
-    int firstTarget, int count, ChannelImage& target, const VoteSettings& settings = {});
+std::vector<int> voteRotated(const std::vector<const ChannelImage*>& frames, const RotatedNnf& nnf, int radius,
+    int firstSource, int firstTarget, int count, ChannelImage& target, const VoteSettings& settings = {});
 
 } // namespace turb

@@ -20,7 +20,8 @@ void validate(const AnimateSettings& s)
     validate(s.transfer);
     validate(s.hm);
     if (s.tau < 1) throw ValueError("animate: tau must be >= 1");
-    if (!(s.average.shutter >= 0.0) || s.average.shutter > 200.0) throw ValueError("animate: the shutter Sh must be in [0, 200] frames");
+    if (!(s.average.shutter >= 0.0) || s.average.shutter > 200.0)
+        throw ValueError("animate: the shutter Sh must be in [0, 200] frames");
     if (!(s.average.wa >= 0.0) || s.average.wa > 500.0) throw ValueError("animate: w_a must be in [0, 500] pixels");
     if (s.batch < 1) throw ValueError("animate: batch must be >= 1");
 }
@@ -32,7 +33,8 @@ ChannelImage blurAlong(const ChannelImage& img, const ChannelImage& flow, const 
     ChannelImage a = img;
     if (s.shutter > 0.0) {
         double vmax = 0.0;
-        for (size_t i = 0; i < flow.pixelCount(); ++i) vmax = std::max(vmax, double(std::hypot(flow.pixel(i)[0], flow.pixel(i)[1])));
+        for (size_t i = 0; i < flow.pixelCount(); ++i)
+            vmax = std::max(vmax, double(std::hypot(flow.pixel(i)[0], flow.pixel(i)[1])));
         MotionBlurSettings mb;
         mb.shutter = float(s.shutter);
         mb.maxSamples = std::clamp(int(std::ceil(s.shutter * vmax)) + 1, 3, 129);
@@ -44,11 +46,14 @@ ChannelImage blurAlong(const ChannelImage& img, const ChannelImage& flow, const 
 
 } // namespace
 
-ChannelImage approximateAverage(const ChannelImage& target, const ChannelImage& flow, const AverageSettings& s, const ChannelImage* matte)
+ChannelImage approximateAverage(
+    const ChannelImage& target, const ChannelImage& flow, const AverageSettings& s, const ChannelImage* matte)
 {
-    if (!flow.sameSize(target) || flow.channels() != 2) throw ValueError("approximateAverage: the flow must be a 2-channel image of the target's size");
+    if (!flow.sameSize(target) || flow.channels() != 2)
+        throw ValueError("approximateAverage: the flow must be a 2-channel image of the target's size");
     if (!matte) return blurAlong(target, flow, s);
-    if (!matte->sameSize(target) || matte->channels() != 1) throw ValueError("approximateAverage: the matte must be a 1-channel image of the target's size");
+    if (!matte->sameSize(target) || matte->channels() != 1)
+        throw ValueError("approximateAverage: the matte must be a 1-channel image of the target's size");
     // Normalised blur of the fluid alone: blur(m T) / blur(m), so the still parts around the fluid do not
     // bleed into its average (pixels the blurred matte does not reach keep the target).
     const int C = target.channels();
@@ -75,7 +80,8 @@ struct DifferenceSynthesizer::Impl
     std::deque<ChannelImage> terms; // W'^{age}(R'_k), oldest first
 };
 
-DifferenceSynthesizer::DifferenceSynthesizer(const ChannelImage& flow, int tau) : mImpl(std::make_unique<Impl>()), mTau(tau)
+DifferenceSynthesizer::DifferenceSynthesizer(const ChannelImage& flow, int tau)
+    : mImpl(std::make_unique<Impl>()), mTau(tau)
 {
     if (tau < 1) throw ValueError("DifferenceSynthesizer: tau must be >= 1");
     mImpl->warp = cv::FlowWarp(flow);
@@ -118,7 +124,8 @@ void ContrastAdjustment::apply(ChannelImage& d) const
     }
 }
 
-ContrastAdjustment contrastAdjustment(const std::vector<ChannelImage>& diffs, const ChannelImage& cimg, const ChannelImage* matte)
+ContrastAdjustment contrastAdjustment(
+    const std::vector<ChannelImage>& diffs, const ChannelImage& cimg, const ChannelImage* matte)
 {
     const int C = cimg.channels();
     ContrastAdjustment a;
@@ -141,7 +148,8 @@ ContrastAdjustment contrastAdjustment(const std::vector<ChannelImage>& diffs, co
         a.sigmaC[size_t(c)] = w > 0 ? std::sqrt(std::max(0.0, s2 / w - mc * mc)) : 0.0;
         w = s = s2 = 0.0;
         for (const ChannelImage& d : diffs) {
-            if (!d.sameSize(cimg) || d.channels() != C) throw ValueError("contrastAdjustment: a difference image does not match C");
+            if (!d.sameSize(cimg) || d.channels() != C)
+                throw ValueError("contrastAdjustment: a difference image does not match C");
             for (size_t i = 0; i < d.pixelCount(); ++i) {
                 const double m = weight(i), v = d.pixel(i)[c];
                 w += m;
@@ -201,25 +209,26 @@ void frameErrors(AnimatedFrame& f, const ChannelImage& target, const std::vector
 void checkInput(const AnimateInput& in, const AnimateSettings& s)
 {
     if (int(in.exampleFrames.size()) < s.tau + 2)
-        throw ValueError("the video example has " + std::to_string(in.exampleFrames.size()) + " frames; tau = " + std::to_string(s.tau) +
-                         " needs at least tau + 2 = " + std::to_string(s.tau + 2));
+        throw ValueError("the video example has " + std::to_string(in.exampleFrames.size()) + " frames; tau = " +
+                         std::to_string(s.tau) + " needs at least tau + 2 = " + std::to_string(s.tau + 2));
     if (in.target.empty()) throw ValueError("the target image is empty");
     if (in.target.channels() != in.exampleFrames.front().channels())
         throw ValueError("the target has " + std::to_string(in.target.channels()) + " channels, the example " +
                          std::to_string(in.exampleFrames.front().channels()));
-    if (!in.strokes && !in.designedFlow) throw ValueError("the target has no flow design: give strokes or a dense flow");
+    if (!in.strokes && !in.designedFlow)
+        throw ValueError("the target has no flow design: give strokes or a dense flow");
     if (in.strokes && in.designedFlow) throw ValueError("give either strokes or a dense flow, not both");
     if (in.designedFlow && (!in.designedFlow->sameSize(in.target) || in.designedFlow->channels() != 2))
-        throw ValueError("the designed flow must be a 2-channel image of the target's size (" + std::to_string(in.target.width()) + "x" +
-                         std::to_string(in.target.height()) + ")");
+        throw ValueError("the designed flow must be a 2-channel image of the target's size (" +
+                         std::to_string(in.target.width()) + "x" + std::to_string(in.target.height()) + ")");
     if (in.matte && (!in.matte->sameSize(in.target) || in.matte->channels() != 1))
         throw ValueError("the matte must be a 1-channel image of the target's size");
 }
 
 /// Step 2 (sections 3.1, 5.1): the designed flow from the strokes (or the given dense flow), refined along the
 /// target's edges when asked; fills designMeanSpeed, the matte-weighted mean |flow| in pixels per frame.
-ChannelImage designFlow(const AnimateInput& in, double exampleSpeed, const AnimateSettings& s, const InspectFn& inspect,
-    AnimateStats& st)
+ChannelImage designFlow(
+    const AnimateInput& in, double exampleSpeed, const AnimateSettings& s, const InspectFn& inspect, AnimateStats& st)
 {
     const ChannelImage* matte = in.matte;
     RoughFlow rough;
@@ -254,8 +263,8 @@ ChannelImage designFlow(const AnimateInput& in, double exampleSpeed, const Anima
 
 /// Step 5 (eq. 7), incrementally: every example residual transferred (R'_k) and accumulated along the designed
 /// flow; returns the N - tau differences D'_i. The example's residuals are released as they are used.
-std::vector<ChannelImage> synthesizeDifferences(ExampleDecomposition& ex, const TransferMap& map, const ChannelImage& flow,
-    int tau, const InspectFn& inspect, Progress* progress)
+std::vector<ChannelImage> synthesizeDifferences(ExampleDecomposition& ex, const TransferMap& map,
+    const ChannelImage& flow, int tau, const InspectFn& inspect, Progress* progress)
 {
     std::vector<ChannelImage> diffs;
     DifferenceSynthesizer synth(flow, tau);
@@ -342,8 +351,8 @@ double matchAndDeliver(std::vector<ChannelImage>& diffs, const ContrastAdjustmen
 
 } // namespace
 
-AnimateStats animate(AnimateInput in, const AnimateSettings& s, const std::function<void(const AnimatedFrame&)>& sink, Progress* progress,
-    const InspectFn& inspect)
+AnimateStats animate(AnimateInput in, const AnimateSettings& s, const std::function<void(const AnimatedFrame&)>& sink,
+    Progress* progress, const InspectFn& inspect)
 {
     validate(s);
     checkInput(in, s);

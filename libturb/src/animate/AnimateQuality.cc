@@ -25,11 +25,13 @@ double median(std::vector<double> v)
 
 } // namespace
 
-FlowAgreement compareFlows(const ChannelImage& measured, const ChannelImage& designed, const ChannelImage* matte, double minSpeed, int border)
+FlowAgreement compareFlows(
+    const ChannelImage& measured, const ChannelImage& designed, const ChannelImage* matte, double minSpeed, int border)
 {
     if (measured.channels() != 2 || designed.channels() != 2 || !measured.sameSize(designed))
         throw ValueError("compareFlows: needs two 2-channel flows of one size");
-    if (matte && (!matte->sameSize(designed) || matte->channels() != 1)) throw ValueError("compareFlows: the matte must match the flows");
+    if (matte && (!matte->sameSize(designed) || matte->channels() != 1))
+        throw ValueError("compareFlows: the matte must match the flows");
     std::vector<double> angles, ratios;
     const int W = designed.width(), H = designed.height();
     for (int y = border; y < H - border; ++y)
@@ -74,7 +76,8 @@ void TemporalStats::add(const ChannelImage& frame)
             mSum[i] += x;
             mSum2[i] += x * x;
             // mRing.back() is the previous frame (lag 1), and so on.
-            for (int L = 1; L <= mLag && L <= int(mRing.size()); ++L) mLagSum[size_t(L - 1)][i] += x * mRing[mRing.size() - size_t(L)][i];
+            for (int L = 1; L <= mLag && L <= int(mRing.size()); ++L)
+                mLagSum[size_t(L - 1)][i] += x * mRing[mRing.size() - size_t(L)][i];
             for (int L = mFrames + 1; L <= mLag; ++L) mHead[size_t(L - 1)][i] += x; // sum of the first L frames
         }
     });
@@ -111,7 +114,8 @@ TemporalSummary TemporalStats::summary() const
         }
     }
     s.temporalStd = count > 0 ? stdSum / count : 0.0;
-    for (int L = 1; L <= mLag; ++L) s.autocorrelation[size_t(L - 1)] = acCount > 0 ? acSum[size_t(L - 1)] / acCount : 0.0;
+    for (int L = 1; L <= mLag; ++L)
+        s.autocorrelation[size_t(L - 1)] = acCount > 0 ? acSum[size_t(L - 1)] / acCount : 0.0;
     return s;
 }
 

@@ -72,7 +72,8 @@ FlowWarp::~FlowWarp() = default;
 FlowWarp::FlowWarp(FlowWarp&&) noexcept = default;
 FlowWarp& FlowWarp::operator=(FlowWarp&&) noexcept = default;
 
-FlowWarp::FlowWarp(const ChannelImage& flow) : mImpl(std::make_unique<Impl>()), mWidth(flow.width()), mHeight(flow.height())
+FlowWarp::FlowWarp(const ChannelImage& flow)
+    : mImpl(std::make_unique<Impl>()), mWidth(flow.width()), mHeight(flow.height())
 {
     if (flow.channels() != 2) throw ValueError("FlowWarp: the flow must have 2 channels");
     ::cv::Mat map(flow.height(), flow.width(), CV_32FC2);

@@ -72,12 +72,12 @@ struct Track
 
 struct TrackSettings
 {
-    int features = 100;             ///< Shi-Tomasi corners per frame pair (Okabe: 100), >= 1
-    int window = 10;                ///< Lucas-Kanade window in pixels (Okabe: 10), >= 3
-    int levels = 3;                 ///< pyramid levels above the base (Bouguet), >= 0
-    double quality = 0.01;          ///< corner quality relative to the strongest, (0, 1)
-    double minDistance = 5.0;       ///< minimum distance between corners, pixels
-    double maxRoundTrip = 0.5;      ///< forward-backward check: drop tracks that come back further than this, pixels
+    int features = 100;        ///< Shi-Tomasi corners per frame pair (Okabe: 100), >= 1
+    int window = 10;           ///< Lucas-Kanade window in pixels (Okabe: 10), >= 3
+    int levels = 3;            ///< pyramid levels above the base (Bouguet), >= 0
+    double quality = 0.01;     ///< corner quality relative to the strongest, (0, 1)
+    double minDistance = 5.0;  ///< minimum distance between corners, pixels
+    double maxRoundTrip = 0.5; ///< forward-backward check: drop tracks that come back further than this, pixels
 };
 
 /// Sparse flow from a to b: good features to track in a (Shi-Tomasi), pyramidal Lucas-Kanade to b

@@ -18,14 +18,17 @@ void validateStrokes(const std::vector<FlowStroke>& strokes, int width, int heig
     bool globalOrientation = false;
     for (size_t k = 0; k < strokes.size(); ++k) {
         const FlowStroke& s = strokes[k];
-        const std::string who = "stroke " + std::to_string(k) + " (" + (s.kind == StrokeKind::Speed ? "speed" : "orientation") + ")";
-        if (s.points.size() < 2) throw ValueError(who + ": needs at least 2 points, has " + std::to_string(s.points.size()));
+        const std::string who =
+            "stroke " + std::to_string(k) + " (" + (s.kind == StrokeKind::Speed ? "speed" : "orientation") + ")";
+        if (s.points.size() < 2)
+            throw ValueError(who + ": needs at least 2 points, has " + std::to_string(s.points.size()));
         bool moves = false;
         for (const StrokePoint& p : s.points) {
             if (!std::isfinite(p.x) || !std::isfinite(p.y)) throw ValueError(who + ": a point is not a finite number");
             if (p.x < -0.5 || p.y < -0.5 || p.x > width - 0.5 || p.y > height - 0.5)
-                throw ValueError(who + ": point (" + std::to_string(p.x) + ", " + std::to_string(p.y) + ") lies outside the " +
-                                 std::to_string(width) + "x" + std::to_string(height) + " image");
+                throw ValueError(who + ": point (" + std::to_string(p.x) + ", " + std::to_string(p.y) +
+                                 ") lies outside the " + std::to_string(width) + "x" + std::to_string(height) +
+                                 " image");
             if (p.x != s.points[0].x || p.y != s.points[0].y) moves = true;
         }
         if (!moves) throw ValueError(who + ": all its points are the same, it has no direction");
@@ -43,7 +46,8 @@ namespace {
 double strokeLength(const FlowStroke& s)
 {
     double L = 0.0;
-    for (size_t i = 1; i < s.points.size(); ++i) L += std::hypot(s.points[i].x - s.points[i - 1].x, s.points[i].y - s.points[i - 1].y);
+    for (size_t i = 1; i < s.points.size(); ++i)
+        L += std::hypot(s.points[i].x - s.points[i - 1].x, s.points[i].y - s.points[i - 1].y);
     return L;
 }
 
@@ -60,10 +64,8 @@ void sampleStroke(const FlowStroke& s, double spacing, double exampleSpeed, std:
         const double tx = (b.x - a.x) / len, ty = (b.y - a.y) / len;
         const auto push = [&](double t) {
             rbf::Sample smp{a.x + t * tx, a.y + t * ty, {}};
-            if (s.kind == StrokeKind::Orientation)
-                smp.values = {tx, ty};
-            else
-                smp.values = {speed};
+            if (s.kind == StrokeKind::Orientation) smp.values = {tx, ty};
+            else smp.values = {speed};
             out.push_back(std::move(smp));
         };
         double t = carried;
@@ -133,7 +135,8 @@ ChannelImage RoughFlow::flow() const
 RoughFlow interpolateStrokes(const std::vector<FlowStroke>& strokes, int width, int height, const StrokeSettings& st)
 {
     if (width < 1 || height < 1) throw ValueError("interpolateStrokes: empty image");
-    if (!(st.sampleSpacing > 0.0) || st.maxSamples < 8 || st.rbfStep < 1 || st.rbfStep > 16 || !(st.defaultSpeed >= 0.0))
+    if (!(st.sampleSpacing > 0.0) || st.maxSamples < 8 || st.rbfStep < 1 || st.rbfStep > 16 ||
+        !(st.defaultSpeed >= 0.0))
         throw ValueError("interpolateStrokes: settings out of range");
     validateStrokes(strokes, width, height);
     std::vector<const FlowStroke*> globalO, globalS;
@@ -143,10 +146,8 @@ RoughFlow interpolateStrokes(const std::vector<FlowStroke>& strokes, int width, 
     RoughFlow r;
     r.orientation = fitLayer(globalO, st).render(width, height, st.rbfStep);
     normalise(r.orientation);
-    if (globalS.empty())
-        r.speed = ChannelImage(width, height, 1, float(st.defaultSpeed));
-    else
-        r.speed = fitLayer(globalS, st).render(width, height, st.rbfStep);
+    if (globalS.empty()) r.speed = ChannelImage(width, height, 1, float(st.defaultSpeed));
+    else r.speed = fitLayer(globalS, st).render(width, height, st.rbfStep);
 
     for (const FlowStroke& s : strokes) {
         if (!s.local) continue;
@@ -160,8 +161,10 @@ RoughFlow interpolateStrokes(const std::vector<FlowStroke>& strokes, int width, 
             x1 = std::max(x1, p.x);
             y1 = std::max(y1, p.y);
         }
-        const int bx0 = std::max(0, int(std::floor(x0 - s.size))), bx1 = std::min(width - 1, int(std::ceil(x1 + s.size)));
-        const int by0 = std::max(0, int(std::floor(y0 - s.size))), by1 = std::min(height - 1, int(std::ceil(y1 + s.size)));
+        const int bx0 = std::max(0, int(std::floor(x0 - s.size))),
+                  bx1 = std::min(width - 1, int(std::ceil(x1 + s.size)));
+        const int by0 = std::max(0, int(std::floor(y0 - s.size))),
+                  by1 = std::min(height - 1, int(std::ceil(y1 + s.size)));
         if (bx0 > bx1 || by0 > by1) continue;
         parallelFor(size_t(by1 - by0 + 1), 4, [&](size_t j0, size_t j1) {
             for (size_t j = j0; j < j1; ++j) {
@@ -196,7 +199,8 @@ void validate(const RefineSettings& s)
 {
     if (!(s.wf > 0.0) || s.wf > 500.0) throw ValueError("refine: w_f must be in (0, 500] pixels");
     if (!(s.gradientFloor >= 0.0)) throw ValueError("refine: the gradient floor must be >= 0");
-    if (s.gradientKernel < 1 || s.gradientKernel % 2 == 0) throw ValueError("refine: the gradient kernel must be odd and >= 1");
+    if (s.gradientKernel < 1 || s.gradientKernel % 2 == 0)
+        throw ValueError("refine: the gradient kernel must be odd and >= 1");
 }
 
 RefinedFlow refineFlow(const ChannelImage& target, const RoughFlow& rough, const RefineSettings& s)
@@ -205,7 +209,8 @@ RefinedFlow refineFlow(const ChannelImage& target, const RoughFlow& rough, const
     const int W = target.width(), H = target.height();
     if (!rough.orientation.sameSize(target) || !rough.speed.sameSize(target) || rough.orientation.channels() != 2 ||
         rough.speed.channels() != 1)
-        throw ValueError("refineFlow: the rough field must match the target's size (" + std::to_string(W) + "x" + std::to_string(H) + ")");
+        throw ValueError("refineFlow: the rough field must match the target's size (" + std::to_string(W) + "x" +
+                         std::to_string(H) + ")");
     RefinedFlow r;
     r.gradient = cv::sobelGradient(cv::gaussian(luminance(target), s.gradientKernel));
 

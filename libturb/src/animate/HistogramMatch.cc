@@ -16,7 +16,8 @@ namespace turb {
 void validate(const HistogramMatchSettings& s)
 {
     if (s.reps < 1 || s.reps > 10) throw ValueError("histogram matching: HM Rep must be 1..10");
-    if (s.gridCols < 0 || s.gridRows < 0 || s.gridCols > 256 || s.gridRows > 256) throw ValueError("histogram matching: grid must be 0..256 cells per axis");
+    if (s.gridCols < 0 || s.gridRows < 0 || s.gridCols > 256 || s.gridRows > 256)
+        throw ValueError("histogram matching: grid must be 0..256 cells per axis");
     if (s.cellSize < 16) throw ValueError("histogram matching: the automatic cell size must be >= 16 pixels");
     if (!(s.overlap >= 0.0 && s.overlap <= 0.5)) throw ValueError("histogram matching: overlap must be in [0, 0.5]");
     if (!(s.reach >= 0.0 && s.reach <= 1.0)) throw ValueError("histogram matching: reach must be in [0, 1]");
@@ -105,8 +106,8 @@ std::vector<AxisTap> axisTaps(int n, const std::vector<double>& edges, double o)
 /// bin edges; between edges it is linear (the composition is, to within the quantile table's steps).
 struct CellMap
 {
-    float lo = 0.0f, scale = 0.0f;  // bin coordinate t = (v - lo) * scale
-    std::vector<float> at;          // bins + 1 values at the bin edges
+    float lo = 0.0f, scale = 0.0f; // bin coordinate t = (v - lo) * scale
+    std::vector<float> at;         // bins + 1 values at the bin edges
     float operator()(float v) const
     {
         const int B = int(at.size()) - 1;
@@ -133,10 +134,13 @@ CellMap cellMap(const ChannelImage& band, const Geometry& g, size_t k, int bins,
     const HmCell& r = g.regions[k];
     const int step = size_t(r.sx1 - r.sx0) * size_t(r.sy1 - r.sy0) >= 4096 ? 2 : 1;
     float lo = 1e30f, hi = -1e30f;
-    g.forCell(band, k, [&](float v) {
-        lo = std::min(lo, v);
-        hi = std::max(hi, v);
-    }, step);
+    g.forCell(
+        band, k,
+        [&](float v) {
+            lo = std::min(lo, v);
+            hi = std::max(hi, v);
+        },
+        step);
     CellMap m;
     m.lo = lo;
     m.at.assign(size_t(bins) + 1, 0.0f);
@@ -148,10 +152,13 @@ CellMap cellMap(const ChannelImage& band, const Geometry& g, size_t k, int bins,
     m.scale = float(bins / (double(hi) - double(lo)));
     std::vector<double> count(size_t(bins), 0.0);
     double n = 0.0;
-    g.forCell(band, k, [&](float v) {
-        count[size_t(std::clamp(int((v - lo) * m.scale), 0, bins - 1))] += 1.0;
-        n += 1.0;
-    }, step);
+    g.forCell(
+        band, k,
+        [&](float v) {
+            count[size_t(std::clamp(int((v - lo) * m.scale), 0, bins - 1))] += 1.0;
+            n += 1.0;
+        },
+        step);
     double acc = 0.0;
     for (int b = 0; b <= bins; ++b) {
         m.at[size_t(b)] = quantileAt(q, acc / n);
@@ -195,7 +202,7 @@ struct HistogramMatcher::Impl
     // Laplacian: 1..levels = bands, then low-pass.
     std::vector<Geometry> geometry;
     std::vector<std::vector<std::vector<std::vector<float>>>> tables; // [channel][slot][cell]
-    std::vector<std::vector<std::vector<float>>> rgbTables;          // [channel][cell]: the target's own channels (with PCA)
+    std::vector<std::vector<std::vector<float>>> rgbTables; // [channel][cell]: the target's own channels (with PCA)
 
     Geometry makeGeometry(int w, int h, double scale, double overlapScale = 1.0) const
     {
@@ -222,7 +229,8 @@ struct HistogramMatcher::Impl
             g.mask.assign(size_t(w) * size_t(h), 0);
             for (int y = 0; y < vh; ++y)
                 for (int x = 0; x < vw; ++x) {
-                    const int mx = std::min(W - 1, int((x + 0.5) / scale)), my = std::min(H - 1, int((y + 0.5) / scale));
+                    const int mx = std::min(W - 1, int((x + 0.5) / scale)),
+                              my = std::min(H - 1, int((y + 0.5) / scale));
                     g.mask[size_t(y) * size_t(w) + size_t(x)] = matte->at(mx, my, 0) >= 0.5f;
                 }
             for (const HmCell& r : g.regions) {
@@ -248,7 +256,10 @@ struct HistogramMatcher::Impl
         return t;
     }
 
-    void matchSlot(ChannelImage& band, size_t slot, int channel) const { matchTables(band, geometry[slot], tables[size_t(channel)][slot]); }
+    void matchSlot(ChannelImage& band, size_t slot, int channel) const
+    {
+        matchTables(band, geometry[slot], tables[size_t(channel)][slot]);
+    }
 
     /// Matches a band to per-cell quantile tables under a geometry.
     void matchTables(ChannelImage& band, const Geometry& g, const std::vector<std::vector<float>>& tab) const
@@ -345,13 +356,15 @@ void HistogramMatcher::Impl::matchPlane(ChannelImage& p, int c) const
     for (int k = 1; k < s.pixelPasses; ++k) matchSlot(p, 0, c);
 }
 
-HistogramMatcher::HistogramMatcher(const ChannelImage& target, const HistogramMatchSettings& settings, const ChannelImage* matte)
+HistogramMatcher::HistogramMatcher(
+    const ChannelImage& target, const HistogramMatchSettings& settings, const ChannelImage* matte)
     : mImpl(std::make_unique<Impl>())
 {
     if (matte && (!matte->sameSize(target) || matte->channels() != 1))
         throw ValueError("histogram matching: the matte must be a 1-channel image of the target's size");
     validate(settings);
-    if (target.empty() || target.channels() < 1 || target.channels() > 4) throw ValueError("histogram matching: the target must be a non-empty 1..4 channel image");
+    if (target.empty() || target.channels() < 1 || target.channels() > 4)
+        throw ValueError("histogram matching: the target must be a non-empty 1..4 channel image");
     Impl& m = *mImpl;
     m.s = settings;
     m.matte = matte;
@@ -389,7 +402,8 @@ HistogramMatcher::HistogramMatcher(const ChannelImage& target, const HistogramMa
         mean /= double(target.pixelCount());
         Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
         for (size_t i = 0; i < target.pixelCount(); ++i) {
-            const Eigen::Vector3d d(target.pixel(i)[0] - mean[0], target.pixel(i)[1] - mean[1], target.pixel(i)[2] - mean[2]);
+            const Eigen::Vector3d d(
+                target.pixel(i)[0] - mean[0], target.pixel(i)[1] - mean[1], target.pixel(i)[2] - mean[2]);
             cov += d * d.transpose();
         }
         Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
@@ -406,11 +420,14 @@ HistogramMatcher::HistogramMatcher(const ChannelImage& target, const HistogramMa
         m.geometry.push_back(m.makeGeometry(pyr.highpass.width(), pyr.highpass.height(), 1.0));
         for (int l = 0; l < m.levels; ++l)
             for (int k = 0; k < settings.orientations; ++k)
-                m.geometry.push_back(m.makeGeometry(pyr.bands[size_t(l)][size_t(k)].width(), pyr.bands[size_t(l)][size_t(k)].height(), std::ldexp(1.0, -l)));
+                m.geometry.push_back(m.makeGeometry(pyr.bands[size_t(l)][size_t(k)].width(),
+                    pyr.bands[size_t(l)][size_t(k)].height(), std::ldexp(1.0, -l)));
         m.geometry.push_back(m.makeGeometry(pyr.lowpass.width(), pyr.lowpass.height(), std::ldexp(1.0, -m.levels)));
     } else {
         const LaplacianPyramid pyr = buildLaplacianPyramid(probe, m.levels);
-        for (int l = 0; l < m.levels; ++l) m.geometry.push_back(m.makeGeometry(pyr.bands[size_t(l)].width(), pyr.bands[size_t(l)].height(), std::ldexp(1.0, -l)));
+        for (int l = 0; l < m.levels; ++l)
+            m.geometry.push_back(
+                m.makeGeometry(pyr.bands[size_t(l)].width(), pyr.bands[size_t(l)].height(), std::ldexp(1.0, -l)));
         m.geometry.push_back(m.makeGeometry(pyr.lowpass.width(), pyr.lowpass.height(), std::ldexp(1.0, -m.levels)));
     }
     if (m.pca)
@@ -449,9 +466,9 @@ ChannelImage HistogramMatcher::match(const ChannelImage& frame) const
 {
     const Impl& m = *mImpl;
     if (frame.width() != m.W || frame.height() != m.H || frame.channels() != m.C)
-        throw ValueError("histogram matching: the frame is " + std::to_string(frame.width()) + "x" + std::to_string(frame.height()) + "x" +
-                         std::to_string(frame.channels()) + ", the target " + std::to_string(m.W) + "x" + std::to_string(m.H) + "x" +
-                         std::to_string(m.C));
+        throw ValueError("histogram matching: the frame is " + std::to_string(frame.width()) + "x" +
+                         std::to_string(frame.height()) + "x" + std::to_string(frame.channels()) + ", the target " +
+                         std::to_string(m.W) + "x" + std::to_string(m.H) + "x" + std::to_string(m.C));
     std::vector<ChannelImage> planes(size_t(m.C));
     parallelFor(size_t(m.C), 1, [&](size_t b, size_t e) {
         for (size_t c = b; c < e; ++c) {

@@ -66,7 +66,8 @@ void Interpolant::fit(std::vector<Sample> samples, double mergeDistance)
     Eigen::MatrixXd A = Eigen::MatrixXd::Zero(m, m);
     Eigen::MatrixXd b = Eigen::MatrixXd::Zero(m, mChannels);
     for (size_t i = 0; i < n; ++i) {
-        for (size_t j = 0; j < n; ++j) A(Eigen::Index(i), Eigen::Index(j)) = std::hypot(mCx[i] - mCx[j], mCy[i] - mCy[j]);
+        for (size_t j = 0; j < n; ++j)
+            A(Eigen::Index(i), Eigen::Index(j)) = std::hypot(mCx[i] - mCx[j], mCy[i] - mCy[j]);
         const double q[3] = {1.0, mCx[i], mCy[i]};
         for (int p = 0; p < mPoly; ++p) {
             A(Eigen::Index(i), Eigen::Index(n) + p) = q[p];
@@ -77,7 +78,8 @@ void Interpolant::fit(std::vector<Sample> samples, double mergeDistance)
     const Eigen::MatrixXd w = A.fullPivLu().solve(b);
     mW.assign(size_t(m) * size_t(mChannels), 0.0);
     for (Eigen::Index r = 0; r < m; ++r)
-        for (int c = 0; c < mChannels; ++c) mW[size_t(r) * size_t(mChannels) + size_t(c)] = std::isfinite(w(r, c)) ? w(r, c) : 0.0;
+        for (int c = 0; c < mChannels; ++c)
+            mW[size_t(r) * size_t(mChannels) + size_t(c)] = std::isfinite(w(r, c)) ? w(r, c) : 0.0;
 }
 
 void Interpolant::evaluate(double x, double y, double* out) const

@@ -14,7 +14,8 @@ namespace turb {
 void validate(const TransferSettings& s)
 {
     if (s.patchSize < 8 || s.patchSize > 64) throw ValueError("transfer: the patch size must be 8..64 pixels");
-    if (s.downsample != 1 && s.downsample != 2 && s.downsample != 4) throw ValueError("transfer: downsample must be 1, 2 or 4");
+    if (s.downsample != 1 && s.downsample != 2 && s.downsample != 4)
+        throw ValueError("transfer: downsample must be 1, 2 or 4");
     if (s.pcaComponents < 1) throw ValueError("transfer: PCA components must be >= 1");
     if (!(s.feather >= 0.0 && s.feather <= 0.5)) throw ValueError("transfer: feather must be in [0, 0.5]");
 }
@@ -22,8 +23,7 @@ void validate(const TransferSettings& s)
 TransferMap::TransferMap(int tw, int th, int ew, int eh)
     : mWidth(tw), mHeight(th), mExWidth(ew), mExHeight(eh), mSource(size_t(tw) * size_t(th) * kTaps, 0u),
       mWeight(size_t(tw) * size_t(th) * kTaps, 0.0f)
-{
-}
+{}
 
 void TransferMap::addTap(size_t i, std::uint32_t source, float w)
 {
@@ -108,10 +108,10 @@ std::vector<int> patchStarts(int size, int patch)
 
 struct Placed
 {
-    int tx = 0, ty = 0;     // target patch corner, full resolution
-    int ex = 0, ey = 0;     // example window corner, full resolution
-    double cost = 0.0;      // |s - e|^2 per pixel
-    size_t order = 0;       // position in the patch grid (tie-break)
+    int tx = 0, ty = 0; // target patch corner, full resolution
+    int ex = 0, ey = 0; // example window corner, full resolution
+    double cost = 0.0;  // |s - e|^2 per pixel
+    size_t order = 0;   // position in the patch grid (tie-break)
 };
 
 /// Linear ramp of the patch alpha along one axis: 1 in the core, 0 at edges that lie inside the image.
@@ -130,14 +130,16 @@ TransferMap matchResiduals(const ChannelImage& exampleFlow, const ChannelImage& 
     const ChannelImage* matte, Progress* progress)
 {
     validate(s);
-    if (exampleFlow.channels() != 2 || targetFlow.channels() != 2) throw ValueError("matchResiduals: flows must have 2 channels");
+    if (exampleFlow.channels() != 2 || targetFlow.channels() != 2)
+        throw ValueError("matchResiduals: flows must have 2 channels");
     if (matte && (!matte->sameSize(targetFlow) || matte->channels() != 1))
         throw ValueError("matchResiduals: the matte must be a 1-channel image of the target's size");
     const int d = s.downsample, P = s.patchSize, p = std::max(2, int(std::lround(double(P) / d)));
     const ChannelImage ex = reduced(exampleFlow, d), tg = reduced(targetFlow, d);
     if (ex.width() < p || ex.height() < p)
-        throw ValueError("the video example (" + std::to_string(exampleFlow.width()) + "x" + std::to_string(exampleFlow.height()) +
-                         ") is smaller than one " + std::to_string(P) + " px patch");
+        throw ValueError("the video example (" + std::to_string(exampleFlow.width()) + "x" +
+                         std::to_string(exampleFlow.height()) + ") is smaller than one " + std::to_string(P) +
+                         " px patch");
     if (progress) progress->begin("transfer: index");
 
     // Every example window at the search resolution (a stride only when the descriptors would not fit
@@ -149,7 +151,8 @@ TransferMap matchResiduals(const ChannelImage& exampleFlow, const ChannelImage& 
     const size_t M = size_t(nx) * size_t(ny);
     std::vector<float> rows(M * dim);
     parallelFor(M, 1024, [&](size_t b, size_t e) {
-        for (size_t k = b; k < e; ++k) descriptor(ex, int(k % size_t(nx)) * stride, int(k / size_t(nx)) * stride, p, &rows[k * dim]);
+        for (size_t k = b; k < e; ++k)
+            descriptor(ex, int(k % size_t(nx)) * stride, int(k / size_t(nx)) * stride, p, &rows[k * dim]);
     });
     PatchIndex index;
     PcaSettings pca;
@@ -175,7 +178,9 @@ TransferMap matchResiduals(const ChannelImage& exampleFlow, const ChannelImage& 
         }
     std::vector<float> queries(placed.size() * dim);
     parallelFor(placed.size(), 64, [&](size_t b, size_t e) {
-        for (size_t k = b; k < e; ++k) descriptor(tg, int(std::lround(double(placed[k].tx) / d)), int(std::lround(double(placed[k].ty) / d)), p, &queries[k * dim]);
+        for (size_t k = b; k < e; ++k)
+            descriptor(tg, int(std::lround(double(placed[k].tx) / d)), int(std::lround(double(placed[k].ty) / d)), p,
+                &queries[k * dim]);
     });
     std::vector<int> nearest;
     std::vector<float> dist2;
@@ -187,7 +192,8 @@ TransferMap matchResiduals(const ChannelImage& exampleFlow, const ChannelImage& 
             const int cx = (n % nx) * stride, cy = (n / nx) * stride;
             descriptor(ex, cx, cy, p, win.data());
             double c = 0.0;
-            for (size_t q = 0; q < dim; ++q) c += double(queries[k * dim + q] - win[q]) * double(queries[k * dim + q] - win[q]);
+            for (size_t q = 0; q < dim; ++q)
+                c += double(queries[k * dim + q] - win[q]) * double(queries[k * dim + q] - win[q]);
             placed[k].cost = c / double(p * p);
             placed[k].ex = cx * d;
             placed[k].ey = cy * d;
@@ -197,9 +203,8 @@ TransferMap matchResiduals(const ChannelImage& exampleFlow, const ChannelImage& 
 
     // Lapped pasting, most similar first, each patch under what is there.
     if (progress) progress->begin("transfer: paste");
-    std::sort(placed.begin(), placed.end(), [](const Placed& a, const Placed& b) {
-        return a.cost != b.cost ? a.cost < b.cost : a.order < b.order;
-    });
+    std::sort(placed.begin(), placed.end(),
+        [](const Placed& a, const Placed& b) { return a.cost != b.cost ? a.cost < b.cost : a.order < b.order; });
     TransferMap map(W, H, exampleFlow.width(), exampleFlow.height());
     std::vector<float> cover(size_t(W) * size_t(H), 0.0f);
     const double fw = s.feather * P;

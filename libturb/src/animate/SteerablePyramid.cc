@@ -27,7 +27,8 @@ class FftwBuffer
 {
 public:
     /// Uninitialised storage of n elements (`zero` fills it).
-    explicit FftwBuffer(size_t n, bool zero = false) : mN(n), mP(static_cast<T*>(fftwf_malloc(sizeof(T) * std::max<size_t>(n, 1))))
+    explicit FftwBuffer(size_t n, bool zero = false)
+        : mN(n), mP(static_cast<T*>(fftwf_malloc(sizeof(T) * std::max<size_t>(n, 1))))
     {
         if (!mP) throw std::bad_alloc();
         if (zero) std::fill(mP, mP + n, T{});
@@ -62,7 +63,8 @@ const Plans& plansFor(int w, int h)
     Plans p;
     p.r2c = fftwf_plan_dft_r2c_2d(h, w, real.data(), reinterpret_cast<fftwf_complex*>(spec.data()), FFTW_ESTIMATE);
     p.c2r = fftwf_plan_dft_c2r_2d(h, w, reinterpret_cast<fftwf_complex*>(spec.data()), real.data(), FFTW_ESTIMATE);
-    if (!p.r2c || !p.c2r) throw ValueError("FFTW could not plan a " + std::to_string(w) + "x" + std::to_string(h) + " transform");
+    if (!p.r2c || !p.c2r)
+        throw ValueError("FFTW could not plan a " + std::to_string(w) + "x" + std::to_string(h) + " transform");
     return cache.emplace(std::make_pair(w, h), p).first->second;
 }
 
@@ -328,7 +330,8 @@ ChannelImage collapse(const SteerablePyramid& pyr)
     {
         const Masks& m = masksFor(L.w, L.h, K);
         const Spectrum H0 = forward(pyr.highpass);
-        for (size_t i = 0; i < L.c->size(); ++i) L.c->data()[i] = L.c->data()[i] * m.lo0[i] + H0.c->data()[i] * m.hi0[i];
+        for (size_t i = 0; i < L.c->size(); ++i)
+            L.c->data()[i] = L.c->data()[i] * m.lo0[i] + H0.c->data()[i] * m.hi0[i];
     }
     const ChannelImage full = inverse(L);
     ChannelImage out(pyr.width, pyr.height, 1);

@@ -44,15 +44,17 @@ constexpr size_t kPairGrain = 8; // pairs summed per chunk; fixed, so the float 
 
 void checkFrames(const std::vector<ChannelImage>& frames)
 {
-    if (frames.size() < 2) throw ValueError("the video example needs at least 2 frames, got " + std::to_string(frames.size()));
+    if (frames.size() < 2)
+        throw ValueError("the video example needs at least 2 frames, got " + std::to_string(frames.size()));
     const ChannelImage& f0 = frames.front();
     if (f0.width() < 8 || f0.height() < 8) throw ValueError("the video example frames must be at least 8x8 pixels");
     if (f0.channels() < 1 || f0.channels() > 4) throw ValueError("the video example frames must have 1 to 4 channels");
     for (size_t i = 1; i < frames.size(); ++i)
         if (!frames[i].sameSize(f0) || frames[i].channels() != f0.channels())
-            throw ValueError("video example frame " + std::to_string(i) + " is " + std::to_string(frames[i].width()) + "x" +
-                             std::to_string(frames[i].height()) + "x" + std::to_string(frames[i].channels()) + ", frame 0 is " +
-                             std::to_string(f0.width()) + "x" + std::to_string(f0.height()) + "x" + std::to_string(f0.channels()));
+            throw ValueError("video example frame " + std::to_string(i) + " is " + std::to_string(frames[i].width()) +
+                             "x" + std::to_string(frames[i].height()) + "x" + std::to_string(frames[i].channels()) +
+                             ", frame 0 is " + std::to_string(f0.width()) + "x" + std::to_string(f0.height()) + "x" +
+                             std::to_string(f0.channels()));
 }
 
 double medianOf(std::vector<double> v)
@@ -105,8 +107,8 @@ ChannelImage meanImage(const std::vector<ChannelImage>& frames)
 }
 
 /// Sparse Lucas-Kanade flow of each consecutive pair, interpolated with phi = r and averaged (4.2).
-ChannelImage trackedMeanFlow(const std::vector<ChannelImage>& diffs, const AnalysisSettings& s, AnalysisStats& stats,
-    Progress* progress)
+ChannelImage trackedMeanFlow(
+    const std::vector<ChannelImage>& diffs, const AnalysisSettings& s, AnalysisStats& stats, Progress* progress)
 {
     const int W = diffs[0].width(), H = diffs[0].height();
     const size_t N = diffs.size();
@@ -120,7 +122,7 @@ ChannelImage trackedMeanFlow(const std::vector<ChannelImage>& diffs, const Analy
     const double sigma = std::sqrt(sum2 / (double(N) * double(W) * double(H)));
     stats.pairs = int(N - 1);
     if (!(sigma > 0.0)) return ChannelImage(W, H, 2); // a still example: nothing moves
-    const float scale = float(40.0 / sigma);           // +-3 sigma over +-120 grey levels
+    const float scale = float(40.0 / sigma);          // +-3 sigma over +-120 grey levels
     std::vector<cv::TrackFrame> track(N);
     parallelFor(N, 1, [&](size_t b, size_t e) {
         for (size_t i = b; i < e; ++i) track[i] = cv::toTrackFrame(gray[i], scale);
@@ -194,8 +196,8 @@ double meanSpeed(const ChannelImage& flow)
 
 } // namespace
 
-ChannelImage estimateMeanFlow(const std::vector<ChannelImage>& frames, const AnalysisSettings& settings, AnalysisStats* stats,
-    Progress* progress)
+ChannelImage estimateMeanFlow(
+    const std::vector<ChannelImage>& frames, const AnalysisSettings& settings, AnalysisStats* stats, Progress* progress)
 {
     validate(settings);
     checkFrames(frames);
@@ -212,8 +214,8 @@ ChannelImage estimateMeanFlow(const std::vector<ChannelImage>& frames, const Ana
     return v;
 }
 
-ExampleDecomposition decomposeExample(std::vector<ChannelImage> frames, const AnalysisSettings& settings, Progress* progress,
-    const ChannelImage* givenFlow)
+ExampleDecomposition decomposeExample(std::vector<ChannelImage> frames, const AnalysisSettings& settings,
+    Progress* progress, const ChannelImage* givenFlow)
 {
     validate(settings);
     checkFrames(frames);
@@ -230,7 +232,8 @@ ExampleDecomposition decomposeExample(std::vector<ChannelImage> frames, const An
     }
     if (givenFlow) {
         if (givenFlow->channels() != 2 || givenFlow->width() != W || givenFlow->height() != H)
-            throw ValueError("the given example flow must be a 2-channel " + std::to_string(W) + "x" + std::to_string(H) + " image");
+            throw ValueError(
+                "the given example flow must be a 2-channel " + std::to_string(W) + "x" + std::to_string(H) + " image");
         ex.flow = *givenFlow;
         ex.stats.flowGiven = true;
         ex.stats.pairs = int(frames.size()) - 1;

@@ -14,8 +14,9 @@ std::vector<TimeChunk> planTimeChunks(size_t frameCount, int chunks, int preroll
     if (chunks < 1) throw ValueError("chunks must be at least 1");
     if (preroll < 0 || overlap < 0) throw ValueError("pre-roll and overlap must not be negative");
     const size_t n = frameCount, O = size_t(overlap), N = size_t(chunks);
-    if (n < O + N) throw ValueError(std::to_string(n) + " frames cannot hold " + std::to_string(chunks) + " chunks overlapping by " +
-                                    std::to_string(overlap));
+    if (n < O + N)
+        throw ValueError(std::to_string(n) + " frames cannot hold " + std::to_string(chunks) +
+                         " chunks overlapping by " + std::to_string(overlap));
     // Chunk k keeps [b_k, b_{k+1} + O) with b_k spread evenly over [0, n - O]: the last chunk ends at n.
     std::vector<size_t> b(N + 1);
     for (size_t k = 0; k <= N; ++k) b[k] = k * (n - O) / N;
@@ -38,7 +39,8 @@ std::vector<TimeChunk> planTimeChunks(size_t frameCount, int chunks, int preroll
 
 CrossFade crossFade(int j, int overlap)
 {
-    if (overlap < 1 || j < 0 || j >= overlap) throw ValueError("overlap frame " + std::to_string(j) + " of " + std::to_string(overlap));
+    if (overlap < 1 || j < 0 || j >= overlap)
+        throw ValueError("overlap frame " + std::to_string(j) + " of " + std::to_string(overlap));
     CrossFade w;
     w.t = double(j + 1) / double(overlap + 1);
     const double half = 1.5707963267948966 * w.t;
@@ -49,12 +51,14 @@ CrossFade crossFade(int j, int overlap)
     return w;
 }
 
-Frame blendOverlap(const Frame& a, const Frame& b, const VectorField& upTarget, const CrossFade& w, float densityThreshold,
-    BlendStats* stats)
+Frame blendOverlap(const Frame& a, const Frame& b, const VectorField& upTarget, const CrossFade& w,
+    float densityThreshold, BlendStats* stats)
 {
-    if (!a.hasVelocity() || !b.hasVelocity()) throw ValueError("overlap frame " + std::to_string(b.number) + ": a chunk's frame has no velocity");
+    if (!a.hasVelocity() || !b.hasVelocity())
+        throw ValueError("overlap frame " + std::to_string(b.number) + ": a chunk's frame has no velocity");
     if (a.velocity.bbox() != b.velocity.bbox() || upTarget.bbox() != b.velocity.bbox())
-        throw ValueError("overlap frame " + std::to_string(b.number) + ": the chunks' boxes differ (were they made from the same target?)");
+        throw ValueError("overlap frame " + std::to_string(b.number) +
+                         ": the chunks' boxes differ (were they made from the same target?)");
     if (!a.velocity.lattice().approxEqual(b.velocity.lattice()))
         throw ValueError("overlap frame " + std::to_string(b.number) + ": the chunks' lattices differ");
     Frame out = b;

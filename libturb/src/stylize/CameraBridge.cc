@@ -11,11 +11,13 @@ namespace turb {
 
 CameraView viewThroughCamera(const Frame& frame, const BridgeSettings& s)
 {
-    if (!frame.hasDensity()) throw ValueError("camera bridge: the frame has no density (alpha is its rendered opacity)");
+    if (!frame.hasDensity())
+        throw ValueError("camera bridge: the frame has no density (alpha is its rendered opacity)");
     if (!frame.hasVelocity()) throw ValueError("camera bridge: the frame has no velocity (motion is its projection)");
     if (!(frame.dt > 0.0)) throw ValueError("camera bridge: the frame's time per frame (dt) is unknown; give it");
     if (!(s.extinction > 0.0f)) throw ValueError("camera bridge: extinction must be > 0");
-    if (!(s.stepVoxels > 0.0f && s.stepVoxels <= 1.0f)) throw ValueError("camera bridge: the step must lie in (0, 1] voxels");
+    if (!(s.stepVoxels > 0.0f && s.stepVoxels <= 1.0f))
+        throw ValueError("camera bridge: the step must lie in (0, 1] voxels");
     const ScalarField& rho = frame.density;
     const CameraRays rays(s.camera, rho.bbox(), rho.lattice());
     const int W = rays.width(), H = rays.height();
@@ -57,7 +59,8 @@ CameraView viewThroughCamera(const Frame& frame, const BridgeSettings& s)
 
 double meanAbsDifference(const ChannelImage& a, const ChannelImage& b)
 {
-    if (!a.sameSize(b) || a.channels() != 1 || b.channels() != 1) throw ValueError("meanAbsDifference: two 1-channel images of one size");
+    if (!a.sameSize(b) || a.channels() != 1 || b.channels() != 1)
+        throw ValueError("meanAbsDifference: two 1-channel images of one size");
     double s = 0.0;
     for (size_t i = 0; i < a.pixelCount(); ++i) s += std::abs(double(a.pixel(i)[0]) - double(b.pixel(i)[0]));
     return a.pixelCount() ? s / double(a.pixelCount()) : 0.0;

@@ -10,8 +10,7 @@ namespace turb {
 ChannelImage::ChannelImage(int width, int height, int channels, float fill)
     : mWidth(std::max(0, width)), mHeight(std::max(0, height)), mChannels(std::max(0, channels)),
       mData(size_t(mWidth) * size_t(mHeight) * size_t(mChannels), fill)
-{
-}
+{}
 
 namespace {
 
@@ -104,8 +103,7 @@ void sampleBilinear(const ChannelImage& img, double x, double y, float* out)
     const int x1 = std::min(x0 + 1, W - 1), y1 = std::min(y0 + 1, H - 1);
     const float fx = float(x - x0), fy = float(y - y0);
     const float *a = img.pixel(x0, y0), *b = img.pixel(x1, y0), *c = img.pixel(x0, y1), *d = img.pixel(x1, y1);
-    for (int k = 0; k < C; ++k)
-        out[k] = (1 - fy) * ((1 - fx) * a[k] + fx * b[k]) + fy * ((1 - fx) * c[k] + fx * d[k]);
+    for (int k = 0; k < C; ++k) out[k] = (1 - fy) * ((1 - fx) * a[k] + fx * b[k]) + fy * ((1 - fx) * c[k] + fx * d[k]);
 }
 
 ChannelImage enlarge(const ChannelImage& coarse, int W, int H)
@@ -113,7 +111,8 @@ ChannelImage enlarge(const ChannelImage& coarse, int W, int H)
     ChannelImage out(W, H, coarse.channels());
     parallelFor(size_t(H), 16, [&](size_t y0, size_t y1) {
         for (size_t y = y0; y < y1; ++y)
-            for (int x = 0; x < W; ++x) sampleBilinear(coarse, (x - 0.5) / 2.0, (double(y) - 0.5) / 2.0, out.pixel(x, int(y)));
+            for (int x = 0; x < W; ++x)
+                sampleBilinear(coarse, (x - 0.5) / 2.0, (double(y) - 0.5) / 2.0, out.pixel(x, int(y)));
     });
     return out;
 }
@@ -162,9 +161,16 @@ ChannelImage rotated(const ChannelImage& img, int quarterTurns)
         for (int x = 0; x < W; ++x) {
             int nx = x, ny = y;
             // Counter-clockwise on screen (y down): (x, y) -> (y, W-1-x) for 90 degrees.
-            if (q == 1) { nx = y; ny = W - 1 - x; }
-            else if (q == 2) { nx = W - 1 - x; ny = H - 1 - y; }
-            else { nx = H - 1 - y; ny = x; }
+            if (q == 1) {
+                nx = y;
+                ny = W - 1 - x;
+            } else if (q == 2) {
+                nx = W - 1 - x;
+                ny = H - 1 - y;
+            } else {
+                nx = H - 1 - y;
+                ny = x;
+            }
             const float* s = img.pixel(x, y);
             std::copy(s, s + C, out.pixel(nx, ny));
         }

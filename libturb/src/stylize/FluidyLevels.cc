@@ -60,7 +60,8 @@ std::vector<std::uint8_t> patchMeanSteps(const ChannelImage& flow, int radius, f
                     by += s[1];
                 }
                 const float mx = bx / n, my = by / n;
-                a[flow.index(x, int(y))] = std::hypot(mx, my) >= eps ? std::uint8_t(rotationIndex(std::atan2(my, mx))) : kNoDirection;
+                a[flow.index(x, int(y))] =
+                    std::hypot(mx, my) >= eps ? std::uint8_t(rotationIndex(std::atan2(my, mx))) : kNoDirection;
             }
     });
     return a;
@@ -98,7 +99,8 @@ void fillExemplarFrame(ExemplarLevel& E, int i, const FrameImages& f, const Leve
             E.dirStep[v] = steps[p];
             const float ph = phi.pixel(p)[0];
             E.segment[v] = segmentOf(ph, rules.boundaryWidth);
-            const bool centre = x >= rules.reach && y >= rules.reach && x < W - rules.reach && y < H - rules.reach && ph <= float(rules.radius);
+            const bool centre = x >= rules.reach && y >= rules.reach && x < W - rules.reach && y < H - rules.reach &&
+                                ph <= float(rules.radius);
             E.label[v] = centre ? E.segment[v] : std::int8_t(-1);
             float* vo = vote.pixel(p);
             std::copy(f.rgb.pixel(p), f.rgb.pixel(p) + 3, vo);

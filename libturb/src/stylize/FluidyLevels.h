@@ -33,9 +33,10 @@ inline bool oppositeSteps(std::uint8_t a, int rotation, std::uint8_t b)
 struct ExemplarLevel
 {
     int W = 0, H = 0, F = 0;
-    std::vector<float> feat;           // F H W kS
-    std::vector<std::uint8_t> dirStep; // patch-mean flow direction as a rotation step, kNoDirection where slower than eps
-    std::vector<std::int8_t> label;    // -1: not a patch centre; else its segment
+    std::vector<float> feat; // F H W kS
+    std::vector<std::uint8_t>
+        dirStep;                    // patch-mean flow direction as a rotation step, kNoDirection where slower than eps
+    std::vector<std::int8_t> label; // -1: not a patch centre; else its segment
     std::vector<std::int8_t> segment;  // every voxel's segment (Omega's normalisation)
     std::vector<std::int32_t> centres; // the voxels with label >= 0
     long long segCount[2] = {0, 0};    // |S_seg|: centres per segment
@@ -67,14 +68,17 @@ struct ExemplarLevel
 struct TargetLevel
 {
     int W = 0, H = 0, pad = 0;
-    std::vector<float> feat;        // (W + 2 pad)(H + 2 pad) kT
+    std::vector<float> feat;           // (W + 2 pad)(H + 2 pad) kT
     std::vector<std::uint8_t> dirStep; // W H: patch-mean flow direction as a rotation step, or kNoDirection
-    std::vector<std::int8_t> label; // W H: -1 not a centre, else its segment
+    std::vector<std::int8_t> label;    // W H: -1 not a centre, else its segment
     long long segCount[2] = {0, 0};
 
     int paddedWidth() const { return W + 2 * pad; }
     float* at(int x, int y) { return feat.data() + (size_t(y + pad) * size_t(paddedWidth()) + size_t(x + pad)) * kT; }
-    const float* at(int x, int y) const { return feat.data() + (size_t(y + pad) * size_t(paddedWidth()) + size_t(x + pad)) * kT; }
+    const float* at(int x, int y) const
+    {
+        return feat.data() + (size_t(y + pad) * size_t(paddedWidth()) + size_t(x + pad)) * kT;
+    }
 };
 
 /// The settings-derived constants of D.
@@ -102,7 +106,10 @@ struct Evaluator
     }
 
     /// True when the rotated source flow and the target flow point opposite ways (patch means).
-    bool opposite(size_t q, size_t v, int rotation) const { return oppositeSteps(E->dirStep[v], rotation, T->dirStep[q]); }
+    bool opposite(size_t q, size_t v, int rotation) const
+    {
+        return oppositeSteps(E->dirStep[v], rotation, T->dirStep[q]);
+    }
 
     /// The extent part of D at the patch centres alone, unswapped or swapped: which of the two
     /// D^dir-minimising rotations (aligned, opposite) fits the motion extent better.

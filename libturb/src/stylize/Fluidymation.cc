@@ -49,15 +49,22 @@ double percentile95(std::vector<float> v)
 
 void validate(const FluidySettings& s)
 {
-    if (s.patchSize < 3 || s.patchSize > 15 || s.patchSize % 2 == 0) throw ValueError("fluidymation: patch size n must be odd, 3..15");
-    if (!(s.boundaryBlur > 0.0) || s.boundaryBlur > 1000.0) throw ValueError("fluidymation: the boundary blur b must lie in (0, 1000] pixels");
-    if (s.cuboidFrames < 0 || s.cuboidFrames > 50) throw ValueError("fluidymation: the cuboid size r must lie in 0..50 frames");
+    if (s.patchSize < 3 || s.patchSize > 15 || s.patchSize % 2 == 0)
+        throw ValueError("fluidymation: patch size n must be odd, 3..15");
+    if (!(s.boundaryBlur > 0.0) || s.boundaryBlur > 1000.0)
+        throw ValueError("fluidymation: the boundary blur b must lie in (0, 1000] pixels");
+    if (s.cuboidFrames < 0 || s.cuboidFrames > 50)
+        throw ValueError("fluidymation: the cuboid size r must lie in 0..50 frames");
     for (float w : {s.wBound, s.wExt, s.wDir, s.wTemp, s.wUni})
         if (!(w >= 0.0f) || !std::isfinite(w)) throw ValueError("fluidymation: term weights must be finite and >= 0");
-    if (!(s.mLower >= 0.0) || !(s.mUpper > s.mLower) || s.mUpper > 10.0) throw ValueError("fluidymation: thresholds need 0 <= m_l < m_u <= 10 (fractions of d)");
-    if (!(s.dirClamp > 0.0f) || !(s.flowEpsilon > 0.0f)) throw ValueError("fluidymation: the direction clamp and eps must be > 0");
-    if (!(s.extentScale >= 0.0) || !(s.targetExtentScale >= 0.0)) throw ValueError("fluidymation: the extent scales must be >= 0");
-    if (s.boundaryWidth < 0 || s.boundaryWidth > 1000) throw ValueError("fluidymation: the boundary width must lie in 0..1000 pixels");
+    if (!(s.mLower >= 0.0) || !(s.mUpper > s.mLower) || s.mUpper > 10.0)
+        throw ValueError("fluidymation: thresholds need 0 <= m_l < m_u <= 10 (fractions of d)");
+    if (!(s.dirClamp > 0.0f) || !(s.flowEpsilon > 0.0f))
+        throw ValueError("fluidymation: the direction clamp and eps must be > 0");
+    if (!(s.extentScale >= 0.0) || !(s.targetExtentScale >= 0.0))
+        throw ValueError("fluidymation: the extent scales must be >= 0");
+    if (s.boundaryWidth < 0 || s.boundaryWidth > 1000)
+        throw ValueError("fluidymation: the boundary width must lie in 0..1000 pixels");
     if (s.levels < 0 || s.levels > 8) throw ValueError("fluidymation: levels must lie in 0..8");
     if (s.iterations < 1 || s.fineIterations < 1 || s.sweeps < 1 || s.fineSweeps < 1 || s.randomCandidates < 0)
         throw ValueError("fluidymation: iterations and sweeps must be >= 1, random candidates >= 0");
@@ -131,12 +138,13 @@ struct Fluidymator::Impl
     void repair(const ExemplarLevel& E, const TargetLevel& T, RotatedNnf& nnf, std::uint64_t key) const;
     void rebuildOmega(ExemplarLevel& E, const TargetLevel& T, const RotatedNnf& nnf) const;
     void distances(const Evaluator& ev, RotatedNnf& nnf) const;
-    void findNnf(ExemplarLevel& E, const TargetLevel& T, RotatedNnf& nnf, std::uint64_t key, bool finest, Progress* progress) const;
+    void findNnf(ExemplarLevel& E, const TargetLevel& T, RotatedNnf& nnf, std::uint64_t key, bool finest,
+        Progress* progress) const;
     void voteInto(const ExemplarLevel& E, const RotatedNnf& nnf, TargetLevel& T, ChannelImage* rgba) const;
-    RotatedNnf shiftPrevious(const ChannelImage& ext, const std::vector<std::uint8_t>& tSteps, const ChannelImage& phiT, ChannelImage& m,
-        FluidyStats& st) const;
-    void measure(const ExemplarLevel& E0, const TargetLevel& T0, RotatedNnf& nnf, const ChannelImage& rgba, const ChannelImage& mask,
-        const ChannelImage& flow, const ChannelImage& ext, FluidyStats& st);
+    RotatedNnf shiftPrevious(const ChannelImage& ext, const std::vector<std::uint8_t>& tSteps, const ChannelImage& phiT,
+        ChannelImage& m, FluidyStats& st) const;
+    void measure(const ExemplarLevel& E0, const TargetLevel& T0, RotatedNnf& nnf, const ChannelImage& rgba,
+        const ChannelImage& mask, const ChannelImage& flow, const ChannelImage& ext, FluidyStats& st);
     /// Level 0's per-voxel extents, signed distance and flow, the exemplar's D^ext unit and interior luminance std.
     void levelZeroExtras(const std::vector<ChannelImage>& rgb, const MotionSequence& exMotion);
     /// The exemplar's pyramid and every level's patch centres; throws ValueError for a level without centres.
@@ -153,12 +161,12 @@ struct Fluidymator::Impl
     };
     FrameGuides frameGuides(int frame, FluidyStats& st) const;
     /// MERGENNF: takes the shifted previous NNF into `up` where it has the smaller D; returns how many pixels took it.
-    double mergeShifted(ExemplarLevel& E, TargetLevel& TL, int l, const RotatedNnf& shifted, const ChannelImage& coarser,
-        RotatedNnf& up) const;
+    double mergeShifted(ExemplarLevel& E, TargetLevel& TL, int l, const RotatedNnf& shifted,
+        const ChannelImage& coarser, RotatedNnf& up) const;
     /// Level l of Algorithm 1: the start NNF (random, shifted, or the coarser one upscaled and merged), then
     /// Algorithm 2's FINDNNF + VOTE iterations. `result` holds the last vote.
-    void synthesizeLevel(int l, int frame, FrameGuides& g, RotatedNnf& nnf, ChannelImage& result, FluidyStats& st,
-        Progress* progress);
+    void synthesizeLevel(
+        int l, int frame, FrameGuides& g, RotatedNnf& nnf, ChannelImage& result, FluidyStats& st, Progress* progress);
 };
 
 PatchRef Fluidymator::Impl::randomRef(const ExemplarLevel& E, const TargetLevel& T, size_t q, std::uint64_t key) const
@@ -195,7 +203,8 @@ void Fluidymator::Impl::rebuildOmega(ExemplarLevel& E, const TargetLevel& T, con
             if (T.label[q] < 0 || !m.valid()) continue;
             const int* off = table.offsets(m.rotation);
             for (int t = 0; t < count; ++t)
-                __atomic_fetch_add(&E.counts[E.voxel(m.frame, m.x + off[2 * t], m.y + off[2 * t + 1])], 1, __ATOMIC_RELAXED);
+                __atomic_fetch_add(
+                    &E.counts[E.voxel(m.frame, m.x + off[2 * t], m.y + off[2 * t + 1])], 1, __ATOMIC_RELAXED);
         }
     });
     // Omega*(i) sums the 2D footprints of frames i - r .. i + r (the cuboids' time extent); Omega = Omega* /
@@ -204,7 +213,8 @@ void Fluidymator::Impl::rebuildOmega(ExemplarLevel& E, const TargetLevel& T, con
     double factor[2];
     const long long sTot = E.segCount[0] + E.segCount[1], tTot = T.segCount[0] + T.segCount[1];
     for (int g = 0; g < 2; ++g) {
-        const double sg = double(E.segCount[g] > 0 ? E.segCount[g] : sTot), tg = double(T.segCount[g] > 0 ? T.segCount[g] : std::max(1LL, tTot));
+        const double sg = double(E.segCount[g] > 0 ? E.segCount[g] : sTot),
+                     tg = double(T.segCount[g] > 0 ? T.segCount[g] : std::max(1LL, tTot));
         factor[g] = sg / (double(n) * n * double(n) * n * double(2 * R + 1) * tg);
     }
     const size_t plane = size_t(E.W) * size_t(E.H);
@@ -240,7 +250,8 @@ void Fluidymator::Impl::rebuildOmega(ExemplarLevel& E, const TargetLevel& T, con
             float* out = E.omegaPatch.data() + fy * size_t(E.W);
             for (int x = 0; x < E.W; ++x) {
                 float s = 0.0f;
-                for (int d = std::max(0, y - r); d <= std::min(E.H - 1, y + r); ++d) s += rows[(base + size_t(d)) * size_t(E.W) + size_t(x)];
+                for (int d = std::max(0, y - r); d <= std::min(E.H - 1, y + r); ++d)
+                    s += rows[(base + size_t(d)) * size_t(E.W) + size_t(x)];
                 out[x] = s;
             }
         }
@@ -259,7 +270,8 @@ void Fluidymator::Impl::distances(const Evaluator& ev, RotatedNnf& nnf) const
     });
 }
 
-void Fluidymator::Impl::findNnf(ExemplarLevel& E, const TargetLevel& T, RotatedNnf& nnf, std::uint64_t key, bool finest, Progress* progress) const
+void Fluidymator::Impl::findNnf(
+    ExemplarLevel& E, const TargetLevel& T, RotatedNnf& nnf, std::uint64_t key, bool finest, Progress* progress) const
 {
     const Evaluator ev(E, T, table, weights());
     // The random search spans the whole exemplar on coarser levels; on the finest one, where the coarser
@@ -303,7 +315,8 @@ void Fluidymator::Impl::findNnf(ExemplarLevel& E, const TargetLevel& T, RotatedN
                     // Of the aligned and the opposite rotation, the one whose (swapped) extents fit better at
                     // the centres; both when the extent term is off.
                     const int k = (int(aT) - int(aS) + kRotations) % kRotations;
-                    const std::uint8_t aligned = std::uint8_t(k), flipped = std::uint8_t((k + kRotations / 2) % kRotations);
+                    const std::uint8_t aligned = std::uint8_t(k),
+                                       flipped = std::uint8_t((k + kRotations / 2) % kRotations);
                     if (s.wExt > 0.0f) {
                         const float ea = ev.centreExtent(q, x, y, v, ev.opposite(q, v, aligned));
                         const float ef = ev.centreExtent(q, x, y, v, ev.opposite(q, v, flipped));
@@ -343,7 +356,8 @@ void Fluidymator::Impl::findNnf(ExemplarLevel& E, const TargetLevel& T, RotatedN
                     tryAligned(fi, cx, cy);
                 }
                 for (int k = 0; k < s.randomCandidates; ++k) {
-                    const PatchRef c = E.refOf(size_t(E.centres[rng.below(std::uint32_t(E.centres.size()))]), m.rotation);
+                    const PatchRef c =
+                        E.refOf(size_t(E.centres[rng.below(std::uint32_t(E.centres.size()))]), m.rotation);
                     tryAligned(c.frame, c.x, c.y);
                 }
                 nnf.match[q] = m;
@@ -352,7 +366,8 @@ void Fluidymator::Impl::findNnf(ExemplarLevel& E, const TargetLevel& T, RotatedN
     }
 }
 
-void Fluidymator::Impl::voteInto(const ExemplarLevel& E, const RotatedNnf& nnf, TargetLevel& T, ChannelImage* rgba) const
+void Fluidymator::Impl::voteInto(
+    const ExemplarLevel& E, const RotatedNnf& nnf, TargetLevel& T, ChannelImage* rgba) const
 {
     std::vector<const ChannelImage*> frames;
     for (const ChannelImage& f : E.vote) frames.push_back(&f);
@@ -366,8 +381,8 @@ void Fluidymator::Impl::voteInto(const ExemplarLevel& E, const RotatedNnf& nnf, 
     if (rgba) *rgba = std::move(out);
 }
 
-RotatedNnf Fluidymator::Impl::shiftPrevious(const ChannelImage& ext, const std::vector<std::uint8_t>& tSteps, const ChannelImage& phiT,
-    ChannelImage& m, FluidyStats& st) const
+RotatedNnf Fluidymator::Impl::shiftPrevious(const ChannelImage& ext, const std::vector<std::uint8_t>& tSteps,
+    const ChannelImage& phiT, ChannelImage& m, FluidyStats& st) const
 {
     const ExemplarLevel& E = ex[0];
     const int W = ext.width(), H = ext.height();
@@ -387,7 +402,8 @@ RotatedNnf Fluidymator::Impl::shiftPrevious(const ChannelImage& ext, const std::
                 const size_t v = E.voxel(p.frame, p.x, p.y);
                 const bool opposite = oppositeSteps(E.dirStep[v], p.rotation, tSteps[q]);
                 const size_t col = size_t(p.y) * size_t(E.W) + size_t(p.x);
-                const int di = bestTimeShift(sExt.data() + 2 * col, sExt.data() + 2 * col + 1, 2 * plane, E.F, p.frame, inc, opposite);
+                const int di = bestTimeShift(
+                    sExt.data() + 2 * col, sExt.data() + 2 * col + 1, 2 * plane, E.F, p.frame, inc, opposite);
                 PatchRef c = p;
                 c.frame = std::int16_t(p.frame + di);
                 if (!E.isCentre(c)) c.frame = p.frame;
@@ -414,26 +430,31 @@ RotatedNnf Fluidymator::Impl::shiftPrevious(const ChannelImage& ext, const std::
 namespace {
 
 /// Throws ValueError when the exemplar and the target cannot be synthesised from (see the constructor's doc).
-void checkFluidyInputs(const FluidySettings& settings, const std::vector<ChannelImage>& rgb, const MotionSequence& exMotion,
-    const MotionSequence& target, const RotationTable& table)
+void checkFluidyInputs(const FluidySettings& settings, const std::vector<ChannelImage>& rgb,
+    const MotionSequence& exMotion, const MotionSequence& target, const RotationTable& table)
 {
     const int F = exMotion.frames(), n = settings.patchSize;
-    if (!exMotion.finished() || !target.finished()) throw ValueError("fluidymation: the motion sequences must be finished");
+    if (!exMotion.finished() || !target.finished())
+        throw ValueError("fluidymation: the motion sequences must be finished");
     if (int(rgb.size()) != F)
-        throw ValueError("fluidymation: " + std::to_string(rgb.size()) + " exemplar frames but " + std::to_string(F) + " exemplar masks");
+        throw ValueError("fluidymation: " + std::to_string(rgb.size()) + " exemplar frames but " + std::to_string(F) +
+                         " exemplar masks");
     if (F < 2 * settings.cuboidFrames + 1)
-        throw ValueError("fluidymation: the exemplar has " + std::to_string(F) + " frames, fewer than 2r + 1 = " +
-                         std::to_string(2 * settings.cuboidFrames + 1) + " (r = " + std::to_string(settings.cuboidFrames) + ")");
+        throw ValueError("fluidymation: the exemplar has " + std::to_string(F) +
+                         " frames, fewer than 2r + 1 = " + std::to_string(2 * settings.cuboidFrames + 1) +
+                         " (r = " + std::to_string(settings.cuboidFrames) + ")");
     const int sw = exMotion.width(), sh = exMotion.height(), tw = target.width(), th = target.height();
     for (const ChannelImage& c : rgb)
         if (c.width() != sw || c.height() != sh || c.channels() < 3)
-            throw ValueError("fluidymation: every exemplar frame must be RGB of the masks' size (" + std::to_string(sw) + "x" + std::to_string(sh) + ")");
+            throw ValueError("fluidymation: every exemplar frame must be RGB of the masks' size (" +
+                             std::to_string(sw) + "x" + std::to_string(sh) + ")");
     if (sw > 32767 || sh > 32767 || F > 32767)
         throw ValueError("fluidymation: the exemplar must be at most 32767 pixels and frames along each axis");
     const int minSide = 2 * (table.reach() + 1) + 1;
     if (std::min(sw, sh) < minSide || std::min(tw, th) < n)
-        throw ValueError("fluidymation: the exemplar (" + std::to_string(sw) + "x" + std::to_string(sh) + ") or the target (" + std::to_string(tw) +
-                         "x" + std::to_string(th) + ") is too small for " + std::to_string(n) + "x" + std::to_string(n) + " rotated patches");
+        throw ValueError("fluidymation: the exemplar (" + std::to_string(sw) + "x" + std::to_string(sh) +
+                         ") or the target (" + std::to_string(tw) + "x" + std::to_string(th) + ") is too small for " +
+                         std::to_string(n) + "x" + std::to_string(n) + " rotated patches");
     long long exMasked = 0, tMasked = 0;
     for (int i = 0; i < F; ++i) exMasked += exMotion.maskedPixels(i);
     for (int k = 0; k < target.frames(); ++k) tMasked += target.maskedPixels(k);
@@ -473,7 +494,8 @@ void Fluidymator::Impl::levelZeroExtras(const std::vector<ChannelImage>& rgb, co
     std::vector<float> extValues;
     double l1 = 0.0, l2 = 0.0, ln = 0.0;
     for (int i = 0; i < F; ++i) {
-        const ChannelImage e = exMotion.extents(i), fl = exMotion.flow(i), ph = exMotion.distance(i), mk = exMotion.mask(i);
+        const ChannelImage e = exMotion.extents(i), fl = exMotion.flow(i), ph = exMotion.distance(i),
+                           mk = exMotion.mask(i);
         for (size_t p = 0; p < plane; ++p) {
             const size_t v = size_t(i) * plane + p;
             std::copy(e.pixel(p), e.pixel(p) + 2, sExt.data() + 2 * v);
@@ -493,8 +515,8 @@ void Fluidymator::Impl::levelZeroExtras(const std::vector<ChannelImage>& rgb, co
     exLumStd = ln > 1.0 ? std::sqrt(std::max(0.0, l2 / ln - (l1 / ln) * (l1 / ln))) : 0.0;
 }
 
-void Fluidymator::Impl::buildExemplarPyramid(const std::vector<ChannelImage>& rgb, const MotionSequence& exMotion,
-    Progress* progress)
+void Fluidymator::Impl::buildExemplarPyramid(
+    const std::vector<ChannelImage>& rgb, const MotionSequence& exMotion, Progress* progress)
 {
     ex.resize(size_t(L));
     for (int l = 0; l < L; ++l) {
@@ -545,8 +567,8 @@ void Fluidymator::Impl::buildExemplarPyramid(const std::vector<ChannelImage>& rg
     }
 }
 
-Fluidymator::Fluidymator(const FluidySettings& settings, const std::vector<ChannelImage>& rgb, const MotionSequence& exMotion,
-    const MotionSequence& target, Progress* progress)
+Fluidymator::Fluidymator(const FluidySettings& settings, const std::vector<ChannelImage>& rgb,
+    const MotionSequence& exMotion, const MotionSequence& target, Progress* progress)
     : mImpl(std::make_unique<Impl>())
 {
     validate(settings);
@@ -586,7 +608,8 @@ FluidyTerms Fluidymator::terms(const PatchRef& p, int x, int y) const
     if (!I.haveLast) throw ValueError("fluidymation: terms() needs a synthesised frame");
     const ExemplarLevel& E = I.ex[0];
     if (!E.isCentre(p)) throw ValueError("fluidymation: terms(): the source patch is not an exemplar patch centre");
-    if (x < 0 || y < 0 || x >= I.last.W || y >= I.last.H) throw ValueError("fluidymation: terms(): the target pixel is outside the frame");
+    if (x < 0 || y < 0 || x >= I.last.W || y >= I.last.H)
+        throw ValueError("fluidymation: terms(): the target pixel is outside the frame");
     const Evaluator ev(E, I.last, I.table, I.weights());
     FluidyTerms t;
     ev(x, y, p, kInf, &t);
@@ -610,8 +633,9 @@ std::vector<double> rowSums(int H, int count, const std::function<void(int, doub
 
 } // namespace
 
-void Fluidymator::Impl::measure(const ExemplarLevel& E0c, const TargetLevel& T0, RotatedNnf& nnf, const ChannelImage& rgba,
-    const ChannelImage& mask, const ChannelImage& flow, const ChannelImage& ext, FluidyStats& st)
+void Fluidymator::Impl::measure(const ExemplarLevel& E0c, const TargetLevel& T0, RotatedNnf& nnf,
+    const ChannelImage& rgba, const ChannelImage& mask, const ChannelImage& flow, const ChannelImage& ext,
+    FluidyStats& st)
 {
     ExemplarLevel& E0 = const_cast<ExemplarLevel&>(E0c);
     rebuildOmega(E0, T0, nnf); // also without w^uni: the coverage below reads it
@@ -628,7 +652,8 @@ void Fluidymator::Impl::measure(const ExemplarLevel& E0c, const TargetLevel& T0,
             a[0] += t.tex, a[1] += t.bound, a[2] += t.dir, a[3] += t.ext, a[4] += t.temp, a[5] += t.uni, a[6] += 1.0;
         }
     });
-    if (e[6] > 0.0) st.energy = FluidyTerms{e[0] / e[6], e[1] / e[6], e[2] / e[6], e[3] / e[6], e[4] / e[6], e[5] / e[6], false};
+    if (e[6] > 0.0)
+        st.energy = FluidyTerms{e[0] / e[6], e[1] / e[6], e[2] / e[6], e[3] / e[6], e[4] / e[6], e[5] / e[6], false};
     // Direction, extent and contrast over the mask's pixels; flicker where both masks hold and nothing moves.
     const std::vector<double> m = rowSums(H, 20, [&](int y, double* a) {
         for (int x = 0; x < W; ++x) {
@@ -653,7 +678,8 @@ void Fluidymator::Impl::measure(const ExemplarLevel& E0c, const TargetLevel& T0,
             }
             if (!prevRgb.empty() && prevMask.pixel(q)[0] >= 0.5f) {
                 const float* pf = prevFlow.pixel(q);
-                if (std::hypot(flow.pixel(q)[0], flow.pixel(q)[1]) < kStillSpeed && std::hypot(pf[0], pf[1]) < kStillSpeed) {
+                if (std::hypot(flow.pixel(q)[0], flow.pixel(q)[1]) < kStillSpeed &&
+                    std::hypot(pf[0], pf[1]) < kStillSpeed) {
                     const float* pr = prevRgb.pixel(q);
                     a[16] += (std::abs(out[0] - pr[0]) + std::abs(out[1] - pr[1]) + std::abs(out[2] - pr[2])) / 3.0;
                     a[17] += 1.0;
@@ -661,7 +687,8 @@ void Fluidymator::Impl::measure(const ExemplarLevel& E0c, const TargetLevel& T0,
             }
         }
     });
-    if (m[2] > 1.0 && exLumStd > 0.0) st.contrastRatio = std::sqrt(std::max(0.0, m[1] / m[2] - (m[0] / m[2]) * (m[0] / m[2]))) / exLumStd;
+    if (m[2] > 1.0 && exLumStd > 0.0)
+        st.contrastRatio = std::sqrt(std::max(0.0, m[1] / m[2] - (m[0] / m[2]) * (m[0] / m[2]))) / exLumStd;
     st.movingPixels = (long long)m[4];
     if (m[4] > 0.0) st.meanAbsSin = m[3] / m[4];
     st.speedCorrelation = pearson(m[5], m[6], m[7], m[8], m[9], m[10]);
@@ -741,8 +768,8 @@ double Fluidymator::Impl::mergeShifted(ExemplarLevel& E, TargetLevel& TL, int l,
     return taken[0];
 }
 
-void Fluidymator::Impl::synthesizeLevel(int l, int frame, FrameGuides& g, RotatedNnf& nnf, ChannelImage& result,
-    FluidyStats& st, Progress* progress)
+void Fluidymator::Impl::synthesizeLevel(
+    int l, int frame, FrameGuides& g, RotatedNnf& nnf, ChannelImage& result, FluidyStats& st, Progress* progress)
 {
     ExemplarLevel& E = ex[size_t(l)];
     TargetLevel& TL = g.levels[size_t(l)];
@@ -784,7 +811,8 @@ FluidyFrame Fluidymator::next(Progress* progress)
 {
     Impl& I = *mImpl;
     const MotionSequence& tg = *I.target;
-    if (I.j >= tg.frames()) throw ValueError("fluidymation: no target frame left (" + std::to_string(tg.frames()) + " frames)");
+    if (I.j >= tg.frames())
+        throw ValueError("fluidymation: no target frame left (" + std::to_string(tg.frames()) + " frames)");
     const int j = I.j, W = tg.width(), H = tg.height();
     FluidyFrame out;
     FluidyStats& st = out.stats;

@@ -79,8 +79,8 @@ std::vector<char> boundaryOf(const std::vector<char>& in, int W, int H)
 }
 
 /// Appendix A's boundary speed along the outward normal of phi, diffused inside (see the header).
-ChannelImage flowFromDistances(const ChannelImage& phi, const ChannelImage& phiOther, bool otherIsNext, const std::vector<char>& in,
-    const MotionGuideSettings& s)
+ChannelImage flowFromDistances(const ChannelImage& phi, const ChannelImage& phiOther, bool otherIsNext,
+    const std::vector<char>& in, const MotionGuideSettings& s)
 {
     const int W = phi.width(), H = phi.height();
     const std::vector<char> fixed = boundaryOf(in, W, H);
@@ -93,7 +93,8 @@ ChannelImage flowFromDistances(const ChannelImage& phi, const ChannelImage& phiO
             const double gy = 0.5 * (phi.at(x, std::min(H - 1, y + 1), 0) - phi.at(x, std::max(0, y - 1), 0));
             const double g = std::hypot(gx, gy);
             if (!(g > 1e-6)) continue;
-            const double dphi = otherIsNext ? phiOther.pixel(i)[0] - phi.pixel(i)[0] : phi.pixel(i)[0] - phiOther.pixel(i)[0];
+            const double dphi =
+                otherIsNext ? phiOther.pixel(i)[0] - phi.pixel(i)[0] : phi.pixel(i)[0] - phiOther.pixel(i)[0];
             const double speed = std::clamp(-dphi, -double(s.maxBoundarySpeed), double(s.maxBoundarySpeed));
             values.pixel(i)[0] = float(speed * gx / g);
             values.pixel(i)[1] = float(speed * gy / g);
@@ -103,7 +104,8 @@ ChannelImage flowFromDistances(const ChannelImage& phi, const ChannelImage& phiO
 
 void validate(const MotionGuideSettings& s)
 {
-    if (!(s.smoothingRadius >= 0.0) || s.smoothingRadius > 50.0) throw ValueError("motion guides: smoothing radius must lie in 0..50 frames");
+    if (!(s.smoothingRadius >= 0.0) || s.smoothingRadius > 50.0)
+        throw ValueError("motion guides: smoothing radius must lie in 0..50 frames");
     if (!(s.maxBoundarySpeed > 0.0f)) throw ValueError("motion guides: the maximum boundary speed must be > 0");
     if (s.diffusionSweeps < 1) throw ValueError("motion guides: diffusion sweeps must be >= 1");
 }
@@ -120,7 +122,8 @@ std::vector<char> boundaryPixels(const ChannelImage& mask, float threshold)
     return boundaryOf(insideOf(mask, threshold), mask.width(), mask.height());
 }
 
-ChannelImage diffuseFromBoundary(const ChannelImage& values, const std::vector<char>& fixed, const std::vector<char>& inside, int sweeps)
+ChannelImage diffuseFromBoundary(
+    const ChannelImage& values, const std::vector<char>& fixed, const std::vector<char>& inside, int sweeps)
 {
     const int C = values.channels();
     if (fixed.size() != values.pixelCount() || inside.size() != values.pixelCount())
@@ -132,7 +135,8 @@ ChannelImage diffuseFromBoundary(const ChannelImage& values, const std::vector<c
         ChannelImage val;
     };
     std::vector<Level> levels(1);
-    levels[0] = {values.width(), values.height(), std::vector<std::uint8_t>(values.pixelCount()), ChannelImage(values.width(), values.height(), C)};
+    levels[0] = {values.width(), values.height(), std::vector<std::uint8_t>(values.pixelCount()),
+        ChannelImage(values.width(), values.height(), C)};
     bool anyFree = false;
     for (size_t i = 0; i < values.pixelCount(); ++i) {
         const std::uint8_t st = inside[i] ? (fixed[i] ? 2 : 1) : 0;
@@ -207,14 +211,16 @@ ChannelImage diffuseFromBoundary(const ChannelImage& values, const std::vector<c
         for (int y = 0; y < f.H; ++y)
             for (int x = 0; x < f.W; ++x) {
                 const size_t i = f.val.index(x, y);
-                if (f.state[i] == 1) std::copy(c.val.pixel(x / 2, y / 2), c.val.pixel(x / 2, y / 2) + C, f.val.pixel(i));
+                if (f.state[i] == 1)
+                    std::copy(c.val.pixel(x / 2, y / 2), c.val.pixel(x / 2, y / 2) + C, f.val.pixel(i));
             }
         relax(f, sweeps);
     }
     return std::move(levels[0].val);
 }
 
-ChannelImage maskFlow(const ChannelImage& mask, const ChannelImage& other, bool otherIsNext, const MotionGuideSettings& settings)
+ChannelImage maskFlow(
+    const ChannelImage& mask, const ChannelImage& other, bool otherIsNext, const MotionGuideSettings& settings)
 {
     validate(settings);
     if (mask.channels() != 1 || other.channels() != 1 || !mask.sameSize(other))
@@ -235,7 +241,8 @@ void MotionSequence::addFrame(const ChannelImage& mask, const ChannelImage* flow
     const std::string which = "motion sequence frame " + std::to_string(mFrames.size());
     if (mFinished) throw ValueError(which + ": the sequence is already finished");
     if (mask.channels() != 1 || mask.width() != mWidth || mask.height() != mHeight)
-        throw ValueError(which + ": the mask must be 1 channel of " + std::to_string(mWidth) + "x" + std::to_string(mHeight) + " pixels");
+        throw ValueError(which + ": the mask must be 1 channel of " + std::to_string(mWidth) + "x" +
+                         std::to_string(mHeight) + " pixels");
     if (flow && (flow->channels() != 2 || !flow->sameSize(mask)))
         throw ValueError(which + ": the flow must be 2 channels of the mask's size");
     if (!mFrames.empty() && mFlowGiven != (flow != nullptr))
@@ -248,7 +255,8 @@ void MotionSequence::addFrame(const ChannelImage& mask, const ChannelImage* flow
     if (flow)
         for (size_t k = 0; k < f.pixels.size(); ++k) {
             const float* v = flow->pixel(size_t(f.pixels[k]));
-            if (!std::isfinite(v[0]) || !std::isfinite(v[1])) throw ValueError(which + ": the flow holds NaN or infinite values");
+            if (!std::isfinite(v[0]) || !std::isfinite(v[1]))
+                throw ValueError(which + ": the flow holds NaN or infinite values");
             f.flow[2 * k] = v[0];
             f.flow[2 * k + 1] = v[1];
         }
@@ -304,7 +312,8 @@ void MotionSequence::finish(const MotionGuideSettings& s, Progress* progress)
             if (F > 1) {
                 const bool next = i + 1 < F;
                 const ChannelImage m = mask(i);
-                const ChannelImage fl = flowFromDistances(phiOf(i), phiOf(next ? i + 1 : i - 1), next, insideOf(m, 0.5f), s);
+                const ChannelImage fl =
+                    flowFromDistances(phiOf(i), phiOf(next ? i + 1 : i - 1), next, insideOf(m, 0.5f), s);
                 raw[size_t(i)].resize(2 * f.pixels.size());
                 for (size_t k = 0; k < f.pixels.size(); ++k) {
                     raw[size_t(i)][2 * k] = fl.pixel(size_t(f.pixels[k]))[0];
@@ -323,7 +332,8 @@ void MotionSequence::finish(const MotionGuideSettings& s, Progress* progress)
             for (int i = 0; i < F; ++i) {
                 checkCancelled(progress);
                 for (int k = std::max(0, i - R); k <= std::min(F - 1, i + R); ++k)
-                    if (!dense.count(k)) dense.emplace(k, std::make_pair(scatter(mFrames[size_t(k)], raw[size_t(k)], 2), mask(k)));
+                    if (!dense.count(k))
+                        dense.emplace(k, std::make_pair(scatter(mFrames[size_t(k)], raw[size_t(k)], 2), mask(k)));
                 dense.erase(i - R - 1);
                 Frame& f = mFrames[size_t(i)];
                 for (size_t n = 0; n < f.pixels.size(); ++n) {

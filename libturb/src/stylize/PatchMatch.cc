@@ -29,7 +29,8 @@ Labels centreLabels(const std::vector<std::int8_t>& segment, int width, int heig
     if (segment.size() != size_t(width) * size_t(height)) throw ValueError("centreLabels: segment size mismatch");
     Labels out(segment.size(), -1);
     for (int y = radius; y < height - radius; ++y)
-        for (int x = radius; x < width - radius; ++x) out[size_t(y) * size_t(width) + size_t(x)] = segment[size_t(y) * size_t(width) + size_t(x)];
+        for (int x = radius; x < width - radius; ++x)
+            out[size_t(y) * size_t(width) + size_t(x)] = segment[size_t(y) * size_t(width) + size_t(x)];
     return out;
 }
 
@@ -60,7 +61,8 @@ void checkLabels(const PatchSpace& s, const Labels& src, const Labels& tgt)
         return true;
     };
     if (!borderOk(src, *s.source) || !borderOk(tgt, *s.target))
-        throw ValueError("patch match: a labelled centre lies closer than the patch radius to the border (use centreLabels)");
+        throw ValueError(
+            "patch match: a labelled centre lies closer than the patch radius to the border (use centreLabels)");
 }
 
 std::vector<std::vector<std::int32_t>> centresByLabel(const Labels& labels)
@@ -83,7 +85,8 @@ void patchMatch(const PatchSpace& space, const Labels& sourceLabels, const Label
     checkLabels(space, sourceLabels, targetLabels);
     if (settings.iterations < 1 || settings.randomCentres < 0) throw ValueError("patch match: iterations must be >= 1");
     const ChannelImage& T = *space.target;
-    if (nnf.width != T.width() || nnf.height != T.height() || nnf.source.size() != T.pixelCount()) nnf = emptyNnf(T.width(), T.height());
+    if (nnf.width != T.width() || nnf.height != T.height() || nnf.source.size() != T.pixelCount())
+        nnf = emptyNnf(T.width(), T.height());
     const auto lists = centresByLabel(sourceLabels);
     std::vector<char> active(T.pixelCount());
     for (size_t q = 0; q < active.size(); ++q) {

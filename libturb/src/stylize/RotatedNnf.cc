@@ -83,7 +83,8 @@ RotationTable::RotationTable(int radius) : mRadius(radius), mCount((2 * radius +
 
 RotatedNnf upscaleNnf(const RotatedNnf& coarse, int fineWidth, int fineHeight)
 {
-    if (coarse.match.size() != size_t(coarse.width) * size_t(coarse.height)) throw ValueError("upscaleNnf: malformed field");
+    if (coarse.match.size() != size_t(coarse.width) * size_t(coarse.height))
+        throw ValueError("upscaleNnf: malformed field");
     if ((fineWidth + 1) / 2 > coarse.width || (fineHeight + 1) / 2 > coarse.height)
         throw ValueError("upscaleNnf: the fine grid must be at most twice the coarse one");
     RotatedNnf fine = emptyRotatedNnf(fineWidth, fineHeight);
@@ -108,7 +109,8 @@ RotatedNnf upscaleNnf(const RotatedNnf& coarse, int fineWidth, int fineHeight)
 RotatedNnf downscaleNnf(const RotatedNnf& fine, int levels, int coarseWidth, int coarseHeight)
 {
     if (levels < 0 || levels > 12) throw ValueError("downscaleNnf: levels must lie in 0..12");
-    if (fine.match.size() != size_t(fine.width) * size_t(fine.height)) throw ValueError("downscaleNnf: malformed field");
+    if (fine.match.size() != size_t(fine.width) * size_t(fine.height))
+        throw ValueError("downscaleNnf: malformed field");
     const int B = 1 << levels;
     const double c = (B - 1) / 2.0;
     RotatedNnf out = emptyRotatedNnf(coarseWidth, coarseHeight);
@@ -132,7 +134,8 @@ RotatedNnf downscaleNnf(const RotatedNnf& fine, int levels, int coarseWidth, int
                         k.x = std::int16_t(roundHalfUp((m.x - ox - c) / B));
                         k.y = std::int16_t(roundHalfUp((m.y - oy - c) / B));
                         size_t j = 0;
-                        while (j < keys.size() && !(keys[j].frame == k.frame && keys[j].x == k.x && keys[j].y == k.y)) ++j;
+                        while (j < keys.size() && !(keys[j].frame == k.frame && keys[j].x == k.x && keys[j].y == k.y))
+                            ++j;
                         if (j == keys.size()) {
                             keys.push_back(k);
                             counts.push_back(0);

@@ -44,8 +44,8 @@ inline std::uint64_t key(std::uint64_t a, std::uint64_t b, std::uint64_t c, std:
 /// from this sweep inside the tile, from the previous sweep's snapshot across tiles, so no result depends
 /// on which thread ran which tile.
 template<typename Match, typename Visit>
-void tiledSweeps(int width, int height, int tileSize, int first, int iterations, std::vector<Match>& match, Progress* progress,
-    const Visit& visit)
+void tiledSweeps(int width, int height, int tileSize, int first, int iterations, std::vector<Match>& match,
+    Progress* progress, const Visit& visit)
 {
     const int T = std::max(8, tileSize);
     const int tilesX = (width + T - 1) / T, tilesY = (height + T - 1) / T;
@@ -89,8 +89,8 @@ struct SearchConfig
 /// satisfy ok). Queries whose label has no candidate get -1.
 template<typename Ok, typename Dist>
 void sweepSearch(const SearchConfig& cfg, const std::vector<char>& active, const Labels& qLabels,
-    const std::vector<std::vector<std::int32_t>>& lists, const Ok& ok, const Dist& dist, std::vector<std::int32_t>& match,
-    std::vector<float>& best, Progress* progress)
+    const std::vector<std::vector<std::int32_t>>& lists, const Ok& ok, const Dist& dist,
+    std::vector<std::int32_t>& match, std::vector<float>& best, Progress* progress)
 {
     const float inf = std::numeric_limits<float>::infinity();
     const size_t qN = size_t(cfg.qW) * size_t(cfg.qH);
@@ -151,7 +151,8 @@ void sweepSearch(const SearchConfig& cfg, const std::vector<char>& active, const
                 tryCandidate(cy * cfg.dW + cx);
             }
             if (const auto* list = listOf(L))
-                for (int k = 0; k < cfg.randomCentres; ++k) tryCandidate((*list)[rng.below(std::uint32_t(list->size()))]);
+                for (int k = 0; k < cfg.randomCentres; ++k)
+                    tryCandidate((*list)[rng.below(std::uint32_t(list->size()))]);
             match[q] = m;
             best[q] = b;
         });

@@ -30,7 +30,8 @@ ChannelImage padClamped(const ChannelImage& img, int r)
     ChannelImage out(img.width() + 2 * r, img.height() + 2 * r, img.channels());
     for (int y = 0; y < out.height(); ++y)
         for (int x = 0; x < out.width(); ++x) {
-            const float* s = img.pixel(std::min(img.width() - 1, std::max(0, x - r)), std::min(img.height() - 1, std::max(0, y - r)));
+            const float* s = img.pixel(
+                std::min(img.width() - 1, std::max(0, x - r)), std::min(img.height() - 1, std::max(0, y - r)));
             std::copy(s, s + img.channels(), out.pixel(x, y));
         }
     return out;
@@ -40,7 +41,8 @@ ChannelImage cropped(const ChannelImage& img, int r, int channels)
 {
     ChannelImage out(img.width() - 2 * r, img.height() - 2 * r, channels);
     for (int y = 0; y < out.height(); ++y)
-        for (int x = 0; x < out.width(); ++x) std::copy(img.pixel(x + r, y + r), img.pixel(x + r, y + r) + channels, out.pixel(x, y));
+        for (int x = 0; x < out.width(); ++x)
+            std::copy(img.pixel(x + r, y + r), img.pixel(x + r, y + r) + channels, out.pixel(x, y));
     return out;
 }
 
@@ -83,8 +85,8 @@ struct ExemplarLevel
     bool has[2] = {false, false}; // boundary, interior centres present
 };
 
-ExemplarLevel exemplarLevel(const ChannelImage& cur, const ChannelImage& prev, const ChannelImage& blur, int level, int r,
-    bool rotations, const StylizeSettings& s)
+ExemplarLevel exemplarLevel(const ChannelImage& cur, const ChannelImage& prev, const ChannelImage& blur, int level,
+    int r, bool rotations, const StylizeSettings& s)
 {
     const ChannelImage c0 = reducedTimes(cur, level), p0 = reducedTimes(prev, level), b0 = reducedTimes(blur, level);
     const int turns = rotations ? 4 : 1, gap = 2 * r + 2;
@@ -125,8 +127,8 @@ struct TargetLevel
     Labels labels;             // padded
 };
 
-TargetLevel targetLevel(const ChannelImage& alpha, const ChannelImage& blur, const ChannelImage& prev, const ChannelImage& lambda,
-    int level, int r, const StylizeSettings& s, const ExemplarLevel& ex)
+TargetLevel targetLevel(const ChannelImage& alpha, const ChannelImage& blur, const ChannelImage& prev,
+    const ChannelImage& lambda, int level, int r, const StylizeSettings& s, const ExemplarLevel& ex)
 {
     const ChannelImage a = reducedTimes(alpha, level), b = reducedTimes(blur, level), p = reducedTimes(prev, level),
                        l = reducedTimes(lambda, level);
@@ -192,7 +194,8 @@ InteriorStats luminanceStats(const ChannelImage& straight, const std::vector<cha
 }
 
 /// Normalised histogram of |grad alpha| (central differences) over pixels with blurred alpha in (l, u).
-std::vector<double> boundaryGradientHistogram(const ChannelImage& alpha, int channel, const ChannelImage& blurred, float l, float u)
+std::vector<double> boundaryGradientHistogram(
+    const ChannelImage& alpha, int channel, const ChannelImage& blurred, float l, float u)
 {
     std::vector<double> h(16, 0.0);
     double n = 0.0;
@@ -221,15 +224,20 @@ std::vector<char> interiorMask(const ChannelImage& blurredAlpha, float upper)
 void checkFrame(const StylizeFrame& f, int r)
 {
     if (!f.alpha || !f.exemplar) throw ValueError("stylize: a frame needs a target alpha and an exemplar");
-    if (f.alpha->channels() != 1 || f.alpha->empty()) throw ValueError("stylize: the target alpha must be a non-empty 1-channel image");
-    const auto sizeOf = [](const ChannelImage& i) { return std::to_string(i.width()) + "x" + std::to_string(i.height()); };
+    if (f.alpha->channels() != 1 || f.alpha->empty())
+        throw ValueError("stylize: the target alpha must be a non-empty 1-channel image");
+    const auto sizeOf = [](const ChannelImage& i) {
+        return std::to_string(i.width()) + "x" + std::to_string(i.height());
+    };
     for (const ChannelImage* m : {f.motionIn, f.motionOut})
         if (m && (m->channels() != 2 || !m->sameSize(*f.alpha)))
-            throw ValueError("stylize: the motion field (" + sizeOf(*m) + ") must be 2 channels of the alpha's size (" + sizeOf(*f.alpha) + ")");
+            throw ValueError("stylize: the motion field (" + sizeOf(*m) + ") must be 2 channels of the alpha's size (" +
+                             sizeOf(*f.alpha) + ")");
     const RgbaImage& z = *f.exemplar;
     if (z.width() < 2 * r + 1 || z.height() < 2 * r + 1)
         throw ValueError("stylize: the exemplar (" + std::to_string(z.width()) + "x" + std::to_string(z.height()) +
-                         ") is smaller than a " + std::to_string(2 * r + 1) + "x" + std::to_string(2 * r + 1) + " patch");
+                         ") is smaller than a " + std::to_string(2 * r + 1) + "x" + std::to_string(2 * r + 1) +
+                         " patch");
     if (f.exemplarPrevious && !f.exemplarPrevious->sameSize(z))
         throw ValueError("stylize: the previous exemplar frame must have the exemplar's size");
 }
@@ -241,8 +249,8 @@ struct TargetGuides
     ChannelImage alpha, blur, prev, lambda, lambdaShape;
 };
 
-TargetGuides targetGuides(const StylizeFrame& frame, const ChannelImage& previous, bool first, const StylizeSettings& s,
-    StylizeStats& st)
+TargetGuides targetGuides(
+    const StylizeFrame& frame, const ChannelImage& previous, bool first, const StylizeSettings& s, StylizeStats& st)
 {
     const ChannelImage& alphaIn = *frame.alpha;
     const int W = alphaIn.width(), H = alphaIn.height();
@@ -290,10 +298,12 @@ void requireExemplarSegments(const ExemplarGuides& e, const ChannelImage& target
     const ExemplarLevel fine = exemplarLevel(e.cur, e.prev, e.blur, 0, r, false, s);
     const std::vector<std::int8_t> tseg = segmentsOf(targetBlur, s.lower, s.upper);
     bool needs[2] = {false, false};
-    for (auto L : tseg) if (L >= 0) needs[L] = true;
+    for (auto L : tseg)
+        if (L >= 0) needs[L] = true;
     if (needs[kInterior] && !fine.has[kInterior])
-        throw ValueError("stylize: the exemplar has no interior (no pixel whose alpha blurred by r = " + std::to_string(s.blurRadius) +
-                         " reaches u = " + std::to_string(s.upper) + "): check its alpha");
+        throw ValueError("stylize: the exemplar has no interior (no pixel whose alpha blurred by r = " +
+                         std::to_string(s.blurRadius) + " reaches u = " + std::to_string(s.upper) +
+                         "): check its alpha");
     if (needs[kBoundary] && !fine.has[kBoundary] && !fine.has[kInterior])
         throw ValueError("stylize: the exemplar has no usable alpha (empty or transparent everywhere)");
 }
@@ -369,7 +379,8 @@ ChannelImage synthesizePyramid(const TargetGuides& g, const ExemplarGuides& e, b
             first ? ChannelImage(W, H, 1) : g.lambda, level, r, s, ex);
         if (!current.empty()) {
             const ChannelImage init = padClamped(enlarge(current, tl.width, tl.height), r);
-            for (size_t i = 0; i < init.pixelCount(); ++i) std::copy(init.pixel(i), init.pixel(i) + 4, tl.features.pixel(i));
+            for (size_t i = 0; i < init.pixelCount(); ++i)
+                std::copy(init.pixel(i), init.pixel(i) + 4, tl.features.pixel(i));
         } else {
             randomStart(ex, tl, r, s, frame);
         }
@@ -463,12 +474,16 @@ RgbaImage straightRgba(const ChannelImage& premultipliedRgba, const std::string&
 
 void validate(const StylizeSettings& s)
 {
-    if (s.patchSize < 3 || s.patchSize > 15 || s.patchSize % 2 == 0) throw ValueError("stylize: patch size must be odd, 3..15");
-    if (!(s.lambda >= 0.0f) || !(s.eta >= 0.0f) || !(s.alphaWeight >= 0.0f)) throw ValueError("stylize: lambda, eta and the alpha weight must be >= 0");
+    if (s.patchSize < 3 || s.patchSize > 15 || s.patchSize % 2 == 0)
+        throw ValueError("stylize: patch size must be odd, 3..15");
+    if (!(s.lambda >= 0.0f) || !(s.eta >= 0.0f) || !(s.alphaWeight >= 0.0f))
+        throw ValueError("stylize: lambda, eta and the alpha weight must be >= 0");
     if (!(s.blurRadius > 0.0)) throw ValueError("stylize: the blur radius r must be > 0");
-    if (!(s.lower >= 0.0f && s.lower < s.upper && s.upper <= 1.0f)) throw ValueError("stylize: thresholds need 0 <= l < u <= 1");
+    if (!(s.lower >= 0.0f && s.lower < s.upper && s.upper <= 1.0f))
+        throw ValueError("stylize: thresholds need 0 <= l < u <= 1");
     if (s.levels < 0 || s.levels > 8) throw ValueError("stylize: levels must lie in 0..8");
-    if (s.iterations < 1 || s.fineIterations < 1 || s.sweeps < 1) throw ValueError("stylize: iterations and sweeps must be >= 1");
+    if (s.iterations < 1 || s.fineIterations < 1 || s.sweeps < 1)
+        throw ValueError("stylize: iterations and sweeps must be >= 1");
     if (!(s.motionBlur >= 0.0f)) throw ValueError("stylize: motion blur must be >= 0");
 }
 

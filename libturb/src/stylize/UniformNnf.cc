@@ -42,8 +42,8 @@ int maxLabel(const Labels& a, const Labels& b)
 
 } // namespace
 
-std::vector<SegmentUsage> patchUsage(const Nnf& nnf, const Labels& sourceLabels, const Labels& targetLabels,
-    std::vector<std::int32_t>* countsOut)
+std::vector<SegmentUsage> patchUsage(
+    const Nnf& nnf, const Labels& sourceLabels, const Labels& targetLabels, std::vector<std::int32_t>* countsOut)
 {
     std::vector<std::int32_t> counts(sourceLabels.size(), 0);
     for (size_t q = 0; q < nnf.source.size(); ++q)
@@ -67,7 +67,8 @@ std::vector<SegmentUsage> patchUsage(const Nnf& nnf, const Labels& sourceLabels,
         if (u.sources == 0) u.minCount = 0;
         u.K = u.sources ? u.targets / u.sources : 0;
         u.R = u.sources ? u.targets % u.sources : 0;
-        for (size_t p = 0; p < sourceLabels.size(); ++p) u.countsAtKPlusOne += sourceLabels[p] == L && counts[p] == u.K + 1;
+        for (size_t p = 0; p < sourceLabels.size(); ++p)
+            u.countsAtKPlusOne += sourceLabels[p] == L && counts[p] == u.K + 1;
         u.coverage = u.sources ? double(used) / double(u.sources) : 0.0;
         usage.push_back(u);
     }
@@ -88,8 +89,10 @@ UniformNnf uniformNnf(const PatchSpace& space, const Labels& sourceLabels, const
 
     const int nl = maxLabel(sourceLabels, targetLabels) + 1;
     std::vector<long long> nS(size_t(std::max(0, nl)), 0), nT(nS.size(), 0);
-    for (auto v : sourceLabels) if (v >= 0) ++nS[size_t(v)];
-    for (auto v : targetLabels) if (v >= 0) ++nT[size_t(v)];
+    for (auto v : sourceLabels)
+        if (v >= 0) ++nS[size_t(v)];
+    for (auto v : targetLabels)
+        if (v >= 0) ++nT[size_t(v)];
     std::vector<Budget> budget(nS.size());
     for (size_t L = 0; L < nS.size(); ++L) {
         if (nT[L] > 0 && nS[L] == 0)
@@ -158,7 +161,8 @@ UniformNnf uniformNnf(const PatchSpace& space, const Labels& sourceLabels, const
             for (size_t p = 0; p < active.size(); ++p) {
                 if (!active[p]) continue;
                 for (std::int32_t q : lists[size_t(sourceLabels[p])])
-                    claims.push_back(Claim{space.distance(std::int32_t(p), q, std::numeric_limits<float>::infinity()), std::int32_t(p), q});
+                    claims.push_back(Claim{space.distance(std::int32_t(p), q, std::numeric_limits<float>::infinity()),
+                        std::int32_t(p), q});
             }
             std::sort(claims.begin(), claims.end());
             for (const Claim& c : claims) assign(c);
@@ -177,7 +181,9 @@ UniformNnf uniformNnf(const PatchSpace& space, const Labels& sourceLabels, const
         for (size_t p = 0; p < active.size(); ++p) {
             if (!active[p] || claim[p] < 0) continue;
             std::int32_t& w = winner[size_t(claim[p])];
-            if (w < 0 || claimDist[p] < claimDist[size_t(w)] || (claimDist[p] == claimDist[size_t(w)] && std::int32_t(p) < w)) w = std::int32_t(p);
+            if (w < 0 || claimDist[p] < claimDist[size_t(w)] ||
+                (claimDist[p] == claimDist[size_t(w)] && std::int32_t(p) < w))
+                w = std::int32_t(p);
         }
         for (size_t q = 0; q < winner.size(); ++q)
             if (winner[q] >= 0) claims.push_back(Claim{claimDist[size_t(winner[q])], winner[q], std::int32_t(q)});
@@ -186,7 +192,8 @@ UniformNnf uniformNnf(const PatchSpace& space, const Labels& sourceLabels, const
         for (const Claim& c : claims) assign(c);
         ++out.rounds;
         // Few new assignments (many sources crowding few targets): widen the random draws.
-        if (before - unassigned < std::max<long long>(1, before / 50)) randomTargets = std::min(64, std::max(1, randomTargets * 2));
+        if (before - unassigned < std::max<long long>(1, before / 50))
+            randomTargets = std::min(64, std::max(1, randomTargets * 2));
         if (progress) progress->update(double(total - unassigned) / double(std::max<long long>(1, total)));
     }
     out.usage = patchUsage(out.nnf, sourceLabels, targetLabels);

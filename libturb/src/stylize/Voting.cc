@@ -9,8 +9,8 @@
 
 namespace turb {
 
-std::vector<int> vote(const ChannelImage& source, const Nnf& nnf, int radius, int firstSource, int firstTarget, int count,
-    ChannelImage& target, const VoteSettings& settings)
+std::vector<int> vote(const ChannelImage& source, const Nnf& nnf, int radius, int firstSource, int firstTarget,
+    int count, ChannelImage& target, const VoteSettings& settings)
 {
     if (nnf.width != target.width() || nnf.height != target.height())
         throw ValueError("vote: the field must have the target's size");
@@ -48,8 +48,8 @@ std::vector<int> vote(const ChannelImage& source, const Nnf& nnf, int radius, in
     return votes;
 }
 
-std::vector<int> voteRotated(const std::vector<const ChannelImage*>& frames, const RotatedNnf& nnf, int radius, int firstSource,
-    int firstTarget, int count, ChannelImage& target, const VoteSettings& settings)
+std::vector<int> voteRotated(const std::vector<const ChannelImage*>& frames, const RotatedNnf& nnf, int radius,
+    int firstSource, int firstTarget, int count, ChannelImage& target, const VoteSettings& settings)
 {
     if (nnf.width != target.width() || nnf.height != target.height())
         throw ValueError("voteRotated: the field must have the target's size");
@@ -57,10 +57,12 @@ std::vector<int> voteRotated(const std::vector<const ChannelImage*>& frames, con
     for (const ChannelImage* f : frames)
         if (!f || f->empty() || firstSource < 0 || count < 1 || firstSource + count > f->channels())
             throw ValueError("voteRotated: a source frame is missing or lacks the channels");
-    if (firstTarget < 0 || firstTarget + count > target.channels()) throw ValueError("voteRotated: channel range outside the target");
+    if (firstTarget < 0 || firstTarget + count > target.channels())
+        throw ValueError("voteRotated: channel range outside the target");
     for (const PatchRef& m : nnf.match)
         if (m.valid() && size_t(m.frame) >= frames.size())
-            throw ValueError("voteRotated: a match names frame " + std::to_string(m.frame) + " of " + std::to_string(frames.size()));
+            throw ValueError(
+                "voteRotated: a match names frame " + std::to_string(m.frame) + " of " + std::to_string(frames.size()));
     const int W = target.width(), H = target.height(), n = 2 * radius + 1;
     // Bilinear taps per rotation step and offset: centres are whole pixels, so the fractions depend on
     // (rotation, offset) only.
@@ -96,14 +98,16 @@ std::vector<int> voteRotated(const std::vector<const ChannelImage*>& frames, con
                         const PatchRef& m = nnf.match[size_t(cy) * size_t(W) + size_t(cx)];
                         if (!m.valid()) continue;
                         const ChannelImage& src = *frames[size_t(m.frame)];
-                        const Tap& t = taps[(size_t(m.rotation) * size_t(n) + size_t(dy + radius)) * size_t(n) + size_t(dx + radius)];
+                        const Tap& t = taps[(size_t(m.rotation) * size_t(n) + size_t(dy + radius)) * size_t(n) +
+                                            size_t(dx + radius)];
                         const int sw = src.width(), sh = src.height();
                         const int x0 = std::clamp(m.x + t.ix, 0, sw - 1), x1 = std::clamp(m.x + t.ix + 1, 0, sw - 1);
                         const int y0s = std::clamp(m.y + t.iy, 0, sh - 1), y1s = std::clamp(m.y + t.iy + 1, 0, sh - 1);
                         const float *a = src.pixel(x0, y0s) + firstSource, *b = src.pixel(x1, y0s) + firstSource;
                         const float *c = src.pixel(x0, y1s) + firstSource, *d = src.pixel(x1, y1s) + firstSource;
                         for (int ch = 0; ch < count; ++ch)
-                            acc[size_t(ch)] += (1 - t.fy) * ((1 - t.fx) * a[ch] + t.fx * b[ch]) + t.fy * ((1 - t.fx) * c[ch] + t.fx * d[ch]);
+                            acc[size_t(ch)] += (1 - t.fy) * ((1 - t.fx) * a[ch] + t.fx * b[ch]) +
+                                               t.fy * ((1 - t.fx) * c[ch] + t.fx * d[ch]);
                         ++nv;
                     }
                 }

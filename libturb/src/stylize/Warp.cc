@@ -70,7 +70,8 @@ ChannelImage backwardWarp(const ChannelImage& image, const ChannelImage& motion)
 ChannelImage motionBlur(const ChannelImage& image, const ChannelImage& motion, const MotionBlurSettings& s)
 {
     checkMotion(image, motion, "motionBlur");
-    if (!(s.shutter >= 0.0f) || s.maxSamples < 3) throw ValueError("motionBlur: shutter must be >= 0 and maxSamples >= 3");
+    if (!(s.shutter >= 0.0f) || s.maxSamples < 3)
+        throw ValueError("motionBlur: shutter must be >= 0 and maxSamples >= 3");
     if (s.shutter == 0.0f) return image;
     const int C = image.channels();
     ChannelImage out(image.width(), image.height(), C);

@@ -236,8 +236,8 @@ VectorField coarsePart(const VectorField& detail, int factor, int iterations, do
 // output: it rates a candidate coarse part before the transfer keeps or drops it, a target at rest gives +infinity
 // (drop it all) where the metric has no value, and its sums run in Field order, not per x-slab, so moving it onto
 // the metric's would change the kept fraction's rounding and with it the transfer's output.
-double coarseRatio(const VectorField& detail, const VectorField& up, const ScalarField& targetDensity, float threshold,
-    int factor)
+double coarseRatio(
+    const VectorField& detail, const VectorField& up, const ScalarField& targetDensity, float threshold, int factor)
 {
     const VectorField means = boxDownsample(detail, factor);
     const VectorField reference = boxDownsample(up, factor);

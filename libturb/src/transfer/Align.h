@@ -22,7 +22,7 @@ VectorField coarsePart(const VectorField& detail, int factor, int iterations = 2
 /// lf_err's ratio for a detail field on the refined target lattice: rms of its box means over the target
 /// cells with density > threshold, against the same of `up` (the up-sampled target velocity, same box);
 /// +infinity when the target is at rest there and the detail is not.
-double coarseRatio(const VectorField& detail, const VectorField& up, const ScalarField& targetDensity, float threshold,
-    int factor);
+double coarseRatio(
+    const VectorField& detail, const VectorField& up, const ScalarField& targetDensity, float threshold, int factor);
 
 } // namespace turb::detail

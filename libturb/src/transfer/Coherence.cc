@@ -7,8 +7,8 @@
 
 namespace turb::detail {
 
-void coherencePass(LocalSearchResult& local, const PatchEnergy& energy, const std::vector<uint8_t>& active,
-    const PatchTracks& tracks)
+void coherencePass(
+    LocalSearchResult& local, const PatchEnergy& energy, const std::vector<uint8_t>& active, const PatchTracks& tracks)
 {
     const FrameSetup& fs = energy.fs;
     const TransferSettings& s = *fs.s;

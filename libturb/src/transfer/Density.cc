@@ -69,7 +69,8 @@ std::vector<uint8_t> activePatches(const FrameSetup& fs, const ScalarField& Dt, 
     const float th = fs.s->densityThreshold;
     std::vector<uint8_t> active(fs.layout.patchCount(), 0);
     for (size_t n = 0; n < Dt.size(); ++n)
-        if (Dt.data()[n] > th || density.data()[n] > th) active[fs.layout.patchIndex(fs.layout.patchOf(Dt.coordOf(n)))] = 1;
+        if (Dt.data()[n] > th || density.data()[n] > th)
+            active[fs.layout.patchIndex(fs.layout.patchOf(Dt.coordOf(n)))] = 1;
     return active;
 }
 

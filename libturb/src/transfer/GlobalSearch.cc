@@ -1,5 +1,5 @@
-// Eq. 1: the global search over b^3 coarse patches (b^2 in 2D), run only where smoke newly entered a local patch; elsewhere
-// the search region follows the previous frame's best local patch (section 3.2).
+// Eq. 1: the global search over b^3 coarse patches (b^2 in 2D), run only where smoke newly entered a local patch;
+// elsewhere the search region follows the previous frame's best local patch (section 3.2).
 #include "Stages.h"
 
 #include <turb/Error.h>
@@ -38,7 +38,8 @@ GlobalSearchResult globalSearch(const Frame& target, const SourceBands& src, con
             const size_t p = needGlobal[i];
             const Coord centreFine = fs.layout.patchBox(fs.layout.patchCoord(p)).min() + fs.half;
             const Coord c(floorDiv(centreFine.x(), f), floorDiv(centreFine.y(), f), floorDiv(centreFine.z(), fz));
-            globalDescriptor(target.velocity, target.density, c, fs.globalPatch, fs.globalDepth, src.kt, w, desc.data());
+            globalDescriptor(
+                target.velocity, target.density, c, fs.globalPatch, fs.globalDepth, src.kt, w, desc.data());
             const Coord q = index.nearest(desc.data());
             out.regionCentre[p] = Coord(q.x() * f + f / 2, q.y() * f + f / 2, q.z() * fz + fz / 2);
         }

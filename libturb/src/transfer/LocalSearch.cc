@@ -1,5 +1,5 @@
-// Eq. 2: the local search for B^3 fine patches (B^2 in 2D) inside each patch's global region: PCA-reduced candidates on the
-// stride lattice, the best few re-scored with the full-resolution E_h (with the beta term on U^_h).
+// Eq. 2: the local search for B^3 fine patches (B^2 in 2D) inside each patch's global region: PCA-reduced candidates on
+// the stride lattice, the best few re-scored with the full-resolution E_h (with the beta term on U^_h).
 #include "Stages.h"
 
 #include <turb/Error.h>
@@ -122,8 +122,8 @@ LocalSearchResult localSearch(const PatchEnergy& energy, const std::vector<uint8
     const TransferSettings& s = *fs.s;
     const int B = fs.B;
     LocalCandidates cands;
-    cands.build(energy.src.split.low, energy.src.Ds, fs.patch, s.localStride, energy.src.ks, w, s.pcaComponents,
-        s.sourceSmoke);
+    cands.build(
+        energy.src.split.low, energy.src.Ds, fs.patch, s.localStride, energy.src.ks, w, s.pcaComponents, s.sourceSmoke);
     if (cands.count() == 0) throw ValueError("the source has no local patch holding smoke");
     const int radius = std::max(0, (fs.globalPatch * fs.f - B) / 2);
     const size_t rk = cands.pca().outputDim(), ldim = localDescriptorSize(fs.patch);

@@ -26,8 +26,8 @@ void detailChange(const VectorField& detail, const VectorField& advected, const 
     }
 }
 
-Frame assembleOutput(const Frame& target, const TargetAtOutput& t, const VectorField& detail, ScalarField density,
-    const FrameSetup& fs)
+Frame assembleOutput(
+    const Frame& target, const TargetAtOutput& t, const VectorField& detail, ScalarField density, const FrameSetup& fs)
 {
     const TransferSettings& s = *fs.s;
     Frame out;
@@ -46,7 +46,8 @@ Frame assembleOutput(const Frame& target, const TargetAtOutput& t, const VectorF
     out.metadata[meta::kPatchSize] = std::to_string(fs.B);
     out.metadata[meta::kRatio] = std::to_string(fs.f);
     out.metadata[meta::kGlobalPatch] = std::to_string(fs.globalPatch);
-    out.metadata[meta::kPatchOrigin] = std::to_string(o.x()) + "," + std::to_string(o.y()) + "," + std::to_string(o.z());
+    out.metadata[meta::kPatchOrigin] =
+        std::to_string(o.x()) + "," + std::to_string(o.y()) + "," + std::to_string(o.z());
     const auto number = [](float v) {
         std::ostringstream os;
         os << v;

@@ -26,8 +26,8 @@ void globalDescriptor(const VectorField& u, const ScalarField& d, const Coord& c
             }
 }
 
-void GlobalIndex::build(const VectorField& us, const ScalarField& ds, int b, int depth, float k, const MatchWeights& w,
-    int pcaComponents)
+void GlobalIndex::build(
+    const VectorField& us, const ScalarField& ds, int b, int depth, float k, const MatchWeights& w, int pcaComponents)
 {
     mCells.clear();
     const CoordBBox box = us.bbox();
@@ -55,7 +55,8 @@ void GlobalIndex::build(const VectorField& us, const ScalarField& ds, int b, int
     {
         std::vector<float> rows(sample * dim);
         parallelFor(sample, 64, [&](size_t s, size_t e) {
-            for (size_t i = s; i < e; ++i) globalDescriptor(us, ds, mCells[size_t(i * step)], b, depth, k, w, &rows[i * dim]);
+            for (size_t i = s; i < e; ++i)
+                globalDescriptor(us, ds, mCells[size_t(i * step)], b, depth, k, w, &rows[i * dim]);
         });
         pca.fit(rows.data(), sample, dim, ps);
     }
@@ -142,8 +143,8 @@ void LocalCandidates::build(const VectorField& Usl, const ScalarField& Ds, const
         for (int y = 0; y < mLattice.y(); ++y)
             for (int z = 0; z < mLattice.z(); ++z)
                 most = std::max(most, smokeIn(mCorners.min() + Coord(x * mStride, y * mStride, z * mStride)));
-    mMinSmoke = std::max(1,
-        int(std::ceil(std::min(minSmoke * double(patch.x()) * double(patch.y()) * double(patch.z()), 0.5 * most))));
+    mMinSmoke = std::max(
+        1, int(std::ceil(std::min(minSmoke * double(patch.x()) * double(patch.y()) * double(patch.z()), 0.5 * most))));
     mSlot.assign(cells, -1);
     std::vector<Coord> corners;
     for (int x = 0; x < mLattice.x(); ++x)
@@ -151,7 +152,8 @@ void LocalCandidates::build(const VectorField& Usl, const ScalarField& Ds, const
             for (int z = 0; z < mLattice.z(); ++z) {
                 const Coord c = mCorners.min() + Coord(x * mStride, y * mStride, z * mStride);
                 if (smokeIn(c) < mMinSmoke) continue;
-                mSlot[(size_t(x) * size_t(mLattice.y()) + size_t(y)) * size_t(mLattice.z()) + size_t(z)] = int(corners.size());
+                mSlot[(size_t(x) * size_t(mLattice.y()) + size_t(y)) * size_t(mLattice.z()) + size_t(z)] =
+                    int(corners.size());
                 corners.push_back(c);
             }
     mCount = corners.size();
@@ -164,7 +166,8 @@ void LocalCandidates::build(const VectorField& Usl, const ScalarField& Ds, const
         std::vector<float> rows(sample * dim);
         const double step = double(mCount) / double(sample);
         parallelFor(sample, 256, [&](size_t s, size_t e) {
-            for (size_t i = s; i < e; ++i) localDescriptor(Usl, Ds, corners[size_t(i * step)], patch, k, w, &rows[i * dim]);
+            for (size_t i = s; i < e; ++i)
+                localDescriptor(Usl, Ds, corners[size_t(i * step)], patch, k, w, &rows[i * dim]);
         });
         mPca.fit(rows.data(), sample, dim, PcaSettings{pcaComponents, sample});
     }
@@ -189,7 +192,8 @@ const float* LocalCandidates::reduced(const Coord& c) const
     if (rel.x() % mStride || rel.y() % mStride || rel.z() % mStride) return nullptr;
     const Coord l(rel.x() / mStride, rel.y() / mStride, rel.z() / mStride);
     if (l.x() >= mLattice.x() || l.y() >= mLattice.y() || l.z() >= mLattice.z()) return nullptr;
-    const int slot = mSlot[(size_t(l.x()) * size_t(mLattice.y()) + size_t(l.y())) * size_t(mLattice.z()) + size_t(l.z())];
+    const int slot =
+        mSlot[(size_t(l.x()) * size_t(mLattice.y()) + size_t(l.y())) * size_t(mLattice.z()) + size_t(l.z())];
     return slot < 0 ? nullptr : &mReduced[size_t(slot) * mPca.outputDim()];
 }
 

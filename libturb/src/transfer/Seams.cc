@@ -27,8 +27,8 @@ PatchLayout PatchLayout::covering(const CoordBBox& box, int size)
     return l;
 }
 
-std::vector<uint8_t> seamBand(const CoordBBox& box, const PatchLayout& layout, const std::vector<uint8_t>& active,
-    int bandWidth)
+std::vector<uint8_t> seamBand(
+    const CoordBBox& box, const PatchLayout& layout, const std::vector<uint8_t>& active, int bandWidth)
 {
     if (bandWidth < 1) throw ValueError("seam band width must be >= 1");
     const Coord d = box.dim();
@@ -159,8 +159,8 @@ public:
 
     static Coord step(int f)
     {
-        static const Coord s[6] = {Coord(-1, 0, 0), Coord(1, 0, 0), Coord(0, -1, 0), Coord(0, 1, 0), Coord(0, 0, -1),
-            Coord(0, 0, 1)};
+        static const Coord s[6] = {
+            Coord(-1, 0, 0), Coord(1, 0, 0), Coord(0, -1, 0), Coord(0, 1, 0), Coord(0, 0, -1), Coord(0, 0, 1)};
         return s[f];
     }
 
@@ -377,7 +377,9 @@ public:
     Vec3f cellSum(const VectorField& X, size_t c) const
     {
         CoordBBox cb = refineBox(CoordBBox(mCells[c], mCells[c]), mBoxF);
-        if (isFlat(mBox)) cb = CoordBBox(Coord(cb.min().x(), cb.min().y(), mCells[c].z()), Coord(cb.max().x(), cb.max().y(), mCells[c].z()));
+        if (isFlat(mBox))
+            cb = CoordBBox(
+                Coord(cb.min().x(), cb.min().y(), mCells[c].z()), Coord(cb.max().x(), cb.max().y(), mCells[c].z()));
         cb.intersect(mBox);
         Vec3f sum(0.0f);
         for (int i = cb.min().x(); i <= cb.max().x(); ++i)
@@ -467,12 +469,13 @@ public:
         ls.solver.setTolerance(tolerance);
         const Eigen::VectorXd delta = ls.solver.solve(b);
         for (size_t u = 0; u < mUnknowns.size(); ++u)
-            X.data()[mLinear[size_t(mUnknowns[u])]] +=
-                Vec3f(float(delta[Eigen::Index(3 * u)]), float(delta[Eigen::Index(3 * u + 1)]), float(delta[Eigen::Index(3 * u + 2)]));
+            X.data()[mLinear[size_t(mUnknowns[u])]] += Vec3f(float(delta[Eigen::Index(3 * u)]),
+                float(delta[Eigen::Index(3 * u + 1)]), float(delta[Eigen::Index(3 * u + 2)]));
         SeamIteration out;
         // Eigen does not count the step after which it stops converged; count matrix products, as solve() does.
         out.cgIterations = int(ls.solver.iterations());
-        if (ls.solver.info() == Eigen::Success && !(out.cgIterations == 0 && (ls.A.transpose() * b).squaredNorm() == 0.0))
+        if (ls.solver.info() == Eigen::Success &&
+            !(out.cgIterations == 0 && (ls.A.transpose() * b).squaredNorm() == 0.0))
             ++out.cgIterations;
         out.cgResidual = ls.solver.error();
         out.energy = energy(X);
@@ -532,7 +535,8 @@ private:
             const float inv = mInv[r * 3 + size_t(a)];
             if (inv == 0.0f) continue;
             const int lo = mLo[r * 3 + size_t(a)], hi = mHi[r * 3 + size_t(a)];
-            if (lo >= 0 && unknownOf[size_t(lo)] >= 0) out.add(3 * unknownOf[size_t(lo)] + a, -double(mSqrtGamma) * inv);
+            if (lo >= 0 && unknownOf[size_t(lo)] >= 0)
+                out.add(3 * unknownOf[size_t(lo)] + a, -double(mSqrtGamma) * inv);
             if (hi >= 0 && unknownOf[size_t(hi)] >= 0) out.add(3 * unknownOf[size_t(hi)] + a, double(mSqrtGamma) * inv);
         }
         // Sort the (at most 6) entries by column: Eigen expects sorted inner indices.
@@ -645,18 +649,18 @@ private:
     std::vector<int> mNb[6];
     std::vector<int> mUnknowns;
     std::vector<Vec3f> mTargets;
-    std::vector<uint8_t> mFlags;      // per row voxel: bits 0-2 edge rows, bit 3 div row
-    std::vector<int> mLo, mHi;        // per row voxel and axis: central-difference stencil (compact, -1 outside R)
-    std::vector<float> mInv;          // 1 / span of that stencil
+    std::vector<uint8_t> mFlags; // per row voxel: bits 0-2 edge rows, bit 3 div row
+    std::vector<int> mLo, mHi;   // per row voxel and axis: central-difference stencil (compact, -1 outside R)
+    std::vector<float> mInv;     // 1 / span of that stencil
     int mBoxF = 1;
-    float mBoxCoef = 0.0f;            // sqrt(nu) / factor^3
-    std::vector<Coord> mCells;        // coarse cells with box rows
-    std::vector<Vec3f> mBoxTarget;    // per cell: the sum of X the row pulls towards
+    float mBoxCoef = 0.0f;         // sqrt(nu) / factor^3
+    std::vector<Coord> mCells;     // coarse cells with box rows
+    std::vector<Vec3f> mBoxTarget; // per cell: the sum of X the row pulls towards
     std::vector<int> mCellStart, mCellMembers, mCellOf;
-    std::vector<int> mGatherRow;      // per unknown, axis, k: div rows using x[r][a]
-    std::vector<float> mGatherCoef;   // and their coefficients
-    std::vector<float> mValueCoef;    // per unknown: sqrt(mu) of its value row (empty = none)
-    std::vector<Vec3f> mAnchor;       // per unknown: the value that row pulls towards
+    std::vector<int> mGatherRow;                 // per unknown, axis, k: div rows using x[r][a]
+    std::vector<float> mGatherCoef;              // and their coefficients
+    std::vector<float> mValueCoef;               // per unknown: sqrt(mu) of its value row (empty = none)
+    std::vector<Vec3f> mAnchor;                  // per unknown: the value that row pulls towards
     std::unique_ptr<LeastSquares> mLeastSquares; // solveLeastSquares' matrix, assembled on its first call
 };
 
@@ -680,8 +684,8 @@ SeamIteration solveSeamEStep(VectorField& X, const std::vector<uint8_t>& omega, 
     return sys.solve(X, maxIterations, tolerance);
 }
 
-double seamEnergy(const VectorField& X, const std::vector<uint8_t>& omega, const std::vector<Vec3f>& edgeTargets,
-    float gamma)
+double seamEnergy(
+    const VectorField& X, const std::vector<uint8_t>& omega, const std::vector<Vec3f>& edgeTargets, float gamma)
 {
     SeamSystem sys(X, omega, gamma);
     loadDenseTargets(sys, edgeTargets);
@@ -694,8 +698,8 @@ namespace {
 struct BoundaryPatch
 {
     Coord centre;
-    bool zero = false;  // Z is the zero field (the neighbour carries no detail)
-    Coord offset{0};    // else Z(v) = U_sh(v + offset)
+    bool zero = false; // Z is the zero field (the neighbour carries no detail)
+    Coord offset{0};   // else Z(v) = U_sh(v + offset)
 };
 
 // The boundary patches of a frame: centres on the lattice origin + k*h (h = C/2), with an index from lattice
@@ -704,8 +708,8 @@ struct BoundaryPatches
 {
     int h = 1;
     Coord kCount{0};
-    Coord hLo{0}, hHi{0};             // a patch covers [centre - hLo, centre + hHi]
-    std::vector<int> patchId;         // per lattice position k: index into `patches`, -1 = none there
+    Coord hLo{0}, hHi{0};     // a patch covers [centre - hLo, centre + hHi]
+    std::vector<int> patchId; // per lattice position k: index into `patches`, -1 = none there
     std::vector<BoundaryPatch> patches;
 
     size_t kIndex(const Coord& k) const
@@ -780,8 +784,8 @@ BoundaryPatches placeBoundaryPatches(const PatchLayout& L, const std::vector<uin
                 }
                 if (!onBorder) continue;
                 bool anyActive = false;
-                forEachOverlappedPatch(L, CoordBBox(c - bps.hLo, c + bps.hHi),
-                    [&](size_t p) { anyActive |= active[p] != 0; });
+                forEachOverlappedPatch(
+                    L, CoordBBox(c - bps.hLo, c + bps.hHi), [&](size_t p) { anyActive |= active[p] != 0; });
                 if (!anyActive) continue;
                 bps.patchId[bps.kIndex(k)] = int(bps.patches.size());
                 bps.patches.push_back(BoundaryPatch{c, false, Coord(0)});
@@ -836,8 +840,8 @@ void chooseBoundaryZ(BoundaryPatches& bps, const VectorField& detail, const Seam
             cands.erase(std::unique(cands.begin(), cands.end()), cands.end());
             double best = -1.0;
             for (const auto& cand : cands) {
-                const double d =
-                    gradientDistance(detail, *problem.sourceHigh, problem.sourceScale, region, cand.first != 0, cand.second);
+                const double d = gradientDistance(
+                    detail, *problem.sourceHigh, problem.sourceScale, region, cand.first != 0, cand.second);
                 if (best < 0.0 || d < best) {
                     best = d;
                     bp.zero = cand.first != 0;
@@ -851,8 +855,8 @@ void chooseBoundaryZ(BoundaryPatches& bps, const VectorField& detail, const Seam
 // The target of X(q) - X(p) on the edge p -> q = p + e_a: the mean, over the boundary patches containing both
 // ends, of Z's difference; an edge no boundary patch covers keeps the current field's difference. In blended
 // patches it mixes with the advected detail's difference.
-Vec3f edgeTarget(const BoundaryPatches& bps, const VectorField& detail, const SeamProblem& problem, const Coord& p,
-    const Coord& q)
+Vec3f edgeTarget(
+    const BoundaryPatches& bps, const VectorField& detail, const SeamProblem& problem, const Coord& p, const Coord& q)
 {
     const PatchLayout& L = problem.layout;
     const VectorField& Ush = *problem.sourceHigh;
@@ -972,9 +976,8 @@ SeamStats smoothSeams(VectorField& detail, const SeamProblem& problem, const Sea
     if (problem.boxFactor > 1 && settings.boxWeight > 0.0f)
         sys.enableBoxRows(detail, problem.boxFactor, settings.boxWeight, settings.boxKeep);
     if (settings.valueWeight > 0.0f && problem.temporal && !problem.temporalWeights.empty())
-        sys.enableValueRows(detail, [&](const Coord& c) {
-            return settings.valueWeight * problem.temporalWeights[L.patchIndex(L.patchOf(c))];
-        });
+        sys.enableValueRows(detail,
+            [&](const Coord& c) { return settings.valueWeight * problem.temporalWeights[L.patchIndex(L.patchOf(c))]; });
     stats.bandVoxels = sys.unknowns();
     if (stats.bandVoxels == 0) {
         stats.converged = true;

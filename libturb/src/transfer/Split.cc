@@ -30,7 +30,8 @@ SourceBands splitSource(const Frame& source, const Frame& target, const FrameSet
     bool smoke = false;
     for (float v : out.Ds.values()) smoke |= v > s.densityThreshold;
     if (!smoke)
-        throw ValueError("the source frame " + std::to_string(source.number) + " holds no smoke above the density threshold");
+        throw ValueError(
+            "the source frame " + std::to_string(source.number) + " holds no smoke above the density threshold");
     const bool rotate = s.alignment == FlowAlignment::Rotate || s.alignment == FlowAlignment::Both;
     const bool normalize = s.alignment == FlowAlignment::Normalize || s.alignment == FlowAlignment::Both;
     Vec3d meanT, meanS;

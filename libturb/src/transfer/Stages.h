@@ -33,13 +33,13 @@ inline AdvectSettings inPlane()
 struct FrameSetup
 {
     const TransferSettings* s = nullptr;
-    int f = 0;               ///< resolution ratio
-    int B = 8;               ///< local patch edge (fine voxels)
-    int globalPatch = 3;     ///< b (coarse voxels)
-    bool flat = false;       ///< 2D: the target is one z layer (isFlat), and so are the source and the output
-    Coord patch{8};          ///< local patch extent per axis: (B, B, B), or (B, B, 1) in 2D
-    Coord half{4};           ///< offset of a local patch's centre voxel from its corner: patch / 2 per axis
-    int globalDepth = 3;     ///< global patch extent along z (coarse voxels): b, or 1 in 2D
+    int f = 0;           ///< resolution ratio
+    int B = 8;           ///< local patch edge (fine voxels)
+    int globalPatch = 3; ///< b (coarse voxels)
+    bool flat = false;   ///< 2D: the target is one z layer (isFlat), and so are the source and the output
+    Coord patch{8};      ///< local patch extent per axis: (B, B, B), or (B, B, 1) in 2D
+    Coord half{4};       ///< offset of a local patch's centre voxel from its corner: patch / 2 per axis
+    int globalDepth = 3; ///< global patch extent along z (coarse voxels): b, or 1 in 2D
     /// Key of layout patch P in the absolute patch lattice (CarriedState::tracks): P + origin / B per axis; a 2D
     /// layout's one layer of patches is layer 0.
     Coord absolutePatch(const Coord& P) const
@@ -49,8 +49,8 @@ struct FrameSetup
     Lattice targetLattice, fineLattice;
     CoordBBox targetBox, fineBox;
     PatchLayout layout;
-    double elapsed = 0.0;    ///< time since the previous processed frame; 0 on a first frame
-    int frameGap = 1;        ///< frame-number gap to that frame
+    double elapsed = 0.0;               ///< time since the previous processed frame; 0 on a first frame
+    int frameGap = 1;                   ///< frame-number gap to that frame
     const Progress* progress = nullptr; ///< asked before every parallel chunk of the stages: Ctrl-C stops a search
 };
 
@@ -67,16 +67,16 @@ struct LookBackStep
 struct CarriedState
 {
     bool havePrevious = false;
-    VectorField prevDetail;         ///< U_h(i-1), output lattice
-    VectorField prevTargetVelocity; ///< u_t(i-1), target lattice
-    ScalarField prevTargetDensity;  ///< d_t(i-1)
-    ScalarField prevDensity;        ///< D(i-1), output lattice
-    VectorField prevVelocity;       ///< U(i-1), output lattice
-    double prevDt = 0.0;            ///< time per frame at frame i-1
-    int prevNumber = 0;             ///< frame number of i-1, the previous *processed* frame
+    VectorField prevDetail;           ///< U_h(i-1), output lattice
+    VectorField prevTargetVelocity;   ///< u_t(i-1), target lattice
+    ScalarField prevTargetDensity;    ///< d_t(i-1)
+    ScalarField prevDensity;          ///< D(i-1), output lattice
+    VectorField prevVelocity;         ///< U(i-1), output lattice
+    double prevDt = 0.0;              ///< time per frame at frame i-1
+    int prevNumber = 0;               ///< frame number of i-1, the previous *processed* frame
     std::deque<LookBackStep> history; ///< LookBack mode: the last m frames
-    int prevSourceNumber = 0;       ///< source frame number used at i-1
-    double prevSourceDt = 0.0;      ///< and its time per frame
+    int prevSourceNumber = 0;         ///< source frame number used at i-1
+    double prevSourceDt = 0.0;        ///< and its time per frame
     /// Patch (on the absolute patch lattice, fine index / B) -> source corner (fine source voxels, possibly between
     /// voxels when it followed the source's flow) of its detail last frame. Keyed absolutely so a target whose
     /// active box grows or moves keeps its tracks.
@@ -106,9 +106,9 @@ TargetAtOutput splitTarget(const Frame& target, const CarriedState& c, const Fra
 /// The source's bands and the velocity scales matching compares them in.
 struct SourceBands
 {
-    FrequencySplit split;   ///< U_sl (low), U_sh (high) and u_s (coarse); high without its box means
-    ScalarField Ds, ds;     ///< source density, and its box means on the coarse lattice
-    double reference = 0.0; ///< the source's high-frequency energy per smoke voxel, in output units^2
+    FrequencySplit split;       ///< U_sl (low), U_sh (high) and u_s (coarse); high without its box means
+    ScalarField Ds, ds;         ///< source density, and its box means on the coarse lattice
+    double reference = 0.0;     ///< the source's high-frequency energy per smoke voxel, in output units^2
     float kt = 1.0f, ks = 1.0f; ///< target and source velocity -> matching units (coarse cells per frame)
     float detailScale = 1.0f;   ///< U_sh (source world units) -> output world units
 };
@@ -124,9 +124,9 @@ SourceBands splitSource(const Frame& source, const Frame& target, const FrameSet
 
 struct DensityStep
 {
-    ScalarField density;          ///< D(i) on the fine box
-    double errorBefore = 0.0;     ///< coarse density error before the guide
-    double errorAfter = 0.0;      ///< and after it
+    ScalarField density;      ///< D(i) on the fine box
+    double errorBefore = 0.0; ///< coarse density error before the guide
+    double errorAfter = 0.0;  ///< and after it
 };
 /// The output density: advected (or looked back), the target's emission added up to the target's density, then
 /// guided onto the target's coarse means. Needs only past velocities, so it comes before this frame's detail.
@@ -175,12 +175,12 @@ struct PatchEnergy
 
 struct LocalSearchResult
 {
-    std::vector<size_t> activeList;   ///< indices of the active patches, ascending
-    std::vector<Coord> chosen;        ///< per patch: the chosen source corner (rounded when it is between voxels)
-    std::vector<Vec3d> chosenExact;   ///< per patch: the chosen source corner
-    int followed = 0;                 ///< patches that took their continuation (followSourceFlow)
-    std::vector<double> energy;       ///< per patch: its E_h
-    CoordBBox corners;                ///< allowed source corners
+    std::vector<size_t> activeList; ///< indices of the active patches, ascending
+    std::vector<Coord> chosen;      ///< per patch: the chosen source corner (rounded when it is between voxels)
+    std::vector<Vec3d> chosenExact; ///< per patch: the chosen source corner
+    int followed = 0;               ///< patches that took their continuation (followSourceFlow)
+    std::vector<double> energy;     ///< per patch: its E_h
+    CoordBBox corners;              ///< allowed source corners
     double meanEnergy() const;
 };
 LocalSearchResult localSearch(const PatchEnergy& energy, const std::vector<uint8_t>& active,
@@ -188,15 +188,15 @@ LocalSearchResult localSearch(const PatchEnergy& energy, const std::vector<uint8
 
 /// Beyond the paper: red-black sweeps where a patch takes a neighbour's continued source patch when its E_h is
 /// within TransferSettings::coherence of its own. Deterministic at any thread count.
-void coherencePass(LocalSearchResult& local, const PatchEnergy& energy, const std::vector<uint8_t>& active,
-    const PatchTracks& tracks);
+void coherencePass(
+    LocalSearchResult& local, const PatchEnergy& energy, const std::vector<uint8_t>& active, const PatchTracks& tracks);
 
 // --- Paste, temporal blend, seams ---------------------------------------------------------------------
 
 struct PasteResult
 {
-    VectorField detail;          ///< U_h over the fine box, zero outside active patches
-    std::vector<Coord> offsets;  ///< per patch: source voxel = output voxel + offset
+    VectorField detail;         ///< U_h over the fine box, zero outside active patches
+    std::vector<Coord> offsets; ///< per patch: source voxel = output voxel + offset
 };
 PasteResult pastePatches(const LocalSearchResult& local, const SourceBands& src, const FrameSetup& fs);
 
@@ -258,9 +258,8 @@ void detailChange(const VectorField& detail, const VectorField& advectedDetail, 
 
 /// U = up(u_t) + U_h, the density, up-sampled temperature and flame, and the metadata a later measure or resume
 /// reads.
-Frame assembleOutput(const Frame& target, const TargetAtOutput& t, const VectorField& detail, ScalarField density,
-    const FrameSetup& fs);
-
+Frame assembleOutput(
+    const Frame& target, const TargetAtOutput& t, const VectorField& detail, ScalarField density, const FrameSetup& fs);
 
 /// Carries this frame into `c` for the next one: the detail is recomputed from the output velocity exactly as
 /// restoreState must do from the written file, so a --resume continues bit-identically.

@@ -40,7 +40,8 @@ std::string saveStateText(const SavedState& st)
        << " src=" << st.sourceNumber << ',' << st.sourceDt << " tracks=";
     bool first = true;
     for (const auto& [P, m] : st.tracks) {
-        os << (first ? "" : ";") << P.x() << ',' << P.y() << ',' << P.z() << ',' << m.x() << ',' << m.y() << ',' << m.z();
+        os << (first ? "" : ";") << P.x() << ',' << P.y() << ',' << P.z() << ',' << m.x() << ',' << m.y() << ','
+           << m.z();
         first = false;
     }
     return os.str();
@@ -49,7 +50,8 @@ std::string saveStateText(const SavedState& st)
 SavedState parseStateText(const std::string& text)
 {
     const auto damaged = [&] {
-        return ValueError("unrecognised or damaged transfer state in the previous output: '" + text.substr(0, 60) + "'");
+        return ValueError(
+            "unrecognised or damaged transfer state in the previous output: '" + text.substr(0, 60) + "'");
     };
     std::istringstream is(text);
     std::string version, fField, bField, rotField, srcField, tracks;

@@ -90,7 +90,7 @@ TemporalBlend blendTemporal(VectorField& detail, const TargetAtOutput& t, const 
     double pooled = 1.0;
     if (s.regenerate > 0.0f) {
         parallelFor(act.size(), 16, [&](size_t b, size_t e) {
-        checkCancelled(fs.progress);
+            checkCancelled(fs.progress);
             for (size_t i = b; i < e; ++i) {
                 if (!tracks.tracked[act[i]]) continue;
                 const CoordBBox pb = boxOf(act[i]);

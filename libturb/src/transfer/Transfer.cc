@@ -40,8 +40,8 @@ double elapsedTime(int previousNumber, double previousDt, int number, double dt)
 {
     const int gap = number - previousNumber;
     if (gap <= 0)
-        throw ValueError("frames must be processed in increasing order: frame " + std::to_string(number) + " after frame " +
-                         std::to_string(previousNumber));
+        throw ValueError("frames must be processed in increasing order: frame " + std::to_string(number) +
+                         " after frame " + std::to_string(previousNumber));
     return 0.5 * (previousDt + dt) * double(gap);
 }
 
@@ -76,8 +76,8 @@ struct TurbulenceTransfer::Impl
     void checkSequence(const Frame& target, const Frame& src, int f);
     /// Section 3.2: the source's bands, the continuations in its flow, the global and the local search.
     MatchedPatches matchPatches(const Frame& target, const Frame& src, const detail::TargetAtOutput& t,
-        const std::vector<uint8_t>& active, detail::PatchTracks& tracks, const detail::FrameSetup& fs, TransferStats& st,
-        Clock::time_point& t0, Progress* progress);
+        const std::vector<uint8_t>& active, detail::PatchTracks& tracks, const detail::FrameSetup& fs,
+        TransferStats& st, Clock::time_point& t0, Progress* progress);
     /// Sections 3.2-3.4 on a frame with smoke: U_h matched, pasted, blended, seam-smoothed and calibrated.
     VectorField transferDetail(const Frame& target, const Frame& src, const detail::TargetAtOutput& t,
         const ScalarField& density, const std::vector<uint8_t>& active, detail::PatchTracks& tracks,
@@ -158,28 +158,27 @@ std::vector<std::pair<std::string, std::string>> outputSettings(const TransferSe
     const char* align[] = {"none", "normalize", "rotate", "both"};
     const char* energy[] = {"none", "pasted", "source"};
     std::vector<std::pair<std::string, std::string>> out = {{"alpha", num(s.alpha)}, {"beta", num(s.beta)},
-        {"density-threshold", num(s.densityThreshold)},
-        {"patch", num(s.localPatch)}, {"global-patch", num(s.globalPatch)}, {"pca", num(s.pcaComponents)},
-        {"stride", num(s.localStride)}, {"candidates", num(s.refineCandidates)}, {"tracking", flag(s.trackGlobalPatches)},
+        {"density-threshold", num(s.densityThreshold)}, {"patch", num(s.localPatch)},
+        {"global-patch", num(s.globalPatch)}, {"pca", num(s.pcaComponents)}, {"stride", num(s.localStride)},
+        {"candidates", num(s.refineCandidates)}, {"tracking", flag(s.trackGlobalPatches)},
         {"follow-source", flag(s.followSourceFlow)}, {"source-smoke", num(s.sourceSmoke)},
         {"follow-tolerance", num(s.followTolerance)}, {"coherence", num(s.coherence)},
         {"coherence-sweeps", num(s.coherenceSweeps)}, {"temporal-blend", num(s.temporalBlend)},
         {"regenerate", num(s.regenerate)}, {"regenerate-blend", num(s.regenerateBlend)},
-        {"regenerate-blend-2d", num(s.regenerateBlend2D)},
-        {"align", align[int(s.alignment)]}, {"resample-source", flag(s.resampleSource)},
-        {"seams", flag(s.seams.enabled)}, {"band", num(s.seams.bandWidth)}, {"boundary-patch", num(s.seams.boundaryPatch)},
-        {"gamma", num(s.seams.gamma)}, {"em-iterations", num(s.seams.maxEmIterations)},
-        {"em-tolerance", num(s.seams.emTolerance)}, {"cg-iterations", num(s.seams.maxCgIterations)},
-        {"cg-tolerance", num(s.seams.cgTolerance)}, {"box-weight", num(s.seams.boxWeight)},
-        {"box-keep", num(s.seams.boxKeep)}, {"value-weight", num(s.seams.valueWeight)},
-        {"target-divergence", flag(s.compensateTargetDivergence)}, {"whole-fresh-patches", flag(s.solveFreshPatchesWhole)},
-        {"coarse-detail-removed", flag(s.removeCoarseDetail)}, {"coarse-tolerance", num(s.coarseTolerance)},
-        {"detail-energy", energy[int(s.detailEnergy)]},
+        {"regenerate-blend-2d", num(s.regenerateBlend2D)}, {"align", align[int(s.alignment)]},
+        {"resample-source", flag(s.resampleSource)}, {"seams", flag(s.seams.enabled)}, {"band", num(s.seams.bandWidth)},
+        {"boundary-patch", num(s.seams.boundaryPatch)}, {"gamma", num(s.seams.gamma)},
+        {"em-iterations", num(s.seams.maxEmIterations)}, {"em-tolerance", num(s.seams.emTolerance)},
+        {"cg-iterations", num(s.seams.maxCgIterations)}, {"cg-tolerance", num(s.seams.cgTolerance)},
+        {"box-weight", num(s.seams.boxWeight)}, {"box-keep", num(s.seams.boxKeep)},
+        {"value-weight", num(s.seams.valueWeight)}, {"target-divergence", flag(s.compensateTargetDivergence)},
+        {"whole-fresh-patches", flag(s.solveFreshPatchesWhole)}, {"coarse-detail-removed", flag(s.removeCoarseDetail)},
+        {"coarse-tolerance", num(s.coarseTolerance)}, {"detail-energy", energy[int(s.detailEnergy)]},
         {"density", s.densityMode == DensityMode::LookBack ? "lookback" : "advect"},
-        {"density-scheme", schemeName(s.densityScheme)},
-        {"density-guide", num(s.densityGuide.strength)}, {"density-guide-passes", num(s.densityGuide.passes)},
-        {"density-guide-threshold", num(s.densityGuide.threshold)}, {"density-guide-max-gain", num(s.densityGuide.maxGain)},
-        {"lookback", num(s.lookBackFrames)}};
+        {"density-scheme", schemeName(s.densityScheme)}, {"density-guide", num(s.densityGuide.strength)},
+        {"density-guide-passes", num(s.densityGuide.passes)},
+        {"density-guide-threshold", num(s.densityGuide.threshold)},
+        {"density-guide-max-gain", num(s.densityGuide.maxGain)}, {"lookback", num(s.lookBackFrames)}};
     // Only when not the default: the default outputs' settings text stays what earlier versions wrote.
     if (s.seams.solver == SeamSolver::EigenLscg) out.emplace_back("seam-solver", "eigen");
     return out;
@@ -241,9 +240,11 @@ TurbulenceTransfer::TurbulenceTransfer(const TransferSettings& settings) : mImpl
         throw ValueError("stride, candidates and PCA components must be >= 1");
     if (s.densityMode == DensityMode::LookBack && s.lookBackFrames < 1)
         throw ValueError("look-back needs at least one frame");
-    if (!(s.temporalBlend >= 0.0f && s.temporalBlend <= 0.999f)) throw ValueError("temporal blend must lie in [0, 0.999]");
+    if (!(s.temporalBlend >= 0.0f && s.temporalBlend <= 0.999f))
+        throw ValueError("temporal blend must lie in [0, 0.999]");
     if (!(s.regenerate >= 0.0f && s.regenerate <= 1.0f)) throw ValueError("regenerate must lie in [0, 1]");
-    if (!(s.regenerateBlend >= 0.0f && s.regenerateBlend <= 0.999f && s.regenerateBlend2D >= 0.0f && s.regenerateBlend2D <= 0.999f))
+    if (!(s.regenerateBlend >= 0.0f && s.regenerateBlend <= 0.999f && s.regenerateBlend2D >= 0.0f &&
+            s.regenerateBlend2D <= 0.999f))
         throw ValueError("regenerate blend must lie in [0, 0.999]");
     if (!(s.coarseTolerance >= 0.0f)) throw ValueError("coarse tolerance must be >= 0");
     if (!(s.seams.boxKeep >= 0.0f && s.seams.boxKeep <= 1.0f)) throw ValueError("box keep must lie in [0, 1]");
@@ -285,7 +286,8 @@ void TurbulenceTransfer::Impl::checkSequence(const Frame& target, const Frame& s
         flatKnown = true;
     }
     if (f != ratio || !target.velocity.lattice().approxEqual(targetLattice))
-        throw ValueError("target frame " + std::to_string(target.number) + " changed voxel size or transform within the sequence");
+        throw ValueError(
+            "target frame " + std::to_string(target.number) + " changed voxel size or transform within the sequence");
     if (targetSmoky && isFlat(target.velocity.bbox()) != flat)
         throw ValueError("target frame " + std::to_string(target.number) + " is " + (flat ? "3D" : "2D (one z layer)") +
                          " but the sequence started " + (flat ? "2D" : "3D"));
@@ -344,8 +346,9 @@ VectorField TurbulenceTransfer::Impl::transferDetail(const Frame& target, const 
     PasteResult pasted = pastePatches(m.local, m.bands, fs);
     VectorField detail = std::move(pasted.detail);
     time.paste = lap(t0);
-    const double referenceEnergy = s.detailEnergy == DetailEnergy::Source ? m.bands.reference
-                                   : s.detailEnergy == DetailEnergy::Pasted ? smoke(detail) : 0.0;
+    const double referenceEnergy = s.detailEnergy == DetailEnergy::Source   ? m.bands.reference
+                                   : s.detailEnergy == DetailEnergy::Pasted ? smoke(detail)
+                                                                            : 0.0;
 
     // Beyond the paper: last frame's detail carried into the patches it reaches; then 3.3's seam smoothing.
     if (progress) progress->begin("seams");
@@ -443,7 +446,8 @@ void TurbulenceTransfer::restore(const std::string& state, const Frame& previous
     const detail::SavedState saved = detail::parseStateText(state);
     if (!previousOutput.velocity.lattice().approxEqual(
             refinedLattice(previousTarget.velocity.lattice(), previousTarget.velocity.bbox(), saved.f)))
-        throw ValueError("the previous output's voxel is not the target's / " + std::to_string(saved.f) + " as its state says");
+        throw ValueError(
+            "the previous output's voxel is not the target's / " + std::to_string(saved.f) + " as its state says");
     if (saved.B != m.s.localPatch)
         throw ValueError("the previous output used local patch " + std::to_string(saved.B) + ", not " +
                          std::to_string(m.s.localPatch));

@@ -26,11 +26,11 @@ namespace turb::scenes {
 
 struct RiverSettings
 {
-    int width = 320;        ///< pixels, >= 16
-    int height = 240;       ///< pixels, >= 16
-    int frames = 60;        ///< >= 1
+    int width = 320;  ///< pixels, >= 16
+    int height = 240; ///< pixels, >= 16
+    int frames = 60;  ///< >= 1
     std::uint64_t seed = 1;
-    double fast = 1.0;      ///< extra speed mid-stream, pixels per frame (the banks move at 1)
+    double fast = 1.0; ///< extra speed mid-stream, pixels per frame (the banks move at 1)
 };
 
 std::vector<ChannelImage> riverExample(const RiverSettings& s);

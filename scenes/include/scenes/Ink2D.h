@@ -31,17 +31,17 @@ namespace turb::scenes {
 
 struct InkSettings
 {
-    int width = 320;         ///< pixels, >= 32 (the drop starts at a radius of 0.1 x the short side)
-    int height = 240;        ///< pixels, >= 32
-    int frames = 30;         ///< >= 1
-    double speed = 3.5;      ///< the front's speed in frame 0, pixels per frame, > 0
-    double decay = 10.0;     ///< frames over which the front's speed halves (speed / (1 + t / decay)), > 0
-    std::uint64_t seed = 1;  ///< noise seed: the same seed, the same sequence
+    int width = 320;        ///< pixels, >= 32 (the drop starts at a radius of 0.1 x the short side)
+    int height = 240;       ///< pixels, >= 32
+    int frames = 30;        ///< >= 1
+    double speed = 3.5;     ///< the front's speed in frame 0, pixels per frame, > 0
+    double decay = 10.0;    ///< frames over which the front's speed halves (speed / (1 + t / decay)), > 0
+    std::uint64_t seed = 1; ///< noise seed: the same seed, the same sequence
 };
 
 struct InkSequence
 {
-    std::vector<RgbaImage> rgb;    ///< opaque colours (sRGB-encoded), paper included
+    std::vector<RgbaImage> rgb;     ///< opaque colours (sRGB-encoded), paper included
     std::vector<ChannelImage> mask; ///< 1 channel, 0 or 1
     std::vector<ChannelImage> flow; ///< 2 channels, pixels per frame (x right, y down), 0 outside the mask
 };

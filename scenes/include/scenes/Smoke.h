@@ -45,7 +45,7 @@ namespace scenes {
 
 struct Sphere
 {
-    Vec3d centre{0.0}; ///< world position
+    Vec3d centre{0.0};   ///< world position
     double radius = 0.5; ///< world units, > 0
 };
 
@@ -53,12 +53,12 @@ struct Sphere
 /// raised to the emitter's values and the velocity is set to `velocity`, all modulated by noise.
 struct Emitter
 {
-    Sphere shape;               ///< emission region, world units
-    Vec3f velocity{0.0f};       ///< initial velocity imposed inside, world units per second
-    float density = 1.0f;       ///< density written inside (max with what is there), >= 0
-    float temperature = 1.0f;   ///< temperature above ambient written inside, >= 0
-    float noise = 0.5f;         ///< relative amplitude of the seeded space-time noise, [0, 1]
-    double startTime = 0.0;     ///< emission begins at this simulation time, seconds
+    Sphere shape;             ///< emission region, world units
+    Vec3f velocity{0.0f};     ///< initial velocity imposed inside, world units per second
+    float density = 1.0f;     ///< density written inside (max with what is there), >= 0
+    float temperature = 1.0f; ///< temperature above ambient written inside, >= 0
+    float noise = 0.5f;       ///< relative amplitude of the seeded space-time noise, [0, 1]
+    double startTime = 0.0;   ///< emission begins at this simulation time, seconds
     double endTime = std::numeric_limits<double>::infinity(); ///< and ends here, seconds
 };
 
@@ -69,9 +69,9 @@ struct SmokeSettings
     double width = 4.0;           ///< domain extent along x, world units (> 0); voxel = width / resolution.x
     /// World position of the domain's min corner; (nan) = centred in x and y with the floor at z = 0.
     Vec3d minCorner{std::numeric_limits<double>::quiet_NaN()};
-    double frameDt = 1.0 / 24.0;  ///< seconds per output frame, > 0
-    double cfl = 5.0;             ///< most voxels the fastest face travels in one substep, > 0
-    int maxSubsteps = 4;          ///< substeps per frame at most, >= 1 (CFL may then be exceeded)
+    double frameDt = 1.0 / 24.0; ///< seconds per output frame, > 0
+    double cfl = 5.0;            ///< most voxels the fastest face travels in one substep, > 0
+    int maxSubsteps = 4;         ///< substeps per frame at most, >= 1 (CFL may then be exceeded)
     AdvectSettings::Scheme densityScheme = AdvectSettings::Scheme::MacCormack;  ///< density/temperature advection
     AdvectSettings::Scheme velocityScheme = AdvectSettings::Scheme::MacCormack; ///< velocity self-advection
     /// Limiter of MacCormack/BFECC: revert to the semi-Lagrangian value where the result leaves the range
@@ -87,8 +87,8 @@ struct SmokeSettings
     float windRate = 0.0f;            ///< relaxation rate toward `wind`, 1/s, >= 0 (0 = no wind)
     /// Domain faces (-x, +x, -y, +y, -z, +z; turb::DomainFace): Closed = still wall, Open = smoke and
     /// air leave freely, smoke-free air at rest enters. Default: a floor, open sides and top.
-    std::array<Boundary, 6> faces{Boundary::Open, Boundary::Open, Boundary::Open, Boundary::Open, Boundary::Closed,
-        Boundary::Open};
+    std::array<Boundary, 6> faces{
+        Boundary::Open, Boundary::Open, Boundary::Open, Boundary::Open, Boundary::Closed, Boundary::Open};
     std::vector<Sphere> obstacles;    ///< static solid spheres (walls for flow, empty of smoke)
     std::vector<Emitter> emitters;    ///< smoke sources
     double pressureTolerance = 5e-5;  ///< projection: max|div| after <= this * max|div| before, (0, 1)
@@ -96,25 +96,25 @@ struct SmokeSettings
     /// Projection preconditioner: OpenVDB's incomplete Cholesky (true: about a third of Jacobi's
     /// iterations, but applied on one thread) or Jacobi (false: every step parallel).
     bool pressureIncompleteCholesky = true;
-    std::uint64_t seed = 0;           ///< emitter noise seed: same seed, same frames
-    int threads = 0;                  ///< worker threads (0 = all); results do not depend on it
+    std::uint64_t seed = 0; ///< emitter noise seed: same seed, same frames
+    int threads = 0;        ///< worker threads (0 = all); results do not depend on it
 };
 
 /// Statistics of one output frame (all substeps).
 struct FrameStats
 {
-    int frame = 0;                 ///< frame number just completed (1 = first)
-    int substeps = 0;              ///< solver substeps taken
-    int pressureIterations = 0;    ///< conjugate-gradient iterations, summed over substeps
-    bool converged = true;         ///< every projection reached its tolerance
-    double relativeResidual = 0.0; ///< worst solver residual max|r| / max|div before| over substeps
+    int frame = 0;                   ///< frame number just completed (1 = first)
+    int substeps = 0;                ///< solver substeps taken
+    int pressureIterations = 0;      ///< conjugate-gradient iterations, summed over substeps
+    bool converged = true;           ///< every projection reached its tolerance
+    double relativeResidual = 0.0;   ///< worst solver residual max|r| / max|div before| over substeps
     double relativeDivergence = 0.0; ///< worst measured max|div after| / max|div before| over substeps
-    double divMaxAfter = 0.0;      ///< max |MAC divergence| after the last projection, 1/s
-    double divRel = 0.0;           ///< div_rel (docs/measure.md) of the cell-centred output (density > 0.01)
-    double maxSpeed = 0.0;         ///< fastest face velocity, world units/s
-    double mass = 0.0;             ///< total density times voxel volume
-    double advectSeconds = 0.0;    ///< wall time in advection (for benchmarks; never affects results)
-    double projectSeconds = 0.0;   ///< wall time in the projection
+    double divMaxAfter = 0.0;        ///< max |MAC divergence| after the last projection, 1/s
+    double divRel = 0.0;             ///< div_rel (docs/measure.md) of the cell-centred output (density > 0.01)
+    double maxSpeed = 0.0;           ///< fastest face velocity, world units/s
+    double mass = 0.0;               ///< total density times voxel volume
+    double advectSeconds = 0.0;      ///< wall time in advection (for benchmarks; never affects results)
+    double projectSeconds = 0.0;     ///< wall time in the projection
 };
 
 class SmokeSim
@@ -155,7 +155,7 @@ private:
     ScalarField pressureGuess(double dt) const;
 
     SmokeSettings mSettings;
-    VectorField mMac;          // MAC velocity over macBox(cells)
+    VectorField mMac; // MAC velocity over macBox(cells)
     ScalarField mDensity, mTemperature;
     // The pressures of the last two projections and their substeps (0: none yet): the next projection
     // starts from their linear extrapolation in time.
@@ -172,9 +172,9 @@ struct SceneInfo
 {
     std::string name;
     std::string description;
-    double width;      ///< fixed world extent along x (and y); the voxel size is width / resolution.x
-    Coord pairLow;     ///< recommended low resolution of a target/source pair
-    Coord pairHigh;    ///< recommended high resolution (the same world domain)
+    double width;   ///< fixed world extent along x (and y); the voxel size is width / resolution.x
+    Coord pairLow;  ///< recommended low resolution of a target/source pair
+    Coord pairHigh; ///< recommended high resolution (the same world domain)
 };
 const std::vector<SceneInfo>& sceneList();
 

@@ -35,7 +35,8 @@ struct Target2DSettings
     std::string kind = "rotate"; ///< rotate, swirl, rise, fill, grow or stroke
     int width = 256;             ///< pixels, >= 16
     int height = 256;            ///< pixels, >= 16
-    double speed = 0.02;         ///< rotate/swirl: radians per frame at the centre; rise, stroke: pixels per frame / width; grow: / short side
+    double speed = 0.02; ///< rotate/swirl: radians per frame at the centre; rise, stroke: pixels per frame / width;
+                         ///< grow: / short side
 };
 
 struct Target2D
