@@ -1632,6 +1632,52 @@ void writeAtomically(const std::string& path, bool noClobber, const std::functio
     commitTemp(tmp, path, noClobber);
 }
 
+namespace {
+
+// The file's metadata: the creator, the frame's own entries, the velocity margin of a trimmed write and dt. For
+// Blender, the grids the frame made (not those passed on as read) move to Blender's placement, recorded too.
+openvdb::MetaMap fileMetadata(const turb::Frame& frame, const WriteOptions& options, bool trimmed,
+    openvdb::GridPtrVec& grids, const std::vector<openvdb::GridBase::Ptr>& passedAsRead)
+{
+    const bool blender = options.style == WriteStyle::Blender;
+    openvdb::MetaMap meta;
+    meta.insertMeta("creator", openvdb::StringMetadata("vdbturb " VDBTURB_VERSION_STRING));
+    for (const auto& kv : frame.metadata) {
+        if (kv.first == "creator" || kv.first == turb::meta::kBlenderOffset) continue;
+        meta.insertMeta(kv.first, openvdb::StringMetadata(kv.second));
+    }
+    if (blender) {
+        // Blender puts index 0 of every resolution of a domain at one point (its own 32^3 and 128^3 caches both
+        // have translation 0), where a cell-centred refinement by f puts it (f - 1) / 2 fine voxels lower. An
+        // up-res written for Blender takes Blender's placement; the offset is recorded so readers take it off.
+        const auto ratio = frame.metadata.find(turb::meta::kRatio);
+        const int f = ratio == frame.metadata.end() ? 1 : std::atoi(ratio->second.c_str());
+        if (f > 1) {
+            const double shift = 0.5 * (f - 1) * frame.lattice().voxelSize;
+            const openvdb::Vec3d offset(shift, shift, frame.bbox().dim().z() == 1 ? 0.0 : shift);
+            for (auto& g : grids)
+                if (std::find(passedAsRead.begin(), passedAsRead.end(), g) == passedAsRead.end())
+                    g->transform().postTranslate(offset);
+            std::ostringstream os;
+            os.precision(17);
+            os << offset[0] << " " << offset[1] << " " << offset[2];
+            meta.insertMeta(turb::meta::kBlenderOffset, openvdb::StringMetadata(os.str()));
+        }
+    }
+    if (trimmed)
+        meta.insertMeta(turb::meta::kVelocityMargin, openvdb::StringMetadata(std::to_string(options.velocityMargin)));
+    if (frame.dt > 0.0) {
+        std::ostringstream os;
+        os.precision(17);
+        os << frame.dt;
+        meta.insertMeta(turb::meta::kDt, openvdb::StringMetadata(os.str()));
+    }
+
+    return meta;
+}
+
+} // namespace
+
 void writeFrame(
     const std::string& path, const turb::Frame& frame, const WriteOptions& options, const OtherGrids* others)
 {
@@ -1717,39 +1763,7 @@ void writeFrame(
         }
     }
 
-    openvdb::MetaMap meta;
-    meta.insertMeta("creator", openvdb::StringMetadata("vdbturb " VDBTURB_VERSION_STRING));
-    for (const auto& kv : frame.metadata) {
-        if (kv.first == "creator" || kv.first == turb::meta::kBlenderOffset) continue;
-        meta.insertMeta(kv.first, openvdb::StringMetadata(kv.second));
-    }
-    if (blender) {
-        // Blender puts index 0 of every resolution of a domain at one point (its own 32^3 and 128^3 caches both
-        // have translation 0), where a cell-centred refinement by f puts it (f - 1) / 2 fine voxels lower. An
-        // up-res written for Blender takes Blender's placement; the offset is recorded so readers take it off.
-        const auto ratio = frame.metadata.find(turb::meta::kRatio);
-        const int f = ratio == frame.metadata.end() ? 1 : std::atoi(ratio->second.c_str());
-        if (f > 1) {
-            const double shift = 0.5 * (f - 1) * lat.voxelSize;
-            const openvdb::Vec3d offset(shift, shift, frame.bbox().dim().z() == 1 ? 0.0 : shift);
-            for (auto& g : grids)
-                if (std::find(passedAsRead.begin(), passedAsRead.end(), g) == passedAsRead.end())
-                    g->transform().postTranslate(offset);
-            std::ostringstream os;
-            os.precision(17);
-            os << offset[0] << " " << offset[1] << " " << offset[2];
-            meta.insertMeta(turb::meta::kBlenderOffset, openvdb::StringMetadata(os.str()));
-        }
-    }
-    if (near)
-        meta.insertMeta(turb::meta::kVelocityMargin, openvdb::StringMetadata(std::to_string(options.velocityMargin)));
-    if (frame.dt > 0.0) {
-        std::ostringstream os;
-        os.precision(17);
-        os << frame.dt;
-        meta.insertMeta(turb::meta::kDt, openvdb::StringMetadata(os.str()));
-    }
-
+    const openvdb::MetaMap meta = fileMetadata(frame, options, near != nullptr, grids, passedAsRead);
     removeStaleTemporaries(path);
     const std::string tmp = tempPathFor(path);
     writeVdbChecked(tmp, path, grids, meta);

@@ -40,6 +40,46 @@ int maxLabel(const Labels& a, const Labels& b)
     return m;
 }
 
+// Eq. 5 per segment L: each of its |S_L| source patches serves K = |T_L| / |S_L| targets, R = |T_L| mod |S_L| of
+// them one more. A segment with targets but no source patch cannot be served.
+std::vector<Budget> segmentBudgets(const Labels& sourceLabels, const Labels& targetLabels)
+{
+    const int nl = maxLabel(sourceLabels, targetLabels) + 1;
+    std::vector<long long> nS(size_t(std::max(0, nl)), 0), nT(nS.size(), 0);
+    for (auto v : sourceLabels)
+        if (v >= 0) ++nS[size_t(v)];
+    for (auto v : targetLabels)
+        if (v >= 0) ++nT[size_t(v)];
+    std::vector<Budget> budget(nS.size());
+    for (size_t L = 0; L < nS.size(); ++L) {
+        if (nT[L] > 0 && nS[L] == 0)
+            throw ValueError("uniform NNF: segment " + std::to_string(L) + " has " + std::to_string(nT[L]) +
+                             " target patches but no source patch");
+        if (nS[L] > 0) budget[L] = Budget{nT[L] / nS[L], nT[L] % nS[L]};
+    }
+    return budget;
+}
+
+// A sweep's collisions resolved: each target keeps its closest claim (ties: the lower source index), sorted by
+// distance, so the closest are assigned first.
+std::vector<Claim> winningClaims(const std::vector<char>& active, const std::vector<std::int32_t>& claim,
+    const std::vector<float>& claimDist, size_t targetPixels)
+{
+    std::vector<std::int32_t> winner(targetPixels, -1);
+    for (size_t p = 0; p < active.size(); ++p) {
+        if (!active[p] || claim[p] < 0) continue;
+        std::int32_t& w = winner[size_t(claim[p])];
+        if (w < 0 || claimDist[p] < claimDist[size_t(w)] ||
+            (claimDist[p] == claimDist[size_t(w)] && std::int32_t(p) < w))
+            w = std::int32_t(p);
+    }
+    std::vector<Claim> claims;
+    for (size_t q = 0; q < winner.size(); ++q)
+        if (winner[q] >= 0) claims.push_back(Claim{claimDist[size_t(winner[q])], winner[q], std::int32_t(q)});
+    std::sort(claims.begin(), claims.end());
+    return claims;
+}
+
 } // namespace
 
 std::vector<SegmentUsage> patchUsage(
@@ -87,19 +127,7 @@ UniformNnf uniformNnf(const PatchSpace& space, const Labels& sourceLabels, const
     if (settings.sweepsPerRound < 1 || settings.randomTargets < 0 || !(settings.exhaustiveBudget >= 0.0))
         throw ValueError("uniform NNF: sweepsPerRound must be >= 1, randomTargets and exhaustiveBudget >= 0");
 
-    const int nl = maxLabel(sourceLabels, targetLabels) + 1;
-    std::vector<long long> nS(size_t(std::max(0, nl)), 0), nT(nS.size(), 0);
-    for (auto v : sourceLabels)
-        if (v >= 0) ++nS[size_t(v)];
-    for (auto v : targetLabels)
-        if (v >= 0) ++nT[size_t(v)];
-    std::vector<Budget> budget(nS.size());
-    for (size_t L = 0; L < nS.size(); ++L) {
-        if (nT[L] > 0 && nS[L] == 0)
-            throw ValueError("uniform NNF: segment " + std::to_string(L) + " has " + std::to_string(nT[L]) +
-                             " target patches but no source patch");
-        if (nS[L] > 0) budget[L] = Budget{nT[L] / nS[L], nT[L] % nS[L]};
-    }
+    std::vector<Budget> budget = segmentBudgets(sourceLabels, targetLabels);
 
     UniformNnf out;
     out.nnf = emptyNnf(T.width(), T.height());
@@ -148,7 +176,7 @@ UniformNnf uniformNnf(const PatchSpace& space, const Labels& sourceLabels, const
     std::vector<std::vector<std::int32_t>> lists;
     while (unassigned > 0) {
         checkCancelled(progress);
-        lists.assign(nS.size(), {});
+        lists.assign(budget.size(), {});
         for (size_t q = 0; q < T.pixelCount(); ++q)
             if (targetLabels[q] >= 0 && assigned[q] < 0) lists[size_t(targetLabels[q])].push_back(std::int32_t(q));
         long long nUsable = 0;
@@ -176,18 +204,7 @@ UniformNnf uniformNnf(const PatchSpace& space, const Labels& sourceLabels, const
         cfg.randomCentres = randomTargets;
         detail::sweepSearch(cfg, active, sourceLabels, lists, ok, dist, claim, claimDist, nullptr);
 
-        // Collisions: each target keeps its closest claim (ties: lower source index).
-        std::vector<std::int32_t> winner(T.pixelCount(), -1);
-        for (size_t p = 0; p < active.size(); ++p) {
-            if (!active[p] || claim[p] < 0) continue;
-            std::int32_t& w = winner[size_t(claim[p])];
-            if (w < 0 || claimDist[p] < claimDist[size_t(w)] ||
-                (claimDist[p] == claimDist[size_t(w)] && std::int32_t(p) < w))
-                w = std::int32_t(p);
-        }
-        for (size_t q = 0; q < winner.size(); ++q)
-            if (winner[q] >= 0) claims.push_back(Claim{claimDist[size_t(winner[q])], winner[q], std::int32_t(q)});
-        std::sort(claims.begin(), claims.end());
+        claims = winningClaims(active, claim, claimDist, T.pixelCount());
         const long long before = unassigned;
         for (const Claim& c : claims) assign(c);
         ++out.rounds;
