@@ -63,6 +63,47 @@ Vec3d patchFlow(const VectorField& Ut, const CoordBBox& pb)
     return d.lengthSqr() > 0.0 ? d.unit() : Vec3d(0.0);
 }
 
+// Patch p's box, clipped to the output's fine box.
+CoordBBox clippedPatchBox(const FrameSetup& fs, size_t p)
+{
+    CoordBBox pb = fs.layout.patchBox(fs.layout.patchCoord(p));
+    pb.intersect(fs.fineBox);
+    return pb;
+}
+
+// What regeneration compares, per active patch: the local flow direction and the structure sums, along and across
+// it, of the pasted (fresh) and the carried detail; `pooled` is the ratio of all pasted detail together.
+struct StretchSums
+{
+    std::vector<StructureSums> fresh, carried;
+    std::vector<Vec3d> flow;
+    double pooled = 1.0;
+};
+
+StretchSums stretchSums(const VectorField& detail, const VectorField& advected, const TargetAtOutput& t,
+    const std::vector<size_t>& act, const PatchTracks& tracks, const FrameSetup& fs)
+{
+    StretchSums out;
+    out.fresh.resize(act.size());
+    out.carried.resize(act.size());
+    out.flow.assign(act.size(), Vec3d(0.0));
+    parallelFor(act.size(), 16, [&](size_t b, size_t e) {
+        checkCancelled(fs.progress);
+        for (size_t i = b; i < e; ++i) {
+            if (!tracks.tracked[act[i]]) continue;
+            const CoordBBox pb = clippedPatchBox(fs, act[i]);
+            out.flow[i] = patchFlow(t.Ut, pb);
+            if (out.flow[i].lengthSqr() == 0.0) continue;
+            out.fresh[i] = structureSums(detail, pb, out.flow[i], fs);
+            out.carried[i] = structureSums(advected, pb, out.flow[i], fs);
+        }
+    });
+    StructureSums all; // summed in patch order: the same at any thread count
+    for (const StructureSums& f : out.fresh) all.along += f.along, all.across += f.across;
+    out.pooled = all.ratio();
+    return out;
+}
+
 } // namespace
 
 TemporalBlend blendTemporal(VectorField& detail, const TargetAtOutput& t, const VectorField& advected,
@@ -75,35 +116,24 @@ TemporalBlend blendTemporal(VectorField& detail, const TargetAtOutput& t, const 
     if (!(lambda > 0.0f)) return out;
     const PatchLayout& L = fs.layout;
     const std::vector<size_t>& act = local.activeList;
-    const auto boxOf = [&](size_t p) {
-        CoordBBox pb = L.patchBox(L.patchCoord(p));
-        pb.intersect(fs.fineBox);
-        return pb;
-    };
+    const auto boxOf = [&](size_t p) { return clippedPatchBox(fs, p); };
 
     // Regeneration: carried detail that the flow has stretched (its structure ratio along/across the local flow
     // below `regenerate` times the fresh detail's) is replaced faster. The fresh reference is the smaller of the
     // patch's own pasted detail and all pasted detail pooled: where the source's patches are themselves streaky
     // (a young source's jets), regenerating would only trade one streak for another.
-    std::vector<StructureSums> fresh(act.size()), carried(act.size());
-    std::vector<Vec3d> flow(act.size(), Vec3d(0.0));
-    double pooled = 1.0;
+    StretchSums sums;
     if (s.regenerate > 0.0f) {
-        parallelFor(act.size(), 16, [&](size_t b, size_t e) {
-            checkCancelled(fs.progress);
-            for (size_t i = b; i < e; ++i) {
-                if (!tracks.tracked[act[i]]) continue;
-                const CoordBBox pb = boxOf(act[i]);
-                flow[i] = patchFlow(t.Ut, pb);
-                if (flow[i].lengthSqr() == 0.0) continue;
-                fresh[i] = structureSums(detail, pb, flow[i], fs);
-                carried[i] = structureSums(advected, pb, flow[i], fs);
-            }
-        });
-        StructureSums all; // summed in patch order: the same at any thread count
-        for (const StructureSums& f : fresh) all.along += f.along, all.across += f.across;
-        pooled = all.ratio();
+        sums = stretchSums(detail, advected, t, act, tracks, fs);
+    } else {
+        sums.fresh.resize(act.size());
+        sums.carried.resize(act.size());
+        sums.flow.assign(act.size(), Vec3d(0.0));
     }
+    const std::vector<StructureSums>& fresh = sums.fresh;
+    const std::vector<StructureSums>& carried = sums.carried;
+    const std::vector<Vec3d>& flow = sums.flow;
+    const double pooled = sums.pooled;
     const float blendOfRegenerated = fs.flat ? s.regenerateBlend2D : s.regenerateBlend;
     const float regenerated = float(std::pow(double(std::min(blendOfRegenerated, s.temporalBlend)), fs.frameGap));
 
