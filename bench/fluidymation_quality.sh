@@ -7,22 +7,9 @@
 #
 #   bench/fluidymation_quality.sh [--vdbturb PATH] [--work DIR] [--frames N] [ablation|plume|exemplar|all]...
 set -eu
-ROOT=$(cd "$(dirname "$0")/.." && pwd)
-DATA="$(cd "$ROOT/.." && pwd)/shared/data"
-VDBTURB="$ROOT/build/tools/vdbturb"
-WORK="${TMPDIR:-/tmp}/vdbturb-fluidymation-quality"
+NAME=fluidymation-quality
 FRAMES=30
-while [ $# -gt 0 ]; do
-    case "$1" in
-    --vdbturb) VDBTURB=$2; shift 2 ;;
-    --work) WORK=$2; shift 2 ;;
-    --frames) FRAMES=$2; shift 2 ;;
-    *) break ;;
-    esac
-done
-[ $# -gt 0 ] || set -- all
-mkdir -p "$WORK"
-log() { printf 'fluidymation-quality: %s\n' "$*" >&2; }
+. "$(dirname "$0")/image_bench.sh"
 
 # One run: NAME, then the target's and the variant's options. The exemplar is builtin:ink (320x240,
 # 30 frames: a drop spreading on wet paper).

@@ -7,22 +7,9 @@
 #
 #   bench/stylize_quality.sh [--vdbturb PATH] [--work DIR] [--frames N] [washout|temporal|plume|all]...
 set -eu
-ROOT=$(cd "$(dirname "$0")/.." && pwd)
-DATA="$(cd "$ROOT/.." && pwd)/shared/data"
-VDBTURB="$ROOT/build/tools/vdbturb"
-WORK="${TMPDIR:-/tmp}/vdbturb-stylize-quality"
+NAME=stylize-quality
 FRAMES=160
-while [ $# -gt 0 ]; do
-    case "$1" in
-    --vdbturb) VDBTURB=$2; shift 2 ;;
-    --work) WORK=$2; shift 2 ;;
-    --frames) FRAMES=$2; shift 2 ;;
-    *) break ;;
-    esac
-done
-[ $# -gt 0 ] || set -- all
-mkdir -p "$WORK"
-log() { printf 'stylize-quality: %s\n' "$*" >&2; }
+. "$(dirname "$0")/image_bench.sh"
 
 # Wash-out and temporal runs: the three-lobed blob turning 0.03 rad/frame (275 degrees over 160 frames),
 # 256x256, the procedural fire exemplar (96 px: a smooth half and a textured half).

@@ -1,4 +1,5 @@
 // The vdbturb executable end to end: exit codes, atomic outputs, --resume, --dry-run, --no-clobber.
+#include "CliUtil.h"
 #include "TestUtil.h"
 
 #include <turbio/ImageIO.h>
@@ -15,25 +16,12 @@
 
 namespace {
 
-struct CmdResult
-{
-    int code = -1;
-    std::string out; // stdout + stderr
-};
+using CmdResult = clitest::Result;
 
 // `env` prefixes the command ("PATH=/x" runs it with another environment).
 CmdResult run(const std::string& args, const std::string& env = "")
 {
-    CmdResult r;
-    const std::string cmd = env + (env.empty() ? "" : " ") + std::string(VDBTURB_EXE) + " " + args + " 2>&1";
-    FILE* p = ::popen(cmd.c_str(), "r");
-    if (!p) return r;
-    std::array<char, 4096> buf;
-    size_t n;
-    while ((n = std::fread(buf.data(), 1, buf.size(), p)) > 0) r.out.append(buf.data(), n);
-    const int status = ::pclose(p);
-    r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    return r;
+    return clitest::shell(env + (env.empty() ? "" : " ") + std::string(VDBTURB_EXE) + " " + args + " 2>&1");
 }
 
 std::string lo() { return testutil::dataPath("blender-plume-32/fluid_data_####.vdb"); }

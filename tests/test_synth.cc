@@ -773,17 +773,32 @@ TEST(Combine, DetailStaysNearTheSmokeWhenGivenItsDensity)
     EXPECT_NEAR(double(combineMotion(L, H, cs)(8 * f + 1, 5, 5).y()), 1.0, 1e-6);
 }
 
+namespace {
+
+// The 3D vortex case: a 12x12x6 vortex in the xy plane, circles seen from all three axes, z weighted 10.
+struct VortexCase
+{
+    Exemplar ex = procedural(ProceduralPattern::Circles, 64, 16);
+    VectorField L =
+        analyticFlow(AnalyticFlowSettings{AnalyticFlowSettings::Kind::Vortex, Coord(12, 12, 6), 1.0, 1.0, 0.0});
+    std::vector<SynthView> views;
+    VortexCase()
+    {
+        for (int a = 0; a < 3; ++a) views.push_back({ex, a, a == 2 ? 10.0f : 1.0f});
+    }
+};
+
+} // namespace
+
 TEST(Synth, ThreeDFramesDoNotFlipAcrossAVortex)
 {
     // With a fixed secondary axis (+y), the local frame turns 180 degrees where a vortex in the
     // xy plane crosses y = centre, so circles turning one way in the exemplar turn the other way on one side: the
     // skewness of curl_z changes sign across the plane. The secondary n x e1, with n the direction L has least of
     // (here z), keeps the frame continuous, and the sense of rotation the same on both sides.
-    const Exemplar ex = procedural(ProceduralPattern::Circles, 64, 16);
-    const VectorField L =
-        analyticFlow(AnalyticFlowSettings{AnalyticFlowSettings::Kind::Vortex, Coord(12, 12, 6), 1.0, 1.0, 0.0});
-    std::vector<SynthView> views;
-    for (int a = 0; a < 3; ++a) views.push_back({ex, a, a == 2 ? 10.0f : 1.0f});
+    const VortexCase vc;
+    const VectorField& L = vc.L;
+    const std::vector<SynthView>& views = vc.views;
     const auto skewness = [&](bool autoSecondary) {
         SynthSettings s;
         s.orientation.autoSecondary = autoSecondary;
@@ -827,11 +842,9 @@ TEST(Synth, EachThreeDIterationDescendsOnItsOwnCentres)
     // its own centres and matches every iteration lowers Kwatra's objective (the weighted average, the M-step,
     // always; the moment match gives part of it back); the next iteration jitters the centres to new positions,
     // whose neighbourhoods start higher. This holds that every iteration descends on its own centres.
-    const Exemplar ex = procedural(ProceduralPattern::Circles, 64, 16);
-    const VectorField L =
-        analyticFlow(AnalyticFlowSettings{AnalyticFlowSettings::Kind::Vortex, Coord(12, 12, 6), 1.0, 1.0, 0.0});
-    std::vector<SynthView> views;
-    for (int a = 0; a < 3; ++a) views.push_back({ex, a, a == 2 ? 10.0f : 1.0f});
+    const VortexCase vc;
+    const VectorField& L = vc.L;
+    const std::vector<SynthView>& views = vc.views;
     SynthSettings s;
     s.traceDescent = true;
     SynthInput in;

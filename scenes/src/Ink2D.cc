@@ -1,5 +1,7 @@
 #include <scenes/Ink2D.h>
 
+#include "Noise.h"
+
 #include <turb/Error.h>
 #include <turb/Parallel.h>
 
@@ -12,35 +14,13 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-std::uint64_t mix(std::uint64_t x)
-{
-    x += 0x9e3779b97f4a7c15ull;
-    x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
-    x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
-    return x ^ (x >> 31);
-}
-
-/// Smooth value noise in [0, 1) with period `cell`.
-double noise(double x, double y, double cell, std::uint64_t seed)
-{
-    const double fx = x / cell, fy = y / cell;
-    const long ix = long(std::floor(fx)), iy = long(std::floor(fy));
-    const double tx = fx - ix, ty = fy - iy;
-    const auto v = [&](long a, long b) {
-        return double(mix(seed ^ mix(std::uint64_t(a) * 73856093ull ^ std::uint64_t(b) * 19349663ull)) >> 11) /
-               9007199254740992.0;
-    };
-    const auto s = [](double t) { return t * t * (3.0 - 2.0 * t); };
-    const double a = v(ix, iy) + (v(ix + 1, iy) - v(ix, iy)) * s(tx);
-    const double b = v(ix, iy + 1) + (v(ix + 1, iy + 1) - v(ix, iy + 1)) * s(tx);
-    return a + (b - a) * s(ty);
-}
+using detail::valueNoise2D;
 
 double fractal(double x, double y, double cell, int octaves, std::uint64_t seed)
 {
     double f = 0.0, amp = 0.5, norm = 0.0;
     for (int o = 0; o < octaves; ++o, cell /= 2.0, amp *= 0.55) {
-        f += amp * noise(x, y, cell, seed + std::uint64_t(o) * 101);
+        f += amp * valueNoise2D(x, y, cell, seed + std::uint64_t(o) * 101);
         norm += amp;
     }
     return f / norm;
@@ -69,8 +49,8 @@ struct Sim
         const double dx = x - cx, dy = y - cy, r = std::hypot(dx, dy);
         const double phi = std::atan2(dy, dx);
         // Fingers: the front's speed wobbles along the rim, slowly changing in time.
-        const double wob = 1.0 + 0.35 * (2.0 * noise(8.0 * std::cos(phi) + 50.0 + 0.04 * t, 8.0 * std::sin(phi) + 50.0,
-                                                   2.2, s.seed + 11) -
+        const double wob = 1.0 + 0.35 * (2.0 * valueNoise2D(8.0 * std::cos(phi) + 50.0 + 0.04 * t,
+                                                   8.0 * std::sin(phi) + 50.0, 2.2, s.seed + 11) -
                                             1.0);
         // Capillary spreading: the wet front moves, the paint behind it comes to rest ((r / R)^2), and
         // beyond the front the speed falls as R / r.
@@ -118,7 +98,8 @@ InkSequence inkExemplar(const InkSettings& s)
             const double phi = std::atan2(y - sim.cy, x - sim.cx);
             const double edge =
                 sim.R0 *
-                (1.0 + 0.15 * (noise(5.0 * std::cos(phi) + 20.0, 5.0 * std::sin(phi) + 20.0, 1.7, s.seed + 3) - 0.5));
+                (1.0 + 0.15 * (valueNoise2D(5.0 * std::cos(phi) + 20.0, 5.0 * std::sin(phi) + 20.0, 1.7, s.seed + 3) -
+                                  0.5));
             field.at(x, y, 0) = float(std::clamp((edge - std::hypot(x - sim.cx, y - sim.cy)) / 1.5 + 0.5, 0.0, 1.0));
             field.at(x, y, 1) = float(fractal(x, y, 0.5 * sim.R0, 5, s.seed + 5));
         }

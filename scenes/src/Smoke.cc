@@ -2,6 +2,7 @@
 #include <scenes/Smoke.h>
 
 #include "MacAdvect.h"
+#include "Noise.h"
 
 #include <turb/Metadata.h>
 #include <turb/Error.h>
@@ -21,13 +22,7 @@ namespace {
 
 // ---- Seeded noise: a pure function of (seed, position, time), so it does not depend on threads.
 
-std::uint64_t splitmix(std::uint64_t x)
-{
-    x += 0x9e3779b97f4a7c15ull;
-    x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
-    x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
-    return x ^ (x >> 31);
-}
+using detail::splitmix;
 
 /// Uniform in [-1, 1] at an integer lattice point of space-time.
 double latticeValue(std::uint64_t seed, int i, int j, int k, int t)

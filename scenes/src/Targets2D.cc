@@ -1,5 +1,7 @@
 #include <scenes/Targets2D.h>
 
+#include "Noise.h"
+
 #include <turb/Error.h>
 
 #include <algorithm>
@@ -18,29 +20,7 @@ float lobes(double r, double theta, double R)
     return float(std::min(1.0, std::max(0.0, (edge - r) / 2.0 + 0.5)));
 }
 
-std::uint64_t mix(std::uint64_t x)
-{
-    x += 0x9e3779b97f4a7c15ull;
-    x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
-    x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
-    return x ^ (x >> 31);
-}
-
-/// Smooth value noise with period `cell` pixels.
-double valueNoise(double x, double y, double cell, std::uint64_t seed)
-{
-    const double fx = x / cell, fy = y / cell;
-    const long ix = long(std::floor(fx)), iy = long(std::floor(fy));
-    const double tx = fx - ix, ty = fy - iy;
-    const auto v = [&](long a, long b) {
-        return double(mix(seed ^ mix(std::uint64_t(a) * 73856093ull ^ std::uint64_t(b) * 19349663ull)) >> 11) /
-               9007199254740992.0;
-    };
-    const auto s = [](double t) { return t * t * (3.0 - 2.0 * t); };
-    const double a = v(ix, iy) + (v(ix + 1, iy) - v(ix, iy)) * s(tx);
-    const double b = v(ix, iy + 1) + (v(ix + 1, iy + 1) - v(ix, iy + 1)) * s(tx);
-    return a + (b - a) * s(ty);
-}
+using detail::valueNoise2D;
 
 /// `grow` and `stroke`: shapes that spread and then rest, with regions that never move.
 Target2D growingTarget(const Target2DSettings& s, int frame)
@@ -139,14 +119,14 @@ RgbaImage fireExemplar(int n, std::uint64_t seed)
             const double theta = std::atan2(y - c, x - c);
             const double wobble =
                 0.12 * R *
-                (valueNoise(std::cos(theta) * 40.0 + 100.0, std::sin(theta) * 40.0 + 100.0, 9.0, seed + 7) - 0.5);
+                (valueNoise2D(std::cos(theta) * 40.0 + 100.0, std::sin(theta) * 40.0 + 100.0, 9.0, seed + 7) - 0.5);
             const double a = std::min(1.0, std::max(0.0, (R + wobble - std::hypot(x - c, y - c)) / 4.0 + 0.5));
             // Smooth on the left (a ramp, brighter at the top), textured on the right, blended over the
             // middle fifth so no hard seam becomes a feature of its own.
             const double ramp = 0.25 + 0.7 * (1.0 - double(y) / n);
             double f = 0.0, amp = 0.5;
             for (double cell = n / 6.0; cell >= 1.5; cell /= 2.0, amp *= 0.6)
-                f += amp * (valueNoise(x, y, cell, seed) - 0.5);
+                f += amp * (valueNoise2D(x, y, cell, seed) - 0.5);
             const double tex = std::min(1.0, std::max(0.0, 0.55 + 1.6 * f));
             const double m = std::min(1.0, std::max(0.0, (double(x) / n - 0.4) / 0.2));
             const double v = ramp + (tex - ramp) * m * m * (3.0 - 2.0 * m);

@@ -44,6 +44,24 @@ ChannelImage blurAlong(const ChannelImage& img, const ChannelImage& flow, const 
     return a;
 }
 
+/// Matte-weighted sums of one channel's values, for eq. 8's means and standard deviations.
+struct WeightedMoments
+{
+    double w = 0.0, s = 0.0, s2 = 0.0;
+    void add(double m, double v)
+    {
+        w += m;
+        s += m * v;
+        s2 += m * v * v;
+    }
+    double mean() const { return w > 0 ? s / w : 0.0; }
+    double stddev() const
+    {
+        const double mc = mean();
+        return w > 0 ? std::sqrt(std::max(0.0, s2 / w - mc * mc)) : 0.0;
+    }
+};
+
 } // namespace
 
 ChannelImage approximateAverage(
@@ -136,30 +154,17 @@ ContrastAdjustment contrastAdjustment(
     a.sigmaC.assign(size_t(C), 0.0);
     const auto weight = [&](size_t i) { return matte ? double(std::clamp(matte->pixel(i)[0], 0.0f, 1.0f)) : 1.0; };
     for (int c = 0; c < C; ++c) {
-        double w = 0.0, s = 0.0, s2 = 0.0;
-        for (size_t i = 0; i < cimg.pixelCount(); ++i) {
-            const double m = weight(i), v = cimg.pixel(i)[c];
-            w += m;
-            s += m * v;
-            s2 += m * v * v;
-        }
-        const double mc = w > 0 ? s / w : 0.0;
-        a.beta[size_t(c)] = mc;
-        a.sigmaC[size_t(c)] = w > 0 ? std::sqrt(std::max(0.0, s2 / w - mc * mc)) : 0.0;
-        w = s = s2 = 0.0;
+        WeightedMoments still, differences;
+        for (size_t i = 0; i < cimg.pixelCount(); ++i) still.add(weight(i), cimg.pixel(i)[c]);
+        a.beta[size_t(c)] = still.mean();
+        a.sigmaC[size_t(c)] = still.stddev();
         for (const ChannelImage& d : diffs) {
             if (!d.sameSize(cimg) || d.channels() != C)
                 throw ValueError("contrastAdjustment: a difference image does not match C");
-            for (size_t i = 0; i < d.pixelCount(); ++i) {
-                const double m = weight(i), v = d.pixel(i)[c];
-                w += m;
-                s += m * v;
-                s2 += m * v * v;
-            }
+            for (size_t i = 0; i < d.pixelCount(); ++i) differences.add(weight(i), d.pixel(i)[c]);
         }
-        const double md = w > 0 ? s / w : 0.0;
-        a.mean[size_t(c)] = md;
-        a.sigmaD[size_t(c)] = w > 0 ? std::sqrt(std::max(0.0, s2 / w - md * md)) : 0.0;
+        a.mean[size_t(c)] = differences.mean();
+        a.sigmaD[size_t(c)] = differences.stddev();
         a.alpha[size_t(c)] = a.sigmaD[size_t(c)] > 0.0 ? a.sigmaC[size_t(c)] / a.sigmaD[size_t(c)] : 0.0;
     }
     return a;

@@ -9,15 +9,17 @@
 
 namespace turb {
 
-std::vector<int> vote(const ChannelImage& source, const Nnf& nnf, int radius, int firstSource, int firstTarget,
-    int count, ChannelImage& target, const VoteSettings& settings)
+namespace {
+
+/// The vote's frame: every target pixel averages, over the patches of radius `radius` that cover it (those
+/// centred within the image), the values `add(cx, cy, dx, dy, acc)` accumulates for the patch at (cx, cy) and
+/// the pixel's offset (dx, dy) from its centre; `add` returns false for a patch without a match. Pixels no patch
+/// covers get settings.empty. Returns the votes per pixel.
+template<typename AddTap>
+std::vector<int> averageOverCoveringPatches(
+    int radius, int firstTarget, int count, ChannelImage& target, const VoteSettings& settings, const AddTap& add)
 {
-    if (nnf.width != target.width() || nnf.height != target.height())
-        throw ValueError("vote: the field must have the target's size");
-    if (firstSource < 0 || firstTarget < 0 || count < 1 || firstSource + count > source.channels() ||
-        firstTarget + count > target.channels())
-        throw ValueError("vote: channel range outside the images");
-    const int W = target.width(), H = target.height(), sW = source.width();
+    const int W = target.width(), H = target.height();
     std::vector<int> votes(target.pixelCount(), 0);
     parallelFor(size_t(H), 4, [&](size_t y0, size_t y1) {
         std::vector<double> acc(static_cast<size_t>(count));
@@ -32,11 +34,7 @@ std::vector<int> vote(const ChannelImage& source, const Nnf& nnf, int radius, in
                     for (int dx = -radius; dx <= radius; ++dx) {
                         const int cx = x - dx;
                         if (cx < 0 || cx >= W) continue;
-                        const std::int32_t p = nnf.source[size_t(cy) * size_t(W) + size_t(cx)];
-                        if (p < 0) continue;
-                        const float* s = source.pixel(p % sW + dx, p / sW + dy) + firstSource;
-                        for (int c = 0; c < count; ++c) acc[size_t(c)] += s[c];
-                        ++n;
+                        if (add(cx, cy, dx, dy, acc)) ++n;
                     }
                 }
                 float* t = target.pixel(x, y) + firstTarget;
@@ -46,6 +44,27 @@ std::vector<int> vote(const ChannelImage& source, const Nnf& nnf, int radius, in
         }
     });
     return votes;
+}
+
+} // namespace
+
+std::vector<int> vote(const ChannelImage& source, const Nnf& nnf, int radius, int firstSource, int firstTarget,
+    int count, ChannelImage& target, const VoteSettings& settings)
+{
+    if (nnf.width != target.width() || nnf.height != target.height())
+        throw ValueError("vote: the field must have the target's size");
+    if (firstSource < 0 || firstTarget < 0 || count < 1 || firstSource + count > source.channels() ||
+        firstTarget + count > target.channels())
+        throw ValueError("vote: channel range outside the images");
+    const int W = target.width(), sW = source.width();
+    return averageOverCoveringPatches(
+        radius, firstTarget, count, target, settings, [&](int cx, int cy, int dx, int dy, std::vector<double>& acc) {
+            const std::int32_t p = nnf.source[size_t(cy) * size_t(W) + size_t(cx)];
+            if (p < 0) return false;
+            const float* s = source.pixel(p % sW + dx, p / sW + dy) + firstSource;
+            for (int c = 0; c < count; ++c) acc[size_t(c)] += s[c];
+            return true;
+        });
 }
 
 std::vector<int> voteRotated(const std::vector<const ChannelImage*>& frames, const RotatedNnf& nnf, int radius,
@@ -63,7 +82,7 @@ std::vector<int> voteRotated(const std::vector<const ChannelImage*>& frames, con
         if (m.valid() && size_t(m.frame) >= frames.size())
             throw ValueError(
                 "voteRotated: a match names frame " + std::to_string(m.frame) + " of " + std::to_string(frames.size()));
-    const int W = target.width(), H = target.height(), n = 2 * radius + 1;
+    const int W = target.width(), n = 2 * radius + 1;
     // Bilinear taps per rotation step and offset: centres are whole pixels, so the fractions depend on
     // (rotation, offset) only.
     struct Tap
@@ -81,43 +100,23 @@ std::vector<int> voteRotated(const std::vector<const ChannelImage*>& frames, con
                 taps[(size_t(k) * size_t(n) + size_t(dy + radius)) * size_t(n) + size_t(dx + radius)] =
                     Tap{int(fx), int(fy), float(ox - fx), float(oy - fy)};
             }
-    std::vector<int> votes(target.pixelCount(), 0);
-    parallelFor(size_t(H), 4, [&](size_t y0, size_t y1) {
-        std::vector<double> acc(static_cast<size_t>(count));
-        for (size_t yy = y0; yy < y1; ++yy) {
-            const int y = int(yy);
-            for (int x = 0; x < W; ++x) {
-                std::fill(acc.begin(), acc.end(), 0.0);
-                int nv = 0;
-                for (int dy = -radius; dy <= radius; ++dy) {
-                    const int cy = y - dy;
-                    if (cy < 0 || cy >= H) continue;
-                    for (int dx = -radius; dx <= radius; ++dx) {
-                        const int cx = x - dx;
-                        if (cx < 0 || cx >= W) continue;
-                        const PatchRef& m = nnf.match[size_t(cy) * size_t(W) + size_t(cx)];
-                        if (!m.valid()) continue;
-                        const ChannelImage& src = *frames[size_t(m.frame)];
-                        const Tap& t = taps[(size_t(m.rotation) * size_t(n) + size_t(dy + radius)) * size_t(n) +
-                                            size_t(dx + radius)];
-                        const int sw = src.width(), sh = src.height();
-                        const int x0 = std::clamp(m.x + t.ix, 0, sw - 1), x1 = std::clamp(m.x + t.ix + 1, 0, sw - 1);
-                        const int y0s = std::clamp(m.y + t.iy, 0, sh - 1), y1s = std::clamp(m.y + t.iy + 1, 0, sh - 1);
-                        const float *a = src.pixel(x0, y0s) + firstSource, *b = src.pixel(x1, y0s) + firstSource;
-                        const float *c = src.pixel(x0, y1s) + firstSource, *d = src.pixel(x1, y1s) + firstSource;
-                        for (int ch = 0; ch < count; ++ch)
-                            acc[size_t(ch)] += (1 - t.fy) * ((1 - t.fx) * a[ch] + t.fx * b[ch]) +
-                                               t.fy * ((1 - t.fx) * c[ch] + t.fx * d[ch]);
-                        ++nv;
-                    }
-                }
-                float* tp = target.pixel(x, y) + firstTarget;
-                for (int c = 0; c < count; ++c) tp[c] = nv ? float(acc[size_t(c)] / nv) : settings.empty;
-                votes[size_t(y) * size_t(W) + size_t(x)] = nv;
-            }
-        }
-    });
-    return votes;
+    return averageOverCoveringPatches(
+        radius, firstTarget, count, target, settings, [&](int cx, int cy, int dx, int dy, std::vector<double>& acc) {
+            const PatchRef& m = nnf.match[size_t(cy) * size_t(W) + size_t(cx)];
+            if (!m.valid()) return false;
+            const ChannelImage& src = *frames[size_t(m.frame)];
+            const Tap& t =
+                taps[(size_t(m.rotation) * size_t(n) + size_t(dy + radius)) * size_t(n) + size_t(dx + radius)];
+            const int sw = src.width(), sh = src.height();
+            const int x0 = std::clamp(m.x + t.ix, 0, sw - 1), x1 = std::clamp(m.x + t.ix + 1, 0, sw - 1);
+            const int y0s = std::clamp(m.y + t.iy, 0, sh - 1), y1s = std::clamp(m.y + t.iy + 1, 0, sh - 1);
+            const float *a = src.pixel(x0, y0s) + firstSource, *b = src.pixel(x1, y0s) + firstSource;
+            const float *c = src.pixel(x0, y1s) + firstSource, *d = src.pixel(x1, y1s) + firstSource;
+            for (int ch = 0; ch < count; ++ch)
+                acc[size_t(ch)] +=
+                    (1 - t.fy) * ((1 - t.fx) * a[ch] + t.fx * b[ch]) + t.fy * ((1 - t.fx) * c[ch] + t.fx * d[ch]);
+            return true;
+        });
 }
 
 } // namespace turb
