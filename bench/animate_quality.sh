@@ -1,5 +1,5 @@
 #!/bin/sh
-# The measurements behind docs/animate.md (seed 001, `vdbturb animate`). Not a test: it prints numbers
+# The measurements behind docs/animate.md (Okabe et al., `vdbturb animate`). Not a test: it prints numbers
 # and writes pictures into $WORK; docs/animate.md quotes them.
 #
 #   bench/animate_quality.sh [--vdbturb PATH] [--work DIR] sweep|river|plume|modes|all

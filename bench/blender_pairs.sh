@@ -1,5 +1,5 @@
 #!/bin/sh
-# Bakes the Blender 3.4 Mantaflow caches of the seed 002 paper's 3D configuration for the benchmarks
+# Bakes the Blender 3.4 Mantaflow caches of the 3D configuration of Sato et al. for the benchmarks
 # (bench/run.sh blender-paper3d), with the scene scripts in bench/blender/:
 #
 #   WORK/blender/plume_16x16x24_fN/data/fluid_data_####.vdb          the low-res target: a buoyant plume

@@ -39,7 +39,7 @@ describe() {
     paper3d) echo "transfer: plume 16x16x24 (target) -> swirl 128x128x192 (source), 30 frames (paper: 270 s/frame)" ;;
     transfer2d) echo "transfer: 2D, plume 24x32 (target) -> swirl 192x256 (source), one z layer, 30 frames (paper: 0.7 s/frame; target <= 0.1)" ;;
     plume4x) echo "transfer: blender-plume-32 (target) -> blender-plume-128 (source), the 10 frames both hold" ;;
-    box32|box64|box128|box256) echo "transfer: plume4x with the target's domain grown to ${1#box}^3 coarse cells (the same smoke, ratio 4), frames 1-10 (issue 16: cost follows the smoke)" ;;
+    box32|box64|box128|box256) echo "transfer: plume4x with the target's domain grown to ${1#box}^3 coarse cells (the same smoke, ratio 4), frames 1-10 (cost follows the smoke)" ;;
     blender-paper3d) echo "transfer: Blender plume 16x16x24 (target) -> Blender two-jet swirl 128x128x192 (source), 30 frames (baked by bench/blender_pairs.sh)" ;;
     blender-plume2) echo "transfer: blender-plume2-32 (target) -> blender-plume2-128 (source), 30 frames (ratio 4)" ;;
     ratio2) echo "transfer: blender-plume2-128 box-downsampled to 64^3 (target) -> blender-plume2-128 (source), 30 frames (ratio 2)" ;;
@@ -281,8 +281,8 @@ transfer_sim_pair() {
 
 cfg_paper3d() { transfer_sim_pair paper3d 16x16x24 128x128x192; }
 
-# transfer2d: the paper's 2D configuration (seed 002: 24x32 target, 192x256 source, 0.7 s/frame) on the built-in
-# scenes simulated in 2D (issue 14).
+# transfer2d: the paper's 2D configuration (Sato et al.: 24x32 target, 192x256 source, 0.7 s/frame) on the built-in
+# scenes simulated in 2D.
 cfg_transfer2d() { transfer_sim_pair transfer2d 24x32x1 192x256x1; }
 
 cfg_plume4x() {
@@ -295,7 +295,7 @@ cfg_plume4x() {
 }
 
 # box32..box256: blender-plume-32 with its Blender domain grown to N^3 (vdbturb_bench_pad, untimed), the same
-# source; the output box follows the smoke, so the four should cost about the same (issue 16).
+# source; the output box follows the smoke, so the four should cost about the same.
 cfg_box() {
     nbox=$1
     pad="$(dirname "$VDBTURB")/vdbturb_bench_pad"

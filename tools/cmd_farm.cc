@@ -445,7 +445,7 @@ void blendFrame(const FarmArgs& a, const JoinPlan& p, size_t k, int j, RunReport
     turb::Frame blended = turb::blendOverlap(fa, fb, up, w, p.densityThreshold, &st);
     char note[160];
     std::snprintf(note, sizeof(note), "%.4f,%.4f,%.4f,%.4f", w.detailA, w.detailB, w.densityA, w.densityB);
-    blended.metadata["vdbturb_farm_blend"] = std::string(note);
+    blended.metadata[turb::meta::kFarmBlend] = std::string(note);
     const std::string dst = turbio::FramePattern::parse(p.out).format(t);
     turbio::ensureParentDirectory(dst);
     turbio::writeFrame(dst, blended, a.write);

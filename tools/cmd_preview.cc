@@ -566,8 +566,7 @@ Command previewCommand()
     c.globals = kVerbosity | kThreads;
     c.name = "preview";
     c.help = "Pictures of caches (PNG, EXR, TIFF, JPEG): lit density, speed/vorticity slices, LIC, and labelled "
-             "contact sheets "
-             "(a 2D cache, one z layer, is shown in its x-y plane)";
+             "contact sheets (a 2D cache, one z layer, is shown in its x-y plane)";
     c.setup = [args](CLI::App* app) {
         PreviewArgs& a = *args;
         app->add_option("caches", a.inputs,

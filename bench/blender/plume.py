@@ -1,4 +1,4 @@
-"""Buoyant smoke plume, the low-res target of the paper's 3D configuration (seed 002: 16x16x24).
+"""Buoyant smoke plume, the low-res target of the paper's 3D configuration (Sato et al.: 16x16x24).
 
     blender -b --factory-startup --python plume.py -- RES_Z OUTDIR [FRAMES] [THREADS]
 

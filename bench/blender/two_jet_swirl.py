@@ -1,4 +1,4 @@
-"""Two-jet swirl, the high-res source of the paper's 3D configuration (seed 002: 128x128x192).
+"""Two-jet swirl, the high-res source of the paper's 3D configuration (Sato et al.: 128x128x192).
 
     blender -b --factory-startup --python two_jet_swirl.py -- RES_Z OUTDIR [FRAMES] [SPEED] [THREADS]
 

@@ -46,6 +46,10 @@ inline constexpr const char* kExemplars = "vdbturb_exemplars";
 inline constexpr const char* kOmega = "vdbturb_omega";
 inline constexpr const char* kSeed = "vdbturb_seed";
 
+// farm
+/// On a frame `farm join` blended from two chunks: "w_a,w_b,d_a,d_b", the detail and density weights.
+inline constexpr const char* kFarmBlend = "vdbturb_farm_blend";
+
 // sim
 inline constexpr const char* kScene = "vdbturb_scene";
 inline constexpr const char* kSimResolution = "vdbturb_sim_resolution";

@@ -45,7 +45,7 @@ DensityStep advanceDensity(const Frame& target, const TargetAtOutput& t, const C
     } else if (c.history.empty()) {
         d = t.Dt;
     } else {
-        // Seed 003's supplement, pseudocode 4: start from the target's density m frames back and advect it through
+        // Ma et al.'s supplement, pseudocode 4: start from the target's density m frames back and advect it through
         // the output velocities since, injecting the target's emission on the way.
         d = cropped(upsample(c.history.front().targetDensity, f), fs.fineBox);
         for (size_t j = 0; j < c.history.size(); ++j) {
