@@ -13,6 +13,32 @@
 
 using namespace turb;
 
+namespace {
+
+bool openImageIoLoaded()
+{
+    std::ifstream maps("/proc/self/maps");
+    for (std::string line; std::getline(maps, line);)
+        if (line.find("libOpenImageIO.so") != std::string::npos) return true;
+    return false;
+}
+
+} // namespace
+
+// First in the file, so that it also holds when the whole binary runs in one process.
+TEST(ImageIo, OpenImageIoLoadsOnFirstUseOnly)
+{
+    // Its ~240 libraries cost 0.5 s of dynamic linking: a command that reads no image must not load them.
+    EXPECT_FALSE(openImageIoLoaded());
+    EXPECT_EQ(turbio::outputFormatOf("a/b.EXR"), "openexr"); // by extension, no OpenImageIO needed
+    EXPECT_FALSE(openImageIoLoaded());
+    const testutil::TempDir dir;
+    const std::string path = dir / "one.png";
+    turbio::writeImage(path, RgbaImage(2, 2));
+    EXPECT_TRUE(openImageIoLoaded());
+    EXPECT_EQ(turbio::inspectImage(path).width, 2);
+}
+
 TEST(Image, CaptionsAreLabelsDrawnByTheIoLayer)
 {
     Image a(40, 30, Rgb(0.2f)), b(20, 30, Rgb(0.8f));
