@@ -101,7 +101,7 @@ extern "C" __attribute__((weak)) void __sanitizer_set_death_callback(void (*)(vo
         std::ostringstream os(std::ios::binary);
         openvdb::io::Stream stream(os);
         stream.setCompression(openvdb::io::COMPRESS_ACTIVE_MASK); // lossless; 2D leaves are 7/8 inactive
-        stream.setGridStatsMetadataEnabled(false); // stats use TBB; not in a forked child
+        stream.setGridStatsMetadataEnabled(false);                // stats use TBB; not in a forked child
         stream.write(grids, meta);
         payload = "G" + os.str();
     } catch (const turb::Error& e) {
