@@ -1,7 +1,7 @@
-// Benchmark helper (cost that follows the smoke): the same cache in a larger box. `vdbturb_bench_pad IN OUT N` copies IN to OUT with
-// the domain grown to N^3 voxels from index 0: Blender's file_base_resolution becomes N (its domain, a sparse
-// cache as Mantaflow writes one), and a velocity grid without it gets active zero tiles over the box (a
-// Houdini container whose velocity covers the whole box). The smoke and its voxels are untouched.
+// Benchmark helper (cost that follows the smoke): the same cache in a larger box. `vdbturb_bench_pad IN OUT N`
+// copies IN to OUT with the domain grown to N^3 voxels from index 0: Blender's file_base_resolution becomes N
+// (its domain, a sparse cache as Mantaflow writes one), and a velocity grid without it gets active zero tiles
+// over the box (a Houdini container whose velocity covers the whole box). The smoke and its voxels are untouched.
 #include <openvdb/openvdb.h>
 #include <openvdb/io/File.h>
 

@@ -7,12 +7,9 @@
 
 #include <nlohmann/json.hpp>
 
-#include <array>
 #include <cmath>
-#include <cstdio>
 #include <fstream>
 #include <sstream>
-#include <sys/wait.h>
 
 namespace {
 
@@ -74,12 +71,9 @@ TEST(Cli, InfoJsonGoesToStdoutAndReportsMissingFrames)
         std::filesystem::copy_file(testutil::dataPath("blender-plume-32/fluid_data_000" + std::to_string(f) + ".vdb"),
             dir / ("p." + std::to_string(f) + ".vdb"));
     const std::string cmd = std::string(VDBTURB_EXE) + " info '" + dir.path() + "/p.@.vdb' --json -q 2>/dev/null";
-    FILE* p = ::popen(cmd.c_str(), "r");
-    std::string json;
-    std::array<char, 4096> buf;
-    size_t n;
-    while ((n = std::fread(buf.data(), 1, buf.size(), p)) > 0) json.append(buf.data(), n);
-    EXPECT_EQ(WEXITSTATUS(::pclose(p)), 0);
+    const clitest::Result r = clitest::shell(cmd);
+    const std::string& json = r.out;
+    EXPECT_EQ(r.code, 0);
     EXPECT_NE(json.find("\"missing\": [\n  3\n ]"), std::string::npos) << json.substr(0, 400);
     EXPECT_NE(json.find("\"units\": \"cells\""), std::string::npos);
 }

@@ -2,7 +2,7 @@
 
 All scenes share one world domain: a 4 x 4 x 6 box centred on the origin (floor at z = -3), so that a
 cache baked with resolution_max = 24 (16x16x24 cells, voxel 0.25) and one baked with resolution_max = 192
-(128x128x192 cells, voxel 0.03125) cover the same space: the 3D configuration of Sato et al..
+(128x128x192 cells, voxel 0.03125) cover the same space: the 3D configuration of Sato et al.
 
 Blender writes the caches as OpenVDB files OUTDIR/data/fluid_data_####.vdb (and, with the noise up-res,
 OUTDIR/noise/fluid_noise_####.vdb). Velocity is stored on a MAC grid in grid cells per time step
