@@ -1,5 +1,7 @@
 // The structure metrics (MeasureStructure.cc, declared in Measure.h): the detail's anisotropy along a direction and
-// its direction-free isotropy, on plane-wave noise with and without a stretch.
+// its direction-free isotropy, on plane-wave noise with and without a stretch; the patch lattice in its strength and
+// the peak vorticity.
+#include <turb/Error.h>
 #include <turb/Measure.h>
 
 #include <gtest/gtest.h>
@@ -78,4 +80,68 @@ TEST(MeasureStructure, IsotropyIsHighForNoiseAndLowForStreaksAlongAnyAxis)
     EXPECT_NEAR(*c, *b, 0.02);
     // Tiles need half their voxels in the mask.
     EXPECT_FALSE(detailIsotropy(iso, std::vector<unsigned char>(all.size(), 0), 4));
+}
+
+TEST(MeasureStructure, LatticeIsNearZeroForNoiseAndFindsAModulationWithThePatchPeriod)
+{
+    const CoordBBox box({0, 0, 0}, {47, 47, 47});
+    const std::vector<unsigned char> all(size_t(48 * 48 * 48), 1);
+    const VectorField iso = planeWaveNoise(box, 7, 1.0);
+    // The same noise 40% stronger and weaker with the position in every 8-voxel patch, along each axis:
+    // w = prod_a (1 + A cos(2 pi I_a / 8)). e = |curl H|^2 follows w^2 (w varies slowly against the noise), whose
+    // fold along one axis has mean 1 + A^2/2 and variance 2 A^2 + A^4/8, so lattice ~ sqrt(0.323) / 1.08 = 0.53.
+    const double A = 0.4, k = 6.2831853 / 8.0;
+    VectorField modulated = iso;
+    for (size_t n = 0; n < modulated.size(); ++n) {
+        const Coord c = modulated.coordOf(n);
+        const double w =
+            (1.0 + A * std::cos(k * c.x())) * (1.0 + A * std::cos(k * c.y())) * (1.0 + A * std::cos(k * c.z()));
+        modulated.data()[n] *= float(w);
+    }
+    const auto none = latticeImprint(iso, all, 4, 8), found = latticeImprint(modulated, all, 4, 8);
+    ASSERT_TRUE(none && found);
+    EXPECT_LT(*none, 0.05);
+    EXPECT_NEAR(*found, 0.53, 0.12);
+    // A lattice of another size does not see it; the shift of the box does not matter.
+    EXPECT_LT(*latticeImprint(modulated, all, 4, 6), 0.15);
+    VectorField shifted(CoordBBox({3, 5, 7}, {50, 52, 54}), Lattice{});
+    for (size_t n = 0; n < shifted.size(); ++n) shifted.data()[n] = modulated.data()[n];
+    EXPECT_NEAR(*latticeImprint(shifted, all, 4, 8), *found, 1e-3); // float sums in another order
+    // 2D: the one-layer z axis is left out, and the x-y folds still find it.
+    const CoordBBox flat({0, 0, 0}, {63, 63, 0});
+    VectorField flatMod(flat, Lattice{});
+    const VectorField flatNoise = planeWaveNoise(flat, 9, 1.0);
+    for (size_t n = 0; n < flatMod.size(); ++n) {
+        const Coord c = flatMod.coordOf(n);
+        const Vec3f v = flatNoise.data()[n];
+        flatMod.data()[n] =
+            Vec3f(v.x(), v.y(), 0.0f) * float((1.0 + A * std::cos(k * c.x())) * (1.0 + A * std::cos(k * c.y())));
+    }
+    const std::vector<unsigned char> flatAll(flatMod.size(), 1);
+    const auto f2 = latticeImprint(flatMod, flatAll, 4, 8);
+    ASSERT_TRUE(f2);
+    EXPECT_GT(*f2, 0.3);
+    EXPECT_FALSE(latticeImprint(iso, std::vector<unsigned char>(all.size(), 0), 4, 8));
+    EXPECT_THROW(latticeImprint(iso, all, 4, 2), ValueError);
+}
+
+TEST(MeasureStructure, VorticityPeakOfASolidBodyRotationIsTwiceItsAngularVelocity)
+{
+    // u = Omega x x with Omega = (0.5, 0, 2): curl u = 2 Omega everywhere, exact for central and one-sided
+    // differences alike (u is linear), in world units (voxel 0.25).
+    VectorField u(CoordBBox({0, 0, 0}, {15, 15, 15}), Lattice{0.25, {0.0, 0.0, 0.0}});
+    const Vec3d omega(0.5, 0.0, 2.0);
+    for (size_t n = 0; n < u.size(); ++n) {
+        const Vec3d x = u.lattice().indexToWorld(u.coordOf(n).asVec3d());
+        const Vec3d v = omega.cross(x);
+        u.data()[n] = Vec3f(float(v.x()), float(v.y()), float(v.z()));
+    }
+    std::vector<unsigned char> mask(u.size(), 1);
+    EXPECT_NEAR(*vorticityPeak(u, mask, kVortPeakQuantile), 2.0 * omega.length(), 1e-4);
+    // A hot spot in 1 voxel of 4096 is left out by the 0.999 quantile and found by the maximum.
+    u(8, 8, 8) += Vec3f(0.0f, 10.0f, 0.0f);
+    EXPECT_NEAR(*vorticityPeak(u, mask, kVortPeakQuantile), 2.0 * omega.length(), 1e-4);
+    EXPECT_GT(*vorticityPeak(u, mask, 1.0), 10.0);
+    EXPECT_FALSE(vorticityPeak(u, std::vector<unsigned char>(mask.size(), 0), 0.5));
+    EXPECT_THROW(vorticityPeak(u, mask, 1.5), ValueError);
 }

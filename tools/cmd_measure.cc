@@ -89,7 +89,8 @@ std::string humanLine(const turb::FrameMeasures& m)
            f(m.divRelSource) + ")  block " + f(m.block) + "  tcoh " + f(m.tcoh) + " (source " + f(m.tcohSource) +
            ")  mass " + f(m.massRatio) + "  peak " + f(m.peakRatio) + "  density_err " + f(m.densityErr) +
            "  imprint " + f(m.densityImprint) + "  aniso " + f(m.aniso) + " (source " + f(m.anisoSource) +
-           ")  isotropy " + f(m.isotropy) + " (source " + f(m.isotropySource) + ")  air_detail " + f(m.airDetail);
+           ")  isotropy " + f(m.isotropy) + " (source " + f(m.isotropySource) + ")  lattice " + f(m.lattice) +
+           " (source " + f(m.latticeSource) + ")  vort_peak " + f(m.vortPeakRatio) + "  air_detail " + f(m.airDetail);
 }
 
 std::optional<turb::Coord> parseCoord(const std::string& text)
@@ -365,8 +366,8 @@ void addMeasureSettings(CLI::App* app, MeasureArgs& a)
     legacy(app->add_flag_function(
                "--no-spectra", [&a](int64_t) { a.computeSpectra = false; }, ""),
         "computeSpectra", "false");
-    boolSetting(
-        app, "--structure", s.structure, "The structure numbers aniso and isotropy (false: skip them)", "structure");
+    boolSetting(app, "--structure", s.structure,
+        "The structure numbers aniso, isotropy, lattice and vort_peak (false: skip them)", "structure");
     legacy(app->add_flag_function(
                "--no-structure", [&s](int64_t) { s.structure = false; }, ""),
         "structure", "false");

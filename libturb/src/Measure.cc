@@ -457,7 +457,9 @@ std::vector<std::pair<std::string, std::optional<double>>> FrameMeasures::scalar
         {"tcoh_source", tcohSource}, {"mass_ratio", massRatio}, {"peak_density", peakDensity},
         {"peak_ratio", peakRatio}, {"density_err", densityErr}, {"density_imprint", densityImprint}, {"aniso", aniso},
         {"aniso_source", anisoSource}, {"aniso_ratio", anisoRatio}, {"isotropy", isotropy},
-        {"isotropy_source", isotropySource}, {"air_detail", airDetail}};
+        {"isotropy_source", isotropySource}, {"lattice", lattice}, {"lattice_source", latticeSource},
+        {"vort_peak", vortPeak}, {"vort_peak_source", vortPeakSource}, {"vort_peak_ratio", vortPeakRatio},
+        {"air_detail", airDetail}};
 }
 
 std::optional<double> lowFrequencyError(const VectorField& detail, const VectorField& up, const Mask& coarseMask, int f)
@@ -585,7 +587,7 @@ Mask sourceMeasures(const MeasuredSources& sources, const Frame& T, const Measur
     return srcMask;
 }
 
-// aniso and isotropy of the output, and of the source along the same direction.
+// aniso, isotropy and vort_peak of the output, and of the source (aniso along the same direction).
 void structureMeasures(const Frame& O, const Frame& T, const Frame* src, const Aligned& a, const Mask& ownMask,
     const Mask& srcMask, const Mask& coarseMask, FrameMeasures& m)
 {
@@ -604,6 +606,22 @@ void structureMeasures(const Frame& O, const Frame& T, const Frame* src, const A
         if (m.aniso && m.anisoSource && *m.anisoSource > 0.0) m.anisoRatio = *m.aniso / *m.anisoSource;
         m.isotropySource = detailIsotropy(src->velocity, srcMask, m.sourceRatio);
     }
+    m.vortPeak = vorticityPeak(O.velocity, ownMask, kVortPeakQuantile);
+    if (src) {
+        m.vortPeakSource = vorticityPeak(src->velocity, srcMask, kVortPeakQuantile);
+        if (m.vortPeak && m.vortPeakSource && *m.vortPeakSource > 0.0)
+            m.vortPeakRatio = *m.vortPeak / *m.vortPeakSource;
+    }
+}
+
+// lattice: the output's patch lattice in its detail's strength, and the source's on the same size (chance level).
+void latticeMeasures(
+    const Frame& O, const Frame* src, const Aligned& a, const Mask& ownMask, const Mask& srcMask, FrameMeasures& m)
+{
+    if (m.patchSize < 3) return;
+    m.lattice = latticeImprint(O.velocity, ownMask, a.f, m.patchSize);
+    if (!m.lattice) m.notes.push_back("lattice: no detail in the smoke, or the box is shorter than two patches");
+    if (src && !srcMask.empty()) m.latticeSource = latticeImprint(src->velocity, srcMask, m.sourceRatio, m.patchSize);
 }
 
 // block: seams at the patch grid of the output's maker.
@@ -734,6 +752,7 @@ FrameMeasures measureFrame(const MeasureInput& in, const MeasureSettings& s, Pro
             checkCancelled(progress);
         }
         blockMeasure(O, a, uh, s, m);
+        if (s.structure) latticeMeasures(O, src, a, ownMask, srcMask, m);
         if (in.previousOutput && in.previousTarget) {
             if (progress) progress->begin("tcoh");
             temporalCoherence(in, T, a, uh, s, m);

@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <string>
 
 namespace turb {
 
@@ -103,6 +104,89 @@ std::optional<double> detailIsotropy(const VectorField& u, const std::vector<uns
     }
     if (!(den > 0.0)) return std::nullopt;
     return num / den;
+}
+
+std::optional<double> latticeImprint(const VectorField& u, const std::vector<unsigned char>& mask, int f, int patch)
+{
+    if (mask.size() != u.size()) throw ValueError("latticeImprint: mask and field sizes differ");
+    if (patch < 3) throw ValueError("latticeImprint: patch size must be >= 3, got " + std::to_string(patch));
+    const VectorField H = splitFrequencies(u, f).high;
+    const CoordBBox& b = u.bbox();
+    // Folds at the periods P-1, P, P+1 along each axis: bins[period][axis][residue] = {sum e, count}.
+    const int periods[3] = {patch - 1, patch, patch + 1};
+    const size_t stride = size_t(patch + 1) * 2;
+    const size_t perSlab = 9 * stride;
+    std::vector<double> part(size_t(b.dim().x()) * perSlab, 0.0);
+    parallelFor(size_t(b.dim().x()), 1, [&](size_t x0, size_t x1) {
+        for (size_t x = x0; x < x1; ++x) {
+            double* acc = part.data() + x * perSlab;
+            const int i = b.min().x() + int(x);
+            for (int j = b.min().y(); j <= b.max().y(); ++j)
+                for (int k = b.min().z(); k <= b.max().z(); ++k) {
+                    if (!mask[u.offset(i, j, k)]) continue;
+                    const double e = double(jacobianAt(H, i, j, k).curl().lengthSqr());
+                    const Coord c(i, j, k);
+                    for (int p = 0; p < 3; ++p)
+                        for (int a = 0; a < 3; ++a) {
+                            // The residue from the box's corner: a cyclic shift of the patch origin's residues,
+                            // which leaves their variance unchanged.
+                            const int r = (c[a] - b.min()[a]) % periods[p];
+                            double* bin = acc + (size_t(p) * 3 + size_t(a)) * stride + size_t(r) * 2;
+                            bin[0] += e;
+                            bin[1] += 1.0;
+                        }
+                }
+        }
+    });
+    std::vector<double> sum(perSlab, 0.0);
+    for (size_t x = 0; x < size_t(b.dim().x()); ++x)
+        for (size_t n = 0; n < perSlab; ++n) sum[n] += part[x * perSlab + n];
+    double total = 0.0, count = 0.0;
+    for (int r = 0; r < periods[1]; ++r) {
+        total += sum[stride + size_t(r) * 2];
+        count += sum[stride + size_t(r) * 2 + 1];
+    }
+    if (count == 0.0 || !(total > 0.0)) return std::nullopt;
+    const double mean = total / count;
+    // V_P: variance over residues of the bin means, over mean^2, averaged over the axes that hold two periods.
+    double V[3] = {0.0, 0.0, 0.0};
+    int axes = 0;
+    for (int a = 0; a < 3; ++a) {
+        if (b.dim()[a] < 2 * periods[2]) continue;
+        ++axes;
+        for (int p = 0; p < 3; ++p) {
+            std::vector<double> m;
+            for (int r = 0; r < periods[p]; ++r) {
+                const double* bin = sum.data() + (size_t(p) * 3 + size_t(a)) * stride + size_t(r) * 2;
+                if (bin[1] > 0.0) m.push_back(bin[0] / bin[1]);
+            }
+            if (m.size() < 2) continue;
+            double mm = 0.0, var = 0.0;
+            for (double v : m) mm += v;
+            mm /= double(m.size());
+            for (double v : m) var += (v - mm) * (v - mm);
+            V[p] += var / double(m.size()) / (mean * mean);
+        }
+    }
+    if (axes == 0) return std::nullopt;
+    for (double& v : V) v /= double(axes);
+    return std::sqrt(std::max(0.0, V[1] - 0.5 * (V[0] + V[2])));
+}
+
+std::optional<double> vorticityPeak(const VectorField& u, const std::vector<unsigned char>& mask, double quantile)
+{
+    if (mask.size() != u.size()) throw ValueError("vorticityPeak: mask and field sizes differ");
+    if (!(quantile >= 0.0 && quantile <= 1.0)) throw ValueError("vorticityPeak: quantile must lie in [0, 1]");
+    const CoordBBox& b = u.bbox();
+    std::vector<float> w;
+    for (int i = b.min().x(); i <= b.max().x(); ++i)
+        for (int j = b.min().y(); j <= b.max().y(); ++j)
+            for (int k = b.min().z(); k <= b.max().z(); ++k)
+                if (mask[u.offset(i, j, k)]) w.push_back(jacobianAt(u, i, j, k).curl().length());
+    if (w.empty()) return std::nullopt;
+    const size_t n = std::min(w.size() - 1, size_t(quantile * double(w.size() - 1) + 0.5));
+    std::nth_element(w.begin(), w.begin() + std::ptrdiff_t(n), w.end());
+    return double(w[n]);
 }
 
 } // namespace turb

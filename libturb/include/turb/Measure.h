@@ -52,6 +52,8 @@ const char* alignmentName(Alignment a);
 /// air_detail's still air: coarse cells more than this many cells (Euclidean, centre to centre) from the
 /// target's smoke cells.
 constexpr double kAirCells = 4.0;
+/// The quantile of |curl U| that vort_peak reports: the peak without its hottest voxels (0.1% of the smoke).
+constexpr double kVortPeakQuantile = 0.999;
 
 struct MeasureSettings
 {
@@ -64,7 +66,7 @@ struct MeasureSettings
                                       ///< advects over (frame - previous frame) times this: the real time between them
     Alignment alignment = Alignment::Auto; ///< how output voxels meet the refined target lattice
     bool spectra = true;                   ///< compute E(k) of output, target and source
-    bool structure = true;                 ///< compute aniso and isotropy (their source figures need a source)
+    bool structure = true;                 ///< aniso, isotropy, lattice, vort_peak (source figures need a source)
     SpectrumSettings spectrum;             ///< window and mean removal of the spectra
     AdvectSettings advect;                 ///< scheme advecting U_h(f-1) for tcoh (default BFECC + clamp)
     int threads = 0;                       ///< worker threads, 0 = all; results are identical at any count
@@ -121,6 +123,11 @@ struct FrameMeasures
     std::optional<double> anisoRatio;  ///< aniso / anisoSource: 0.8-1.25 keeps the source's structure
     std::optional<double> isotropy;    ///< detailIsotropy of the output: direction-free, catches streaks along any axis
     std::optional<double> isotropySource; ///< the same of the source
+    std::optional<double> lattice;        ///< latticeImprint() of the output on its patch lattice (needs patchSize)
+    std::optional<double> latticeSource;  ///< the same of the source on a lattice of the same size: the chance level
+    std::optional<double> vortPeak;       ///< vorticityPeak(U_out, 0.999) over the output's smoke, 1/time unit
+    std::optional<double> vortPeakSource; ///< the same of the source
+    std::optional<double> vortPeakRatio;  ///< vortPeak / vortPeakSource: hot spots hotter than the source's
     std::optional<double> airDetail;      ///< rms(U_h) over still air (refined voxels whose coarse cell lies more than
                                           ///< kAirCells cells from the target's smoke cells) / rms(U_h) over the smoke
                                           ///< cells, both within the output's box as read: detail that leaks into
@@ -202,6 +209,25 @@ std::optional<double> detailAnisotropy(
 /// direction, near 0 where it is stretched into sheets or streaks along any direction. nullopt without such tiles.
 std::optional<double> detailIsotropy(
     const VectorField& u, const std::vector<unsigned char>& mask, int f, int block = 8);
+
+/// The patch lattice printed into the detail's strength: the rms relative modulation of e = |curl H|^2
+/// (H = U - up_f(boxdown_f(U)), central differences, masked voxels) with the position modulo `patch` along each
+/// axis, beyond the modulation at the unrelated periods patch - 1 and patch + 1:
+///   V_P = mean over axes a of var_r(mean{e : I_a mod P = r}) / mean(e)^2,
+///   lattice = sqrt(max(0, V_patch - (V_{patch-1} + V_{patch+1}) / 2)).
+/// Dimensionless, >= 0. About 0 for detail with no relation to the lattice (chance variations and smooth trends
+/// along an axis fold about equally into the three periods); 0.3 means the detail is about 30% stronger or weaker
+/// at some positions within every patch, which a vorticity slice shows as a grid of blobs or lines. Axes shorter
+/// than 2 (patch + 1) voxels are left out (2D caches: z). nullopt without masked detail or such axes. Throws
+/// ValueError when patch < 3 or the mask does not match. The patch origin does not matter: another origin permutes
+/// the residues cyclically. Beyond the papers: added after the demo's vorticity showed a patch grid at frame 3 that
+/// `block` (jumps across seam planes) did not catch.
+std::optional<double> latticeImprint(const VectorField& u, const std::vector<unsigned char>& mask, int f, int patch);
+
+/// The `quantile` (in [0, 1]) of |curl U| over the mask, 1/time unit: 0.999 gives the peak vorticity without the
+/// hottest 0.1% of the voxels. nullopt when the mask is empty; ValueError for a quantile outside [0, 1] or a
+/// wrong mask.
+std::optional<double> vorticityPeak(const VectorField& u, const std::vector<unsigned char>& mask, double quantile);
 
 /// mean over the mask of |U - up_f(boxdown_f(U))|^2 (nullopt if the mask is empty).
 std::optional<double> highFrequencyEnergy(const VectorField& u, const std::vector<unsigned char>& mask, int f);
