@@ -1,7 +1,8 @@
 #!/bin/sh
 # Transfer quality on the issue's three pairs, the ablations and the alignment experiment, measured with
 # `vdbturb measure`. Prints one markdown table row per run (medians over frames, first frame excluded for
-# tcoh by construction) and keeps every JSON line under WORK. POSIX sh + sed only.
+# tcoh by construction; aniso_ratio, lattice and vort_peak_ratio are the structure and hot-spot numbers of
+# docs/measure.md) and keeps every JSON line under WORK. POSIX sh + sed only.
 #
 #   bench/quality.sh [--work DIR] [--frames N] [RUN...]
 #
@@ -44,8 +45,8 @@ frame_median() {
 }
 fmt() { [ -n "$1" ] && printf '%.3g' "$1" || printf -- '-'; }
 
-echo "| run | what | lf_err | hf_ratio | div_rel (source) | block | tcoh (source) | tcoh floor | match E_h | energy scale | median s/frame |"
-echo "|---|---|---|---|---|---|---|---|---|---|---|"
+echo "| run | what | lf_err | hf_ratio | div_rel (source) | block | tcoh (source) | tcoh floor | aniso_ratio | lattice | vort_peak_ratio | match E_h | energy scale | median s/frame |"
+echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
 for run in $RUNS; do
   pair_inputs "$run"
   out="$WORK/$run"
@@ -61,5 +62,5 @@ for run in $RUNS; do
   # The triangle inequality's floor on tcoh for a frame whose detail grew by g over last frame's, advected.
   fl=$(sed -n 's/.*"detail_growth":\([-0-9.e+]*\).*/\1/p' "$tj" | awk '$1 > 0 {f = 1 - 1 / $1; if (f < 0) f = 0; print f}' | sort -g |
        awk '{v[NR]=$1} END{if (NR) print (NR%2 ? v[(NR+1)/2] : (v[NR/2]+v[NR/2+1])/2)}')
-  echo "| $run | $WHAT | $(fmt "$(median lf_err "$m")") | $(fmt "$(median hf_ratio "$m")") | $(fmt "$(median div_rel "$m")") ($(fmt "$(median div_rel_source "$m")")) | $(fmt "$(median block "$m")") | $(fmt "$(median tcoh "$m")") ($(fmt "$(median tcoh_source "$m")")) | $(fmt "$fl") | $(fmt "$eh") | $(fmt "$es") | $(fmt "$sec") |"
+  echo "| $run | $WHAT | $(fmt "$(median lf_err "$m")") | $(fmt "$(median hf_ratio "$m")") | $(fmt "$(median div_rel "$m")") ($(fmt "$(median div_rel_source "$m")")) | $(fmt "$(median block "$m")") | $(fmt "$(median tcoh "$m")") ($(fmt "$(median tcoh_source "$m")")) | $(fmt "$fl") | $(fmt "$(median aniso_ratio "$m")") | $(fmt "$(median lattice "$m")") | $(fmt "$(median vort_peak_ratio "$m")") | $(fmt "$eh") | $(fmt "$es") | $(fmt "$sec") |"
 done
