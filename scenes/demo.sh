@@ -3,7 +3,7 @@
 #   1. simulates the built-in `plume` at 16x16x24 (the low-res target) and `swirl` at 128x128x192 (the
 #      high-res source) over the same 4 x 4 x 6 world domain;
 #   2. transfers the swirl's turbulence onto the plume (`vdbturb transfer`) and measures it;
-#   3. renders contact sheets (target | source | output) and prints their paths.
+#   3. renders contact sheets (target | source | output: density, speed and LIC, vorticity) and prints their paths.
 #
 # Environment: VDBTURB (the binary, default build/tools/vdbturb), DEMO_OUT (default demo-out),
 # DEMO_FRAMES (default 16 = 2/3 s; the 128x128x192 swirl costs about 7 s a frame on 2 idle cores),
@@ -58,9 +58,13 @@ fi
   --title "vdbturb demo: density (front view)" --sheet "$OUT/sheet_density.png"
 "$BIN" preview "$@" --mode speed,lic --frames "$F3" --width 256 --threads "$THREADS" \
   --title "vdbturb demo: speed and LIC, mid slice, frame $F3" --sheet "$OUT/sheet_velocity.png"
+# Vorticity shows what the numbers can miss: the patch lattice, streaks, hot spots (docs/transfer.md).
+"$BIN" preview "$@" --mode vorticity --frames "$F1,$F2,$F3" --width 256 --threads "$THREADS" \
+  --title "vdbturb demo: vorticity, mid slice" --sheet "$OUT/sheet_vorticity.png"
 
 echo "demo: results" >&2
 echo "$OUT/sheet_density.png"
 echo "$OUT/sheet_velocity.png"
+echo "$OUT/sheet_vorticity.png"
 echo "$OUT/plots/metrics.png"
 echo "$OUT/measure.jsonl"
