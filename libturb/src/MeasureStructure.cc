@@ -1,5 +1,5 @@
-// The structure metrics of Measure.h: the detail's anisotropy along the flow and its style distance to the source.
-// Kept apart from Measure.cc: they need their own frequency split and, for the style distance, a patch index.
+// The structure metrics of Measure.h: the detail's anisotropy along the flow, its isotropy, the patch lattice in its
+// strength, and the peak vorticity. Kept apart from Measure.cc: most need their own frequency split.
 #include <turb/Measure.h>
 
 #include <turb/Error.h>
