@@ -587,7 +587,8 @@ Mask sourceMeasures(const MeasuredSources& sources, const Frame& T, const Measur
     return srcMask;
 }
 
-// aniso, isotropy and vort_peak of the output, and of the source (aniso along the same direction).
+// aniso, isotropy, lattice (with a patch size, from blockMeasure) and vort_peak of the output, and of the source
+// (aniso along the same direction, lattice on the same patch size: its chance level).
 void structureMeasures(const Frame& O, const Frame& T, const Frame* src, const Aligned& a, const Mask& ownMask,
     const Mask& srcMask, const Mask& coarseMask, FrameMeasures& m)
 {
@@ -598,30 +599,25 @@ void structureMeasures(const Frame& O, const Frame& T, const Frame* src, const A
             const Vec3f& v = T.velocity.data()[n];
             mean += Vec3d(v.x(), v.y(), v.z());
         }
-    m.aniso = detailAnisotropy(O.velocity, ownMask, a.f, mean);
+    const int patch = m.patchSize >= 3 ? m.patchSize : 0;
+    const DetailStructure out = detailStructure(O.velocity, ownMask, a.f, mean, patch);
+    m.aniso = out.aniso;
+    m.isotropy = out.isotropy;
+    m.lattice = out.lattice;
     if (!m.aniso) m.notes.push_back("aniso: no smoke, no mean flow or no detail gradient");
-    m.isotropy = detailIsotropy(O.velocity, ownMask, a.f);
-    if (src) {
-        m.anisoSource = detailAnisotropy(src->velocity, srcMask, m.sourceRatio, mean);
-        if (m.aniso && m.anisoSource && *m.anisoSource > 0.0) m.anisoRatio = *m.aniso / *m.anisoSource;
-        m.isotropySource = detailIsotropy(src->velocity, srcMask, m.sourceRatio);
-    }
+    if (patch && !m.lattice)
+        m.notes.push_back("lattice: no detail in the smoke, or the box is shorter than two patches");
     m.vortPeak = vorticityPeak(O.velocity, ownMask, kVortPeakQuantile);
     if (src) {
+        const DetailStructure source = detailStructure(src->velocity, srcMask, m.sourceRatio, mean, patch);
+        m.anisoSource = source.aniso;
+        m.isotropySource = source.isotropy;
+        m.latticeSource = source.lattice;
+        if (m.aniso && m.anisoSource && *m.anisoSource > 0.0) m.anisoRatio = *m.aniso / *m.anisoSource;
         m.vortPeakSource = vorticityPeak(src->velocity, srcMask, kVortPeakQuantile);
         if (m.vortPeak && m.vortPeakSource && *m.vortPeakSource > 0.0)
             m.vortPeakRatio = *m.vortPeak / *m.vortPeakSource;
     }
-}
-
-// lattice: the output's patch lattice in its detail's strength, and the source's on the same size (chance level).
-void latticeMeasures(
-    const Frame& O, const Frame* src, const Aligned& a, const Mask& ownMask, const Mask& srcMask, FrameMeasures& m)
-{
-    if (m.patchSize < 3) return;
-    m.lattice = latticeImprint(O.velocity, ownMask, a.f, m.patchSize);
-    if (!m.lattice) m.notes.push_back("lattice: no detail in the smoke, or the box is shorter than two patches");
-    if (src && !srcMask.empty()) m.latticeSource = latticeImprint(src->velocity, srcMask, m.sourceRatio, m.patchSize);
 }
 
 // block: seams at the patch grid of the output's maker.
@@ -746,13 +742,12 @@ FrameMeasures measureFrame(const MeasureInput& in, const MeasureSettings& s, Pro
         const Mask srcMask = sourceMeasures(sources, T, s, m);
         checkCancelled(progress);
 
+        blockMeasure(O, a, uh, s, m);
         if (s.structure) {
             if (progress) progress->begin("structure");
             structureMeasures(O, T, src, a, ownMask, srcMask, coarseMask, m);
             checkCancelled(progress);
         }
-        blockMeasure(O, a, uh, s, m);
-        if (s.structure) latticeMeasures(O, src, a, ownMask, srcMask, m);
         if (in.previousOutput && in.previousTarget) {
             if (progress) progress->begin("tcoh");
             temporalCoherence(in, T, a, uh, s, m);

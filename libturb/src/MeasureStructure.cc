@@ -16,14 +16,17 @@
 
 namespace turb {
 
-std::optional<double> detailAnisotropy(
-    const VectorField& u, const std::vector<unsigned char>& mask, int f, const Vec3d& direction)
+namespace {
+
+using Mask = std::vector<unsigned char>;
+
+// The bodies below take the detail H = splitFrequencies(u, f).high: detailStructure splits once for all three.
+
+std::optional<double> anisotropyOf(const VectorField& H, const Mask& mask, const Vec3d& direction)
 {
-    if (mask.size() != u.size()) throw ValueError("detailAnisotropy: mask and field sizes differ");
     if (!(direction.length() > 0.0)) return std::nullopt;
     const Vec3d d = direction / direction.length();
-    const VectorField H = splitFrequencies(u, f).high;
-    const CoordBBox& b = u.bbox();
+    const CoordBBox& b = H.bbox();
     // Per x-slab sums, added in slab order: deterministic at any thread count.
     std::vector<std::array<double, 3>> part(size_t(b.dim().x()), {0.0, 0.0, 0.0});
     parallelFor(part.size(), 1, [&](size_t x0, size_t x1) {
@@ -31,7 +34,7 @@ std::optional<double> detailAnisotropy(
             const int i = b.min().x() + int(x);
             for (int j = b.min().y(); j <= b.max().y(); ++j)
                 for (int k = b.min().z(); k <= b.max().z(); ++k) {
-                    if (!mask[u.offset(i, j, k)]) continue;
+                    if (!mask[H.offset(i, j, k)]) continue;
                     const Jacobian J = jacobianAt(H, i, j, k);
                     const Vec3f along = J.d[0] * float(d.x()) + J.d[1] * float(d.y()) + J.d[2] * float(d.z());
                     part[x][0] += double(along.lengthSqr());
@@ -52,12 +55,9 @@ std::optional<double> detailAnisotropy(
     return along / across;
 }
 
-std::optional<double> detailIsotropy(const VectorField& u, const std::vector<unsigned char>& mask, int f, int block)
+std::optional<double> isotropyOf(const VectorField& H, const Mask& mask, int block)
 {
-    if (mask.size() != u.size()) throw ValueError("detailIsotropy: mask and field sizes differ");
-    if (block < 2) throw ValueError("detailIsotropy: block must be >= 2");
-    const VectorField H = splitFrequencies(u, f).high;
-    const CoordBBox& b = u.bbox();
+    const CoordBBox& b = H.bbox();
     const Coord n(
         (b.dim().x() + block - 1) / block, (b.dim().y() + block - 1) / block, (b.dim().z() + block - 1) / block);
     const bool flat = isFlat(b);
@@ -74,7 +74,7 @@ std::optional<double> detailIsotropy(const VectorField& u, const std::vector<uns
             size_t in = 0;
             for (auto it = tile.begin(); it; ++it) {
                 const Coord c = *it;
-                if (!mask[u.offset(c.x(), c.y(), c.z())]) continue;
+                if (!mask[H.offset(c.x(), c.y(), c.z())]) continue;
                 ++in;
                 const Jacobian J = jacobianAt(H, c.x(), c.y(), c.z());
                 for (int comp = 0; comp < 3; ++comp) {
@@ -106,12 +106,9 @@ std::optional<double> detailIsotropy(const VectorField& u, const std::vector<uns
     return num / den;
 }
 
-std::optional<double> latticeImprint(const VectorField& u, const std::vector<unsigned char>& mask, int f, int patch)
+std::optional<double> latticeOf(const VectorField& H, const Mask& mask, int patch)
 {
-    if (mask.size() != u.size()) throw ValueError("latticeImprint: mask and field sizes differ");
-    if (patch < 3) throw ValueError("latticeImprint: patch size must be >= 3, got " + std::to_string(patch));
-    const VectorField H = splitFrequencies(u, f).high;
-    const CoordBBox& b = u.bbox();
+    const CoordBBox& b = H.bbox();
     // Folds at the periods P-1, P, P+1 along each axis: bins[period][axis][residue] = {sum e, count}.
     const int periods[3] = {patch - 1, patch, patch + 1};
     const size_t stride = size_t(patch + 1) * 2;
@@ -123,7 +120,7 @@ std::optional<double> latticeImprint(const VectorField& u, const std::vector<uns
             const int i = b.min().x() + int(x);
             for (int j = b.min().y(); j <= b.max().y(); ++j)
                 for (int k = b.min().z(); k <= b.max().z(); ++k) {
-                    if (!mask[u.offset(i, j, k)]) continue;
+                    if (!mask[H.offset(i, j, k)]) continue;
                     const double e = double(jacobianAt(H, i, j, k).curl().lengthSqr());
                     const Coord c(i, j, k);
                     for (int p = 0; p < 3; ++p)
@@ -173,9 +170,53 @@ std::optional<double> latticeImprint(const VectorField& u, const std::vector<uns
     return std::sqrt(std::max(0.0, V[1] - 0.5 * (V[0] + V[2])));
 }
 
+void checkMask(const VectorField& u, const Mask& mask, const char* who)
+{
+    if (mask.size() != u.size()) throw ValueError(std::string(who) + ": mask and field sizes differ");
+}
+
+void checkPatch(int patch, const char* who)
+{
+    if (patch < 3) throw ValueError(std::string(who) + ": patch size must be >= 3, got " + std::to_string(patch));
+}
+
+} // namespace
+
+std::optional<double> detailAnisotropy(const VectorField& u, const Mask& mask, int f, const Vec3d& direction)
+{
+    checkMask(u, mask, "detailAnisotropy");
+    return anisotropyOf(splitFrequencies(u, f).high, mask, direction);
+}
+
+std::optional<double> detailIsotropy(const VectorField& u, const Mask& mask, int f, int block)
+{
+    checkMask(u, mask, "detailIsotropy");
+    if (block < 2) throw ValueError("detailIsotropy: block must be >= 2");
+    return isotropyOf(splitFrequencies(u, f).high, mask, block);
+}
+
+std::optional<double> latticeImprint(const VectorField& u, const Mask& mask, int f, int patch)
+{
+    checkMask(u, mask, "latticeImprint");
+    checkPatch(patch, "latticeImprint");
+    return latticeOf(splitFrequencies(u, f).high, mask, patch);
+}
+
+DetailStructure detailStructure(const VectorField& u, const Mask& mask, int f, const Vec3d& direction, int patch)
+{
+    checkMask(u, mask, "detailStructure");
+    if (patch != 0) checkPatch(patch, "detailStructure");
+    const VectorField H = splitFrequencies(u, f).high;
+    DetailStructure d;
+    d.aniso = anisotropyOf(H, mask, direction);
+    d.isotropy = isotropyOf(H, mask, 8);
+    if (patch != 0) d.lattice = latticeOf(H, mask, patch);
+    return d;
+}
+
 std::optional<double> vorticityPeak(const VectorField& u, const std::vector<unsigned char>& mask, double quantile)
 {
-    if (mask.size() != u.size()) throw ValueError("vorticityPeak: mask and field sizes differ");
+    checkMask(u, mask, "vorticityPeak");
     if (!(quantile >= 0.0 && quantile <= 1.0)) throw ValueError("vorticityPeak: quantile must lie in [0, 1]");
     const CoordBBox& b = u.bbox();
     std::vector<float> w;

@@ -224,6 +224,16 @@ std::optional<double> detailIsotropy(
 /// `block` (jumps across seam planes) did not catch.
 std::optional<double> latticeImprint(const VectorField& u, const std::vector<unsigned char>& mask, int f, int patch);
 
+/// detailAnisotropy (along `direction`), detailIsotropy (8^3 tiles) and, when `patch` is not 0, latticeImprint of
+/// u's detail, from one frequency split (measureFrame needs all three of the output and of the source). Throws as
+/// the three do (patch 1 or 2 included).
+struct DetailStructure
+{
+    std::optional<double> aniso, isotropy, lattice;
+};
+DetailStructure detailStructure(
+    const VectorField& u, const std::vector<unsigned char>& mask, int f, const Vec3d& direction, int patch);
+
 /// The `quantile` (in [0, 1]) of |curl U| over the mask, 1/time unit: 0.999 gives the peak vorticity without the
 /// hottest 0.1% of the voxels. nullopt when the mask is empty; ValueError for a quantile outside [0, 1] or a
 /// wrong mask.
