@@ -50,6 +50,7 @@ pair_inputs() {
     mu5) ARGS="--value-weight 5"; WHAT="value rows, weight 5" ;;
     whole) ARGS="--whole-fresh-patches"; WHAT="fresh patches solved whole" ;;
     pure) ARGS="--temporal-blend 0.999 --no-seams --coarse-tolerance 1"; WHAT="last frame's detail advected and rescaled, nothing else" ;;
+    nocrop) ARGS="--target-no-crop --source-no-crop"; WHAT="whole domains held (the read before the crop)" ;;
     none) ARGS="--align none"; WHAT="sideways source, --align none" ;;
     rotate) ARGS="--align rotate"; WHAT="sideways source, --align rotate" ;;
     *) echo "pairs: unknown variant $variant" >&2; exit 2 ;;

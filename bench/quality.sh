@@ -9,7 +9,8 @@
 # Runs: a, a-noseams, a-gamma0, a-paper, a-paper-beta0, a-notracking, b, b-noseams, b-gamma0, b-paper,
 #       b-paper-beta0, b-notracking, c, d, side-none, side-rotate   (default: all)
 #       Also on any pair: -alpha0, -alpha1, -paper-beta5, -beta0 (parameters); for the tcoh study -prev (the
-#       defaults before the coarse tolerance), -exact, -keep0, -notd, -mu5, -whole, -pure (see docs/transfer.md).
+#       defaults before the coarse tolerance), -exact, -keep0, -notd, -mu5, -whole, -pure (see docs/transfer.md);
+#       -nocrop holds the whole domains (the read before the crop; docs/design.md).
 # Pair a: ../shared/data/blender-plume-32 -> blender-plume-128 (frames 1-10).
 # Pair b: built-in plume 16x16x24 -> swirl 128x128x192 (the paper's 3D configuration), N frames (default 12).
 # Pair c: target = blender-plume-128 box-downsampled by 4 -> blender-plume-128 (frames 1-30, the whole
