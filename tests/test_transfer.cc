@@ -123,6 +123,56 @@ TEST_F(TransferPair, RecoversSourceDetailStatistics)
     }
 }
 
+namespace {
+
+// |H| of H = U - up(boxdown(U)) over the smoke, sorted: the detail's magnitudes as hf_ratio sees them.
+std::vector<float> detailMagnitudes(const VectorField& u, const ScalarField& smoke, int f)
+{
+    const VectorField low = cropped(upsample(boxDownsample(u, f), f), u.bbox());
+    std::vector<float> m;
+    for (size_t i = 0; i < u.size(); ++i)
+        if (smoke.data()[i] > 0.01f) m.push_back((u.data()[i] - low.data()[i]).length());
+    std::sort(m.begin(), m.end());
+    return m;
+}
+
+float quantile(const std::vector<float>& sorted, double q) { return sorted[size_t(q * double(sorted.size() - 1))]; }
+
+} // namespace
+
+TEST_F(TransferPair, DistributionGivesTheDetailTheSourcesMagnitudes)
+{
+    // DetailEnergy::Distribution (the default) maps |U_h| rank for rank onto the source's detail magnitudes, so the
+    // output's magnitude quantiles follow the source's, its peak included; Source scales by one factor only.
+    double tail[2] = {0.0, 0.0}; // the last frame's 0.999-quantile ratio: distribution, source
+    for (DetailEnergy mode : {DetailEnergy::Distribution, DetailEnergy::Source}) {
+        TransferSettings s;
+        s.detailEnergy = mode;
+        TurbulenceTransfer transfer(s);
+        for (size_t i = 0; i < targets.size(); ++i) {
+            const TransferResult r = transfer.process(targets[i], sources[i]);
+            const std::vector<float> out = detailMagnitudes(r.frame.velocity, sources[i].density, kF);
+            const std::vector<float> src = detailMagnitudes(sources[i].velocity, sources[i].density, kF);
+            ASSERT_EQ(out.size(), src.size());
+            const double q50 = quantile(out, 0.5) / quantile(src, 0.5);
+            const double q99 = quantile(out, 0.99) / quantile(src, 0.99);
+            const double q999 = quantile(out, 0.999) / quantile(src, 0.999);
+            std::printf("%s frame %zu: |H| quantile ratios 0.5 %.3f 0.99 %.3f 0.999 %.3f max %.3f\n",
+                mode == DetailEnergy::Distribution ? "distribution" : "source", i, q50, q99, q999,
+                double(out.back() / src.back()));
+            tail[mode == DetailEnergy::Distribution ? 0 : 1] = q999;
+            if (mode != DetailEnergy::Distribution) continue;
+            // Measured 1.05-1.10 (the source's H here still holds the coarse part the transfer leaves out) and a
+            // peak within 1.04; one factor gives 0.999-quantiles of 1.15, 1.24, 1.50 over the three frames.
+            EXPECT_NEAR(q50, 1.0, 0.15) << "frame " << i;
+            EXPECT_NEAR(q99, 1.0, 0.15) << "frame " << i;
+            EXPECT_NEAR(q999, 1.0, 0.15) << "frame " << i;
+            EXPECT_LT(out.back(), 1.1f * src.back()) << "frame " << i;
+        }
+    }
+    EXPECT_LT(tail[0], tail[1] - 0.2) << "the last frame's 0.999 quantile: distribution against one factor";
+}
+
 TEST_F(TransferPair, IdenticalAtOneAndTwoThreads)
 {
     // Defaults, and the options that change the seam band and the box rows.

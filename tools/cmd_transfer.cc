@@ -733,8 +733,9 @@ void addDetailSettings(CLI::App* app, turb::TransferSettings& s)
         "trackGlobalPatches", "false");
     setting(addEnum<turb::DetailEnergy>(app, "--detail-energy,--detailEnergy", s.detailEnergy,
                 {{"source", turb::DetailEnergy::Source}, {"pasted", turb::DetailEnergy::Pasted},
-                    {"none", turb::DetailEnergy::None}},
-                "U_h's energy per smoke voxel: the source's high frequencies, the pasted patches', or as made"),
+                    {"none", turb::DetailEnergy::None}, {"distribution", turb::DetailEnergy::Distribution}},
+                "U_h's energy per smoke voxel: the source's high frequencies, the pasted patches', or as made; "
+                "distribution also remaps |U_h| rank for rank onto the source detail's magnitudes"),
         "detailEnergy");
     boolSetting(app, "--compensateTargetDivergence", s.compensateTargetDivergence,
         "The seam gamma term penalises div(up(u_t) + U_h) (false: div(U_h), the paper)", "compensateTargetDivergence");

@@ -57,11 +57,16 @@ enum class FlowAlignment {
 };
 
 /// What the detail's energy is calibrated to, after seam smoothing and the coarse-part removal (both
-/// remove some of it). One scalar per frame, bounded to [1/3, 3].
+/// remove some of it). The energy factor is one scalar per frame, bounded to [1/3, 3].
 enum class DetailEnergy {
     None,   ///< leave U_h as the pipeline made it
     Pasted, ///< the energy of the pasted patches inside the smoke (undo the post-processing's losses)
-    Source  ///< the source's mean high-frequency energy per smoke voxel: as much turbulence as the source
+    Source, ///< the source's mean high-frequency energy per smoke voxel: as much turbulence as the source
+    /// beyond the paper: |U_h| remapped, voxel by voxel and monotonically, onto the distribution of the source
+    /// detail's magnitudes over its smoke (rank for rank), then scaled as Source. Detail that one global factor
+    /// would lift unevenly (kept where nothing dissipates it) cannot exceed the source's own peaks. Histogram
+    /// matching as in Heeger and Bergen, "Pyramid-based texture analysis/synthesis" (1995), on |U_h| alone
+    Distribution
 };
 
 /// How the first frame's high-resolution density is advanced.
@@ -127,8 +132,8 @@ struct TransferSettings
                                    ///< fraction of the target's coarse speed (rms over the smoke cells, lf_err's
                                    ///< definition); 0 = removed exactly. What stays is carried detail that advection
                                    ///< moved into the means: removing it is a change every frame (tcoh)
-    DetailEnergy detailEnergy = DetailEnergy::Source; ///< what U_h's energy is scaled to (one scalar per frame)
-    DensityMode densityMode = DensityMode::Advect;    ///< how the output density is produced
+    DetailEnergy detailEnergy = DetailEnergy::Distribution; ///< what U_h's magnitudes and energy are calibrated to
+    DensityMode densityMode = DensityMode::Advect;          ///< how the output density is produced
     /// Scheme of the output density's advection (OpenVDB VolumeAdvection, clamped): BFECC traces back three times
     /// per substep; MacCormack twice (28% less density time at frame 30 on the Blender pair with the same
     /// numbers there, but mass 1.13x the target's on the inflow test, so not the default); semi-Lagrangian once,

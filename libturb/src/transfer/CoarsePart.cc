@@ -3,6 +3,9 @@
 // It is reduced to a tolerance, once before the seam solve and once after the energy factor.
 #include "Stages.h"
 
+#include <turb/Parallel.h>
+
+#include <algorithm>
 #include <cmath>
 
 namespace turb::detail {
@@ -17,7 +20,56 @@ double keptFraction(double lf, double tolerance)
     return lf > tolerance ? tolerance / lf : 1.0;
 }
 
+// |U_h| voxel by voxel onto the source's magnitudes, rank for rank over the smoke: a monotone map, so the order
+// of the detail's magnitudes (where it is strong) is kept and only their distribution changes. Directions are kept.
+void matchMagnitudes(VectorField& detail, const SmokeEnergy& smoke, const std::vector<float>& source)
+{
+    std::vector<float> m;
+    m.reserve(smoke.voxels);
+    for (size_t n = 0; n < detail.size(); ++n)
+        if (smoke.density.data()[n] > smoke.threshold) m.push_back(detail.data()[n].length());
+    const std::vector<float> out = rankTable(std::move(m), kMagnitudeRanks);
+    if (out.empty() || source.size() != out.size()) return;
+    const int K = int(out.size()) - 1;
+    parallelFor(detail.size(), 1 << 14, [&](size_t b, size_t e) {
+        for (size_t n = b; n < e; ++n) {
+            Vec3f& v = detail.data()[n];
+            const float len = v.length();
+            if (!(len > 0.0f)) continue;
+            float target;
+            if (len >= out[size_t(K)]) {
+                target = source[size_t(K)]; // beyond the smoke's largest (air): the source's largest
+            } else {
+                const size_t hi = size_t(std::upper_bound(out.begin(), out.end(), len) - out.begin());
+                if (hi == 0) { // below the smoke's smallest (air): scaled as the smallest is
+                    target = source[0] * (out[0] > 0.0f ? len / out[0] : 1.0f);
+                } else {
+                    const size_t lo = hi - 1;
+                    const float w = out[hi] > out[lo] ? (len - out[lo]) / (out[hi] - out[lo]) : 0.0f;
+                    target = source[lo] + w * (source[hi] - source[lo]);
+                }
+            }
+            v *= target / len;
+        }
+    });
+}
+
 } // namespace
+
+std::vector<float> rankTable(std::vector<float> values, int ranks)
+{
+    if (values.empty() || ranks < 1) return {};
+    std::sort(values.begin(), values.end());
+    std::vector<float> table(size_t(ranks) + 1);
+    const double last = double(values.size() - 1);
+    for (int k = 0; k <= ranks; ++k) {
+        const double r = last * k / ranks;
+        const size_t i = size_t(r);
+        const double w = r - double(i);
+        table[size_t(k)] = i + 1 < values.size() ? float(values[i] * (1.0 - w) + values[i + 1] * w) : values[i];
+    }
+    return table;
+}
 
 double reduceCoarsePartBeforeSeams(VectorField& detail, const TargetAtOutput& t, const Frame& target,
     const SmokeEnergy& smoke, double referenceEnergy, const FrameSetup& fs)
@@ -40,10 +92,13 @@ double reduceCoarsePartBeforeSeams(VectorField& detail, const TargetAtOutput& t,
 }
 
 void calibrateDetail(VectorField& detail, const TargetAtOutput& t, const Frame& target, const SmokeEnergy& smoke,
-    double referenceEnergy, const FrameSetup& fs, TransferStats& st)
+    double referenceEnergy, const std::vector<float>& sourceMagnitudes, const FrameSetup& fs, TransferStats& st)
 {
     const TransferSettings& s = *fs.s;
     const int f = fs.f;
+    // A voxel-by-voxel gain puts box means back into the detail, so the magnitudes are matched before the coarse
+    // part is measured and bounded.
+    if (!sourceMagnitudes.empty()) matchMagnitudes(detail, smoke, sourceMagnitudes);
     VectorField coarse;
     if (s.removeCoarseDetail) {
         coarse = upsample(coarsePart(detail, f), f);

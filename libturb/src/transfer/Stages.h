@@ -111,7 +111,13 @@ struct SourceBands
     double reference = 0.0;     ///< the source's high-frequency energy per smoke voxel, in output units^2
     float kt = 1.0f, ks = 1.0f; ///< target and source velocity -> matching units (coarse cells per frame)
     float detailScale = 1.0f;   ///< U_sh (source world units) -> output world units
+    /// DetailEnergy::Distribution: |U_sh| (output units, coarse part out) over the source's smoke at
+    /// kMagnitudeRanks + 1 evenly spaced ranks, smallest first; empty otherwise
+    std::vector<float> magnitudes;
 };
+constexpr int kMagnitudeRanks = 1024;
+/// `values` sorted and sampled at ranks + 1 evenly spaced ranks (linear between neighbours); empty for no values.
+std::vector<float> rankTable(std::vector<float> values, int ranks);
 /// Sequence-wide alignment of the source (chosen once, so it does not flip between frames).
 struct AlignmentState
 {
@@ -248,7 +254,7 @@ double reduceCoarsePartBeforeSeams(VectorField& detail, const TargetAtOutput& t,
 /// After the seam solve: the coarse part out, the energy factor applied, the coarse part put back within the
 /// tolerance. Fills energyScale, coarseKept and lfErr.
 void calibrateDetail(VectorField& detail, const TargetAtOutput& t, const Frame& target, const SmokeEnergy& smoke,
-    double referenceEnergy, const FrameSetup& fs, TransferStats& st);
+    double referenceEnergy, const std::vector<float>& sourceMagnitudes, const FrameSetup& fs, TransferStats& st);
 
 // --- Output and state ---------------------------------------------------------------------------------
 

@@ -156,7 +156,7 @@ std::vector<std::pair<std::string, std::string>> outputSettings(const TransferSe
     };
     const auto flag = [](bool b) { return std::string(b ? "on" : "off"); };
     const char* align[] = {"none", "normalize", "rotate", "both"};
-    const char* energy[] = {"none", "pasted", "source"};
+    const char* energy[] = {"none", "pasted", "source", "distribution"};
     std::vector<std::pair<std::string, std::string>> out = {{"alpha", num(s.alpha)}, {"beta", num(s.beta)},
         {"density-threshold", num(s.densityThreshold)}, {"patch", num(s.localPatch)},
         {"global-patch", num(s.globalPatch)}, {"pca", num(s.pcaComponents)}, {"stride", num(s.localStride)},
@@ -346,9 +346,10 @@ VectorField TurbulenceTransfer::Impl::transferDetail(const Frame& target, const 
     PasteResult pasted = pastePatches(m.local, m.bands, fs);
     VectorField detail = std::move(pasted.detail);
     time.paste = lap(t0);
-    const double referenceEnergy = s.detailEnergy == DetailEnergy::Source   ? m.bands.reference
-                                   : s.detailEnergy == DetailEnergy::Pasted ? smoke(detail)
-                                                                            : 0.0;
+    const double referenceEnergy =
+        s.detailEnergy == DetailEnergy::Source || s.detailEnergy == DetailEnergy::Distribution ? m.bands.reference
+        : s.detailEnergy == DetailEnergy::Pasted                                               ? smoke(detail)
+                                                                                               : 0.0;
 
     // Beyond the paper: last frame's detail carried into the patches it reaches; then 3.3's seam smoothing.
     if (progress) progress->begin("seams");
@@ -363,7 +364,7 @@ VectorField TurbulenceTransfer::Impl::transferDetail(const Frame& target, const 
         if (active[p]) carried.tracks[fs.absolutePatch(fs.layout.patchCoord(p))] = m.local.chosenExact[p];
 
     // 3.4: the detail's coarse part and energy (U = up(u_t) + U_h is assembled by the caller).
-    calibrateDetail(detail, t, target, smoke, referenceEnergy, fs, st);
+    calibrateDetail(detail, t, target, smoke, referenceEnergy, m.bands.magnitudes, fs, st);
     detailChange(detail, m.advectedDetail, density, s.densityThreshold, st);
     return detail;
 }
