@@ -28,7 +28,7 @@ FRAMES_OVERRIDE=""
 RECORD=1
 PERF="$ROOT/docs/performance.md"
 
-CONFIGS="tiny measure-plume sim128 paper3d transfer2d plume4x box32 box64 box128 box256 blender-paper3d blender-plume2 ratio2 blender-noise synth2d synth3d
+CONFIGS="tiny measure-plume sim128 paper3d transfer2d plume4x box32 box64 box128 box256 synthbox32 synthbox64 synthbox128 synthbox256 blender-paper3d blender-plume2 ratio2 blender-noise synth2d synth3d
  stylize1m stylize1m-full fluidy12k fluidy123k animate640 animate640-preview"
 
 describe() {
@@ -40,6 +40,7 @@ describe() {
     transfer2d) echo "transfer: 2D, plume 24x32 (target) -> swirl 192x256 (source), one z layer, 30 frames (paper: 0.7 s/frame; target <= 0.1)" ;;
     plume4x) echo "transfer: blender-plume-32 (target) -> blender-plume-128 (source), the 10 frames both hold" ;;
     box32|box64|box128|box256) echo "transfer: plume4x with the target's domain grown to ${1#box}^3 coarse cells (the same smoke, ratio 4), frames 1-10 (cost follows the smoke)" ;;
+    synthbox32|synthbox64|synthbox128|synthbox256) echo "synth: the box${1#synthbox} target (blender-plume-32 in a ${1#synthbox}^3 domain, the same smoke), factor 4, frames 1-3 (cost follows the smoke)" ;;
     blender-paper3d) echo "transfer: Blender plume 16x16x24 (target) -> Blender two-jet swirl 128x128x192 (source), 30 frames (baked by bench/blender_pairs.sh)" ;;
     blender-plume2) echo "transfer: blender-plume2-32 (target) -> blender-plume2-128 (source), 30 frames (ratio 4)" ;;
     ratio2) echo "transfer: blender-plume2-128 box-downsampled to 64^3 (target) -> blender-plume2-128 (source), 30 frames (ratio 2)" ;;
@@ -296,24 +297,30 @@ cfg_plume4x() {
 
 # box32..box256: blender-plume-32 with its Blender domain grown to N^3 (vdbturb_bench_pad, untimed), the same
 # source; the output box follows the smoke, so the four should cost about the same.
-cfg_box() {
+# padded_box N FRAMES: sets t to blender-plume-32's first FRAMES frames padded to an N^3 domain (prepared once).
+padded_box() {
     nbox=$1
+    pn=$2
     pad="$(dirname "$VDBTURB")/vdbturb_bench_pad"
     [ -x "$pad" ] || { REASON="no $pad (build target vdbturb_bench_pad)"; return 1; }
-    need_command transfer --target --source --out --frames --json && need_data blender-plume-32 blender-plume-128 || return 1
-    n=$(frames_or 10)
+    need_data blender-plume-32 || return 1
     t="$WORK/plume32_box$nbox"
-    last=$(printf '%04d' "$n")
+    last=$(printf '%04d' "$pn")
     if [ ! -f "$t/fluid_data_$last.vdb" ]; then
         log "box$nbox (preparation, not timed): $pad into $t"
         mkdir -p "$t"
         i=1
-        while [ "$i" -le "$n" ]; do
+        while [ "$i" -le "$pn" ]; do
             fr=$(printf '%04d' "$i")
             "$pad" "$DATA/blender-plume-32/fluid_data_$fr.vdb" "$t/fluid_data_$fr.vdb" "$nbox" || { REASON="padding failed"; return 1; }
             i=$((i + 1))
         done
     fi
+}
+cfg_box() {
+    need_command transfer --target --source --out --frames --json && need_data blender-plume-128 || return 1
+    n=$(frames_or 10)
+    padded_box "$1" "$n" || return 1
     rm -rf "$WORK/box${nbox}_out"
     # shellcheck disable=SC2086
     timed "box$nbox" "$VDBTURB" transfer $THREAD_ARGS --target "$t/fluid_data_####.vdb" \
@@ -323,6 +330,19 @@ cfg_box32() { cfg_box 32; }
 cfg_box64() { cfg_box 64; }
 cfg_box128() { cfg_box 128; }
 cfg_box256() { cfg_box 256; }
+cfg_synthbox() {
+    need_command synth --target --factor --out --frames --json || return 1
+    n=$(frames_or 3)
+    padded_box "$1" 10 || return 1
+    rm -rf "$WORK/synthbox${nbox}_out"
+    # shellcheck disable=SC2086
+    timed "synthbox$nbox" "$VDBTURB" synth $THREAD_ARGS --target "$t/fluid_data_####.vdb" --factor 4 \
+        --out "$WORK/synthbox${nbox}_out/up.####.vdb" --frames "1-$n" --json
+}
+cfg_synthbox32() { cfg_synthbox 32; }
+cfg_synthbox64() { cfg_synthbox 64; }
+cfg_synthbox128() { cfg_synthbox 128; }
+cfg_synthbox256() { cfg_synthbox 256; }
 
 # blender-paper3d: the paper's 3D configuration as Blender 3.4 caches, baked once by bench/blender_pairs.sh
 # (untimed) and reused; a bake already in WORK is used even where Blender is not installed.
