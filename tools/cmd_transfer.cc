@@ -737,6 +737,11 @@ void addDetailSettings(CLI::App* app, turb::TransferSettings& s)
                 "U_h's energy per smoke voxel: the source's high frequencies, the pasted patches', or as made; "
                 "distribution also remaps |U_h| rank for rank onto the source detail's magnitudes"),
         "detailEnergy");
+    setting(addEnum<turb::DetailEnergy>(app, "--detailEnergy2D", s.detailEnergy2D,
+                {{"source", turb::DetailEnergy::Source}, {"pasted", turb::DetailEnergy::Pasted},
+                    {"none", turb::DetailEnergy::None}, {"distribution", turb::DetailEnergy::Distribution}},
+                "detailEnergy on 2D (one z layer) caches"),
+        "detailEnergy2D");
     boolSetting(app, "--compensateTargetDivergence", s.compensateTargetDivergence,
         "The seam gamma term penalises div(up(u_t) + U_h) (false: div(U_h), the paper)", "compensateTargetDivergence");
     legacy(app->add_flag_function(

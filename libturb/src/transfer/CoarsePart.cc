@@ -81,7 +81,7 @@ double reduceCoarsePartBeforeSeams(VectorField& detail, const TargetAtOutput& t,
     VectorField coarse;
     if (s.removeCoarseDetail) coarse = upsample(coarsePart(detail, fs.f), fs.f);
     double estimate = 1.0;
-    if (s.detailEnergy != DetailEnergy::None && referenceEnergy > 0.0)
+    if (fs.detailEnergy() != DetailEnergy::None && referenceEnergy > 0.0)
         estimate = energyFactor(referenceEnergy, smoke(detail, coarse.empty() ? nullptr : &coarse));
     if (!coarse.empty()) {
         const double lf = estimate * coarseRatio(coarse, t.Ut, target.density, s.densityThreshold, fs.f);
@@ -104,7 +104,7 @@ void calibrateDetail(VectorField& detail, const TargetAtOutput& t, const Frame& 
         coarse = upsample(coarsePart(detail, f), f);
         for (size_t n = 0; n < detail.size(); ++n) detail.data()[n] -= coarse.data()[n];
     }
-    if (s.detailEnergy != DetailEnergy::None && referenceEnergy > 0.0) {
+    if (fs.detailEnergy() != DetailEnergy::None && referenceEnergy > 0.0) {
         st.energyScale = energyFactor(referenceEnergy, smoke(detail));
         for (auto& v : detail.values()) v *= float(st.energyScale);
     }

@@ -85,7 +85,7 @@ SourceBands splitSource(const Frame& source, const Frame& target, const FrameSet
     }
     out.detailScale = out.ks / out.kt;
     out.reference *= double(out.detailScale) * double(out.detailScale);
-    if (s.detailEnergy == DetailEnergy::Distribution) {
+    if (fs.detailEnergy() == DetailEnergy::Distribution) {
         std::vector<float> m;
         for (size_t i = 0; i < split.high.size(); ++i)
             if (out.Ds.data()[i] > s.densityThreshold) m.push_back(split.high.data()[i].length() * out.detailScale);

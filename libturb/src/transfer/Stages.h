@@ -52,6 +52,8 @@ struct FrameSetup
     double elapsed = 0.0;               ///< time since the previous processed frame; 0 on a first frame
     int frameGap = 1;                   ///< frame-number gap to that frame
     const Progress* progress = nullptr; ///< asked before every parallel chunk of the stages: Ctrl-C stops a search
+    /// What U_h is calibrated to on this frame: detailEnergy, or detailEnergy2D on a 2D layout.
+    DetailEnergy detailEnergy() const { return flat ? s->detailEnergy2D : s->detailEnergy; }
 };
 
 /// One look-back step (DensityMode::LookBack).

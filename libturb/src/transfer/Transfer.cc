@@ -174,6 +174,7 @@ std::vector<std::pair<std::string, std::string>> outputSettings(const TransferSe
         {"value-weight", num(s.seams.valueWeight)}, {"target-divergence", flag(s.compensateTargetDivergence)},
         {"whole-fresh-patches", flag(s.solveFreshPatchesWhole)}, {"coarse-detail-removed", flag(s.removeCoarseDetail)},
         {"coarse-tolerance", num(s.coarseTolerance)}, {"detail-energy", energy[int(s.detailEnergy)]},
+        {"detail-energy-2d", energy[int(s.detailEnergy2D)]},
         {"density", s.densityMode == DensityMode::LookBack ? "lookback" : "advect"},
         {"density-scheme", schemeName(s.densityScheme)}, {"density-guide", num(s.densityGuide.strength)},
         {"density-guide-passes", num(s.densityGuide.passes)},
@@ -346,10 +347,11 @@ VectorField TurbulenceTransfer::Impl::transferDetail(const Frame& target, const 
     PasteResult pasted = pastePatches(m.local, m.bands, fs);
     VectorField detail = std::move(pasted.detail);
     time.paste = lap(t0);
-    const double referenceEnergy =
-        s.detailEnergy == DetailEnergy::Source || s.detailEnergy == DetailEnergy::Distribution ? m.bands.reference
-        : s.detailEnergy == DetailEnergy::Pasted                                               ? smoke(detail)
-                                                                                               : 0.0;
+    const DetailEnergy mode = fs.detailEnergy();
+    const double referenceEnergy = mode == DetailEnergy::Source || mode == DetailEnergy::Distribution
+                                       ? m.bands.reference
+                                   : mode == DetailEnergy::Pasted ? smoke(detail)
+                                                                  : 0.0;
 
     // Beyond the paper: last frame's detail carried into the patches it reaches; then 3.3's seam smoothing.
     if (progress) progress->begin("seams");
