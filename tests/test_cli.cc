@@ -271,6 +271,10 @@ TEST(Cli, PrerollMatchesALongerRunAndResumeRefusesOtherSettings)
     const CmdResult scheme = run(base + " --out " + out + " --frames 1-3 --resume --density-scheme maccormack");
     EXPECT_EQ(scheme.code, 1) << scheme.out;
     EXPECT_NE(scheme.out.find("density-scheme: bfecc -> maccormack"), std::string::npos) << scheme.out;
+    // The 2D seam band is recorded too (only when not its default, so older outputs still resume).
+    const CmdResult band2d = run(base + " --out " + out + " --frames 1-3 --resume --seams.bandWidth2D 5");
+    EXPECT_EQ(band2d.code, 1) << band2d.out;
+    EXPECT_NE(band2d.out.find("band-2d: (not recorded) -> 5"), std::string::npos) << band2d.out;
     EXPECT_FALSE(std::filesystem::exists(dir / "whole/t.0003.vdb"));
     // The same settings (threads do not count) continue.
     const CmdResult same = run(base + " --out " + out + " --frames 1-3 --resume --threads 1");
@@ -801,6 +805,13 @@ TEST(Cli, TwoDCachesThroughSimTransferMeasureAndPreview)
     ASSERT_EQ(t.code, 0) << t.out;
     const CmdResult s = run("sim swirl --res 48x64x1 --frames 4 --out '" + d + "/s/s.####.vdb' -q");
     ASSERT_EQ(s.code, 0) << s.out;
+    // The dry run says the cache is 2D and which of the settings with a 2D twin apply.
+    const CmdResult dry = run("transfer --target '" + d + "/t/p.####.vdb' --source '" + d + "/s/s.####.vdb' --out '" +
+                              d + "/o/o.####.vdb' --dry-run --detail-energy-2d pasted --seams.bandWidth2D 4");
+    ASSERT_EQ(dry.code, 0) << dry.out;
+    EXPECT_NE(dry.out.find("2D cache (one z layer): B^2 patches; detail energy pasted, seam band 4"), std::string::npos)
+        << dry.out;
+    EXPECT_FALSE(std::filesystem::exists(d + "/o"));
     const CmdResult x = run("transfer --target '" + d + "/t/p.####.vdb' --source '" + d + "/s/s.####.vdb' --out '" + d +
                             "/o/o.####.vdb' -q");
     ASSERT_EQ(x.code, 0) << x.out;
@@ -885,6 +896,25 @@ TEST(Cli, SettingsFilesGiveEveryOptionAndTheCommandLineWins)
         t.replace(at, t.find('\n', at) - at, "temporalBlend=0.9");
         return t;
     }());
+    // The command line wins in any spelling: a dash name, an old spelling, or one that sets both 3D and 2D values.
+    {
+        std::ofstream f(dir / "spell.toml");
+        f << "detailEnergy = \"pasted\"\ndetailEnergy2D = \"none\"\nlocalPatch = 6\ntemporalBlend = 0.5\n"
+             "seams.bandWidth = 4\n";
+    }
+    const CmdResult spelled = run("transfer --settings " + dir / "spell.toml" +
+                                  " --detail-energy source --patch 8 --temporal-blend 0.7 --band 3 --print-settings");
+    ASSERT_EQ(spelled.code, 0) << spelled.out;
+    EXPECT_NE(spelled.out.find("\ndetailEnergy=\"source\"\n"), std::string::npos) << spelled.out;
+    EXPECT_NE(spelled.out.find("\ndetailEnergy2D=\"source\"\n"), std::string::npos) << spelled.out;
+    EXPECT_NE(spelled.out.find("\nlocalPatch=8\n"), std::string::npos) << spelled.out;
+    EXPECT_NE(spelled.out.find("\ntemporalBlend=0.7\n"), std::string::npos) << spelled.out;
+    EXPECT_NE(spelled.out.find("\nseams.bandWidth=3\n"), std::string::npos) << spelled.out;
+    // The specific setting given beside the one that sets both wins on its own kind of cache.
+    const CmdResult both = run("transfer --detail-energy pasted --detail-energy-2d none --print-settings");
+    ASSERT_EQ(both.code, 0) << both.out;
+    EXPECT_NE(both.out.find("\ndetailEnergy=\"pasted\"\n"), std::string::npos) << both.out;
+    EXPECT_NE(both.out.find("\ndetailEnergy2D=\"none\"\n"), std::string::npos) << both.out;
     // A file that cannot be read, or holds sections for several commands, is a usage error naming it.
     EXPECT_EQ(run("sim plume --settings " + dir / "missing.toml").code, 2);
     {

@@ -192,6 +192,26 @@ std::string settingsFile(const CLI::App* app)
 
 } // namespace
 
+std::vector<std::string> spellingsOf(const CLI::App* app, const std::string& flag)
+{
+    const CLI::Option* found = nullptr;
+    for (const CLI::Option* o : app->get_options())
+        for (const auto& n : o->get_lnames())
+            if ("--" + n == flag) found = o;
+    if (!found) return {};
+    std::vector<std::string> out;
+    for (const auto& n : found->get_lnames()) out.push_back("--" + n);
+    for (const auto& n : found->get_snames()) out.push_back("-" + n);
+    // An old spelling of the same setting (--band for seams.bandWidth, --no-seams for seams.enabled) sets it too.
+    if (isSetting(found))
+        for (const auto& [other, tier] : tiers())
+            if (tier.legacy && sets(tier, settingsName(found)))
+                for (const CLI::Option* o : app->get_options())
+                    if (o == other)
+                        for (const auto& n : o->get_lnames()) out.push_back("--" + n);
+    return out;
+}
+
 CLI::Option* setting(CLI::Option* o, const std::string& key)
 {
     const auto& names = o->get_lnames();
@@ -275,7 +295,7 @@ void addGlobalOptions(CLI::App* app, unsigned which)
 }
 
 std::vector<std::string> expandSettingsFiles(const std::vector<std::string>& args,
-    const std::function<bool(const std::vector<std::string>&, const std::string&)>& known)
+    const std::function<std::vector<std::string>(const std::vector<std::string>&, const std::string&)>& spellings)
 {
     if (args.size() < 2) return args;
     std::vector<std::string> command; // "farm", "plan": the words before the first option
@@ -311,14 +331,20 @@ std::vector<std::string> expandSettingsFiles(const std::vector<std::string>& arg
             if (item.inputs.empty() || (item.inputs.size() == 1 && item.inputs[0].empty())) continue;
             // The command line wins: an option it gives is not taken from the file (giving both would be a repeat).
             const std::string flag = "--" + name;
-            if (known && !known(command, flag))
+            // Every spelling of the option counts: a file's detailEnergy is overridden by --detail-energy too.
+            std::vector<std::string> names{flag};
+            if (spellings) names = spellings(command, flag);
+            if (names.empty())
                 throw turb::ValueError("--settings " + file + ": '" + name + "' is not an option of vdbturb" + [&] {
                     std::string c;
                     for (const auto& w : command) c += " " + w;
                     return c;
                 }() + " (--print-settings lists them)");
-            const bool given = std::any_of(args.begin(), args.end(),
-                [&](const std::string& a) { return a == flag || a.rfind(flag + "=", 0) == 0; });
+            const bool given = std::any_of(args.begin(), args.end(), [&](const std::string& a) {
+                return std::any_of(names.begin(), names.end(), [&](const std::string& n) {
+                    return a == n || a.rfind(n + "=", 0) == 0 || (n.size() == 2 && a.rfind(n, 0) == 0);
+                });
+            });
             if (given) continue;
             for (const auto& v : item.inputs) fromFiles.push_back(flag + "=" + v); // "=": flags take true/false too
         }

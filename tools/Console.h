@@ -97,11 +97,18 @@ inline constexpr const char* kGroupRun = "Run";
 
 /// argv with every `--settings FILE` replaced by the file's NAME = VALUE lines as `--NAME VALUE` arguments, placed
 /// right after the command words so that the command line's own options, parsed later, win (options take their
-/// last value). Dotted keys (`seams.gamma = 10`) and [sections] name nested settings. `known(command words, flag)`
-/// says whether the command has that option. Throws turb::ValueError naming the file when it cannot be read or names
-/// an option the command does not have.
+/// last value). Dotted keys (`seams.gamma = 10`) and [sections] name nested settings. `spellings(command words,
+/// flag)` lists every spelling that sets the same option (its long and short names and old spellings of the
+/// setting), empty when the command has no such option; a file's line is skipped when the command line gives any
+/// of them. Throws turb::ValueError naming the file when it cannot be read or names an option the command does
+/// not have.
 std::vector<std::string> expandSettingsFiles(const std::vector<std::string>& args,
-    const std::function<bool(const std::vector<std::string>&, const std::string&)>& known = {});
+    const std::function<std::vector<std::string>(const std::vector<std::string>&, const std::string&)>& spellings =
+        {});
+
+/// Every command-line spelling of the option `flag` ("--detailEnergy") names in `app`: "--detail-energy",
+/// "--detailEnergy", and the old spellings that set the same setting. Empty when `app` has no such long option.
+std::vector<std::string> spellingsOf(const CLI::App* app, const std::string& flag);
 
 /// Installs the SIGINT/SIGTERM handler that turns Ctrl-C into a cancellation request.
 void installSignalHandlers();

@@ -162,6 +162,16 @@ turb::CoordBBox preflight(const TransferArgs& a, const turbio::Sequence& target,
               worldBox(tBox, t0.lattice) + " (the target's held box: its smoke and margin" +
               (tl && tl->frame != t0.frame ? " at frame " + std::to_string(tl->frame) + ", its largest" : "") + ")");
 
+    {
+        // The settings with a 2D twin: say which apply, as a 2D cache silently takes other values.
+        const bool flat = turb::isFlat(tBox);
+        const turb::TransferSettings& st = a.settings;
+        printData(std::string(flat ? "2D cache (one z layer): B^2 patches; " : "3D cache: ") + "detail energy " +
+                  turb::detailEnergyName(flat ? st.detailEnergy2D : st.detailEnergy) + ", seam band " +
+                  std::to_string(flat ? st.seams.bandWidth2D : st.seams.bandWidth) + ", regenerate blend " +
+                  fmt("%g", flat ? st.regenerateBlend2D : st.regenerateBlend) +
+                  (flat ? " (detailEnergy2D, seams.bandWidth2D, regenerateBlend2D)" : ""));
+    }
     // Output size (Blosc gains little on noisy floats). Velocity covers the target velocity's box padded by two
     // voxels, at f^3 voxels each (zero beyond it: not written), or trimmed, the smoke and the margin's shell
     // (1.2x the smoke at margin 1, 1.45x at 2 on the Blender plume2 pair at 128^3).
@@ -731,16 +741,21 @@ void addDetailSettings(CLI::App* app, turb::TransferSettings& s)
     legacy(app->add_flag_function(
                "--no-tracking", [&s](int64_t) { s.trackGlobalPatches = false; }, "trackGlobalPatches = false"),
         "trackGlobalPatches", "false");
-    setting(addEnum<turb::DetailEnergy>(app, "--detail-energy,--detailEnergy", s.detailEnergy,
-                {{"source", turb::DetailEnergy::Source}, {"pasted", turb::DetailEnergy::Pasted},
-                    {"none", turb::DetailEnergy::None}, {"distribution", turb::DetailEnergy::Distribution}},
-                "U_h's energy per smoke voxel: the source's high frequencies, the pasted patches', or as made; "
-                "distribution also remaps |U_h| rank for rank onto the source detail's magnitudes"),
+    const std::vector<std::pair<std::string, turb::DetailEnergy>> energies{{"source", turb::DetailEnergy::Source},
+        {"pasted", turb::DetailEnergy::Pasted}, {"none", turb::DetailEnergy::None},
+        {"distribution", turb::DetailEnergy::Distribution}};
+    // Defined before the two settings, so that one of them given as well wins on its own kind of cache.
+    legacy(addEnum<turb::DetailEnergy>(app, "--detail-energy", s.detailEnergy, energies,
+               "Both detail energies (3D and 2D caches)")
+               ->each([&s](const std::string& v) { s.detailEnergy2D = static_cast<turb::DetailEnergy>(std::stoi(v)); }),
+        "detailEnergy,detailEnergy2D");
+    setting(addEnum<turb::DetailEnergy>(app, "--detailEnergy", s.detailEnergy, energies,
+                "U_h's energy per smoke voxel on 3D caches: source (the source's high-frequency energy), pasted "
+                "(the pasted patches' energy), none (as made), or distribution (|U_h| remapped rank for rank onto "
+                "the source detail's magnitudes, then the source's energy)"),
         "detailEnergy");
-    setting(addEnum<turb::DetailEnergy>(app, "--detailEnergy2D", s.detailEnergy2D,
-                {{"source", turb::DetailEnergy::Source}, {"pasted", turb::DetailEnergy::Pasted},
-                    {"none", turb::DetailEnergy::None}, {"distribution", turb::DetailEnergy::Distribution}},
-                "detailEnergy on 2D (one z layer) caches"),
+    setting(addEnum<turb::DetailEnergy>(app, "--detailEnergy2D,--detail-energy-2d", s.detailEnergy2D, energies,
+                "The same on 2D (one z layer) caches"),
         "detailEnergy2D");
     boolSetting(app, "--compensateTargetDivergence", s.compensateTargetDivergence,
         "The seam gamma term penalises div(up(u_t) + U_h) (false: div(U_h), the paper)", "compensateTargetDivergence");

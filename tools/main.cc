@@ -360,16 +360,15 @@ int main(int argc, char** argv)
     std::vector<std::string> args;
     try {
         args = expandSettingsFiles(std::vector<std::string>(argv, argv + argc),
-            [&subs](const std::vector<std::string>& words, const std::string& flag) {
+            [&subs](const std::vector<std::string>& words, const std::string& flag) -> std::vector<std::string> {
                 for (const auto& [sub, cmd] : subs) {
                     if (words.empty() || cmd->name != words[0]) continue;
-                    if (isLongOption(sub, flag)) return true;
                     for (CLI::App* nested : sub->get_subcommands({}))
-                        if (words.size() > 1 && nested->get_name() == words[1] && isLongOption(nested, flag))
-                            return true;
-                    return false;
+                        if (words.size() > 1 && nested->get_name() == words[1])
+                            if (auto n = spellingsOf(nested, flag); !n.empty()) return n;
+                    return spellingsOf(sub, flag);
                 }
-                return true; // no such command: the parser says so
+                return {flag}; // no such command: the parser says so
             });
     } catch (const turb::ValueError& e) {
         logError(messageWithFlags(e));

@@ -69,6 +69,9 @@ enum class DetailEnergy {
     Distribution
 };
 
+/// The settings name of a DetailEnergy: "none", "pasted", "source" or "distribution".
+const char* detailEnergyName(DetailEnergy e);
+
 /// How the first frame's high-resolution density is advanced.
 enum class DensityMode {
     Advect,  ///< carry the previous output density through U, plus the target's own emission

@@ -107,6 +107,13 @@ void LocalCandidates::build(const VectorField& Usl, const ScalarField& Ds, const
     mStride = std::max(1, stride);
     const CoordBBox box = Usl.bbox();
     mCorners = CoordBBox(box.min(), box.max() - (patch - Coord(1)));
+    // The stride lattice sits on absolute multiples of the stride, as the output's patches sit on multiples of B:
+    // the candidates are then the same whichever box the source is held over (its smoke and a margin, or the whole
+    // domain). An axis too short for that (a 2D source's one layer) keeps the box's own start.
+    for (int a = 0; a < 3; ++a) {
+        const int aligned = floorDiv(mCorners.min()[a] + mStride - 1, mStride) * mStride;
+        if (aligned <= mCorners.max()[a]) mCorners.min()[a] = aligned;
+    }
     mReduced.clear();
     mSlot.clear();
     mCount = 0;

@@ -156,7 +156,6 @@ std::vector<std::pair<std::string, std::string>> outputSettings(const TransferSe
     };
     const auto flag = [](bool b) { return std::string(b ? "on" : "off"); };
     const char* align[] = {"none", "normalize", "rotate", "both"};
-    const char* energy[] = {"none", "pasted", "source", "distribution"};
     std::vector<std::pair<std::string, std::string>> out = {{"alpha", num(s.alpha)}, {"beta", num(s.beta)},
         {"density-threshold", num(s.densityThreshold)}, {"patch", num(s.localPatch)},
         {"global-patch", num(s.globalPatch)}, {"pca", num(s.pcaComponents)}, {"stride", num(s.localStride)},
@@ -173,8 +172,8 @@ std::vector<std::pair<std::string, std::string>> outputSettings(const TransferSe
         {"box-weight", num(s.seams.boxWeight)}, {"box-keep", num(s.seams.boxKeep)},
         {"value-weight", num(s.seams.valueWeight)}, {"target-divergence", flag(s.compensateTargetDivergence)},
         {"whole-fresh-patches", flag(s.solveFreshPatchesWhole)}, {"coarse-detail-removed", flag(s.removeCoarseDetail)},
-        {"coarse-tolerance", num(s.coarseTolerance)}, {"detail-energy", energy[int(s.detailEnergy)]},
-        {"detail-energy-2d", energy[int(s.detailEnergy2D)]},
+        {"coarse-tolerance", num(s.coarseTolerance)}, {"detail-energy", detailEnergyName(s.detailEnergy)},
+        {"detail-energy-2d", detailEnergyName(s.detailEnergy2D)},
         {"density", s.densityMode == DensityMode::LookBack ? "lookback" : "advect"},
         {"density-scheme", schemeName(s.densityScheme)}, {"density-guide", num(s.densityGuide.strength)},
         {"density-guide-passes", num(s.densityGuide.passes)},
@@ -182,7 +181,14 @@ std::vector<std::pair<std::string, std::string>> outputSettings(const TransferSe
         {"density-guide-max-gain", num(s.densityGuide.maxGain)}, {"lookback", num(s.lookBackFrames)}};
     // Only when not the default: the default outputs' settings text stays what earlier versions wrote.
     if (s.seams.solver == SeamSolver::EigenLscg) out.emplace_back("seam-solver", "eigen");
+    if (s.seams.bandWidth2D != SeamSettings{}.bandWidth2D) out.emplace_back("band-2d", num(s.seams.bandWidth2D));
     return out;
+}
+
+const char* detailEnergyName(DetailEnergy e)
+{
+    static const char* const kNames[] = {"none", "pasted", "source", "distribution"};
+    return kNames[int(e)];
 }
 
 std::string outputSettingsText(const TransferSettings& s)
