@@ -204,11 +204,9 @@ std::vector<std::string> spellingsOf(const CLI::App* app, const std::string& fla
     for (const auto& n : found->get_snames()) out.push_back("-" + n);
     // An old spelling of the same setting (--band for seams.bandWidth, --no-seams for seams.enabled) sets it too.
     if (isSetting(found))
-        for (const auto& [other, tier] : tiers())
-            if (tier.legacy && sets(tier, settingsName(found)))
-                for (const CLI::Option* o : app->get_options())
-                    if (o == other)
-                        for (const auto& n : o->get_lnames()) out.push_back("--" + n);
+        for (const CLI::Option* o : app->get_options())
+            if (isLegacy(o) && sets(tiers().at(o), settingsName(found)))
+                for (const auto& n : o->get_lnames()) out.push_back("--" + n);
     return out;
 }
 

@@ -747,6 +747,7 @@ void addDetailSettings(CLI::App* app, turb::TransferSettings& s)
     // Defined before the two settings, so that one of them given as well wins on its own kind of cache.
     legacy(addEnum<turb::DetailEnergy>(app, "--detail-energy", s.detailEnergy, energies,
                "Both detail energies (3D and 2D caches)")
+               // addEnum's transform has already turned the name into the enum's number.
                ->each([&s](const std::string& v) { s.detailEnergy2D = static_cast<turb::DetailEnergy>(std::stoi(v)); }),
         "detailEnergy,detailEnergy2D");
     setting(addEnum<turb::DetailEnergy>(app, "--detailEnergy", s.detailEnergy, energies,
