@@ -275,6 +275,9 @@ TEST(Cli, PrerollMatchesALongerRunAndResumeRefusesOtherSettings)
     const CmdResult band2d = run(base + " --out " + out + " --frames 1-3 --resume --seams.bandWidth2D 5");
     EXPECT_EQ(band2d.code, 1) << band2d.out;
     EXPECT_NE(band2d.out.find("band-2d: (not recorded) -> 5"), std::string::npos) << band2d.out;
+    const CmdResult cg2d = run(base + " --out " + out + " --frames 1-3 --resume --seams.cgTolerance2D 0.001");
+    EXPECT_EQ(cg2d.code, 1) << cg2d.out;
+    EXPECT_NE(cg2d.out.find("cg-tolerance-2d: (not recorded) -> 0.001"), std::string::npos) << cg2d.out;
     EXPECT_FALSE(std::filesystem::exists(dir / "whole/t.0003.vdb"));
     // The same settings (threads do not count) continue.
     const CmdResult same = run(base + " --out " + out + " --frames 1-3 --resume --threads 1");
@@ -807,10 +810,12 @@ TEST(Cli, TwoDCachesThroughSimTransferMeasureAndPreview)
     ASSERT_EQ(s.code, 0) << s.out;
     // The dry run says the cache is 2D and which of the settings with a 2D twin apply.
     const CmdResult dry = run("transfer --target '" + d + "/t/p.####.vdb' --source '" + d + "/s/s.####.vdb' --out '" +
-                              d + "/o/o.####.vdb' --dry-run --detail-energy-2d pasted --seams.bandWidth2D 4");
+                              d + "/o/o.####.vdb' --dry-run --detail-energy-2d pasted --seams.bandWidth2D 4 --seams.cgTolerance 0.5");
     ASSERT_EQ(dry.code, 0) << dry.out;
     EXPECT_NE(dry.out.find("2D cache (one z layer): B^2 patches; detail energy pasted, seam band 4"), std::string::npos)
         << dry.out;
+    // The 3D tolerance given does not apply to a 2D cache; the 2D default does.
+    EXPECT_NE(dry.out.find("regenerate blend 0.6, seam CG tolerance 0.01 ("), std::string::npos) << dry.out;
     EXPECT_FALSE(std::filesystem::exists(d + "/o"));
     const CmdResult x = run("transfer --target '" + d + "/t/p.####.vdb' --source '" + d + "/s/s.####.vdb' --out '" + d +
                             "/o/o.####.vdb' -q");

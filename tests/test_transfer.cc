@@ -771,10 +771,10 @@ TEST(Transfer2D, BuiltInPairEndToEndWithinTheQualityTargets)
         EXPECT_GT(r.stats.seams.boundaryPatches, 0u);
         ASSERT_FALSE(r.stats.seams.iterations.empty());
         EXPECT_LT(r.stats.seams.iterations.back().energy, r.stats.seams.initialEnergy);
-        // Every E-step of the 2D seam solve stopped on its tolerance (measured 29-42 iterations against the cap of
-        // 100).
+        // Every E-step of the 2D seam solve stopped on the 2D tolerance (measured 29-42 iterations at 1e-3 against the
+        // cap of 100).
         for (const SeamIteration& it : r.stats.seams.iterations) {
-            EXPECT_LE(it.cgResidual, s.seams.cgTolerance) << "frame " << i;
+            EXPECT_LE(it.cgResidual, s.seams.cgTolerance2D) << "frame " << i;
             EXPECT_LT(it.cgIterations, 80) << "frame " << i;
         }
     }

@@ -18,6 +18,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <future>
 #include <memory>
 #include <optional>
 #include <sstream>
@@ -169,8 +170,9 @@ turb::CoordBBox preflight(const TransferArgs& a, const turbio::Sequence& target,
         printData(std::string(flat ? "2D cache (one z layer): B^2 patches; " : "3D cache: ") + "detail energy " +
                   turb::detailEnergyName(flat ? st.detailEnergy2D : st.detailEnergy) + ", seam band " +
                   std::to_string(flat ? st.seams.bandWidth2D : st.seams.bandWidth) + ", regenerate blend " +
-                  fmt("%g", flat ? st.regenerateBlend2D : st.regenerateBlend) +
-                  (flat ? " (detailEnergy2D, seams.bandWidth2D, regenerateBlend2D)" : ""));
+                  fmt("%g", flat ? st.regenerateBlend2D : st.regenerateBlend) + ", seam CG tolerance " +
+                  fmt("%g", flat ? st.seams.cgTolerance2D : st.seams.cgTolerance) +
+                  (flat ? " (detailEnergy2D, seams.bandWidth2D, regenerateBlend2D, seams.cgTolerance2D)" : ""));
     }
     // Output size (Blosc gains little on noisy floats). Velocity covers the target velocity's box padded by two
     // voxels, at f^3 voxels each (zero beyond it: not written), or trimmed, the smoke and the margin's shell
@@ -574,15 +576,26 @@ int runTransfer(TransferArgs& a)
     bool warnedClipping = false;
     if (!statePath.empty()) logVerbose("resume state: " + statePath + " (the last frame in full precision)");
     const int count = int(p.target.frames.size());
+    // Frame k's two inputs are read while frame k - 1 is computed and written: a read is mostly its guarded reader's
+    // child process (fork, decode, the copy back), time the cores otherwise spend waiting. A read that fails throws
+    // from get(), at frame k, after frame k - 1 is written, as reading in turn would.
+    const auto readInputs = [&](size_t k) {
+        const int tk = p.target.frames[k];
+        std::pair<turb::Frame, turb::Frame> in;
+        in.first = readingAs("target", [&] { return turbio::readFrame(p.target.path(tk), tk, a.targetRead); });
+        in.second = readingAs(
+            "source", [&] { return turbio::readFrame(p.source.path(p.sourceFor[k]), p.sourceFor[k], a.sourceRead); });
+        return in;
+    };
+    std::future<std::pair<turb::Frame, turb::Frame>> ahead;
+    if (p.first < p.target.frames.size()) ahead = std::async(std::launch::async, readInputs, p.first);
     for (size_t i = p.first; i < p.target.frames.size(); ++i) {
         const int t = p.target.frames[i];
         const auto t0 = std::chrono::steady_clock::now();
         ConsoleProgress progress(int(i), count, t);
         progress.begin("reading");
-        const turb::Frame tf =
-            readingAs("target", [&] { return turbio::readFrame(p.target.path(t), t, a.targetRead); });
-        const turb::Frame sf = readingAs(
-            "source", [&] { return turbio::readFrame(p.source.path(p.sourceFor[i]), p.sourceFor[i], a.sourceRead); });
+        const auto [tf, sf] = ahead.get();
+        if (i + 1 < p.target.frames.size()) ahead = std::async(std::launch::async, readInputs, i + 1);
         turb::TransferResult r;
         try {
             r = transfer.process(tf, sf, &progress);
@@ -674,7 +687,15 @@ void addSeamSettings(CLI::App* app, turb::SeamSettings& seams)
     num(app, "--cg-iterations,--seams.maxCgIterations", seams.maxCgIterations, "CG iterations per E-step at most",
         "seams.maxCgIterations")
         ->check(CLI::Range(1, 100000));
-    num(app, "--cg-tolerance,--seams.cgTolerance", seams.cgTolerance, "CG relative residual", "seams.cgTolerance");
+    num(app, "--seams.cgTolerance", seams.cgTolerance, "CG relative residual (3D)", "seams.cgTolerance")
+        ->check(CLI::Range(1e-12, 1.0));
+    num(app, "--seams.cgTolerance2D", seams.cgTolerance2D, "CG relative residual on 2D caches", "seams.cgTolerance2D")
+        ->check(CLI::Range(1e-12, 1.0));
+    legacy(app->add_option_function<double>(
+                  "--cg-tolerance", [&seams](double v) { seams.cgTolerance = seams.cgTolerance2D = v; },
+                  "Both CG tolerances")
+               ->check(CLI::Range(1e-12, 1.0)),
+        "seams.cgTolerance,seams.cgTolerance2D");
     num(app, "--value-weight,--seams.valueWeight", seams.valueWeight,
         "Weight of seam-solve rows keeping carried detail at its value (0 = the paper's energy)", "seams.valueWeight")
         ->check(CLI::NonNegativeNumber);

@@ -11,6 +11,7 @@
 #include <cstring>
 #include <fcntl.h>
 #include <fstream>
+#include <mutex>
 #include <poll.h>
 #include <sstream>
 #include <sys/resource.h>
@@ -21,6 +22,108 @@
 namespace turbio::detail {
 
 namespace {
+
+} // namespace
+
+void keepInChild(const openvdb::GridBase::Ptr& grid)
+{
+    // Never destroyed: filled in a child only, which leaves by _exit.
+    static auto* kept = new std::vector<openvdb::GridBase::Ptr>();
+    if (grid) kept->push_back(grid);
+}
+
+std::mutex& forkGuard()
+{
+    static std::mutex m;
+    return m;
+}
+
+namespace {
+
+// Ends a 'G' payload, so the parent knows it arrived whole without waiting for the child's exit status.
+const std::string kTrailer = "\nvdbturb: end of grids\n";
+
+bool wholePayload(const std::string& data)
+{
+    return data.size() > kTrailer.size() && data[0] == 'G' &&
+           data.compare(data.size() - kTrailer.size(), kTrailer.size(), kTrailer) == 0;
+}
+
+// The child's stream of grids. Not io::Stream: OpenVDB 10's Archive::writeGrid builds delayed-load metadata with a
+// LeafManager, whose tbb::parallel_for in a forked child can wait for ever on pool threads the fork did not copy (a
+// 10 s stall, then a second reader, on about 1 run in 12 of a 30-frame 2D transfer; gdb showed the child in
+// LeafManager::initLeafArray under Archive::writeGrid). The grids' own serial writers are used instead, framed as
+// Archive frames them: file metadata, a count, then per grid its type, half-float flag, metadata, transform,
+// topology and buffers, with the per-grid stream state Archive sets (mask compression only: lossless).
+constexpr uint32_t kPayloadCompression = openvdb::io::COMPRESS_ACTIVE_MASK;
+
+void prepareStream(std::ios_base& strm)
+{
+    openvdb::io::setVersion(strm, openvdb::VersionId(openvdb::OPENVDB_LIBRARY_MAJOR_VERSION, openvdb::OPENVDB_LIBRARY_MINOR_VERSION),
+        openvdb::OPENVDB_FILE_VERSION);
+    openvdb::io::setDataCompression(strm, kPayloadCompression);
+}
+
+void writeGrids(std::ostream& os, const openvdb::GridPtrVec& grids, const openvdb::MetaMap& meta)
+{
+    prepareStream(os);
+    meta.writeMeta(os);
+    const int32_t count = int32_t(std::count_if(grids.begin(), grids.end(), [](const auto& g) { return bool(g); }));
+    os.write(reinterpret_cast<const char*>(&count), sizeof(count));
+    for (const openvdb::GridBase::Ptr& grid : grids) {
+        if (!grid) continue;
+        openvdb::writeString(os, grid->type());
+        const uint8_t half = grid->saveFloatAsHalf() ? 1 : 0;
+        os.write(reinterpret_cast<const char*>(&half), 1);
+        auto sm = std::make_shared<openvdb::io::StreamMetadata>();
+        sm->setHalfFloat(half != 0);
+        sm->gridMetadata() = static_cast<const openvdb::MetaMap&>(*grid);
+        openvdb::io::setStreamMetadataPtr(os, sm, /*transfer=*/false);
+        openvdb::io::setDataCompression(os, kPayloadCompression);
+        openvdb::io::setGridClass(os, grid->getGridClass());
+        grid->writeMeta(os);
+        grid->writeTransform(os);
+        grid->writeTopology(os);
+        grid->writeBuffers(os);
+        openvdb::io::StreamMetadata::Ptr none; // the grid's state ends with it
+        openvdb::io::setStreamMetadataPtr(os, none, false);
+    }
+}
+
+// The parent's side of writeGrids (a trusted stream; throws what OpenVDB throws if it is cut short).
+GuardedResult readGrids(std::istream& is)
+{
+    prepareStream(is);
+    GuardedResult result;
+    result.meta = std::make_shared<openvdb::MetaMap>();
+    result.meta->readMeta(is);
+    int32_t count = 0;
+    is.read(reinterpret_cast<char*>(&count), sizeof(count));
+    if (!is || count < 0) throw std::runtime_error("grid count missing");
+    for (int32_t n = 0; n < count; ++n) {
+        const std::string type = openvdb::readString(is);
+        uint8_t half = 0;
+        is.read(reinterpret_cast<char*>(&half), 1);
+        if (!is) throw std::runtime_error("grid header cut short");
+        openvdb::GridBase::Ptr grid = openvdb::GridBase::createGrid(type);
+        auto sm = std::make_shared<openvdb::io::StreamMetadata>();
+        sm->setHalfFloat(half != 0);
+        openvdb::io::setStreamMetadataPtr(is, sm, /*transfer=*/false);
+        openvdb::io::setDataCompression(is, kPayloadCompression);
+        grid->readMeta(is);
+        sm->gridMetadata() = static_cast<openvdb::MetaMap&>(*grid);
+        openvdb::io::setGridClass(is, grid->getGridClass());
+        grid->readTransform(is);
+        grid->readTopology(is);
+        grid->readBuffers(is);
+        grid->setSaveFloatAsHalf(half != 0);
+        openvdb::io::StreamMetadata::Ptr none;
+        openvdb::io::setStreamMetadataPtr(is, none, false);
+        if (!is) throw std::runtime_error("grid '" + grid->getName() + "' cut short");
+        result.grids.push_back(grid);
+    }
+    return result;
+}
 
 bool writeAll(int fd, const char* p, size_t n)
 {
@@ -94,16 +197,14 @@ extern "C" __attribute__((weak)) void __sanitizer_set_death_callback(void (*)(vo
         } catch (const std::exception& e) {
             throw turb::IoError(path + ": truncated or corrupt file (" + cleanMessage(e.what()) + ")");
         }
-        openvdb::GridPtrVec grids;
+        openvdb::GridPtrVec& grids = *new openvdb::GridPtrVec(); // never destroyed here (keepInChild)
         openvdb::MetaMap meta;
         body(file, grids, meta);
+        for (const auto& g : grids) keepInChild(g);
         file.close();
         std::ostringstream os(std::ios::binary);
-        openvdb::io::Stream stream(os);
-        stream.setCompression(openvdb::io::COMPRESS_ACTIVE_MASK); // lossless; 2D leaves are 7/8 inactive
-        stream.setGridStatsMetadataEnabled(false);                // stats use TBB; not in a forked child
-        stream.write(grids, meta);
-        payload = "G" + os.str();
+        writeGrids(os, grids, meta);
+        payload = "G" + os.str() + kTrailer;
     } catch (const turb::Error& e) {
         payload = errorPayload(e.what(), e.settings());
     } catch (const std::bad_alloc&) {
@@ -137,13 +238,42 @@ std::string cleanMessage(const std::string& m)
 
 namespace {
 
+// Children whose result arrived whole and parsed are not waited for: their exit (tearing down a copy of this
+// process's address space) takes milliseconds the caller need not spend. They are reaped without blocking at the
+// next read. A result that does not parse waits for the child's status, which names the crash.
+std::mutex gUnreapedMutex;
+std::vector<pid_t> gUnreaped;
+
+void reapExited()
+{
+    const std::lock_guard<std::mutex> lock(gUnreapedMutex);
+    gUnreaped.erase(std::remove_if(gUnreaped.begin(), gUnreaped.end(),
+                        [](pid_t pid) {
+                            int status = 0;
+                            pid_t r;
+                            while ((r = ::waitpid(pid, &status, WNOHANG)) < 0 && errno == EINTR) {}
+                            return r != 0; // exited (reaped now) or no longer ours (ECHILD)
+                        }),
+        gUnreaped.end());
+}
+
+// The grids of a child's 'G' payload; throws what OpenVDB throws on a damaged stream.
+GuardedResult parsePayload(const std::string& data)
+{
+    const std::lock_guard<std::mutex> parsing(forkGuard());
+    std::istringstream is(data.substr(1, data.size() - 1 - kTrailer.size()), std::ios::binary);
+    return readGrids(is);
+}
+
 // One forked reader. On a timeout sets `timedOut` and returns nothing; every other failure throws.
 GuardedResult readInChild(const std::string& path, const ReadBody& body, double timeoutSeconds, bool& timedOut)
 {
     timedOut = false;
     int fds[2];
     if (::pipe(fds) != 0) throw turb::IoError(path + ": cannot create pipe (" + std::strerror(errno) + ")");
+    std::unique_lock<std::mutex> forking(forkGuard());
     const pid_t pid = ::fork();
+    forking.unlock(); // (in the child too: its copy is never used again)
     if (pid < 0) {
         ::close(fds[0]);
         ::close(fds[1]);
@@ -181,6 +311,23 @@ GuardedResult readInChild(const std::string& path, const ReadBody& body, double 
         data.append(buf, size_t(n));
     }
     ::close(fds[0]);
+    if (!timedOut && wholePayload(data)) {
+        GuardedResult whole;
+        try {
+            whole = parsePayload(data);
+        } catch (const std::exception& e) {
+            ::kill(pid, SIGKILL); // it wrote everything; nothing of it is needed now
+            while (::waitpid(pid, nullptr, 0) < 0 && errno == EINTR) {}
+            throw turb::IoError(
+                path + ": internal error passing grids from the reader (" + std::string(e.what()) + ")");
+        }
+        {
+            const std::lock_guard<std::mutex> lock(gUnreapedMutex);
+            gUnreaped.push_back(pid);
+        }
+        reapExited();
+        return whole;
+    }
     if (timedOut) ::kill(pid, SIGKILL);
     int status = 0;
     while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {}
@@ -195,17 +342,8 @@ GuardedResult readInChild(const std::string& path, const ReadBody& body, double 
         throw turb::IoError(path + ": corrupt file: the reader stopped without a result");
     if (data[0] == 'E') throwPayload(data);
 
-    GuardedResult result;
-    try {
-        std::istringstream is(data.substr(1), std::ios::binary);
-        openvdb::io::Stream stream(is, /*delayLoad=*/false);
-        if (auto g = stream.getGrids()) result.grids = *g;
-        result.meta = stream.getMetadata();
-    } catch (const std::exception& e) {
-        throw turb::IoError(path + ": internal error passing grids from the reader (" + std::string(e.what()) + ")");
-    }
-    if (!result.meta) result.meta = std::make_shared<openvdb::MetaMap>();
-    return result;
+    // Exited cleanly, yet the grids did not arrive whole.
+    throw turb::IoError(path + ": corrupt file: the reader stopped without a result");
 }
 
 } // namespace

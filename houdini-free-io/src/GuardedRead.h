@@ -14,6 +14,7 @@
 #include <openvdb/io/File.h>
 
 #include <functional>
+#include <mutex>
 #include <string>
 
 namespace turbio::detail {
@@ -25,6 +26,17 @@ struct GuardedResult
 };
 
 using ReadBody = std::function<void(openvdb::io::File& file, openvdb::GridPtrVec& grids, openvdb::MetaMap& meta)>;
+
+/// Held while a reader forks and while the parent parses a child's grids, and by every VDB write: a child inherits
+/// each mutex as it was at the fork, so a fork while another thread is inside Blosc (whose compressor holds a global
+/// mutex) or OpenVDB's stream parse (the grid and metadata registries) would leave the child waiting for ever. With
+/// this, reads may run on one thread while another computes and writes (transfer reads the next frame ahead).
+std::mutex& forkGuard();
+
+/// For read bodies: keeps `grid` alive until the child exits. OpenVDB 10 frees a tree's nodes with tbb::parallel_for,
+/// which in a forked child can wait for ever on pool threads the fork did not copy (seen with gdb: a child stuck in
+/// ~Tree after its stream was written), so nothing read in the child is ever destroyed there; _exit frees it all.
+void keepInChild(const openvdb::GridBase::Ptr& grid);
 
 /// OpenVDB messages may quote bytes of a damaged file: keep them printable and short.
 std::string cleanMessage(const std::string& message);

@@ -282,6 +282,7 @@ openvdb::GridBase::Ptr readGridNamed(openvdb::io::File& file, const std::string&
 {
     try {
         auto g = file.readGrid(name);
+        detail::keepInChild(g);
         g->insertMeta(kHalfKey, openvdb::BoolMetadata(g->saveFloatAsHalf()));
         g->setSaveFloatAsHalf(false); // full precision over the pipe
         return g;
@@ -1449,6 +1450,7 @@ void writeVdbChecked(
         FdOutBuf buf(fd, killThisWrite());
         std::ostream os(&buf);
         try {
+            const std::lock_guard<std::mutex> noFork(detail::forkGuard()); // Blosc's global mutex (GuardedRead.h)
             CheckedArchive archive;
             archive.setCompression(openvdb::io::COMPRESS_BLOSC | openvdb::io::COMPRESS_ACTIVE_MASK);
             archive.writeTo(os, grids, meta);

@@ -68,7 +68,7 @@ public:
     SeamSystem(const VectorField& X, const std::vector<uint8_t>& omega, float gamma, const VectorField* base = nullptr,
         float baseScale = 1.0f)
         : mBox(X.bbox()), mDim(X.bbox().dim()), mSqrtGamma(std::sqrt(std::max(0.0f, gamma))), mBase(base),
-          mBaseScale(baseScale)
+          mBaseScale(baseScale), mAxes(isFlat(X.bbox()) ? 2 : 3)
     {
         const size_t n = X.size();
         mCompact.assign(n, -1);
@@ -246,10 +246,11 @@ public:
         std::vector<Vec3f>& qv) const
     {
         const size_t m = rows();
-        qe.assign(m * 3, Vec3f(0.0f));
-        qd.assign(m, 0.0f);
-        qb.assign(mCells.size(), Vec3f(0.0f));
-        qv.assign(mValueCoef.size(), Vec3f(0.0f));
+        // Every entry is written below (zero where a row is absent): no clearing pass over the buffers each iteration.
+        qe.resize(m * 3);
+        qd.resize(m);
+        qb.resize(mCells.size());
+        qv.resize(mValueCoef.size());
         for (size_t u = 0; u < mValueCoef.size(); ++u) qv[u] = p[size_t(mUnknowns[u])] * mValueCoef[u];
         parallelFor(mCells.size(), 256, [&](size_t b, size_t e) {
             for (size_t c = b; c < e; ++c) {
@@ -261,12 +262,14 @@ public:
         parallelFor(m, 4096, [&](size_t b, size_t e) {
             for (size_t r = b; r < e; ++r) {
                 const uint8_t fl = mFlags[r];
-                if (!fl) continue;
                 for (int a = 0; a < 3; ++a)
-                    if (fl & (1u << a)) qe[r * 3 + size_t(a)] = p[size_t(mNb[2 * a + 1][r])] - p[r];
-                if (!(fl & 8u)) continue;
+                    qe[r * 3 + size_t(a)] = (fl & (1u << a)) ? p[size_t(mNb[2 * a + 1][r])] - p[r] : Vec3f(0.0f);
+                if (!(fl & 8u)) {
+                    qd[r] = 0.0f;
+                    continue;
+                }
                 float div = 0.0f;
-                for (int a = 0; a < 3; ++a) {
+                for (int a = 0; a < mAxes; ++a) {
                     const int lo = mLo[r * 3 + size_t(a)], hi = mHi[r * 3 + size_t(a)];
                     const float vh = hi >= 0 ? p[size_t(hi)][a] : 0.0f, vl = lo >= 0 ? p[size_t(lo)][a] : 0.0f;
                     div += (vh - vl) * mInv[r * 3 + size_t(a)];
@@ -280,12 +283,13 @@ public:
     void applyAt(const std::vector<Vec3f>& se, const std::vector<float>& sd, const std::vector<Vec3f>& sb,
         const std::vector<Vec3f>& sv, std::vector<Vec3f>& g) const
     {
-        g.assign(rows(), Vec3f(0.0f));
+        // Only the unknowns' entries are written; the rest stay zero from the first call (solve() passes the same g).
+        if (g.size() != rows()) g.assign(rows(), Vec3f(0.0f));
         parallelFor(mUnknowns.size(), 2048, [&](size_t b, size_t e) {
             for (size_t u = b; u < e; ++u) {
                 const size_t r = size_t(mUnknowns[u]);
                 Vec3f acc(0.0f);
-                for (int a = 0; a < 3; ++a) {
+                for (int a = 0; a < mAxes; ++a) {
                     // Edge (r - e_a, r) has +1 on x[r]; edge (r, r + e_a) has -1.
                     const int lo = mNb[2 * a][r];
                     if (lo >= 0 && (mFlags[size_t(lo)] & (1u << a))) acc += se[size_t(lo) * 3 + size_t(a)];
@@ -661,6 +665,8 @@ private:
     std::vector<float> mGatherCoef;              // and their coefficients
     std::vector<float> mValueCoef;               // per unknown: sqrt(mu) of its value row (empty = none)
     std::vector<Vec3f> mAnchor;                  // per unknown: the value that row pulls towards
+    // Axes the CG products walk: a 2D box has no z edges, and its z stencils are zero (one layer, span 0).
+    int mAxes = 3;
     std::unique_ptr<LeastSquares> mLeastSquares; // solveLeastSquares' matrix, assembled on its first call
 };
 
@@ -920,12 +926,13 @@ void setEdgeTargets(SeamSystem& sys, const BoundaryPatches& bps, const VectorFie
     });
 }
 
-// The E-step with the solver the settings name.
-SeamIteration solveEStep(SeamSystem& sys, VectorField& X, const SeamSettings& settings)
+// The E-step with the solver and the tolerance (3D or 2D) the settings name.
+SeamIteration solveEStep(SeamSystem& sys, VectorField& X, const SeamSettings& settings, bool flat)
 {
+    const double tolerance = flat ? settings.cgTolerance2D : settings.cgTolerance;
     if (settings.solver == SeamSolver::EigenLscg)
-        return sys.solveLeastSquares(X, settings.maxCgIterations, settings.cgTolerance);
-    return sys.solve(X, settings.maxCgIterations, settings.cgTolerance);
+        return sys.solveLeastSquares(X, settings.maxCgIterations, tolerance);
+    return sys.solve(X, settings.maxCgIterations, tolerance);
 }
 
 // The EM loop of section 3.3: M-step (boundary patches' Z, edge targets), then E-step, until E_b changes by
@@ -944,7 +951,7 @@ void runSeamEm(SeamSystem& sys, BoundaryPatches& bps, VectorField& detail, const
         if (it == 0) stats.initialEnergy = sys.energy(detail);
         stats.mStepSeconds += seconds(t0);
         t0 = Clock::now();
-        SeamIteration s = solveEStep(sys, detail, settings);
+        SeamIteration s = solveEStep(sys, detail, settings, problem.layout.flat);
         stats.eStepSeconds += seconds(t0);
         stats.iterations.push_back(s);
         if (progress) progress->update(double(it + 1) / std::max(1, settings.maxEmIterations));

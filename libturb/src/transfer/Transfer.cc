@@ -182,6 +182,8 @@ std::vector<std::pair<std::string, std::string>> outputSettings(const TransferSe
     // Only when not the default: the default outputs' settings text stays what earlier versions wrote.
     if (s.seams.solver == SeamSolver::EigenLscg) out.emplace_back("seam-solver", "eigen");
     if (s.seams.bandWidth2D != SeamSettings{}.bandWidth2D) out.emplace_back("band-2d", num(s.seams.bandWidth2D));
+    if (s.seams.cgTolerance2D != SeamSettings{}.cgTolerance2D)
+        out.emplace_back("cg-tolerance-2d", num(s.seams.cgTolerance2D));
     return out;
 }
 
