@@ -2,6 +2,7 @@
 #include "CliUtil.h"
 #include "TestUtil.h"
 
+#include <turb/Metadata.h>
 #include <turbio/ImageIO.h>
 #include <turbio/Vdb.h>
 
@@ -348,6 +349,24 @@ TEST(Cli, SheetColumnsOfOneSceneShareOneCamera)
     ASSERT_EQ(still.code, 0) << still.out;
     EXPECT_EQ(still.out.find("missing"), std::string::npos) << still.out;
     EXPECT_NE(still.out.find("\"frame\":2"), std::string::npos) << "rows from the sequence: " << still.out;
+    // A transfer output holds only its smoke's neighbourhood (here world 0 - 0.4, too small beside its target to
+    // count as the same scene) but records its target's domain (vdbturb_sequence_domain, world 0 - 3.2): it is
+    // framed over that domain, in line with its target.
+    std::filesystem::create_directories(dir / "up");
+    turb::Frame up = testutil::makeFrame(
+        1, turb::CoordBBox({0, 0, 0}, {3, 3, 3}), turb::Lattice{0.1, turb::Vec3d(0.05)},
+        [](const turb::Vec3d&) { return turb::Vec3f(0.0f); }, [](const turb::Coord&) { return 1.0f; });
+    up.metadata[turb::meta::kSequenceDomain] = "0 0 0 31 31 31";
+    turbio::writeFrame(dir / "up/u.1.vdb", up, turbio::WriteOptions{});
+    const CmdResult aligned = run("preview t=" + dir / "coarse/c.#.vdb" + " o=" + dir / "up/u.#.vdb" +
+                                  " --mode density --width 32 --sheet " + dir / "s3.png" + " --json -q");
+    ASSERT_EQ(aligned.code, 0) << aligned.out;
+    const auto at3 = aligned.out.find("{\"");
+    ASSERT_NE(at3, std::string::npos) << aligned.out;
+    const nlohmann::json j3 = nlohmann::json::parse(aligned.out.substr(at3, aligned.out.find('\n', at3) - at3));
+    for (int k = 0; k < 6; ++k)
+        EXPECT_NEAR(j3.at("framed").at("o")[k].get<double>(), j3.at("framed").at("t")[k].get<double>(), 1e-6)
+            << aligned.out;
 }
 
 TEST(Cli, MeasureCanReadTheSourceAsTransferReadsIt)

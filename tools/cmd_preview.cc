@@ -320,8 +320,12 @@ std::vector<std::string> checkAndFrame(PreviewPlan& p)
         if (scan.changes.empty()) {
             for (const auto& fs : scan.frames) {
                 if (!fs.error.empty() || !fs.domainKnown || fs.domain.empty()) continue;
-                if (!in.frameBox) in.frameBox = fs.domain;
-                else in.frameBox->expand(fs.domain);
+                // A transfer output records its target's domain: framed over it, the output column lines up with
+                // the target's even where the output holds only the smoke's neighbourhood.
+                turb::CoordBBox box = fs.domain;
+                if (fs.sequenceDomain && !fs.sequenceDomain->empty()) box.expand(*fs.sequenceDomain);
+                if (!in.frameBox) in.frameBox = box;
+                else in.frameBox->expand(box);
                 in.lattice = fs.lattice;
             }
         }
