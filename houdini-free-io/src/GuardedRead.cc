@@ -8,6 +8,7 @@
 #include <cerrno>
 #include <chrono>
 #include <csignal>
+#include <cstdlib>
 #include <cstring>
 #include <fcntl.h>
 #include <fstream>
@@ -326,6 +327,17 @@ GuardedResult readInChild(const std::string& path, const ReadBody& body, double 
             gUnreaped.push_back(pid);
         }
         reapExited();
+        // The last children are waited for when the process exits: a farm agent that adopts orphans and never
+        // reaps them would otherwise collect zombies. Registered after the list's construction, so it runs first.
+        static std::once_flag atExit;
+        std::call_once(atExit, [] {
+            std::atexit([] {
+                const std::lock_guard<std::mutex> lock(gUnreapedMutex);
+                for (pid_t child : gUnreaped)
+                    while (::waitpid(child, nullptr, 0) < 0 && errno == EINTR) {}
+                gUnreaped.clear();
+            });
+        });
         return whole;
     }
     if (timedOut) ::kill(pid, SIGKILL);
