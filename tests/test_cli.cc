@@ -829,7 +829,8 @@ TEST(Cli, TwoDCachesThroughSimTransferMeasureAndPreview)
     ASSERT_EQ(s.code, 0) << s.out;
     // The dry run says the cache is 2D and which of the settings with a 2D twin apply.
     const CmdResult dry = run("transfer --target '" + d + "/t/p.####.vdb' --source '" + d + "/s/s.####.vdb' --out '" +
-                              d + "/o/o.####.vdb' --dry-run --detail-energy-2d pasted --seams.bandWidth2D 4 --seams.cgTolerance 0.5");
+                              d + "/o/o.####.vdb' --dry-run --detail-energy-2d pasted --seams.bandWidth2D 4" +
+                              " --seams.cgTolerance 0.5");
     ASSERT_EQ(dry.code, 0) << dry.out;
     EXPECT_NE(dry.out.find("2D cache (one z layer): B^2 patches; detail energy pasted, seam band 4"), std::string::npos)
         << dry.out;

@@ -22,10 +22,6 @@
 
 namespace turbio::detail {
 
-namespace {
-
-} // namespace
-
 void keepInChild(const openvdb::GridBase::Ptr& grid)
 {
     // Never destroyed: filled in a child only, which leaves by _exit.
@@ -60,8 +56,8 @@ constexpr uint32_t kPayloadCompression = openvdb::io::COMPRESS_ACTIVE_MASK;
 
 void prepareStream(std::ios_base& strm)
 {
-    openvdb::io::setVersion(strm, openvdb::VersionId(openvdb::OPENVDB_LIBRARY_MAJOR_VERSION, openvdb::OPENVDB_LIBRARY_MINOR_VERSION),
-        openvdb::OPENVDB_FILE_VERSION);
+    const openvdb::VersionId library(openvdb::OPENVDB_LIBRARY_MAJOR_VERSION, openvdb::OPENVDB_LIBRARY_MINOR_VERSION);
+    openvdb::io::setVersion(strm, library, openvdb::OPENVDB_FILE_VERSION);
     openvdb::io::setDataCompression(strm, kPayloadCompression);
 }
 
