@@ -197,7 +197,6 @@ extern "C" __attribute__((weak)) void __sanitizer_set_death_callback(void (*)(vo
         openvdb::GridPtrVec& grids = *new openvdb::GridPtrVec(); // never destroyed here (keepInChild)
         openvdb::MetaMap meta;
         body(file, grids, meta);
-        for (const auto& g : grids) keepInChild(g);
         file.close();
         std::ostringstream os(std::ios::binary);
         writeGrids(os, grids, meta);

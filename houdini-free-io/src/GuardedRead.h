@@ -33,7 +33,7 @@ using ReadBody = std::function<void(openvdb::io::File& file, openvdb::GridPtrVec
 /// this, reads may run on one thread while another computes and writes (transfer reads the next frame ahead).
 std::mutex& forkGuard();
 
-/// For read bodies: keeps `grid` alive until the child exits. OpenVDB 10 frees a tree's nodes with tbb::parallel_for,
+/// For read bodies: keeps `grid` alive until the child exits (the grids a body returns are kept already). OpenVDB 10 frees a tree's nodes with tbb::parallel_for,
 /// which in a forked child can wait for ever on pool threads the fork did not copy (seen with gdb: a child stuck in
 /// ~Tree after its stream was written), so nothing read in the child is ever destroyed there; _exit frees it all.
 void keepInChild(const openvdb::GridBase::Ptr& grid);

@@ -666,7 +666,7 @@ private:
     std::vector<float> mValueCoef;               // per unknown: sqrt(mu) of its value row (empty = none)
     std::vector<Vec3f> mAnchor;                  // per unknown: the value that row pulls towards
     // Axes the CG products walk: a 2D box has no z edges, and its z stencils are zero (one layer, span 0).
-    int mAxes = 3;
+    int mAxes;
     std::unique_ptr<LeastSquares> mLeastSquares; // solveLeastSquares' matrix, assembled on its first call
 };
 
