@@ -204,6 +204,8 @@ TEST(CliReliability, DryRunPrintsTheLatticeRatioTimingAndEstimatesThatHold)
     ASSERT_GT(estimateMb, 0.0) << dry.out;
     const double sizeMb = numberAfter(dry.out, "output size: about ");
     ASSERT_GT(sizeMb, 0.0) << dry.out;
+    const double totalMb = numberAfter(dry.out, " for the largest frame, "); // the run's: summed over its frames
+    ASSERT_GT(totalMb, sizeMb) << dry.out;
     EXPECT_FALSE(std::filesystem::exists(dir / "o"));
 
     // The run itself: its peak memory and file sizes against the estimates (both in MB above).
@@ -218,6 +220,11 @@ TEST(CliReliability, DryRunPrintsTheLatticeRatioTimingAndEstimatesThatHold)
                           1e6;
     EXPECT_GT(sizeMb, fileMb / 3.0) << "estimate " << sizeMb << " MB, written " << fileMb << " MB";
     EXPECT_LT(sizeMb, fileMb * 3.0) << "estimate " << sizeMb << " MB, written " << fileMb << " MB";
+    const double writtenMb =
+        double(std::filesystem::file_size(dir / "o/o.0001.vdb") + std::filesystem::file_size(dir / "o/o.0002.vdb")) /
+        1e6;
+    EXPECT_GT(totalMb, writtenMb / 3.0) << "estimate " << totalMb << " MB, written " << writtenMb << " MB";
+    EXPECT_LT(totalMb, writtenMb * 3.0) << "estimate " << totalMb << " MB, written " << writtenMb << " MB";
 }
 
 TEST(CliReliability, TimeStepFpsAndUnitsShowWhereTheyCameFrom)
