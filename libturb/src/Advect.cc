@@ -1,5 +1,8 @@
-// Dense-field advection through OpenVDB's VolumeAdvection. Template-heavy: kept in its own unit.
+// Field advection: the in-plane 2D path, the dense 3D path (AdvectDense.cc) and OpenVDB's VolumeAdvection.
+// Template-heavy: kept in its own unit.
 #include <turb/Advect.h>
+
+#include "AdvectDense.h"
 
 #include <turb/Error.h>
 #include <turb/Parallel.h>
@@ -139,6 +142,7 @@ Field<T> advectImpl(const Field<T>& q, const VectorField& velocity, double dt, c
     if (q.empty()) return q;
     if (velocity.empty()) throw ValueError("advect: empty velocity field");
     if (s.inPlane && isFlat(q.bbox()) && isFlat(velocity.bbox())) return advectFlat(q, velocity, dt, s);
+    if (s.backend == AdvectSettings::Backend::Dense) return detail::advectDense(q, velocity, dt, s);
     openvdb::initialize();
     // Sparse: only non-zero voxels become active; VolumeAdvection dilates them by the travel distance,
     // so the cost follows the smoke, not the box.

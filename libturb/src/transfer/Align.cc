@@ -178,17 +178,25 @@ VectorField applyBU(const VectorField& c, int f)
     }
     wm /= f;
     wp /= f;
+    const float cm = float(wm), c0 = float(1.0 - wm - wp), cp = float(wp);
     VectorField a = c, b(c.bbox(), c.lattice());
-    const CoordBBox box = c.bbox();
+    const Coord dim = c.bbox().dim();
+    const size_t stride[3] = {size_t(dim.y()) * size_t(dim.z()), size_t(dim.z()), 1};
     // A 2D field is refined in x and y only: BU is the identity along z.
-    for (int axis = 0; axis < (isFlat(box) ? 2 : 3); ++axis) {
-        for (size_t n = 0; n < a.size(); ++n) {
-            const Coord p = a.coordOf(n);
-            Coord lo = p, hi = p;
-            lo[axis] = std::max(p[axis] - 1, box.min()[axis]);
-            hi[axis] = std::min(p[axis] + 1, box.max()[axis]);
-            b.data()[n] = a[lo] * float(wm) + a.data()[n] * float(1.0 - wm - wp) + a[hi] * float(wp);
-        }
+    for (int axis = 0; axis < (isFlat(c.bbox()) ? 2 : 3); ++axis) {
+        const int n = dim[axis];
+        const size_t s = stride[axis];
+        parallelFor(size_t(dim.x()), 1, [&](size_t x0, size_t x1) {
+            for (size_t i = x0; i < x1; ++i)
+                for (int j = 0; j < dim.y(); ++j)
+                    for (int k = 0; k < dim.z(); ++k) {
+                        const size_t o = i * stride[0] + size_t(j) * stride[1] + size_t(k);
+                        const int p = axis == 0 ? int(i) : (axis == 1 ? j : k);
+                        const Vec3f& lo = a.data()[p > 0 ? o - s : o];
+                        const Vec3f& hi = a.data()[p + 1 < n ? o + s : o];
+                        b.data()[o] = lo * cm + a.data()[o] * c0 + hi * cp;
+                    }
+        });
         std::swap(a, b);
     }
     return a;
@@ -217,14 +225,18 @@ VectorField coarsePart(const VectorField& detail, int factor, int iterations, do
                     if (box.isInside(q)) support[c.offset(q.x(), q.y(), q.z())] = 1;
                 }
     }
-    // Richardson iteration c += b - BU(c): BU is close to the identity (its taps sum to 1 and the centre
-    // tap dominates), so the error contracts every iteration; all of it runs on the coarse lattice.
+    // Richardson iteration c += b - BU(c) on the support: BU is close to the identity (its taps sum to 1 and the
+    // centre tap dominates), so the error contracts every iteration; all of it runs on the coarse lattice. It stops
+    // on the residual over the support, the only cells it can change: the residual just outside (BU spreads c one
+    // cell past it, where b is zero) has a floor, which used to keep about half of the calls iterating to the cap
+    // (0.2-1% of |b| against the 0.1% tolerance, measured on a ratio-2 Blender pair).
     for (int it = 0; it < iterations; ++it) {
         const VectorField bu = applyBU(c, factor);
         double res = 0.0;
         for (size_t i = 0; i < c.size(); ++i) {
+            if (!support[i]) continue;
             const Vec3f r = target.data()[i] - bu.data()[i];
-            if (support[i]) c.data()[i] += r;
+            c.data()[i] += r;
             res += double(r.lengthSqr());
         }
         if (res <= tolerance * tolerance * norm0) break;

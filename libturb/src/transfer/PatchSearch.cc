@@ -30,25 +30,42 @@ void GlobalIndex::build(
     const VectorField& us, const ScalarField& ds, int b, int depth, float k, const MatchWeights& w, int pcaComponents)
 {
     mCells.clear();
-    const CoordBBox box = us.bbox();
+    if (us.bbox() != ds.bbox()) throw ValueError("GlobalIndex: the coarse velocity and density cover different boxes");
     const int r = b / 2, rz = depth / 2;
-    // Candidate centres: cells with smoke within the patch radius.
-    for (size_t n = 0; n < ds.size(); ++n) {
-        const Coord c = ds.coordOf(n);
-        bool smoke = false;
-        for (int x = -r; x <= r && !smoke; ++x)
-            for (int y = -r; y <= r && !smoke; ++y)
-                for (int z = -rz; z <= rz && !smoke; ++z) {
-                    const Coord q = c + Coord(x, y, z);
-                    smoke = box.isInside(q) && ds[q] > w.threshold;
-                }
-        if (smoke) mCells.push_back(c);
+    // Candidate centres: cells with smoke within the patch radius, the smoke mask dilated by (r, r, rz) one axis at a
+    // time (a box's dilation is separable).
+    std::vector<uint8_t> smoke(ds.size()), next(ds.size());
+    for (size_t n = 0; n < ds.size(); ++n) smoke[n] = ds.data()[n] > w.threshold;
+    const Coord cells = ds.bbox().dim();
+    const size_t stride[3] = {size_t(cells.y()) * size_t(cells.z()), size_t(cells.z()), 1};
+    for (int a = 0; a < 3; ++a) {
+        const int reach = a == 2 ? rz : r;
+        if (reach <= 0) continue;
+        parallelFor(size_t(cells.x()), 1, [&](size_t x0, size_t x1) {
+            for (size_t i = x0; i < x1; ++i)
+                for (int j = 0; j < cells.y(); ++j)
+                    for (int k = 0; k < cells.z(); ++k) {
+                        const int p = a == 0 ? int(i) : (a == 1 ? j : k);
+                        const size_t o = i * stride[0] + size_t(j) * stride[1] + size_t(k);
+                        uint8_t any = 0;
+                        for (int d = std::max(-reach, -p); d <= std::min(reach, cells[a] - 1 - p) && !any; ++d)
+                            any = smoke[size_t(std::ptrdiff_t(o) + std::ptrdiff_t(d) * std::ptrdiff_t(stride[a]))];
+                        next[o] = any;
+                    }
+        });
+        std::swap(smoke, next);
     }
+    for (size_t n = 0; n < ds.size(); ++n)
+        if (smoke[n]) mCells.push_back(ds.coordOf(n));
     if (mCells.empty()) return;
     // Fit the PCA on an even sample, then project the cells in fixed chunks: at ratio 2 a descriptor has 2916
     // floats, and holding all of them for a 64^3 source would take gigabytes.
     const size_t dim = globalDescriptorSize(b, depth);
-    const PcaSettings ps{pcaComponents};
+    // 6000 rows: on a ratio-2 Blender pair (2916-float descriptors of 17-25k cells) the axes capture the same
+    // variance as from 12000 (0.86664 against 0.86671 of the sample's) and the fit takes half the time (0.45 ->
+    // 0.24 s of a frame that searches globally).
+    PcaSettings ps{pcaComponents};
+    ps.maxSamples = 6000;
     const size_t sample = std::min(mCells.size(), ps.maxSamples);
     const double step = double(mCells.size()) / double(sample);
     Pca pca;
