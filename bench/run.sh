@@ -91,6 +91,7 @@ if [ -z "$VDBTURB" ] || [ ! -x "$VDBTURB" ]; then
     exit 2
 fi
 mkdir -p "$WORK"
+WORK=$(cd "$WORK" && pwd) # absolute: some configurations run in a directory of their own
 THREAD_ARGS=""
 [ -z "$THREADS" ] || THREAD_ARGS="--threads $THREADS"
 
@@ -397,8 +398,12 @@ cfg_blender_noise() {
     o="$WORK/blender_noise_out"
     rm -rf "$o"
     mkdir -p "$o"
+    # Mantaflow's noise writes its wavelet tile (waveletNoiseTile.bin) into the working directory: run it in $o.
+    here=$(pwd)
+    cd "$o"
     timed blender-noise "$BLENDER" -b --factory-startup -t "${THREADS:-0}" --python "$ROOT/bench/blender/plume_noise.py" -- \
         "$o" "$n" 8 24 "${THREADS:-0}"
+    cd "$here"
 }
 
 # synth2d: an analytic vortex as the coarse flow (no preparation); synth3d: the plume scene simulated once.
