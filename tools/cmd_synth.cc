@@ -488,6 +488,20 @@ nlohmann::json projectionReport(const SynthArgs& a, const turb::SynthFrameResult
                        "), solver residual " + fmt("%.2e", pr.relativeResidual));
         }
     }
+    if (r.detailDivergence) {
+        const turb::CentralDivergenceResult& d = *r.detailDivergence;
+        projJson["detail_divergence"] = {{"converged", d.converged}, {"iterations", d.iterations},
+            {"div_rms_before", d.divRmsBefore}, {"div_rms_after", d.divRmsAfter}};
+        logVerbose("frame " + std::to_string(fr) + ": detail divergence rms " + fmt("%.3g", d.divRmsBefore) + " -> " +
+                   fmt("%.3g", d.divRmsAfter) + " (" + std::to_string(d.iterations) + " CG iterations)");
+        if (!d.converged) {
+            if (unconverged.empty() || unconverged.back() != fr) unconverged.push_back(fr);
+            progress.clear();
+            logWarning("frame " + std::to_string(fr) + ": taking the detail's divergence out did not converge (" +
+                       std::to_string(d.iterations) + " iterations, rms " + fmt("%.3g", d.divRmsBefore) + " -> " +
+                       fmt("%.3g", d.divRmsAfter) + ")" + (a.strict ? "" : " (--strict makes this an error)"));
+        }
+    }
     return projJson;
 }
 
@@ -564,6 +578,7 @@ nlohmann::json frameJson(const SynthArgs& a, const turb::SynthFrameResult& r, co
     extra["detail_rms"] = std::sqrt(h2 / double(std::max<size_t>(1, H.world.size())));
     extra["detail_region"] = a.seq.detailNearSmoke && hasDensity ? "smoke" : "everywhere";
     if (a.seq.project) extra["projection"] = projJson;
+    if (projJson.contains("detail_divergence")) extra["detail_divergence"] = projJson["detail_divergence"];
     if (r.densityMass) extra["density_mass"] = *r.densityMass;
     return extra;
 }
@@ -737,7 +752,7 @@ int runSynth(SynthArgs& a)
     logVerbose("exemplar pyramids and indices: " + fmt("%.2f s", secondsSince(tPrep)) + ", " +
                std::to_string(prepared.levels()) + " levels");
     turb::SynthSequence sequence(prepared, a.seq);
-    std::vector<int> unconverged; // frames whose projection stopped short
+    std::vector<int> unconverged; // frames whose projection or detail divergence solve stopped short
     bool warnedClipping = false;
     for (size_t i = 0; i < p.frames.size(); ++i)
         synthFrame(a, source, p, sequence, i, report, unconverged, warnedClipping);
@@ -746,7 +761,7 @@ int runSynth(SynthArgs& a)
     std::string list;
     for (int fr : unconverged) list += (list.empty() ? "" : ", ") + std::to_string(fr);
     const std::string msg =
-        std::to_string(unconverged.size()) + " frame(s) with a projection that did not converge: " + list;
+        std::to_string(unconverged.size()) + " frame(s) with a projection or a detail divergence solve that did not converge: " + list;
     if (a.strict) {
         logError(msg + " (--strict)");
         return kFailed;
@@ -883,6 +898,18 @@ void addCombineSettings(CLI::App* app, SynthArgs& a)
     legacy(app->add_flag_function(
                "--keep-coarse", [&c](int64_t) { c.removeCoarsePart = false; }, ""),
         "combine.removeCoarsePart", "false");
+    boolSetting(app, "--combine.solenoidalDetail", c.solenoidalDetail,
+        "Take the detail's central-difference divergence out, so F's div_rel stays at or below L's (false: the paper)",
+        "combine.solenoidalDetail");
+    legacy(app->add_flag_function(
+               "--keep-divergence", [&c](int64_t) { c.solenoidalDetail = false; }, ""),
+        "combine.solenoidalDetail", "false");
+    knob(app, "--combine.solenoidalTolerance", c.solenoidalTolerance,
+        "Relative rms divergence left in the detail by that solve", "combine.solenoidalTolerance")
+        ->check(CLI::Range(1e-9, 0.999));
+    knob(app, "--combine.solenoidalIterations", c.solenoidalIterations, "Conjugate-gradient cap of that solve",
+        "combine.solenoidalIterations")
+        ->check(CLI::Range(1, 100000));
     boolSetting(app, "--combine.relative", c.relative, "omega is relative to L's rms speed (false: velocity units)",
         "combine.relative");
     legacy(app->add_flag_function(

@@ -6,6 +6,7 @@
 #include <turb/Error.h>
 #include <turb/Operators.h>
 #include <turb/Parallel.h>
+#include <turb/Projection.h>
 #include <turb/Resample.h>
 
 #include <algorithm>
@@ -62,7 +63,8 @@ ScalarField smokeDetailWeight(const ScalarField& density, float threshold, doubl
     return w;
 }
 
-VectorField combineMotion(const VectorField& coarse, const VectorField& detail, const CombineSettings& s)
+VectorField combineMotion(const VectorField& coarse, const VectorField& detail, const CombineSettings& s,
+    CentralDivergenceResult* diagnostics)
 {
     if (coarse.empty() || detail.empty()) throw ValueError("combine: empty coarse or detail field");
     if (!(s.omega >= 0.0)) throw ValueError("combine: omega must be >= 0");
@@ -118,12 +120,12 @@ VectorField combineMotion(const VectorField& coarse, const VectorField& detail, 
     parallelFor(F.size(), 4096, [&](size_t b, size_t e) {
         for (size_t n = b; n < e; ++n) D.data()[n] = detail.data()[n] * float(scale * omega.data()[n]);
     });
-    if (s.removeCoarsePart) {
-        // The detail's coarse-cell means, spread trilinearly as up(L) is, are motion at L's scale: they would
-        // change the coarse flow (lf_err). Trilinear spreading does not keep a cell's mean exactly: each pass
-        // leaves about half of the means in the worst case (a wavelength of two coarse cells), so five passes
-        // leave a few percent (docs/synth.md: three left lf_err 0.047-0.072 on the Blender plume2 cache).
-        for (int pass = 0; pass < 5; ++pass) {
+    // The detail's coarse-cell means, spread trilinearly as up(L) is, are motion at L's scale: they would change the
+    // coarse flow (lf_err). Trilinear spreading does not keep a cell's mean exactly: each pass leaves about half of
+    // the means in the worst case (a wavelength of two coarse cells), so five passes leave a few percent
+    // (docs/synth.md: three left lf_err 0.047-0.072 on the Blender plume2 cache).
+    const auto removeCoarse = [&](int passes) {
+        for (int pass = 0; pass < passes; ++pass) {
             const VectorField coarsePart = upsampleImpl(boxDownsample(D, factor), factor);
             if (coarsePart.bbox() != D.bbox())
                 throw ValueError("combine: the detail's coarse part does not cover its box");
@@ -131,6 +133,15 @@ VectorField combineMotion(const VectorField& coarse, const VectorField& detail, 
                 for (size_t n = b; n < e; ++n) D.data()[n] -= coarsePart.data()[n];
             });
         }
+    };
+    if (s.removeCoarsePart) removeCoarse(5);
+    if (s.solenoidalDetail) {
+        const CentralDivergenceResult r = removeCentralDivergence(D, s.solenoidalTolerance, s.solenoidalIterations);
+        if (diagnostics) *diagnostics = r;
+        // The gradient part taken out had coarse means of its own: one more pass takes most of what it put back
+        // (lf_err 0.046 -> 0.029 on Blender plume2, frames 1-10) and returns a little divergence (div_rel 0.237 ->
+        // 0.241, against up(L)'s 0.336; five passes would give back most of it: 0.102 against 0.082 on the plume).
+        if (s.removeCoarsePart) removeCoarse(1);
     }
     parallelFor(F.size(), 4096, [&](size_t b, size_t e) {
         for (size_t n = b; n < e; ++n) F.data()[n] += D.data()[n];

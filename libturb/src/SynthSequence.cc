@@ -79,7 +79,9 @@ SynthFrameResult SynthSequence::next(const SynthFrameInput& in, Progress* progre
         r.smokeless = std::none_of(
             smoke.values().begin(), smoke.values().end(), [&](float v) { return v > combine.smokeThreshold; });
     }
-    r.motion = combineMotion(*in.coarse, H.world, combine);
+    CentralDivergenceResult divergence;
+    r.motion = combineMotion(*in.coarse, H.world, combine, &divergence);
+    if (combine.solenoidalDetail) r.detailDivergence = divergence;
     if (s.project) {
         if (progress) progress->begin("projection");
         r.projection = projectMotion(r.motion, s, in.obstacle, volume, progress);

@@ -134,6 +134,26 @@ private:
 ProjectionResult projectMac(VectorField& mac, const ProjectionSettings& s = {}, const MaskField* solid = nullptr,
     ScalarField* pressure = nullptr, Progress* progress = nullptr);
 
+/// What removeCentralDivergence did; divergences in 1/time, rms over the field's box.
+struct CentralDivergenceResult
+{
+    bool converged = false;    ///< the remaining divergence is within the tolerance
+    int iterations = 0;        ///< conjugate-gradient iterations
+    double divRmsBefore = 0.0; ///< rms central-difference divergence before
+    double divRmsAfter = 0.0;  ///< and after (of the stored floats)
+};
+
+/// Takes the gradient part out of a cell-centred field so that its central-difference divergence,
+/// sum_a (u_a(c + e_a) - u_a(c - e_a)) / (2 h) with u zero outside its box, is zero to `tolerance` (rms, relative to
+/// the field's own): u -= G psi, G the central gradient (psi also zero outside the box), psi from the normal
+/// equations G^T G psi = G^T u by conjugate gradient (Eigen, matrix-free; -G^T is that divergence, so the CG
+/// residual is the divergence left). This is the divergence `measure`'s div_rel counts in the box's interior
+/// (it differences one-sidedly on the outermost layer), which a MAC projection (projectCentred) only reduces.
+/// Where u is zero near the box faces (a detail field faded out in air) the two agree everywhere. Axes one voxel
+/// long are left out (2D). Deterministic at any thread count. Throws ValueError for a tolerance outside (0, 1) or
+/// maxIterations < 1; not converging is reported, not thrown.
+CentralDivergenceResult removeCentralDivergence(VectorField& u, double tolerance = 1e-3, int maxIterations = 1000);
+
 /// Projection of a cell-centred field (Helmholtz–Hodge): the field is averaged to faces, projected on
 /// the MAC grid, and each cell receives the mean of its faces' corrections, so the field's own detail
 /// is never smoothed. The result's divergences are those of the intermediate MAC field; the

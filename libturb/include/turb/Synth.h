@@ -41,6 +41,7 @@
 #include <turb/Advect.h>
 #include <turb/Exemplar.h>
 #include <turb/Field.h>
+#include <turb/Projection.h>
 #include <turb/Progress.h>
 
 #include <cstdint>
@@ -234,6 +235,14 @@ struct CombineSettings
     bool removeCoarsePart = true; ///< beyond the paper: take omega * H''s coarse-cell means (spread
                                   ///< trilinearly, five passes) out of the detail, so F keeps L's coarse motion;
                                   ///< false = the paper's F = up(L) + omega * H'
+    /// Beyond the paper: take the gradient part out of omega * H' after its coarse part, so that its
+    /// central-difference divergence (what `measure`'s div_rel counts) is zero to `solenoidalTolerance`
+    /// (removeCentralDivergence), then one more pass of the coarse part (removeCoarsePart) for the means the
+    /// gradient part carried: F's divergence is about up(L)'s, and its div_rel below up(L)'s own (docs/synth.md).
+    /// false = the detail's divergence is left in (the paper).
+    bool solenoidalDetail = true;
+    double solenoidalTolerance = 1e-2; ///< relative rms divergence left in the detail, in (0, 1)
+    int solenoidalIterations = 500;    ///< conjugate-gradient cap of that solve, >= 1
     /// Beyond the paper: where the detail goes. With a coarse density (L's box and lattice), omega is
     /// multiplied by a weight that is 1 within `smokeMargin` coarse cells of the smoke (density >
     /// `smokeThreshold`), falls as a half cosine to 0 over the next `smokeFalloff` cells, and is 0 beyond: still
@@ -251,9 +260,11 @@ struct CombineSettings
 ScalarField smokeDetailWeight(const ScalarField& coarseDensity, float threshold, double margin, double falloff);
 
 /// F = up(L) + omega * H' on H's box and lattice (section 3.5), less the detail's coarse part unless
-/// settings.removeCoarsePart is off. Throws ValueError on empty fields, a negative omega, or a detail that does not
-/// cover the refined coarse box.
-VectorField combineMotion(const VectorField& coarse, const VectorField& detailWorld, const CombineSettings& settings);
+/// settings.removeCoarsePart is off, and less its divergence with settings.solenoidalDetail (whose solve
+/// `diagnostics` receives when given). Throws ValueError on empty fields, a negative omega, a detail that does not
+/// cover the refined coarse box, or a solenoidal tolerance outside (0, 1).
+VectorField combineMotion(const VectorField& coarse, const VectorField& detailWorld, const CombineSettings& settings,
+    CentralDivergenceResult* diagnostics = nullptr);
 
 struct LookbackSettings
 {

@@ -68,6 +68,8 @@ struct SynthFrameResult
     Frame frame;        ///< number, dt, velocity (F, or F - up(L) with detailOnly), density when made
     VectorField motion; ///< F on the fine box
     std::optional<ProjectionResult> projection; ///< with SynthSequenceSettings::project
+    /// with CombineSettings::solenoidalDetail: the solve that took the detail's divergence out
+    std::optional<CentralDivergenceResult> detailDivergence;
     bool smokeless = false; ///< the frame's density holds no smoke, so no detail was placed (detailNearSmoke)
     std::optional<double>
         densityMass; ///< sum of the fine density times the voxel volume; none when no density was made
