@@ -61,11 +61,8 @@ void GlobalIndex::build(
     // Fit the PCA on an even sample, then project the cells in fixed chunks: at ratio 2 a descriptor has 2916
     // floats, and holding all of them for a 64^3 source would take gigabytes.
     const size_t dim = globalDescriptorSize(b, depth);
-    // 6000 rows: on a ratio-2 Blender pair (2916-float descriptors of 17-25k cells) the axes capture the same
-    // variance as from 12000 (0.86664 against 0.86671 of the sample's) and the fit takes half the time (0.45 ->
-    // 0.24 s of a frame that searches globally).
     PcaSettings ps{pcaComponents};
-    ps.maxSamples = 6000;
+    ps.maxSamples = kGlobalPatchPcaSamples;
     const size_t sample = std::min(mCells.size(), ps.maxSamples);
     const double step = double(mCells.size()) / double(sample);
     Pca pca;
