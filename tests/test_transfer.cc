@@ -855,7 +855,7 @@ TEST(TransferStructure, RegenerationKeepsTheSourcesStructureOverAShot)
         scenes::SmokeSettings ss = scenes::sceneSettings("swirl", Coord(64, 64, 96), 2);
         ss.maxSubsteps = 1;
         scenes::SmokeSim swirl(ss);
-        for (int i = 1; i <= 16; ++i) {
+        for (int i = 1; i <= 20; ++i) {
             plume.advanceFrame();
             swirl.advanceFrame();
             targets.push_back(plume.frame());
@@ -897,7 +897,10 @@ TEST(TransferStructure, RegenerationKeepsTheSourcesStructureOverAShot)
     EXPECT_GT(regenerated, 0);
     EXPECT_EQ(none, 0);
     // Frames 1-2 are the same (nothing is stretched yet); from frame 8 on the carried detail alone is streaks
-    // (well under the 0.8 asked for) while the regenerated detail keeps at least 0.5, and about twice the ratio.
+    // (well under the 0.8 asked for) while the regenerated detail keeps at least 0.5, and about twice the ratio,
+    // to the 20th frame. Measured (2026-12-04): regenerated 0.64-0.76 from frame 8, carried only 0.32-0.40. This
+    // small pair (a 64x64x96 swirl, ratio 4) stays under the 0.8 that the full-size pairs meet on every frame
+    // (docs/transfer.md); the test guards regeneration's effect, not that target.
     EXPECT_NEAR(on[0], off[0], 1e-9);
     for (size_t i = 7; i < on.size(); ++i) {
         EXPECT_LT(off[i], 0.5) << "frame " << i + 1 << ": without regeneration the detail should stretch";
