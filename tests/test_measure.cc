@@ -671,3 +671,35 @@ TEST(MeasureDensity, MassPeakAndCoarseErrorOfKnownFields)
     EXPECT_NEAR(coarseDensityError(o, t2, f, 0.01f), 0.0, 1e-6);
     EXPECT_THROW(densityMeasures(o, t, t, f, 0.01f), ValueError);
 }
+
+TEST(MeasureDensity, FrayIsLowForASmoothBallAndHighForAFrayedOne)
+{
+    // A ball of smoke with a soft edge, and the same ball whose radius varies quickly with the direction (hairs
+    // along its surface, a few voxels apart): the first's gradient follows its smooth part's normal, the second's
+    // mostly does not. In 3D and in 2D (a disc in one layer).
+    for (const bool flat : {false, true}) {
+        const Lattice lat{0.1, {0.0, 0.0, 0.0}};
+        const CoordBBox box({0, 0, 0}, {47, 47, flat ? 0 : 47});
+        const Vec3d c(23.5, 23.5, flat ? 0.0 : 23.5);
+        const auto ball = [&](double hair) {
+            ScalarField d(box, lat);
+            for (size_t n = 0; n < d.size(); ++n) {
+                const Vec3d x = d.coordOf(n).asVec3d() - c;
+                const double r = x.length(), theta = std::atan2(x.y(), x.x()), phi = std::acos(r > 0 ? x.z() / r : 0.0);
+                const double edge = 14.0 + hair * std::sin(20.0 * theta) * (flat ? 1.0 : std::sin(17.0 * phi));
+                d.data()[n] = float(0.5 * (1.0 - std::tanh((r - edge) / 1.5)));
+            }
+            return d;
+        };
+        const std::optional<double> smooth = densityFray(ball(0.0), 4, 0.01f), frayed = densityFray(ball(3.0), 4, 0.01f);
+        ASSERT_TRUE(smooth && frayed) << flat;
+        // Measured: 3D 0.012 and 0.77, 2D 0.008 and 0.80.
+        EXPECT_LT(*smooth, 0.05) << flat;
+        EXPECT_GT(*frayed, 0.25) << flat;
+        EXPECT_GE(*frayed, 0.0);
+        EXPECT_LE(*frayed, 1.0);
+    }
+    EXPECT_FALSE(densityFray(ScalarField(CoordBBox({0, 0, 0}, {7, 7, 7}), Lattice{}), 4, 0.01f)) << "no smoke";
+    EXPECT_FALSE(densityFray(ScalarField(CoordBBox({0, 0, 0}, {7, 7, 7}), Lattice{}, 1.0f), 1, 0.01f))
+        << "no smaller scale at ratio 1";
+}

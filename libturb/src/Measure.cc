@@ -375,6 +375,33 @@ DensityMeasures densityMeasures(
     return d;
 }
 
+std::optional<double> densityFray(const ScalarField& D, int f, float threshold)
+{
+    if (f < 2 || D.empty()) return std::nullopt;
+    const ScalarField low = cropped(upsample(boxDownsample(D, f), f), D.bbox());
+    const CoordBBox& b = D.bbox();
+    const bool flat = isFlat(b);
+    const auto s = slabSums<2>(b, [&](int i, std::array<double, 2>& acc) {
+        for (int j = b.min().y(); j <= b.max().y(); ++j)
+            for (int k = b.min().z(); k <= b.max().z(); ++k) {
+                const size_t n = D.offset(i, j, k);
+                if (!(std::max(D.data()[n], low.data()[n]) > threshold)) continue;
+                Vec3d g, gl;
+                for (int a = 0; a < (flat ? 2 : 3); ++a) {
+                    g[a] = double(centralDifferenceAt(D, i, j, k, a));
+                    gl[a] = double(centralDifferenceAt(low, i, j, k, a));
+                }
+                const double ll = gl.lengthSqr();
+                if (!(ll > 0.0)) continue;
+                const double along = g.dot(gl);
+                acc[0] += g.lengthSqr() - along * along / ll; // |grad D| across the smooth surface's normal
+                acc[1] += g.lengthSqr();
+            }
+    });
+    if (!(s[1] > 0.0)) return std::nullopt;
+    return s[0] / s[1];
+}
+
 std::optional<double> densityImprint(const ScalarField& fine, int f, float threshold)
 {
     if (f < 2) return std::nullopt;
@@ -455,7 +482,9 @@ std::vector<std::pair<std::string, std::optional<double>>> FrameMeasures::scalar
     return {{"lf_err", lfErr}, {"hf_ratio", hfRatio}, {"hf_energy", hfEnergy}, {"hf_energy_source", hfEnergySource},
         {"div_rel", divRel}, {"div_rel_source", divRelSource}, {"block", block}, {"tcoh", tcoh},
         {"tcoh_source", tcohSource}, {"mass_ratio", massRatio}, {"peak_density", peakDensity},
-        {"peak_ratio", peakRatio}, {"density_err", densityErr}, {"density_imprint", densityImprint}, {"aniso", aniso},
+        {"peak_ratio", peakRatio}, {"density_err", densityErr}, {"density_imprint", densityImprint},
+        {"density_fray", densityFray}, {"density_fray_source", densityFraySource},
+        {"density_fray_ratio", densityFrayRatio}, {"aniso", aniso},
         {"aniso_source", anisoSource}, {"aniso_ratio", anisoRatio}, {"isotropy", isotropy},
         {"isotropy_source", isotropySource}, {"lattice", lattice}, {"lattice_source", latticeSource},
         {"vort_peak", vortPeak}, {"vort_peak_source", vortPeakSource}, {"vort_peak_ratio", vortPeakRatio},
@@ -552,7 +581,8 @@ Mask outputMeasures(const Frame& O, const Frame& T, const Aligned& a, const Meas
     }
     m.smokeVoxels = countMask(ownMask);
     if (O.hasDensity()) {
-        const DensityMeasures dm = densityMeasures(O.density, realign(O.density, a.refined, a.box, a.alignment),
+        const ScalarField onRefined = realign(O.density, a.refined, a.box, a.alignment);
+        const DensityMeasures dm = densityMeasures(O.density, onRefined,
             T.density.bbox() == T.velocity.bbox() ? T.density : cropped(T.density, T.velocity.bbox()), a.f,
             s.densityThreshold);
         m.massRatio = dm.massRatio;
@@ -560,6 +590,7 @@ Mask outputMeasures(const Frame& O, const Frame& T, const Aligned& a, const Meas
         m.peakRatio = dm.peakRatio;
         m.densityErr = dm.coarseErr;
         m.densityImprint = dm.imprint;
+        m.densityFray = densityFray(onRefined, a.f, s.densityThreshold);
     }
     m.hfEnergy = highFrequencyEnergy(O.velocity, ownMask, a.f);
     m.divRel = relativeDivergence(O.velocity, ownMask);
@@ -582,6 +613,9 @@ Mask sourceMeasures(const MeasuredSources& sources, const Frame& T, const Measur
     srcMask = thresholdMask(S.density, S.velocity.bbox(), s.densityThreshold);
     m.hfEnergySource = highFrequencyEnergy(S.velocity, srcMask, m.sourceRatio);
     m.divRelSource = relativeDivergence(S.velocity, srcMask);
+    m.densityFraySource = densityFray(S.density, m.sourceRatio, s.densityThreshold);
+    if (m.densityFray && m.densityFraySource && *m.densityFraySource > 0.0)
+        m.densityFrayRatio = *m.densityFray / *m.densityFraySource;
     if (m.hfEnergy && m.hfEnergySource && *m.hfEnergySource > 0.0) m.hfRatio = *m.hfEnergy / *m.hfEnergySource;
     else m.notes.push_back("hf_ratio: the source has no smoke or no high-frequency energy");
     return srcMask;

@@ -117,6 +117,10 @@ struct FrameMeasures
                                           ///< the output keeps the target's density at its scale (<= 0.1)
     std::optional<double> densityImprint; ///< densityImprint(): the target's cell faces printed into the output
                                           ///< density (about 1: none; a blocky staircase silhouette: well above 1)
+    std::optional<double> densityFray;       ///< densityFray() of the output (on the refined target lattice)
+    std::optional<double> densityFraySource; ///< the same of the source at its own ratio
+    std::optional<double> densityFrayRatio;  ///< densityFray / densityFraySource: well above 1 for a silhouette
+                                             ///< frayed into fine hairs where the source's is soft
     std::optional<double> aniso;       ///< detail anisotropy along the target's mean flow (detailAnisotropy): about 1
                                        ///< for isotropic detail, well below 1 for streaks stretched along the flow
     std::optional<double> anisoSource; ///< the same of the source's detail, along the same direction
@@ -191,6 +195,16 @@ DensityMeasures densityMeasures(
 /// f < 2 or when either set of pairs is empty or has no jumps. Beyond the papers: added when a picture of the
 /// demo's output showed coarse-cell blocks at the smoke's edge that no other number caught.
 std::optional<double> densityImprint(const ScalarField& fine, int f, float threshold);
+
+/// How frayed the density's surface is: the share of |grad D|^2 that lies across the normal of D's smooth part,
+/// sum |grad D - (grad D . n) n|^2 / sum |grad D|^2 with n = grad L / |grad L|, L = up_f(boxdown_f(D)) (f^3 blocks
+/// from the box's min corner, f^2 in 2D), central differences, over the voxels where D or L exceeds `threshold`.
+/// |grad D|^2 weights the sums, so the smoke's edge dominates: a soft or sharp but smooth silhouette reads near 0
+/// (its gradient follows the normal), one frayed into hairs or streaks along it reads high. Compare an up-res's
+/// against its source's at the same f (density_fray_ratio). In [0, 1]; nullopt for f < 2 or no smoke. Beyond the
+/// papers: added when the density sheets of the Blender plume2 and demo transfers showed a "furry" silhouette
+/// where the source's and the target's are soft, which no other number caught.
+std::optional<double> densityFray(const ScalarField& D, int f, float threshold);
 
 /// rms(boxdown_f(fine) - coarse) / rms(coarse) over the coarse cells where `coarse` exceeds `threshold` (0 when
 /// there are none): density_err. `fine` must cover refineDomain(coarse box, f); throws ValueError otherwise.
