@@ -141,7 +141,8 @@ need_command() {
     if ! "$VDBTURB" --help 2>/dev/null | grep -Eq "^ +$sub( |$)"; then
         REASON="vdbturb has no '$sub' command yet"; return 1
     fi
-    help=$("$VDBTURB" "$sub" --help 2>&1 || true)
+    # --help-all: the second tier of settings too (--help lists the everyday options only).
+    help=$("$VDBTURB" "$sub" --help-all 2>&1 || "$VDBTURB" "$sub" --help 2>&1 || true)
     for o in "$@"; do
         case "$help" in
         *"$o"*) ;;
