@@ -357,6 +357,34 @@ struct Sequence2D
 };
 
 /// A soft disk rotating rigidly about the image centre (the wash-out test's flow, small).
+TEST(Voting, WeightedVotesFavourThePatchesThatFit)
+{
+    // Every target pixel is covered by patches from a black and a white source region; the black ones fit (distance
+    // 0), the white ones do not (distance 1). The plain average is grey; weighted by exp(-D / scale) the vote is
+    // nearly black, and an infinite scale gives the plain average back.
+    ChannelImage S(40, 10, 1);
+    for (int y = 0; y < 10; ++y)
+        for (int x = 20; x < 40; ++x) S.at(x, y, 0) = 1.0f;
+    Nnf nnf = emptyNnf(20, 10);
+    for (int y = 2; y < 8; ++y)
+        for (int x = 2; x < 18; ++x) {
+            const bool fits = (x + y) % 2 == 0;
+            nnf.source[size_t(y) * 20 + size_t(x)] = 5 * 40 + (fits ? 10 : 30);
+            nnf.distance[size_t(y) * 20 + size_t(x)] = fits ? 0.0f : 1.0f;
+        }
+    ChannelImage plain(20, 10, 1), weighted(20, 10, 1), wide(20, 10, 1);
+    vote(S, nnf, 2, 0, 0, 1, plain);
+    VoteSettings vs;
+    vs.distanceScale = 0.1f;
+    vote(S, nnf, 2, 0, 0, 1, weighted, vs);
+    vs.distanceScale = 1e9f;
+    vote(S, nnf, 2, 0, 0, 1, wide, vs);
+    // Pixel (10, 5) is covered by 12 fitting (black) and 13 other (white) patches.
+    EXPECT_NEAR(plain.at(10, 5, 0), 13.0f / 25.0f, 1e-6f);
+    EXPECT_NEAR(weighted.at(10, 5, 0), 13.0f * std::exp(-10.0f) / (12.0f + 13.0f * std::exp(-10.0f)), 1e-6f);
+    EXPECT_NEAR(wide.at(10, 5, 0), plain.at(10, 5, 0), 1e-6f);
+}
+
 Sequence2D rotatingDisk(int n, int frames, double radiansPerFrame)
 {
     Sequence2D s;
@@ -423,6 +451,30 @@ TEST(Stylize, UniformUsageBoundaryAndDeterminismAcrossThreads)
     // Straight alpha out: transparent pixels are (0, 0, 0, 0), the inside is opaque exemplar colour.
     EXPECT_EQ(one[0].image.at(0, 0), Rgba(0.0f, 0.0f, 0.0f, 0.0f));
     EXPECT_GT(one[0].image.at(36, 36)[3], 0.9f);
+}
+
+TEST(Stylize, StartingFromThePreviousOutputKeepsTheFirstFramesSharpness)
+{
+    // With the temporal term (lambda 0.2) the vote of mutually inconsistent patches blurs later frames: on the
+    // wash-out target their gradient energy settles 23% below frame 1's. The options that start each level from the
+    // previous output advected and weight the votes keep every later frame within 15% of frame 1 (measured here:
+    // 0.70-0.72 against 0.63) and sharper than the defaults (the paper: 0.51-0.54 against 0.48), and change less
+    // from frame to frame.
+    const RgbaImage ex = testExemplar(40, 3);
+    const Sequence2D seq = rotatingDisk(72, 6, 0.05);
+    StylizeSettings s;
+    s.levels = 2;
+    const auto paper = runSequence(seq, ex, s, 2);
+    s.startFromPrevious = true;
+    s.voteWeight = 1.0f;
+    const auto now = runSequence(seq, ex, s, 2);
+    for (size_t t = 1; t < now.size(); ++t) {
+        EXPECT_GT(now[t].stats.gradientRatio, 0.85 * now[0].stats.gradientRatio) << "frame " << t + 1;
+        EXPECT_GT(now[t].stats.gradientRatio, paper[t].stats.gradientRatio) << "frame " << t + 1;
+        EXPECT_LT(now[t].stats.temporalChange.value_or(1.0), paper[t].stats.temporalChange.value_or(0.0))
+            << "frame " << t + 1;
+        EXPECT_DOUBLE_EQ(now[t].stats.coverage, 1.0);
+    }
 }
 
 TEST(Stylize, StandardNnfDropsPatchUsageAndTheSeedMatters)

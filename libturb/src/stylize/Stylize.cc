@@ -359,13 +359,25 @@ void emIterations(const ExemplarLevel& ex, TargetLevel& tl, int level, int r, co
         }
         st.secondsNnf += since(tn);
         auto tv = Clock::now();
-        vote(ex.features, c.nnf, r, 0, 0, 4, tl.features);
+        VoteSettings vs;
+        if (s.voteWeight > 0.0f) {
+            std::vector<float> d;
+            for (size_t q = 0; q < c.nnf.source.size(); ++q)
+                if (c.nnf.source[q] >= 0) d.push_back(c.nnf.distance[q]);
+            if (!d.empty()) {
+                const auto q75 = d.begin() + std::ptrdiff_t(d.size() * 3 / 4);
+                std::nth_element(d.begin(), q75, d.end());
+                vs.distanceScale = s.voteWeight * std::max(1e-9f, *q75);
+            }
+        }
+        vote(ex.features, c.nnf, r, 0, 0, 4, tl.features, vs);
         st.secondsVote += since(tv);
     }
 }
 
 /// The EM pyramid from the coarsest level to the finest: each level starts from the coarser result enlarged (the
-/// coarsest from random patches). Returns the finest level's premultiplied RGBA, unpadded.
+/// coarsest from random patches), or on later frames with startFromPrevious from the previous output advected.
+/// Returns the finest level's premultiplied RGBA, unpadded.
 ChannelImage synthesizePyramid(const TargetGuides& g, const ExemplarGuides& e, bool first, int levels, int r,
     const StylizeSettings& s, int frame, Correspondence& c, StylizeStats& st, Progress* progress)
 {
@@ -377,12 +389,14 @@ ChannelImage synthesizePyramid(const TargetGuides& g, const ExemplarGuides& e, b
         const ExemplarLevel ex = exemplarLevel(e.cur, e.prev, e.blur, level, r, s.rotations, s);
         TargetLevel tl = targetLevel(g.alpha, g.blur, first ? ChannelImage(W, H, 4) : g.prev,
             first ? ChannelImage(W, H, 1) : g.lambda, level, r, s, ex);
-        if (!current.empty()) {
-            const ChannelImage init = padClamped(enlarge(current, tl.width, tl.height), r);
+        ChannelImage init;
+        if (!first && s.startFromPrevious) init = padClamped(reducedTimes(g.prev, level), r);
+        else if (!current.empty()) init = padClamped(enlarge(current, tl.width, tl.height), r);
+        if (init.empty()) {
+            randomStart(ex, tl, r, s, frame);
+        } else {
             for (size_t i = 0; i < init.pixelCount(); ++i)
                 std::copy(init.pixel(i), init.pixel(i) + 4, tl.features.pixel(i));
-        } else {
-            randomStart(ex, tl, r, s, frame);
         }
         st.secondsGuides += since(tg);
         emIterations(ex, tl, level, r, s, frame, c, st, progress);
@@ -485,6 +499,7 @@ void validate(const StylizeSettings& s)
     if (s.iterations < 1 || s.fineIterations < 1 || s.sweeps < 1)
         throw ValueError("stylize: iterations and sweeps must be >= 1");
     if (!(s.motionBlur >= 0.0f)) throw ValueError("stylize: motion blur must be >= 0");
+    if (!(s.voteWeight >= 0.0f)) throw ValueError("stylize: the vote weight must be >= 0");
 }
 
 Stylizer::Stylizer(const StylizeSettings& settings) : mSettings(settings) { validate(settings); }

@@ -28,17 +28,22 @@ std::vector<int> averageOverCoveringPatches(
             for (int x = 0; x < W; ++x) {
                 std::fill(acc.begin(), acc.end(), 0.0);
                 int n = 0;
+                double wsum = 0.0;
                 for (int dy = -radius; dy <= radius; ++dy) {
                     const int cy = y - dy;
                     if (cy < 0 || cy >= H) continue;
                     for (int dx = -radius; dx <= radius; ++dx) {
                         const int cx = x - dx;
                         if (cx < 0 || cx >= W) continue;
-                        if (add(cx, cy, dx, dy, acc)) ++n;
+                        const double w = add(cx, cy, dx, dy, acc);
+                        if (w > 0.0) {
+                            ++n;
+                            wsum += w;
+                        }
                     }
                 }
                 float* t = target.pixel(x, y) + firstTarget;
-                for (int c = 0; c < count; ++c) t[c] = n ? float(acc[size_t(c)] / n) : settings.empty;
+                for (int c = 0; c < count; ++c) t[c] = wsum > 0.0 ? float(acc[size_t(c)] / wsum) : settings.empty;
                 votes[size_t(y) * size_t(W) + size_t(x)] = n;
             }
         }
@@ -59,11 +64,15 @@ std::vector<int> vote(const ChannelImage& source, const Nnf& nnf, int radius, in
     const int W = target.width(), sW = source.width();
     return averageOverCoveringPatches(
         radius, firstTarget, count, target, settings, [&](int cx, int cy, int dx, int dy, std::vector<double>& acc) {
-            const std::int32_t p = nnf.source[size_t(cy) * size_t(W) + size_t(cx)];
-            if (p < 0) return false;
+            const size_t q = size_t(cy) * size_t(W) + size_t(cx);
+            const std::int32_t p = nnf.source[q];
+            if (p < 0) return 0.0;
+            const double w = settings.distanceScale > 0.0f
+                                 ? std::max(1e-12, std::exp(-double(nnf.distance[q]) / double(settings.distanceScale)))
+                                 : 1.0;
             const float* s = source.pixel(p % sW + dx, p / sW + dy) + firstSource;
-            for (int c = 0; c < count; ++c) acc[size_t(c)] += s[c];
-            return true;
+            for (int c = 0; c < count; ++c) acc[size_t(c)] += w * s[c];
+            return w;
         });
 }
 
@@ -103,7 +112,7 @@ std::vector<int> voteRotated(const std::vector<const ChannelImage*>& frames, con
     return averageOverCoveringPatches(
         radius, firstTarget, count, target, settings, [&](int cx, int cy, int dx, int dy, std::vector<double>& acc) {
             const PatchRef& m = nnf.match[size_t(cy) * size_t(W) + size_t(cx)];
-            if (!m.valid()) return false;
+            if (!m.valid()) return 0.0;
             const ChannelImage& src = *frames[size_t(m.frame)];
             const Tap& t =
                 taps[(size_t(m.rotation) * size_t(n) + size_t(dy + radius)) * size_t(n) + size_t(dx + radius)];
@@ -115,7 +124,7 @@ std::vector<int> voteRotated(const std::vector<const ChannelImage*>& frames, con
             for (int ch = 0; ch < count; ++ch)
                 acc[size_t(ch)] +=
                     (1 - t.fy) * ((1 - t.fx) * a[ch] + t.fx * b[ch]) + t.fy * ((1 - t.fx) * c[ch] + t.fx * d[ch]);
-            return true;
+            return 1.0;
         });
 }
 
