@@ -39,7 +39,8 @@ plume() {
         log "swirl: simulating"
         "$VDBTURB" sim swirl --res 48x48x72 --frames 40 --seed 3 --out "$sw/swirl.####.vdb" -q
     fi
-    "$VDBTURB" preview "$sw/swirl.0040.vdb" --out "$sw/render.png" --width 144 -q
+    # --no-crop: the whole domain, as the stylize camera below sees it (the exemplar and its alpha must match)
+    "$VDBTURB" preview "$sw/swirl.0040.vdb" --frames 40 --no-crop --out "$sw/render.png" --width 144 -q
     rm -rf "$sw/t"
     "$VDBTURB" stylize --cache "$sw/swirl.####.vdb" --frames 40 --camera front --width 144 --exemplar builtin:fire:32 \
         --out "$sw/t/unused.####.png" --write-target "$sw/t" -q
