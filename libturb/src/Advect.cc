@@ -30,21 +30,8 @@ openvdb::math::Transform::Ptr transformOf(const Lattice& l)
 // travel distance along z too, so a one-layer field would be advected as a slab 2 * travel + 1 layers thick; the
 // same schemes on the layer alone cost a small fraction of that.
 
-inline float minOf(float a, float b) { return std::min(a, b); }
-inline float maxOf(float a, float b) { return std::max(a, b); }
-inline Vec3f minOf(const Vec3f& a, const Vec3f& b)
-{
-    return Vec3f(std::min(a[0], b[0]), std::min(a[1], b[1]), std::min(a[2], b[2]));
-}
-inline Vec3f maxOf(const Vec3f& a, const Vec3f& b)
-{
-    return Vec3f(std::max(a[0], b[0]), std::max(a[1], b[1]), std::max(a[2], b[2]));
-}
-inline float clampTo(float v, float lo, float hi) { return std::min(std::max(v, lo), hi); }
-inline Vec3f clampTo(const Vec3f& v, const Vec3f& lo, const Vec3f& hi)
-{
-    return Vec3f(clampTo(v[0], lo[0], hi[0]), clampTo(v[1], lo[1], hi[1]), clampTo(v[2], lo[2], hi[2]));
-}
+using detail::maxOf;
+using detail::minOf;
 
 // Bilinear sample of a flat field at in-plane index (x, y); zero outside its box (OpenVDB's background). With
 // `range`, also the min and max of the (in-box) taps, for the clamp limiter.
@@ -109,31 +96,7 @@ Field<T> advectFlat(const Field<T>& q, const VectorField& velocity, double dt, c
                 }
         });
     };
-    Field<T> phi = q, a(b, ql), c(b, ql), lo(b, ql), hi(b, ql);
-    const bool limit = s.clamp && s.scheme != AdvectSettings::Scheme::SemiLagrangian;
-    for (int step = 0; step < substeps; ++step) {
-        switch (s.scheme) {
-        case AdvectSettings::Scheme::SemiLagrangian: semi(phi, h, a, nullptr, nullptr); break;
-        case AdvectSettings::Scheme::MacCormack:
-            // a = A(phi), c = A^R(a); phi' = a + (phi - c) / 2
-            semi(phi, h, a, &lo, &hi);
-            semi(a, -h, c, nullptr, nullptr);
-            for (size_t n = 0; n < a.size(); ++n) a.data()[n] = a.data()[n] + (phi.data()[n] - c.data()[n]) * 0.5f;
-            break;
-        case AdvectSettings::Scheme::BFECC:
-            // a = A(phi), c = A^R(a); phi' = A(phi + (phi - c) / 2), clamped to the range of phi's taps at the same
-            // backtrace (the first pass's)
-            semi(phi, h, a, &lo, &hi);
-            semi(a, -h, c, nullptr, nullptr);
-            for (size_t n = 0; n < c.size(); ++n) c.data()[n] = phi.data()[n] + (phi.data()[n] - c.data()[n]) * 0.5f;
-            semi(c, h, a, nullptr, nullptr);
-            break;
-        }
-        if (limit)
-            for (size_t n = 0; n < a.size(); ++n) a.data()[n] = clampTo(a.data()[n], lo.data()[n], hi.data()[n]);
-        std::swap(phi, a);
-    }
-    return phi;
+    return detail::integrateScheme(q, substeps, h, s, semi);
 }
 
 template<typename T, typename GridT>

@@ -15,21 +15,6 @@ namespace turb::detail {
 
 namespace {
 
-inline float minOf(float a, float b) { return std::min(a, b); }
-inline float maxOf(float a, float b) { return std::max(a, b); }
-inline Vec3f minOf(const Vec3f& a, const Vec3f& b)
-{
-    return Vec3f(std::min(a[0], b[0]), std::min(a[1], b[1]), std::min(a[2], b[2]));
-}
-inline Vec3f maxOf(const Vec3f& a, const Vec3f& b)
-{
-    return Vec3f(std::max(a[0], b[0]), std::max(a[1], b[1]), std::max(a[2], b[2]));
-}
-inline float clampTo(float v, float lo, float hi) { return std::min(std::max(v, lo), hi); }
-inline Vec3f clampTo(const Vec3f& v, const Vec3f& lo, const Vec3f& hi)
-{
-    return Vec3f(clampTo(v[0], lo[0], hi[0]), clampTo(v[1], lo[1], hi[1]), clampTo(v[2], lo[2], hi[2]));
-}
 inline bool isZero(float v) { return v == 0.0f; }
 inline bool isZero(const Vec3f& v) { return v[0] == 0.0f && v[1] == 0.0f && v[2] == 0.0f; }
 
@@ -178,42 +163,7 @@ Field<T> advectDenseImpl(const Field<T>& q, const VectorField& velocity, double 
                     }
         });
     };
-    const auto eachVoxel = [&](auto&& body) {
-        parallelFor(q.size(), size_t(1) << 16, [&](size_t n0, size_t n1) {
-            for (size_t n = n0; n < n1; ++n) body(n);
-        });
-    };
-
-    const CoordBBox& b = q.bbox();
-    Field<T> phi = q, a(b, ql), c(b, ql), lo(b, ql), hi(b, ql);
-    const bool limit = s.clamp && s.scheme != AdvectSettings::Scheme::SemiLagrangian;
-    T *P = phi.data(), *A = a.data(), *C = c.data();
-    for (int step = 0; step < substeps; ++step) {
-        switch (s.scheme) {
-        case AdvectSettings::Scheme::SemiLagrangian: semi(phi, h, a, nullptr, nullptr); break;
-        case AdvectSettings::Scheme::MacCormack:
-            // a = A(phi), c = A^R(a); phi' = a + (phi - c) / 2
-            semi(phi, h, a, &lo, &hi);
-            semi(a, -h, c, nullptr, nullptr);
-            eachVoxel([&](size_t n) { A[n] = A[n] + (P[n] - C[n]) * 0.5f; });
-            break;
-        case AdvectSettings::Scheme::BFECC:
-            // a = A(phi), c = A^R(a); phi' = A(phi + (phi - c) / 2), clamped to the range of phi's taps at the first
-            // pass's backtrace
-            semi(phi, h, a, &lo, &hi);
-            semi(a, -h, c, nullptr, nullptr);
-            eachVoxel([&](size_t n) { C[n] = P[n] + (P[n] - C[n]) * 0.5f; });
-            semi(c, h, a, nullptr, nullptr);
-            break;
-        }
-        if (limit) {
-            const T *LO = lo.data(), *HI = hi.data();
-            eachVoxel([&](size_t n) { A[n] = clampTo(A[n], LO[n], HI[n]); });
-        }
-        std::swap(phi, a);
-        P = phi.data(), A = a.data();
-    }
-    return phi;
+    return integrateScheme(q, substeps, h, s, semi);
 }
 
 } // namespace
