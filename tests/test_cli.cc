@@ -47,6 +47,15 @@ TEST(Cli, UsageErrorsExitTwoAndMissingInputsExitOne)
     for (const std::string bad : {"--density-threshold -1", "--density-guide nan", "--alpha inf", "--beta -0.5"})
         EXPECT_EQ(run("transfer --target " + lo() + " --source " + hi() + " --out o.####.vdb --dry-run " + bad).code, 2)
             << bad;
+    // NaN for any number of any command: refused after parsing, naming the option (2026-12-04: synth's solenoidal
+    // tolerance and stylize's vote weight let it through to the first frame or to the settings file).
+    for (const std::string cmd : {"synth --flow vortex --flow-res 8x8x1 --dry-run --combine.solenoidalTolerance nan",
+             "stylize --scene rotate --scene-size 64x64 --frames 1 --exemplar builtin:fire:32 --dry-run --vote-weight NaN",
+             "synth --flow vortex --flow-res 8x8x1 --dry-run --omega nan"}) {
+        const CmdResult r = run(cmd);
+        EXPECT_EQ(r.code, 2) << cmd << "\n" << r.out;
+        EXPECT_NE(r.out.find("is not a number"), std::string::npos) << r.out;
+    }
     const CmdResult missing = run("info /nonexistent/cache.vdb");
     EXPECT_EQ(missing.code, 1);
     EXPECT_NE(missing.out.find("/nonexistent/cache.vdb"), std::string::npos) << missing.out;

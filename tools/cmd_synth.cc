@@ -47,7 +47,7 @@ struct SynthArgs
     std::string secondary = "density";
     std::string walls, obstacle;
     bool json = false, stats = false;
-    bool strict = false; ///< a projection that does not converge fails the run (exit 1) after the last frame
+    bool strict = false; ///< a projection or detail divergence solve that does not converge fails the run (exit 1)
     std::string out = "synth/synth.####.vdb";
     std::string preview, previewView;
     int previewWidth = 256;
@@ -989,7 +989,8 @@ Command synthCommand()
         app->add_flag(
             "--project", a.seq.project, "Make F divergence-free (Helmholtz-Hodge projection); walls are closed faces");
         app->add_flag(
-            "--strict", a.strict, "Exit 1 when a projection does not converge (always a warning naming the frame)");
+            "--strict", a.strict,
+            "Exit 1 when a projection or the detail's divergence solve does not converge (always a warning naming the frame)");
         app->add_option(
             "--preview", a.preview, "Write a picture per frame into DIR: LIC of exemplar, up(L), H', F, and density");
         app->add_flag("--json", a.json, "One JSON line per frame and a summary on stdout");

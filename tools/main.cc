@@ -31,6 +31,25 @@ void warnIfClippedAway(
     logWarning(os.str());
 }
 
+// CLI11's range checks let NaN through (every comparison with it is false), and a NaN setting would only fail, or
+// quietly misbehave, deep in a run: refused for every option of every command, after parsing.
+std::string notANumber(const CLI::App& app)
+{
+    for (const CLI::Option* o : app.get_options()) {
+        // Numbers only: a file or pattern may be called "nan".
+        if (o->get_type_name().rfind("FLOAT", 0) != 0 && o->get_type_name().rfind("DOUBLE", 0) != 0) continue;
+        for (const std::string& r : o->results()) {
+            char* end = nullptr;
+            const double v = std::strtod(r.c_str(), &end);
+            if (end != r.c_str() && *end == '\0' && std::isnan(v))
+                return o->get_name() + ": " + r + " is not a number";
+        }
+    }
+    for (const CLI::App* sub : app.get_subcommands())
+        if (const std::string m = notANumber(*sub); !m.empty()) return m;
+    return {};
+}
+
 bool parseNumber(const std::string& s, double& v)
 {
     try {
@@ -388,6 +407,10 @@ int main(int argc, char** argv)
     } catch (const CLI::ParseError& e) {
         const int rc = app.exit(e);
         return rc == 0 ? kOk : kUsage;
+    }
+    if (const std::string nan = notANumber(app); !nan.empty()) {
+        logError(nan);
+        return kUsage;
     }
     installSignalHandlers();
     for (auto& [sub, cmd] : subs) {
