@@ -87,8 +87,9 @@ TEST(Advect2D, InPlaneAdvectionShiftsExactlyAndAgreesWithVolumeAdvection)
 TEST(Advect, DenseShiftsExactlyAndAgreesWithVolumeAdvection)
 {
     // The dense 3D path (the default backend): a uniform flow of exactly (1, -1, 2) voxels over dt (one substep: under
-    // 3 voxels of travel) lands every backtrace on a voxel centre, so each scheme shifts the field exactly; on a smooth blob in a smooth 3D swirl it
-    // agrees with OpenVDB's VolumeAdvection (the other backend); and it does not depend on the thread count.
+    // 3 voxels of travel) lands every backtrace on a voxel centre, so each scheme shifts the field exactly; on a smooth
+    // blob in a smooth 3D swirl it agrees with OpenVDB's VolumeAdvection (the other backend); and it does not depend on
+    // the thread count.
     const Lattice lat{0.25, Vec3d(0.5, -1.0, 0.25)};
     const CoordBBox box({-4, 2, 0}, {27, 29, 25});
     ScalarField q(box, lat);

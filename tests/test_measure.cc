@@ -691,7 +691,8 @@ TEST(MeasureDensity, FrayIsLowForASmoothBallAndHighForAFrayedOne)
             }
             return d;
         };
-        const std::optional<double> smooth = densityFray(ball(0.0), 4, 0.01f), frayed = densityFray(ball(3.0), 4, 0.01f);
+        const std::optional<double> smooth = densityFray(ball(0.0), 4, 0.01f),
+                                    frayed = densityFray(ball(3.0), 4, 0.01f);
         ASSERT_TRUE(smooth && frayed) << flat;
         // Measured: 3D 0.012 and 0.77, 2D 0.008 and 0.80.
         EXPECT_LT(*smooth, 0.05) << flat;

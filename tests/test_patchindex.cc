@@ -178,7 +178,11 @@ TEST(Pca, GlobalPatchSampleFindsTheSameNeighbours)
     const auto flow = [&](unsigned seed) {
         std::mt19937 rng(seed);
         std::uniform_real_distribution<double> u(-1.0, 1.0);
-        struct Mode { Vec3d k, a; double phase; };
+        struct Mode
+        {
+            Vec3d k, a;
+            double phase;
+        };
         std::vector<Mode> modes(16);
         for (auto& m : modes) {
             m.k = Vec3d(u(rng), u(rng), u(rng)) * 0.8;

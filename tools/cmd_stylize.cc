@@ -374,11 +374,13 @@ void addLazyFluidsSettings(CLI::App* app, turb::StylizeSettings& s)
         "motionBlur")
         ->check(CLI::NonNegativeNumber);
     knob("--vote-weight,--voteWeight", s.voteWeight,
-        "Beyond the paper: votes weighted by exp(-D / (w x the 75th percentile of D)) (Wexler 2007; 0 = the paper's plain average)",
+        "Beyond the paper: votes weighted by exp(-D / (w x the 75th percentile of D)) (Wexler 2007; 0 = the paper's "
+        "plain average)",
         "voteWeight")
         ->check(CLI::NonNegativeNumber);
     boolSetting(app, "--startFromPrevious", s.startFromPrevious,
-        "Beyond the paper: later frames start every level from the previous output advected (false: coarse to fine, the paper)",
+        "Beyond the paper: later frames start every level from the previous output advected (false: coarse to fine, "
+        "the paper)",
         "startFromPrevious");
     knob("--seed", s.seed, "Random seed: the same seed gives the same frames at any --threads", "seed");
 }

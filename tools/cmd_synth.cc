@@ -760,8 +760,8 @@ int runSynth(SynthArgs& a)
     if (unconverged.empty()) return kOk;
     std::string list;
     for (int fr : unconverged) list += (list.empty() ? "" : ", ") + std::to_string(fr);
-    const std::string msg =
-        std::to_string(unconverged.size()) + " frame(s) with a projection or a detail divergence solve that did not converge: " + list;
+    const std::string msg = std::to_string(unconverged.size()) +
+                            " frame(s) with a projection or a detail divergence solve that did not converge: " + list;
     if (a.strict) {
         logError(msg + " (--strict)");
         return kFailed;
@@ -988,9 +988,9 @@ Command synthCommand()
             "--walls", a.walls, "Walls: x-,x+,y-,y+,z-,z+, all or none (default: a scene's closed faces, else none)");
         app->add_flag(
             "--project", a.seq.project, "Make F divergence-free (Helmholtz-Hodge projection); walls are closed faces");
-        app->add_flag(
-            "--strict", a.strict,
-            "Exit 1 when a projection or the detail's divergence solve does not converge (always a warning naming the frame)");
+        app->add_flag("--strict", a.strict,
+            "Exit 1 when a projection or the detail's divergence solve does not converge (always a warning naming the "
+            "frame)");
         app->add_option(
             "--preview", a.preview, "Write a picture per frame into DIR: LIC of exemplar, up(L), H', F, and density");
         app->add_flag("--json", a.json, "One JSON line per frame and a summary on stdout");

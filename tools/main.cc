@@ -41,8 +41,7 @@ std::string notANumber(const CLI::App& app)
         for (const std::string& r : o->results()) {
             char* end = nullptr;
             const double v = std::strtod(r.c_str(), &end);
-            if (end != r.c_str() && *end == '\0' && std::isnan(v))
-                return o->get_name() + ": " + r + " is not a number";
+            if (end != r.c_str() && *end == '\0' && std::isnan(v)) return o->get_name() + ": " + r + " is not a number";
         }
     }
     for (const CLI::App* sub : app.get_subcommands())

@@ -26,8 +26,7 @@ struct Layout
     template<typename T>
     explicit Layout(const Field<T>& f)
         : nx(f.dim().x()), ny(f.dim().y()), nz(f.dim().z()), sx(size_t(ny) * size_t(nz)), sy(size_t(nz))
-    {
-    }
+    {}
     bool inside(int i, int j, int k) const { return i >= 0 && j >= 0 && k >= 0 && i < nx && j < ny && k < nz; }
 };
 
@@ -122,8 +121,8 @@ Field<T> advectDenseImpl(const Field<T>& q, const VectorField& velocity, double 
         for (size_t i = x0; i < x1; ++i)
             for (int j = 0; j < L.ny; ++j)
                 for (int k = 0; k < L.nz; ++k) {
-                    const Vec3d w = ql.indexToWorld(Vec3d(double(qmin.x()) + double(i), double(qmin.y() + j),
-                        double(qmin.z() + k)));
+                    const Vec3d w = ql.indexToWorld(
+                        Vec3d(double(qmin.x()) + double(i), double(qmin.y() + j), double(qmin.z() + k)));
                     const Vec3d vi = vl.worldToIndex(w) - vmin.asVec3d();
                     const Vec3f v = sample(velocity.data(), LV, vi.x(), vi.y(), vi.z());
                     disp[i * L.sx + size_t(j) * L.sy + size_t(k)] = v / float(ql.voxelSize);

@@ -16,8 +16,7 @@ class CentralNormalOperator;
 namespace Eigen::internal {
 template<>
 struct traits<turb::detail::CentralNormalOperator> : public Eigen::internal::traits<Eigen::SparseMatrix<double>>
-{
-};
+{};
 } // namespace Eigen::internal
 
 namespace turb::detail {
@@ -35,8 +34,7 @@ public:
     explicit CentralNormalOperator(const CoordBBox& box)
         : mDim(box.dim()), mStride{size_t(mDim.y()) * size_t(mDim.z()), size_t(mDim.z()), 1},
           mSize(size_t(mDim.x()) * size_t(mDim.y()) * size_t(mDim.z())), mGrad(mSize * 3)
-    {
-    }
+    {}
     Eigen::Index rows() const { return Eigen::Index(mSize); }
     Eigen::Index cols() const { return Eigen::Index(mSize); }
 
@@ -144,8 +142,7 @@ CentralDivergenceResult removeCentralDivergence(VectorField& u, double tolerance
         out.converged = true;
         return out;
     }
-    Eigen::ConjugateGradient<detail::CentralNormalOperator, Eigen::Lower | Eigen::Upper,
-        Eigen::IdentityPreconditioner>
+    Eigen::ConjugateGradient<detail::CentralNormalOperator, Eigen::Lower | Eigen::Upper, Eigen::IdentityPreconditioner>
         cg;
     cg.setTolerance(tolerance);
     cg.setMaxIterations(maxIterations);

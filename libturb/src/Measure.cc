@@ -484,11 +484,10 @@ std::vector<std::pair<std::string, std::optional<double>>> FrameMeasures::scalar
         {"tcoh_source", tcohSource}, {"mass_ratio", massRatio}, {"peak_density", peakDensity},
         {"peak_ratio", peakRatio}, {"density_err", densityErr}, {"density_imprint", densityImprint},
         {"density_fray", densityFray}, {"density_fray_source", densityFraySource},
-        {"density_fray_ratio", densityFrayRatio}, {"aniso", aniso},
-        {"aniso_source", anisoSource}, {"aniso_ratio", anisoRatio}, {"isotropy", isotropy},
-        {"isotropy_source", isotropySource}, {"lattice", lattice}, {"lattice_source", latticeSource},
-        {"vort_peak", vortPeak}, {"vort_peak_source", vortPeakSource}, {"vort_peak_ratio", vortPeakRatio},
-        {"air_detail", airDetail}};
+        {"density_fray_ratio", densityFrayRatio}, {"aniso", aniso}, {"aniso_source", anisoSource},
+        {"aniso_ratio", anisoRatio}, {"isotropy", isotropy}, {"isotropy_source", isotropySource}, {"lattice", lattice},
+        {"lattice_source", latticeSource}, {"vort_peak", vortPeak}, {"vort_peak_source", vortPeakSource},
+        {"vort_peak_ratio", vortPeakRatio}, {"air_detail", airDetail}};
 }
 
 std::optional<double> lowFrequencyError(const VectorField& detail, const VectorField& up, const Mask& coarseMask, int f)

@@ -96,27 +96,27 @@ struct FrameMeasures
     size_t smokeVoxels = 0;                 ///< output voxels in the smoke region
     size_t smokeCells = 0;                  ///< coarse (target) cells in the smoke region
 
-    std::optional<double> lfErr;          ///< |boxdown(U_out - up(U_t))| / |boxdown(up(U_t))| over smoke cells
-    std::optional<double> hfEnergy;       ///< E_hf(U_out) = mean |U - up(boxdown(U))|^2, world units^2
-    std::optional<double> hfEnergySource; ///< E_hf(U_src) with the source's ratio to the target
-    std::optional<double> hfRatio;        ///< hfEnergy / hfEnergySource
-    std::optional<double> divRel;         ///< rms(div U_out) / rms(|grad U_out|), central differences
-    std::optional<double> divRelSource;   ///< the same of the source, for reference
-    std::optional<double> block;          ///< mean |dU_h| across seam planes / mean elsewhere
-    int patchSize = 0;                    ///< the seam spacing block used (0 = none)
-    Coord patchOrigin{0};                 ///< the patch origin block used, in output voxels
-    std::optional<double> tcoh;           ///< rms(U_h(f) - advect(U_h(f-1), U_t(f-1), dt)) / rms(U_h(f))
-    double dt = 0.0;                      ///< the time tcoh advected over: frame gap x time per frame (0 = no tcoh)
-    std::optional<double> tcohSource;     ///< the source's own: its detail U_s - up(boxdown(U_s)) carried by
-                                          ///< its boxdown velocity, for reference
-    std::optional<double> massRatio;      ///< output density mass / target density mass (sum of density x voxel
-                                          ///< volume over each whole frame); 0.9-1.1 keeps the target's smoke
-    std::optional<double> peakDensity;    ///< the output's largest density
-    std::optional<double> peakRatio;      ///< peakDensity / the target's largest density (<= 1.05: no pile-up)
-    std::optional<double> densityErr;     ///< rms(boxdown_f(D_out) - D_t) / rms(D_t) over the target's smoke cells:
-                                          ///< the output keeps the target's density at its scale (<= 0.1)
-    std::optional<double> densityImprint; ///< densityImprint(): the target's cell faces printed into the output
-                                          ///< density (about 1: none; a blocky staircase silhouette: well above 1)
+    std::optional<double> lfErr;             ///< |boxdown(U_out - up(U_t))| / |boxdown(up(U_t))| over smoke cells
+    std::optional<double> hfEnergy;          ///< E_hf(U_out) = mean |U - up(boxdown(U))|^2, world units^2
+    std::optional<double> hfEnergySource;    ///< E_hf(U_src) with the source's ratio to the target
+    std::optional<double> hfRatio;           ///< hfEnergy / hfEnergySource
+    std::optional<double> divRel;            ///< rms(div U_out) / rms(|grad U_out|), central differences
+    std::optional<double> divRelSource;      ///< the same of the source, for reference
+    std::optional<double> block;             ///< mean |dU_h| across seam planes / mean elsewhere
+    int patchSize = 0;                       ///< the seam spacing block used (0 = none)
+    Coord patchOrigin{0};                    ///< the patch origin block used, in output voxels
+    std::optional<double> tcoh;              ///< rms(U_h(f) - advect(U_h(f-1), U_t(f-1), dt)) / rms(U_h(f))
+    double dt = 0.0;                         ///< the time tcoh advected over: frame gap x time per frame (0 = no tcoh)
+    std::optional<double> tcohSource;        ///< the source's own: its detail U_s - up(boxdown(U_s)) carried by
+                                             ///< its boxdown velocity, for reference
+    std::optional<double> massRatio;         ///< output density mass / target density mass (sum of density x voxel
+                                             ///< volume over each whole frame); 0.9-1.1 keeps the target's smoke
+    std::optional<double> peakDensity;       ///< the output's largest density
+    std::optional<double> peakRatio;         ///< peakDensity / the target's largest density (<= 1.05: no pile-up)
+    std::optional<double> densityErr;        ///< rms(boxdown_f(D_out) - D_t) / rms(D_t) over the target's smoke cells:
+                                             ///< the output keeps the target's density at its scale (<= 0.1)
+    std::optional<double> densityImprint;    ///< densityImprint(): the target's cell faces printed into the output
+                                             ///< density (about 1: none; a blocky staircase silhouette: well above 1)
     std::optional<double> densityFray;       ///< densityFray() of the output (on the refined target lattice)
     std::optional<double> densityFraySource; ///< the same of the source at its own ratio
     std::optional<double> densityFrayRatio;  ///< densityFray / densityFraySource: well above 1 for a silhouette

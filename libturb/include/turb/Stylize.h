@@ -69,8 +69,8 @@ struct StylizeSettings
     /// Beyond the paper: each vote is weighted by exp(-D / (voteWeight x the 75th percentile of D over the level's
     /// matched patches)), D a patch's distance (Wexler et al. 2007's weighted voting), so the patches that fit
     /// dominate where overlapping ones disagree; >= 0, 0 = the plain average (the paper). Measured on the wash-out
-    /// target (docs/stylize.md): at 1 the gradient ratio is 0.74 instead of 0.67 from frame 5 on, the std ratio 0.84-0.90
-    /// instead of 0.93-0.95; not the default.
+    /// target (docs/stylize.md): at 1 the gradient ratio is 0.74 instead of 0.67 from frame 5 on, the std ratio
+    /// 0.84-0.90 instead of 0.93-0.95; not the default.
     float voteWeight = 0.0f;
     /// Beyond the paper: from the second frame on, every pyramid level's EM starts from the previous output advected
     /// to this frame (the target's previous-frame guide, reduced to the level) instead of the coarser level's result

@@ -21,7 +21,7 @@ namespace turb {
 
 struct VoteSettings
 {
-    float empty = 0.0f; ///< value of pixels no patch covers
+    float empty = 0.0f;         ///< value of pixels no patch covers
     float distanceScale = 0.0f; ///< > 0: weight votes by exp(-distance / distanceScale) (Wexler 2007); 0: uniform
 };
 
