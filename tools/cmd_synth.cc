@@ -488,21 +488,27 @@ nlohmann::json projectionReport(const SynthArgs& a, const turb::SynthFrameResult
                        "), solver residual " + fmt("%.2e", pr.relativeResidual));
         }
     }
-    if (r.detailDivergence) {
-        const turb::CentralDivergenceResult& d = *r.detailDivergence;
-        projJson["detail_divergence"] = {{"converged", d.converged}, {"iterations", d.iterations},
-            {"div_rms_before", d.divRmsBefore}, {"div_rms_after", d.divRmsAfter}};
-        logVerbose("frame " + std::to_string(fr) + ": detail divergence rms " + fmt("%.3g", d.divRmsBefore) + " -> " +
-                   fmt("%.3g", d.divRmsAfter) + " (" + std::to_string(d.iterations) + " CG iterations)");
-        if (!d.converged) {
-            if (unconverged.empty() || unconverged.back() != fr) unconverged.push_back(fr);
-            progress.clear();
-            logWarning("frame " + std::to_string(fr) + ": taking the detail's divergence out did not converge (" +
-                       std::to_string(d.iterations) + " iterations, rms " + fmt("%.3g", d.divRmsBefore) + " -> " +
-                       fmt("%.3g", d.divRmsAfter) + ")" + (a.strict ? "" : " (--strict makes this an error)"));
-        }
-    }
     return projJson;
+}
+
+// The detail's divergence solve for the JSON line (null without one); one that stopped short is warned about and
+// listed, as a projection is.
+nlohmann::json detailDivergenceReport(const SynthArgs& a, const turb::SynthFrameResult& r, int fr,
+    ConsoleProgress& progress, std::vector<int>& unconverged)
+{
+    if (!r.detailDivergence) return nullptr;
+    const turb::CentralDivergenceResult& d = *r.detailDivergence;
+    logVerbose("frame " + std::to_string(fr) + ": detail divergence rms " + fmt("%.3g", d.divRmsBefore) + " -> " +
+               fmt("%.3g", d.divRmsAfter) + " (" + std::to_string(d.iterations) + " CG iterations)");
+    if (!d.converged) {
+        if (unconverged.empty() || unconverged.back() != fr) unconverged.push_back(fr);
+        progress.clear();
+        logWarning("frame " + std::to_string(fr) + ": taking the detail's divergence out did not converge (" +
+                   std::to_string(d.iterations) + " iterations, rms " + fmt("%.3g", d.divRmsBefore) + " -> " +
+                   fmt("%.3g", d.divRmsAfter) + ")" + (a.strict ? "" : " (--strict makes this an error)"));
+    }
+    return {{"converged", d.converged}, {"iterations", d.iterations}, {"div_rms_before", d.divRmsBefore},
+        {"div_rms_after", d.divRmsAfter}};
 }
 
 // --stats: how well each planar view's neighbourhoods match its exemplar.
@@ -578,7 +584,6 @@ nlohmann::json frameJson(const SynthArgs& a, const turb::SynthFrameResult& r, co
     extra["detail_rms"] = std::sqrt(h2 / double(std::max<size_t>(1, H.world.size())));
     extra["detail_region"] = a.seq.detailNearSmoke && hasDensity ? "smoke" : "everywhere";
     if (a.seq.project) extra["projection"] = projJson;
-    if (projJson.contains("detail_divergence")) extra["detail_divergence"] = projJson["detail_divergence"];
     if (r.densityMass) extra["density_mass"] = *r.densityMass;
     return extra;
 }
@@ -700,6 +705,7 @@ void synthFrame(const SynthArgs& a, CoarseSource& source, SynthPlan& p, turb::Sy
                    "), so no detail is written; --detail-everywhere puts it everywhere");
     }
     const nlohmann::json projJson = projectionReport(a, r, fr, progress, unconverged);
+    const nlohmann::json divJson = detailDivergenceReport(a, r, fr, progress, unconverged);
     const auto tWrite = std::chrono::steady_clock::now();
     tagOutput(outFrame, a, p.views);
     progress.begin("writing");
@@ -710,6 +716,7 @@ void synthFrame(const SynthArgs& a, CoarseSource& source, SynthPlan& p, turb::Sy
     const double writeSeconds = secondsSince(tWrite);
 
     nlohmann::json extra = frameJson(a, r, H, cf.hasDensity(), projJson, outPath);
+    if (!divJson.is_null()) extra["detail_divergence"] = divJson;
     extra["steps_s"] = {{"read", readSeconds}, {"write", writeSeconds}};
     for (const auto& [name, sec] : r.seconds.named()) extra["steps_s"][name] = sec;
     if (a.stats) {

@@ -79,6 +79,12 @@ public:
         gradient(x, mGrad.data());
         transposed(mGrad.data(), out);
     }
+    /// G psi into the operator's own buffer (3 values per voxel), valid until the next product.
+    const std::vector<double>& gradientOf(const double* psi) const
+    {
+        gradient(psi, mGrad.data());
+        return mGrad;
+    }
 
 private:
     template<typename Fn>
@@ -112,7 +118,8 @@ struct generic_product_impl<turb::detail::CentralNormalOperator, Rhs, SparseShap
     static void scaleAndAddTo(
         Dest& dst, const turb::detail::CentralNormalOperator& op, const Rhs& rhs, const Scalar& alpha)
     {
-        const Eigen::VectorXd x = rhs;
+        // CG hands over its own contiguous vectors: read them in place, no copy per product.
+        const Eigen::Ref<const Eigen::VectorXd> x(rhs);
         Eigen::VectorXd y(x.size());
         op.apply(x.data(), y.data());
         dst += alpha * y;
@@ -148,8 +155,7 @@ CentralDivergenceResult removeCentralDivergence(VectorField& u, double tolerance
     cg.setMaxIterations(maxIterations);
     cg.compute(op);
     const Eigen::VectorXd psi = cg.solve(b);
-    std::vector<double> g(n * 3);
-    op.gradient(psi.data(), g.data());
+    const std::vector<double>& g = op.gradientOf(psi.data());
     parallelFor(n, 1 << 14, [&](size_t b0, size_t b1) {
         for (size_t i = b0; i < b1; ++i)
             for (int a = 0; a < 3; ++a) {

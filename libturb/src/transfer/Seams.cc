@@ -278,12 +278,12 @@ public:
         parallelFor(mUnknowns.size(), 2048, [&](size_t b, size_t e) {
             for (size_t u = b; u < e; ++u) {
                 const size_t r = size_t(mUnknowns[u]);
+                const uint8_t mask = mEdgeMask[u];
                 Vec3f acc(0.0f);
                 for (int a = 0; a < mAxes; ++a) {
                     // Edge (r - e_a, r) has +1 on x[r]; edge (r, r + e_a) has -1.
-                    const int lo = mNb[2 * a][r];
-                    if (lo >= 0 && (mFlags[size_t(lo)] & (1u << a))) acc += se[size_t(lo) * 3 + size_t(a)];
-                    if (mFlags[r] & (1u << a)) acc -= se[r * 3 + size_t(a)];
+                    if (mask & (1u << a)) acc += se[size_t(mNb[2 * a][r]) * 3 + size_t(a)];
+                    if (mask & (8u << a)) acc -= se[r * 3 + size_t(a)];
                     // Divergence rows whose stencil uses x[r][a].
                     acc[a] += mSqrtGamma * gatherDiv(u, r, a, sd);
                 }
@@ -299,8 +299,8 @@ public:
     // it, its cell's box row and its value row. The edge rows' values of A p are never stored: a CG iteration streams
     // through about half the memory that A p followed by A^T did (E-steps of the Blender paper pair's frames 29-30,
     // 7e5-voxel bands: 2.7 -> 1.6 s and 1.9 -> 1.1 s, with the compact gather coefficients below).
-    double applyNormal(const std::vector<Vec3f>& p, std::vector<float>& d, std::vector<Vec3f>& cells,
-        std::vector<Vec3f>& Np) const
+    double applyNormal(
+        const std::vector<Vec3f>& p, std::vector<float>& d, std::vector<Vec3f>& cells, std::vector<Vec3f>& Np) const
     {
         if (d.size() != rows()) d.assign(rows(), 0.0f); // rows without a divergence row stay zero
         cells.resize(mCells.size());
@@ -701,12 +701,12 @@ private:
     std::vector<Coord> mCells;     // coarse cells with box rows
     std::vector<Vec3f> mBoxTarget; // per cell: the sum of X the row pulls towards
     std::vector<int> mCellStart, mCellMembers, mCellOf;
-    std::vector<uint8_t> mEdgeMask;              // per unknown: bit a = edge (r - e_a, r), bit 3 + a = (r, r + e_a)
-    std::vector<int> mDivRows;                   // the rows with a divergence row
+    std::vector<uint8_t> mEdgeMask;    // per unknown: bit a = edge (r - e_a, r), bit 3 + a = (r, r + e_a)
+    std::vector<int> mDivRows;         // the rows with a divergence row
     std::vector<int8_t> mGatherHalves; // per unknown, axis a, k: 2 x the coefficient of x[r][a] in the divergence row
                                        // of r's lower neighbour along a (k 0), its upper one (1), r itself (2)
-    std::vector<float> mValueCoef;               // per unknown: sqrt(mu) of its value row (empty = none)
-    std::vector<Vec3f> mAnchor;                  // per unknown: the value that row pulls towards
+    std::vector<float> mValueCoef;     // per unknown: sqrt(mu) of its value row (empty = none)
+    std::vector<Vec3f> mAnchor;        // per unknown: the value that row pulls towards
     // Axes the CG products walk: a 2D box has no z edges, and its z stencils are zero (one layer, span 0).
     int mAxes;
     std::unique_ptr<LeastSquares> mLeastSquares; // solveLeastSquares' matrix, assembled on its first call
@@ -972,8 +972,7 @@ void setEdgeTargets(SeamSystem& sys, const BoundaryPatches& bps, const VectorFie
 SeamIteration solveEStep(SeamSystem& sys, VectorField& X, const SeamSettings& settings, bool flat)
 {
     const double tolerance = flat ? settings.cgTolerance2D : settings.cgTolerance;
-    if (settings.solver == SeamSolver::EigenLscg)
-        return sys.solveLeastSquares(X, settings.maxCgIterations, tolerance);
+    if (settings.solver == SeamSolver::EigenLscg) return sys.solveLeastSquares(X, settings.maxCgIterations, tolerance);
     return sys.solve(X, settings.maxCgIterations, tolerance);
 }
 
