@@ -39,7 +39,11 @@ def trend(xs, ys):
 def summary(name, rows):
     if not rows:
         return
-    f1 = rows[0]
+    # Ratios against the first frame with an interior (a young plume has none: its ratios are 0).
+    f1 = next((r for r in rows if r["std_ratio"] > 0 and r["gradient_ratio"] > 0), None)
+    if f1 is None:
+        return
+    rows = [r for r in rows if r["frame"] >= f1["frame"]]
     std = [r["std_ratio"] / f1["std_ratio"] for r in rows]
     grad = [r["gradient_ratio"] / f1["gradient_ratio"] for r in rows]
     frames = [r["frame"] for r in rows]
@@ -48,10 +52,10 @@ def summary(name, rows):
     iou = [r["iou"] for r in rows]
     edge = [r["boundary_gradient_match"] for r in rows]
     secs = sorted(r["seconds"] for r in rows)
-    print(f"{name}: {len(rows)} frames; coverage min {min(cov):.4f}; std/frame1 {min(std):.3f}..{max(std):.3f} "
-          f"(last {std[-1]:.3f}, trend {trend(frames, std):+.3f}/100 fr); grad/frame1 {min(grad):.3f}..{max(grad):.3f} "
-          f"(last {grad[-1]:.3f}, trend {trend(frames, grad):+.3f}/100 fr); std vs exemplar f1 {f1['std_ratio']:.3f} last "
-          f"{rows[-1]['std_ratio']:.3f}; grad vs exemplar f1 {f1['gradient_ratio']:.3f} last {rows[-1]['gradient_ratio']:.3f}")
+    print(f"{name}: {len(rows)} frames; coverage min {min(cov):.4f}; std/frame {f1['frame']} {min(std):.3f}..{max(std):.3f} "
+          f"(last {std[-1]:.3f}, trend {trend(frames, std):+.3f}/100 fr); grad/frame {f1['frame']} {min(grad):.3f}..{max(grad):.3f} "
+          f"(last {grad[-1]:.3f}, trend {trend(frames, grad):+.3f}/100 fr); std vs exemplar f{f1['frame']} {f1['std_ratio']:.3f} last "
+          f"{rows[-1]['std_ratio']:.3f}; grad vs exemplar f{f1['frame']} {f1['gradient_ratio']:.3f} last {rows[-1]['gradient_ratio']:.3f}")
     if tc:
         mean = sum(tc) / len(tc)
         print(f"  temporal change mean {mean:.4f} max {max(tc):.4f} (max/mean {max(tc) / mean:.2f})")

@@ -382,6 +382,11 @@ void addLazyFluidsSettings(CLI::App* app, turb::StylizeSettings& s)
         "Beyond the paper: later frames start every level from the previous output advected (false: coarse to fine, "
         "the paper)",
         "startFromPrevious");
+    knob("--preroll", s.preroll,
+        "Beyond the paper: a first frame is synthesised again N times as a held frame under the temporal term, so the "
+        "look does not step between frames 1 and 5 (0 = the paper's first frame)",
+        "preroll")
+        ->check(CLI::Range(0, 100));
     knob("--seed", s.seed, "Random seed: the same seed gives the same frames at any --threads", "seed");
 }
 

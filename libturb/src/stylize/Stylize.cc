@@ -500,6 +500,7 @@ void validate(const StylizeSettings& s)
         throw ValueError("stylize: iterations and sweeps must be >= 1");
     if (!(s.motionBlur >= 0.0f)) throw ValueError("stylize: motion blur must be >= 0");
     if (!(s.voteWeight >= 0.0f)) throw ValueError("stylize: the vote weight must be >= 0");
+    if (s.preroll < 0 || s.preroll > 100) throw ValueError("stylize: the pre-roll must lie in 0..100 frames");
 }
 
 Stylizer::Stylizer(const StylizeSettings& settings) : mSettings(settings) { validate(settings); }
@@ -539,13 +540,31 @@ StylizedFrame Stylizer::next(const StylizeFrame& frame, Progress* progress)
     st.secondsGuides = since(t0);
 
     Correspondence c;
-    const ChannelImage current = synthesizePyramid(g, e, first, levels, r, s, mFrames, c, st, progress);
+    ChannelImage current = synthesizePyramid(g, e, first, levels, r, s, mFrames, c, st, progress);
+
+    // Pre-roll: a first frame is synthesised again, s.preroll times, as a later frame whose previous output is its own
+    // last result moved by its own motion (F^t; none when there is no motion). Synthesis under the temporal term
+    // settles within about 5 frames to a look a little softer than a frame made without it (docs/stylize.md); the
+    // pre-roll starts the shot in that state, so frame 2 does not step away from frame 1.
+    const TargetGuides* finalGuides = &g;
+    TargetGuides held;
+    if (first && s.preroll > 0 && s.lambda > 0.0f) {
+        const ChannelImage still(W, H, 2);
+        StylizeFrame f = frame;
+        f.motionIn = frame.motionOut ? frame.motionOut : &still;
+        for (int k = 1; k <= s.preroll; ++k) {
+            held = targetGuides(f, current, false, s, st);
+            // Seeds of their own (negative frame keys), so the frame after the pre-roll draws what it always drew.
+            current = synthesizePyramid(held, e, false, levels, r, s, -k, c, st, progress);
+        }
+        finalGuides = &held;
+    }
 
     // Statistics of the frame, then the output.
     auto ts = Clock::now();
     matchStats(c, st);
-    appearanceStats(current, g, e, *frame.exemplar, s, st);
-    shapeStats(current, g, first, st);
+    appearanceStats(current, *finalGuides, e, *frame.exemplar, s, st);
+    shapeStats(current, *finalGuides, first, st);
     st.secondsStats = since(ts);
 
     mPrevious = current;
