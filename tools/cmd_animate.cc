@@ -739,6 +739,10 @@ void addHmSettings(CLI::App* app, AnimateArgs& a)
     boolSetting(app, "--hm.blendPixels", hm.blendPixels,
         "Blend the cells' pixel-domain matches (false: each cell's statistics exact, seams can show)",
         "hm.blendPixels");
+    boolSetting(app, "--hm.cellMoments", hm.cellMoments,
+        "Finally solve one blended gain and offset per cell so every cell's mean and std are the target's (false: "
+        "stop after the pixel passes)",
+        "hm.cellMoments");
     legacy(app->add_flag_function(
                "--hm-exact-cells", [&hm](std::int64_t) { hm.blendPixels = false; }, "hm.blendPixels = false"),
         "hm.blendPixels", "false");

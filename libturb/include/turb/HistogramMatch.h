@@ -18,9 +18,10 @@
 /// `overlap` x the cell size into each neighbour (a partition of unity): the paper's alpha-blended
 /// overlaps, in every sub-band (the cells scaled by 2^-level) and in the pixel domain. Blending leaves a
 /// cell's statistics a few per cent off where neighbours differ; the pixel-domain match is therefore run
-/// `pixelPasses` times at the end, which brings every cell to within about 1% of the target's
-/// (measured, docs/animate.md). Unblended pixel matches (`blendPixels` = false) are exact per cell
-/// but show seams at cell borders where cells differ strongly (a smoke edge next to background).
+/// `pixelPasses` times at the end, which brings most cells within about 1% of the target's, and then
+/// (`cellMoments`, beyond the paper) one gain and offset per cell, blended alike, are solved so every cell's
+/// mean and std are exact (measured, docs/animate.md). Unblended pixel matches (`blendPixels` = false) are
+/// exact per cell but show seams at cell borders where cells differ strongly (a smoke edge next to background).
 /// The default grid is proportional to the resolution, cells of about `cellSize` pixels (the paper's
 /// Table 1 uses cells of 35..120 px, mostly about 60).
 ///
@@ -63,6 +64,11 @@ struct HistogramMatchSettings
     int orientations = 4; ///< steerable orientations (Heeger-Bergen 4), 1..8
     int bins = 1024;      ///< source histogram bins (transfer functions are tabulated at their edges), >= 16
     int quantiles = 1024; ///< target quantile table entries, >= 16
+    /// Last, per channel, one gain and offset per cell, blended with the pixel weights and solved together (Levenberg-
+    /// Marquardt on 2 equations per cell) so every cell's mean and std are the target's: the blended matches alone
+    /// leave cells next to very different ones a few per cent off (6% on the built-in river, docs/animate.md). Smooth,
+    /// so no seams. Not applied when reach > 0. false = stop after the pixel passes.
+    bool cellMoments = true;
     bool colorPca = true; ///< match in the target's colour PCA space (Heeger-Bergen's colour), then the pixel passes in
                           ///< RGB; false: every RGB channel alone (colour fringes on near-grey images)
 };
@@ -92,7 +98,8 @@ public:
     HistogramMatcher& operator=(HistogramMatcher&&) noexcept;
 
     /// The frame matched to the target. Same size and channels as the target, else ValueError.
-    /// Const and thread-safe.
+    /// With `cellMoments`, each cell's mean and std are exact for the frame as delivered: composited over the
+    /// target through the matte (m x out + (1 - m) x target), over the whole cell. Const and thread-safe.
     ChannelImage match(const ChannelImage& frame) const;
 
     int gridCols() const;

@@ -5,8 +5,10 @@
 #include <turb/SteerablePyramid.h>
 
 #include <Eigen/Dense>
+#include <Eigen/Sparse>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <string>
@@ -202,7 +204,9 @@ struct HistogramMatcher::Impl
     // Laplacian: 1..levels = bands, then low-pass.
     std::vector<Geometry> geometry;
     std::vector<std::vector<std::vector<std::vector<float>>>> tables; // [channel][slot][cell]
-    std::vector<std::vector<std::vector<float>>> rgbTables; // [channel][cell]: the target's own channels (with PCA)
+    std::vector<std::vector<std::vector<float>>> rgbTables;  // [channel][cell]: the target's own channels (with PCA)
+    std::vector<std::vector<std::array<double, 2>>> moments; // [channel][cell]: the target's mean and std (slot 0)
+    ChannelImage target, matteCopy; // for the moment step: the frame is composited over the target through the matte
 
     Geometry makeGeometry(int w, int h, double scale, double overlapScale = 1.0) const
     {
@@ -294,10 +298,202 @@ struct HistogramMatcher::Impl
         });
     }
 
+    /// Mean and std of channel c of an image over each whole cell.
+    std::vector<std::array<double, 2>> cellMoments(const ChannelImage& img, int c) const
+    {
+        std::vector<std::array<double, 2>> m(cells.size());
+        for (size_t k = 0; k < cells.size(); ++k) {
+            const MeanStd ms = meanStd(img, c, cells[k].x0, cells[k].y0, cells[k].x1, cells[k].y1);
+            m[k] = {ms.mean, ms.std};
+        }
+        return m;
+    }
+
+    void correctMoments(ChannelImage& p, int c) const;
     ChannelImage plane(const ChannelImage& img, int c) const;
     void unplane(const std::vector<ChannelImage>& planes, ChannelImage& out) const;
     void matchPlane(ChannelImage& p, int c) const;
 };
+
+// The blended pixel matches leave a cell's mean and std a few per cent off where a neighbour's map covers much of it
+// (the blend weights make each cell's statistics depend on its neighbours' maps). The last step solves for that
+// coupling exactly: one gain a_k and offset b_k per cell, applied blended with the same weights,
+//   y(x) = sum_k w_k(x) (a_k v(x) + b_k),
+// such that every cell of the frame as it is delivered, y composited over the target through the matte
+// (m y + (1 - m) t), has the target's mean and second moment over the whole cell: 2 equations per cell, quadratic in
+// (a, b), solved by Levenberg-Marquardt from (1, 0). The correction is smooth (a blend of affine maps), so it adds
+// no seam; it is kept only where it lowers the residual.
+void HistogramMatcher::Impl::correctMoments(ChannelImage& p, int channel) const
+{
+    const Geometry& g = geometry[0];
+    const int N = int(cells.size());
+    const std::vector<std::array<double, 2>>& goal = moments[size_t(channel)];
+    // One cell: the pixel matches already make it exact. A reach > 0 lets a cell's statistics see cells two away,
+    // beyond the 3x3 neighbourhood summed here; such grids keep the blended matches' result.
+    if (N < 2 || s.reach > 0.0) return;
+    // Per cell k, sums over its pixels, indexed by the neighbour offset (3x3 around k), with the matte m and the
+    // fixed part u = (1 - m) t: sum m w_j {1, v}, sum m w_j u {1, v}; per pair (i, j), sum m^2 w_i w_j {1, v, v^2};
+    // and sum u, sum u^2.
+    struct Sums
+    {
+        double n = 0.0, u1 = 0.0, u2 = 0.0;
+        std::array<std::array<double, 2>, 9> lin{}, cross{};
+        std::array<std::array<std::array<double, 3>, 9>, 9> quad{};
+    };
+    std::vector<Sums> sums(static_cast<size_t>(N));
+    const auto cellAt = [&](int k, int o) -> int { // neighbour o (0..8) of cell k, or -1 outside the grid
+        const int i = k % cols + o % 3 - 1, j = k / cols + o / 3 - 1;
+        return i < 0 || j < 0 || i >= cols || j >= rows ? -1 : j * cols + i;
+    };
+    const bool matted = !matteCopy.empty();
+    parallelFor(size_t(N), 1, [&](size_t b, size_t e) {
+        for (size_t k = b; k < e; ++k) {
+            const HmCell& cell = cells[k];
+            const int ki = int(k) % cols, kj = int(k) / cols;
+            Sums& S = sums[k];
+            for (int y = cell.y0; y < cell.y1; ++y)
+                for (int x = cell.x0; x < cell.x1; ++x) {
+                    const double v = p.at(x, y, 0);
+                    const double m = matted ? std::clamp(double(matteCopy.at(x, y, 0)), 0.0, 1.0) : 1.0;
+                    const double u = matted ? (1.0 - m) * target.at(x, y, channel) : 0.0;
+                    const AxisTap tx = g.xs[size_t(x)], ty = g.ys[size_t(y)];
+                    int o[4];
+                    double w[4];
+                    int cnt = 0;
+                    const int ca[2] = {tx.a, tx.b}, ra[2] = {ty.a, ty.b};
+                    const double cw[2] = {tx.w, 1.0 - tx.w}, rw[2] = {ty.w, 1.0 - ty.w};
+                    for (int a = 0; a < 2; ++a)
+                        for (int c = 0; c < 2; ++c) {
+                            const double ww = rw[a] * cw[c] * m;
+                            const int di = ca[c] - ki + 1, dj = ra[a] - kj + 1;
+                            if (ww <= 0.0 || di < 0 || di > 2 || dj < 0 || dj > 2) continue;
+                            o[cnt] = dj * 3 + di;
+                            w[cnt++] = ww;
+                        }
+                    S.n += 1.0;
+                    S.u1 += u;
+                    S.u2 += u * u;
+                    for (int q = 0; q < cnt; ++q) {
+                        S.lin[size_t(o[q])][0] += w[q];
+                        S.lin[size_t(o[q])][1] += w[q] * v;
+                        S.cross[size_t(o[q])][0] += w[q] * u;
+                        S.cross[size_t(o[q])][1] += w[q] * u * v;
+                        for (int t = 0; t < cnt; ++t) {
+                            auto& qq = S.quad[size_t(o[q])][size_t(o[t])];
+                            const double ww = w[q] * w[t];
+                            qq[0] += ww;
+                            qq[1] += ww * v;
+                            qq[2] += ww * v * v;
+                        }
+                    }
+                }
+        }
+    });
+    // Residuals scaled by the target's std (a floor keeps flat cells from dominating): r = [mean - M, m2 - Q].
+    std::vector<double> scale(static_cast<size_t>(N));
+    double spread = 0.0;
+    for (int k = 0; k < N; ++k) spread = std::max(spread, goal[size_t(k)][1]);
+    for (int k = 0; k < N; ++k) scale[size_t(k)] = 1.0 / std::max(goal[size_t(k)][1], 1e-3 * spread + 1e-12);
+    const auto residual = [&](const Eigen::VectorXd& ab, Eigen::VectorXd& r, std::vector<Eigen::Triplet<double>>* J) {
+        r.resize(2 * N);
+        for (int k = 0; k < N; ++k) {
+            const Sums& S = sums[size_t(k)];
+            const double inv = S.n > 0.0 ? 1.0 / S.n : 0.0, sc = scale[size_t(k)];
+            const double M = goal[size_t(k)][0], Q = M * M + goal[size_t(k)][1] * goal[size_t(k)][1];
+            double mean = S.u1 * inv, m2 = S.u2 * inv;
+            std::array<double, 9> dMa{}, dMb{}, d2a{}, d2b{};
+            for (int oi = 0; oi < 9; ++oi) {
+                const int i = cellAt(k, oi);
+                if (i < 0) continue;
+                const double ai = ab[2 * i], bi = ab[2 * i + 1];
+                mean += (ai * S.lin[size_t(oi)][1] + bi * S.lin[size_t(oi)][0]) * inv;
+                dMa[size_t(oi)] = S.lin[size_t(oi)][1] * inv;
+                dMb[size_t(oi)] = S.lin[size_t(oi)][0] * inv;
+                m2 += 2.0 * (ai * S.cross[size_t(oi)][1] + bi * S.cross[size_t(oi)][0]) * inv;
+                d2a[size_t(oi)] += 2.0 * S.cross[size_t(oi)][1] * inv;
+                d2b[size_t(oi)] += 2.0 * S.cross[size_t(oi)][0] * inv;
+                for (int oj = 0; oj < 9; ++oj) {
+                    const int j = cellAt(k, oj);
+                    if (j < 0) continue;
+                    const auto& q = S.quad[size_t(oi)][size_t(oj)];
+                    const double aj = ab[2 * j], bj = ab[2 * j + 1];
+                    m2 += (ai * aj * q[2] + 2.0 * ai * bj * q[1] + bi * bj * q[0]) * inv;
+                    d2a[size_t(oi)] += 2.0 * (aj * q[2] + bj * q[1]) * inv;
+                    d2b[size_t(oi)] += 2.0 * (aj * q[1] + bj * q[0]) * inv;
+                }
+            }
+            r[2 * k] = (mean - M) * sc;
+            r[2 * k + 1] = (m2 - Q) * sc * sc;
+            if (!J) continue;
+            for (int oi = 0; oi < 9; ++oi) {
+                const int i = cellAt(k, oi);
+                if (i < 0) continue;
+                J->emplace_back(2 * k, 2 * i, dMa[size_t(oi)] * sc);
+                J->emplace_back(2 * k, 2 * i + 1, dMb[size_t(oi)] * sc);
+                J->emplace_back(2 * k + 1, 2 * i, d2a[size_t(oi)] * sc * sc);
+                J->emplace_back(2 * k + 1, 2 * i + 1, d2b[size_t(oi)] * sc * sc);
+            }
+        }
+    };
+    Eigen::VectorXd ab(2 * N), r, rTry;
+    for (int k = 0; k < N; ++k) {
+        ab[2 * k] = 1.0;
+        ab[2 * k + 1] = 0.0;
+    }
+    std::vector<Eigen::Triplet<double>> trips;
+    residual(ab, r, &trips);
+    const double start = r.squaredNorm();
+    double mu = 1e-6;
+    for (int it = 0; it < 50 && r.lpNorm<Eigen::Infinity>() > 1e-6; ++it) {
+        Eigen::SparseMatrix<double> J(2 * N, 2 * N);
+        J.setFromTriplets(trips.begin(), trips.end());
+        const Eigen::SparseMatrix<double> JtJ = J.transpose() * J;
+        const Eigen::VectorXd Jtr = J.transpose() * r;
+        bool stepped = false;
+        for (int tries = 0; tries < 12 && !stepped; ++tries) {
+            Eigen::SparseMatrix<double> A = JtJ;
+            for (int c = 0; c < 2 * N; ++c) A.coeffRef(c, c) += mu * (1.0 + JtJ.coeff(c, c));
+            Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(A);
+            if (ldlt.info() != Eigen::Success) {
+                mu *= 10.0;
+                continue;
+            }
+            const Eigen::VectorXd next = ab - ldlt.solve(Jtr);
+            residual(next, rTry, nullptr);
+            if (rTry.squaredNorm() < r.squaredNorm()) {
+                ab = next;
+                stepped = true;
+                mu = std::max(1e-9, mu * 0.3);
+            } else {
+                mu *= 10.0;
+            }
+        }
+        if (!stepped) break;
+        trips.clear();
+        residual(ab, r, &trips);
+    }
+    if (!(r.squaredNorm() < start)) return;
+    parallelFor(size_t(g.h), 8, [&](size_t y0, size_t y1) {
+        for (size_t y = y0; y < y1; ++y) {
+            const AxisTap ty = g.ys[y];
+            float* row = p.pixel(0, int(y));
+            for (int x = 0; x < g.w; ++x) {
+                const AxisTap tx = g.xs[size_t(x)];
+                const int ra[2] = {ty.a, ty.b}, ca[2] = {tx.a, tx.b};
+                const double rw[2] = {ty.w, 1.0 - ty.w}, cw[2] = {tx.w, 1.0 - tx.w};
+                double out = 0.0;
+                for (int i = 0; i < 2; ++i)
+                    for (int j = 0; j < 2; ++j) {
+                        const double w = rw[i] * cw[j];
+                        if (w <= 0.0) continue;
+                        const int k = ra[i] * cols + ca[j];
+                        out += w * (ab[2 * k] * row[x] + ab[2 * k + 1]);
+                    }
+                row[x] = float(out);
+            }
+        }
+    });
+}
 
 ChannelImage HistogramMatcher::Impl::plane(const ChannelImage& img, int c) const
 {
@@ -432,6 +628,11 @@ HistogramMatcher::HistogramMatcher(
     }
     if (m.pca)
         for (int c = 0; c < m.C; ++c) m.rgbTables.push_back(m.cellTables(channelRange(target, c, 1), m.geometry[0]));
+    if (settings.cellMoments) {
+        for (int c = 0; c < m.C; ++c) m.moments.push_back(m.cellMoments(target, c));
+        m.target = target;
+        if (matte) m.matteCopy = *matte;
+    }
     m.tables.resize(size_t(m.C));
     for (int c = 0; c < m.C; ++c) {
         const ChannelImage p = m.plane(target, c);
@@ -484,6 +685,15 @@ ChannelImage HistogramMatcher::match(const ChannelImage& frame) const
             for (size_t c = b; c < e; ++c) {
                 ChannelImage p = channelRange(out, int(c), 1);
                 for (int k = 0; k < m.s.pixelPasses; ++k) m.matchTables(p, m.geometry[0], m.rgbTables[c]);
+                for (size_t i = 0; i < p.pixelCount(); ++i) out.pixel(i)[c] = p.pixel(i)[0];
+            }
+        });
+    }
+    if (m.s.cellMoments) {
+        parallelFor(size_t(m.C), 1, [&](size_t b, size_t e) {
+            for (size_t c = b; c < e; ++c) {
+                ChannelImage p = channelRange(out, int(c), 1);
+                m.correctMoments(p, int(c));
                 for (size_t i = 0; i < p.pixelCount(); ++i) out.pixel(i)[c] = p.pixel(i)[0];
             }
         });
