@@ -510,6 +510,34 @@ void writeTarget(const std::string& dir, int n, int w, int h, bool emptySecond =
 
 } // namespace
 
+TEST(Cli, StylizeLoopsAVideoExemplarShorterThanTheShot)
+{
+    // A 2-frame video exemplar (red, then blue) on a 3-frame target: frames 1, 2, 3 take exemplar frames 1, 2, 1.
+    testutil::TempDir dir;
+    writeExemplar(dir / "base.png", 32, true);
+    const turb::RgbaImage base = turbio::readImage(dir / "base.png");
+    std::filesystem::create_directories(dir / "v");
+    for (int k = 1; k <= 2; ++k) {
+        turb::RgbaImage z = base;
+        for (auto& p : z.pixels()) p = k == 1 ? turb::Rgba(p[0], 0.05f, 0.05f, p[3]) : turb::Rgba(0.05f, 0.05f, p[0], p[3]);
+        turbio::writeImage(dir / ("v/ex.000" + std::to_string(k) + ".png"), z);
+    }
+    writeTarget(dir / "t", 3, 48, 40);
+    const CmdResult r = run("stylize --flow " + dir / "t/flow.###.exr" + " --alpha " + dir / "t/alpha.###.png" +
+                            " --exemplar " + dir / "v/ex.####.png" + " --out " + dir / "o/s.####.exr -q");
+    ASSERT_EQ(r.code, 0) << r.out;
+    for (int f = 1; f <= 3; ++f) {
+        const turb::RgbaImage out = turbio::readImage(dir / ("o/s.000" + std::to_string(f) + ".exr"));
+        double red = 0.0, blue = 0.0;
+        for (const auto& p : out.pixels()) {
+            red += p[0] * p[3];
+            blue += p[2] * p[3];
+        }
+        if (f == 2) EXPECT_GT(blue, 3.0 * red) << "frame 2 takes exemplar frame 2";
+        else EXPECT_GT(red, 3.0 * blue) << "frame " << f << " takes exemplar frame 1";
+    }
+}
+
 TEST(Cli, StylizeWritesFramesAndJson)
 {
     testutil::TempDir dir;

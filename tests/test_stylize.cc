@@ -525,6 +525,84 @@ TEST(Stylize, ThePrerollStartsTheShotWhereLaterFramesSettle)
               << held.size() << " " << held.back().stats.gradientRatio << std::endl;
 }
 
+TEST(Stylize, RotationsOfferTheExemplarInFourOrientations)
+{
+    // An exemplar of horizontal stripes: without rotations every output patch is a horizontal stripe, so the
+    // output's luminance varies along y only; with rotations (section 4.5) the pool holds the 90/270-degree
+    // copies too (4x the source patches), and the output varies along x as well.
+    const int n = 40;
+    const ChannelImage a = diskAlpha(n, n, n / 2.0, n / 2.0, n * 0.45, 3.0);
+    RgbaImage ex(n, n);
+    for (int y = 0; y < n; ++y)
+        for (int x = 0; x < n; ++x) {
+            const float v = (y / 3) % 2 ? 0.9f : 0.2f;
+            ex.at(x, y) = Rgba(v, v, v, a.at(x, y, 0));
+        }
+    const Sequence2D seq = rotatingDisk(64, 1, 0.0);
+    const auto gradients = [](const RgbaImage& img) { // mean |d/dx|^2 and |d/dy|^2 of luminance where opaque
+        double gx = 0.0, gy = 0.0;
+        for (int y = 1; y < img.height(); ++y)
+            for (int x = 1; x < img.width(); ++x) {
+                if (img.at(x, y)[3] < 0.99f || img.at(x - 1, y)[3] < 0.99f || img.at(x, y - 1)[3] < 0.99f) continue;
+                gx += std::pow(img.at(x, y)[0] - img.at(x - 1, y)[0], 2.0f);
+                gy += std::pow(img.at(x, y)[0] - img.at(x, y - 1)[0], 2.0f);
+            }
+        return std::make_pair(gx, gy);
+    };
+    StylizeSettings s;
+    s.levels = 1;
+    const auto plain = runSequence(seq, ex, s, 2);
+    s.rotations = true;
+    const auto turned = runSequence(seq, ex, s, 2);
+    long long sourcesPlain = 0, sourcesTurned = 0;
+    for (const auto& u : plain[0].stats.usage) sourcesPlain += u.sources;
+    for (const auto& u : turned[0].stats.usage) sourcesTurned += u.sources;
+    EXPECT_EQ(sourcesTurned, 4 * sourcesPlain);
+    const auto [px, py] = gradients(plain[0].image);
+    const auto [tx, ty] = gradients(turned[0].image);
+    EXPECT_LT(px, 0.15 * py) << "horizontal stripes only";
+    EXPECT_GT(tx, 0.4 * ty) << "vertical stripes too";
+    std::cout << "[ measured ] x/y gradient energy: " << px / py << " without rotations, " << tx / ty << " with"
+              << std::endl;
+}
+
+TEST(Stylize, AVideoExemplarGivesEachFrameItsOwnExemplarFrame)
+{
+    // Target frame i takes exemplar frame i (the caller loops a shorter exemplar): a red and a blue exemplar
+    // frame give a red, then a blue output frame, each the colour of its own frame, although frame 2's temporal
+    // guide holds frame 1's red output (the exemplar side of that guide is Z^{t-1}, the red frame, so matching it
+    // does not pull the colour back).
+    const RgbaImage base = testExemplar(40, 3);
+    RgbaImage red = base, blue = base;
+    for (size_t i = 0; i < base.size(); ++i) {
+        const Rgba p = base.pixels()[i];
+        const float v = (p[0] + p[1] + p[2]) / 3.0f;
+        red.pixels()[i] = Rgba(v, 0.1f * v, 0.1f * v, p[3]);
+        blue.pixels()[i] = Rgba(0.1f * v, 0.1f * v, v, p[3]);
+    }
+    const Sequence2D seq = rotatingDisk(64, 3, 0.05);
+    StylizeSettings s;
+    s.levels = 2;
+    Stylizer st(s);
+    const RgbaImage* frames[3] = {&red, &blue, &red};
+    for (int t = 0; t < 3; ++t) {
+        StylizeFrame f;
+        f.alpha = &seq.alpha[size_t(t)];
+        f.motionIn = t ? &seq.motion[size_t(t - 1)] : nullptr;
+        f.motionOut = &seq.motion[size_t(t)];
+        f.exemplar = frames[t];
+        f.exemplarPrevious = t ? frames[t - 1] : nullptr;
+        const StylizedFrame out = st.next(f);
+        double r = 0.0, b = 0.0;
+        for (const Rgba& p : out.image.pixels()) {
+            r += p[0] * p[3];
+            b += p[2] * p[3];
+        }
+        if (frames[t] == &red) EXPECT_GT(r, 5.0 * b) << "frame " << t + 1;
+        else EXPECT_GT(b, 5.0 * r) << "frame " << t + 1;
+    }
+}
+
 TEST(Stylize, StandardNnfDropsPatchUsageAndTheSeedMatters)
 {
     const RgbaImage ex = testExemplar(40, 3);
