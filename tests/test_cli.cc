@@ -50,12 +50,18 @@ TEST(Cli, UsageErrorsExitTwoAndMissingInputsExitOne)
     // NaN for any number of any command: refused after parsing, naming the option (2026-12-04: synth's solenoidal
     // tolerance and stylize's vote weight let it through to the first frame or to the settings file).
     for (const std::string cmd : {"synth --flow vortex --flow-res 8x8x1 --dry-run --combine.solenoidalTolerance nan",
-             "stylize --scene rotate --scene-size 64x64 --frames 1 --exemplar builtin:fire:32 --dry-run --vote-weight NaN",
+             "stylize --scene rotate --scene-size 64x64 --frames 1 --exemplar builtin:fire:32 --dry-run --vote-weight "
+             "NaN",
              "synth --flow vortex --flow-res 8x8x1 --dry-run --omega nan"}) {
         const CmdResult r = run(cmd);
         EXPECT_EQ(r.code, 2) << cmd << "\n" << r.out;
         EXPECT_NE(r.out.find("is not a number"), std::string::npos) << r.out;
     }
+    // A flag spelling given the value false would have set the flag all the same: refused (2026-12-04).
+    const CmdResult flagFalse = run("synth --flow vortex --flow-res 8x8x1 --dry-run --keep-divergence=false");
+    EXPECT_EQ(flagFalse.code, 2) << flagFalse.out;
+    EXPECT_NE(flagFalse.out.find("keep-divergence"), std::string::npos) << flagFalse.out;
+    EXPECT_EQ(run("synth --flow vortex --flow-res 8x8x1 --dry-run --keep-divergence=true").code, 0);
     const CmdResult missing = run("info /nonexistent/cache.vdb");
     EXPECT_EQ(missing.code, 1);
     EXPECT_NE(missing.out.find("/nonexistent/cache.vdb"), std::string::npos) << missing.out;
@@ -519,7 +525,8 @@ TEST(Cli, StylizeLoopsAVideoExemplarShorterThanTheShot)
     std::filesystem::create_directories(dir / "v");
     for (int k = 1; k <= 2; ++k) {
         turb::RgbaImage z = base;
-        for (auto& p : z.pixels()) p = k == 1 ? turb::Rgba(p[0], 0.05f, 0.05f, p[3]) : turb::Rgba(0.05f, 0.05f, p[0], p[3]);
+        for (auto& p : z.pixels())
+            p = k == 1 ? turb::Rgba(p[0], 0.05f, 0.05f, p[3]) : turb::Rgba(0.05f, 0.05f, p[0], p[3]);
         turbio::writeImage(dir / ("v/ex.000" + std::to_string(k) + ".png"), z);
     }
     writeTarget(dir / "t", 3, 48, 40);
@@ -865,9 +872,9 @@ TEST(Cli, TwoDCachesThroughSimTransferMeasureAndPreview)
     const CmdResult s = run("sim swirl --res 48x64x1 --frames 4 --out '" + d + "/s/s.####.vdb' -q");
     ASSERT_EQ(s.code, 0) << s.out;
     // The dry run says the cache is 2D and which of the settings with a 2D twin apply.
-    const CmdResult dry = run("transfer --target '" + d + "/t/p.####.vdb' --source '" + d + "/s/s.####.vdb' --out '" +
-                              d + "/o/o.####.vdb' --dry-run --detail-energy-2d pasted --seams.bandWidth2D 4" +
-                              " --seams.cgTolerance 0.5");
+    const CmdResult dry =
+        run("transfer --target '" + d + "/t/p.####.vdb' --source '" + d + "/s/s.####.vdb' --out '" + d +
+            "/o/o.####.vdb' --dry-run --detail-energy-2d pasted --seams.bandWidth2D 4" + " --seams.cgTolerance 0.5");
     ASSERT_EQ(dry.code, 0) << dry.out;
     EXPECT_NE(dry.out.find("2D cache (one z layer): B^2 patches; detail energy pasted, seam band 4"), std::string::npos)
         << dry.out;

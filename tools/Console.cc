@@ -222,6 +222,9 @@ CLI::Option* setting(CLI::Option* o, const std::string& key)
 CLI::Option* legacy(CLI::Option* o, const std::string& setsKey, const std::string& value)
 {
     tiers()[o] = Tier{true, setsKey, value};
+    // A flag spelling sets its value when given: `--keep-divergence=false` would still set it (CLI11 passes the
+    // function a count), so a value other than true is refused instead of read the wrong way round.
+    if (o->get_expected_max() == 0) o->disable_flag_override();
     return o->group(kGroupLegacy);
 }
 

@@ -268,7 +268,15 @@ void stylizeFrames(
 
 int runStylize(StylizeArgs& a)
 {
-    if (a.method == Method::Fluidymation) return runFluidymation(a);
+    if (a.method == Method::Fluidymation) {
+        std::string ignored;
+        for (const CLI::Option* o : a.lazyFluidsOnly)
+            if (o->count() > 0) ignored += (ignored.empty() ? "" : ", ") + o->get_name();
+        if (!ignored.empty())
+            logWarning("stylize: " + ignored + " set LazyFluids' synthesis; --method fluidymation does not read " +
+                       (ignored.find(',') == std::string::npos ? "it" : "them"));
+        return runFluidymation(a);
+    }
     const turb::StylizeSettings& s = a.settings;
     turb::validate(s);
     if (const int rc = checkOutputPatterns(a.out); rc != kOk) return rc;
@@ -286,7 +294,9 @@ int runStylize(StylizeArgs& a)
     // Every exemplar frame is read once before the first output, so a bad one writes nothing.
     for (size_t i = 0; i < exemplar.count(); ++i) exemplar.frame(i);
     if (globals().dryRun) {
-        for (int f : target.frames()) logInfo("frame " + std::to_string(f) + " -> " + outPattern.format(f));
+        // The plan is the dry run's data: stdout, as transfer's "would write" lines.
+        for (int f : target.frames())
+            printData("would write " + outPattern.format(f) + " (frame " + std::to_string(f) + ")");
         return kOk;
     }
     turb::withThreads(globals().threads, [&] { stylizeFrames(a, target, exemplar, outPattern); });
@@ -407,7 +417,11 @@ Command stylizeCommand()
             "lazyfluids: a still or video RGBA exemplar; fluidymation: a moving exemplar's look and dynamics");
         addInputOptions(app, a);
         addOutputOptions(app, a);
+        const size_t before = app->get_options().size();
         addLazyFluidsSettings(app, a.settings);
+        const std::vector<CLI::Option*> all = app->get_options();
+        for (size_t i = before; i < all.size(); ++i)
+            if (!all[i]->check_lname("seed")) a.lazyFluidsOnly.push_back(all[i]); // fluidymation reads the seed
         addFluidymationOptions(app, a);
     };
     c.run = [args] { return runStylize(*args); };

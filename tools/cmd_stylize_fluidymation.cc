@@ -439,7 +439,9 @@ void fluidymateFrames(const StylizeArgs& a, const TargetSource& target, const Ex
     logVerbose("levels " + std::to_string(fl->levels()) + ", extent units " + fmt("%.2f px", fl->extentScale()) +
                " (exemplar), " + fmt("%.2f px", fl->targetExtentScale()) + " (target)");
     if (globals().dryRun) {
-        for (int fr : target.frames()) logInfo("frame " + std::to_string(fr) + " -> " + outPattern.format(fr));
+        // The plan is the dry run's data: stdout, as transfer's "would write" lines.
+        for (int fr : target.frames())
+            printData("would write " + outPattern.format(fr) + " (frame " + std::to_string(fr) + ")");
         return;
     }
     RunReport report("stylize fluidymation", a.json);
