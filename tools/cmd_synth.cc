@@ -419,10 +419,15 @@ std::optional<turbio::SequenceScan> preflightSynth(
         scan = checkInput("synth", "target", *seq, frames, ro, LatticePolicy::Refuse);
         reportTiming("target", *scan, true);
         // Synth's density sources and look-back need one box over the sequence: the union of the frames'
-        // held boxes (each the smoke and its margin, strays left out), not the cache's domain.
+        // held boxes (each the smoke and its margin, strays left out), not the cache's domain. Over every frame on
+        // disk, not only the requested ones (header boxes: cheap): a shot rendered in parts (--frames 1-10, then
+        // 11-20, or on a farm) then holds the same box, and gives the same frames, as one run over the whole shot.
         if (a.read.cropToSmoke) {
+            const turbio::Sequence onDisk = turbio::resolveSequence(seq->pattern.str());
+            const turbio::SequenceScan whole =
+                onDisk.frames.size() > frames.size() ? turbio::scanSequence(onDisk, onDisk.frames, ro) : *scan;
             turb::CoordBBox all;
-            for (const auto& fs : scan->frames) all.expand(fs.domain);
+            for (const auto& fs : whole.frames) all.expand(fs.domain);
             a.read.holdBox = all;
         }
         for (int fr : frames) inputs.push_back(seq->path(fr));
