@@ -445,6 +445,15 @@ TEST(AnimateHistogram, MatchesMeanAndStdPerFrameAndPerCell)
                     meanStd(target, c, cell.x0, cell.y0, cell.x1, cell.y1),
                     "cell " + std::to_string(cell.x0) + "," + std::to_string(cell.y0));
         }
+        // One cell (the whole frame) is solved too: exact, where the histogram passes alone leave it a little off.
+        HistogramMatchSettings one = s;
+        one.gridCols = one.gridRows = 1;
+        const ChannelImage whole = HistogramMatcher(target, one).match(frame);
+        for (int c = 0; c < 3; ++c) {
+            const MeanStd o = meanStd(whole, c, 0, 0, W, H), t = meanStd(target, c, 0, 0, W, H);
+            EXPECT_NEAR(o.mean, t.mean, 1e-4 * std::abs(t.mean));
+            EXPECT_NEAR(o.std, t.std, 1e-4 * t.std);
+        }
         // Before matching the frame is far from the target in some cell: the test can fail.
         double worst = 0.0;
         for (const HmCell& cell : hm.cells()) {

@@ -57,6 +57,9 @@ TEST(Cli, UsageErrorsExitTwoAndMissingInputsExitOne)
         EXPECT_EQ(r.code, 2) << cmd << "\n" << r.out;
         EXPECT_NE(r.out.find("is not a number"), std::string::npos) << r.out;
     }
+    // A bad --hm-grid is a usage error, caught while parsing like any other bad value.
+    for (const char* grid : {"0x0", "abc", "2.5x2"})
+        EXPECT_EQ(run(std::string("animate --example x.####.png --target y.png --hm-grid ") + grid).code, 2) << grid;
     // A flag spelling given the value false would have set the flag all the same: refused (2026-12-04).
     const CmdResult flagFalse = run("synth --flow vortex --flow-res 8x8x1 --dry-run --keep-divergence=false");
     EXPECT_EQ(flagFalse.code, 2) << flagFalse.out;
@@ -582,6 +585,8 @@ TEST(Cli, StylizeWritesFramesAndJson)
     EXPECT_NE(r.out.find("\"coverage\":1.0"), std::string::npos) << r.out.substr(0, 600);
     EXPECT_NE(r.out.find("\"temporal_change\":"), std::string::npos);
     EXPECT_NE(r.out.find("\"iou\":"), std::string::npos);
+    EXPECT_NE(r.out.find("\"shot_start\":true"), std::string::npos) << "frame 1 starts the shot";
+    EXPECT_NE(r.out.find("\"preroll\":4"), std::string::npos) << "with the default pre-roll";
     const turb::RgbaImage out = turbio::readImage(dir / "o/s.0002.exr");
     EXPECT_EQ(out.width(), 48);
     EXPECT_EQ(out.height(), 40);

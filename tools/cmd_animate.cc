@@ -585,11 +585,19 @@ struct FrameWriter
         const std::vector<int> sheetFrames{0, count / 3, 2 * count / 3, count - 1};
         if (!a.sheet.empty() && std::find(sheetFrames.begin(), sheetFrames.end(), f.index) != sheetFrames.end())
             sheet.outputs.emplace_back(number, picture(f.image));
-        nlohmann::json extra{{"out", path}, {"example_index", f.exampleIndex}, {"mean_error", f.meanError},
-            {"std_error", f.stdError}, {"cell_mean_error", f.cellMeanError}, {"cell_std_error", f.cellStdError}};
+        nlohmann::json extra{
+            {"out", path}, {"example_index", f.exampleIndex}, {"mean_error", f.meanError}, {"std_error", f.stdError}};
+        // Without histogram matching there are no cells: no per-cell numbers rather than a misleading 0.
+        const bool cells = a.settings.histogramMatch;
+        if (cells) {
+            extra["cell_mean_error"] = f.cellMeanError;
+            extra["cell_std_error"] = f.cellStdError;
+        }
         report.frameDone(number, f.index, count, f.seconds + secondsSince(tw),
             "mean/std vs target " + fmt("%.2f%%", 100 * f.meanError) + "/" + fmt("%.2f%%", 100 * f.stdError) +
-                ", worst cell " + fmt("%.2f%%", 100 * f.cellMeanError) + "/" + fmt("%.2f%%", 100 * f.cellStdError) +
+                (cells ? ", worst cell " + fmt("%.2f%%", 100 * f.cellMeanError) + "/" +
+                             fmt("%.2f%%", 100 * f.cellStdError)
+                       : std::string(", no histogram matching")) +
                 " -> " + path,
             extra);
     }
@@ -668,11 +676,19 @@ int runAnimate(AnimateArgs& a)
         throw turb::ValueError("--out " + a.out + " has no frame token (####): animate writes a sequence");
     // Everything is read and checked before the first file is written.
     const Target target = readTarget(a);
+    // The matcher keeps cells of at least 8 pixels (HistogramMatcher): say so when a given grid is finer.
+    const turb::HistogramMatchSettings& hm = a.settings.hm;
+    if (a.settings.histogramMatch &&
+        (hm.gridCols > std::max(1, target.rgb.width() / 8) || hm.gridRows > std::max(1, target.rgb.height() / 8)))
+        logWarning("--hm-grid " + a.hmGrid + ": cells must be at least 8 pixels wide on the " +
+                   std::to_string(target.rgb.width()) + "x" + std::to_string(target.rgb.height()) + " still; using " +
+                   std::to_string(std::min(hm.gridCols, std::max(1, target.rgb.width() / 8))) + "x" +
+                   std::to_string(std::min(hm.gridRows, std::max(1, target.rgb.height() / 8))));
     Example example = readExample(a, a.settings.tau);
     logPlan(a, example, target);
     if (globals().dryRun) {
         for (int j = 0; j < int(example.frames.size()) - a.settings.tau; ++j)
-            logInfo("frame " + std::to_string(a.start + j) + " -> " + outPattern.format(a.start + j));
+            printData("would write " + outPattern.format(a.start + j) + " (frame " + std::to_string(a.start + j) + ")");
         return kOk;
     }
     animateFrames(a, example, target, outPattern);
@@ -727,8 +743,23 @@ void addHmSettings(CLI::App* app, AnimateArgs& a)
     setting(app->add_option("--hm-rep,--hm.reps", hm.reps, "HM Rep: repetitions of the steerable matching (paper 3)")
                 ->check(CLI::Range(1, 10)),
         "hm.reps");
+    // Checked while parsing, so a bad grid is a usage error (exit 2) like every other option's bad value.
+    const CLI::Validator gridCheck(
+        [](std::string& v) -> std::string {
+            if (v == "auto" || v == "off") return {};
+            try {
+                const auto n = numbers(v, 'x', 2, "--hm-grid");
+                if (n[0] < 1 || n[1] < 1 || n[0] != std::floor(n[0]) || n[1] != std::floor(n[1]))
+                    return "cells per axis must be whole numbers >= 1";
+            } catch (const turb::ValueError& e) {
+                return e.what();
+            }
+            return {};
+        },
+        "COLSxROWS|auto|off");
     setting(
-        app->add_option("--hm-grid", a.hmGrid, "HM Grid: COLSxROWS, auto (cells of about hm.cellSize pixels) or off"),
+        app->add_option("--hm-grid", a.hmGrid, "HM Grid: COLSxROWS, auto (cells of about hm.cellSize pixels) or off")
+            ->check(gridCheck),
         "hm-grid");
     setting(app->add_option("--hm-cell,--hm.cellSize", hm.cellSize, "Cell size of the automatic HM grid in pixels")
                 ->check(CLI::Range(16, 100000)),

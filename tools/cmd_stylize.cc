@@ -147,6 +147,8 @@ nlohmann::json statsJson(const turb::StylizeStats& st)
         j["temporal_change"] = *st.temporalChange;
         j["temporal_pixels"] = st.temporalPixels;
     }
+    j["shot_start"] = st.shotStart;
+    if (st.preroll > 0) j["preroll"] = st.preroll;
     j["iou"] = st.iou;
     j["boundary_gradient_match"] = st.boundaryGradientMatch;
     j["boundary_gradient_histogram"] = st.boundaryGradient;
@@ -165,6 +167,8 @@ std::string humanLine(const turb::StylizeStats& st)
     s += fmt(", std %.2f", st.stdRatio) + fmt(" grad %.2f", st.gradientRatio) + fmt(", IoU %.3f", st.iou) +
          fmt(" edge %.2f", st.boundaryGradientMatch);
     if (st.temporalChange) s += fmt(", change %.4f", *st.temporalChange);
+    if (st.shotStart)
+        s += st.preroll > 0 ? ", shot start (pre-roll " + std::to_string(st.preroll) + ")" : ", shot start";
     return s;
 }
 
@@ -289,7 +293,10 @@ int runStylize(StylizeArgs& a)
     logInfo("stylize: " + target.label() + ", exemplar " + exemplar.label() +
             (exemplar.video() ? " (video, " + std::to_string(exemplar.count()) + " frames)" : "") + ", " +
             std::to_string(target.frames().size()) + " frames, nnf " +
-            (s.nnf == turb::NnfMode::Standard ? "standard" : "uniform"));
+            (s.nnf == turb::NnfMode::Standard ? "standard" : "uniform") +
+            (s.preroll > 0 && s.lambda > 0.0f
+                    ? ", pre-roll " + std::to_string(s.preroll) + " on the first frame of each shot (after a gap too)"
+                    : std::string()));
     target.validate2D();
     // Every exemplar frame is read once before the first output, so a bad one writes nothing.
     for (size_t i = 0; i < exemplar.count(); ++i) exemplar.frame(i);

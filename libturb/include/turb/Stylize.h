@@ -114,6 +114,8 @@ struct StylizeStats
     std::optional<double> temporalChange; ///< mean |X^t - warped X^{t-1}| (premultiplied RGBA, per channel) where
                                           ///< lambda_q / lambda >= 0.5 and X_a^t >= 0.05; none on a first frame
     double temporalPixels = 0.0;          ///< fraction of target pixels in that region
+    bool shotStart = false;               ///< a first frame, or the first after a cut (no previous output to follow)
+    int preroll = 0;                      ///< pre-roll syntheses run before this frame was returned (shot starts)
     double iou = 0.0;                     ///< IoU of (output alpha >= 0.5) with (target alpha >= 0.5)
     std::vector<double> boundaryGradient; ///< histogram of |grad alpha| in the target's boundary segment
                                           ///< (16 bins of 1/32 per pixel, the last open), normalised

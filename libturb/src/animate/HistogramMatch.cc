@@ -328,9 +328,9 @@ void HistogramMatcher::Impl::correctMoments(ChannelImage& p, int channel) const
     const Geometry& g = geometry[0];
     const int N = int(cells.size());
     const std::vector<std::array<double, 2>>& goal = moments[size_t(channel)];
-    // One cell: the pixel matches already make it exact. A reach > 0 lets a cell's statistics see cells two away,
-    // beyond the 3x3 neighbourhood summed here; such grids keep the blended matches' result.
-    if (N < 2 || s.reach > 0.0) return;
+    // A reach > 0 lets a cell's statistics see cells two away, beyond the 3x3 neighbourhood summed here; such grids
+    // keep the blended matches' result. One cell is solved too: the histogram passes leave it a little off as well.
+    if (N < 1 || s.reach > 0.0) return;
     // Per cell k, sums over its pixels, indexed by the neighbour offset (3x3 around k), with the matte m and the
     // fixed part u = (1 - m) t: sum m w_j {1, v}, sum m w_j u {1, v}; per pair (i, j), sum m^2 w_i w_j {1, v, v^2};
     // and sum u, sum u^2.

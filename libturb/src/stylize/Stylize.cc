@@ -548,7 +548,9 @@ StylizedFrame Stylizer::next(const StylizeFrame& frame, Progress* progress)
     // pre-roll starts the shot in that state, so frame 2 does not step away from frame 1.
     const TargetGuides* finalGuides = &g;
     TargetGuides held;
+    st.shotStart = first;
     if (first && s.preroll > 0 && s.lambda > 0.0f) {
+        st.preroll = s.preroll;
         const ChannelImage still(W, H, 2);
         StylizeFrame f = frame;
         f.motionIn = frame.motionOut ? frame.motionOut : &still;
