@@ -579,6 +579,15 @@ TEST(Cli, StylizeWritesFramesAndJson)
     const CmdResult dry = run("stylize" + in + " --out " + dir / "o/s.####.png --dry-run");
     EXPECT_EQ(dry.code, 0) << dry.out;
     EXPECT_FALSE(std::filesystem::exists(dir / "o"));
+    EXPECT_NE(dry.out.find("would write " + dir / "o/s.0001.png"), std::string::npos) << dry.out;
+    EXPECT_EQ(dry.out.find("does not read"), std::string::npos) << dry.out;
+    // An option of the other method is not silently ignored.
+    const CmdResult other = run("stylize" + in + " --out " + dir / "o/s.####.png --dry-run --w-dir 2");
+    EXPECT_EQ(other.code, 0) << other.out;
+    EXPECT_NE(
+        other.out.find("--w-dir set Fluidymation's synthesis; --method lazyfluids (the default) does not read it"),
+        std::string::npos)
+        << other.out;
     const CmdResult r = run("stylize" + in + " --out " + dir / "o/s.####.exr --json -q --threads 2");
     ASSERT_EQ(r.code, 0) << r.out;
     EXPECT_EQ(testutil::countEntries(dir / "o"), 3u);

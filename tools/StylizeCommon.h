@@ -69,7 +69,8 @@ struct StylizeArgs
     bool json = false, noClobber = false;
     turbio::ReadOptions read;
     turb::StylizeSettings settings;
-    std::vector<const CLI::Option*> lazyFluidsOnly; ///< options --method fluidymation does not read (it warns)
+    std::vector<const CLI::Option*> lazyFluidsOnly;   ///< options --method fluidymation does not read (it warns)
+    std::vector<const CLI::Option*> fluidymationOnly; ///< options --method lazyfluids does not read (it warns)
 };
 
 std::string fmt(const char* f, double v);

@@ -281,6 +281,13 @@ int runStylize(StylizeArgs& a)
                        (ignored.find(',') == std::string::npos ? "it" : "them"));
         return runFluidymation(a);
     }
+    std::string unread;
+    for (const CLI::Option* o : a.fluidymationOnly)
+        if (o->count() > 0) unread += (unread.empty() ? "" : ", ") + o->get_name();
+    if (!unread.empty())
+        logWarning("stylize: " + unread +
+                   " set Fluidymation's synthesis; --method lazyfluids (the default) does not read " +
+                   (unread.find(',') == std::string::npos ? "it" : "them"));
     const turb::StylizeSettings& s = a.settings;
     turb::validate(s);
     if (const int rc = checkOutputPatterns(a.out); rc != kOk) return rc;
@@ -430,6 +437,8 @@ Command stylizeCommand()
         for (size_t i = before; i < all.size(); ++i)
             if (!all[i]->check_lname("seed")) a.lazyFluidsOnly.push_back(all[i]); // fluidymation reads the seed
         addFluidymationOptions(app, a);
+        const std::vector<CLI::Option*> more = app->get_options();
+        for (size_t i = all.size(); i < more.size(); ++i) a.fluidymationOnly.push_back(more[i]);
     };
     c.run = [args] { return runStylize(*args); };
     return c;
