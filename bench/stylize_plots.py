@@ -43,15 +43,16 @@ def summary(name, rows):
     f1 = next((r for r in rows if r["std_ratio"] > 0 and r["gradient_ratio"] > 0), None)
     if f1 is None:
         return
+    every = rows  # IoU, edges and times over every frame; the ratios from the first frame with an interior
     rows = [r for r in rows if r["frame"] >= f1["frame"]]
     std = [r["std_ratio"] / f1["std_ratio"] for r in rows]
     grad = [r["gradient_ratio"] / f1["gradient_ratio"] for r in rows]
     frames = [r["frame"] for r in rows]
     cov = [r["coverage"] for r in rows]
     tc = [r["temporal_change"] for r in rows if "temporal_change" in r]
-    iou = [r["iou"] for r in rows]
-    edge = [r["boundary_gradient_match"] for r in rows]
-    secs = sorted(r["seconds"] for r in rows)
+    iou = [r["iou"] for r in every]
+    edge = [r["boundary_gradient_match"] for r in every]
+    secs = sorted(r["seconds"] for r in every)
     print(f"{name}: {len(rows)} frames; coverage min {min(cov):.4f}; std/frame {f1['frame']} {min(std):.3f}..{max(std):.3f} "
           f"(last {std[-1]:.3f}, trend {trend(frames, std):+.3f}/100 fr); grad/frame {f1['frame']} {min(grad):.3f}..{max(grad):.3f} "
           f"(last {grad[-1]:.3f}, trend {trend(frames, grad):+.3f}/100 fr); std vs exemplar f{f1['frame']} {f1['std_ratio']:.3f} last "

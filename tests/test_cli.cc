@@ -540,6 +540,20 @@ TEST(Cli, SynthGivesAFrameTheSameDetailWhicheverPartOfTheShotIsRendered)
     EXPECT_EQ(differ, 0u);
 }
 
+TEST(Cli, StylizeFramesAfterACutAreTheSameWhicheverPartOfTheShotIsRendered)
+{
+    // A gap in the frames is a cut: frame 4 starts a shot in both runs. Its random draws follow its number, not its
+    // place in the run, so frames 4-5 of a 1-2,4-5 run are those of a 4-5 run, bit for bit.
+    testutil::TempDir dir;
+    const std::string base = "stylize --scene rotate --scene-size 48x48 --exemplar builtin:fire:32 -q --frames ";
+    ASSERT_EQ(run(base + "1-2,4-5 --out " + dir / "a/o.####.png").code, 0);
+    ASSERT_EQ(run(base + "4-5 --out " + dir / "b/o.####.png").code, 0);
+    for (const char* f : {"o.0004.png", "o.0005.png"})
+        EXPECT_EQ(turbio::readImage(dir / (std::string("a/") + f)).pixels(),
+            turbio::readImage(dir / (std::string("b/") + f)).pixels())
+            << f;
+}
+
 TEST(Cli, StylizeLoopsAVideoExemplarShorterThanTheShot)
 {
     // A 2-frame video exemplar (red, then blue) on a 3-frame target: frames 1, 2, 3 take exemplar frames 1, 2, 1.

@@ -249,6 +249,7 @@ void stylizeFrames(
         in.alpha = &t.alpha;
         in.motionIn = prev.motionInto(fr);
         in.motionOut = &t.motion;
+        in.number = fr;
         in.exemplar = &ex;
         in.exemplarPrevious = exPrevious && exPrevious->sameSize(ex) ? &*exPrevious : nullptr;
         turb::StylizedFrame outFrame;

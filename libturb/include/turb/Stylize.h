@@ -100,6 +100,8 @@ struct StylizeFrame
     const ChannelImage* motionOut = nullptr;     ///< F^t, only for motion blur; may be null
     const RgbaImage* exemplar = nullptr;         ///< Z^t: straight RGBA
     const RgbaImage* exemplarPrevious = nullptr; ///< Z^{t-1} of a video exemplar; null = a still (Z^t itself)
+    std::optional<int> number;                   ///< the frame's number: its random draws follow it (none: its
+                                                 ///< place in the run, 0 for the first frame given)
 };
 
 /// What a frame's synthesis measured (the numbers `vdbturb stylize --json` prints).

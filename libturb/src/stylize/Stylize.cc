@@ -309,7 +309,7 @@ void requireExemplarSegments(const ExemplarGuides& e, const ChannelImage& target
 }
 
 /// Kwatra et al.'s start on the coarsest level: random exemplar patches of each target patch's segment, voted.
-void randomStart(const ExemplarLevel& ex, TargetLevel& tl, int r, const StylizeSettings& s, int frame)
+void randomStart(const ExemplarLevel& ex, TargetLevel& tl, int r, const StylizeSettings& s, std::uint64_t frame)
 {
     std::vector<std::vector<std::int32_t>> lists(2);
     for (size_t p = 0; p < ex.labels.size(); ++p)
@@ -318,7 +318,7 @@ void randomStart(const ExemplarLevel& ex, TargetLevel& tl, int r, const StylizeS
     for (size_t q = 0; q < tl.labels.size(); ++q) {
         const int L = tl.labels[q];
         if (L < 0 || lists[size_t(L)].empty()) continue;
-        detail::Rng rng(detail::key(s.seed, std::uint64_t(frame), q, 0x1d1d));
+        detail::Rng rng(detail::key(s.seed, frame, q, 0x1d1d));
         random.source[q] = lists[size_t(L)][rng.below(std::uint32_t(lists[size_t(L)].size()))];
     }
     vote(ex.features, random, r, 0, 0, 4, tl.features);
@@ -332,15 +332,15 @@ struct Correspondence
 };
 
 /// One level's EM iterations: the NNF (uniform patch usage or PatchMatch), then the vote into tl's RGBA.
-void emIterations(const ExemplarLevel& ex, TargetLevel& tl, int level, int r, const StylizeSettings& s, int frame,
-    Correspondence& c, StylizeStats& st, Progress* progress)
+void emIterations(const ExemplarLevel& ex, TargetLevel& tl, int level, int r, const StylizeSettings& s,
+    std::uint64_t frame, Correspondence& c, StylizeStats& st, Progress* progress)
 {
     const PatchSpace space{&ex.features, &tl.features, &tl.weights, r};
     c.nnf = emptyNnf(tl.features.width(), tl.features.height());
     const int iterations = level == 0 ? s.fineIterations : s.iterations;
     for (int it = 0; it < iterations; ++it) {
         if (progress) progress->begin("level " + std::to_string(level) + " iteration " + std::to_string(it + 1));
-        const std::uint64_t seed = detail::key(s.seed, std::uint64_t(frame), std::uint64_t(level), std::uint64_t(it));
+        const std::uint64_t seed = detail::key(s.seed, frame, std::uint64_t(level), std::uint64_t(it));
         auto tn = Clock::now();
         if (s.nnf == NnfMode::Uniform) {
             UniformNnfSettings us;
@@ -379,7 +379,7 @@ void emIterations(const ExemplarLevel& ex, TargetLevel& tl, int level, int r, co
 /// coarsest from random patches), or on later frames with startFromPrevious from the previous output advected.
 /// Returns the finest level's premultiplied RGBA, unpadded.
 ChannelImage synthesizePyramid(const TargetGuides& g, const ExemplarGuides& e, bool first, int levels, int r,
-    const StylizeSettings& s, int frame, Correspondence& c, StylizeStats& st, Progress* progress)
+    const StylizeSettings& s, std::uint64_t frame, Correspondence& c, StylizeStats& st, Progress* progress)
 {
     const int W = g.alpha.width(), H = g.alpha.height();
     ChannelImage current; // synthesised premultiplied RGBA of the previous (coarser) level, unpadded
@@ -540,7 +540,10 @@ StylizedFrame Stylizer::next(const StylizeFrame& frame, Progress* progress)
     st.secondsGuides = since(t0);
 
     Correspondence c;
-    ChannelImage current = synthesizePyramid(g, e, first, levels, r, s, mFrames, c, st, progress);
+    // Seeds follow the frame's number, so a frame is the same whichever part of the shot is rendered (a shot split at
+    // a cut, or frames rendered alone with lambda 0); without a number, its place in the run.
+    const std::uint64_t frameKey = std::uint64_t(std::int64_t(frame.number ? *frame.number : mFrames));
+    ChannelImage current = synthesizePyramid(g, e, first, levels, r, s, frameKey, c, st, progress);
 
     // Pre-roll: a first frame is synthesised again, s.preroll times, as a later frame whose previous output is its own
     // last result moved by its own motion (F^t; none when there is no motion). Synthesis under the temporal term
@@ -556,8 +559,9 @@ StylizedFrame Stylizer::next(const StylizeFrame& frame, Progress* progress)
         f.motionIn = frame.motionOut ? frame.motionOut : &still;
         for (int k = 1; k <= s.preroll; ++k) {
             held = targetGuides(f, current, false, s, st);
-            // Seeds of their own (negative frame keys), so the frame after the pre-roll draws what it always drew.
-            current = synthesizePyramid(held, e, false, levels, r, s, -k, c, st, progress);
+            // Seeds of their own per pre-roll step.
+            current = synthesizePyramid(
+                held, e, false, levels, r, s, frameKey ^ (0x9E3779B97F4A7C15ull * std::uint64_t(k)), c, st, progress);
         }
         finalGuides = &held;
     }
