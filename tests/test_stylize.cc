@@ -483,8 +483,9 @@ TEST(Stylize, StartingFromThePreviousOutputKeepsTheFirstFramesSharpness)
 TEST(Stylize, ThePrerollStartsTheShotWhereLaterFramesSettle)
 {
     // Without a pre-roll, frame 1 (no temporal term) is sharper than the frames after it, which settle lower
-    // under lambda 0.2 within a few frames: a step in the look. The default pre-roll synthesises frame 1 again as
-    // a held frame under the temporal term, so every later frame stays within 15% of frame 1.
+    // under lambda 0.2 within a few frames: a step in the look (23% with EM 4/2, 9% with the default 8/4). The
+    // default pre-roll synthesises frame 1 again as a held frame under the temporal term: the step at least
+    // halves, and every later frame stays within 15% of frame 1.
     // The wash-out configuration of docs/stylize.md (the built-in rotate target, 256^2, the fire exemplar at 96 px),
     // 6 frames: small targets show no step.
     scenes::Target2DSettings ts;
@@ -501,7 +502,8 @@ TEST(Stylize, ThePrerollStartsTheShotWhereLaterFramesSettle)
     const auto plain = runSequence(seq, ex, s, 2);
     double settled = 0.0;
     for (size_t t = 3; t < plain.size(); ++t) settled += plain[t].stats.gradientRatio / double(plain.size() - 3);
-    EXPECT_LT(settled, 0.85 * plain[0].stats.gradientRatio) << "the step the pre-roll is for";
+    const double plainStep = 1.0 - settled / plain[0].stats.gradientRatio;
+    EXPECT_GT(plainStep, 0.05) << "the step the pre-roll is for";
     s.preroll = StylizeSettings{}.preroll;
     ASSERT_GT(s.preroll, 0);
     const auto held = runSequence(seq, ex, s, 2);
@@ -512,6 +514,10 @@ TEST(Stylize, ThePrerollStartsTheShotWhereLaterFramesSettle)
         EXPECT_DOUBLE_EQ(held[t].stats.coverage, 1.0);
     }
     EXPECT_DOUBLE_EQ(held[0].stats.coverage, 1.0);
+    double settledHeld = 0.0;
+    for (size_t t = 3; t < held.size(); ++t) settledHeld += held[t].stats.gradientRatio / double(held.size() - 3);
+    const double heldStep = std::abs(1.0 - settledHeld / held[0].stats.gradientRatio);
+    EXPECT_LT(heldStep, 0.5 * plainStep) << "frame 1 is made where later frames settle";
     // Only frame 1 is made differently: later frames still take their previous output through the guides.
     EXPECT_TRUE(held[1].stats.temporalChange);
     // Without the temporal term there is nothing to settle into: the pre-roll is skipped, the output unchanged.
@@ -521,8 +527,9 @@ TEST(Stylize, ThePrerollStartsTheShotWhereLaterFramesSettle)
     const auto free1 = runSequence(seq, ex, s, 2);
     EXPECT_TRUE(free0[0].image.pixels() == free1[0].image.pixels());
     std::cout << "[ measured ] gradient ratio: no pre-roll frame 1 " << plain[0].stats.gradientRatio
-              << ", frames 4-6 mean " << settled << "; pre-roll frame 1 " << held[0].stats.gradientRatio << ", frame "
-              << held.size() << " " << held.back().stats.gradientRatio << std::endl;
+              << ", frames 4-6 mean " << settled << " (step " << plainStep << "); pre-roll frame 1 "
+              << held[0].stats.gradientRatio << ", frames 4-6 mean " << settledHeld << " (step " << heldStep << ")"
+              << std::endl;
 }
 
 TEST(Stylize, RotationsOfferTheExemplarInFourOrientations)
