@@ -65,6 +65,21 @@ struct Geometry
     std::vector<std::uint8_t> mask;   // per band pixel: inside the matte (empty: no matte)
     std::vector<std::uint8_t> masked; // per cell: its statistics use the mask (enough matte pixels in it)
 
+    /// Calls fn(cell index, weight) for every cell whose blend weight at pixel (x, y) is positive: at most four, and
+    /// one of weight 1 in a cell's core. T is the arithmetic the weights are formed in; `cols` the grid's columns.
+    template<typename T, typename Fn>
+    void forTaps(int x, int y, int cols, Fn&& fn) const
+    {
+        const AxisTap tx = xs[size_t(x)], ty = ys[size_t(y)];
+        const int ra[2] = {ty.a, ty.b}, ca[2] = {tx.a, tx.b};
+        const T rw[2] = {T(ty.w), T(1) - T(ty.w)}, cw[2] = {T(tx.w), T(1) - T(tx.w)};
+        for (int i = 0; i < 2; ++i)
+            for (int j = 0; j < 2; ++j) {
+                const T w = rw[i] * cw[j];
+                if (w > T(0)) fn(ra[i] * cols + ca[j], w);
+            }
+    }
+
     /// Calls fn(value) for the pixels of cell k's statistics; `step` > 1 visits every step-th row and
     /// column (a sample of large cells for the frame's histograms; the target's tables use every pixel).
     template<typename Fn>
@@ -284,14 +299,7 @@ struct HistogramMatcher::Impl
                         continue;
                     }
                     float out = 0.0f;
-                    const int ra[2] = {ty.a, ty.b}, ca[2] = {tx.a, tx.b};
-                    const float rw[2] = {ty.w, 1.0f - ty.w}, cw[2] = {tx.w, 1.0f - tx.w};
-                    for (int i = 0; i < 2; ++i)
-                        for (int j = 0; j < 2; ++j) {
-                            const float w = rw[i] * cw[j];
-                            if (w <= 0.0f) continue;
-                            out += w * maps[size_t(ra[i]) * size_t(cols) + size_t(ca[j])](v);
-                        }
+                    g.forTaps<float>(x, int(y), cols, [&](int k, float w) { out += w * maps[size_t(k)](v); });
                     row[x] = out;
                 }
             }
@@ -356,20 +364,16 @@ void HistogramMatcher::Impl::correctMoments(ChannelImage& p, int channel) const
                     const double v = p.at(x, y, 0);
                     const double m = matted ? std::clamp(double(matteCopy.at(x, y, 0)), 0.0, 1.0) : 1.0;
                     const double u = matted ? (1.0 - m) * target.at(x, y, channel) : 0.0;
-                    const AxisTap tx = g.xs[size_t(x)], ty = g.ys[size_t(y)];
                     int o[4];
                     double w[4];
                     int cnt = 0;
-                    const int ca[2] = {tx.a, tx.b}, ra[2] = {ty.a, ty.b};
-                    const double cw[2] = {tx.w, 1.0 - tx.w}, rw[2] = {ty.w, 1.0 - ty.w};
-                    for (int a = 0; a < 2; ++a)
-                        for (int c = 0; c < 2; ++c) {
-                            const double ww = rw[a] * cw[c] * m;
-                            const int di = ca[c] - ki + 1, dj = ra[a] - kj + 1;
-                            if (ww <= 0.0 || di < 0 || di > 2 || dj < 0 || dj > 2) continue;
-                            o[cnt] = dj * 3 + di;
-                            w[cnt++] = ww;
-                        }
+                    g.forTaps<double>(x, y, cols, [&](int j, double wj) {
+                        const double ww = wj * m;
+                        const int di = j % cols - ki + 1, dj = j / cols - kj + 1;
+                        if (ww <= 0.0 || di < 0 || di > 2 || dj < 0 || dj > 2) return;
+                        o[cnt] = dj * 3 + di;
+                        w[cnt++] = ww;
+                    });
                     S.n += 1.0;
                     S.u1 += u;
                     S.u2 += u * u;
@@ -477,20 +481,11 @@ void HistogramMatcher::Impl::correctMoments(ChannelImage& p, int channel) const
     if (!(r.squaredNorm() < start)) return;
     parallelFor(size_t(g.h), 8, [&](size_t y0, size_t y1) {
         for (size_t y = y0; y < y1; ++y) {
-            const AxisTap ty = g.ys[y];
             float* row = p.pixel(0, int(y));
             for (int x = 0; x < g.w; ++x) {
-                const AxisTap tx = g.xs[size_t(x)];
-                const int ra[2] = {ty.a, ty.b}, ca[2] = {tx.a, tx.b};
-                const double rw[2] = {ty.w, 1.0 - ty.w}, cw[2] = {tx.w, 1.0 - tx.w};
                 double out = 0.0;
-                for (int i = 0; i < 2; ++i)
-                    for (int j = 0; j < 2; ++j) {
-                        const double w = rw[i] * cw[j];
-                        if (w <= 0.0) continue;
-                        const int k = ra[i] * cols + ca[j];
-                        out += w * (ab[2 * k] * row[x] + ab[2 * k + 1]);
-                    }
+                g.forTaps<double>(
+                    x, int(y), cols, [&](int k, double w) { out += w * (ab[2 * k] * row[x] + ab[2 * k + 1]); });
                 row[x] = float(out);
             }
         }
