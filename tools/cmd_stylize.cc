@@ -271,24 +271,24 @@ void stylizeFrames(
     report.finish();
 }
 
+// The options given on the command line (or in a settings file) that the chosen method does not read, warned once.
+void warnUnread(const std::vector<const CLI::Option*>& options, const std::string& whose, const std::string& method)
+{
+    std::string given;
+    for (const CLI::Option* o : options)
+        if (o->count() > 0) given += (given.empty() ? "" : ", ") + o->get_name();
+    if (!given.empty())
+        logWarning("stylize: " + given + " set " + whose + " synthesis; " + method + " does not read " +
+                   (given.find(',') == std::string::npos ? "it" : "them"));
+}
+
 int runStylize(StylizeArgs& a)
 {
     if (a.method == Method::Fluidymation) {
-        std::string ignored;
-        for (const CLI::Option* o : a.lazyFluidsOnly)
-            if (o->count() > 0) ignored += (ignored.empty() ? "" : ", ") + o->get_name();
-        if (!ignored.empty())
-            logWarning("stylize: " + ignored + " set LazyFluids' synthesis; --method fluidymation does not read " +
-                       (ignored.find(',') == std::string::npos ? "it" : "them"));
+        warnUnread(a.lazyFluidsOnly, "LazyFluids'", "--method fluidymation");
         return runFluidymation(a);
     }
-    std::string unread;
-    for (const CLI::Option* o : a.fluidymationOnly)
-        if (o->count() > 0) unread += (unread.empty() ? "" : ", ") + o->get_name();
-    if (!unread.empty())
-        logWarning("stylize: " + unread +
-                   " set Fluidymation's synthesis; --method lazyfluids (the default) does not read " +
-                   (unread.find(',') == std::string::npos ? "it" : "them"));
+    warnUnread(a.fluidymationOnly, "Fluidymation's", "--method lazyfluids (the default)");
     const turb::StylizeSettings& s = a.settings;
     turb::validate(s);
     if (const int rc = checkOutputPatterns(a.out); rc != kOk) return rc;
