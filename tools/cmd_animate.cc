@@ -431,8 +431,7 @@ void configure(AnimateArgs& a)
     if (a.hmGrid == "off") {
         s.hm.gridCols = s.hm.gridRows = 1;
     } else if (a.hmGrid != "auto") {
-        const auto v = numbers(a.hmGrid, 'x', 2, "--hm-grid");
-        if (v[0] < 1 || v[1] < 1) throw turb::ValueError("--hm-grid: cells per axis must be >= 1");
+        const auto v = numbers(a.hmGrid, 'x', 2, "--hm-grid"); // checked while parsing (gridCheck)
         s.hm.gridCols = int(v[0]);
         s.hm.gridRows = int(v[1]);
     }
@@ -676,14 +675,13 @@ int runAnimate(AnimateArgs& a)
         throw turb::ValueError("--out " + a.out + " has no frame token (####): animate writes a sequence");
     // Everything is read and checked before the first file is written.
     const Target target = readTarget(a);
-    // The matcher keeps cells of at least 8 pixels (HistogramMatcher): say so when a given grid is finer.
+    // The matcher keeps cells of at least 8 pixels: say so when a given grid is finer.
     const turb::HistogramMatchSettings& hm = a.settings.hm;
-    if (a.settings.histogramMatch &&
-        (hm.gridCols > std::max(1, target.rgb.width() / 8) || hm.gridRows > std::max(1, target.rgb.height() / 8)))
+    const auto [cols, rows] = turb::histogramGrid(target.rgb.width(), target.rgb.height(), hm);
+    if (a.settings.histogramMatch && hm.gridCols > 0 && (cols != hm.gridCols || rows != hm.gridRows))
         logWarning("--hm-grid " + a.hmGrid + ": cells must be at least 8 pixels wide on the " +
                    std::to_string(target.rgb.width()) + "x" + std::to_string(target.rgb.height()) + " still; using " +
-                   std::to_string(std::min(hm.gridCols, std::max(1, target.rgb.width() / 8))) + "x" +
-                   std::to_string(std::min(hm.gridRows, std::max(1, target.rgb.height() / 8))));
+                   std::to_string(cols) + "x" + std::to_string(rows));
     Example example = readExample(a, a.settings.tau);
     logPlan(a, example, target);
     if (globals().dryRun) {

@@ -38,6 +38,7 @@
 #include <turb/ChannelImage.h>
 
 #include <memory>
+#include <utility>
 #include <vector>
 
 namespace turb {
@@ -75,6 +76,10 @@ struct HistogramMatchSettings
 
 /// Throws ValueError naming the first setting out of range.
 void validate(const HistogramMatchSettings& s);
+
+/// The grid (columns, rows) a matcher of a width x height target uses: the settings' grid, or cells of about
+/// cellSize pixels, with cells at least 8 pixels wide and high (a finer grid is reduced to that).
+std::pair<int, int> histogramGrid(int width, int height, const HistogramMatchSettings& s);
 
 /// A cell of the grid: the core rectangle [x0, x1) x [y0, y1) and the pixels its statistics use.
 struct HmCell

@@ -12,8 +12,16 @@
 #include <cmath>
 #include <cstdint>
 #include <string>
+#include <tuple>
 
 namespace turb {
+
+std::pair<int, int> histogramGrid(int width, int height, const HistogramMatchSettings& s)
+{
+    const int cols = s.gridCols > 0 ? s.gridCols : std::max(1, int(std::lround(double(width) / s.cellSize)));
+    const int rows = s.gridRows > 0 ? s.gridRows : std::max(1, int(std::lround(double(height) / s.cellSize)));
+    return {std::min(cols, std::max(1, width / 8)), std::min(rows, std::max(1, height / 8))};
+}
 
 void validate(const HistogramMatchSettings& s)
 {
@@ -565,10 +573,7 @@ HistogramMatcher::HistogramMatcher(
     m.H = target.height();
     m.C = target.channels();
     m.levels = std::min(settings.levels, maxSteerableLevels(m.W, m.H));
-    m.cols = settings.gridCols > 0 ? settings.gridCols : std::max(1, int(std::lround(double(m.W) / settings.cellSize)));
-    m.rows = settings.gridRows > 0 ? settings.gridRows : std::max(1, int(std::lround(double(m.H) / settings.cellSize)));
-    m.cols = std::min(m.cols, std::max(1, m.W / 8));
-    m.rows = std::min(m.rows, std::max(1, m.H / 8));
+    std::tie(m.cols, m.rows) = histogramGrid(m.W, m.H, settings);
     for (int i = 0; i <= m.cols; ++i) m.xEdges.push_back(std::round(double(m.W) * i / m.cols));
     for (int j = 0; j <= m.rows; ++j) m.yEdges.push_back(std::round(double(m.H) * j / m.rows));
     m.ox = settings.overlap * double(m.W) / m.cols;
