@@ -23,6 +23,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <iterator>
 #include <limits>
 #include <memory>
 #include <optional>
@@ -423,11 +424,17 @@ std::optional<turbio::SequenceScan> preflightSynth(
         // disk, not only the requested ones (header boxes: cheap): a shot rendered in parts (--frames 1-10, then
         // 11-20, or on a farm) then holds the same box, and gives the same frames, as one run over the whole shot.
         if (a.read.cropToSmoke) {
+            // The requested frames are scanned already; only the others are read here.
             const turbio::Sequence onDisk = turbio::resolveSequence(seq->pattern.str());
-            const turbio::SequenceScan whole =
-                onDisk.frames.size() > frames.size() ? turbio::scanSequence(onDisk, onDisk.frames, ro) : *scan;
+            std::vector<int> asked = frames, onDiskSorted = onDisk.frames, others;
+            std::sort(asked.begin(), asked.end());
+            std::sort(onDiskSorted.begin(), onDiskSorted.end());
+            std::set_difference(
+                onDiskSorted.begin(), onDiskSorted.end(), asked.begin(), asked.end(), std::back_inserter(others));
             turb::CoordBBox all;
-            for (const auto& fs : whole.frames) all.expand(fs.domain);
+            for (const auto& fs : scan->frames) all.expand(fs.domain);
+            if (!others.empty())
+                for (const auto& fs : turbio::scanSequence(onDisk, others, ro).frames) all.expand(fs.domain);
             a.read.holdBox = all;
         }
         for (int fr : frames) inputs.push_back(seq->path(fr));
