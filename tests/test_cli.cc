@@ -1077,3 +1077,37 @@ TEST(Cli, MeasurePreviewInfoSimResampleListTheirSettingsOnlyInHelpAll)
     for (const char* line : {"\ncomputeSpectra=false\n", "\nstructure=false\n", "\nalignment="})
         EXPECT_NE(printed.out.find(line), std::string::npos) << line << "\n" << printed.out;
 }
+
+TEST(Cli, ATileBoxHoldsThatBoxOfTheTargetAndResumesOnlyOnIt)
+{
+    // A space tile's transfer (farm plan --tiles writes --tile-box): the output covers the box's refined lattice box
+    // on every frame, smoke or not, and records the box; --resume with another box is refused, naming it.
+    testutil::TempDir dir;
+    const std::string base = "transfer --target " + lo() + " --source " + hi();
+    const std::string out = dir / "tile/t.####.vdb";
+    const CmdResult a = run(base + " --out " + out + " --frames 1-2 --tile-box 4,6,0,19,21,11 -q");
+    ASSERT_EQ(a.code, 0) << a.out;
+    turbio::ReadOptions ro;
+    ro.cropToSmoke = false;
+    for (int fr : {1, 2}) {
+        const turb::Frame f = turbio::readFrame(dir / ("tile/t.000" + std::to_string(fr) + ".vdb"), fr, ro);
+        EXPECT_EQ(f.velocity.bbox(), turb::CoordBBox(turb::Coord(16, 24, 0), turb::Coord(79, 87, 47))) << fr;
+        EXPECT_EQ(f.metadata.at(turb::meta::kTileBox), "4,6,0,19,21,11");
+    }
+    const CmdResult other = run(base + " --out " + out + " --frames 1-3 --resume --tile-box 4,6,0,19,21,12");
+    EXPECT_EQ(other.code, 1) << other.out;
+    EXPECT_NE(other.out.find("tile-box: 4,6,0,19,21,11 -> 4,6,0,19,21,12"), std::string::npos) << other.out;
+    const CmdResult untiled = run(base + " --out " + out + " --frames 1-3 --resume");
+    EXPECT_EQ(untiled.code, 1) << untiled.out;
+    EXPECT_FALSE(std::filesystem::exists(dir / "tile/t.0003.vdb"));
+    const CmdResult same = run(base + " --out " + out + " --frames 1-3 --resume --tile-box 4,6,0,19,21,11 -q");
+    EXPECT_EQ(same.code, 0) << same.out;
+    EXPECT_TRUE(std::filesystem::exists(dir / "tile/t.0003.vdb"));
+    // Malformed boxes are refused before anything runs.
+    for (const char* bad : {"1,2,3", "4,6,0,3,21,11", "a,6,0,19,21,11"}) {
+        const CmdResult r = run(base + " --out " + dir / "bad/t.####.vdb" + " --frames 1 --tile-box " + bad);
+        EXPECT_NE(r.code, 0) << bad;
+        EXPECT_NE(r.out.find("--tile-box"), std::string::npos) << r.out;
+    }
+    EXPECT_FALSE(std::filesystem::exists(dir / "bad"));
+}

@@ -518,6 +518,7 @@ TEST(Measure, IdenticalAtOneAndTwoThreads)
     MeasureSettings s1, s2;
     s1.threads = 1;
     s2.threads = 2;
+    s1.tileBorders = s2.tileBorders = parseTileBorders("x:20"); // through the blob: every metric is computed
     const FrameMeasures a = measureFrame(in, s1), b = measureFrame(in, s2);
     const auto sa = a.scalars(), sb = b.scalars();
     for (size_t i = 0; i < sa.size(); ++i) {
@@ -703,4 +704,56 @@ TEST(MeasureDensity, FrayIsLowForASmoothBallAndHighForAFrayedOne)
     EXPECT_FALSE(densityFray(ScalarField(CoordBBox({0, 0, 0}, {7, 7, 7}), Lattice{}), 4, 0.01f)) << "no smoke";
     EXPECT_FALSE(densityFray(ScalarField(CoordBBox({0, 0, 0}, {7, 7, 7}), Lattice{}, 1.0f), 1, 0.01f))
         << "no smaller scale at ratio 1";
+}
+
+TEST(Measure, TileFiguresCoverOnlyTheSmokeNearTheTileBorders)
+{
+    const Lattice coarse{0.4, {0.0, 0.0, 0.0}};
+    const CoordBBox box({0, 0, 0}, {11, 11, 11});
+    const Frame target = makeFrame(
+        1, box, coarse, [](const Vec3d&) { return Vec3f(0.0f); }, kAll);
+    const auto smooth = [](const Coord& c) {
+        const double x = c.x(), y = c.y(), z = c.z();
+        return Vec3f(float(std::sin(0.37 * x + 0.61 * y)), float(std::sin(0.53 * y + 0.29 * z + 1.0)),
+            float(std::sin(0.41 * z + 0.67 * x + 2.0)));
+    };
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<float> u(-0.6f, 0.6f);
+    std::vector<Vec3f> jumps(6 * 6 * 6);
+    for (auto& j : jumps) j = Vec3f(u(rng), u(rng), u(rng));
+    // Seams planted every 8 voxels only where x < 16; the output is 48 voxels wide.
+    Frame out = upFrame(target, 4, [&](const Coord& c) {
+        if (c.x() >= 16) return smooth(c);
+        return smooth(c) + jumps.at(size_t(((c.x() / 8) * 6 + c.y() / 8) * 6 + c.z() / 8));
+    });
+    out.metadata[meta::kPatchSize] = "8";
+    MeasureInput in;
+    in.target = &target;
+    in.output = &out;
+    MeasureSettings s;
+    s.spectra = false;
+    s.structure = false;
+    const FrameMeasures none = measureFrame(in, s);
+    EXPECT_FALSE(none.tileBlock); // no borders anywhere: no tile figures
+    EXPECT_EQ(none.tileVoxels, 0u);
+    ASSERT_TRUE(none.block);
+    EXPECT_GT(*none.block, 1.2);
+
+    // A border at x = 32, 8 voxels either side: the 16 slices x = 24..39, all smooth.
+    s.tileBorders = parseTileBorders("x:32");
+    s.tileBorderWidth = 8;
+    const FrameMeasures far = measureFrame(in, s);
+    EXPECT_EQ(far.tileVoxels, size_t(16 * 48 * 48));
+    ASSERT_TRUE(far.tileBlock);
+    EXPECT_NEAR(*far.tileBlock, 1.0, 0.05);
+    ASSERT_TRUE(far.tileDivRel);
+    EXPECT_DOUBLE_EQ(*far.block, *none.block); // the whole-frame figures do not change
+
+    // The borders from the metadata (what farm join writes), over the planted seams: x = 0..15.
+    s.tileBorders.clear();
+    out.metadata[meta::kTileBorders] = "x:8";
+    const FrameMeasures near = measureFrame(in, s);
+    EXPECT_EQ(near.tileVoxels, size_t(16 * 48 * 48));
+    ASSERT_TRUE(near.tileBlock);
+    EXPECT_GT(*near.tileBlock, 1.5);
 }

@@ -9,6 +9,8 @@
 #include <turb/Farm.h>
 #include <turb/Metadata.h>
 #include <turb/Resample.h>
+#include <turb/Transfer.h>
+#include <turbio/Scan.h>
 #include <turbio/Sequence.h>
 #include <turbio/Vdb.h>
 
@@ -32,6 +34,9 @@ namespace fs = std::filesystem;
 // median tcoh (the cross-fade step falls as 1/(O+1)); P = 8 gave the later chunk a settled detail.
 constexpr int kDefaultPreroll = 8;
 constexpr int kDefaultOverlap = 10;
+// Space tiles: the target read's default crop margin (patch radius, advection reach and seam band, io.md); the
+// measurements behind it are in docs/farm.md.
+constexpr int kDefaultHalo = 8;
 
 struct FarmArgs
 {
@@ -39,6 +44,10 @@ struct FarmArgs
     std::string dir = "farm";
     std::string target, source, out, frames;
     int chunks = 2, preroll = kDefaultPreroll, overlap = kDefaultOverlap;
+    std::string tiles;       ///< "NX[xNY[xNZ]]": space tiles instead of time chunks
+    int halo = kDefaultHalo; ///< target voxels a tile holds past its core
+    int ramp = 0;            ///< output voxels of the join's ramp across a border; 0 = halo x ratio
+    const CLI::Option* chunksGiven = nullptr;
     int cpus = 2, retries = 2;
     std::string exe, partition, time, mem, name = "vdbturb";
     std::vector<std::string> transferArgs;
@@ -94,10 +103,10 @@ void writeText(const std::string& path, const std::string& text, bool executable
 }
 
 // The chunk's scratch pattern: every frame it computes, pre-roll included, so --resume can continue a killed task.
-std::string chunkPattern(const std::string& dir, int k, const std::string& out)
+std::string chunkPattern(const std::string& dir, int k, const std::string& out, const char* word = "chunk")
 {
     char sub[32];
-    std::snprintf(sub, sizeof(sub), "chunks/%03d/", k);
+    std::snprintf(sub, sizeof(sub), "%ss/%03d/", word, k);
     return (fs::path(dir) / sub / fs::path(out).filename()).string();
 }
 
@@ -127,17 +136,74 @@ void checkPassThrough(const std::vector<std::string>& transferArgs)
                 "'" + t + "' after -- is set by farm plan itself; give --target/--source/--out/--frames to farm plan");
 }
 
-// A plan's paths (absolute: the tasks run elsewhere), frames and chunks.
+// A plan's paths (absolute: the tasks run elsewhere), frames and chunks, or space tiles.
 struct Plan
 {
     std::string dir, exe, target, source, out;
     std::vector<int> frames;
-    std::vector<turb::TimeChunk> chunks;
+    std::vector<turb::TimeChunk> chunks; ///< time chunks (one chunk covering every frame when tiled)
+    bool tiled = false;
+    turb::TilePlan tiles; ///< space tiles (tiled)
+    int ratio = 0;        ///< the transfer's ratio (tiled)
+    int ramp = 0;         ///< output voxels (tiled)
     std::vector<int> sub(size_t b, size_t e) const
     {
         return std::vector<int>(frames.begin() + long(b), frames.begin() + long(e));
     }
+    const char* word() const { return tiled ? "tile" : "chunk"; }
+    size_t taskCount() const { return tiled ? tiles.tiles.size() : chunks.size(); }
 };
+
+// "2", "2x2", "2x1x3": tiles per axis (missing axes 1).
+turb::Coord parseTileCounts(const std::string& text)
+{
+    int v[3] = {1, 1, 1};
+    std::stringstream in(text);
+    std::string part;
+    int n = 0;
+    while (std::getline(in, part, 'x')) {
+        size_t used = 0;
+        try {
+            v[n < 3 ? n : 2] = std::stoi(part, &used);
+        } catch (const std::exception&) {
+            used = 0;
+        }
+        if (n >= 3 || part.empty() || used != part.size() || v[n] < 1)
+            throw turb::ValueError("--tiles '" + text + "': expected NX, NXxNY or NXxNYxNZ with counts >= 1");
+        ++n;
+    }
+    if (n == 0) throw turb::ValueError("--tiles '" + text + "': expected NX, NXxNY or NXxNYxNZ");
+    return turb::Coord(v[0], v[1], v[2]);
+}
+
+std::string boxText(const turb::CoordBBox& b)
+{
+    return std::to_string(b.min().x()) + "," + std::to_string(b.min().y()) + "," + std::to_string(b.min().z()) + "," +
+           std::to_string(b.max().x()) + "," + std::to_string(b.max().y()) + "," + std::to_string(b.max().z());
+}
+
+std::vector<int> boxArray(const turb::CoordBBox& b)
+{
+    return {b.min().x(), b.min().y(), b.min().z(), b.max().x(), b.max().y(), b.max().z()};
+}
+
+turb::CoordBBox boxFromArray(const nlohmann::json& j)
+{
+    const auto v = j.get<std::vector<int>>();
+    if (v.size() != 6) throw turb::ValueError("plan.json: a box needs 6 indices");
+    return turb::CoordBBox(turb::Coord(v[0], v[1], v[2]), turb::Coord(v[3], v[4], v[5]));
+}
+
+// The box every tile's transfer would hold over the shot: the union of the frames' held boxes (smoke and margin),
+// read as the transfer reads the target (the read options after --). One frame's scan error stops the plan.
+turb::CoordBBox shotBox(const turbio::Sequence& target, const turbio::ReadOptions& ro)
+{
+    const turbio::SequenceScan scan = turbio::scanSequence(target, target.frames, ro);
+    if (const turbio::FrameScan* bad = scan.firstFailure()) throw turb::IoError(bad->error);
+    turb::CoordBBox all;
+    for (const auto& f : scan.frames) all.expand(f.domain);
+    return all;
+}
 
 Plan makePlan(const FarmArgs& a)
 {
@@ -148,7 +214,41 @@ Plan makePlan(const FarmArgs& a)
         throw turb::IoError(
             target.pattern.str() + ": missing target frames " + turbio::formatFrameList(target.missing));
     p.frames = target.frames;
-    p.chunks = turb::planTimeChunks(p.frames.size(), a.chunks, a.preroll, a.overlap);
+    p.tiled = !a.tiles.empty() && parseTileCounts(a.tiles) != turb::Coord(1);
+    if (p.tiled) {
+        if (a.chunksGiven && a.chunksGiven->count() > 0 && a.chunks > 1)
+            throw turb::ValueError("--tiles and --chunks " + std::to_string(a.chunks) +
+                                   ": a plan splits either the box (tiles) or the frames (chunks), not both");
+        p.chunks = turb::planTimeChunks(p.frames.size(), 1, 0, 0);
+        turbio::ReadOptions ro;
+        const turbio::FrameScan t0 = turbio::scanFrame(target.path(p.frames.front()), p.frames.front(), ro);
+        if (!t0.error.empty()) throw turb::IoError(t0.error);
+        const turbio::Sequence source = turbio::resolveSequence(a.source);
+        if (source.frames.empty()) throw turb::IoError(source.pattern.str() + ": no source frames");
+        const turbio::FrameScan s0 = turbio::scanFrame(source.path(source.frames.front()), source.frames.front(), ro);
+        if (!s0.error.empty()) throw turb::IoError(s0.error);
+        p.ratio = turb::transferRatio(t0.lattice.voxelSize, s0.lattice.voxelSize, true);
+        p.tiles = turb::planSpaceTiles(shotBox(target, ro), parseTileCounts(a.tiles), a.halo);
+        p.ramp = a.ramp > 0 ? a.ramp : std::max(1, a.halo * p.ratio);
+        if (p.tiles.counts.z() > 1)
+            logWarning("--tiles " + a.tiles +
+                       " splits the box along z, the way smoke rises: a tile's inflow (fresh "
+                       "detail, smoke without its advected structure) then reaches the seam, which a halo bounds only "
+                       "with --density lookback, and each tile calibrates its detail over its own part of the plume. "
+                       "Split across the main flow if you can (docs/farm.md, What bounds the halo)");
+        // The join checks the ramp against the tiles; refuse it here, before anything runs.
+        for (int ax = 0; ax < 3; ++ax)
+            if (p.tiles.counts[ax] > 1) {
+                const int F = turb::domainFactors(p.tiles.box, p.ratio)[ax];
+                for (const auto& t : p.tiles.tiles)
+                    if (p.ramp > t.core.dim()[ax] * F || p.ramp > 2 * a.halo * F)
+                        throw turb::ValueError("--ramp " + std::to_string(p.ramp) + " output voxels is wider than " +
+                                               "a tile (" + std::to_string(t.core.dim()[ax] * F) + ") or twice the " +
+                                               "halo (" + std::to_string(2 * a.halo * F) + ")");
+            }
+    } else {
+        p.chunks = turb::planTimeChunks(p.frames.size(), a.chunks, a.preroll, a.overlap);
+    }
     if (!turbio::FramePattern::parse(a.out).numbered())
         throw turb::ValueError("--out '" + a.out + "' has no frame token (####)");
     p.dir = absolute(a.dir);
@@ -159,15 +259,23 @@ Plan makePlan(const FarmArgs& a)
     return p;
 }
 
-// The transfer a chunk's array task runs: its frames with the pre-roll, resumable, and the options given after --.
-std::vector<std::string> chunkCommand(const FarmArgs& a, const Plan& p, const turb::TimeChunk& c)
+// The transfer a chunk's or tile's array task runs: its frames (with the pre-roll), resumable, and the options given
+// after --. Task k is chunk k, or tile k over every frame.
+std::vector<std::string> taskCommand(const FarmArgs& a, const Plan& p, size_t k)
 {
+    const turb::TimeChunk& c = p.chunks[p.tiled ? 0 : k];
     std::vector<std::string> argv = {p.exe, "transfer", "--target", p.target, "--source", p.source, "--out",
-        chunkPattern(p.dir, c.index, a.out), "--frames", turbio::formatFrameList(p.sub(c.computeBegin, c.end)),
-        "--resume", "--threads", std::to_string(a.cpus),
+        chunkPattern(p.dir, int(k), a.out, p.word()), "--frames", turbio::formatFrameList(p.sub(c.computeBegin, c.end)),
+        "--resume", "--threads", std::to_string(a.cpus)};
+    if (p.tiled) {
+        // A tile holds its core and halo on every frame: one box, so that the join finds it on every frame. The
+        // source is held as an untiled run holds it (its smoke and margin): every tile reads the same source.
+        argv.insert(argv.end(), {"--tile-box", boxText(p.tiles.tiles[k].held)});
+    } else {
         // Every chunk holds the target's whole domain: held over the smoke of its own frames only, chunks would
         // get different output boxes and the join could not blend them.
-        "--target-no-crop", "--source-no-crop"};
+        argv.insert(argv.end(), {"--target-no-crop", "--source-no-crop"});
+    }
     argv.insert(argv.end(), a.transferArgs.begin(), a.transferArgs.end());
     return argv;
 }
@@ -179,17 +287,22 @@ std::vector<std::string> joinCommandLine(const FarmArgs& a, const Plan& p)
     return argv;
 }
 
-nlohmann::json chunkTask(const FarmArgs& a, const Plan& p, const turb::TimeChunk& c)
+nlohmann::json taskJson(const FarmArgs& a, const Plan& p, size_t k)
 {
     nlohmann::json t;
-    t["name"] = "chunk" + std::to_string(c.index);
-    t["array_index"] = c.index;
+    const turb::TimeChunk& c = p.chunks[p.tiled ? 0 : k];
+    t["name"] = std::string(p.word()) + std::to_string(k);
+    t["array_index"] = int(k);
     t["frames_computed"] = turbio::formatFrameList(p.sub(c.computeBegin, c.end));
     t["frames_preroll"] = turbio::formatFrameList(p.sub(c.computeBegin, c.keepBegin));
     t["frames_kept"] = turbio::formatFrameList(p.sub(c.keepBegin, c.end));
-    t["out"] = chunkPattern(p.dir, c.index, a.out);
-    t["log"] = p.dir + "/logs/chunk_" + std::to_string(c.index) + ".log";
-    t["command"] = chunkCommand(a, p, c);
+    if (p.tiled) {
+        t["tile_core"] = boxArray(p.tiles.tiles[k].core);
+        t["tile_held"] = boxArray(p.tiles.tiles[k].held);
+    }
+    t["out"] = chunkPattern(p.dir, int(k), a.out, p.word());
+    t["log"] = p.dir + "/logs/" + p.word() + "_" + std::to_string(k) + ".log";
+    t["command"] = taskCommand(a, p, k);
     t["depends_on"] = nlohmann::json::array();
     t["retry_exit_codes"] = {1, 130, 137, 143};
     return t;
@@ -204,7 +317,7 @@ nlohmann::json joinTask(const FarmArgs& a, const Plan& p)
     join["log"] = p.dir + "/logs/join.log";
     join["command"] = joinCommandLine(a, p);
     nlohmann::json deps = nlohmann::json::array();
-    for (const auto& c : p.chunks) deps.push_back("chunk" + std::to_string(c.index));
+    for (size_t k = 0; k < p.taskCount(); ++k) deps.push_back(p.word() + std::to_string(k));
     join["depends_on"] = deps;
     return join;
 }
@@ -214,21 +327,25 @@ nlohmann::json planJson(const FarmArgs& a, const Plan& p)
 {
     nlohmann::json plan;
     plan["version"] = 1;
-    plan["kind"] = "time_chunks";
+    plan["kind"] = p.tiled ? "space_tiles" : "time_chunks";
     plan["dir"] = p.dir;
     plan["vdbturb"] = p.exe;
     plan["target"] = p.target;
     plan["source"] = p.source;
     plan["out"] = p.out;
     plan["frames"] = turbio::formatFrameList(p.frames);
-    plan["chunks"] = a.chunks;
-    plan["preroll"] = a.preroll;
-    plan["overlap"] = a.overlap;
+    plan["chunks"] = p.tiled ? 1 : a.chunks;
+    plan["preroll"] = p.tiled ? 0 : a.preroll;
+    plan["overlap"] = p.tiled ? 0 : a.overlap;
+    if (p.tiled)
+        plan["tiles"] = {{"counts", {p.tiles.counts.x(), p.tiles.counts.y(), p.tiles.counts.z()}},
+            {"box", boxArray(p.tiles.box)}, {"halo", p.tiles.halo}, {"ratio", p.ratio}, {"ramp", p.ramp},
+            {"borders", turb::formatTileBorders(turb::tileBorders(p.tiles, p.ratio))}};
     plan["transfer_args"] = a.transferArgs;
     plan["exit_codes"] = {{"0", "done"}, {"1", "a frame failed: retry (resumes from the last whole frame)"},
         {"2", "usage error: do not retry"}, {"130", "interrupted: retry"}};
     nlohmann::json tasks = nlohmann::json::array();
-    for (const auto& c : p.chunks) tasks.push_back(chunkTask(a, p, c));
+    for (size_t k = 0; k < p.taskCount(); ++k) tasks.push_back(taskJson(a, p, k));
     tasks.push_back(joinTask(a, p));
     plan["tasks"] = tasks;
     nlohmann::json overlaps = nlohmann::json::array();
@@ -240,7 +357,8 @@ nlohmann::json planJson(const FarmArgs& a, const Plan& p)
                 {"density_a", w.densityA}, {"density_b", w.densityB}});
         }
     plan["overlaps"] = overlaps;
-    plan["slurm"] = {{"chunks_script", p.dir + "/chunks.sbatch"}, {"join_script", p.dir + "/join.sbatch"}};
+    plan["slurm"] = {{std::string(p.word()) + "s_script", p.dir + "/" + p.word() + "s.sbatch"},
+        {"join_script", p.dir + "/join.sbatch"}};
     return plan;
 }
 
@@ -256,36 +374,46 @@ std::string sbatchResources(const FarmArgs& a)
 // A task that failed (exit 1), was interrupted (130) or killed (137, 143) requeues itself up to --retries times;
 // transfer --resume then continues from the last whole frame in the chunk's scratch directory. A usage error (2)
 // would fail again and is not retried. Slurm's own --requeue covers node failure and preemption.
-std::string chunksScript(const FarmArgs& a, const Plan& p)
+std::string tasksScript(const FarmArgs& a, const Plan& p)
 {
+    const std::string w = p.word();
     std::string cases;
-    for (const auto& c : p.chunks)
-        cases += "  " + std::to_string(c.index) + ") set -- " + joinCommand(chunkCommand(a, p, c)) + " ;;\n";
+    for (size_t k = 0; k < p.taskCount(); ++k)
+        cases += "  " + std::to_string(k) + ") set -- " + joinCommand(taskCommand(a, p, k)) + " ;;\n";
     return "#!/bin/sh\n"
-           "# Written by vdbturb farm plan: one array task per time chunk (plan.json has the same plan as JSON).\n"
+           "# Written by vdbturb farm plan: one array task per " +
+           std::string(p.tiled ? "space tile" : "time chunk") +
+           " (plan.json has the same plan as JSON).\n"
            "#SBATCH --job-name=" +
-           a.name +
-           "-chunks\n"
+           a.name + "-" + w +
+           "s\n"
            "#SBATCH --array=0-" +
-           std::to_string(p.chunks.size() - 1) +
+           std::to_string(p.taskCount() - 1) +
            "\n"
            "#SBATCH --requeue\n"
            "#SBATCH --open-mode=append\n"
            "#SBATCH --output=" +
-           p.dir + "/logs/chunk_%a.log\n" + sbatchResources(a) + "case \"$SLURM_ARRAY_TASK_ID\" in\n" + cases +
-           "  *) echo \"farm: no chunk $SLURM_ARRAY_TASK_ID\" >&2; exit 2 ;;\n"
+           p.dir + "/logs/" + w + "_%a.log\n" + sbatchResources(a) + "case \"$SLURM_ARRAY_TASK_ID\" in\n" + cases +
+           "  *) echo \"farm: no " + w +
+           " $SLURM_ARRAY_TASK_ID\" >&2; exit 2 ;;\n"
            "esac\n"
-           "echo \"farm: chunk $SLURM_ARRAY_TASK_ID start (restart ${SLURM_RESTART_COUNT:-0}) on $(hostname)\" >&2\n"
+           "echo \"farm: " +
+           w +
+           " $SLURM_ARRAY_TASK_ID start (restart ${SLURM_RESTART_COUNT:-0}) on $(hostname)\" >&2\n"
            "\"$@\"\n"
            "rc=$?\n"
-           "echo \"farm: chunk $SLURM_ARRAY_TASK_ID exit $rc\" >&2\n"
+           "echo \"farm: " +
+           w +
+           " $SLURM_ARRAY_TASK_ID exit $rc\" >&2\n"
            "case $rc in\n"
            "  0|2) exit $rc ;;\n"
            "esac\n"
            "if [ \"${SLURM_RESTART_COUNT:-0}\" -lt " +
            std::to_string(a.retries) +
            " ]; then\n"
-           "  echo \"farm: chunk $SLURM_ARRAY_TASK_ID requeued; it resumes from its last whole frame\" >&2\n"
+           "  echo \"farm: " +
+           w +
+           " $SLURM_ARRAY_TASK_ID requeued; it resumes from its last whole frame\" >&2\n"
            "  scontrol requeue \"${SLURM_ARRAY_JOB_ID}_${SLURM_ARRAY_TASK_ID}\"\n"
            "  sleep 30 # the requeue ends this job; do not let it finish as failed first\n"
            "fi\n"
@@ -295,8 +423,10 @@ std::string chunksScript(const FarmArgs& a, const Plan& p)
 std::string joinScript(const FarmArgs& a, const Plan& p)
 {
     return "#!/bin/sh\n"
-           "# Written by vdbturb farm plan: assembles the chunks and cross-fades their overlaps (after every chunk "
-           "succeeded).\n"
+           "# Written by vdbturb farm plan: assembles the " +
+           std::string(
+               p.tiled ? "tiles (after every tile" : "chunks and cross-fades their overlaps (after every chunk") +
+           " succeeded).\n"
            "#SBATCH --job-name=" +
            a.name +
            "-join\n"
@@ -311,18 +441,35 @@ int runPlan(FarmArgs& a)
 {
     const Plan p = makePlan(a);
     fs::create_directories(fs::path(p.dir) / "logs");
+    const std::string script = std::string(p.word()) + "s.sbatch";
     writeText(p.dir + "/plan.json", planJson(a, p).dump(2) + "\n");
-    writeText(p.dir + "/chunks.sbatch", chunksScript(a, p), true);
+    writeText(p.dir + "/" + script, tasksScript(a, p), true);
     writeText(p.dir + "/join.sbatch", joinScript(a, p), true);
-    printData("plan: " + std::to_string(p.frames.size()) + " frames " + turbio::formatFrameList(p.frames) + " in " +
-              std::to_string(p.chunks.size()) + " chunks, pre-roll " + std::to_string(a.preroll) + ", overlap " +
-              std::to_string(a.overlap));
-    for (const auto& c : p.chunks)
-        printData("  chunk " + std::to_string(c.index) + ": computes " +
-                  turbio::formatFrameList(p.sub(c.computeBegin, c.end)) + ", keeps " +
-                  turbio::formatFrameList(p.sub(c.keepBegin, c.end)));
+    if (p.tiled) {
+        const turb::Coord n = p.tiles.counts;
+        printData("plan: " + std::to_string(p.frames.size()) + " frames " + turbio::formatFrameList(p.frames) + " in " +
+                  std::to_string(n.x()) + "x" + std::to_string(n.y()) + "x" + std::to_string(n.z()) +
+                  " space tiles of target box " + boxText(p.tiles.box) + ", halo " + std::to_string(p.tiles.halo) +
+                  " target voxels, ramp " + std::to_string(p.ramp) + " output voxels (ratio " +
+                  std::to_string(p.ratio) + ")");
+        for (const auto& t : p.tiles.tiles) {
+            const turb::Coord d = t.held.dim();
+            printData("  tile " + std::to_string(t.index) + ": core " + boxText(t.core) + ", holds " + boxText(t.held) +
+                      " (" + std::to_string(d.x()) + "x" + std::to_string(d.y()) + "x" + std::to_string(d.z()) + ", " +
+                      std::to_string(int(std::lround(100.0 * double(t.held.volume()) / double(p.tiles.box.volume())))) +
+                      "% of the box)");
+        }
+    } else {
+        printData("plan: " + std::to_string(p.frames.size()) + " frames " + turbio::formatFrameList(p.frames) + " in " +
+                  std::to_string(p.chunks.size()) + " chunks, pre-roll " + std::to_string(a.preroll) + ", overlap " +
+                  std::to_string(a.overlap));
+        for (const auto& c : p.chunks)
+            printData("  chunk " + std::to_string(c.index) + ": computes " +
+                      turbio::formatFrameList(p.sub(c.computeBegin, c.end)) + ", keeps " +
+                      turbio::formatFrameList(p.sub(c.keepBegin, c.end)));
+    }
     printData(
-        "wrote " + p.dir + "/plan.json, chunks.sbatch, join.sbatch; submit with: vdbturb farm submit --dir " + p.dir);
+        "wrote " + p.dir + "/plan.json, " + script + ", join.sbatch; submit with: vdbturb farm submit --dir " + p.dir);
     return kOk;
 }
 
@@ -350,16 +497,20 @@ int runSubmit(FarmArgs& a)
     const std::string dir = absolute(a.dir);
     if (!fs::exists(dir + "/plan.json"))
         throw turb::IoError(dir + "/plan.json: no plan (vdbturb farm plan --dir " + dir + " first)");
+    const nlohmann::json plan = nlohmann::json::parse(readText(dir + "/plan.json"));
+    const std::string word = plan.value("kind", "time_chunks") == "space_tiles" ? "tile" : "chunk";
     // --parsable prints "jobid[;cluster]".
-    std::string chunks = trim(runCapture("sbatch --parsable " + shellQuote(dir + "/chunks.sbatch")));
+    std::string chunks = trim(runCapture("sbatch --parsable " + shellQuote(dir + "/" + word + "s.sbatch")));
     chunks = chunks.substr(0, chunks.find(';'));
     std::string join =
         trim(runCapture("sbatch --parsable --dependency=afterok:" + chunks + " " + shellQuote(dir + "/join.sbatch")));
     join = join.substr(0, join.find(';'));
-    nlohmann::json j = {{"chunks_job", chunks}, {"join_job", join}};
+    nlohmann::json j = {{word + "s_job", chunks}, {"join_job", join}};
     writeText(dir + "/submitted.json", j.dump() + "\n");
     if (a.json) std::printf("%s\n", j.dump().c_str());
-    printData("submitted: chunks job " + chunks + " (array), join job " + join + " (after the chunks succeed)", a.json);
+    printData(
+        "submitted: " + word + "s job " + chunks + " (array), join job " + join + " (after the " + word + "s succeed)",
+        a.json);
     return kOk;
 }
 
@@ -379,9 +530,14 @@ struct JoinPlan
     int overlap = 0;
     turbio::Sequence target;
     float densityThreshold = 0.01f; ///< transfer's, unless the chunks were given another
+    bool tiled = false;
+    turb::TilePlan tiles;
+    int ratio = 0, ramp = 0;
+    const char* word() const { return tiled ? "tile" : "chunk"; }
+    size_t taskCount() const { return tiled ? tiles.tiles.size() : chunks.size(); }
     turbio::FramePattern chunkFrames(size_t k) const
     {
-        return turbio::FramePattern::parse(chunkPattern(dir, chunks[k].index, out));
+        return turbio::FramePattern::parse(chunkPattern(dir, int(k), out, word()));
     }
 };
 
@@ -395,6 +551,16 @@ JoinPlan readJoinPlan(const FarmArgs& a)
     p.chunks =
         turb::planTimeChunks(p.frames.size(), plan.at("chunks").get<int>(), plan.at("preroll").get<int>(), p.overlap);
     p.out = plan.at("out").get<std::string>();
+    p.tiled = plan.value("kind", "time_chunks") == "space_tiles";
+    if (p.tiled) {
+        const nlohmann::json& t = plan.at("tiles");
+        const auto n = t.at("counts").get<std::vector<int>>();
+        if (n.size() != 3) throw turb::ValueError(p.dir + "/plan.json: tiles.counts needs 3 numbers");
+        p.tiles =
+            turb::planSpaceTiles(boxFromArray(t.at("box")), turb::Coord(n[0], n[1], n[2]), t.at("halo").get<int>());
+        p.ratio = t.at("ratio").get<int>();
+        p.ramp = t.at("ramp").get<int>();
+    }
     p.target = turbio::resolveSequence(plan.at("target").get<std::string>(), plan.at("frames").get<std::string>());
     const auto& ta = plan.at("transfer_args");
     for (size_t i = 0; i + 1 < ta.size(); ++i)
@@ -402,19 +568,57 @@ JoinPlan readJoinPlan(const FarmArgs& a)
     return p;
 }
 
-// Every chunk complete before anything is written: a join of a partial chunk would leave holes.
+// Every chunk or tile complete before anything is written: a join of a partial one would leave holes.
 void checkChunksComplete(const JoinPlan& p)
 {
-    for (size_t k = 0; k < p.chunks.size(); ++k) {
-        const turb::TimeChunk& c = p.chunks[k];
+    for (size_t k = 0; k < p.taskCount(); ++k) {
+        const turb::TimeChunk& c = p.chunks[p.tiled ? 0 : k];
         const turbio::FramePattern pattern = p.chunkFrames(k);
         for (size_t i = c.keepBegin; i < c.end; ++i)
             if (!fs::exists(pattern.format(p.frames[i])))
-                throw turb::IoError("chunk " + std::to_string(c.index) +
+                throw turb::IoError(std::string(p.word()) + " " + std::to_string(k) +
                                     " is not complete: " + pattern.format(p.frames[i]) +
-                                    " is missing (rerun it: sbatch --array=" + std::to_string(c.index) + " " + p.dir +
-                                    "/chunks.sbatch)");
+                                    " is missing (rerun it: sbatch --array=" + std::to_string(k) + " " + p.dir + "/" +
+                                    p.word() + "s.sbatch)");
     }
+}
+
+// Frame i of a tiled plan: every tile's output, weighted by the plan's ramps, written like the tiles' frames.
+void joinTileFrame(const FarmArgs& a, const JoinPlan& p, size_t i, RunReport& report)
+{
+    const int t = p.frames[i];
+    const auto t0 = std::chrono::steady_clock::now();
+    turbio::ReadOptions ro;
+    ro.cropToSmoke = false; // the box the tile held
+    std::vector<turb::Frame> tiles;
+    for (size_t k = 0; k < p.taskCount(); ++k) tiles.push_back(turbio::readFrame(p.chunkFrames(k).format(t), t, ro));
+    // up(u_t) over the whole box: the stats' detail, and what tiles written with --velocity-margin mean where they
+    // hold no velocity.
+    turbio::ReadOptions tro = a.targetRead;
+    tro.cropToSmoke = true;
+    tro.holdBox = p.tiles.box;
+    const turb::Frame ft = readingAs("target", [&] { return turbio::readFrame(p.target.path(t), t, tro); });
+    const turb::VectorField up = turb::upsample(ft.velocity, p.ratio);
+    for (turb::Frame& fr : tiles)
+        if (fr.metadata.count(turb::meta::kVelocityMargin))
+            turb::fillUnwrittenVelocity(fr.velocity, turb::cropped(up, fr.velocity.bbox()));
+    turb::TileJoinStats st;
+    turb::Frame joined = turb::joinTiles(tiles, p.tiles, p.ratio, p.ramp, p.densityThreshold, up, &st);
+    const turb::Coord n = p.tiles.counts;
+    joined.metadata[turb::meta::kFarmTiles] = std::to_string(n.x()) + "x" + std::to_string(n.y()) + "x" +
+                                              std::to_string(n.z()) + " halo " + std::to_string(p.tiles.halo) +
+                                              " ramp " + std::to_string(p.ramp);
+    joined.metadata[turb::meta::kTileBorders] = turb::formatTileBorders(turb::tileBorders(p.tiles, p.ratio));
+    const std::string dst = turbio::FramePattern::parse(p.out).format(t);
+    turbio::ensureParentDirectory(dst);
+    turbio::writeFrame(dst, joined, a.write);
+    char human[200];
+    std::snprintf(human, sizeof(human),
+        "join %zu tiles, %zu seam voxels, correlation %.3f (lowest pair %.3f), disagreement %.3f -> ", tiles.size(),
+        st.seamVoxels, st.correlation, st.minCorrelation, st.disagreement);
+    report.frameDone(t, int(i), int(p.frames.size()), secondsSince(t0), std::string(human) + dst,
+        {{"tiles", int(tiles.size())}, {"out", dst}, {"seam_voxels", st.seamVoxels}, {"correlation", st.correlation},
+            {"min_correlation", st.minCorrelation}, {"disagreement", st.disagreement}});
 }
 
 // Overlap frame j after chunk k: chunks k and k + 1 cross-faded over up(u_t), written like the chunks' frames.
@@ -467,6 +671,11 @@ int runJoin(FarmArgs& a)
     const turbio::FramePattern outPattern = turbio::FramePattern::parse(p.out);
     RunReport report("farm join", a.json);
     const int count = int(p.frames.size());
+    if (p.tiled) {
+        for (size_t i = 0; i < p.frames.size(); ++i) joinTileFrame(a, p, i, report);
+        report.finish();
+        return kOk;
+    }
     for (size_t k = 0; k < p.chunks.size(); ++k) {
         const turb::TimeChunk& c = p.chunks[k];
         const turbio::FramePattern pattern = p.chunkFrames(k);
@@ -499,11 +708,22 @@ void addPlanOptions(CLI::App* plan, FarmArgs& a)
     plan->add_option("--frames", a.frames, "Target frames (empty: all on disk)")->check(frameListCheck());
     plan->add_option("--out", a.out, "Final output pattern, as for transfer")->required();
     plan->add_option("--dir", a.dir, "Farm directory: scripts, plan.json, logs, chunk scratch");
-    plan->add_option("--chunks", a.chunks, "Number of time chunks (array tasks)")->check(CLI::Range(1, 100000));
+    a.chunksGiven =
+        plan->add_option("--chunks", a.chunks, "Number of time chunks (array tasks)")->check(CLI::Range(1, 100000));
     plan->add_option("--preroll", a.preroll, "P: frames computed before a chunk's first kept frame")
         ->check(CLI::Range(0, 10000));
     plan->add_option("--overlap", a.overlap, "O: frames two consecutive chunks share and the join cross-fades")
         ->check(CLI::Range(0, 10000));
+    plan->add_option("--tiles", a.tiles,
+        "Space tiles instead of time chunks: NX, NXxNY or NXxNYxNZ tiles of the target's box, each a task over every "
+        "frame");
+    plan->add_option("--halo", a.halo, "Target voxels a tile holds past its core toward each neighbour")
+        ->check(CLI::Range(1, 4096));
+    setting(
+        plan->add_option("--ramp", a.ramp,
+                "Output voxels over which the join fades one tile into the next (0: halo x ratio; at most twice that)")
+            ->check(CLI::Range(0, 1 << 20)),
+        "ramp");
     plan->add_option("--cpus", a.cpus, "CPUs per task (sbatch --cpus-per-task and transfer --threads)")
         ->check(CLI::Range(1, 1024))
         ->group(kGroupRun);
@@ -542,22 +762,22 @@ Command farmCommand()
     auto args = std::make_shared<FarmArgs>();
     Command c;
     c.name = "farm";
-    c.help = "Split a transfer into time chunks run as Slurm array tasks, and join them (docs/farm.md)";
+    c.help = "Split a transfer into time chunks or space tiles run as Slurm array tasks, and join them (docs/farm.md)";
     c.globals = kVerbosity | kThreads;
     auto subs = std::make_shared<std::array<CLI::App*, 3>>();
     c.setup = [args, subs](CLI::App* app) {
         FarmArgs& a = *args;
         app->require_subcommand(1);
         app->fallthrough(); // -v, -q, --threads may follow the plan/submit/join word
-        CLI::App* plan =
-            app->add_subcommand("plan", "Write sbatch scripts (an array of chunks + a dependent join) and plan.json");
+        CLI::App* plan = app->add_subcommand(
+            "plan", "Write sbatch scripts (an array of chunks or tiles + a dependent join) and plan.json");
         addPlanOptions(plan, a);
         CLI::App* submit =
             app->add_subcommand("submit", "Submit a plan with sbatch: the chunk array, then the join with afterok");
         submit->add_option("--dir", a.dir, "Farm directory written by farm plan");
         submit->add_flag("--json", a.json, "Print the job ids as JSON on stdout");
-        CLI::App* join =
-            app->add_subcommand("join", "Assemble the chunks' frames into the output, cross-fading the overlaps");
+        CLI::App* join = app->add_subcommand(
+            "join", "Assemble the chunks' frames (cross-fading the overlaps) or the tiles' into the output");
         addJoinOptions(join, a);
         // Each subcommand has its own two tiers (--help-all, --print-settings, --settings); --threads stays farm's.
         for (CLI::App* sub : {plan, submit, join}) addGlobalOptions(sub, 0);

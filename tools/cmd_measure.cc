@@ -33,7 +33,7 @@ namespace {
 
 struct MeasureArgs
 {
-    std::string output, target, source, frames, plotDir, plotFormat = "png", patchOrigin;
+    std::string output, target, source, frames, plotDir, plotFormat = "png", patchOrigin, tileBorders;
     bool json = false;          // accepted for symmetry with the other commands; JSON is always written
     bool spectraJson = false;   // include the E(k) arrays in the JSON lines
     bool computeSpectra = true; // --plot and --spectra compute them whatever this says
@@ -63,6 +63,7 @@ nlohmann::json frameJson(const turb::FrameMeasures& m, bool spectra)
     j["smoke_cells"] = m.smokeCells;
     j["patch_size"] = m.patchSize;
     j["patch_origin"] = {m.patchOrigin.x(), m.patchOrigin.y(), m.patchOrigin.z()};
+    j["tile_voxels"] = m.tileVoxels;
     j["dt"] = m.dt > 0.0 ? nlohmann::json(m.dt) : nlohmann::json(nullptr);
     j["k_nyquist_target"] = m.targetNyquist;
     const auto energy = [](const turb::Spectrum& s) {
@@ -114,6 +115,7 @@ turb::MeasureSettings measureSettings(const MeasureArgs& a)
 {
     turb::MeasureSettings s = a.settings;
     s.patchOrigin = parseCoord(a.patchOrigin);
+    if (!a.tileBorders.empty()) s.tileBorders = turb::parseTileBorders(a.tileBorders);
     s.spectra = a.computeSpectra || !a.plotDir.empty() || a.spectraJson;
     s.threads = globals().threads;
     return s;
@@ -351,6 +353,14 @@ void addMeasureSettings(CLI::App* app, MeasureArgs& a)
     setting(app->add_option("--patch-origin,--patchOrigin", a.patchOrigin,
                 "An output voxel where a patch starts, X,Y,Z (default: vdbturb_patch_origin metadata, else 0,0,0)"),
         "patchOrigin");
+    setting(app->add_option("--tile-borders", a.tileBorders,
+                "Space-tile border planes for tile_block and tile_div_rel, in output voxels, e.g. x:64;y:64 (default: "
+                "the output's vdbturb_tile_borders metadata, which farm join writes)"),
+        "tile-borders");
+    setting(app->add_option("--tile-border-width", s.tileBorderWidth,
+                   "Output voxels either side of a tile border that tile_* cover (0: 2 patch sizes)")
+                ->check(CLI::Range(0, 4096)),
+        "tile-border-width");
     setting(addEnum<turb::Alignment>(app, "--align,--alignment", s.alignment,
                 {{"auto", turb::Alignment::Auto}, {"world", turb::Alignment::World}, {"index", turb::Alignment::Index}},
                 "Output against the refined target lattice: auto, world (the transforms) or index (the voxels)"),

@@ -44,6 +44,7 @@ struct TransferArgs
         return r;
     }();
     const CLI::Option* sourceCropMargin = nullptr; ///< given or not: its default depends on the ratio
+    std::string tileBox; ///< "X0,Y0,Z0,X1,Y1,Z1": hold only this box of the target (a space tile and its halo)
     turbio::WriteOptions write;
     turb::TransferSettings settings;
 };
@@ -282,7 +283,8 @@ std::string writeSettingsText(const turbio::WriteOptions& w)
 
 // Continuing with other settings or other inputs would silently mix two looks, or two shots, in one sequence.
 void checkResumable(const std::string& prevPath, const turb::Frame& prevOut, const turb::TransferSettings& s,
-    const turbio::WriteOptions& w, const turbio::Sequence& target, const turbio::Sequence& source)
+    const turbio::WriteOptions& w, const turbio::Sequence& target, const turbio::Sequence& source,
+    const std::string& tileBox)
 {
     std::vector<std::string> diff;
     const auto saved = prevOut.metadata.find(turb::meta::kSettings);
@@ -300,6 +302,12 @@ void checkResumable(const std::string& prevPath, const turb::Frame& prevOut, con
             diff.push_back(
                 std::string(key == turb::meta::kTargetInput ? "target" : "source") + ": " + m->second + " -> " + now);
     }
+    // A space tile's box: the state continues only on the box it was made over.
+    const auto box = prevOut.metadata.find(turb::meta::kTileBox);
+    const std::string savedBox = box == prevOut.metadata.end() ? std::string() : box->second;
+    if (savedBox != tileBox)
+        diff.push_back("tile-box: " + (savedBox.empty() ? std::string("none") : savedBox) + " -> " +
+                       (tileBox.empty() ? std::string("none") : tileBox));
     if (diff.empty()) return;
     std::string list;
     for (const std::string& d : diff) list += "\n  " + d;
@@ -425,7 +433,7 @@ void restoreFromLastWritten(const TransferArgs& a, const FramePlan& p, turb::Tur
     const turb::Frame prevOut = turbio::readFrame(prevPath, prev, ro);
     const auto it = prevOut.metadata.find(turb::meta::kState);
     if (it == prevOut.metadata.end()) throw turb::IoError(prevPath + ": no vdbturb_state metadata to resume from");
-    checkResumable(prevPath, prevOut, a.settings, a.write, p.target, p.source);
+    checkResumable(prevPath, prevOut, a.settings, a.write, p.target, p.source, a.tileBox);
     const turb::Frame prevTarget =
         readingAs("target", [&] { return turbio::readFrame(p.target.path(prev), prev, a.targetRead); });
     try {
@@ -450,6 +458,7 @@ void tagOutput(turb::Frame& frame, const TransferArgs& a, const FramePlan& p, si
     frame.metadata[turb::meta::kSourceInput] = inputId(p.source);
     frame.metadata[turb::meta::kSourceFrame] = std::to_string(p.sourceFor[i]);
     frame.metadata[turb::meta::kCommand] = "transfer";
+    if (!a.tileBox.empty()) frame.metadata[turb::meta::kTileBox] = a.tileBox;
     if (!sequenceDomain.empty()) {
         std::ostringstream box; // the format of vdbturb_domain
         box << sequenceDomain.min().x() << ' ' << sequenceDomain.min().y() << ' ' << sequenceDomain.min().z() << ' '
@@ -562,9 +571,38 @@ void logFrameDetails(const turb::TransferResult& r, int t)
     logVerbose(timing);
 }
 
+// --tile-box: six inclusive target voxel indices. The tile's transfer holds this box every frame (one box for the
+// whole range, so --resume and the farm join see the same lattice box on every frame).
+turb::CoordBBox parseTileBox(const std::string& text)
+{
+    std::vector<int> v;
+    std::stringstream in(text);
+    std::string part;
+    while (std::getline(in, part, ',')) {
+        size_t used = 0;
+        int x = 0;
+        try {
+            x = std::stoi(part, &used);
+        } catch (const std::exception&) {
+            used = 0;
+        }
+        if (part.empty() || used != part.size())
+            throw turb::ValueError("--tile-box '" + text + "': '" + part + "' is not a voxel index");
+        v.push_back(x);
+    }
+    if (v.size() != 6 || v[0] > v[3] || v[1] > v[4] || v[2] > v[5])
+        throw turb::ValueError("--tile-box '" + text + "': expected X0,Y0,Z0,X1,Y1,Z1 with X0<=X1, Y0<=Y1, Z0<=Z1");
+    return turb::CoordBBox(turb::Coord(v[0], v[1], v[2]), turb::Coord(v[3], v[4], v[5]));
+}
+
 int runTransfer(TransferArgs& a)
 {
     a.settings.threads = globals().threads;
+    if (!a.tileBox.empty()) {
+        if (!a.targetRead.cropToSmoke)
+            throw turb::ValueError("--tile-box holds a box of the target; it cannot be combined with --target-no-crop");
+        a.targetRead.holdBox = parseTileBox(a.tileBox);
+    }
     globals().json = a.json;
     FramePlan p = planFrames(a);
     defaultSourceMargin(a, p.target, p.source, p.sourceFor);
@@ -574,7 +612,7 @@ int runTransfer(TransferArgs& a)
         if (a.resume && p.first > 0) {
             const std::string prevPath = p.out.format(p.target.frames[p.first - 1]);
             checkResumable(prevPath, turbio::readFrame(prevPath, p.target.frames[p.first - 1], turbio::ReadOptions{}),
-                a.settings, a.write, p.target, p.source);
+                a.settings, a.write, p.target, p.source, a.tileBox);
         }
         return kOk;
     }
@@ -897,6 +935,10 @@ Command transferCommand()
         a.sourceCropMargin =
             app->get_option("--source-crop-margin")
                 ->description("Source voxels kept around the source's smoke (default: 8 target voxels)");
+        app->add_option("--tile-box", a.tileBox,
+               "Hold only this box of the target, X0,Y0,Z0,X1,Y1,Z1 (inclusive voxel indices): a space tile and its "
+               "halo, as farm plan --tiles writes it. The output covers its refined box")
+            ->group(kGroupInput);
         addWriteOptions(app, a.write);
         app->add_option("--velocity-margin", a.write.velocityMargin,
                "Write velocity only within N voxels of the smoke (smaller files; 1 covers motion blur); -1 = the whole "

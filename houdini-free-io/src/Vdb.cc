@@ -1034,6 +1034,7 @@ std::string SmokeRegion::describeStrays(const std::string& grid) const
 turb::CoordBBox heldRegion(const SmokeRegion& region, const turb::CoordBBox& span, const ReadOptions& options)
 {
     if (!options.cropToSmoke || !region.hasDensity || span.empty()) return span;
+    if (!options.holdBox.empty()) return options.holdBox; // one box for a sequence (synth) or a space tile (transfer)
     if (region.smoke.empty()) {
         // No smoke: two voxels a side keep the frame's lattice and place without holding the velocity box. Not
         // one: a box one voxel thick in z reads as a 2D cache (turb::isFlat), so a 3D sequence's empty frame

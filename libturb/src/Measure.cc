@@ -480,14 +480,15 @@ static std::optional<double> airDetail(
 std::vector<std::pair<std::string, std::optional<double>>> FrameMeasures::scalars() const
 {
     return {{"lf_err", lfErr}, {"hf_ratio", hfRatio}, {"hf_energy", hfEnergy}, {"hf_energy_source", hfEnergySource},
-        {"div_rel", divRel}, {"div_rel_source", divRelSource}, {"block", block}, {"tcoh", tcoh},
-        {"tcoh_source", tcohSource}, {"mass_ratio", massRatio}, {"peak_density", peakDensity},
-        {"peak_ratio", peakRatio}, {"density_err", densityErr}, {"density_imprint", densityImprint},
-        {"density_fray", densityFray}, {"density_fray_source", densityFraySource},
-        {"density_fray_ratio", densityFrayRatio}, {"aniso", aniso}, {"aniso_source", anisoSource},
-        {"aniso_ratio", anisoRatio}, {"isotropy", isotropy}, {"isotropy_source", isotropySource}, {"lattice", lattice},
-        {"lattice_source", latticeSource}, {"vort_peak", vortPeak}, {"vort_peak_source", vortPeakSource},
-        {"vort_peak_ratio", vortPeakRatio}, {"air_detail", airDetail}};
+        {"div_rel", divRel}, {"div_rel_source", divRelSource}, {"block", block}, {"tile_block", tileBlock},
+        {"tile_div_rel", tileDivRel}, {"tile_hf_ratio", tileHfRatio}, {"tcoh", tcoh}, {"tcoh_source", tcohSource},
+        {"mass_ratio", massRatio}, {"peak_density", peakDensity}, {"peak_ratio", peakRatio},
+        {"density_err", densityErr}, {"density_imprint", densityImprint}, {"density_fray", densityFray},
+        {"density_fray_source", densityFraySource}, {"density_fray_ratio", densityFrayRatio}, {"aniso", aniso},
+        {"aniso_source", anisoSource}, {"aniso_ratio", anisoRatio}, {"isotropy", isotropy},
+        {"isotropy_source", isotropySource}, {"lattice", lattice}, {"lattice_source", latticeSource},
+        {"vort_peak", vortPeak}, {"vort_peak_source", vortPeakSource}, {"vort_peak_ratio", vortPeakRatio},
+        {"air_detail", airDetail}};
 }
 
 std::optional<double> lowFrequencyError(const VectorField& detail, const VectorField& up, const Mask& coarseMask, int f)
@@ -671,6 +672,42 @@ void blockMeasure(const Frame& O, const Aligned& a, const VectorField& uh, const
     }
 }
 
+// tile_block, tile_div_rel and tile_hf_ratio: block, div_rel and hf_ratio over the smoke near the border planes of a
+// tiled run (farm join's metadata, or the settings for an untiled run measured at the same planes).
+void tileMeasures(const Frame& O, const Aligned& a, const VectorField& uh, const Mask& ownMask,
+    const MeasureSettings& s, FrameMeasures& m)
+{
+    std::vector<TileBorder> borders = s.tileBorders;
+    if (borders.empty()) {
+        const auto it = O.metadata.find(turb::meta::kTileBorders);
+        if (it == O.metadata.end() || it->second.empty()) return;
+        borders = parseTileBorders(it->second);
+    }
+    const int width = s.tileBorderWidth > 0 ? s.tileBorderWidth : 2 * (m.patchSize >= 2 ? m.patchSize : 8);
+    // Planes are output voxel indices; U_h and a.mask live on the refined target lattice, whole voxels apart.
+    Coord shift(0);
+    if (a.alignment == Alignment::World && !a.resampled)
+        for (int ax = 0; ax < 3; ++ax) shift[ax] = int(std::lround(a.offset[ax]));
+    const auto near = [&](const Coord& c, const Coord& sh) {
+        for (const TileBorder& b : borders)
+            if (std::abs(double(c[b.axis] - sh[b.axis]) + 0.5 - double(b.plane)) <= double(width)) return true;
+        return false;
+    };
+    Mask onRefined(a.mask.size(), 0), onOwn(ownMask.size(), 0);
+    for (size_t n = 0; n < a.mask.size(); ++n) onRefined[n] = a.mask[n] && near(uh.coordOf(n), shift) ? 1 : 0;
+    for (size_t n = 0; n < ownMask.size(); ++n) onOwn[n] = ownMask[n] && near(O.velocity.coordOf(n), Coord(0)) ? 1 : 0;
+    m.tileVoxels = countMask(onOwn);
+    if (m.patchSize >= 2) {
+        Coord origin = m.patchOrigin;
+        for (int ax = 0; ax < 3; ++ax) origin[ax] += shift[ax];
+        m.tileBlock = blockRatio(uh, onRefined, m.patchSize, origin);
+    }
+    m.tileDivRel = relativeDivergence(O.velocity, onOwn);
+    const std::optional<double> hf = highFrequencyEnergy(O.velocity, onOwn, a.f);
+    if (hf && m.hfEnergySource && *m.hfEnergySource > 0.0) m.tileHfRatio = *hf / *m.hfEnergySource;
+    if (m.tileVoxels == 0) m.notes.push_back("tile_block, tile_div_rel: no smoke near the tile borders");
+}
+
 // rms(a - b) / rms(a) over the voxels of `box` where `mask` (one byte per voxel of a's box) is 1; nullopt when a
 // is zero there.
 std::optional<double> relativeChange(const VectorField& a, const VectorField& b, const Mask& mask, const CoordBBox& box)
@@ -776,6 +813,7 @@ FrameMeasures measureFrame(const MeasureInput& in, const MeasureSettings& s, Pro
         checkCancelled(progress);
 
         blockMeasure(O, a, uh, s, m);
+        tileMeasures(O, a, uh, ownMask, s, m);
         if (s.structure) {
             if (progress) progress->begin("structure");
             structureMeasures(O, T, src, a, ownMask, srcMask, coarseMask, m);

@@ -69,7 +69,8 @@ struct ReadOptions
     int strayVoxels = 8;     ///< a far cluster of fewer active smoke voxels than this is a stray whatever its mass
     int strayDistance = 32;  ///< voxels; clusters nearer the kept smoke than this are kept, >= 0
     turb::CoordBBox holdBox; ///< non-empty (with cropToSmoke): hold this box instead of the frame's own, for
-                             ///< stages that need one box over a sequence (synth: the union of the scans' boxes)
+                             ///< stages that need one box over a sequence (synth: the union of the scans' boxes; a
+                             ///< transfer space tile: its core and halo), whether or not it holds smoke
 };
 
 /// A cluster of smoke left out of the region: stray voxels far from the main smoke (particles, sourcing,

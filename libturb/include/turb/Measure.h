@@ -23,6 +23,7 @@
 
 #include <turb/Advect.h>
 #include <turb/Field.h>
+#include <turb/Farm.h>
 #include <turb/Frame.h>
 #include <turb/Progress.h>
 #include <turb/Spectrum.h>
@@ -62,8 +63,12 @@ struct MeasureSettings
                                       ///< of the output frame; block is not computed when neither gives >= 2
     std::optional<Coord> patchOrigin; ///< an output voxel where a patch starts (seam planes at origin[a] + n *
                                       ///< patchSize); unset = metadata "vdbturb_patch_origin" ("x,y,z"), else (0,0,0)
-    double dt = 0.0;                  ///< time per frame for tcoh's advection; 0 = the previous target frame's dt. tcoh
-                                      ///< advects over (frame - previous frame) times this: the real time between them
+    std::vector<TileBorder> tileBorders; ///< space-tile border planes (output voxels) for tile_block and tile_div_rel;
+                                         ///< empty = metadata "vdbturb_tile_borders" of the output frame (farm join)
+    int tileBorderWidth = 0; ///< output voxels either side of a border plane that tile_* cover; 0 = 2 patch sizes
+                             ///< (16 without one): the issue's "within 2 patches of a tile border"
+    double dt = 0.0;         ///< time per frame for tcoh's advection; 0 = the previous target frame's dt. tcoh
+                             ///< advects over (frame - previous frame) times this: the real time between them
     Alignment alignment = Alignment::Auto; ///< how output voxels meet the refined target lattice
     bool spectra = true;                   ///< compute E(k) of output, target and source
     bool structure = true;                 ///< aniso, isotropy, lattice, vort_peak (source figures need a source)
@@ -103,6 +108,11 @@ struct FrameMeasures
     std::optional<double> divRel;            ///< rms(div U_out) / rms(|grad U_out|), central differences
     std::optional<double> divRelSource;      ///< the same of the source, for reference
     std::optional<double> block;             ///< mean |dU_h| across seam planes / mean elsewhere
+    std::optional<double> tileBlock;         ///< block over the smoke within tileBorderWidth of a tile border plane
+    std::optional<double> tileDivRel;        ///< div_rel over the same voxels
+    std::optional<double> tileHfRatio;       ///< hf_ratio over the same voxels: the detail's strength at the borders
+                                             ///< (a linear fade of independent tiles' details would dip it)
+    size_t tileVoxels = 0;                   ///< output voxels of the smoke near a tile border
     int patchSize = 0;                       ///< the seam spacing block used (0 = none)
     Coord patchOrigin{0};                    ///< the patch origin block used, in output voxels
     std::optional<double> tcoh;              ///< rms(U_h(f) - advect(U_h(f-1), U_t(f-1), dt)) / rms(U_h(f))

@@ -49,6 +49,13 @@ inline constexpr const char* kSeed = "vdbturb_seed";
 // farm
 /// On a frame `farm join` blended from two chunks: "w_a,w_b,d_a,d_b", the detail and density weights.
 inline constexpr const char* kFarmBlend = "vdbturb_farm_blend";
+/// On a transfer output made with --tile-box: the target box it held, "X0,Y0,Z0,X1,Y1,Z1" (--resume checks it).
+inline constexpr const char* kTileBox = "vdbturb_tile_box";
+/// On a frame `farm join` assembled from space tiles: "NXxNYxNZ halo H ramp R" (target voxels, output voxels).
+inline constexpr const char* kFarmTiles = "vdbturb_farm_tiles";
+/// The border planes between the tiles' cores, on the output lattice: "x:64;y:64" (turb::formatTileBorders).
+/// `measure` reports tile_block and tile_div_rel next to them.
+inline constexpr const char* kTileBorders = "vdbturb_tile_borders";
 
 // sim
 inline constexpr const char* kScene = "vdbturb_scene";

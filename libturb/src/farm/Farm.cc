@@ -4,7 +4,11 @@
 #include <turb/Error.h>
 #include <turb/Metadata.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
+#include <limits>
+#include <map>
 #include <string>
 
 namespace turb {
@@ -108,6 +112,404 @@ Frame blendOverlap(const Frame& a, const Frame& b, const VectorField& upTarget, 
         stats->energyA = smoke ? aa / double(smoke) : 0.0;
         stats->energyB = smoke ? bb / double(smoke) : 0.0;
         stats->energyOut = smoke ? oo / double(smoke) : 0.0;
+    }
+    return out;
+}
+
+} // namespace turb
+
+namespace turb {
+
+namespace {
+
+// The output-voxel factor per axis (refineDomain's: a flat box keeps its one z layer).
+Coord factorsOf(const CoordBBox& box, int ratio) { return domainFactors(box, ratio); }
+
+template<typename T>
+void requireSame(const std::vector<Frame>& tiles, const char* what, bool (*has)(const Frame&))
+{
+    const bool first = has(tiles.front());
+    for (size_t k = 1; k < tiles.size(); ++k)
+        if (has(tiles[k]) != first)
+            throw ValueError(std::string("tile ") + std::to_string(k) + " " + (first ? "has no " : "has a ") + what +
+                             " where tile 0 " + (first ? "has one" : "has none") + " (frame " +
+                             std::to_string(tiles[k].number) + ")");
+}
+
+} // namespace
+
+TilePlan planSpaceTiles(const CoordBBox& box, const Coord& counts, int halo, int align)
+{
+    if (box.empty()) throw ValueError("space tiles: the box to split is empty");
+    if (halo < 0) throw ValueError("space tiles: the halo must not be negative");
+    if (align < 1) throw ValueError("space tiles: the alignment must be at least 1");
+    for (int a = 0; a < 3; ++a)
+        if (counts[a] < 1) throw ValueError("space tiles: at least one tile per axis");
+    if (isFlat(box) && counts.z() != 1) throw ValueError("space tiles: a 2D (one-layer) box cannot be split in z");
+    TilePlan plan;
+    plan.box = box;
+    plan.counts = counts;
+    plan.halo = halo;
+    // Per axis the borders b_0 = min < b_1 < ... < b_n = max + 1, the inner ones on absolute multiples of `align`.
+    std::array<std::vector<int>, 3> borders;
+    for (int a = 0; a < 3; ++a) {
+        const int lo = box.min()[a], len = box.dim()[a], n = counts[a];
+        borders[a].push_back(lo);
+        for (int k = 1; k < n; ++k) {
+            const double raw = lo + double(k) * len / n;
+            borders[a].push_back(int(std::lround(raw / align)) * align);
+        }
+        borders[a].push_back(lo + len);
+        for (int k = 0; k < n; ++k) {
+            const int width = borders[a][size_t(k) + 1] - borders[a][size_t(k)];
+            if (width < 1 || (n > 1 && width < halo))
+                throw ValueError("space tiles: " + std::to_string(n) + " tiles along " + "xyz"[a] + " over " +
+                                 std::to_string(len) + " voxels give a tile " + std::to_string(width) +
+                                 " voxels wide, narrower than the halo of " + std::to_string(halo) +
+                                 ": use fewer tiles or a smaller halo");
+        }
+    }
+    for (int k = 0; k < counts.z(); ++k)
+        for (int j = 0; j < counts.y(); ++j)
+            for (int i = 0; i < counts.x(); ++i) {
+                SpaceTile t;
+                t.index = int(plan.tiles.size());
+                t.cell = Coord(i, j, k);
+                const Coord c = t.cell;
+                t.core =
+                    CoordBBox(Coord(borders[0][size_t(c.x())], borders[1][size_t(c.y())], borders[2][size_t(c.z())]),
+                        Coord(borders[0][size_t(c.x()) + 1] - 1, borders[1][size_t(c.y()) + 1] - 1,
+                            borders[2][size_t(c.z()) + 1] - 1));
+                t.held = t.core;
+                t.held.expand(halo);
+                t.held.intersect(box);
+                plan.tiles.push_back(t);
+            }
+    return plan;
+}
+
+double TilePlan::weight(size_t k, const Coord& v, int ratio, int ramp) const
+{
+    const SpaceTile& t = tiles.at(k);
+    const Coord F = factorsOf(box, ratio);
+    const double r = double(ramp), half = 0.5 * double(ramp);
+    double w = 1.0;
+    for (int a = 0; a < 3; ++a) {
+        const double c = double(v[a]) + 0.5;
+        if (t.core.min()[a] > box.min()[a]) {
+            const double P = double(t.core.min()[a]) * F[a];
+            w *= std::clamp((c - (P - half)) / r, 0.0, 1.0);
+        }
+        if (t.core.max()[a] < box.max()[a]) {
+            const double Q = double(t.core.max()[a] + 1) * F[a];
+            w *= std::clamp(((Q + half) - c) / r, 0.0, 1.0);
+        }
+        if (w == 0.0) return 0.0;
+    }
+    return w;
+}
+
+std::vector<TileBorder> tileBorders(const TilePlan& plan, int ratio)
+{
+    const Coord F = factorsOf(plan.box, ratio);
+    std::vector<TileBorder> out;
+    for (int a = 0; a < 3; ++a) {
+        std::vector<int> planes;
+        for (const SpaceTile& t : plan.tiles)
+            if (t.core.min()[a] > plan.box.min()[a]) planes.push_back(t.core.min()[a] * F[a]);
+        std::sort(planes.begin(), planes.end());
+        planes.erase(std::unique(planes.begin(), planes.end()), planes.end());
+        for (int p : planes) out.push_back({a, p});
+    }
+    return out;
+}
+
+std::string formatTileBorders(const std::vector<TileBorder>& borders)
+{
+    std::string s;
+    int axis = -1;
+    for (const TileBorder& b : borders) {
+        if (b.axis != axis) {
+            if (!s.empty()) s += ';';
+            s += std::string(1, "xyz"[b.axis]) + ":";
+            axis = b.axis;
+        } else {
+            s += ',';
+        }
+        s += std::to_string(b.plane);
+    }
+    return s;
+}
+
+std::vector<TileBorder> parseTileBorders(const std::string& text)
+{
+    std::vector<TileBorder> out;
+    const auto bad = [&](const std::string& why) {
+        return ValueError("tile borders '" + text + "': " + why + " (expected e.g. x:64,128;y:64)");
+    };
+    size_t pos = 0;
+    while (pos < text.size()) {
+        const size_t end = std::min(text.find(';', pos), text.size());
+        const std::string part = text.substr(pos, end - pos);
+        pos = end + 1;
+        if (part.empty()) continue;
+        if (part.size() < 3 || part[1] != ':' || std::string("xyz").find(part[0]) == std::string::npos)
+            throw bad("'" + part + "' does not start with x:, y: or z:");
+        const int axis = int(std::string("xyz").find(part[0]));
+        size_t p = 2;
+        while (p <= part.size()) {
+            const size_t comma = std::min(part.find(',', p), part.size());
+            const std::string num = part.substr(p, comma - p);
+            size_t used = 0;
+            int v = 0;
+            try {
+                v = std::stoi(num, &used);
+            } catch (const std::exception&) {
+                used = 0;
+            }
+            if (num.empty() || used != num.size()) throw bad("'" + num + "' is not a voxel index");
+            out.push_back({axis, v});
+            p = comma + 1;
+        }
+    }
+    std::sort(out.begin(), out.end(), [](const TileBorder& a, const TileBorder& b) {
+        return a.axis != b.axis ? a.axis < b.axis : a.plane < b.plane;
+    });
+    return out;
+}
+
+namespace {
+
+// One tile's factor along one axis at one output coordinate: the tile's cell along the axis and its weight (> 0).
+struct AxisWeight
+{
+    int cell = 0;
+    double w = 0.0;
+};
+
+// For each output coordinate of `box` along axis `a`, the cells whose weight there is not zero (at most two, as the
+// ramps are no wider than a core): TilePlan::weight factors per axis, so a voxel's tiles are the products.
+std::vector<std::vector<AxisWeight>> axisWeights(const TilePlan& plan, int a, int ratio, int ramp, const CoordBBox& box)
+{
+    const Coord F = factorsOf(plan.box, ratio);
+    const int n = plan.counts[a];
+    std::vector<int> lo(static_cast<size_t>(n)),
+        hi(static_cast<size_t>(n)); // each cell's core along the axis, in target voxels
+    for (const SpaceTile& t : plan.tiles) {
+        lo[size_t(t.cell[a])] = t.core.min()[a];
+        hi[size_t(t.cell[a])] = t.core.max()[a];
+    }
+    const double r = double(ramp), half = 0.5 * double(ramp);
+    std::vector<std::vector<AxisWeight>> out(size_t(box.dim()[a]));
+    for (int x = box.min()[a]; x <= box.max()[a]; ++x) {
+        const double c = double(x) + 0.5;
+        for (int i = 0; i < n; ++i) {
+            double w = 1.0;
+            if (i > 0) w *= std::clamp((c - (double(lo[size_t(i)]) * F[a] - half)) / r, 0.0, 1.0);
+            if (i + 1 < n) w *= std::clamp(((double(hi[size_t(i)] + 1) * F[a] + half) - c) / r, 0.0, 1.0);
+            if (w > 0.0) out[size_t(x - box.min()[a])].push_back({i, w});
+        }
+    }
+    return out;
+}
+
+// Per pair of tiles (k < l): the dot product and energies of their details over the smoke they share.
+struct PairSums
+{
+    double dot = 0.0, aa = 0.0, bb = 0.0;
+    double rho() const { return aa > 0.0 && bb > 0.0 ? std::clamp(dot / std::sqrt(aa * bb), -1.0, 1.0) : 0.0; }
+};
+
+} // namespace
+
+Frame joinTiles(const std::vector<Frame>& tiles, const TilePlan& plan, int ratio, int ramp, float densityThreshold,
+    const VectorField& upTarget, TileJoinStats* stats)
+{
+    if (tiles.size() != plan.tiles.size() || tiles.empty())
+        throw ValueError("tile join: " + std::to_string(tiles.size()) + " frames for " +
+                         std::to_string(plan.tiles.size()) + " tiles");
+    if (ratio < 1) throw ValueError("tile join: ratio must be at least 1");
+    const Coord F = factorsOf(plan.box, ratio);
+    if (plan.tiles.size() > 1) {
+        int narrowest = std::numeric_limits<int>::max(), haloOut = std::numeric_limits<int>::max();
+        for (int a = 0; a < 3; ++a)
+            if (plan.counts[a] > 1) {
+                haloOut = std::min(haloOut, plan.halo * F[a]);
+                for (const SpaceTile& t : plan.tiles) narrowest = std::min(narrowest, t.core.dim()[a] * F[a]);
+            }
+        if (ramp < 1 || ramp > narrowest || ramp > 2 * haloOut)
+            throw ValueError("tile join: a ramp of " + std::to_string(ramp) + " output voxels must be at least 1, " +
+                             "at most the narrowest tile (" + std::to_string(narrowest) +
+                             ") and at most twice the halo (" + std::to_string(haloOut) + ")");
+    }
+    const Frame& first = tiles.front();
+    requireSame<Frame>(tiles, "velocity", [](const Frame& f) { return f.hasVelocity(); });
+    requireSame<Frame>(tiles, "density", [](const Frame& f) { return f.hasDensity(); });
+    requireSame<Frame>(tiles, "temperature", [](const Frame& f) { return bool(f.temperature); });
+    requireSame<Frame>(tiles, "flame", [](const Frame& f) { return bool(f.flame); });
+    for (size_t k = 1; k < tiles.size(); ++k)
+        if (!tiles[k].lattice().approxEqual(first.lattice()))
+            throw ValueError("tile join: tile " + std::to_string(k) + "'s lattice differs from tile 0's (frame " +
+                             std::to_string(first.number) + ")");
+    const CoordBBox box = refineDomain(plan.box, ratio);
+    const Lattice& lattice = first.lattice();
+    Frame out;
+    out.number = first.number;
+    out.dt = first.dt;
+    out.metadata = first.metadata;
+    out.metadata.erase(meta::kState);
+    out.metadata.erase(meta::kResumeStateFile);
+    out.metadata.erase(meta::kTileBox); // tile 0's: the joined frame covers the whole box
+    if (first.hasVelocity()) out.velocity = VectorField(box, lattice);
+    if (first.hasDensity()) out.density = ScalarField(box, lattice);
+    if (first.temperature) out.temperature = ScalarField(box, lattice);
+    if (first.flame) out.flame = ScalarField(box, lattice);
+    const bool vel = first.hasVelocity();
+    const bool detail = vel && !upTarget.empty() && upTarget.bbox().isInside(box);
+
+    const std::array<std::vector<std::vector<AxisWeight>>, 3> axes = {axisWeights(plan, 0, ratio, ramp, box),
+        axisWeights(plan, 1, ratio, ramp, box), axisWeights(plan, 2, ratio, ramp, box)};
+    const Coord n = plan.counts;
+    // The tiles with weight at v, as (tile index, linear weight lambda); lambda sums to 1.
+    struct Share
+    {
+        size_t k;
+        double lambda;
+    };
+    const auto shares = [&](const Coord& v, std::vector<Share>& sh) {
+        sh.clear();
+        const Coord o = v - box.min();
+        for (const AxisWeight& x : axes[0][size_t(o.x())])
+            for (const AxisWeight& y : axes[1][size_t(o.y())])
+                for (const AxisWeight& z : axes[2][size_t(o.z())])
+                    sh.push_back({size_t(x.cell + n.x() * (y.cell + n.y() * z.cell)), x.w * y.w * z.w});
+    };
+    const auto require = [&](const auto& field, const Coord& v, size_t k, const char* what) {
+        if (!field.contains(v))
+            throw ValueError("tile join: tile " + std::to_string(k) + "'s " + what + " does not cover output voxel (" +
+                             std::to_string(v.x()) + "," + std::to_string(v.y()) + "," + std::to_string(v.z()) +
+                             ") where its weight is not zero (frame " + std::to_string(tiles[k].number) + ")");
+    };
+
+    // Each tile's detail splits into its coarse-cell means c_k (the coarse motion it adds, which lf_err measures) and
+    // the rest, f_k. The means are motion, like density: they are blended linearly, so the joined coarse means are
+    // the tiles' interpolated. Only f_k, the random-phase part, takes the energy-preserving weights.
+    std::vector<Field<Vec3f>> means(detail ? tiles.size() : 0);
+    const auto cellOf = [&](const Coord& v) {
+        return Coord(floorDiv(v.x(), F.x()), floorDiv(v.y(), F.y()), floorDiv(v.z(), F.z()));
+    };
+    if (detail)
+        for (size_t k = 0; k < tiles.size(); ++k) {
+            CoordBBox reach = refineDomain(plan.tiles[k].held, ratio);
+            reach.intersect(box);
+            reach.intersect(tiles[k].velocity.bbox());
+            Field<Vec3f> sum(CoordBBox(cellOf(reach.min()), cellOf(reach.max())), Lattice{}, Vec3f(0.0f));
+            Field<float> count(sum.bbox(), Lattice{}, 0.0f);
+            for (auto it = reach.beginXYZ(); it; ++it) {
+                const Coord c = cellOf(*it);
+                sum[c] += tiles[k].velocity[*it] - upTarget[*it];
+                count[c] += 1.0f;
+            }
+            for (size_t n = 0; n < sum.size(); ++n)
+                if (count.data()[n] > 0.0f) sum.data()[n] /= count.data()[n];
+            means[k] = std::move(sum);
+        }
+    const auto fineDetail = [&](size_t k, const Coord& v, const Vec3f& up) {
+        return tiles[k].velocity[v] - up - means[k][cellOf(v)];
+    };
+
+    // Pass 1: density, temperature and flame (and velocity where one tile owns the voxel, or without up(u_t)) are
+    // the lambda-weighted sums: weights that sum to 1 keep the smoke's mass and agree with tiles that agree. Where
+    // tiles share a voxel, their details' correlation is summed per pair of tiles.
+    std::map<std::pair<size_t, size_t>, PairSums> pairs;
+    std::vector<Share> sh;
+    for (auto it = box.beginXYZ(); it; ++it) {
+        const Coord v = *it;
+        shares(v, sh);
+        const size_t o =
+            out.velocity.empty() ? out.density.offset(v.x(), v.y(), v.z()) : out.velocity.offset(v.x(), v.y(), v.z());
+        float dmax = 0.0f;
+        for (const Share& s : sh) {
+            const Frame& t = tiles[s.k];
+            const float w = float(s.lambda);
+            if (vel) {
+                require(t.velocity, v, s.k, "velocity");
+                if (!detail || sh.size() == 1) out.velocity.data()[o] += w * t.velocity[v];
+            }
+            if (t.hasDensity()) {
+                require(t.density, v, s.k, "density");
+                out.density.data()[o] += w * t.density[v];
+                dmax = std::max(dmax, t.density[v]);
+            }
+            if (t.temperature) {
+                require(*t.temperature, v, s.k, "temperature");
+                out.temperature->data()[o] += w * (*t.temperature)[v];
+            }
+            if (t.flame) {
+                require(*t.flame, v, s.k, "flame");
+                out.flame->data()[o] += w * (*t.flame)[v];
+            }
+        }
+        if (!detail || sh.size() < 2 || (first.hasDensity() && !(dmax > densityThreshold))) continue;
+        const Vec3f up = upTarget[v];
+        for (size_t a = 0; a < sh.size(); ++a)
+            for (size_t b = a + 1; b < sh.size(); ++b) {
+                const Vec3f ha = fineDetail(sh[a].k, v, up), hb = fineDetail(sh[b].k, v, up);
+                PairSums& p = pairs[std::minmax(sh[a].k, sh[b].k)];
+                p.dot += double(ha.dot(hb));
+                p.aa += double(sh[a].k < sh[b].k ? ha.lengthSqr() : hb.lengthSqr());
+                p.bb += double(sh[a].k < sh[b].k ? hb.lengthSqr() : ha.lengthSqr());
+            }
+    }
+
+    // Pass 2, where tiles share a voxel: U = up(u_t) + sum_k lambda_k c_k + s sum_k sqrt(lambda_k) f_k. sum_k lambda_k
+    // = 1, so independent f_k keep their energy (a linear fade would lose up to half of it mid-ramp); with pair
+    // correlations rho_kl the sum has 1 + sum_{k != l} sqrt(lambda_k lambda_l) rho_kl times that energy, and s undoes
+    // it (s = 1 / sum_k sqrt(lambda_k) for tiles that agree exactly: the blend is then their common detail).
+    double spreadSum = 0.0, detailSum = 0.0;
+    size_t seamVoxels = 0;
+    if (vel)
+        for (auto it = box.beginXYZ(); it; ++it) {
+            const Coord v = *it;
+            shares(v, sh);
+            if (sh.size() < 2) continue;
+            const size_t o = out.velocity.offset(v.x(), v.y(), v.z());
+            const Vec3f up = detail ? upTarget[v] : Vec3f(0.0f);
+            if (detail) {
+                double cross = 0.0;
+                for (size_t a = 0; a < sh.size(); ++a)
+                    for (size_t b = a + 1; b < sh.size(); ++b) {
+                        const auto p = pairs.find(std::minmax(sh[a].k, sh[b].k));
+                        if (p != pairs.end()) cross += 2.0 * std::sqrt(sh[a].lambda * sh[b].lambda) * p->second.rho();
+                    }
+                const float scale = float(1.0 / std::sqrt(std::max(1.0 + cross, 1e-6)));
+                Vec3f coarse(0.0f), fine(0.0f);
+                for (const Share& s : sh) {
+                    coarse += float(s.lambda) * means[s.k][cellOf(v)];
+                    fine += float(std::sqrt(s.lambda)) * fineDetail(s.k, v, up);
+                }
+                out.velocity.data()[o] = up + coarse + scale * fine;
+            }
+            if (first.hasDensity() && !(out.density.data()[o] > densityThreshold)) continue;
+            // The tiles' spread around the blend, over the detail's energy.
+            for (const Share& s : sh)
+                spreadSum += s.lambda * double((tiles[s.k].velocity[v] - out.velocity.data()[o]).lengthSqr());
+            detailSum += double((out.velocity.data()[o] - up).lengthSqr());
+            ++seamVoxels;
+        }
+    if (stats) {
+        stats->seamVoxels = seamVoxels;
+        stats->disagreement = detailSum > 0.0 ? std::sqrt(spreadSum / detailSum) : 0.0;
+        PairSums all;
+        stats->minCorrelation = 1.0;
+        for (const auto& [key, p] : pairs) {
+            all.dot += p.dot;
+            all.aa += p.aa;
+            all.bb += p.bb;
+            stats->minCorrelation = std::min(stats->minCorrelation, p.rho());
+        }
+        stats->correlation = pairs.empty() ? 1.0 : all.rho();
+        if (pairs.empty()) stats->minCorrelation = 1.0;
     }
     return out;
 }
