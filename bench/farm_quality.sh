@@ -4,18 +4,20 @@
 # on both, and tests/farm/check_farm.py (which prints the seam frames' tcoh against the sequential median and the
 # hf_ratio range).
 #   bench/farm_quality.sh [CHUNKS] [PREROLL] [OVERLAP]     defaults 2 8 10; 12 minutes on 2 cores plus the sequential run
-# Environment: BIN (default build/tools/vdbturb), WORK (default /tmp/vdbturb-farm-quality), DATA (../shared/data).
+# Environment: BIN (default build/tools/vdbturb), WORK (default /tmp/vdbturb-farm-quality), DATA (../shared/data);
+# TARGET and SOURCE (patterns) run another pair than the Blender one (the paper configuration: bench/farm_quality.sh
+# with TARGET=.../plume.####.vdb SOURCE=.../swirl.####.vdb from `vdbturb sim`), CHECK_ARGS go to check_farm.py.
 set -eu
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
 BIN=${BIN:-$ROOT/build/tools/vdbturb}
 DATA=${DATA:-$ROOT/../shared/data}
 WORK=${WORK:-/tmp/vdbturb-farm-quality}
 N=${1:-2}; P=${2:-8}; O=${3:-10}
-T="$DATA/blender-plume2-32/fluid_data_####.vdb"
-S="$DATA/blender-plume2-128/fluid_data_####.vdb"
+T=${TARGET:-$DATA/blender-plume2-32/fluid_data_####.vdb}
+S=${SOURCE:-$DATA/blender-plume2-128/fluid_data_####.vdb}
 R="$WORK/n${N}_p${P}_o${O}"
 mkdir -p "$WORK"
-[ -f "$WORK/seq/turb.0030.vdb" ] || "$BIN" transfer --target "$T" --source "$S" --out "$WORK/seq/turb.####.vdb" --threads 2 -q
+[ -f "$WORK/seq/done" ] || { "$BIN" transfer --target "$T" --source "$S" --out "$WORK/seq/turb.####.vdb" --threads 2 -q && touch "$WORK/seq/done"; }
 [ -f "$WORK/seq.measure.json" ] || "$BIN" measure --output "$WORK/seq/turb.####.vdb" --target "$T" --source "$S" \
   --no-spectra --no-structure -q > "$WORK/seq.measure.json"
 rm -rf "$R"
@@ -29,4 +31,6 @@ done
 sh "$R/farm/join.sbatch" 2>> "$R/farm/logs/join.log"
 "$BIN" measure --output "$R/joined/turb.####.vdb" --target "$T" --source "$S" --no-spectra --no-structure -q > "$R/joined.measure.json"
 grep "blend" "$R/farm/logs/join.log" || true
-python3 "$ROOT/tests/farm/check_farm.py" "$R/farm/plan.json" "$WORK/seq" "$R/joined" "$WORK/seq.measure.json" "$R/joined.measure.json"
+# shellcheck disable=SC2086
+python3 "$ROOT/tests/farm/check_farm.py" "$R/farm/plan.json" "$WORK/seq" "$R/joined" "$WORK/seq.measure.json" \
+  "$R/joined.measure.json" ${CHECK_ARGS:-}

@@ -53,6 +53,12 @@ TEST(FarmPlan, ChunksCoverEveryFrameWithExactOverlapsAndPreroll)
 TEST(FarmPlan, RefusesChunksShorterThanTwoOverlaps)
 {
     EXPECT_THROW(planTimeChunks(10, 4, 2, 3), ValueError);
+    // Two chunks have one overlap between them: it may be most of the shot (the long overlaps the seam needs).
+    const auto two = planTimeChunks(30, 2, 0, 25);
+    EXPECT_EQ(two[0].end - two[1].keepBegin, 25u);
+    EXPECT_GE(two[1].keepBegin, 1u);
+    EXPECT_THROW(planTimeChunks(30, 3, 0, 12), ValueError); // the middle chunk's two overlaps would meet
+    EXPECT_THROW(planTimeChunks(30, 2, 0, 29), ValueError); // chunk 0 would keep no frame of its own
     EXPECT_THROW(planTimeChunks(10, 0, 2, 1), ValueError);
     EXPECT_THROW(planTimeChunks(10, 2, -1, 1), ValueError);
     EXPECT_NO_THROW(planTimeChunks(10, 2, 2, 3));

@@ -130,9 +130,18 @@ CONF
   while squeue -h -j "$JOIN,$TJOIN" 2>/dev/null | grep -q .; do
     i=$((i + 1))
     if [ $i -gt 600 ]; then echo "FAIL: the joins did not finish in 5 minutes"; squeue; exit 1; fi
-    # Slurm holds a requeued job about two minutes before it is eligible again; an operator may release it at once.
+    if squeue -h -o "%r" -j "$JOIN,$TJOIN" 2>/dev/null | grep -q DependencyNeverSatisfied; then
+      echo "FAIL: a task failed for good, so a join can never start"; squeue; tail -n 5 "$W"/farm/logs/*.log "$W"/tiles/logs/*.log
+      exit 1
+    fi
+    # Slurm holds a requeued job about two minutes before it is eligible again; an operator may release it sooner.
+    # Not at once: a task started within a second of its requeue can find its old job credential still being
+    # revoked, and Slurm then fails it for good ("Job credential revoked"). Five seconds later, once per task.
     squeue -h -t PD -o "%i %r" | while read -r id why; do
-      if [ "$why" = BeginTime ]; then scontrol update jobid="$id" StartTime=now && echo "released requeued task $id"; fi
+      if [ "$why" = BeginTime ] && ! grep -qx "$id" "$W/released" 2>/dev/null; then
+        echo "$id" >> "$W/released"
+        scontrol update jobid="$id" StartTime=now+5 && echo "released requeued task $id (in 5 s)"
+      fi
     done
     sleep 0.5
   done

@@ -46,8 +46,9 @@ struct TimeChunk
 
 /// Splits `frameCount` frames into `chunks` chunks of nearly equal length that overlap by `overlap` frames, each
 /// computing up to `preroll` frames before its first kept one (fewer at the start of the list). Chunk 0 starts
-/// at frame 0 with no pre-roll. Throws ValueError when a chunk would be shorter than two overlaps (its two
-/// overlaps would meet) or the arguments are out of range.
+/// at frame 0 with no pre-roll. Throws ValueError when a chunk between two others would be shorter than two
+/// overlaps (its two overlaps would meet: three chunks would share a frame), the first or last chunk would keep no
+/// frame of its own, or the arguments are out of range.
 std::vector<TimeChunk> planTimeChunks(size_t frameCount, int chunks, int preroll, int overlap);
 
 /// The weights of the j-th of `overlap` overlap frames (a = the earlier chunk, b = the later one).

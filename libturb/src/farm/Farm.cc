@@ -26,8 +26,10 @@ std::vector<TimeChunk> planTimeChunks(size_t frameCount, int chunks, int preroll
     for (size_t k = 0; k <= N; ++k) b[k] = k * (n - O) / N;
     std::vector<TimeChunk> out;
     for (size_t k = 0; k < N; ++k) {
-        // A chunk's own frames between its two overlaps must not be negative, else three chunks share a frame.
-        if (b[k + 1] - b[k] < std::max<size_t>(O, 1))
+        // A chunk between two others keeps its two overlaps apart, else three chunks share a frame. The first and the
+        // last chunk have one overlap each: they only need a frame of their own.
+        const bool middle = k > 0 && k + 1 < N;
+        if (b[k + 1] - b[k] < (middle ? std::max<size_t>(O, 1) : 1))
             throw ValueError(std::to_string(n) + " frames in " + std::to_string(chunks) + " chunks give chunks of " +
                              std::to_string(b[k + 1] - b[k] + O) + " frames, fewer than two overlaps of " +
                              std::to_string(overlap) + ": use fewer chunks or a shorter overlap");
