@@ -59,6 +59,10 @@ TEST(FarmPlan, RefusesChunksShorterThanTwoOverlaps)
     EXPECT_GE(two[1].keepBegin, 1u);
     EXPECT_THROW(planTimeChunks(30, 3, 0, 12), ValueError); // the middle chunk's two overlaps would meet
     EXPECT_THROW(planTimeChunks(30, 2, 0, 29), ValueError); // chunk 0 would keep no frame of its own
+    const auto one = planTimeChunks(12, 1, 4, 20);          // one chunk: no overlap, no pre-roll
+    ASSERT_EQ(one.size(), 1u);
+    EXPECT_EQ(one[0].computeBegin, 0u);
+    EXPECT_EQ(one[0].end, 12u);
     EXPECT_THROW(planTimeChunks(10, 0, 2, 1), ValueError);
     EXPECT_THROW(planTimeChunks(10, 2, -1, 1), ValueError);
     EXPECT_NO_THROW(planTimeChunks(10, 2, 2, 3));

@@ -30,10 +30,12 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// Defaults from the Blender pair measurements in docs/farm.md: O = 10 kept seam frames at 1.4-1.6x the sequential
-// median tcoh (the cross-fade step falls as 1/(O+1)); P = 8 gave the later chunk a settled detail.
-constexpr int kDefaultPreroll = 8;
-constexpr int kDefaultOverlap = 10;
+// Defaults from the measurements in docs/farm.md (Blender pair and paper configuration): the cross-fade's added
+// change per frame falls as 1/(O+1), and O = 20 keeps the seam frames' tcoh within 0.94-1.06x (paper) and 0.95-1.11x
+// (Blender) of the sequential run's same frames, where O = 10 gave up to 1.32x. P + O = 24 frames of history settle
+// the later chunk before it goes on alone.
+constexpr int kDefaultPreroll = 4;
+constexpr int kDefaultOverlap = 20;
 // Space tiles: the target read's default crop margin (patch radius, advection reach and seam band, io.md); the
 // measurements behind it are in docs/farm.md.
 constexpr int kDefaultHalo = 8;

@@ -17,6 +17,8 @@ std::vector<TimeChunk> planTimeChunks(size_t frameCount, int chunks, int preroll
 {
     if (chunks < 1) throw ValueError("chunks must be at least 1");
     if (preroll < 0 || overlap < 0) throw ValueError("pre-roll and overlap must not be negative");
+    // One chunk has no neighbour: its overlap and pre-roll mean nothing.
+    if (chunks == 1) overlap = preroll = 0;
     const size_t n = frameCount, O = size_t(overlap), N = size_t(chunks);
     if (n < O + N)
         throw ValueError(std::to_string(n) + " frames cannot hold " + std::to_string(chunks) +
