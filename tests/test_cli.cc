@@ -1103,11 +1103,50 @@ TEST(Cli, ATileBoxHoldsThatBoxOfTheTargetAndResumesOnlyOnIt)
     const CmdResult same = run(base + " --out " + out + " --frames 1-3 --resume --tile-box 4,6,0,19,21,11 -q");
     EXPECT_EQ(same.code, 0) << same.out;
     EXPECT_TRUE(std::filesystem::exists(dir / "tile/t.0003.vdb"));
-    // Malformed boxes are refused before anything runs.
+    // Every frame exists: --resume still checks that they are this run's (a farm plan rewritten with other options
+    // over the same scratch would otherwise hand on another run's frames).
+    const CmdResult done = run(base + " --out " + out + " --frames 1-3 --resume --tile-box 4,6,0,19,21,11 --gamma 0");
+    EXPECT_EQ(done.code, 1) << done.out;
+    EXPECT_NE(done.out.find("gamma: 10 -> 0"), std::string::npos) << done.out;
+    // Malformed boxes are usage errors (exit 2); boxes off the domain or one voxel thick in a 3D cache are refused.
     for (const char* bad : {"1,2,3", "4,6,0,3,21,11", "a,6,0,19,21,11"}) {
         const CmdResult r = run(base + " --out " + dir / "bad/t.####.vdb" + " --frames 1 --tile-box " + bad);
-        EXPECT_NE(r.code, 0) << bad;
+        EXPECT_EQ(r.code, 2) << bad;
         EXPECT_NE(r.out.find("--tile-box"), std::string::npos) << r.out;
     }
+    for (const char* bad : {"0,0,0,100,100,100", "-10,-10,-10,-1,-1,-1", "0,0,3,15,15,3"}) {
+        const CmdResult r = run(base + " --out " + dir / "bad/t.####.vdb" + " --frames 1 --tile-box " + bad);
+        EXPECT_EQ(r.code, 1) << bad;
+        EXPECT_NE(r.out.find("--tile-box " + std::string(bad)), std::string::npos) << r.out;
+    }
     EXPECT_FALSE(std::filesystem::exists(dir / "bad"));
+}
+
+TEST(Cli, FarmPlanRefusesAnOutputItWouldReadAndOptionsItSetsItself)
+{
+    testutil::TempDir dir;
+    const std::string base = "farm plan --dir " + dir / "f" + " --target " + lo() + " --source " + hi() + " --tiles 2";
+    const CmdResult input = run(base + " --out " + lo());
+    EXPECT_EQ(input.code, 1) << input.out;
+    EXPECT_NE(input.out.find("is the target cache"), std::string::npos) << input.out;
+    const CmdResult scratch = run(base + " --out " + dir / "f/tiles/000/x.####.vdb");
+    EXPECT_EQ(scratch.code, 1) << scratch.out;
+    EXPECT_NE(scratch.out.find("scratch"), std::string::npos) << scratch.out;
+    const CmdResult box = run(base + " --out " + dir / "o/x.####.vdb -- --tile-box 0,0,0,3,3,3");
+    EXPECT_EQ(box.code, 1) << box.out;
+    const CmdResult threads = run(base + " --out " + dir / "o/x.####.vdb -- --threads 1");
+    EXPECT_NE(threads.out.find("--cpus"), std::string::npos) << threads.out;
+    for (const char* bad : {"0", "2x", "abc", "2x2x2x2"}) {
+        const CmdResult r = run("farm plan --dir " + dir / "f" + " --target " + lo() + " --source " + hi() +
+                                " --out " + dir / "o/x.####.vdb --tiles " + bad);
+        EXPECT_EQ(r.code, 2) << bad << r.out;
+    }
+    EXPECT_FALSE(std::filesystem::exists(dir / "f/plan.json"));
+    // One tile is a plan too (a farm task over the whole box), and the plan.json says so.
+    const CmdResult one = run(base.substr(0, base.size() - 1) + "1 --out " + dir / "o/x.####.vdb");
+    ASSERT_EQ(one.code, 0) << one.out;
+    std::ifstream plan(dir / "f/plan.json");
+    const std::string text((std::istreambuf_iterator<char>(plan)), std::istreambuf_iterator<char>());
+    EXPECT_NE(text.find("\"space_tiles\""), std::string::npos);
+    EXPECT_NE(text.find("\"137\""), std::string::npos) << "plan.json lists every exit code";
 }

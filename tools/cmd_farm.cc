@@ -50,6 +50,8 @@ struct FarmArgs
     int halo = kDefaultHalo; ///< target voxels a tile holds past its core
     int ramp = 0;            ///< output voxels of the join's ramp across a border; 0 = halo x ratio
     const CLI::Option* chunksGiven = nullptr;
+    const CLI::Option* prerollGiven = nullptr;
+    const CLI::Option* overlapGiven = nullptr;
     int cpus = 2, retries = 2;
     std::string exe, partition, time, mem, name = "vdbturb";
     std::vector<std::string> transferArgs;
@@ -122,20 +124,37 @@ std::vector<std::string> joinArgs(const std::vector<std::string>& args)
             args[i].rfind("--velocity-margin", 0) == 0 || args[i].rfind("--clipping", 0) == 0) {
             out.push_back(args[i]);
             if (args[i].find('=') == std::string::npos && i + 1 < args.size()) out.push_back(args[++i]);
-        } else if (args[i] == "--half") {
+        } else if (args[i] == "--half" || args[i] == "--no-clobber") {
             out.push_back(args[i]);
         }
     return out;
 }
 
 // What plan sets itself is refused after --: a chunk's frames, paths and threads are the plan's.
-void checkPassThrough(const std::vector<std::string>& transferArgs)
+void checkPassThrough(const std::vector<std::string>& transferArgs, bool tiled)
 {
-    for (const auto& t : transferArgs)
-        if (t == "--frames" || t == "--out" || t == "--target" || t == "--source" || t == "--resume" ||
-            t == "--threads" || t.rfind("--frames=", 0) == 0 || t.rfind("--out=", 0) == 0)
+    for (const auto& t : transferArgs) {
+        const std::string name = t.substr(0, t.find('='));
+        if (name == "--threads")
+            throw turb::ValueError("'" + t + "' after -- is set by farm plan itself: give --cpus to farm plan");
+        if (name == "--tile-box" || (tiled && name == "--target-no-crop"))
+            throw turb::ValueError("'" + t + "' after -- is set by farm plan itself: give --tiles and --halo");
+        if (name == "--frames" || name == "--out" || name == "--target" || name == "--source" || name == "--resume")
             throw turb::ValueError(
                 "'" + t + "' after -- is set by farm plan itself; give --target/--source/--out/--frames to farm plan");
+    }
+}
+
+// The output must not be an input or a task's scratch: the join would overwrite what it reads.
+void checkOutput(const std::string& out, const std::string& target, const std::string& source, const std::string& dir)
+{
+    if (out == target || out == source)
+        throw turb::ValueError("--out " + out + " is the " + std::string(out == target ? "target" : "source") +
+                               " cache: the join would overwrite it; give another --out");
+    for (const char* scratch : {"/chunks/", "/tiles/"})
+        if (out.rfind(dir + scratch, 0) == 0)
+            throw turb::ValueError("--out " + out + " is inside the farm directory's scratch (" + dir + scratch +
+                                   "): the join would overwrite the frames it reads; give another --out");
 }
 
 // A plan's paths (absolute: the tasks run elsewhere), frames and chunks, or space tiles.
@@ -174,7 +193,7 @@ turb::Coord parseTileCounts(const std::string& text)
             throw turb::ValueError("--tiles '" + text + "': expected NX, NXxNY or NXxNYxNZ with counts >= 1");
         ++n;
     }
-    if (n == 0) throw turb::ValueError("--tiles '" + text + "': expected NX, NXxNY or NXxNYxNZ");
+    if (n == 0 || text.back() == 'x') throw turb::ValueError("--tiles '" + text + "': expected NX, NXxNY or NXxNYxNZ");
     return turb::Coord(v[0], v[1], v[2]);
 }
 
@@ -209,15 +228,17 @@ turb::CoordBBox shotBox(const turbio::Sequence& target, const turbio::ReadOption
 
 Plan makePlan(const FarmArgs& a)
 {
-    checkPassThrough(a.transferArgs);
     Plan p;
+    p.tiled = !a.tiles.empty();
+    checkPassThrough(a.transferArgs, p.tiled);
     const turbio::Sequence target = turbio::resolveSequence(a.target, a.frames);
     if (!target.missing.empty())
         throw turb::IoError(
             target.pattern.str() + ": missing target frames " + turbio::formatFrameList(target.missing));
     p.frames = target.frames;
-    p.tiled = !a.tiles.empty() && parseTileCounts(a.tiles) != turb::Coord(1);
     if (p.tiled) {
+        if (a.prerollGiven->count() > 0 || a.overlapGiven->count() > 0)
+            logWarning("--preroll and --overlap are time-chunk options: a tile task computes every frame");
         if (a.chunksGiven && a.chunksGiven->count() > 0 && a.chunks > 1)
             throw turb::ValueError("--tiles and --chunks " + std::to_string(a.chunks) +
                                    ": a plan splits either the box (tiles) or the frames (chunks), not both");
@@ -258,6 +279,21 @@ Plan makePlan(const FarmArgs& a)
     p.target = absolute(a.target);
     p.source = absolute(a.source);
     p.out = absolute(a.out);
+    checkOutput(p.out, p.target, p.source, p.dir);
+    if (p.tiled && p.tiles.tiles.size() > 1) {
+        bool saves = false;
+        for (const auto& t : p.tiles.tiles) saves |= t.held != p.tiles.box;
+        if (!saves)
+            logWarning("every tile holds the whole box (halo " + std::to_string(a.halo) +
+                       " against tiles of the box's size): no tile saves memory; use fewer tiles or a smaller halo");
+    }
+    // Tasks resume from the frames in their scratch directory: another plan's frames there would be refused by
+    // the tasks (other settings) or, worse, joined (the same settings, another split).
+    const fs::path scratch = fs::path(p.dir) / (std::string(p.word()) + "s");
+    std::error_code ec;
+    if (fs::is_directory(scratch, ec) && !fs::is_empty(scratch, ec))
+        logWarning(scratch.string() + " holds frames of an earlier run: the tasks resume from them. Delete it to " +
+                   "start over (a plan with other transfer options or another split needs that)");
     return p;
 }
 
@@ -345,7 +381,8 @@ nlohmann::json planJson(const FarmArgs& a, const Plan& p)
             {"borders", turb::formatTileBorders(turb::tileBorders(p.tiles, p.ratio))}};
     plan["transfer_args"] = a.transferArgs;
     plan["exit_codes"] = {{"0", "done"}, {"1", "a frame failed: retry (resumes from the last whole frame)"},
-        {"2", "usage error: do not retry"}, {"130", "interrupted: retry"}};
+        {"2", "usage error: do not retry"}, {"130", "interrupted: retry"},
+        {"137", "killed (SIGKILL: OOM killer, kill -9): retry"}, {"143", "terminated (SIGTERM): retry"}};
     nlohmann::json tasks = nlohmann::json::array();
     for (size_t k = 0; k < p.taskCount(); ++k) tasks.push_back(taskJson(a, p, k));
     tasks.push_back(joinTask(a, p));
@@ -577,11 +614,19 @@ void checkChunksComplete(const JoinPlan& p)
         const turb::TimeChunk& c = p.chunks[p.tiled ? 0 : k];
         const turbio::FramePattern pattern = p.chunkFrames(k);
         for (size_t i = c.keepBegin; i < c.end; ++i)
-            if (!fs::exists(pattern.format(p.frames[i])))
-                throw turb::IoError(std::string(p.word()) + " " + std::to_string(k) +
-                                    " is not complete: " + pattern.format(p.frames[i]) +
-                                    " is missing (rerun it: sbatch --array=" + std::to_string(k) + " " + p.dir + "/" +
-                                    p.word() + "s.sbatch)");
+        {
+            const std::string rerun =
+                "sbatch --array=" + std::to_string(k) + " " + p.dir + "/" + p.word() + "s.sbatch";
+            const std::string path = pattern.format(p.frames[i]);
+            if (!fs::exists(path))
+                throw turb::IoError(std::string(p.word()) + " " + std::to_string(k) + " is not complete: " + path +
+                                    " is missing (rerun it: " + rerun + ")");
+            // A damaged frame (a full disk, a copy cut short) is found before anything is written, not halfway.
+            const turbio::FrameScan scan = turbio::scanFrame(path, p.frames[i], turbio::ReadOptions{});
+            if (!scan.error.empty())
+                throw turb::IoError(std::string(p.word()) + " " + std::to_string(k) + " has a damaged frame: " +
+                                    scan.error + " (delete " + path + ", then rerun it: " + rerun + ")");
+        }
     }
 }
 
@@ -712,13 +757,24 @@ void addPlanOptions(CLI::App* plan, FarmArgs& a)
     plan->add_option("--dir", a.dir, "Farm directory: scripts, plan.json, logs, chunk scratch");
     a.chunksGiven =
         plan->add_option("--chunks", a.chunks, "Number of time chunks (array tasks)")->check(CLI::Range(1, 100000));
-    plan->add_option("--preroll", a.preroll, "P: frames computed before a chunk's first kept frame")
-        ->check(CLI::Range(0, 10000));
-    plan->add_option("--overlap", a.overlap, "O: frames two consecutive chunks share and the join cross-fades")
-        ->check(CLI::Range(0, 10000));
+    a.prerollGiven = plan->add_option("--preroll", a.preroll, "P: frames computed before a chunk's first kept frame")
+                         ->check(CLI::Range(0, 10000));
+    a.overlapGiven =
+        plan->add_option("--overlap", a.overlap, "O: frames two consecutive chunks share and the join cross-fades")
+            ->check(CLI::Range(0, 10000));
     plan->add_option("--tiles", a.tiles,
-        "Space tiles instead of time chunks: NX, NXxNY or NXxNYxNZ tiles of the target's box, each a task over every "
-        "frame");
+            "Space tiles instead of time chunks: NX, NXxNY or NXxNYxNZ tiles of the target's box, each a task over "
+            "every frame")
+        ->check(CLI::Validator(
+            [](std::string& text) -> std::string {
+                try {
+                    parseTileCounts(text);
+                } catch (const std::exception& e) {
+                    return e.what();
+                }
+                return std::string();
+            },
+            "NX[xNY[xNZ]]"));
     plan->add_option("--halo", a.halo, "Target voxels a tile holds past its core toward each neighbour")
         ->check(CLI::Range(1, 4096));
     setting(

@@ -153,6 +153,22 @@ turb::CoordBBox preflight(const TransferArgs& a, const turbio::Sequence& target,
     const turbio::FrameScan* tl = ts.largestDomain();
     const turbio::FrameScan* sl = ss.largestDomain();
     const turb::CoordBBox tBox = tl ? tl->domain : t0.domain;
+    if (!a.tileBox.empty()) {
+        // A tile box is a part of the target's domain: off it, the run would hold (and write) nothing or a vast box
+        // of empty space; one voxel thick in a 3D cache, it would read as a 2D cache.
+        turb::CoordBBox spans;
+        for (const turbio::FrameScan& fs : ts.frames) spans.expand(fs.span);
+        const turb::CoordBBox& tb = a.targetRead.holdBox;
+        if (!spans.isInside(tb))
+            throw turb::ValueError("--tile-box " + a.tileBox + " is not inside the target's domain " +
+                                   std::to_string(spans.min().x()) + "," + std::to_string(spans.min().y()) + "," +
+                                   std::to_string(spans.min().z()) + "," + std::to_string(spans.max().x()) + "," +
+                                   std::to_string(spans.max().y()) + "," + std::to_string(spans.max().z()) +
+                                   " (the frames' grids, in target voxels)");
+        if (turb::isFlat(tb) != turb::isFlat(spans))
+            throw turb::ValueError("--tile-box " + a.tileBox + " is one voxel thick in z, but the target is 3D: " +
+                                   "a tile of a 3D cache must be at least 2 voxels thick");
+    }
     const double tVoxels = double(tBox.volume());
     const double sVoxels = sl ? double(sl->domain.volume()) : 0.0;
     const turb::Lattice outLattice = turb::refinedLattice(t0.lattice, tBox, f);
@@ -161,7 +177,8 @@ turb::CoordBBox preflight(const TransferArgs& a, const turbio::Sequence& target,
               ")" +
               (resampled ? ": not an integer, the source is resampled trilinearly to ratio " + std::to_string(f) : ""));
     printData("output lattice: " + dims(outDim) + " voxels of " + fmt("%g", outLattice.voxelSize) + ", world " +
-              worldBox(tBox, t0.lattice) + " (the target's held box: its smoke and margin" +
+              worldBox(tBox, t0.lattice) +
+              (a.tileBox.empty() ? " (the target's held box: its smoke and margin" : " (the tile box --tile-box") +
               (tl && tl->frame != t0.frame ? " at frame " + std::to_string(tl->frame) + ", its largest" : "") + ")");
 
     {
@@ -618,7 +635,15 @@ int runTransfer(TransferArgs& a)
     }
     turb::TurbulenceTransfer transfer(a.settings);
     if (a.resume && p.first == p.target.frames.size()) {
-        logInfo("resume: every requested frame already exists; nothing to do");
+        // Nothing left to compute, but the frames must be this run's: a plan rewritten with other settings over the
+        // same scratch directory would otherwise hand on another run's frames.
+        const int last = p.target.frames.back();
+        const std::string lastPath = p.out.format(last);
+        turbio::ReadOptions ro;
+        ro.cropToSmoke = false;
+        checkResumable(lastPath, turbio::readFrame(lastPath, last, ro), a.settings, a.write, p.target, p.source,
+            a.tileBox);
+        logInfo("resume: every requested frame already exists (made with these settings); nothing to do");
         return kOk;
     }
     if (a.resume && p.first > 0) restoreFromLastWritten(a, p, transfer);
@@ -938,6 +963,16 @@ Command transferCommand()
         app->add_option("--tile-box", a.tileBox,
                "Hold only this box of the target, X0,Y0,Z0,X1,Y1,Z1 (inclusive voxel indices): a space tile and its "
                "halo, as farm plan --tiles writes it. The output covers its refined box")
+            ->check(CLI::Validator(
+                [](std::string& text) -> std::string {
+                    try {
+                        parseTileBox(text);
+                    } catch (const std::exception& e) {
+                        return e.what();
+                    }
+                    return std::string();
+                },
+                "X0,Y0,Z0,X1,Y1,Z1"))
             ->group(kGroupInput);
         addWriteOptions(app, a.write);
         app->add_option("--velocity-margin", a.write.velocityMargin,
