@@ -159,7 +159,9 @@ turb::CoordBBox preflight(const TransferArgs& a, const turbio::Sequence& target,
         turb::CoordBBox spans;
         for (const turbio::FrameScan& fs : ts.frames) spans.expand(fs.span);
         const turb::CoordBBox& tb = a.targetRead.holdBox;
-        if (!spans.isInside(tb))
+        // Checked when a run starts: a resumed one scans only its remaining frames, whose grids (a sparse cache's)
+        // may no longer reach the box that the whole shot's did.
+        if (first == 0 && !spans.isInside(tb))
             throw turb::ValueError("--tile-box " + a.tileBox + " is not inside the target's domain " +
                                    std::to_string(spans.min().x()) + "," + std::to_string(spans.min().y()) + "," +
                                    std::to_string(spans.min().z()) + "," + std::to_string(spans.max().x()) + "," +
