@@ -1142,6 +1142,11 @@ TEST(Cli, FarmPlanRefusesAnOutputItWouldReadAndOptionsItSetsItself)
         EXPECT_EQ(r.code, 2) << bad << r.out;
     }
     EXPECT_FALSE(std::filesystem::exists(dir / "f/plan.json"));
+    // A dry run prints the tiles and writes nothing.
+    const CmdResult dry = run(base + " --out " + dir / "o/x.####.vdb --dry-run");
+    EXPECT_EQ(dry.code, 0) << dry.out;
+    EXPECT_NE(dry.out.find("tile 1: core"), std::string::npos) << dry.out;
+    EXPECT_FALSE(std::filesystem::exists(dir / "f"));
     // One tile is a plan too (a farm task over the whole box), and the plan.json says so.
     const CmdResult one = run(base.substr(0, base.size() - 1) + "1 --out " + dir / "o/x.####.vdb");
     ASSERT_EQ(one.code, 0) << one.out;

@@ -479,11 +479,13 @@ std::string joinScript(const FarmArgs& a, const Plan& p)
 int runPlan(FarmArgs& a)
 {
     const Plan p = makePlan(a);
-    fs::create_directories(fs::path(p.dir) / "logs");
     const std::string script = std::string(p.word()) + "s.sbatch";
-    writeText(p.dir + "/plan.json", planJson(a, p).dump(2) + "\n");
-    writeText(p.dir + "/" + script, tasksScript(a, p), true);
-    writeText(p.dir + "/join.sbatch", joinScript(a, p), true);
+    if (!globals().dryRun) {
+        fs::create_directories(fs::path(p.dir) / "logs");
+        writeText(p.dir + "/plan.json", planJson(a, p).dump(2) + "\n");
+        writeText(p.dir + "/" + script, tasksScript(a, p), true);
+        writeText(p.dir + "/join.sbatch", joinScript(a, p), true);
+    }
     if (p.tiled) {
         const turb::Coord n = p.tiles.counts;
         printData("plan: " + std::to_string(p.frames.size()) + " frames " + turbio::formatFrameList(p.frames) + " in " +
@@ -506,6 +508,10 @@ int runPlan(FarmArgs& a)
             printData("  chunk " + std::to_string(c.index) + ": computes " +
                       turbio::formatFrameList(p.sub(c.computeBegin, c.end)) + ", keeps " +
                       turbio::formatFrameList(p.sub(c.keepBegin, c.end)));
+    }
+    if (globals().dryRun) {
+        printData("would write " + p.dir + "/plan.json, " + script + ", join.sbatch (dry run: nothing written)");
+        return kOk;
     }
     printData(
         "wrote " + p.dir + "/plan.json, " + script + ", join.sbatch; submit with: vdbturb farm submit --dir " + p.dir);
@@ -538,6 +544,11 @@ int runSubmit(FarmArgs& a)
         throw turb::IoError(dir + "/plan.json: no plan (vdbturb farm plan --dir " + dir + " first)");
     const nlohmann::json plan = nlohmann::json::parse(readText(dir + "/plan.json"));
     const std::string word = plan.value("kind", "time_chunks") == "space_tiles" ? "tile" : "chunk";
+    if (globals().dryRun) {
+        printData("would run: sbatch --parsable " + shellQuote(dir + "/" + word + "s.sbatch") +
+                  ", then sbatch --parsable --dependency=afterok:<that job> " + shellQuote(dir + "/join.sbatch"));
+        return kOk;
+    }
     // --parsable prints "jobid[;cluster]".
     std::string chunks = trim(runCapture("sbatch --parsable " + shellQuote(dir + "/" + word + "s.sbatch")));
     chunks = chunks.substr(0, chunks.find(';'));
@@ -715,6 +726,11 @@ int runJoin(FarmArgs& a)
 {
     const JoinPlan p = readJoinPlan(a);
     checkChunksComplete(p);
+    if (globals().dryRun) {
+        printData("every " + std::string(p.word()) + "'s frames are present and read; would write " +
+                  std::to_string(p.frames.size()) + " frames to " + p.out + " (dry run: nothing written)");
+        return kOk;
+    }
     const turbio::FramePattern outPattern = turbio::FramePattern::parse(p.out);
     RunReport report("farm join", a.json);
     const int count = int(p.frames.size());
@@ -838,7 +854,7 @@ Command farmCommand()
             "join", "Assemble the chunks' frames (cross-fading the overlaps) or the tiles' into the output");
         addJoinOptions(join, a);
         // Each subcommand has its own two tiers (--help-all, --print-settings, --settings); --threads stays farm's.
-        for (CLI::App* sub : {plan, submit, join}) addGlobalOptions(sub, 0);
+        for (CLI::App* sub : {plan, submit, join}) addGlobalOptions(sub, kDryRun);
         (*subs)[0] = plan;
         (*subs)[1] = submit;
         (*subs)[2] = join;
