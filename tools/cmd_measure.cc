@@ -91,7 +91,10 @@ std::string humanLine(const turb::FrameMeasures& m)
            ")  mass " + f(m.massRatio) + "  peak " + f(m.peakRatio) + "  density_err " + f(m.densityErr) +
            "  imprint " + f(m.densityImprint) + "  aniso " + f(m.aniso) + " (source " + f(m.anisoSource) +
            ")  isotropy " + f(m.isotropy) + " (source " + f(m.isotropySource) + ")  lattice " + f(m.lattice) +
-           " (source " + f(m.latticeSource) + ")  vort_peak " + f(m.vortPeakRatio) + "  air_detail " + f(m.airDetail);
+           " (source " + f(m.latticeSource) + ")  vort_peak " + f(m.vortPeakRatio) + "  air_detail " + f(m.airDetail) +
+           (m.tileVoxels > 0 ? "  tile_block " + f(m.tileBlock) + "  tile_div_rel " + f(m.tileDivRel) +
+                                   "  tile_hf_ratio " + f(m.tileHfRatio)
+                             : std::string());
 }
 
 std::optional<turb::Coord> parseCoord(const std::string& text)
