@@ -624,10 +624,8 @@ void checkChunksComplete(const JoinPlan& p)
     for (size_t k = 0; k < p.taskCount(); ++k) {
         const turb::TimeChunk& c = p.chunks[p.tiled ? 0 : k];
         const turbio::FramePattern pattern = p.chunkFrames(k);
-        for (size_t i = c.keepBegin; i < c.end; ++i)
-        {
-            const std::string rerun =
-                "sbatch --array=" + std::to_string(k) + " " + p.dir + "/" + p.word() + "s.sbatch";
+        for (size_t i = c.keepBegin; i < c.end; ++i) {
+            const std::string rerun = "sbatch --array=" + std::to_string(k) + " " + p.dir + "/" + p.word() + "s.sbatch";
             const std::string path = pattern.format(p.frames[i]);
             if (!fs::exists(path))
                 throw turb::IoError(std::string(p.word()) + " " + std::to_string(k) + " is not complete: " + path +
