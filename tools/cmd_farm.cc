@@ -253,9 +253,11 @@ Plan makePlan(const FarmArgs& a)
         p.ratio = turb::transferRatio(t0.lattice.voxelSize, s0.lattice.voxelSize, true);
         p.tiles = turb::planSpaceTiles(shotBox(target, ro), parseTileCounts(a.tiles), a.halo);
         p.ramp = a.ramp > 0 ? a.ramp : std::max(1, a.halo * p.ratio);
-        if (p.tiles.counts.z() > 1)
-            logWarning("--tiles " + a.tiles +
-                       " splits the box along z, the way smoke rises: a tile's inflow (fresh "
+        // Smoke rises along z in 3D caches (Houdini, Blender, vdbturb) and along y in a 2D (one z layer) one.
+        const bool flat = turb::isFlat(p.tiles.box);
+        if (flat ? p.tiles.counts.y() > 1 : p.tiles.counts.z() > 1)
+            logWarning("--tiles " + a.tiles + " splits the box along " + (flat ? "y" : "z") +
+                       ", the way smoke rises: a tile's inflow (fresh "
                        "detail, smoke without its advected structure) then reaches the seam, which a halo bounds only "
                        "with --density lookback, and each tile calibrates its detail over its own part of the plume. "
                        "Split across the main flow if you can (docs/farm.md, What bounds the halo)");
