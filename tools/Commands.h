@@ -64,6 +64,10 @@ auto readingAs(const std::string& prefix, Read&& read) -> decltype(read())
     }
 }
 
+/// A CLI check that runs `parse` on the option's text when the command line is parsed, so text it throws on is a
+/// usage error (exit 2) with its message, like any other malformed option. `name` is the type shown in --help.
+CLI::Validator parsedBy(std::function<void(const std::string&)> parse, const std::string& name);
+
 /// Checks a frame list ("1001-1100x2,1200") when the command line is parsed, so a bad one is a usage error
 /// (exit 2) naming the bad piece, like any other malformed option.
 CLI::Validator frameListCheck();

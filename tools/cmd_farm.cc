@@ -158,21 +158,27 @@ void checkOutput(const std::string& out, const std::string& target, const std::s
 }
 
 // A plan's paths (absolute: the tasks run elsewhere), frames and chunks, or space tiles.
-struct Plan
+// The split a plan and its join share: time chunks, or space tiles (each task then covers every frame).
+struct Split
 {
-    std::string dir, exe, target, source, out;
+    std::string dir, out;
     std::vector<int> frames;
     std::vector<turb::TimeChunk> chunks; ///< time chunks (one chunk covering every frame when tiled)
     bool tiled = false;
     turb::TilePlan tiles; ///< space tiles (tiled)
     int ratio = 0;        ///< the transfer's ratio (tiled)
     int ramp = 0;         ///< output voxels (tiled)
+    const char* word() const { return tiled ? "tile" : "chunk"; }
+    size_t taskCount() const { return tiled ? tiles.tiles.size() : chunks.size(); }
+};
+
+struct Plan : Split
+{
+    std::string exe, target, source;
     std::vector<int> sub(size_t b, size_t e) const
     {
         return std::vector<int>(frames.begin() + long(b), frames.begin() + long(e));
     }
-    const char* word() const { return tiled ? "tile" : "chunk"; }
-    size_t taskCount() const { return tiled ? tiles.tiles.size() : chunks.size(); }
 };
 
 // "2", "2x2", "2x1x3": tiles per axis (missing axes 1).
@@ -197,12 +203,6 @@ turb::Coord parseTileCounts(const std::string& text)
     return turb::Coord(v[0], v[1], v[2]);
 }
 
-std::string boxText(const turb::CoordBBox& b)
-{
-    return std::to_string(b.min().x()) + "," + std::to_string(b.min().y()) + "," + std::to_string(b.min().z()) + "," +
-           std::to_string(b.max().x()) + "," + std::to_string(b.max().y()) + "," + std::to_string(b.max().z());
-}
-
 std::vector<int> boxArray(const turb::CoordBBox& b)
 {
     return {b.min().x(), b.min().y(), b.min().z(), b.max().x(), b.max().y(), b.max().z()};
@@ -213,17 +213,6 @@ turb::CoordBBox boxFromArray(const nlohmann::json& j)
     const auto v = j.get<std::vector<int>>();
     if (v.size() != 6) throw turb::ValueError("plan.json: a box needs 6 indices");
     return turb::CoordBBox(turb::Coord(v[0], v[1], v[2]), turb::Coord(v[3], v[4], v[5]));
-}
-
-// The box every tile's transfer would hold over the shot: the union of the frames' held boxes (smoke and margin),
-// read as the transfer reads the target (the read options after --). One frame's scan error stops the plan.
-turb::CoordBBox shotBox(const turbio::Sequence& target, const turbio::ReadOptions& ro)
-{
-    const turbio::SequenceScan scan = turbio::scanSequence(target, target.frames, ro);
-    if (const turbio::FrameScan* bad = scan.firstFailure()) throw turb::IoError(bad->error);
-    turb::CoordBBox all;
-    for (const auto& f : scan.frames) all.expand(f.domain);
-    return all;
 }
 
 Plan makePlan(const FarmArgs& a)
@@ -243,15 +232,19 @@ Plan makePlan(const FarmArgs& a)
             throw turb::ValueError("--tiles and --chunks " + std::to_string(a.chunks) +
                                    ": a plan splits either the box (tiles) or the frames (chunks), not both");
         p.chunks = turb::planTimeChunks(p.frames.size(), 1, 0, 0);
-        turbio::ReadOptions ro;
-        const turbio::FrameScan t0 = turbio::scanFrame(target.path(p.frames.front()), p.frames.front(), ro);
-        if (!t0.error.empty()) throw turb::IoError(t0.error);
+        // The box every tile's transfer holds: the union of the frames' held boxes (smoke and margin), found with
+        // the default read options (not those after --). One frame's scan error stops the plan.
+        const turbio::ReadOptions ro;
+        const turbio::SequenceScan scan = turbio::scanSequence(target, target.frames, ro);
+        if (const turbio::FrameScan* bad = scan.firstFailure()) throw turb::IoError(bad->error);
+        turb::CoordBBox box;
+        for (const auto& f : scan.frames) box.expand(f.domain);
         const turbio::Sequence source = turbio::resolveSequence(a.source);
         if (source.frames.empty()) throw turb::IoError(source.pattern.str() + ": no source frames");
         const turbio::FrameScan s0 = turbio::scanFrame(source.path(source.frames.front()), source.frames.front(), ro);
         if (!s0.error.empty()) throw turb::IoError(s0.error);
-        p.ratio = turb::transferRatio(t0.lattice.voxelSize, s0.lattice.voxelSize, true);
-        p.tiles = turb::planSpaceTiles(shotBox(target, ro), parseTileCounts(a.tiles), a.halo);
+        p.ratio = turb::transferRatio(scan.frames.front().lattice.voxelSize, s0.lattice.voxelSize, true);
+        p.tiles = turb::planSpaceTiles(box, parseTileCounts(a.tiles), a.halo);
         p.ramp = a.ramp > 0 ? a.ramp : std::max(1, a.halo * p.ratio);
         // Smoke rises along z in 3D caches (Houdini, Blender, vdbturb) and along y in a 2D (one z layer) one.
         const bool flat = turb::isFlat(p.tiles.box);
@@ -262,15 +255,11 @@ Plan makePlan(const FarmArgs& a)
                        "with --density lookback, and each tile calibrates its detail over its own part of the plume. "
                        "Split across the main flow if you can (docs/farm.md, What bounds the halo)");
         // The join checks the ramp against the tiles; refuse it here, before anything runs.
-        for (int ax = 0; ax < 3; ++ax)
-            if (p.tiles.counts[ax] > 1) {
-                const int F = turb::domainFactors(p.tiles.box, p.ratio)[ax];
-                for (const auto& t : p.tiles.tiles)
-                    if (p.ramp > t.core.dim()[ax] * F || p.ramp > 2 * a.halo * F)
-                        throw turb::ValueError("--ramp " + std::to_string(p.ramp) + " output voxels is wider than " +
-                                               "a tile (" + std::to_string(t.core.dim()[ax] * F) + ") or twice the " +
-                                               "halo (" + std::to_string(2 * a.halo * F) + ")");
-            }
+        try {
+            turb::checkTileRamp(p.tiles, p.ratio, p.ramp);
+        } catch (const turb::ValueError& e) {
+            throw turb::ValueError(std::string("--ramp: ") + e.what());
+        }
     } else {
         p.chunks = turb::planTimeChunks(p.frames.size(), a.chunks, a.preroll, a.overlap);
     }
@@ -310,7 +299,7 @@ std::vector<std::string> taskCommand(const FarmArgs& a, const Plan& p, size_t k)
     if (p.tiled) {
         // A tile holds its core and halo on every frame: one box, so that the join finds it on every frame. The
         // source is held as an untiled run holds it (its smoke and margin): every tile reads the same source.
-        argv.insert(argv.end(), {"--tile-box", boxText(p.tiles.tiles[k].held)});
+        argv.insert(argv.end(), {"--tile-box", turb::formatTileBox(p.tiles.tiles[k].held)});
     } else {
         // Every chunk holds the target's whole domain: held over the smoke of its own frames only, chunks would
         // get different output boxes and the join could not blend them.
@@ -492,13 +481,14 @@ int runPlan(FarmArgs& a)
         const turb::Coord n = p.tiles.counts;
         printData("plan: " + std::to_string(p.frames.size()) + " frames " + turbio::formatFrameList(p.frames) + " in " +
                   std::to_string(n.x()) + "x" + std::to_string(n.y()) + "x" + std::to_string(n.z()) +
-                  " space tiles of target box " + boxText(p.tiles.box) + ", halo " + std::to_string(p.tiles.halo) +
-                  " target voxels, ramp " + std::to_string(p.ramp) + " output voxels (ratio " +
-                  std::to_string(p.ratio) + ")");
+                  " space tiles of target box " + turb::formatTileBox(p.tiles.box) + ", halo " +
+                  std::to_string(p.tiles.halo) + " target voxels, ramp " + std::to_string(p.ramp) +
+                  " output voxels (ratio " + std::to_string(p.ratio) + ")");
         for (const auto& t : p.tiles.tiles) {
             const turb::Coord d = t.held.dim();
-            printData("  tile " + std::to_string(t.index) + ": core " + boxText(t.core) + ", holds " + boxText(t.held) +
-                      " (" + std::to_string(d.x()) + "x" + std::to_string(d.y()) + "x" + std::to_string(d.z()) + ", " +
+            printData("  tile " + std::to_string(t.index) + ": core " + turb::formatTileBox(t.core) + ", holds " +
+                      turb::formatTileBox(t.held) + " (" + std::to_string(d.x()) + "x" + std::to_string(d.y()) + "x" +
+                      std::to_string(d.z()) + ", " +
                       std::to_string(int(std::lround(100.0 * double(t.held.volume()) / double(p.tiles.box.volume())))) +
                       "% of the box)");
         }
@@ -574,19 +564,11 @@ void copyAtomic(const std::string& from, const std::string& to)
 }
 
 // What the join reads from plan.json: the frames, the chunks, the output and the target the chunks read.
-struct JoinPlan
+struct JoinPlan : Split
 {
-    std::string dir, out;
-    std::vector<int> frames;
-    std::vector<turb::TimeChunk> chunks;
     int overlap = 0;
     turbio::Sequence target;
     float densityThreshold = 0.01f; ///< transfer's, unless the chunks were given another
-    bool tiled = false;
-    turb::TilePlan tiles;
-    int ratio = 0, ramp = 0;
-    const char* word() const { return tiled ? "tile" : "chunk"; }
-    size_t taskCount() const { return tiled ? tiles.tiles.size() : chunks.size(); }
     turbio::FramePattern chunkFrames(size_t k) const
     {
         return turbio::FramePattern::parse(chunkPattern(dir, int(k), out, word()));
@@ -781,16 +763,7 @@ void addPlanOptions(CLI::App* plan, FarmArgs& a)
     plan->add_option("--tiles", a.tiles,
             "Space tiles instead of time chunks: NX, NXxNY or NXxNYxNZ tiles of the target's box, each a task over "
             "every frame")
-        ->check(CLI::Validator(
-            [](std::string& text) -> std::string {
-                try {
-                    parseTileCounts(text);
-                } catch (const std::exception& e) {
-                    return e.what();
-                }
-                return std::string();
-            },
-            "NX[xNY[xNZ]]"));
+        ->check(parsedBy([](const std::string& t) { parseTileCounts(t); }, "NX[xNY[xNZ]]"));
     plan->add_option("--halo", a.halo, "Target voxels a tile holds past its core toward each neighbour")
         ->check(CLI::Range(1, 4096));
     setting(

@@ -6,6 +6,7 @@
 
 #include <turb/Budget.h>
 #include <turb/Error.h>
+#include <turb/Farm.h>
 #include <turb/Resample.h>
 #include <turb/Metadata.h>
 #include <turb/Transfer.h>
@@ -590,37 +591,14 @@ void logFrameDetails(const turb::TransferResult& r, int t)
     logVerbose(timing);
 }
 
-// --tile-box: six inclusive target voxel indices. The tile's transfer holds this box every frame (one box for the
-// whole range, so --resume and the farm join see the same lattice box on every frame).
-turb::CoordBBox parseTileBox(const std::string& text)
-{
-    std::vector<int> v;
-    std::stringstream in(text);
-    std::string part;
-    while (std::getline(in, part, ',')) {
-        size_t used = 0;
-        int x = 0;
-        try {
-            x = std::stoi(part, &used);
-        } catch (const std::exception&) {
-            used = 0;
-        }
-        if (part.empty() || used != part.size())
-            throw turb::ValueError("--tile-box '" + text + "': '" + part + "' is not a voxel index");
-        v.push_back(x);
-    }
-    if (v.size() != 6 || v[0] > v[3] || v[1] > v[4] || v[2] > v[5])
-        throw turb::ValueError("--tile-box '" + text + "': expected X0,Y0,Z0,X1,Y1,Z1 with X0<=X1, Y0<=Y1, Z0<=Z1");
-    return turb::CoordBBox(turb::Coord(v[0], v[1], v[2]), turb::Coord(v[3], v[4], v[5]));
-}
-
 int runTransfer(TransferArgs& a)
 {
     a.settings.threads = globals().threads;
     if (!a.tileBox.empty()) {
         if (!a.targetRead.cropToSmoke)
             throw turb::ValueError("--tile-box holds a box of the target; it cannot be combined with --target-no-crop");
-        a.targetRead.holdBox = parseTileBox(a.tileBox);
+        // One box for the whole range, so --resume and the farm join see the same box on every frame.
+        a.targetRead.holdBox = turb::parseTileBox(a.tileBox);
     }
     globals().json = a.json;
     FramePlan p = planFrames(a);
@@ -965,16 +943,7 @@ Command transferCommand()
         app->add_option("--tile-box", a.tileBox,
                "Hold only this box of the target, X0,Y0,Z0,X1,Y1,Z1 (inclusive voxel indices): a space tile and its "
                "halo, as farm plan --tiles writes it. The output covers its refined box")
-            ->check(CLI::Validator(
-                [](std::string& text) -> std::string {
-                    try {
-                        parseTileBox(text);
-                    } catch (const std::exception& e) {
-                        return e.what();
-                    }
-                    return std::string();
-                },
-                "X0,Y0,Z0,X1,Y1,Z1"))
+            ->check(parsedBy([](const std::string& t) { turb::parseTileBox(t); }, "X0,Y0,Z0,X1,Y1,Z1"))
             ->group(kGroupInput);
         addWriteOptions(app, a.write);
         app->add_option("--velocity-margin", a.write.velocityMargin,

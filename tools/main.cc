@@ -60,18 +60,23 @@ bool parseNumber(const std::string& s, double& v)
     }
 }
 
-CLI::Validator frameListCheck()
+CLI::Validator parsedBy(std::function<void(const std::string&)> parse, const std::string& name)
 {
     return CLI::Validator(
-        [](std::string& v) {
+        [parse](std::string& v) {
             try {
-                turbio::parseFrameList(v);
+                parse(v);
             } catch (const turb::Error& e) {
                 return std::string(e.what());
             }
             return std::string();
         },
-        "FRAMES");
+        name);
+}
+
+CLI::Validator frameListCheck()
+{
+    return parsedBy([](const std::string& v) { turbio::parseFrameList(v); }, "FRAMES");
 }
 
 void addReadOptions(CLI::App* app, turbio::ReadOptions& opt, const std::string& prefix)

@@ -13,29 +13,7 @@ Prints one line per check and the figures; exits 1 on any failure.
 """
 import json, math, os, statistics, sys
 
-def frames_of(spec):
-    out = []
-    for part in spec.split(","):
-        step = 1
-        if "x" in part:
-            part, s = part.split("x"); step = int(s)
-        if "-" in part[1:]:
-            i = part.index("-", 1); a, b = int(part[:i]), int(part[i + 1:])
-            out += list(range(a, b + 1, step))
-        else:
-            out.append(int(part))
-    return out
-
-def measure(path):
-    rows = {}
-    for line in open(path):
-        line = line.strip()
-        if not line.startswith("{"):
-            continue
-        j = json.loads(line)
-        if "frame" in j and "hf_ratio" in j:
-            rows[j["frame"]] = j
-    return rows
+from farm_results import frames_of, measure
 
 def main(argv):
     plan_path, seq_dir, joined_dir, seq_m, joined_m = argv[1:6]

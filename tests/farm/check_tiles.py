@@ -17,27 +17,7 @@ Prints one line per check and a per-frame table; exits 1 on any failure. --summa
 """
 import json, sys
 
-def measure(path):
-    rows = {}
-    for line in open(path):
-        line = line.strip()
-        if line.startswith("{"):
-            j = json.loads(line)
-            if "frame" in j and "lf_err" in j:
-                rows[j["frame"]] = j
-    return rows
-
-def frames_of(spec):
-    out = []
-    for part in spec.split(","):
-        step = 1
-        if "x" in part:
-            part, s = part.split("x"); step = int(s)
-        if "-" in part[1:]:
-            i = part.index("-", 1); out += list(range(int(part[:i]), int(part[i + 1:]) + 1, step))
-        else:
-            out.append(int(part))
-    return out
+from farm_results import frames_of, measure
 
 def main(argv):
     plan_path, seq_m, joined_m = argv[1:4]

@@ -128,6 +128,15 @@ struct TilePlan
 /// count is < 1, a tile's core would be narrower than its halo, or a flat (2D) box is split in z.
 TilePlan planSpaceTiles(const CoordBBox& box, const Coord& counts, int halo, int align = 1);
 
+/// Throws ValueError unless a join ramp of `ramp` output voxels fits the plan at ratio `ratio`: at least 1, at most
+/// the narrowest core along a split axis and at most twice the halo (so the ramp stays inside the held boxes).
+void checkTileRamp(const TilePlan& plan, int ratio, int ramp);
+
+/// A box as `transfer --tile-box` takes it: "X0,Y0,Z0,X1,Y1,Z1" (inclusive voxel indices).
+std::string formatTileBox(const CoordBBox& box);
+/// The inverse of formatTileBox. Throws ValueError naming the text unless it is six indices with min <= max.
+CoordBBox parseTileBox(const std::string& text);
+
 /// A border plane between two tiles' cores on the output lattice: output voxels with index >= `plane` along `axis`
 /// belong to the upper tile's core.
 struct TileBorder

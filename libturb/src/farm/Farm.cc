@@ -129,7 +129,40 @@ namespace {
 // The output-voxel factor per axis (refineDomain's: a flat box keeps its one z layer).
 Coord factorsOf(const CoordBBox& box, int ratio) { return domainFactors(box, ratio); }
 
-template<typename T>
+// A tile's weight factor along one axis at output-voxel centre c: a linear ramp `ramp` output voxels wide, centred
+// on each border of its core [lo, hi] (target voxels, F output voxels each) that has a neighbour.
+double rampFactor(double c, int lo, int hi, bool lowerNeighbour, bool upperNeighbour, int F, int ramp)
+{
+    const double r = double(ramp), half = 0.5 * double(ramp);
+    double w = 1.0;
+    if (lowerNeighbour) w *= std::clamp((c - (double(lo) * F - half)) / r, 0.0, 1.0);
+    if (upperNeighbour) w *= std::clamp(((double(hi + 1) * F + half) - c) / r, 0.0, 1.0);
+    return w;
+}
+
+// `text` as integers separated by `sep`; throws ValueError("<what> '<text>': ...") naming a piece that is not one.
+std::vector<int> parseIndices(const std::string& text, char sep, const std::string& what)
+{
+    std::vector<int> out;
+    size_t p = 0;
+    while (p <= text.size()) {
+        const size_t end = std::min(text.find(sep, p), text.size());
+        const std::string num = text.substr(p, end - p);
+        size_t used = 0;
+        int v = 0;
+        try {
+            v = std::stoi(num, &used);
+        } catch (const std::exception&) {
+            used = 0;
+        }
+        if (num.empty() || used != num.size())
+            throw ValueError(what + " '" + text + "': '" + num + "' is not a voxel index");
+        out.push_back(v);
+        p = end + 1;
+    }
+    return out;
+}
+
 void requireSame(const std::vector<Frame>& tiles, const char* what, bool (*has)(const Frame&))
 {
     const bool first = has(tiles.front());
@@ -196,21 +229,41 @@ double TilePlan::weight(size_t k, const Coord& v, int ratio, int ramp) const
 {
     const SpaceTile& t = tiles.at(k);
     const Coord F = factorsOf(box, ratio);
-    const double r = double(ramp), half = 0.5 * double(ramp);
     double w = 1.0;
-    for (int a = 0; a < 3; ++a) {
-        const double c = double(v[a]) + 0.5;
-        if (t.core.min()[a] > box.min()[a]) {
-            const double P = double(t.core.min()[a]) * F[a];
-            w *= std::clamp((c - (P - half)) / r, 0.0, 1.0);
-        }
-        if (t.core.max()[a] < box.max()[a]) {
-            const double Q = double(t.core.max()[a] + 1) * F[a];
-            w *= std::clamp(((Q + half) - c) / r, 0.0, 1.0);
-        }
-        if (w == 0.0) return 0.0;
-    }
+    for (int a = 0; a < 3 && w > 0.0; ++a)
+        w *= rampFactor(double(v[a]) + 0.5, t.core.min()[a], t.core.max()[a], t.core.min()[a] > box.min()[a],
+            t.core.max()[a] < box.max()[a], F[a], ramp);
     return w;
+}
+
+void checkTileRamp(const TilePlan& plan, int ratio, int ramp)
+{
+    if (plan.tiles.size() < 2) return;
+    const Coord F = factorsOf(plan.box, ratio);
+    int narrowest = std::numeric_limits<int>::max(), haloOut = std::numeric_limits<int>::max();
+    for (int a = 0; a < 3; ++a)
+        if (plan.counts[a] > 1) {
+            haloOut = std::min(haloOut, plan.halo * F[a]);
+            for (const SpaceTile& t : plan.tiles) narrowest = std::min(narrowest, t.core.dim()[a] * F[a]);
+        }
+    if (ramp < 1 || ramp > narrowest || ramp > 2 * haloOut)
+        throw ValueError("a tile ramp of " + std::to_string(ramp) + " output voxels must be at least 1, at most the " +
+                         "narrowest tile (" + std::to_string(narrowest) + ") and at most twice the halo (" +
+                         std::to_string(2 * haloOut) + ")");
+}
+
+std::string formatTileBox(const CoordBBox& b)
+{
+    return std::to_string(b.min().x()) + "," + std::to_string(b.min().y()) + "," + std::to_string(b.min().z()) + "," +
+           std::to_string(b.max().x()) + "," + std::to_string(b.max().y()) + "," + std::to_string(b.max().z());
+}
+
+CoordBBox parseTileBox(const std::string& text)
+{
+    const std::vector<int> v = parseIndices(text, ',', "tile box");
+    if (v.size() != 6 || v[0] > v[3] || v[1] > v[4] || v[2] > v[5])
+        throw ValueError("tile box '" + text + "': expected X0,Y0,Z0,X1,Y1,Z1 with X0<=X1, Y0<=Y1, Z0<=Z1");
+    return CoordBBox(Coord(v[0], v[1], v[2]), Coord(v[3], v[4], v[5]));
 }
 
 std::vector<TileBorder> tileBorders(const TilePlan& plan, int ratio)
@@ -260,21 +313,7 @@ std::vector<TileBorder> parseTileBorders(const std::string& text)
         if (part.size() < 3 || part[1] != ':' || std::string("xyz").find(part[0]) == std::string::npos)
             throw bad("'" + part + "' does not start with x:, y: or z:");
         const int axis = int(std::string("xyz").find(part[0]));
-        size_t p = 2;
-        while (p <= part.size()) {
-            const size_t comma = std::min(part.find(',', p), part.size());
-            const std::string num = part.substr(p, comma - p);
-            size_t used = 0;
-            int v = 0;
-            try {
-                v = std::stoi(num, &used);
-            } catch (const std::exception&) {
-                used = 0;
-            }
-            if (num.empty() || used != num.size()) throw bad("'" + num + "' is not a voxel index");
-            out.push_back({axis, v});
-            p = comma + 1;
-        }
+        for (int v : parseIndices(part.substr(2), ',', "tile borders")) out.push_back({axis, v});
     }
     std::sort(out.begin(), out.end(), [](const TileBorder& a, const TileBorder& b) {
         return a.axis != b.axis ? a.axis < b.axis : a.plane < b.plane;
@@ -303,17 +342,12 @@ std::vector<std::vector<AxisWeight>> axisWeights(const TilePlan& plan, int a, in
         lo[size_t(t.cell[a])] = t.core.min()[a];
         hi[size_t(t.cell[a])] = t.core.max()[a];
     }
-    const double r = double(ramp), half = 0.5 * double(ramp);
     std::vector<std::vector<AxisWeight>> out(size_t(box.dim()[a]));
-    for (int x = box.min()[a]; x <= box.max()[a]; ++x) {
-        const double c = double(x) + 0.5;
+    for (int x = box.min()[a]; x <= box.max()[a]; ++x)
         for (int i = 0; i < n; ++i) {
-            double w = 1.0;
-            if (i > 0) w *= std::clamp((c - (double(lo[size_t(i)]) * F[a] - half)) / r, 0.0, 1.0);
-            if (i + 1 < n) w *= std::clamp(((double(hi[size_t(i)] + 1) * F[a] + half) - c) / r, 0.0, 1.0);
+            const double w = rampFactor(double(x) + 0.5, lo[size_t(i)], hi[size_t(i)], i > 0, i + 1 < n, F[a], ramp);
             if (w > 0.0) out[size_t(x - box.min()[a])].push_back({i, w});
         }
-    }
     return out;
 }
 
@@ -334,23 +368,12 @@ Frame joinTiles(const std::vector<Frame>& tiles, const TilePlan& plan, int ratio
                          std::to_string(plan.tiles.size()) + " tiles");
     if (ratio < 1) throw ValueError("tile join: ratio must be at least 1");
     const Coord F = factorsOf(plan.box, ratio);
-    if (plan.tiles.size() > 1) {
-        int narrowest = std::numeric_limits<int>::max(), haloOut = std::numeric_limits<int>::max();
-        for (int a = 0; a < 3; ++a)
-            if (plan.counts[a] > 1) {
-                haloOut = std::min(haloOut, plan.halo * F[a]);
-                for (const SpaceTile& t : plan.tiles) narrowest = std::min(narrowest, t.core.dim()[a] * F[a]);
-            }
-        if (ramp < 1 || ramp > narrowest || ramp > 2 * haloOut)
-            throw ValueError("tile join: a ramp of " + std::to_string(ramp) + " output voxels must be at least 1, " +
-                             "at most the narrowest tile (" + std::to_string(narrowest) +
-                             ") and at most twice the halo (" + std::to_string(haloOut) + ")");
-    }
+    checkTileRamp(plan, ratio, ramp);
     const Frame& first = tiles.front();
-    requireSame<Frame>(tiles, "velocity", [](const Frame& f) { return f.hasVelocity(); });
-    requireSame<Frame>(tiles, "density", [](const Frame& f) { return f.hasDensity(); });
-    requireSame<Frame>(tiles, "temperature", [](const Frame& f) { return bool(f.temperature); });
-    requireSame<Frame>(tiles, "flame", [](const Frame& f) { return bool(f.flame); });
+    requireSame(tiles, "velocity", [](const Frame& f) { return f.hasVelocity(); });
+    requireSame(tiles, "density", [](const Frame& f) { return f.hasDensity(); });
+    requireSame(tiles, "temperature", [](const Frame& f) { return bool(f.temperature); });
+    requireSame(tiles, "flame", [](const Frame& f) { return bool(f.flame); });
     for (size_t k = 1; k < tiles.size(); ++k)
         if (!tiles[k].lattice().approxEqual(first.lattice()))
             throw ValueError("tile join: tile " + std::to_string(k) + "'s lattice differs from tile 0's (frame " +
