@@ -2,16 +2,20 @@
 # The measurements behind docs/animate.md (Okabe et al., `vdbturb animate`). Not a test: it prints numbers
 # and writes pictures into $WORK; docs/animate.md quotes them.
 #
-#   bench/animate_quality.sh [--vdbturb PATH] [--work DIR] sweep|river|plume|modes|all
+#   bench/animate_quality.sh [--vdbturb PATH] [--work DIR] sweep|river|plume|stationary|modes|all
 #
 #   sweep  A' against the true average: a frame of the example is the target and the example's own flow
 #          the design, so the best A' is the example's average A; rms(A' - A) / rms(F - A) for Sh x w_a,
 #          on the built-in river and on renders of the Blender plume (blender-plume2-128).
 #   river  the built-in river: still, matte and strokes (scenes/animate), --measure, sheet, JSON
 #   plume  the Blender cache blender-plume2-128 through the front camera as the example, a render of
-#          the other plume (blender-plume-128, side view) as the still, --measure, sheet, JSON
+#          the other plume (blender-plume-128, side view) as the still, --measure, sheet, JSON; with
+#          --hm-apply per-frame (the paper) and sequence, and without histogram matching
+#   stationary  the same still and strokes with a steady, textured Blender plume as the example: baked
+#          here by bench/blender_plume_textured.py (needs Debian's blender; RES=64 by default, 120 frames,
+#          frames 60-120 used), both --hm-apply modes and --hm off
 #   modes  steerable (HM Rep 1, 3) against the Laplacian preview on the river: time and errors
-# Needs POSIX sh, coreutils and oiiotool (Debian openimageio-tools).
+# Needs POSIX sh, coreutils and oiiotool (Debian openimageio-tools); `stationary` also blender.
 set -eu
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
 DATA="$(cd "$ROOT/.." && pwd)/shared/data"
@@ -21,11 +25,11 @@ while [ $# -gt 0 ]; do
     case "$1" in
     --vdbturb) VDBTURB=$2; shift 2 ;;
     --work) WORK=$2; shift 2 ;;
-    -h|--help) sed -n "2,15p" "$0" | sed "s/^# \{0,1\}//"; exit 0 ;;
+    -h|--help) sed -n "2,18p" "$0" | sed "s/^# \{0,1\}//"; exit 0 ;;
     *) break ;;
     esac
 done
-[ $# -gt 0 ] || { echo "usage: $0 [--vdbturb PATH] [--work DIR] sweep|river|plume|modes|all" >&2; exit 2; }
+[ $# -gt 0 ] || { echo "usage: $0 [--vdbturb PATH] [--work DIR] sweep|river|plume|stationary|modes|all" >&2; exit 2; }
 mkdir -p "$WORK"
 STROKES="$ROOT/scenes/animate"
 log() { printf 'animate-quality: %s\n' "$*" >&2; }
@@ -74,16 +78,52 @@ do_river() {
     tail -1 "$R/run.jsonl"
 }
 
+# The plume's still and matte: the other plume (blender-plume-128), frame 30 from the side; the matte from the
+# render's opacity. $1 = directory.
+plume_still() {
+    "$VDBTURB" preview "$DATA/blender-plume-128/fluid_data_####.vdb" --frames 30 --view side --width 256 --out "$1/still.####.png" -q
+    oiiotool "$1/still.0030.png" --subc 0.07,0.075,0.09 --abs --chsum --subc 0.03 --mulc 6 --clamp:min=0:max=1 -o "$1/matte.png"
+}
+
+# One animate run of a cache example onto the plume still, per histogram-matching mode; prints the summary line
+# per mode. $1 = directory (with still and matte), $2 = cache pattern, $3 = tau, then extra options.
+plume_runs() {
+    dir=$1 cache=$2 tau=$3
+    shift 3
+    for mode in per-frame sequence off; do
+        if [ "$mode" = off ]; then hm="--hm off"; else hm="--hm-apply $mode"; fi
+        # shellcheck disable=SC2086
+        "$VDBTURB" animate --example-cache "$cache" --camera front --width 256 "$@" \
+            --target "$dir/still.0030.png" --target-alpha "$dir/matte.png" --flow-strokes "$STROKES/plume_strokes.json" \
+            --tau "$tau" $hm --out "$dir/$mode/out.####.png" --sheet "$dir/sheet-$mode.png" --dump "$dir/dump-$mode" \
+            --measure --json > "$dir/$mode.jsonl"
+        printf '%s: ' "$mode"
+        tail -1 "$dir/$mode.jsonl"
+    done
+}
+
 do_plume() {
     P="$WORK/plume"
     rm -rf "$P"
-    # The still: the other plume (blender-plume-128), frame 30 from the side; its matte from the render's opacity.
-    "$VDBTURB" preview "$DATA/blender-plume-128/fluid_data_####.vdb" --frames 30 --view side --width 256 --out "$P/still.####.png" -q
-    oiiotool "$P/still.0030.png" --subc 0.07,0.075,0.09 --abs --chsum --subc 0.03 --mulc 6 --clamp:min=0:max=1 -o "$P/matte.png"
-    "$VDBTURB" animate --example-cache "$DATA/blender-plume2-128/fluid_data_####.vdb" --camera front --width 256 \
-        --target "$P/still.0030.png" --target-alpha "$P/matte.png" --flow-strokes "$STROKES/plume_strokes.json" --tau 8 \
-        --out "$P/out/plume.####.png" --sheet "$P/sheet.png" --dump "$P/dump" --measure --json > "$P/run.jsonl"
-    tail -1 "$P/run.jsonl"
+    mkdir -p "$P"
+    plume_still "$P"
+    plume_runs "$P" "$DATA/blender-plume2-128/fluid_data_####.vdb" 8
+}
+
+do_stationary() {
+    S="$WORK/stationary"
+    res=${RES:-64}
+    cache="$S/cache$res/data/fluid_data_####.vdb"
+    if [ ! -f "$S/cache$res/data/fluid_data_0120.vdb" ]; then
+        log "baking the textured plume at $res^3 (blender)"
+        mkdir -p "$S"
+        blender -b --factory-startup --python "$ROOT/bench/blender_plume_textured.py" -- "$res" "$S/cache$res" 120 > "$S/bake$res.log" 2>&1
+        grep BAKE_SECONDS "$S/bake$res.log" >&2
+    fi
+    rm -rf "$S/run$res"
+    mkdir -p "$S/run$res"
+    plume_still "$S/run$res"
+    plume_runs "$S/run$res" "$cache" 16 --frames 60-120
 }
 
 do_modes() {
@@ -105,8 +145,9 @@ for what in "$@"; do
     sweep) do_sweep ;;
     river) do_river ;;
     plume) do_plume ;;
+    stationary) do_stationary ;;
     modes) do_modes ;;
-    all) do_sweep; do_river; do_plume; do_modes ;;
+    all) do_sweep; do_river; do_plume; do_stationary; do_modes ;;
     *) echo "unknown: $what" >&2; exit 2 ;;
     esac
 done

@@ -145,6 +145,49 @@ TEST(AnimateAnalysis, TranslatedNoiseGivesItsShiftAndSmallResiduals)
               << ex.stats.rmsResidual / ex.stats.rmsDifference << std::endl;
 }
 
+TEST(AnimateAnalysis, TracksOfTranslatedNoiseCarryItsShift)
+{
+    // The tracks behind the mean flow, one by one: every pair tracked, each displacement the shift.
+    const double sx = 1.5, sy = -0.5;
+    const std::vector<FlowTrack> tracks = trackFlow(translatedNoise(96, 80, 12, sx, sy), AnalysisSettings{});
+    std::vector<int> perPair(11, 0);
+    std::vector<double> err;
+    for (const FlowTrack& t : tracks) {
+        ASSERT_GE(t.pair, 0);
+        ASSERT_LT(t.pair, 11);
+        ++perPair[size_t(t.pair)];
+        err.push_back(std::hypot(t.dx - sx, t.dy - sy));
+    }
+    for (int n : perPair) EXPECT_GE(n, 30);
+    std::sort(err.begin(), err.end());
+    // Single tracks scatter more than their average over pairs (the mean flow's 0.01 px).
+    EXPECT_LT(err[err.size() / 2], 0.2) << "median track error";
+    // Against a design equal to the shift: angle 0, ratio 1; against one twice as fast and turned by 90 degrees:
+    // ratio 0.5, angle 90.
+    ChannelImage same(96, 80, 2), other(96, 80, 2);
+    for (size_t i = 0; i < same.pixelCount(); ++i) {
+        same.pixel(i)[0] = float(sx);
+        same.pixel(i)[1] = float(sy);
+        other.pixel(i)[0] = float(2 * sy);
+        other.pixel(i)[1] = float(-2 * sx);
+    }
+    const FlowAgreement a = compareTracks(tracks, same), b = compareTracks(tracks, other);
+    EXPECT_LT(a.medianAngleDeg, 5.0);
+    EXPECT_NEAR(a.medianSpeedRatio, 1.0, 0.03);
+    EXPECT_NEAR(b.medianAngleDeg, 90.0, 5.0);
+    EXPECT_NEAR(b.medianSpeedRatio, 0.5, 0.02);
+    EXPECT_GT(a.pixels, 0.7) << "tracks off the 8-pixel border";
+    // The matte and the minimum design speed choose the tracks compared.
+    ChannelImage left(96, 80, 1);
+    for (int y = 0; y < 80; ++y)
+        for (int x = 0; x < 48; ++x) left.at(x, y, 0) = 1.0f;
+    const FlowAgreement c = compareTracks(tracks, same, &left);
+    EXPECT_GT(c.pixels, 0.2);
+    EXPECT_LT(c.pixels, 0.6 * a.pixels);
+    EXPECT_EQ(compareTracks(tracks, same, nullptr, 10.0).pixels, 0.0);
+    EXPECT_THROW(compareTracks(tracks, ChannelImage(96, 80, 3)), ValueError);
+}
+
 TEST(AnimateAnalysis, RefusesShortOrMixedExamples)
 {
     std::vector<ChannelImage> one{ChannelImage(16, 16, 3)};
@@ -271,6 +314,7 @@ TEST(AnimateTransfer, SameFlowsTransferTheResidualsInPlace)
     TransferSettings ts;
     ts.downsample = 1;
     ts.pcaComponents = 64;
+    ts.variety = 0.0; // the paper's nearest match (variety would take near windows as equally good)
     const TransferMap map = matchResiduals(flow, flow, ts);
     EXPECT_NEAR(map.stats.meanCost, 0.0, 1e-9);
     EXPECT_DOUBLE_EQ(map.stats.covered, 1.0);
@@ -282,6 +326,44 @@ TEST(AnimateTransfer, SameFlowsTransferTheResidualsInPlace)
     for (size_t q = 0; q < r.data().size(); ++q)
         maxErr = std::max(maxErr, double(std::abs(rp.data()[q] - r.data()[q])));
     EXPECT_LT(maxErr, 1e-5);
+}
+
+TEST(AnimateTransfer, AUniformDesignDoesNotTileOneWindow)
+{
+    // A uniform design against an example that moves uniformly almost everywhere: every window is an equally good
+    // match. The nearest match alone gives few distinct windows, repeated with the patch stride; variety gives
+    // neighbouring patches different windows, each still within variety x speed of the best match.
+    const int W = 96, H = 80;
+    ChannelImage ex(120, 100, 2), tg(W, H, 2);
+    for (int y = 0; y < 100; ++y)
+        for (int x = 0; x < 120; ++x) {
+            ex.at(x, y, 0) = 0.0f;
+            ex.at(x, y, 1) = float(-2.0 - 0.2 * std::exp(-(std::pow(x - 60.0, 2) + std::pow(y - 50.0, 2)) / 50.0));
+        }
+    for (size_t i = 0; i < tg.pixelCount(); ++i) tg.pixel(i)[1] = -2.0f;
+    TransferSettings nearestOnly;
+    nearestOnly.variety = 0.0;
+    const TransferMap a = matchResiduals(ex, tg, nearestOnly), b = matchResiduals(ex, tg, TransferSettings{});
+    EXPECT_EQ(a.stats.patches, b.stats.patches);
+    EXPECT_GT(b.stats.distinct, a.stats.distinct);
+    EXPECT_GE(b.stats.distinct, b.stats.patches / 2) << "of " << b.stats.patches;
+    EXPECT_LE(std::sqrt(b.stats.maxCost), 0.1 * 2.0 + 1e-6) << "every pick within variety x speed";
+    // Neighbouring target pixels one stride apart take residuals from example pixels that are not one stride apart
+    // in the same window: sample R = a ramp, so R'(x + 8) - R'(x) = 8 where the same window covers both.
+    ChannelImage ramp(120, 100, 1);
+    for (int y = 0; y < 100; ++y)
+        for (int x = 0; x < 120; ++x) ramp.at(x, y, 0) = float(x + 1000 * y);
+    const ChannelImage ra = a.apply(ramp), rb = b.apply(ramp);
+    const auto periodic = [&](const ChannelImage& r) { // fraction of pixels whose value repeats 16 px to the right
+        int same = 0, n = 0;
+        for (int y = 8; y < H - 8; ++y)
+            for (int x = 8; x + 16 < W - 8; ++x, ++n) same += std::abs(r.at(x + 16, y, 0) - r.at(x, y, 0)) < 0.5f;
+        return double(same) / n;
+    };
+    EXPECT_LT(periodic(rb), 0.2);
+    std::cout << "[ measured ] uniform design: distinct windows " << a.stats.distinct << " (nearest) vs "
+              << b.stats.distinct << " of " << b.stats.patches
+              << " patches; residual repeating 16 px on: " << periodic(ra) << " vs " << periodic(rb) << std::endl;
 }
 
 TEST(AnimateTransfer, LappedPastingCoversTheMatteWithUnitWeights)
@@ -605,7 +687,7 @@ struct SmallRun
     ChannelImage designed;
 };
 
-SmallRun runSmall(int threads, int N = 14, int tau = 4, bool hm = true)
+SmallRun runSmall(int threads, int N = 14, int tau = 4, bool hm = true, HmApply apply = HmApply::PerFrame)
 {
     SmallRun run;
     AnimateInput in;
@@ -617,6 +699,7 @@ SmallRun runSmall(int threads, int N = 14, int tau = 4, bool hm = true)
     AnimateSettings s;
     s.tau = tau;
     s.histogramMatch = hm;
+    s.hmApply = apply;
     s.hm.cellSize = 28;
     withThreads(threads, [&] {
         run.stats = animate(
@@ -632,15 +715,17 @@ SmallRun runSmall(int threads, int N = 14, int tau = 4, bool hm = true)
 
 TEST(AnimatePipeline, WritesNMinusTauFramesBitIdenticalAtAnyThreadCount)
 {
-    const SmallRun a = runSmall(1), b = runSmall(2);
-    ASSERT_EQ(a.frames.size(), 10u) << "N - tau";
-    ASSERT_EQ(b.frames.size(), 10u);
-    for (size_t i = 0; i < a.frames.size(); ++i) {
-        EXPECT_EQ(a.frames[i].index, int(i));
-        EXPECT_EQ(a.frames[i].exampleIndex, int(i) + 4);
-        EXPECT_EQ(a.frames[i].image.data(), b.frames[i].image.data()) << "frame " << i;
+    for (HmApply apply : {HmApply::PerFrame, HmApply::Sequence}) {
+        const SmallRun a = runSmall(1, 14, 4, true, apply), b = runSmall(2, 14, 4, true, apply);
+        ASSERT_EQ(a.frames.size(), 10u) << "N - tau";
+        ASSERT_EQ(b.frames.size(), 10u);
+        for (size_t i = 0; i < a.frames.size(); ++i) {
+            EXPECT_EQ(a.frames[i].index, int(i));
+            EXPECT_EQ(a.frames[i].exampleIndex, int(i) + 4);
+            EXPECT_EQ(a.frames[i].image.data(), b.frames[i].image.data()) << "frame " << i;
+        }
+        EXPECT_EQ(a.stats.frames, 10);
     }
-    EXPECT_EQ(a.stats.frames, 10);
 }
 
 TEST(AnimatePipeline, RefusesBadInput)
@@ -663,35 +748,96 @@ TEST(AnimatePipeline, RefusesBadInput)
     EXPECT_THROW(animate(std::move(none), s, [](const AnimatedFrame&) {}), ValueError);
 }
 
-TEST(AnimatePipeline, MotionFollowsTheDesign)
+namespace {
+
+struct MotionRun
 {
-    // The output's own flow analysis, against the designed flow: median angle < 15 degrees, speed
-    // ratio 0.8..1.2 (docs/animate.md). 40 example frames, tau 8: 32 output frames.
+    FlowAgreement tracks, field;
+    double worstCellMean = 0.0, worstCellStd = 0.0;
+};
+
+/// Animates 40 frames of translated noise (tau 8: 32 output frames) onto `target` along a diagonal design at
+/// 1.5 px/frame and measures the output's motion against the design: its tracks and its interpolated mean flow.
+MotionRun runMotion(const ChannelImage& target, HmApply apply)
+{
     AnimateInput in;
     in.exampleFrames = translatedNoise(96, 80, 40, 1.5, -0.5);
-    in.target = Waves(41).frame(96, 80, 0, 0);
+    in.target = target;
     const std::vector<FlowStroke> strokes{
         stroke(StrokeKind::Orientation, {{10, 70}, {85, 20}}), stroke(StrokeKind::Speed, {{10, 40}, {85, 40}}, 1.5)};
     in.strokes = &strokes;
     AnimateSettings s;
     s.tau = 8;
     s.hm.cellSize = 48;
+    s.hmApply = apply;
     std::vector<ChannelImage> out;
     ChannelImage designed;
+    MotionRun r;
     animate(
-        std::move(in), s, [&](const AnimatedFrame& f) { out.push_back(f.image); }, nullptr,
+        std::move(in), s,
+        [&](const AnimatedFrame& f) {
+            out.push_back(f.image);
+            r.worstCellMean = std::max(r.worstCellMean, f.cellMeanError);
+            r.worstCellStd = std::max(r.worstCellStd, f.cellStdError);
+        },
+        nullptr,
         [&](const std::string& name, int, const ChannelImage& img) {
             if (name == "refined") designed = img;
         });
-    ASSERT_EQ(out.size(), 32u);
-    const ChannelImage measured = estimateMeanFlow(out, AnalysisSettings{});
-    const FlowAgreement a = compareFlows(measured, designed);
-    EXPECT_LT(a.medianAngleDeg, 15.0);
-    EXPECT_GT(a.medianSpeedRatio, 0.8);
-    EXPECT_LT(a.medianSpeedRatio, 1.2);
-    EXPECT_GT(a.pixels, 0.5);
-    std::cout << "[ measured ] output flow vs design: median angle " << a.medianAngleDeg << " deg, speed ratio "
-              << a.medianSpeedRatio << std::endl;
+    EXPECT_EQ(out.size(), 32u);
+    r.tracks = compareTracks(trackFlow(out, AnalysisSettings{}), designed);
+    r.field = compareFlows(estimateMeanFlow(out, AnalysisSettings{}), designed);
+    return r;
+}
+
+void expectFollows(const FlowAgreement& a, const std::string& what)
+{
+    EXPECT_LT(a.medianAngleDeg, 15.0) << what;
+    EXPECT_GT(a.medianSpeedRatio, 0.8) << what;
+    EXPECT_LT(a.medianSpeedRatio, 1.2) << what;
+    EXPECT_GT(a.pixels, 0.5) << what;
+}
+
+} // namespace
+
+TEST(AnimatePipeline, MotionFollowsTheDesign)
+{
+    // The output's own flow analysis against the designed flow: median angle < 15 degrees, speed ratio 0.8..1.2
+    // (docs/animate.md), track by track and as the interpolated mean flow, with either way of matching histograms.
+    for (HmApply apply : {HmApply::PerFrame, HmApply::Sequence}) {
+        const std::string mode = apply == HmApply::PerFrame ? "per-frame" : "sequence";
+        const MotionRun r = runMotion(Waves(41).frame(96, 80, 0, 0), apply);
+        expectFollows(r.tracks, mode + ", tracks");
+        expectFollows(r.field, mode + ", field");
+        std::cout << "[ measured ] " << mode << ": tracks " << r.tracks.medianAngleDeg << " deg, ratio "
+                  << r.tracks.medianSpeedRatio << "; field " << r.field.medianAngleDeg << " deg, ratio "
+                  << r.field.medianSpeedRatio << std::endl;
+    }
+}
+
+TEST(AnimatePipeline, SequenceMatchingKeepsTheMotionOnASmoothStill)
+{
+    // A still with no texture of its own (a soft blob on a ramp), as renders of smoke are: matching every frame's
+    // histograms to it remaps the moving detail around the static average; matching the mean frame once and
+    // correcting each frame's cell moments keeps the motion and still gives every frame and cell the still's mean
+    // and std (within 2%).
+    ChannelImage smooth(96, 80, 3);
+    for (int y = 0; y < 80; ++y)
+        for (int x = 0; x < 96; ++x) {
+            const double r2 = (std::pow(x - 44.0, 2) + std::pow(y - 36.0, 2)) / (2 * 18.0 * 18.0);
+            const float v = float(0.15 + 0.002 * x + 0.6 * std::exp(-r2));
+            for (int c = 0; c < 3; ++c) smooth.at(x, y, c) = v * (1.0f - 0.1f * float(c));
+        }
+    const MotionRun seq = runMotion(smooth, HmApply::Sequence), per = runMotion(smooth, HmApply::PerFrame);
+    expectFollows(seq.tracks, "sequence, tracks");
+    expectFollows(seq.field, "sequence, field");
+    EXPECT_LT(seq.worstCellMean, 0.02);
+    EXPECT_LT(seq.worstCellStd, 0.02);
+    std::cout << "[ measured ] smooth still, sequence: tracks " << seq.tracks.medianAngleDeg << " deg, ratio "
+              << seq.tracks.medianSpeedRatio << ", worst cell mean/std error " << seq.worstCellMean << " / "
+              << seq.worstCellStd << "; per-frame: tracks " << per.tracks.medianAngleDeg << " deg, ratio "
+              << per.tracks.medianSpeedRatio << "; field " << per.field.medianAngleDeg << " deg, ratio "
+              << per.field.medianSpeedRatio << std::endl;
 }
 
 TEST(AnimateQuality, TemporalStatsOfASinusoid)

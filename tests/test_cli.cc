@@ -732,10 +732,16 @@ TEST(Cli, AnimateFromACacheThroughTheCamera)
         0);
     const CmdResult r =
         run("animate --example-cache " + lo() + " --camera front --width 48 --target " + dir / "in/still.png" +
-            " --flow-strokes " + strokesPath() + " --tau 4 --hm laplacian --out " + dir / "o/a.####.png --json -q");
+            " --flow-strokes " + strokesPath() + " --tau 4 --hm laplacian --hm-apply sequence --measure --out " +
+            dir / "o/a.####.png --json -q");
     ASSERT_EQ(r.code, 0) << r.out;
     EXPECT_EQ(countFiles(dir / "o", "a."), 6u) << "10 cache frames - tau";
     EXPECT_NE(r.out.find("\"flow_given\":true"), std::string::npos) << r.out;
+    // --measure: the motion track by track and as the interpolated field, the example's calibration against the
+    // cache's own flow, and how many example windows the transfer used.
+    for (const char* key : {"\"track_median_angle_deg\":", "\"track_median_speed_ratio\":",
+             "\"flow_median_angle_deg\":", "\"example_track_median_speed_ratio\":", "\"distinct_windows\":"})
+        EXPECT_NE(r.out.find(key), std::string::npos) << key << "\n" << r.out;
 }
 
 TEST(Cli, AnimateRefusesBadInputNamingTheFileAndWritesNothing)

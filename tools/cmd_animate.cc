@@ -413,7 +413,8 @@ nlohmann::json statsJson(const turb::AnimateStats& st)
         {"flow_given", st.analysis.flowGiven}};
     j["design_mean_speed"] = st.designMeanSpeed;
     j["transfer"] = {{"patches", st.transfer.patches}, {"pasted", st.transfer.pasted},
-        {"mean_cost", st.transfer.meanCost}, {"max_cost", st.transfer.maxCost}, {"covered", st.transfer.covered}};
+        {"mean_cost", st.transfer.meanCost}, {"max_cost", st.transfer.maxCost}, {"covered", st.transfer.covered},
+        {"distinct_windows", st.transfer.distinct}};
     j["eq8"] = {
         {"alpha", st.alpha}, {"beta", st.beta}, {"mean_d", st.meanD}, {"sigma_d", st.sigmaD}, {"sigma_c", st.sigmaC}};
     j["hm_grid"] = {st.gridCols, st.gridRows};
@@ -475,7 +476,7 @@ struct Measures
 {
     std::optional<turb::TemporalStats> exTemporal, outTemporal;
     std::vector<turb::ChannelImage> outLuma;
-    std::optional<turb::FlowAgreement> exampleAgreement;
+    std::optional<turb::FlowAgreement> exampleAgreement, exampleTracks;
 };
 
 Measures startMeasures(const AnimateArgs& a, const Example& example, const Target& target)
@@ -491,6 +492,8 @@ Measures startMeasures(const AnimateArgs& a, const Example& example, const Targe
         turb::withThreads(globals().threads, [&] {
             m.exampleAgreement =
                 turb::compareFlows(turb::estimateMeanFlow(example.frames, s.analysis), *example.flow, nullptr, 0.25);
+            m.exampleTracks =
+                turb::compareTracks(turb::trackFlow(example.frames, s.analysis), *example.flow, nullptr, 0.25);
         });
     return m;
 }
@@ -501,20 +504,28 @@ void finishMeasures(const AnimateArgs& a, const Measures& m, const turb::Channel
 {
     turb::AnalysisSettings as = a.settings.analysis;
     const turb::ChannelImage measured = turb::estimateMeanFlow(m.outLuma, as);
-    const turb::FlowAgreement fa = turb::compareFlows(measured, designed, target.matte ? &*target.matte : nullptr);
+    const turb::ChannelImage* matte = target.matte ? &*target.matte : nullptr;
+    const turb::FlowAgreement fa = turb::compareFlows(measured, designed, matte);
+    const turb::FlowAgreement ft = turb::compareTracks(turb::trackFlow(m.outLuma, as), designed, matte);
     const turb::TemporalSummary te = m.exTemporal->summary(), to = m.outTemporal->summary();
-    summary["quality"] = {{"flow_median_angle_deg", fa.medianAngleDeg},
-        {"flow_median_speed_ratio", fa.medianSpeedRatio}, {"flow_pixels", fa.pixels}, {"temporal_std", to.temporalStd},
-        {"temporal_std_example", te.temporalStd}, {"autocorrelation", to.autocorrelation},
-        {"autocorrelation_example", te.autocorrelation}};
+    summary["quality"] = {{"track_median_angle_deg", ft.medianAngleDeg},
+        {"track_median_speed_ratio", ft.medianSpeedRatio}, {"track_fraction", ft.pixels},
+        {"flow_median_angle_deg", fa.medianAngleDeg}, {"flow_median_speed_ratio", fa.medianSpeedRatio},
+        {"flow_pixels", fa.pixels}, {"temporal_std", to.temporalStd}, {"temporal_std_example", te.temporalStd},
+        {"autocorrelation", to.autocorrelation}, {"autocorrelation_example", te.autocorrelation}};
     if (m.exampleAgreement) {
+        summary["quality"]["example_track_median_angle_deg"] = m.exampleTracks->medianAngleDeg;
+        summary["quality"]["example_track_median_speed_ratio"] = m.exampleTracks->medianSpeedRatio;
         summary["quality"]["example_flow_median_angle_deg"] = m.exampleAgreement->medianAngleDeg;
         summary["quality"]["example_flow_median_speed_ratio"] = m.exampleAgreement->medianSpeedRatio;
-        logInfo("animate: the same tracking on the example against the cache's flow: median angle " +
-                fmt("%.1f deg", m.exampleAgreement->medianAngleDeg) + ", speed ratio " +
+        logInfo("animate: the same tracking on the example against the cache's flow: tracks " +
+                fmt("%.1f deg", m.exampleTracks->medianAngleDeg) + ", speed ratio " +
+                fmt("%.2f", m.exampleTracks->medianSpeedRatio) + "; interpolated field " +
+                fmt("%.1f deg", m.exampleAgreement->medianAngleDeg) + ", " +
                 fmt("%.2f", m.exampleAgreement->medianSpeedRatio));
     }
-    logInfo("animate: motion vs design: median angle " + fmt("%.1f deg", fa.medianAngleDeg) + ", speed ratio " +
+    logInfo("animate: motion vs design: tracks " + fmt("%.1f deg", ft.medianAngleDeg) + ", speed ratio " +
+            fmt("%.2f", ft.medianSpeedRatio) + "; interpolated field " + fmt("%.1f deg", fa.medianAngleDeg) + ", " +
             fmt("%.2f", fa.medianSpeedRatio) + "; temporal std " + fmt("%.4f", to.temporalStd) + " (example " +
             fmt("%.4f", te.temporalStd) + "); autocorrelation lag 1 " + fmt("%.2f", to.autocorrelation[0]) +
             " (example " + fmt("%.2f", te.autocorrelation[0]) + ")");
@@ -772,6 +783,12 @@ void addHmSettings(CLI::App* app, AnimateArgs& a)
         "Finally solve one blended gain and offset per cell so every cell's mean and std are the target's (false: "
         "stop after the pixel passes)",
         "hm.cellMoments");
+    setting(addEnum<turb::HmApply>(app, "--hm-apply,--hmApply", a.settings.hmApply,
+                {{"per-frame", turb::HmApply::PerFrame}, {"sequence", turb::HmApply::Sequence}},
+                "per-frame: match every frame (the paper); sequence: match the mean frame once, give every frame that "
+                "correction and its own cell moments (keeps the moving detail on smooth stills such as smoke renders; "
+                "a static speckle on textured ones; docs/animate.md)"),
+        "hmApply");
     legacy(app->add_flag_function(
                "--hm-exact-cells", [&hm](std::int64_t) { hm.blendPixels = false; }, "hm.blendPixels = false"),
         "hm.blendPixels", "false");
@@ -809,6 +826,14 @@ void addAnimateSettings(CLI::App* app, AnimateArgs& a)
     knob("--search-downsample,--transfer.downsample", s.transfer.downsample, "Match flows downsampled by 1, 2 or 4",
         "transfer.downsample")
         ->check(CLI::IsMember({1, 2, 4}));
+    knob("--variety,--transfer.variety", s.transfer.variety,
+        "Residual transfer: candidates within this fraction of the patch's design speed of the best are equally good, "
+        "and the one farthest from its neighbours' windows is taken (0: the nearest, the paper)",
+        "transfer.variety")
+        ->check(CLI::Range(0.0, 1.0));
+    knob("--transfer.candidates", s.transfer.candidates,
+        "Residual transfer: random example windows costed per patch besides the 8 nearest", "transfer.candidates")
+        ->check(CLI::Range(1, 64));
     knob("--features,--analysis.features", s.analysis.features,
         "Lucas-Kanade features per example frame pair (paper 100)", "analysis.features")
         ->check(CLI::Range(1, 100000));

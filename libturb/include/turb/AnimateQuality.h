@@ -18,6 +18,7 @@
 #pragma once
 
 #include <turb/ChannelImage.h>
+#include <turb/VideoAnalysis.h>
 
 #include <vector>
 
@@ -34,6 +35,15 @@ struct FlowAgreement
 /// speed >= minSpeed (pixels per frame), ignoring a border of `border` pixels (where tracking sees
 /// texture enter). Throws ValueError on mismatched shapes.
 FlowAgreement compareFlows(const ChannelImage& measured, const ChannelImage& designed,
+    const ChannelImage* matte = nullptr, double minSpeed = 0.25, int border = 8);
+
+/// The same comparison track by track, before any interpolation: each FlowTrack's displacement against the design
+/// at the step's mid-point, where that lies inside the matte (>= 0.5), off the border and where the design moves
+/// at least `minSpeed`. `pixels` is then the fraction of the tracks compared. The interpolated field of
+/// compareFlows spreads each track over the pixels around it, and a design that varies faster than the tracks are
+/// spaced then compares with a smoothed field; the tracks compare only where there is texture to see moving.
+/// Throws ValueError on a design that is not 2-channel or a matte of another size.
+FlowAgreement compareTracks(const std::vector<FlowTrack>& tracks, const ChannelImage& designed,
     const ChannelImage* matte = nullptr, double minSpeed = 0.25, int border = 8);
 
 struct TemporalSummary

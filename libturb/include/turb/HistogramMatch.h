@@ -107,6 +107,10 @@ public:
     /// target through the matte (m x out + (1 - m) x target), over the whole cell. Const and thread-safe.
     ChannelImage match(const ChannelImage& frame) const;
 
+    /// Only the last step of match(): each cell's mean and std made exact by the blended per-cell gains and offsets
+    /// (settings.cellMoments; the frame unchanged without it). Same shape checks as match(). Const and thread-safe.
+    ChannelImage matchMoments(const ChannelImage& frame) const;
+
     int gridCols() const;
     int gridRows() const;
     const std::vector<HmCell>& cells() const; ///< row by row

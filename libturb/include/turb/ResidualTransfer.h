@@ -9,6 +9,14 @@
 ///   k-d tree (PatchIndex.h), optionally on flows downsampled 2x or 4x (box means; patches shrink with
 ///   them, positions scale back up). Candidate windows are every pixel position at the search
 ///   resolution.
+/// - **Variety** (beyond the paper). A nearly uniform design matches many example windows equally well, and
+///   the nearest one is then often the same window for a whole region: its residuals tile the target with
+///   the patch stride, a regular grid of repeated detail (the paper's "flat residuals", which it mends by
+///   hand with the Clone Brush). So besides the 8 nearest windows, `candidates` windows drawn at random (seeded
+///   by the patch: deterministic) are costed; those whose rms flow difference is within `variety` x the patch's
+///   rms design speed of the best count as equally good, and,
+///   patch by patch in grid order, the one farthest from the windows already chosen by the patches within
+///   two strides is taken (the nearest on ties). variety 0 is the paper's nearest match.
 /// - **Lapped pasting.** Patches are sorted by their cost (most similar first; ties by position) and
 ///   pasted in that order *under* what is already there: a patch's alpha mask is 1 in its core and ramps
 ///   linearly to 0 over `feather` of its size at edges that lie inside the image, and pixel x takes
@@ -42,6 +50,8 @@ struct TransferSettings
     int downsample = 2;     ///< search on flows reduced by 1, 2 or 4 (paper 2 or 4)
     int pcaComponents = 16; ///< PCA dimensions of the descriptors, >= 1
     double feather = 0.25;  ///< alpha ramp width as a fraction of the patch edge, [0, 0.5]
+    int candidates = 32;    ///< random example windows costed per patch besides the 8 nearest (variety > 0), 1..64
+    double variety = 0.1;   ///< "equally good" slack, fraction of the patch's rms design speed, [0, 1]; 0 = nearest
 };
 
 /// Throws ValueError naming the first setting out of range.
@@ -54,6 +64,7 @@ struct TransferStats
     double meanCost = 0.0; ///< mean |s - e|^2 per pixel (pixels^2 / frame^2) over pasted patches
     double maxCost = 0.0;  ///< the worst pasted patch's cost per pixel
     double covered = 0.0;  ///< fraction of target pixels that received residuals
+    int distinct = 0;      ///< distinct example windows among the pasted patches
 };
 
 /// Which example pixels make each target pixel of the transferred residuals.

@@ -77,6 +77,20 @@ ExampleDecomposition decomposeExample(std::vector<ChannelImage> frames, const An
 ChannelImage estimateMeanFlow(const std::vector<ChannelImage>& frames, const AnalysisSettings& settings,
     AnalysisStats* stats = nullptr, Progress* progress = nullptr);
 
+/// One feature tracked from frame `pair` to frame `pair + 1`.
+struct FlowTrack
+{
+    int pair = 0;
+    float x = 0.0f, y = 0.0f;   ///< position in frame `pair` (pixels, x right, y down)
+    float dx = 0.0f, dy = 0.0f; ///< displacement to the next frame (pixels per frame)
+};
+
+/// The tracks behind estimateMeanFlow, before any interpolation: the Lucas-Kanade tracks of section 4.2 between
+/// consecutive frames of the differences from the frames' own average that pass the round-trip and
+/// neighbour-consistency checks. Throws as decomposeExample.
+std::vector<FlowTrack> trackFlow(
+    const std::vector<ChannelImage>& frames, const AnalysisSettings& settings, Progress* progress = nullptr);
+
 /// The frames rebuilt from the decomposition by eq. 4: F_i = A + W^i(D_0) + sum_{k<i} W^{i-k-1}(R_k),
 /// evaluated incrementally as D_{i+1} = W(D_i) + R_i (the same sum, by linearity of W).
 std::vector<ChannelImage> reconstructExample(const ExampleDecomposition& ex);

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <optional>
 #include <string>
 
 namespace turb {
@@ -293,6 +294,7 @@ struct FrameAssembly
     const ChannelImage* matte;
     const ChannelImage& average;      ///< A'
     const HistogramMatcher* matcher;  ///< null without histogram matching
+    const ChannelImage* correction;   ///< HmApply::Sequence: HM(mean frame) - mean frame, added to every frame
     const std::vector<HmCell>& cells; ///< the matcher's cells, or none
     int tau;
 };
@@ -307,12 +309,37 @@ AnimatedFrame assembleFrame(ChannelImage& d, size_t index, const FrameAssembly& 
     AnimatedFrame f;
     f.index = int(index);
     f.exampleIndex = int(index) + a.tau;
-    f.image = a.matcher ? a.matcher->match(d) : std::move(d);
+    if (a.correction) {
+        for (size_t q = 0; q < d.data().size(); ++q) d.data()[q] += a.correction->data()[q];
+        composite(d, a.target, a.matte);
+        f.image = a.matcher->matchMoments(d);
+    } else {
+        f.image = a.matcher ? a.matcher->match(d) : std::move(d);
+    }
     composite(f.image, a.target, a.matte);
     d = ChannelImage();
     frameErrors(f, a.target, a.cells);
     f.seconds = since(tf);
     return f;
+}
+
+/// HmApply::Sequence: HM(F) - F for the mean frame F = A' + mean_i D''_i, composited into the target.
+ChannelImage sequenceCorrection(const std::vector<ChannelImage>& diffs, const ChannelImage& Aprime,
+    const AnimateInput& in, const HistogramMatcher& hm)
+{
+    ChannelImage mean = Aprime;
+    const size_t n = mean.data().size();
+    parallelFor(n, 1 << 14, [&](size_t b, size_t e) {
+        for (size_t q = b; q < e; ++q) {
+            double sum = 0.0;
+            for (const ChannelImage& d : diffs) sum += d.data()[q];
+            mean.data()[q] += float(sum / double(diffs.size()));
+        }
+    });
+    composite(mean, in.target, in.matte);
+    ChannelImage c = hm.match(mean);
+    for (size_t q = 0; q < n; ++q) c.data()[q] -= mean.data()[q];
+    return c;
 }
 
 /// Step 6 (section 5.6): eq. 8's contrast adjustment and histogram matching, frames in parallel batches, delivered
@@ -329,18 +356,21 @@ double matchAndDeliver(std::vector<ChannelImage>& diffs, const ContrastAdjustmen
         st.gridRows = hm->gridRows();
     }
     const std::vector<HmCell> noCells;
-    const FrameAssembly assembly{in.target, in.matte, Aprime, hm.get(), hm ? hm->cells() : noCells, s.tau};
     const size_t count = diffs.size();
-    double matching = since(t0); // the target's pyramids and tables
+    for (size_t j = 0; j < count; ++j) {
+        adj.apply(diffs[j]);
+        if (inspect) inspect("Dsecond", int(j), diffs[j]);
+    }
+    std::optional<ChannelImage> correction;
+    if (hm && s.hmApply == HmApply::Sequence) correction = sequenceCorrection(diffs, Aprime, in, *hm);
+    const FrameAssembly assembly{
+        in.target, in.matte, Aprime, hm.get(), correction ? &*correction : nullptr, hm ? hm->cells() : noCells, s.tau};
+    double matching = since(t0); // the target's pyramids and tables (and the sequence's correction)
     for (size_t b0 = 0; b0 < count; b0 += size_t(s.batch)) {
         checkCancelled(progress);
         if (progress) progress->update(double(b0) / double(count));
         const auto tb = std::chrono::steady_clock::now();
         const size_t b1 = std::min(count, b0 + size_t(s.batch));
-        for (size_t j = b0; j < b1; ++j) {
-            adj.apply(diffs[j]);
-            if (inspect) inspect("Dsecond", int(j), diffs[j]);
-        }
         std::vector<AnimatedFrame> out(b1 - b0);
         parallelFor(b1 - b0, 1, [&](size_t j0, size_t j1) {
             for (size_t j = j0; j < j1; ++j) {

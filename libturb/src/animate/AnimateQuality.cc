@@ -25,31 +25,73 @@ double median(std::vector<double> v)
 
 } // namespace
 
+namespace {
+
+/// Accumulates the angle and speed ratio of measured displacements against the design.
+struct Agreement
+{
+    std::vector<double> angles, ratios;
+    void add(double mx, double my, double dx, double dy)
+    {
+        const double sd = std::hypot(dx, dy), sm = std::hypot(mx, my);
+        const double c = sm > 0.0 ? (dx * mx + dy * my) / (sd * sm) : -1.0;
+        angles.push_back(std::acos(std::clamp(c, -1.0, 1.0)) * 180.0 / M_PI);
+        ratios.push_back(sm / sd);
+    }
+    FlowAgreement result(double total) const
+    {
+        FlowAgreement a;
+        a.medianAngleDeg = median(angles);
+        a.medianSpeedRatio = median(ratios);
+        a.pixels = total > 0 ? double(angles.size()) / total : 0.0;
+        return a;
+    }
+};
+
+void checkDesign(const ChannelImage& designed, const ChannelImage* matte, const char* who)
+{
+    if (designed.channels() != 2) throw ValueError(std::string(who) + ": the design must be a 2-channel flow");
+    if (matte && (!matte->sameSize(designed) || matte->channels() != 1))
+        throw ValueError(std::string(who) + ": the matte must match the flows");
+}
+
+} // namespace
+
 FlowAgreement compareFlows(
     const ChannelImage& measured, const ChannelImage& designed, const ChannelImage* matte, double minSpeed, int border)
 {
-    if (measured.channels() != 2 || designed.channels() != 2 || !measured.sameSize(designed))
+    checkDesign(designed, matte, "compareFlows");
+    if (measured.channels() != 2 || !measured.sameSize(designed))
         throw ValueError("compareFlows: needs two 2-channel flows of one size");
-    if (matte && (!matte->sameSize(designed) || matte->channels() != 1))
-        throw ValueError("compareFlows: the matte must match the flows");
-    std::vector<double> angles, ratios;
+    Agreement a;
     const int W = designed.width(), H = designed.height();
     for (int y = border; y < H - border; ++y)
         for (int x = border; x < W - border; ++x) {
             if (matte && matte->at(x, y, 0) < 0.5f) continue;
             const float* d = designed.pixel(x, y);
             const float* m = measured.pixel(x, y);
-            const double sd = std::hypot(d[0], d[1]), sm = std::hypot(m[0], m[1]);
-            if (sd < minSpeed) continue;
-            const double c = sm > 0.0 ? (d[0] * m[0] + d[1] * m[1]) / (sd * sm) : -1.0;
-            angles.push_back(std::acos(std::clamp(c, -1.0, 1.0)) * 180.0 / M_PI);
-            ratios.push_back(sm / sd);
+            if (std::hypot(d[0], d[1]) < minSpeed) continue;
+            a.add(m[0], m[1], d[0], d[1]);
         }
-    FlowAgreement a;
-    a.medianAngleDeg = median(angles);
-    a.medianSpeedRatio = median(ratios);
-    a.pixels = designed.pixelCount() ? double(angles.size()) / double(designed.pixelCount()) : 0.0;
-    return a;
+    return a.result(double(designed.pixelCount()));
+}
+
+FlowAgreement compareTracks(const std::vector<FlowTrack>& tracks, const ChannelImage& designed,
+    const ChannelImage* matte, double minSpeed, int border)
+{
+    checkDesign(designed, matte, "compareTracks");
+    Agreement a;
+    const int W = designed.width(), H = designed.height();
+    for (const FlowTrack& t : tracks) {
+        // The design where the feature was half-way through its step: the step's own mid-point rule.
+        const int x = int(std::lround(t.x + 0.5f * t.dx)), y = int(std::lround(t.y + 0.5f * t.dy));
+        if (x < border || y < border || x >= W - border || y >= H - border) continue;
+        if (matte && matte->at(x, y, 0) < 0.5f) continue;
+        const float* d = designed.pixel(x, y);
+        if (std::hypot(d[0], d[1]) < minSpeed) continue;
+        a.add(t.dx, t.dy, d[0], d[1]);
+    }
+    return a.result(double(tracks.size()));
 }
 
 TemporalStats::TemporalStats(int maxLag, const ChannelImage* matte) : mLag(std::max(1, maxLag)), mMatte(matte) {}

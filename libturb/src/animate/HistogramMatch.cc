@@ -665,13 +665,22 @@ int HistogramMatcher::gridRows() const { return mImpl->rows; }
 const std::vector<HmCell>& HistogramMatcher::cells() const { return mImpl->cells; }
 int HistogramMatcher::levels() const { return mImpl->levels; }
 
+namespace {
+
+void checkFrame(const ChannelImage& frame, int W, int H, int C)
+{
+    if (frame.width() != W || frame.height() != H || frame.channels() != C)
+        throw ValueError("histogram matching: the frame is " + std::to_string(frame.width()) + "x" +
+                         std::to_string(frame.height()) + "x" + std::to_string(frame.channels()) + ", the target " +
+                         std::to_string(W) + "x" + std::to_string(H) + "x" + std::to_string(C));
+}
+
+} // namespace
+
 ChannelImage HistogramMatcher::match(const ChannelImage& frame) const
 {
     const Impl& m = *mImpl;
-    if (frame.width() != m.W || frame.height() != m.H || frame.channels() != m.C)
-        throw ValueError("histogram matching: the frame is " + std::to_string(frame.width()) + "x" +
-                         std::to_string(frame.height()) + "x" + std::to_string(frame.channels()) + ", the target " +
-                         std::to_string(m.W) + "x" + std::to_string(m.H) + "x" + std::to_string(m.C));
+    checkFrame(frame, m.W, m.H, m.C);
     std::vector<ChannelImage> planes(size_t(m.C));
     parallelFor(size_t(m.C), 1, [&](size_t b, size_t e) {
         for (size_t c = b; c < e; ++c) {
@@ -691,15 +700,22 @@ ChannelImage HistogramMatcher::match(const ChannelImage& frame) const
             }
         });
     }
-    if (m.s.cellMoments) {
-        parallelFor(size_t(m.C), 1, [&](size_t b, size_t e) {
-            for (size_t c = b; c < e; ++c) {
-                ChannelImage p = channelRange(out, int(c), 1);
-                m.correctMoments(p, int(c));
-                for (size_t i = 0; i < p.pixelCount(); ++i) out.pixel(i)[c] = p.pixel(i)[0];
-            }
-        });
-    }
+    return matchMoments(out);
+}
+
+ChannelImage HistogramMatcher::matchMoments(const ChannelImage& frame) const
+{
+    const Impl& m = *mImpl;
+    checkFrame(frame, m.W, m.H, m.C);
+    ChannelImage out = frame;
+    if (!m.s.cellMoments) return out;
+    parallelFor(size_t(m.C), 1, [&](size_t b, size_t e) {
+        for (size_t c = b; c < e; ++c) {
+            ChannelImage p = channelRange(out, int(c), 1);
+            m.correctMoments(p, int(c));
+            for (size_t i = 0; i < p.pixelCount(); ++i) out.pixel(i)[c] = p.pixel(i)[0];
+        }
+    });
     return out;
 }
 

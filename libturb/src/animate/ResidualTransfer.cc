@@ -6,6 +6,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <random>
 #include <numeric>
 #include <string>
 
@@ -18,6 +20,8 @@ void validate(const TransferSettings& s)
         throw ValueError("transfer: downsample must be 1, 2 or 4");
     if (s.pcaComponents < 1) throw ValueError("transfer: PCA components must be >= 1");
     if (!(s.feather >= 0.0 && s.feather <= 0.5)) throw ValueError("transfer: feather must be in [0, 0.5]");
+    if (s.candidates < 1 || s.candidates > 64) throw ValueError("transfer: candidates must be 1..64");
+    if (!(s.variety >= 0.0 && s.variety <= 1.0)) throw ValueError("transfer: variety must be in [0, 1]");
 }
 
 TransferMap::TransferMap(int tw, int th, int ew, int eh)
@@ -182,23 +186,72 @@ TransferMap matchResiduals(const ChannelImage& exampleFlow, const ChannelImage& 
             descriptor(tg, int(std::lround(double(placed[k].tx) / d)), int(std::lround(double(placed[k].ty) / d)), p,
                 &queries[k * dim]);
     });
-    std::vector<int> nearest;
+    // Candidates: the nearest windows, and with variety windows drawn at random (seeded by the patch), which are
+    // what a flat region needs: its nearest windows are neighbours of one another, the same detail shifted.
+    const int KN = s.variety > 0.0 ? 8 : 1, KR = s.variety > 0.0 ? s.candidates : 0, K = KN + KR;
+    std::vector<int> knn;
     std::vector<float> dist2;
-    index.queryMany(queries.data(), placed.size(), 1, nearest, dist2);
+    index.queryMany(queries.data(), placed.size(), KN, knn, dist2);
+    std::vector<int> nearest(placed.size() * size_t(K), -1);
+    for (size_t k = 0; k < placed.size(); ++k) {
+        for (int j = 0; j < KN; ++j) nearest[k * size_t(K) + size_t(j)] = knn[k * size_t(KN) + size_t(j)];
+        std::mt19937 rng(std::uint32_t(1000003u * k + 17u));
+        std::uniform_int_distribution<int> any(0, int(M) - 1);
+        for (int j = KN; j < K; ++j) nearest[k * size_t(K) + size_t(j)] = any(rng);
+    }
+    // Exact costs of every candidate, per pixel at the search resolution, and each patch's rms design speed.
+    std::vector<double> costs(placed.size() * size_t(K), -1.0), speed(placed.size(), 0.0);
     parallelFor(placed.size(), 64, [&](size_t b, size_t e) {
         std::vector<float> win(dim);
         for (size_t k = b; k < e; ++k) {
-            const int n = std::max(0, nearest[k]);
-            const int cx = (n % nx) * stride, cy = (n / nx) * stride;
-            descriptor(ex, cx, cy, p, win.data());
-            double c = 0.0;
-            for (size_t q = 0; q < dim; ++q)
-                c += double(queries[k * dim + q] - win[q]) * double(queries[k * dim + q] - win[q]);
-            placed[k].cost = c / double(p * p);
-            placed[k].ex = cx * d;
-            placed[k].ey = cy * d;
+            const float* q = &queries[k * dim];
+            double s2 = 0.0;
+            for (size_t i = 0; i < dim; ++i) s2 += double(q[i]) * q[i];
+            speed[k] = std::sqrt(s2 / double(p * p));
+            for (int j = 0; j < K; ++j) {
+                const int n = nearest[k * size_t(K) + size_t(j)];
+                if (n < 0) continue;
+                descriptor(ex, (n % nx) * stride, (n / nx) * stride, p, win.data());
+                double c = 0.0;
+                for (size_t i = 0; i < dim; ++i) c += double(q[i] - win[i]) * double(q[i] - win[i]);
+                costs[k * size_t(K) + size_t(j)] = c / double(p * p);
+            }
         }
     });
+    // In grid order, each patch takes, among its equally good candidates, the window farthest from those its
+    // already decided neighbours took (sequential, so the choice does not depend on threads).
+    const int reach = 2 * std::max(1, P / 2);
+    for (size_t k = 0; k < placed.size(); ++k) {
+        const double* c = &costs[k * size_t(K)];
+        int best = 0;
+        for (int j = 1; j < K; ++j)
+            if (c[j] >= 0.0 && (c[best] < 0.0 || c[j] < c[best])) best = j;
+        int pick = best;
+        if (K > 1 && c[best] >= 0.0) {
+            // The decided neighbours: placed is in row order, so they are among the last rows before k.
+            std::vector<size_t> around;
+            for (size_t o = k; o-- > 0 && placed[o].ty >= placed[k].ty - reach;)
+                if (std::abs(placed[o].tx - placed[k].tx) <= reach) around.push_back(o);
+            const double limit = std::sqrt(c[best]) + s.variety * speed[k];
+            double farthest = -1.0;
+            for (int j = 0; j < K; ++j) {
+                if (c[j] < 0.0 || std::sqrt(c[j]) > limit) continue;
+                const int n = nearest[k * size_t(K) + size_t(j)];
+                const int cx = (n % nx) * stride * d, cy = (n / nx) * stride * d;
+                double dmin = std::numeric_limits<double>::max();
+                for (size_t o : around)
+                    dmin = std::min(dmin, std::hypot(double(placed[o].ex - cx), double(placed[o].ey - cy)));
+                if (dmin > farthest + 1e-9 || (dmin >= farthest - 1e-9 && c[j] < c[pick])) {
+                    farthest = dmin;
+                    pick = j;
+                }
+            }
+        }
+        const int n = std::max(0, nearest[k * size_t(K) + size_t(pick)]);
+        placed[k].ex = (n % nx) * stride * d;
+        placed[k].ey = (n / nx) * stride * d;
+        placed[k].cost = std::max(0.0, c[pick]);
+    }
     checkCancelled(progress);
 
     // Lapped pasting, most similar first, each patch under what is there.
@@ -236,6 +289,10 @@ TransferMap matchResiduals(const ChannelImage& exampleFlow, const ChannelImage& 
     map.normalise();
     map.stats.patches = int(placed.size());
     map.stats.meanCost = map.stats.pasted ? costSum / map.stats.pasted : 0.0;
+    std::vector<std::pair<int, int>> used;
+    for (const Placed& pl : placed) used.emplace_back(pl.ex, pl.ey);
+    std::sort(used.begin(), used.end());
+    map.stats.distinct = int(std::unique(used.begin(), used.end()) - used.begin());
     size_t covered = 0;
     for (float c : cover) covered += c > 0.0f;
     map.stats.covered = cover.empty() ? 0.0 : double(covered) / double(cover.size());

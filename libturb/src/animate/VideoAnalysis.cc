@@ -106,9 +106,9 @@ ChannelImage meanImage(const std::vector<ChannelImage>& frames)
     return A;
 }
 
-/// Sparse Lucas-Kanade flow of each consecutive pair, interpolated with phi = r and averaged (4.2).
-ChannelImage trackedMeanFlow(
-    const std::vector<ChannelImage>& diffs, const AnalysisSettings& s, AnalysisStats& stats, Progress* progress)
+/// The consistent Lucas-Kanade tracks of each consecutive pair of `diffs` (section 4.2), per pair.
+std::vector<std::vector<cv::Track>> trackPairs(
+    const std::vector<ChannelImage>& diffs, const AnalysisSettings& s, Progress* progress)
 {
     const int W = diffs[0].width(), H = diffs[0].height();
     const size_t N = diffs.size();
@@ -120,30 +120,43 @@ ChannelImage trackedMeanFlow(
     for (const ChannelImage& g : gray)
         for (float v : g.data()) sum2 += double(v) * v;
     const double sigma = std::sqrt(sum2 / (double(N) * double(W) * double(H)));
-    stats.pairs = int(N - 1);
-    if (!(sigma > 0.0)) return ChannelImage(W, H, 2); // a still example: nothing moves
-    const float scale = float(40.0 / sigma);          // +-3 sigma over +-120 grey levels
-    std::vector<cv::TrackFrame> track(N);
+    std::vector<std::vector<cv::Track>> tracks(N - 1);
+    if (!(sigma > 0.0)) return tracks;       // a still sequence: nothing moves
+    const float scale = float(40.0 / sigma); // +-3 sigma over +-120 grey levels
+    std::vector<cv::TrackFrame> frames(N);
     parallelFor(N, 1, [&](size_t b, size_t e) {
-        for (size_t i = b; i < e; ++i) track[i] = cv::toTrackFrame(gray[i], scale);
+        for (size_t i = b; i < e; ++i) frames[i] = cv::toTrackFrame(gray[i], scale);
     });
     gray.clear();
-
     cv::TrackSettings ts;
     ts.features = s.features;
     ts.window = s.window;
     ts.levels = s.levels;
     ts.maxRoundTrip = s.maxRoundTrip;
     ts.minDistance = std::max(3.0, std::min(W, H) / 40.0);
-    const size_t pairs = N - 1, chunks = (pairs + kPairGrain - 1) / kPairGrain;
-    std::vector<ChannelImage> chunkSum(chunks);
-    std::vector<int> used(pairs, 0), tracks(pairs, 0);
     if (progress) progress->begin("flow");
+    parallelFor(N - 1, 1, [&](size_t b, size_t e) {
+        for (size_t i = b; i < e; ++i) {
+            checkCancelled(progress);
+            tracks[i] = consistentTracks(cv::trackFeatures(frames[i], frames[i + 1], ts));
+        }
+    });
+    return tracks;
+}
+
+/// Sparse Lucas-Kanade flow of each consecutive pair, interpolated with phi = r and averaged (4.2).
+ChannelImage trackedMeanFlow(
+    const std::vector<ChannelImage>& diffs, const AnalysisSettings& s, AnalysisStats& stats, Progress* progress)
+{
+    const int W = diffs[0].width(), H = diffs[0].height();
+    const std::vector<std::vector<cv::Track>> tracks = trackPairs(diffs, s, progress);
+    const size_t pairs = tracks.size(), chunks = (pairs + kPairGrain - 1) / kPairGrain;
+    stats.pairs = int(pairs);
+    std::vector<ChannelImage> chunkSum(chunks);
     parallelFor(pairs, kPairGrain, [&](size_t b, size_t e) {
         ChannelImage acc(W, H, 2);
         for (size_t i = b; i < e; ++i) {
-            checkCancelled(progress);
-            const std::vector<cv::Track> t = consistentTracks(cv::trackFeatures(track[i], track[i + 1], ts));
+            const std::vector<cv::Track>& t = tracks[i];
             if (t.empty()) continue;
             std::vector<rbf::Sample> samples;
             samples.reserve(t.size());
@@ -153,24 +166,35 @@ ChannelImage trackedMeanFlow(
             f.fit(std::move(samples));
             const ChannelImage v = f.render(W, H, s.rbfStep);
             for (size_t q = 0; q < acc.data().size(); ++q) acc.data()[q] += v.data()[q];
-            used[i] = 1;
-            tracks[i] = int(t.size());
         }
         chunkSum[b / kPairGrain] = std::move(acc);
     });
     ChannelImage flow(W, H, 2);
     for (const ChannelImage& c : chunkSum)
-        for (size_t q = 0; q < flow.data().size(); ++q) flow.data()[q] += c.data()[q];
+        if (!c.empty())
+            for (size_t q = 0; q < flow.data().size(); ++q) flow.data()[q] += c.data()[q];
     int nUsed = 0, nTracks = 0;
-    for (size_t i = 0; i < pairs; ++i) {
-        nUsed += used[i];
-        nTracks += tracks[i];
+    for (const auto& t : tracks) {
+        nUsed += t.empty() ? 0 : 1;
+        nTracks += int(t.size());
     }
     stats.pairsUsed = nUsed;
     stats.tracksPerPair = nUsed ? double(nTracks) / nUsed : 0.0;
     if (nUsed > 0)
         for (float& v : flow.data()) v /= float(nUsed);
     return flow;
+}
+
+/// The frames less their own mean, A.
+std::vector<ChannelImage> differencesFromMean(const std::vector<ChannelImage>& frames)
+{
+    const ChannelImage A = meanImage(frames);
+    std::vector<ChannelImage> diffs(frames.size());
+    for (size_t i = 0; i < frames.size(); ++i) {
+        diffs[i] = frames[i];
+        for (size_t q = 0; q < A.data().size(); ++q) diffs[i].data()[q] -= A.data()[q];
+    }
+    return diffs;
 }
 
 /// Mean |v| over the pixels that move: |v| >= 10% of the 99th percentile (a cache's background and a
@@ -201,17 +225,23 @@ ChannelImage estimateMeanFlow(
 {
     validate(settings);
     checkFrames(frames);
-    const ChannelImage A = meanImage(frames);
-    std::vector<ChannelImage> diffs(frames.size());
-    for (size_t i = 0; i < frames.size(); ++i) {
-        diffs[i] = frames[i];
-        for (size_t q = 0; q < A.data().size(); ++q) diffs[i].data()[q] -= A.data()[q];
-    }
     AnalysisStats st;
-    ChannelImage v = trackedMeanFlow(diffs, settings, st, progress);
+    ChannelImage v = trackedMeanFlow(differencesFromMean(frames), settings, st, progress);
     st.meanSpeed = meanSpeed(v);
     if (stats) *stats = st;
     return v;
+}
+
+std::vector<FlowTrack> trackFlow(
+    const std::vector<ChannelImage>& frames, const AnalysisSettings& settings, Progress* progress)
+{
+    validate(settings);
+    checkFrames(frames);
+    const std::vector<std::vector<cv::Track>> pairs = trackPairs(differencesFromMean(frames), settings, progress);
+    std::vector<FlowTrack> out;
+    for (size_t i = 0; i < pairs.size(); ++i)
+        for (const cv::Track& t : pairs[i]) out.push_back(FlowTrack{int(i), t.x, t.y, t.dx, t.dy});
+    return out;
 }
 
 ExampleDecomposition decomposeExample(std::vector<ChannelImage> frames, const AnalysisSettings& settings,
