@@ -29,7 +29,7 @@ RECORD=1
 PERF="$ROOT/docs/performance.md"
 
 CONFIGS="tiny measure-plume sim128 paper3d transfer2d plume4x box32 box64 box128 box256 synthbox32 synthbox64 synthbox128 synthbox256 blender-paper3d blender-plume2 ratio2 blender-noise synth2d synth3d
- stylize1m stylize1m-full fluidy12k fluidy123k animate640 animate640-preview"
+ stylize1m stylize1m-full fluidy12k fluidy123k animate640 animate640-preview animate640-sequence"
 
 describe() {
     case "$1" in
@@ -51,6 +51,7 @@ describe() {
     stylize1m-full) echo "stylize: 1024x1024 all fluid (1.05 Mpix of patches), 256^2 exemplar, 3 frames (the worst case)" ;;
     animate640) echo "animate: 640x480 still (built-in river, matte, scenes/animate strokes), 100-frame 640x480 example read from PNGs, HM steerable x3 on the auto grid (target: <= 60 s, <= 2 GiB)" ;;
     animate640-preview) echo "animate: the same with the Laplacian single-pass preview matching" ;;
+    animate640-sequence) echo "animate: the same with --hm-apply sequence (the mean frame matched once, per-frame cell moments)" ;;
     fluidy12k) echo "stylize fluidymation: 12k masked pixels (rotate 204^2), builtin:ink 240x180x20, 10 frames (paper Table 2: 0.55 s/frame, 4 cores)" ;;
     fluidy123k) echo "stylize fluidymation: 123k masked pixels (rotate 652^2), builtin:ink 400x300x30, 10 frames (paper Table 2: 3.48 s/frame, 4 cores)" ;;
     *) return 1 ;;
@@ -457,27 +458,23 @@ animate_inputs() {
         "$VDBTURB" animate --export-builtin "$a" --example "builtin:river:640x480x$1" --target builtin:river:640x480 -q
 }
 
-cfg_animate640() {
-    need_command animate --example --target --target-alpha --flow-strokes --out --json || return 1
-    n=$(frames_or 100)
-    animate_inputs "$n" || return 1
-    rm -rf "$WORK/animate640_out"
-    # shellcheck disable=SC2086
-    timed animate640 "$VDBTURB" animate $THREAD_ARGS --example "$WORK/animate640_in/river.####.png" --frames "1-$n" \
-        --target "$WORK/animate640_in/still.png" --target-alpha "$WORK/animate640_in/matte.png" \
-        --flow-strokes "$ROOT/scenes/animate/river_strokes.json" --out "$WORK/animate640_out/a.####.exr" --json
-}
-
-cfg_animate640_preview() {
+# One timed animate640 run: $1 = configuration name, $2 = output folder under $WORK, then extra options.
+animate640_run() {
+    name=$1 out=$2
+    shift 2
     need_command animate --example --target --target-alpha --flow-strokes --hm --out --json || return 1
     n=$(frames_or 100)
     animate_inputs "$n" || return 1
-    rm -rf "$WORK/animate640_preview_out"
+    rm -rf "$WORK/$out"
     # shellcheck disable=SC2086
-    timed animate640-preview "$VDBTURB" animate $THREAD_ARGS --example "$WORK/animate640_in/river.####.png" --frames "1-$n" \
+    timed "$name" "$VDBTURB" animate $THREAD_ARGS --example "$WORK/animate640_in/river.####.png" --frames "1-$n" \
         --target "$WORK/animate640_in/still.png" --target-alpha "$WORK/animate640_in/matte.png" \
-        --flow-strokes "$ROOT/scenes/animate/river_strokes.json" --hm laplacian --out "$WORK/animate640_preview_out/a.####.exr" --json
+        --flow-strokes "$ROOT/scenes/animate/river_strokes.json" "$@" --out "$WORK/$out/a.####.exr" --json
 }
+
+cfg_animate640() { animate640_run animate640 animate640_out; }
+cfg_animate640_preview() { animate640_run animate640-preview animate640_preview_out --hm laplacian; }
+cfg_animate640_sequence() { animate640_run animate640-sequence animate640_sequence_out --hm-apply sequence; }
 
 # stylize --method fluidymation: the masked-pixel counts of the paper's Table 2 (built-in target and
 # moving exemplar; no preparation).
