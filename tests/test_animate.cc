@@ -184,7 +184,9 @@ TEST(AnimateAnalysis, TracksOfTranslatedNoiseCarryItsShift)
     const FlowAgreement c = compareTracks(tracks, same, &left);
     EXPECT_GT(c.pixels, 0.2);
     EXPECT_LT(c.pixels, 0.6 * a.pixels);
-    EXPECT_EQ(compareTracks(tracks, same, nullptr, 10.0).pixels, 0.0);
+    const FlowAgreement none = compareTracks(tracks, same, nullptr, 10.0);
+    EXPECT_EQ(none.pixels, 0.0);
+    EXPECT_TRUE(std::isnan(none.medianAngleDeg) && std::isnan(none.medianSpeedRatio)) << "no figure, not a perfect one";
     EXPECT_THROW(compareTracks(tracks, ChannelImage(96, 80, 3)), ValueError);
 }
 
@@ -853,6 +855,16 @@ TEST(AnimateQuality, TemporalStatsOfASinusoid)
     const TemporalSummary s = ts.summary();
     EXPECT_NEAR(s.temporalStd, 1.0 / std::sqrt(2.0), 5e-3);
     for (int L = 1; L <= 5; ++L) EXPECT_NEAR(s.autocorrelation[size_t(L - 1)], std::cos(w * L), 0.02) << "lag " << L;
+    // Three frames have lags 1 and 2 only: the rest are NaN, not zero.
+    TemporalStats shortStats(5);
+    for (int t = 0; t < 3; ++t) {
+        ChannelImage f(8, 4, 1);
+        for (size_t i = 0; i < f.pixelCount(); ++i) f.pixel(i)[0] = float(std::sin(w * t + 0.7 * double(i)));
+        shortStats.add(f);
+    }
+    const TemporalSummary ss = shortStats.summary();
+    EXPECT_FALSE(std::isnan(ss.autocorrelation[1]));
+    for (int L = 3; L <= 5; ++L) EXPECT_TRUE(std::isnan(ss.autocorrelation[size_t(L - 1)])) << "lag " << L;
 }
 
 namespace {

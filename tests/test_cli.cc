@@ -744,6 +744,30 @@ TEST(Cli, AnimateFromACacheThroughTheCamera)
         EXPECT_NE(r.out.find(key), std::string::npos) << key << "\n" << r.out;
 }
 
+TEST(Cli, AnimateMeasureGivesNoMotionFigureWhenNothingMoves)
+{
+    // A flat still: eq. 8 scales the differences to its zero contrast, so nothing moves. No figure is not a perfect
+    // figure: the motion keys are null, with a warning (and a warning under 8 output frames).
+    testutil::TempDir dir;
+    ASSERT_EQ(
+        run("animate --export-builtin " + dir / "in" + " --example builtin:river:48x40x20 --target builtin:river:48x40")
+            .code,
+        0);
+    turbio::writeImage(dir / "flat.png", turb::RgbaImage(48, 40, turb::Rgba(0.5f, 0.5f, 0.5f, 1.0f)));
+    const std::string in = "animate --example " + dir / "in/river.####.png" + " --target " + dir / "flat.png" +
+                           " --flow-strokes " + strokesPath() + " --measure --json --hm-cell 24 --out " +
+                           dir / "o/a.####.png";
+    const CmdResult r = run(in + " --tau 8");
+    ASSERT_EQ(r.code, 0) << r.out;
+    for (const char* key : {"\"track_median_angle_deg\":null", "\"track_median_speed_ratio\":null",
+             "\"flow_median_angle_deg\":null", "nothing moving was tracked"})
+        EXPECT_NE(r.out.find(key), std::string::npos) << key << "\n" << r.out;
+    EXPECT_EQ(r.out.find("output frames; the motion"), std::string::npos) << "12 frames are enough";
+    const CmdResult shortRun = run(in + " --tau 16 --no-clobber --start 101");
+    ASSERT_EQ(shortRun.code, 0) << shortRun.out;
+    EXPECT_NE(shortRun.out.find("4 output frames; the motion"), std::string::npos) << shortRun.out;
+}
+
 TEST(Cli, AnimateRefusesBadInputNamingTheFileAndWritesNothing)
 {
     testutil::TempDir dir;
@@ -781,6 +805,14 @@ TEST(Cli, AnimateRefusesBadInputNamingTheFileAndWritesNothing)
     }
     refused("--example " + ex + " --target " + still + " --flow-strokes " + dir / "out.json", dir / "out.json:4",
         "stroke 1 (speed)");
+    // A --sheet or --dump that cannot be written: refused before the first frame (and by --dry-run).
+    std::ofstream(dir / "afile") << "x";
+    for (const char* opt : {" --sheet ", " --dump "}) {
+        const std::string args = "--example " + ex + " --target " + still + " --flow-strokes " + strokesPath() +
+                                 " --tau 8" + opt + dir / "afile/x.png";
+        refused(args, dir / "afile", "is a file, not a directory");
+        refused(args + " --dry-run", dir / "afile", "is a file, not a directory");
+    }
     // Example frames of different sizes (checked last: it replaces a frame).
     {
         turb::RgbaImage odd(50, 40, turb::Rgba(0.5f, 0.5f, 0.5f, 1.0f));

@@ -1,6 +1,7 @@
 // vdbturb animate: animate a still picture of fluid from a video example (Okabe et al. 2009).
 #include "Commands.h"
 #include "Console.h"
+#include "Preflight.h"
 #include "RunReport.h"
 #include "StylizeCommon.h"
 
@@ -470,6 +471,8 @@ int exportBuiltin(const AnimateArgs& a)
     return kOk;
 }
 
+constexpr size_t kMinMeasuredFrames = 8;
+
 // The quality measures of --measure: the output's flow against the design, its temporal statistics against the
 // example's. They need the example's frames before the library consumes them.
 struct Measures
@@ -503,9 +506,12 @@ void finishMeasures(const AnimateArgs& a, const Measures& m, const turb::Channel
     nlohmann::json& summary)
 {
     turb::AnalysisSettings as = a.settings.analysis;
-    const turb::ChannelImage measured = turb::estimateMeanFlow(m.outLuma, as);
+    turb::AnalysisStats tracked;
+    const turb::ChannelImage measured = turb::estimateMeanFlow(m.outLuma, as, &tracked);
     const turb::ChannelImage* matte = target.matte ? &*target.matte : nullptr;
-    const turb::FlowAgreement fa = turb::compareFlows(measured, designed, matte);
+    // No pair tracked: the interpolated field is zero by default, not a measurement.
+    const turb::FlowAgreement fa = tracked.pairsUsed > 0 ? turb::compareFlows(measured, designed, matte)
+                                                         : turb::FlowAgreement{std::nan(""), std::nan(""), 0.0};
     const turb::FlowAgreement ft = turb::compareTracks(turb::trackFlow(m.outLuma, as), designed, matte);
     const turb::TemporalSummary te = m.exTemporal->summary(), to = m.outTemporal->summary();
     summary["quality"] = {{"track_median_angle_deg", ft.medianAngleDeg},
@@ -513,22 +519,30 @@ void finishMeasures(const AnimateArgs& a, const Measures& m, const turb::Channel
         {"flow_median_angle_deg", fa.medianAngleDeg}, {"flow_median_speed_ratio", fa.medianSpeedRatio},
         {"flow_pixels", fa.pixels}, {"temporal_std", to.temporalStd}, {"temporal_std_example", te.temporalStd},
         {"autocorrelation", to.autocorrelation}, {"autocorrelation_example", te.autocorrelation}};
+    const auto said = [](const turb::FlowAgreement& f) {
+        return std::isnan(f.medianAngleDeg)
+                   ? std::string("not measured (nothing tracked)")
+                   : fmt("%.1f deg", f.medianAngleDeg) + ", speed ratio " + fmt("%.2f", f.medianSpeedRatio);
+    };
     if (m.exampleAgreement) {
         summary["quality"]["example_track_median_angle_deg"] = m.exampleTracks->medianAngleDeg;
         summary["quality"]["example_track_median_speed_ratio"] = m.exampleTracks->medianSpeedRatio;
         summary["quality"]["example_flow_median_angle_deg"] = m.exampleAgreement->medianAngleDeg;
         summary["quality"]["example_flow_median_speed_ratio"] = m.exampleAgreement->medianSpeedRatio;
-        logInfo("animate: the same tracking on the example against the cache's flow: tracks " +
-                fmt("%.1f deg", m.exampleTracks->medianAngleDeg) + ", speed ratio " +
-                fmt("%.2f", m.exampleTracks->medianSpeedRatio) + "; interpolated field " +
-                fmt("%.1f deg", m.exampleAgreement->medianAngleDeg) + ", " +
-                fmt("%.2f", m.exampleAgreement->medianSpeedRatio));
+        logInfo("animate: the same tracking on the example against the cache's flow: tracks " + said(*m.exampleTracks) +
+                "; interpolated field " + said(*m.exampleAgreement));
     }
-    logInfo("animate: motion vs design: tracks " + fmt("%.1f deg", ft.medianAngleDeg) + ", speed ratio " +
-            fmt("%.2f", ft.medianSpeedRatio) + "; interpolated field " + fmt("%.1f deg", fa.medianAngleDeg) + ", " +
-            fmt("%.2f", fa.medianSpeedRatio) + "; temporal std " + fmt("%.4f", to.temporalStd) + " (example " +
-            fmt("%.4f", te.temporalStd) + "); autocorrelation lag 1 " + fmt("%.2f", to.autocorrelation[0]) +
-            " (example " + fmt("%.2f", te.autocorrelation[0]) + ")");
+    logInfo("animate: motion vs design: tracks " + said(ft) + "; interpolated field " + said(fa) + "; temporal std " +
+            fmt("%.4f", to.temporalStd) + " (example " + fmt("%.4f", te.temporalStd) + "); autocorrelation lag 1 " +
+            fmt("%.2f", to.autocorrelation[0]) + " (example " + fmt("%.2f", te.autocorrelation[0]) + ")");
+    // Medians over a handful of frame pairs swing widely (2 frames gave speed ratios of 10-27).
+    if (m.outLuma.size() < kMinMeasuredFrames)
+        logWarning("--measure: " + std::to_string(m.outLuma.size()) +
+                   " output frames; the motion and temporal "
+                   "figures need at least " +
+                   std::to_string(kMinMeasuredFrames) + " to mean much");
+    if (std::isnan(ft.medianAngleDeg))
+        logWarning("--measure: nothing moving was tracked in the output inside the matte; no motion figures");
     if (!a.dump.empty()) turbio::writeImage(a.dump + "/measured_flow.png", flowPicture(measured));
 }
 
@@ -694,6 +708,16 @@ int runAnimate(AnimateArgs& a)
                    std::to_string(target.rgb.width()) + "x" + std::to_string(target.rgb.height()) + " still; using " +
                    std::to_string(cols) + "x" + std::to_string(rows));
     Example example = readExample(a, a.settings.tau);
+    {
+        std::vector<std::string> outputs;
+        for (int j = 0; j < int(example.frames.size()) - a.settings.tau; ++j)
+            outputs.push_back(outPattern.format(a.start + j));
+        if (!a.sheet.empty()) outputs.push_back(a.sheet);
+        if (!a.dump.empty()) outputs.push_back(a.dump + "/A.exr");
+        checkOutputs(outputs, {a.target, a.targetAlpha, a.strokes, a.flow}, a.noClobber, false);
+    }
+    if (!a.settings.histogramMatch && a.settings.hmApply != turb::HmApply::PerFrame)
+        logWarning("--hm-apply is ignored with --hm off");
     logPlan(a, example, target);
     if (globals().dryRun) {
         for (int j = 0; j < int(example.frames.size()) - a.settings.tau; ++j)
@@ -832,7 +856,8 @@ void addAnimateSettings(CLI::App* app, AnimateArgs& a)
         "transfer.variety")
         ->check(CLI::Range(0.0, 1.0));
     knob("--transfer.candidates", s.transfer.candidates,
-        "Residual transfer: random example windows costed per patch besides the 8 nearest", "transfer.candidates")
+        "Residual transfer: random example windows costed per patch besides the 8 nearest (only with variety > 0)",
+        "transfer.candidates")
         ->check(CLI::Range(1, 64));
     knob("--features,--analysis.features", s.analysis.features,
         "Lucas-Kanade features per example frame pair (paper 100)", "analysis.features")

@@ -26,8 +26,8 @@ namespace turb {
 
 struct FlowAgreement
 {
-    double medianAngleDeg = 0.0;   ///< median angle between measured and designed flow, degrees
-    double medianSpeedRatio = 0.0; ///< median |measured| / |designed|
+    double medianAngleDeg = 0.0;   ///< median angle between measured and designed flow, degrees; NaN: none compared
+    double medianSpeedRatio = 0.0; ///< median |measured| / |designed|; NaN when nothing was compared
     double pixels = 0.0;           ///< fraction of the image compared
 };
 
@@ -50,7 +50,7 @@ struct TemporalSummary
 {
     int frames = 0;
     double temporalStd = 0.0;            ///< mean over pixels of the temporal std of the luminance
-    std::vector<double> autocorrelation; ///< [L - 1] for lags L = 1..maxLag
+    std::vector<double> autocorrelation; ///< [L - 1] for lags L = 1..maxLag; NaN for lags >= the frame count
 };
 
 /// Streaming per-pixel temporal statistics of a sequence's luminance (Rec. 709 on 3+ channels).

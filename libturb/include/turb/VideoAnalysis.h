@@ -87,7 +87,8 @@ struct FlowTrack
 
 /// The tracks behind estimateMeanFlow, before any interpolation: the Lucas-Kanade tracks of section 4.2 between
 /// consecutive frames of the differences from the frames' own average that pass the round-trip and
-/// neighbour-consistency checks. Throws as decomposeExample.
+/// neighbour-consistency checks. A sequence whose rms difference from its mean is at most 1e-4 (a fortieth of an
+/// 8-bit level) counts as still and gives no tracks. Throws as decomposeExample.
 std::vector<FlowTrack> trackFlow(
     const std::vector<ChannelImage>& frames, const AnalysisSettings& settings, Progress* progress = nullptr);
 

@@ -41,8 +41,9 @@ struct Agreement
     FlowAgreement result(double total) const
     {
         FlowAgreement a;
-        a.medianAngleDeg = median(angles);
-        a.medianSpeedRatio = median(ratios);
+        // Nothing compared is no figure, not a perfect one.
+        a.medianAngleDeg = angles.empty() ? std::nan("") : median(angles);
+        a.medianSpeedRatio = ratios.empty() ? std::nan("") : median(ratios);
         a.pixels = total > 0 ? double(angles.size()) / total : 0.0;
         return a;
     }
@@ -132,7 +133,7 @@ TemporalSummary TemporalStats::summary() const
 {
     TemporalSummary s;
     s.frames = mFrames;
-    s.autocorrelation.assign(size_t(mLag), 0.0);
+    s.autocorrelation.assign(size_t(mLag), std::nan("")); // lags the sequence is too short for stay NaN
     if (mFrames < 2) return s;
     const size_t n = mSum.size();
     const double T = mFrames;
@@ -156,8 +157,8 @@ TemporalSummary TemporalStats::summary() const
         }
     }
     s.temporalStd = count > 0 ? stdSum / count : 0.0;
-    for (int L = 1; L <= mLag; ++L)
-        s.autocorrelation[size_t(L - 1)] = acCount > 0 ? acSum[size_t(L - 1)] / acCount : 0.0;
+    for (int L = 1; L <= std::min(mLag, mFrames - 1); ++L)
+        s.autocorrelation[size_t(L - 1)] = acCount > 0 ? acSum[size_t(L - 1)] / acCount : std::nan("");
     return s;
 }
 

@@ -40,7 +40,8 @@ ChannelImage warpByFlow(const ChannelImage& image, const ChannelImage& flow)
 
 namespace {
 
-constexpr size_t kPairGrain = 8; // pairs summed per chunk; fixed, so the float sums do not depend on threads
+constexpr double kStillSigma = 1e-4; // rms difference from the mean below which a sequence counts as still
+constexpr size_t kPairGrain = 8;     // pairs summed per chunk; fixed, so the float sums do not depend on threads
 
 void checkFrames(const std::vector<ChannelImage>& frames)
 {
@@ -121,7 +122,9 @@ std::vector<std::vector<cv::Track>> trackPairs(
         for (float v : g.data()) sum2 += double(v) * v;
     const double sigma = std::sqrt(sum2 / (double(N) * double(W) * double(H)));
     std::vector<std::vector<cv::Track>> tracks(N - 1);
-    if (!(sigma > 0.0)) return tracks;       // a still sequence: nothing moves
+    // A still sequence: nothing moves. The tracker rescales the differences to +-3 sigma, so a floor keeps it from
+    // following changes far below what an image shows (1e-4 is 1/40 of an 8-bit level).
+    if (!(sigma > kStillSigma)) return tracks;
     const float scale = float(40.0 / sigma); // +-3 sigma over +-120 grey levels
     std::vector<cv::TrackFrame> frames(N);
     parallelFor(N, 1, [&](size_t b, size_t e) {
