@@ -157,8 +157,12 @@ OIIO::TypeDesc storageType(const std::string& path, const std::string& format, P
 }
 
 /// Writes interleaved float pixels with `spec` (its format is the storage type) atomically.
-void writePixels(const std::string& path, const OIIO::ImageSpec& spec, const std::vector<float>& data, bool noClobber)
+void writePixels(const std::string& path, const OIIO::ImageSpec& given, const std::vector<float>& data, bool noClobber)
 {
+    // OIIO's EXR writer stamps the wall-clock time (capDate) when no DateTime is given: the same run would then
+    // never give the same bytes twice. The frame's content does not depend on when it was written.
+    OIIO::ImageSpec spec = given;
+    if (spec.find_attribute("DateTime") == nullptr) spec.attribute("DateTime", "");
     writeAtomically(path, noClobber, [&](const std::string& tmp) {
         // The plugin is chosen by the real name; the temporary name does not end in the extension.
         auto out = OIIO::ImageOutput::create(path);
