@@ -12,8 +12,8 @@
 
 namespace vdbturb {
 
-RunReport::RunReport(std::string command, bool json)
-    : mCommand(std::move(command)), mJson(json), mStart(std::chrono::steady_clock::now())
+RunReport::RunReport(std::string command, bool json, std::chrono::steady_clock::time_point start)
+    : mCommand(std::move(command)), mJson(json), mStart(start)
 {}
 
 void RunReport::frameDone(

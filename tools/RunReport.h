@@ -18,7 +18,9 @@ namespace vdbturb {
 class RunReport
 {
 public:
-    RunReport(std::string command, bool json);
+    /// `start`: when the run began, for total_s (reading the inputs before the first frame counts too).
+    RunReport(
+        std::string command, bool json, std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now());
 
     /// Records a finished frame: `human` is appended to the "frame N (i/n) s" prefix on stderr and
     /// `extra` is merged into the frame's JSON line.

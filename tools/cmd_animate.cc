@@ -18,6 +18,7 @@
 #include <turbio/Vdb.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <memory>
@@ -651,7 +652,8 @@ void logPlan(const AnimateArgs& a, const Example& example, const Target& target)
 }
 
 // The animation: the library's stages, each frame written as it comes, then the summary (and --measure, --sheet).
-void animateFrames(const AnimateArgs& a, Example& example, const Target& target, const turbio::FramePattern& outPattern)
+void animateFrames(const AnimateArgs& a, Example& example, const Target& target, const turbio::FramePattern& outPattern,
+    std::chrono::steady_clock::time_point started)
 {
     const turb::AnimateSettings& s = a.settings;
     const int N = int(example.frames.size());
@@ -671,7 +673,7 @@ void animateFrames(const AnimateArgs& a, Example& example, const Target& target,
     turb::ChannelImage designed;
 
     turb::withThreads(globals().threads, [&] {
-        RunReport report("animate", a.json);
+        RunReport report("animate", a.json, started);
         const int count = N - s.tau;
         ConsoleProgress stages(0, count, a.start);
         const turb::AnimateStats st =
@@ -693,6 +695,7 @@ void animateFrames(const AnimateArgs& a, Example& example, const Target& target,
 int runAnimate(AnimateArgs& a)
 {
     if (!a.exportBuiltin.empty()) return exportBuiltin(a);
+    const auto started = std::chrono::steady_clock::now(); // total_s counts reading the example and the still
     configure(a);
     if (const int rc = stylize::checkOutputPatterns(a.out); rc != kOk) return rc;
     const turbio::FramePattern outPattern = turbio::FramePattern::parse(a.out);
@@ -724,7 +727,7 @@ int runAnimate(AnimateArgs& a)
             printData("would write " + outPattern.format(a.start + j) + " (frame " + std::to_string(a.start + j) + ")");
         return kOk;
     }
-    animateFrames(a, example, target, outPattern);
+    animateFrames(a, example, target, outPattern, started);
     return kOk;
 }
 
