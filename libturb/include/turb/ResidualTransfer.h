@@ -64,7 +64,7 @@ struct TransferStats
     double meanCost = 0.0; ///< mean |s - e|^2 per pixel (pixels^2 / frame^2) over pasted patches
     double maxCost = 0.0;  ///< the worst pasted patch's cost per pixel
     double covered = 0.0;  ///< fraction of target pixels that received residuals
-    int distinct = 0;      ///< distinct example windows among the pasted patches
+    int distinct = 0;      ///< distinct example windows among the patches matched
 };
 
 /// Which example pixels make each target pixel of the transferred residuals.

@@ -7,8 +7,8 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <random>
 #include <numeric>
+#include <random>
 #include <string>
 
 namespace turb {
@@ -128,6 +128,44 @@ float ramp(int u, int patch, bool lowInside, bool highInside, double fw)
     return std::clamp(r, 0.0f, 1.0f);
 }
 
+/// Example window n of the search grid, in full-resolution pixels.
+struct WindowGrid
+{
+    int nx, stride, d;
+    int x(int n) const { return (n % nx) * stride * d; }
+    int y(int n) const { return (n / nx) * stride * d; }
+};
+
+/// Which of patch k's K candidates (`nearest`, with costs `c`; -1 / < 0 where none) it takes: the cheapest, or with
+/// `slack` > 0, among those whose rms flow difference is within `slack` of the cheapest's, the window farthest from
+/// those the patches already decided within `reach` pixels took (cheaper on ties). `placed` is in row order, so those
+/// neighbours are among the last rows before k; deciding in that order keeps the choice independent of threads.
+int variedPick(const std::vector<Placed>& placed, size_t k, const int* nearest, const double* c, int K, double slack,
+    int reach, const WindowGrid& grid)
+{
+    int best = 0;
+    for (int j = 1; j < K; ++j)
+        if (c[j] >= 0.0 && (c[best] < 0.0 || c[j] < c[best])) best = j;
+    if (K == 1 || c[best] < 0.0 || !(slack > 0.0)) return best;
+    std::vector<size_t> around;
+    for (size_t o = k; o-- > 0 && placed[o].ty >= placed[k].ty - reach;)
+        if (std::abs(placed[o].tx - placed[k].tx) <= reach) around.push_back(o);
+    const double limit = std::sqrt(c[best]) + slack;
+    int pick = best;
+    double farthest = -1.0;
+    for (int j = 0; j < K; ++j) {
+        if (c[j] < 0.0 || std::sqrt(c[j]) > limit) continue;
+        const int cx = grid.x(nearest[j]), cy = grid.y(nearest[j]);
+        double dmin = std::numeric_limits<double>::max();
+        for (size_t o : around) dmin = std::min(dmin, std::hypot(double(placed[o].ex - cx), double(placed[o].ey - cy)));
+        if (dmin > farthest + 1e-9 || (dmin >= farthest - 1e-9 && c[j] < c[pick])) {
+            farthest = dmin;
+            pick = j;
+        }
+    }
+    return pick;
+}
+
 } // namespace
 
 TransferMap matchResiduals(const ChannelImage& exampleFlow, const ChannelImage& targetFlow, const TransferSettings& s,
@@ -218,39 +256,14 @@ TransferMap matchResiduals(const ChannelImage& exampleFlow, const ChannelImage& 
             }
         }
     });
-    // In grid order, each patch takes, among its equally good candidates, the window farthest from those its
-    // already decided neighbours took (sequential, so the choice does not depend on threads).
-    const int reach = 2 * std::max(1, P / 2);
+    const WindowGrid grid{nx, stride, d};
     for (size_t k = 0; k < placed.size(); ++k) {
-        const double* c = &costs[k * size_t(K)];
-        int best = 0;
-        for (int j = 1; j < K; ++j)
-            if (c[j] >= 0.0 && (c[best] < 0.0 || c[j] < c[best])) best = j;
-        int pick = best;
-        if (K > 1 && c[best] >= 0.0) {
-            // The decided neighbours: placed is in row order, so they are among the last rows before k.
-            std::vector<size_t> around;
-            for (size_t o = k; o-- > 0 && placed[o].ty >= placed[k].ty - reach;)
-                if (std::abs(placed[o].tx - placed[k].tx) <= reach) around.push_back(o);
-            const double limit = std::sqrt(c[best]) + s.variety * speed[k];
-            double farthest = -1.0;
-            for (int j = 0; j < K; ++j) {
-                if (c[j] < 0.0 || std::sqrt(c[j]) > limit) continue;
-                const int n = nearest[k * size_t(K) + size_t(j)];
-                const int cx = (n % nx) * stride * d, cy = (n / nx) * stride * d;
-                double dmin = std::numeric_limits<double>::max();
-                for (size_t o : around)
-                    dmin = std::min(dmin, std::hypot(double(placed[o].ex - cx), double(placed[o].ey - cy)));
-                if (dmin > farthest + 1e-9 || (dmin >= farthest - 1e-9 && c[j] < c[pick])) {
-                    farthest = dmin;
-                    pick = j;
-                }
-            }
-        }
+        const int pick = variedPick(placed, k, &nearest[k * size_t(K)], &costs[k * size_t(K)], K, s.variety * speed[k],
+            2 * std::max(1, P / 2), grid);
         const int n = std::max(0, nearest[k * size_t(K) + size_t(pick)]);
-        placed[k].ex = (n % nx) * stride * d;
-        placed[k].ey = (n / nx) * stride * d;
-        placed[k].cost = std::max(0.0, c[pick]);
+        placed[k].ex = grid.x(n);
+        placed[k].ey = grid.y(n);
+        placed[k].cost = std::max(0.0, costs[k * size_t(K) + size_t(pick)]);
     }
     checkCancelled(progress);
 
