@@ -97,6 +97,30 @@ TEST(Cli, InfoJsonGoesToStdoutAndReportsMissingFrames)
     EXPECT_NE(json.find("\"units\": \"cells\""), std::string::npos);
 }
 
+TEST(Cli, WithJsonStdoutCarriesJsonLinesOnlyAlsoOnADryRun)
+{
+    // A farm wrapper parses stdout line by line: the plan and timing lines of a --dry-run belong on stderr then
+    // (2026-12-05: synth's lattice lines and measure's timing lines came out on stdout, read before the command set
+    // its own flag).
+    testutil::TempDir dir;
+    const std::vector<std::string> commands = {"synth --flow vortex --flow-res 8x8x8 --out " + dir / "y.####.vdb",
+        "measure --output " + hi() + " --target " + lo() + " --frames 1",
+        "transfer --target " + lo() + " --source " + hi() + " --out " + dir / "o.####.vdb --frames 1-2",
+        "stylize --scene rotate --scene-size 64x64 --frames 1 --exemplar builtin:fire:32 --out " + dir / "s.####.png"};
+    for (const std::string& cmd : commands) {
+        const clitest::Result stdoutOnly =
+            clitest::shell(std::string(VDBTURB_EXE) + " " + cmd + " --dry-run --json 2>/dev/null");
+        const CmdResult both = run(cmd + " --dry-run --json");
+        EXPECT_EQ(stdoutOnly.code, 0) << cmd << "\n" << both.out;
+        std::istringstream lines(stdoutOnly.out);
+        for (std::string line; std::getline(lines, line);)
+            EXPECT_TRUE(nlohmann::json::accept(line)) << cmd << ": not JSON on stdout: " << line;
+        // The plan is still printed, on stderr.
+        EXPECT_GT(both.out.size(), stdoutOnly.out.size() + 40) << cmd << "\n" << both.out;
+    }
+    EXPECT_TRUE(std::filesystem::is_empty(dir.path()));
+}
+
 TEST(Cli, TransferWritesResumesAndNeverClobbers)
 {
     testutil::TempDir dir;

@@ -230,6 +230,17 @@ std::vector<Command> allCommands()
 
 namespace {
 
+// Whether the parsed command line asks for JSON on stdout (--json on the command or a nested one, or measure, whose
+// stdout is always JSON); stdout then carries JSON lines only.
+bool asksForJson(const CLI::App& app)
+{
+    if (app.get_name() == "measure") return true;
+    if (const CLI::Option* o = app.get_option_no_throw("--json"); o && o->count() > 0) return true;
+    for (const CLI::App* sub : app.get_subcommands())
+        if (asksForJson(*sub)) return true;
+    return false;
+}
+
 // Optimal string alignment distance (edits and adjacent swaps): "tranfser" is one swap from "transfer".
 size_t editDistance(const std::string& a, const std::string& b)
 {
@@ -417,6 +428,8 @@ int main(int argc, char** argv)
         return kUsage;
     }
     installSignalHandlers();
+    // Read before the command runs: its preflight and --dry-run lines come before it would set this itself.
+    globals().json = asksForJson(app);
     for (auto& [sub, cmd] : subs) {
         if (!sub->parsed()) continue;
         try {
