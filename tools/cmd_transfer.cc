@@ -192,8 +192,11 @@ turb::CoordBBox preflight(const TransferArgs& a, const turbio::Sequence& target,
                   turb::detailEnergyName(flat ? st.detailEnergy2D : st.detailEnergy) + ", seam band " +
                   std::to_string(flat ? st.seams.bandWidth2D : st.seams.bandWidth) + ", regenerate blend " +
                   fmt("%g", flat ? st.regenerateBlend2D : st.regenerateBlend) + ", seam CG tolerance " +
-                  fmt("%g", flat ? st.seams.cgTolerance2D : st.seams.cgTolerance) +
-                  (flat ? " (detailEnergy2D, seams.bandWidth2D, regenerateBlend2D, seams.cgTolerance2D)" : ""));
+                  fmt("%g", flat ? st.seams.cgTolerance2D : st.seams.cgTolerance) + ", structure tolerance " +
+                  fmt("%g", flat ? st.structureTolerance2D : st.structureTolerance) +
+                  (flat ? " (detailEnergy2D, seams.bandWidth2D, regenerateBlend2D, seams.cgTolerance2D, "
+                          "structureTolerance2D)"
+                        : ""));
     }
     // Output size (Blosc gains little on noisy floats). Velocity covers the target velocity's box padded by two
     // voxels, at f^3 voxels each (zero beyond it: not written), or trimmed, the smoke and the margin's shell
@@ -220,9 +223,8 @@ turb::CoordBBox preflight(const TransferArgs& a, const turbio::Sequence& target,
     double outBytes = 0.0, totalBytes = 0.0, stateBytes = 0.0; // the largest frame's, the run's (summed), state's
     for (const auto& fr : ts.frames) {
         const double cells = double(f) * f * (turb::isFlat(tBox) ? 1.0 : f);
-        const double smoke =
-            std::min(box, 1.2 * cells *
-                              (fr.densityActive > 0 ? smokeShare * double(fr.densityActive) : double(fr.domain.volume())));
+        const double smoke = std::min(box,
+            1.2 * cells * (fr.densityActive > 0 ? smokeShare * double(fr.densityActive) : double(fr.domain.volume())));
         const double whole = std::min(box, cells * velocityBoxVoxels(fr));
         const double vel = trimmed ? std::min(whole, smoke * (1.0 + 0.25 * a.write.velocityMargin)) : whole;
         outBytes = std::max(outBytes, floatBytes * (3.0 * vel + 2.0 * smoke));
@@ -230,8 +232,8 @@ turb::CoordBBox preflight(const TransferArgs& a, const turbio::Sequence& target,
         stateBytes = std::max(stateBytes, 12.0 * whole + 4.0 * smoke);
     }
     printData("output size: about " + turbio::formatBytes(outBytes) + " for the largest frame, " +
-              turbio::formatBytes(totalBytes) + " for " +
-              std::to_string(targetFrames.size()) + " frame" + (targetFrames.size() == 1 ? "" : "s"));
+              turbio::formatBytes(totalBytes) + " for " + std::to_string(targetFrames.size()) + " frame" +
+              (targetFrames.size() == 1 ? "" : "s"));
     if (const std::string state = resumeStatePath(outPattern, a.write); !state.empty())
         printData("resume state: " + state + ", about " + turbio::formatBytes(stateBytes) +
                   " (the last frame in full precision, rewritten every frame)");
@@ -524,6 +526,7 @@ nlohmann::json frameJson(const turb::TransferResult& r, const std::string& outPa
     extra["tracked"] = st.trackedPatches;
     extra["followed"] = st.followedPatches;
     extra["regenerated"] = st.regeneratedPatches;
+    extra["regenerated_for_structure"] = st.structureRegenerated;
     extra["continuations"] = st.continuations;
     extra["mean_local_energy"] = st.meanLocalEnergy;
     extra["energy_scale"] = st.energyScale;
@@ -621,8 +624,8 @@ int runTransfer(TransferArgs& a)
         const std::string lastPath = p.out.format(last);
         turbio::ReadOptions ro;
         ro.cropToSmoke = false;
-        checkResumable(lastPath, turbio::readFrame(lastPath, last, ro), a.settings, a.write, p.target, p.source,
-            a.tileBox);
+        checkResumable(
+            lastPath, turbio::readFrame(lastPath, last, ro), a.settings, a.write, p.target, p.source, a.tileBox);
         logInfo("resume: every requested frame already exists (made with these settings); nothing to do");
         return kOk;
     }
@@ -825,8 +828,8 @@ void addDetailSettings(CLI::App* app, turb::TransferSettings& s)
         {"pasted", turb::DetailEnergy::Pasted}, {"none", turb::DetailEnergy::None},
         {"distribution", turb::DetailEnergy::Distribution}};
     // Defined before the two settings, so that one of them given as well wins on its own kind of cache.
-    legacy(addEnum<turb::DetailEnergy>(app, "--detail-energy", s.detailEnergy, energies,
-               "Both detail energies (3D and 2D caches)")
+    legacy(addEnum<turb::DetailEnergy>(
+               app, "--detail-energy", s.detailEnergy, energies, "Both detail energies (3D and 2D caches)")
                // addEnum's transform has already turned the name into the enum's number.
                ->each([&s](const std::string& v) { s.detailEnergy2D = static_cast<turb::DetailEnergy>(std::stoi(v)); }),
         "detailEnergy,detailEnergy2D");
@@ -862,6 +865,12 @@ void addTimeSettings(CLI::App* app, TransferArgs& a)
         ->check(CLI::Range(0.0, 0.999));
     num(app, "--regenerateBlend2D", s.regenerateBlend2D, "The same on 2D caches", "regenerateBlend2D")
         ->check(CLI::Range(0.0, 0.999));
+    num(app, "--structureTolerance", s.structureTolerance,
+        "Regenerate more patches while the detail's anisotropy is this fraction off the source's (3D; 0 = off)",
+        "structureTolerance")
+        ->check(CLI::Range(0.0, 0.99));
+    num(app, "--structureTolerance2D", s.structureTolerance2D, "The same on 2D caches", "structureTolerance2D")
+        ->check(CLI::Range(0.0, 0.99));
     legacy(app->add_option_function<float>(
                   "--regenerate-blend", [&s](float v) { s.regenerateBlend = s.regenerateBlend2D = v; },
                   "Both regeneration blends")

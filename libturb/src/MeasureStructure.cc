@@ -188,6 +188,12 @@ std::optional<double> detailAnisotropy(const VectorField& u, const Mask& mask, i
     return anisotropyOf(splitFrequencies(u, f).high, mask, direction);
 }
 
+std::optional<double> highBandAnisotropy(const VectorField& H, const Mask& mask, const Vec3d& direction)
+{
+    checkMask(H, mask, "highBandAnisotropy");
+    return anisotropyOf(H, mask, direction);
+}
+
 std::optional<double> detailIsotropy(const VectorField& u, const Mask& mask, int f, int block)
 {
     checkMask(u, mask, "detailIsotropy");

@@ -227,6 +227,11 @@ double coarseDensityError(const ScalarField& fine, const ScalarField& coarse, in
 std::optional<double> detailAnisotropy(
     const VectorField& u, const std::vector<unsigned char>& mask, int f, const Vec3d& direction);
 
+/// detailAnisotropy of a detail already split off: H = splitFrequencies(u, f).high, or any high band. Throws
+/// ValueError when `mask` is not one byte per voxel of H.
+std::optional<double> highBandAnisotropy(
+    const VectorField& H, const std::vector<unsigned char>& mask, const Vec3d& direction);
+
 /// Direction-free structure: the energy-weighted mean, over `block`^3 tiles of the box with at least half their
 /// voxels in the mask, of lambda_min / lambda_max of the tile's gradient structure tensor sum_c grad H_c grad H_c^T
 /// (H = U - up_f(boxdown_f(U)), central differences, masked voxels only). Near 1 where the detail has no preferred

@@ -112,10 +112,18 @@ struct TransferSettings
                              ///< smaller of the patch's own and all pasted patches' pooled), the patch takes
                              ///< regenerateBlend instead of temporalBlend. In [0, 1]; 0 = off (carried detail
                              ///< stretches into streaks over a long shot)
-    float regenerateBlend = 0.5f;   ///< carried weight per frame in a regenerated patch, in [0, 0.999] (at most
-                                    ///< temporalBlend is used)
-    float regenerateBlend2D = 0.6f; ///< the same for a 2D sequence (0.5 put block over 1.05 on 6 of 30 frames of
-                                    ///< the built-in 2D pair, 0.6 on 4)
+    float regenerateBlend = 0.5f;       ///< carried weight per frame in a regenerated patch, in [0, 0.999] (at most
+                                        ///< temporalBlend is used)
+    float regenerateBlend2D = 0.6f;     ///< the same for a 2D sequence (0.5 put block over 1.05 on 6 of 30 frames of
+                                        ///< the built-in 2D pair, 0.6 on 4)
+    float structureTolerance = 0.0f;    ///< beyond the paper: when the frame's blended detail is more than this
+                                        ///< fraction off the source's anisotropy along the target's mean flow
+                                        ///< (measure's aniso, before the seam solve), more tracked patches are
+                                        ///< regenerated, at regenerateBlend and then at its square, those that move
+                                        ///< it most first, until it is within. In [0, 1); 0 = off (the 3D default:
+                                        ///< not measured in 3D)
+    float structureTolerance2D = 0.05f; ///< the same for a 2D sequence (built-in 2D pair: aniso_ratio in range on
+                                        ///< 25 of 26 frames from frame 5, against 15 without; docs/transfer.md)
     FlowAlignment alignment = FlowAlignment::None; ///< see FlowAlignment
     bool resampleSource = true; ///< beyond the paper: a source at a non-integer ratio is resampled trilinearly to
                                 ///< the nearest integer ratio; false = such a source is an error
@@ -184,6 +192,7 @@ struct TransferStats
     int continuations = 0;        ///< patches with a continuation in the source's flow this frame
     int followedPatches = 0;      ///< patches that took it (followSourceFlow, followTolerance)
     int regeneratedPatches = 0;   ///< patches whose stretched carried detail was regenerated (regenerate)
+    int structureRegenerated = 0; ///< of those, the ones the structure goal added (structureTolerance)
     double meanLocalEnergy = 0.0; ///< mean E_h of the chosen local patches
     double energyScale = 1.0;     ///< factor applied to U_h to meet TransferSettings::detailEnergy
     double coarseKept = 0.0;      ///< fraction of U_h's coarse part left in (coarseTolerance): 0 = removed exactly,

@@ -211,13 +211,26 @@ PasteResult pastePatches(const LocalSearchResult& local, const SourceBands& src,
 /// Beyond eq. 2's beta term: mixes last frame's advected detail into the patches it reaches, lambda^gap where the
 /// patch carried detail (regenerateBlend^gap where the flow has stretched it: TransferSettings::regenerate), and as
 /// much as flowed in where smoke just arrived.
+/// What the blend keeps the frame's detail structure near (TransferSettings::structureTolerance): the source's
+/// anisotropy along the target's mean flow direction `d`; tolerance 0 = no goal.
+struct StructureGoal
+{
+    Vec3d d{0.0};
+    double sourceAniso = 0.0;
+    double tolerance = 0.0;
+};
+/// The goal for this frame: d the mean of up(u_t) over the target's smoke, the source's detail anisotropy over
+/// its smoke along d (as `measure` computes both); no goal when off or when either is undefined.
+StructureGoal structureGoal(const TargetAtOutput& t, const SourceBands& bands, const FrameSetup& fs);
+
 struct TemporalBlend
 {
-    std::vector<float> weight; ///< per layout patch; empty without carried detail
-    int regenerated = 0;       ///< patches that took the regeneration weight
+    std::vector<float> weight;       ///< per layout patch; empty without carried detail
+    int regenerated = 0;             ///< patches that took the regeneration weight
+    int regeneratedForStructure = 0; ///< of those, the ones the structure goal added
 };
 TemporalBlend blendTemporal(VectorField& detail, const TargetAtOutput& t, const VectorField& advectedDetail,
-    const LocalSearchResult& local, const PatchTracks& tracks, const FrameSetup& fs);
+    const LocalSearchResult& local, const PatchTracks& tracks, const FrameSetup& fs, const StructureGoal& goal);
 
 /// What the seam stage is given besides the detail.
 struct SeamInputs

@@ -4,6 +4,7 @@
 #include "Stages.h"
 
 #include <turb/Advect.h>
+#include <turb/Measure.h>
 #include <turb/Parallel.h>
 
 #include <algorithm>
@@ -32,7 +33,8 @@ struct StructureSums
     double ratio() const { return across > 0.0 ? along / across : 1.0; }
 };
 
-StructureSums structureSums(const VectorField& H, const CoordBBox& box, const Vec3d& d, const FrameSetup& fs)
+template<class Value>
+StructureSums structureSumsOf(const Value& value, const CoordBBox& box, const Vec3d& d, const FrameSetup& fs)
 {
     const int axes = fs.flat ? 2 : 3;
     CoordBBox in = box;
@@ -47,12 +49,38 @@ StructureSums structureSums(const VectorField& H, const CoordBBox& box, const Ve
             Coord lo = *it, hi = *it;
             lo[a] -= 1;
             hi[a] += 1;
-            g[a] = 0.5 * (Vec3d(H[hi]) - Vec3d(H[lo]));
+            g[a] = 0.5 * (value(hi) - value(lo));
         }
         along += (g[0] * d.x() + g[1] * d.y() + g[2] * d.z()).lengthSqr();
         all += g[0].lengthSqr() + g[1].lengthSqr() + g[2].lengthSqr();
     }
     return {along, (all - along) / double(axes - 1)};
+}
+
+StructureSums structureSums(const VectorField& H, const CoordBBox& box, const Vec3d& d, const FrameSetup& fs)
+{
+    return structureSumsOf([&](const Coord& c) { return Vec3d(H[c]); }, box, d, fs);
+}
+
+/// The gain that keeps a patch blended at carried weight w at the energy its two parts had, interpolated by w: a
+/// mix of two nearly unrelated fields has less energy than either (0.5 of it at w = 0.5).
+float keptEnergyGain(const VectorField& fresh, const VectorField& carried, const CoordBBox& box, float w)
+{
+    double ef = 0.0, ea = 0.0, em = 0.0;
+    for (auto it = box.begin(); it; ++it) {
+        ef += double(fresh[*it].lengthSqr());
+        ea += double(carried[*it].lengthSqr());
+        em += double((fresh[*it] * (1.0f - w) + carried[*it] * w).lengthSqr());
+    }
+    return em > 0.0 ? float(std::sqrt(((1.0 - w) * ef + w * ea) / em)) : 1.0f;
+}
+
+/// Structure sums along d of the patch blended at carried weight w, times the gain k.
+StructureSums blendedSums(const VectorField& fresh, const VectorField& carried, const CoordBBox& box, float w, float k,
+    const Vec3d& d, const FrameSetup& fs)
+{
+    return structureSumsOf(
+        [&](const Coord& c) { return Vec3d((fresh[c] * (1.0f - w) + carried[c] * w) * k); }, box, d, fs);
 }
 
 /// The target's mean flow direction over a patch (up(u_t)); zero where it is at rest.
@@ -104,10 +132,88 @@ StretchSums stretchSums(const VectorField& detail, const VectorField& advected, 
     return out;
 }
 
+// The structure goal: the frame's blended detail (patch interiors, summed along and across goal.d) is brought within
+// the tolerance of the source's anisotropy by regenerating more tracked patches: first at the regeneration weight,
+// then, where that is not enough, at its square (two frames' worth). Each step takes the patches in the order of
+// their pull on the frame ratio, and only those that move it closer. Regenerating falls back on the freshly pasted
+// detail, the paper's own answer, so the goal is reached only as far as the fresh patches allow. Sequential over a
+// sorted list: the same at any thread count. Returns the patches whose weight it lowered.
+int regenerateTowardsGoal(const VectorField& fresh, const VectorField& carried, const std::vector<size_t>& act,
+    const PatchTracks& tracks, const FrameSetup& fs, const StructureGoal& goal, float regenerated,
+    std::vector<uint8_t>& regen, std::vector<float>& weight)
+{
+    const auto sumsAt = [&](size_t i, float w, bool keepEnergy) {
+        const CoordBBox pb = clippedPatchBox(fs, act[i]);
+        return blendedSums(
+            fresh, carried, pb, w, keepEnergy ? keptEnergyGain(fresh, carried, pb, w) : 1.0f, goal.d, fs);
+    };
+    std::vector<StructureSums> now(act.size()), alt(act.size());
+    parallelFor(act.size(), 16, [&](size_t b, size_t e) {
+        checkCancelled(fs.progress);
+        for (size_t i = b; i < e; ++i) now[i] = sumsAt(i, weight[act[i]], regen[i]);
+    });
+    StructureSums frame; // in patch order
+    for (const StructureSums& n : now) frame.along += n.along, frame.across += n.across;
+    const double lo = goal.sourceAniso * (1.0 - goal.tolerance), hi = goal.sourceAniso * (1.0 + goal.tolerance);
+    const bool raise = frame.ratio() < lo;
+    const auto reached = [&] { return raise ? frame.ratio() >= lo : frame.ratio() <= hi; };
+    std::vector<uint8_t> changed(act.size(), 0);
+    for (const float w : {regenerated, regenerated * regenerated}) {
+        if (reached()) break;
+        std::vector<size_t> order;
+        for (size_t i = 0; i < act.size(); ++i)
+            if (tracks.tracked[act[i]] && weight[act[i]] > w) order.push_back(i);
+        parallelFor(order.size(), 16, [&](size_t b, size_t e) {
+            checkCancelled(fs.progress);
+            for (size_t k = b; k < e; ++k) alt[order[k]] = sumsAt(order[k], w, true);
+        });
+        // A patch's pull on the frame ratio R = along / across: dR ~ (d along - R d across) / across.
+        const double r0 = frame.ratio();
+        std::vector<double> pull(act.size(), 0.0);
+        for (size_t i : order) {
+            const double dp = (alt[i].along - now[i].along) - r0 * (alt[i].across - now[i].across);
+            pull[i] = raise ? dp : -dp;
+        }
+        std::sort(order.begin(), order.end(),
+            [&](size_t a, size_t b) { return pull[a] != pull[b] ? pull[a] > pull[b] : a < b; });
+        for (size_t i : order) {
+            if (reached() || !(pull[i] > 0.0)) break;
+            StructureSums next = frame;
+            next.along += alt[i].along - now[i].along;
+            next.across += alt[i].across - now[i].across;
+            if (raise ? next.ratio() <= frame.ratio() : next.ratio() >= frame.ratio()) continue;
+            frame = next;
+            now[i] = alt[i];
+            regen[i] = 1;
+            changed[i] = 1;
+            weight[act[i]] = w;
+        }
+    }
+    return int(std::count(changed.begin(), changed.end(), uint8_t(1)));
+}
+
 } // namespace
 
+StructureGoal structureGoal(const TargetAtOutput& t, const SourceBands& bands, const FrameSetup& fs)
+{
+    const TransferSettings& s = *fs.s;
+    StructureGoal g;
+    const float tolerance = fs.flat ? s.structureTolerance2D : s.structureTolerance;
+    if (!(tolerance > 0.0f) || !(s.regenerate > 0.0f) || bands.Ds.size() != bands.split.high.size()) return g;
+    Vec3d mean(0.0);
+    for (size_t n = 0; n < t.Ut.size(); ++n)
+        if (t.Dt.data()[n] > s.densityThreshold) mean += Vec3d(t.Ut.data()[n]);
+    if (!(mean.length() > 0.0)) return g;
+    const std::optional<double> a = highBandAnisotropy(bands.split.high, smokeMask(bands.Ds, s.densityThreshold), mean);
+    if (!a || !(*a > 0.0)) return g;
+    g.d = mean.unit();
+    g.sourceAniso = *a;
+    g.tolerance = tolerance;
+    return g;
+}
+
 TemporalBlend blendTemporal(VectorField& detail, const TargetAtOutput& t, const VectorField& advected,
-    const LocalSearchResult& local, const PatchTracks& tracks, const FrameSetup& fs)
+    const LocalSearchResult& local, const PatchTracks& tracks, const FrameSetup& fs, const StructureGoal& goal)
 {
     const TransferSettings& s = *fs.s;
     TemporalBlend out;
@@ -162,11 +268,14 @@ TemporalBlend blendTemporal(VectorField& detail, const TargetAtOutput& t, const 
             out.weight[p] = ep > 0.0 ? float(lambda * std::min(1.0, std::sqrt(ea / ep))) : lambda;
         }
     });
+    if (goal.tolerance > 0.0 && regenerated < lambda)
+        out.regeneratedForStructure =
+            regenerateTowardsGoal(detail, advected, act, tracks, fs, goal, regenerated, regen, out.weight);
     out.regenerated = int(std::count(regen.begin(), regen.end(), uint8_t(1)));
     // A regenerated patch mixes two nearly unrelated fields at comparable weights, and such a mix has less energy
-    // than either (0.5 of it at weight 0.5); the frame's one energy factor would then lift every other patch to
-    // make up for it (hf 1.27 against 1.25 without this on the analytic pair's second frame). The patch keeps the
-    // energy its two parts had, interpolated by the weight.
+    // than either; the frame's one energy factor would then lift every other patch to make up for it (hf 1.27
+    // against 1.25 without this on the analytic pair's second frame). The patch keeps the energy its two parts
+    // had, interpolated by the weight (keptEnergyGain).
     std::vector<uint8_t> done(L.patchCount(), 0);
     parallelFor(act.size(), 16, [&](size_t b, size_t e) {
         checkCancelled(fs.progress);
@@ -175,13 +284,7 @@ TemporalBlend blendTemporal(VectorField& detail, const TargetAtOutput& t, const 
             const size_t p = act[i];
             const float w = out.weight[p];
             const CoordBBox pb = boxOf(p);
-            double ef = 0.0, ea = 0.0, em = 0.0;
-            for (auto it = pb.begin(); it; ++it) {
-                ef += double(detail[*it].lengthSqr());
-                ea += double(advected[*it].lengthSqr());
-                em += double((detail[*it] * (1.0f - w) + advected[*it] * w).lengthSqr());
-            }
-            const float k = em > 0.0 ? float(std::sqrt(((1.0 - w) * ef + w * ea) / em)) : 1.0f;
+            const float k = keptEnergyGain(detail, advected, pb, w);
             for (auto it = pb.begin(); it; ++it) detail[*it] = (detail[*it] * (1.0f - w) + advected[*it] * w) * k;
             done[p] = 1;
         }

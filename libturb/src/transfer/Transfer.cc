@@ -164,7 +164,8 @@ std::vector<std::pair<std::string, std::string>> outputSettings(const TransferSe
         {"follow-tolerance", num(s.followTolerance)}, {"coherence", num(s.coherence)},
         {"coherence-sweeps", num(s.coherenceSweeps)}, {"temporal-blend", num(s.temporalBlend)},
         {"regenerate", num(s.regenerate)}, {"regenerate-blend", num(s.regenerateBlend)},
-        {"regenerate-blend-2d", num(s.regenerateBlend2D)}, {"align", align[int(s.alignment)]},
+        {"regenerate-blend-2d", num(s.regenerateBlend2D)}, {"structure-tolerance", num(s.structureTolerance)},
+        {"structure-tolerance-2d", num(s.structureTolerance2D)}, {"align", align[int(s.alignment)]},
         {"resample-source", flag(s.resampleSource)}, {"seams", flag(s.seams.enabled)}, {"band", num(s.seams.bandWidth)},
         {"boundary-patch", num(s.seams.boundaryPatch)}, {"gamma", num(s.seams.gamma)},
         {"em-iterations", num(s.seams.maxEmIterations)}, {"em-tolerance", num(s.seams.emTolerance)},
@@ -255,6 +256,9 @@ TurbulenceTransfer::TurbulenceTransfer(const TransferSettings& settings) : mImpl
     if (!(s.regenerateBlend >= 0.0f && s.regenerateBlend <= 0.999f && s.regenerateBlend2D >= 0.0f &&
             s.regenerateBlend2D <= 0.999f))
         throw ValueError("regenerate blend must lie in [0, 0.999]");
+    if (!(s.structureTolerance >= 0.0f && s.structureTolerance < 1.0f && s.structureTolerance2D >= 0.0f &&
+            s.structureTolerance2D < 1.0f))
+        throw ValueError("structure tolerance must lie in [0, 1)");
     if (!(s.coarseTolerance >= 0.0f)) throw ValueError("coarse tolerance must be >= 0");
     if (!(s.seams.boxKeep >= 0.0f && s.seams.boxKeep <= 1.0f)) throw ValueError("box keep must lie in [0, 1]");
     if (!(s.followTolerance >= 0.0f)) throw ValueError("follow tolerance must be >= 0");
@@ -363,8 +367,10 @@ VectorField TurbulenceTransfer::Impl::transferDetail(const Frame& target, const 
 
     // Beyond the paper: last frame's detail carried into the patches it reaches; then 3.3's seam smoothing.
     if (progress) progress->begin("seams");
-    TemporalBlend blend = blendTemporal(detail, t, m.advectedDetail, m.local, tracks, fs);
+    TemporalBlend blend =
+        blendTemporal(detail, t, m.advectedDetail, m.local, tracks, fs, structureGoal(t, m.bands, fs));
     st.regeneratedPatches = blend.regenerated;
+    st.structureRegenerated = blend.regeneratedForStructure;
     const double scaleEstimate = reduceCoarsePartBeforeSeams(detail, t, target, smoke, referenceEnergy, fs);
     st.seams = smoothPatchSeams(detail,
         SeamInputs{t, m.bands, active, pasted.offsets, m.advectedDetail, blend.weight, scaleEstimate}, fs, progress);
