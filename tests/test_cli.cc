@@ -983,14 +983,16 @@ TEST(Cli, TwoDCachesThroughSimTransferMeasureAndPreview)
     const CmdResult s = run("sim swirl --res 48x64x1 --frames 4 --out '" + d + "/s/s.####.vdb' -q");
     ASSERT_EQ(s.code, 0) << s.out;
     // The dry run says the cache is 2D and which of the settings with a 2D twin apply.
-    const CmdResult dry =
-        run("transfer --target '" + d + "/t/p.####.vdb' --source '" + d + "/s/s.####.vdb' --out '" + d +
-            "/o/o.####.vdb' --dry-run --detail-energy-2d pasted --seams.bandWidth2D 4" + " --seams.cgTolerance 0.5");
+    const CmdResult dry = run("transfer --target '" + d + "/t/p.####.vdb' --source '" + d + "/s/s.####.vdb' --out '" +
+                              d + "/o/o.####.vdb' --dry-run --detail-energy-2d pasted --seams.bandWidth2D 4" +
+                              " --seams.cgTolerance 0.5 --structureTolerance 0.3");
     ASSERT_EQ(dry.code, 0) << dry.out;
     EXPECT_NE(dry.out.find("2D cache (one z layer): B^2 patches; detail energy pasted, seam band 4"), std::string::npos)
         << dry.out;
-    // The 3D tolerance given does not apply to a 2D cache; the 2D default does.
-    EXPECT_NE(dry.out.find("regenerate blend 0.6, seam CG tolerance 0.01 ("), std::string::npos) << dry.out;
+    // The 3D tolerances given do not apply to a 2D cache; the 2D defaults do.
+    EXPECT_NE(
+        dry.out.find("regenerate blend 0.6, seam CG tolerance 0.01, structure tolerance 0.05 ("), std::string::npos)
+        << dry.out;
     EXPECT_FALSE(std::filesystem::exists(d + "/o"));
     const CmdResult x = run("transfer --target '" + d + "/t/p.####.vdb' --source '" + d + "/s/s.####.vdb' --out '" + d +
                             "/o/o.####.vdb' -q");
