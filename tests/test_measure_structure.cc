@@ -14,9 +14,9 @@ using namespace turb;
 
 namespace {
 
-// Smooth isotropic noise: a sum of random plane waves with wavelengths between 3 and 6 voxels, sampled at
-// (x, y, z / zStretch): zStretch > 1 stretches every structure along z.
-VectorField planeWaveNoise(const CoordBBox& box, unsigned seed, double zStretch)
+// Smooth isotropic noise: a sum of random plane waves with wavelengths between 3 and 6 voxels (times `scale`),
+// sampled at (x, y, z / zStretch): zStretch > 1 stretches every structure along z.
+VectorField planeWaveNoise(const CoordBBox& box, unsigned seed, double zStretch, double scale = 1.0)
 {
     std::mt19937 rng(seed);
     std::uniform_real_distribution<double> u(-1.0, 1.0), len(3.0, 6.0), ph(0.0, 6.2831853);
@@ -29,7 +29,7 @@ VectorField planeWaveNoise(const CoordBBox& box, unsigned seed, double zStretch)
     for (int i = 0; i < 60; ++i) {
         Vec3d dir(u(rng), u(rng), u(rng));
         dir.normalize();
-        waves.push_back({dir * (6.2831853 / len(rng)), Vec3d(u(rng), u(rng), u(rng)), ph(rng)});
+        waves.push_back({dir * (6.2831853 / (scale * len(rng))), Vec3d(u(rng), u(rng), u(rng)), ph(rng)});
     }
     VectorField f(box, Lattice{});
     for (size_t n = 0; n < f.size(); ++n) {
@@ -59,6 +59,38 @@ TEST(MeasureStructure, IsotropicNoiseIsNearOneAndStretchedNoiseFarBelow)
     // Across the stretch the structure is squashed relative to the rest: above 1 when looking along x.
     EXPECT_GT(*detailAnisotropy(streaks, all, 4, side), 1.0);
     EXPECT_FALSE(detailAnisotropy(iso, all, 4, Vec3d(0.0)));
+}
+
+TEST(MeasureStructure, DetailScaleOfASineIsItsDiscreteWavelengthOverTwoPi)
+{
+    // H = (0, sin(k x), 0) at voxel size h: central differences give k' = sin(k h) / h, so the scale is
+    // h / sin(k h) exactly over whole periods (masked off the one-sided faces). 2D (one z layer) and 3D alike.
+    for (const int depth : {1, 6})
+        for (const int period : {8, 16}) {
+            const double h = 0.05, k = 2.0 * M_PI / (period * h);
+            const CoordBBox box({0, 0, 0}, {63, 9, depth - 1});
+            VectorField H(box, Lattice{h, Vec3d(0.0)});
+            std::vector<unsigned char> mask(H.size(), 0);
+            for (size_t n = 0; n < H.size(); ++n) {
+                const Coord c = H.coordOf(n);
+                H.data()[n] = Vec3f(0.0f, float(std::sin(k * h * c.x())), 0.0f);
+                mask[n] = c.x() >= 8 && c.x() < 8 + 3 * period;
+            }
+            const auto l = highBandScale(H, mask);
+            ASSERT_TRUE(l);
+            EXPECT_NEAR(*l, h / std::sin(k * h), 1e-5) << "period " << period << ", depth " << depth;
+        }
+    // Finer detail reads smaller: the same waves at half the wavelengths (6-12 voxels against 12-24) give about half
+    // the scale; a little more, as central differences see less of the shorter waves' gradient (sin(kh)/kh 0.83-0.95).
+    const CoordBBox box({0, 0, 0}, {47, 47, 47});
+    const std::vector<unsigned char> all(size_t(48 * 48 * 48), 1);
+    const VectorField coarse = planeWaveNoise(box, 7, 1.0, 4.0), fine = planeWaveNoise(box, 7, 1.0, 2.0);
+    const auto a = highBandScale(coarse, all), b = highBandScale(fine, all);
+    ASSERT_TRUE(a && b);
+    EXPECT_GT(*b / *a, 0.5);
+    EXPECT_LT(*b / *a, 0.6);
+    EXPECT_FALSE(highBandScale(VectorField(box, Lattice{}), all)) << "no gradient: undefined";
+    EXPECT_THROW(highBandScale(coarse, std::vector<unsigned char>(10, 1)), ValueError);
 }
 
 TEST(MeasureStructure, IsotropyIsHighForNoiseAndLowForStreaksAlongAnyAxis)

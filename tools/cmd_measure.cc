@@ -90,8 +90,9 @@ std::string humanLine(const turb::FrameMeasures& m)
            f(m.divRelSource) + ")  block " + f(m.block) + "  tcoh " + f(m.tcoh) + " (source " + f(m.tcohSource) +
            ")  mass " + f(m.massRatio) + "  peak " + f(m.peakRatio) + "  density_err " + f(m.densityErr) +
            "  imprint " + f(m.densityImprint) + "  aniso " + f(m.aniso) + " (source " + f(m.anisoSource) +
-           ")  isotropy " + f(m.isotropy) + " (source " + f(m.isotropySource) + ")  lattice " + f(m.lattice) +
-           " (source " + f(m.latticeSource) + ")  vort_peak " + f(m.vortPeakRatio) + "  air_detail " + f(m.airDetail) +
+           ")  detail_scale " + f(m.detailScaleRatio) + "  isotropy " + f(m.isotropy) + " (source " +
+           f(m.isotropySource) + ")  lattice " + f(m.lattice) + " (source " + f(m.latticeSource) + ")  vort_peak " +
+           f(m.vortPeakRatio) + "  air_detail " + f(m.airDetail) +
            (m.tileVoxels > 0 ? "  tile_block " + f(m.tileBlock) + "  tile_div_rel " + f(m.tileDivRel) +
                                    "  tile_hf_ratio " + f(m.tileHfRatio)
                              : std::string());
@@ -380,7 +381,7 @@ void addMeasureSettings(CLI::App* app, MeasureArgs& a)
                "--no-spectra", [&a](int64_t) { a.computeSpectra = false; }, ""),
         "computeSpectra", "false");
     boolSetting(app, "--structure", s.structure,
-        "The structure numbers aniso, isotropy, lattice and vort_peak (false: skip them)", "structure");
+        "The structure numbers aniso, isotropy, lattice, detail_scale and vort_peak (false: skip them)", "structure");
     legacy(app->add_flag_function(
                "--no-structure", [&s](int64_t) { s.structure = false; }, ""),
         "structure", "false");

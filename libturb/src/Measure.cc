@@ -485,7 +485,8 @@ std::vector<std::pair<std::string, std::optional<double>>> FrameMeasures::scalar
         {"mass_ratio", massRatio}, {"peak_density", peakDensity}, {"peak_ratio", peakRatio},
         {"density_err", densityErr}, {"density_imprint", densityImprint}, {"density_fray", densityFray},
         {"density_fray_source", densityFraySource}, {"density_fray_ratio", densityFrayRatio}, {"aniso", aniso},
-        {"aniso_source", anisoSource}, {"aniso_ratio", anisoRatio}, {"isotropy", isotropy},
+        {"aniso_source", anisoSource}, {"aniso_ratio", anisoRatio}, {"detail_scale", detailScale},
+        {"detail_scale_source", detailScaleSource}, {"detail_scale_ratio", detailScaleRatio}, {"isotropy", isotropy},
         {"isotropy_source", isotropySource}, {"lattice", lattice}, {"lattice_source", latticeSource},
         {"vort_peak", vortPeak}, {"vort_peak_source", vortPeakSource}, {"vort_peak_ratio", vortPeakRatio},
         {"air_detail", airDetail}};
@@ -638,6 +639,7 @@ void structureMeasures(const Frame& O, const Frame& T, const Frame* src, const A
     m.aniso = out.aniso;
     m.isotropy = out.isotropy;
     m.lattice = out.lattice;
+    m.detailScale = out.scale;
     if (!m.aniso) m.notes.push_back("aniso: no smoke, no mean flow or no detail gradient");
     if (patch && !m.lattice)
         m.notes.push_back("lattice: no detail in the smoke, or the box is shorter than two patches");
@@ -647,6 +649,9 @@ void structureMeasures(const Frame& O, const Frame& T, const Frame* src, const A
         m.anisoSource = source.aniso;
         m.isotropySource = source.isotropy;
         m.latticeSource = source.lattice;
+        m.detailScaleSource = source.scale;
+        if (m.detailScale && m.detailScaleSource && *m.detailScaleSource > 0.0)
+            m.detailScaleRatio = *m.detailScale / *m.detailScaleSource;
         if (m.aniso && m.anisoSource && *m.anisoSource > 0.0) m.anisoRatio = *m.aniso / *m.anisoSource;
         m.vortPeakSource = vorticityPeak(src->velocity, srcMask, kVortPeakQuantile);
         if (m.vortPeak && m.vortPeakSource && *m.vortPeakSource > 0.0)

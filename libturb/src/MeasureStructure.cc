@@ -55,6 +55,28 @@ std::optional<double> anisotropyOf(const VectorField& H, const Mask& mask, const
     return along / across;
 }
 
+std::optional<double> scaleOf(const VectorField& H, const Mask& mask)
+{
+    const CoordBBox& b = H.bbox();
+    // Per x-slab sums, added in slab order: deterministic at any thread count.
+    std::vector<std::array<double, 2>> part(size_t(b.dim().x()), {0.0, 0.0});
+    parallelFor(part.size(), 1, [&](size_t x0, size_t x1) {
+        for (size_t x = x0; x < x1; ++x) {
+            const int i = b.min().x() + int(x);
+            for (int j = b.min().y(); j <= b.max().y(); ++j)
+                for (int k = b.min().z(); k <= b.max().z(); ++k) {
+                    if (!mask[H.offset(i, j, k)]) continue;
+                    part[x][0] += double(H(i, j, k).lengthSqr());
+                    part[x][1] += double(jacobianAt(H, i, j, k).frobeniusSq());
+                }
+        }
+    });
+    double e = 0.0, g = 0.0;
+    for (const auto& p : part) e += p[0], g += p[1];
+    if (!(g > 0.0)) return std::nullopt;
+    return std::sqrt(e / g);
+}
+
 std::optional<double> isotropyOf(const VectorField& H, const Mask& mask, int block)
 {
     const CoordBBox& b = H.bbox();
@@ -188,6 +210,12 @@ std::optional<double> detailAnisotropy(const VectorField& u, const Mask& mask, i
     return anisotropyOf(splitFrequencies(u, f).high, mask, direction);
 }
 
+std::optional<double> highBandScale(const VectorField& H, const Mask& mask)
+{
+    checkMask(H, mask, "highBandScale");
+    return scaleOf(H, mask);
+}
+
 std::optional<double> highBandAnisotropy(const VectorField& H, const Mask& mask, const Vec3d& direction)
 {
     checkMask(H, mask, "highBandAnisotropy");
@@ -216,6 +244,7 @@ DetailStructure detailStructure(const VectorField& u, const Mask& mask, int f, c
     DetailStructure d;
     d.aniso = anisotropyOf(H, mask, direction);
     d.isotropy = isotropyOf(H, mask, 8);
+    d.scale = scaleOf(H, mask);
     if (patch != 0) d.lattice = latticeOf(H, mask, patch);
     return d;
 }

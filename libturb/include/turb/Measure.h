@@ -135,7 +135,11 @@ struct FrameMeasures
                                        ///< for isotropic detail, well below 1 for streaks stretched along the flow
     std::optional<double> anisoSource; ///< the same of the source's detail, along the same direction
     std::optional<double> anisoRatio;  ///< aniso / anisoSource: 0.8-1.25 keeps the source's structure
-    std::optional<double> isotropy;    ///< detailIsotropy of the output: direction-free, catches streaks along any axis
+    std::optional<double> detailScale; ///< highBandScale of the output's detail, world units
+    std::optional<double> detailScaleSource; ///< the same of the source's detail
+    std::optional<double> detailScaleRatio;  ///< detailScale / detailScaleSource: well below 1 for detail finer than
+                                             ///< the source's
+    std::optional<double> isotropy; ///< detailIsotropy of the output: direction-free, catches streaks along any axis
     std::optional<double> isotropySource; ///< the same of the source
     std::optional<double> lattice;        ///< latticeImprint() of the output on its patch lattice (needs patchSize)
     std::optional<double> latticeSource;  ///< the same of the source on a lattice of the same size: the chance level
@@ -227,6 +231,14 @@ double coarseDensityError(const ScalarField& fine, const ScalarField& coarse, in
 std::optional<double> detailAnisotropy(
     const VectorField& u, const std::vector<unsigned char>& mask, int f, const Vec3d& direction);
 
+/// The detail's length scale, world units: sqrt(mean|H|^2 / mean|grad H|^2) over the mask (|grad H|^2 the squared
+/// Frobenius norm of the Jacobian, central differences; Taylor's microscale of H up to a constant). For H =
+/// sin(k x) sampled at voxel size h it is h / sin(k h), about 1/k. Compare the output's with the source's
+/// (detail_scale_ratio): well below 1 means finer detail than the source's, such as short stacked arcs where the
+/// source has long smooth sheets. Beyond the papers: added after the 2D pair's vorticity showed such arcs at an
+/// aniso_ratio near 1. nullopt when the mask is empty or H has no gradient; ValueError for a wrong mask.
+std::optional<double> highBandScale(const VectorField& H, const std::vector<unsigned char>& mask);
+
 /// detailAnisotropy of a detail already split off: H = splitFrequencies(u, f).high, or any high band. Throws
 /// ValueError when `mask` is not one byte per voxel of H.
 std::optional<double> highBandAnisotropy(
@@ -259,6 +271,7 @@ std::optional<double> latticeImprint(const VectorField& u, const std::vector<uns
 struct DetailStructure
 {
     std::optional<double> aniso, isotropy, lattice;
+    std::optional<double> scale; ///< highBandScale of the detail
 };
 DetailStructure detailStructure(
     const VectorField& u, const std::vector<unsigned char>& mask, int f, const Vec3d& direction, int patch);
