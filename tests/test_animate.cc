@@ -846,23 +846,20 @@ TEST(AnimateQuality, TemporalStatsOfASinusoid)
 {
     // Y(t) = sin(w t + phase(x)): temporal std 1/sqrt(2), autocorrelation cos(w L) (long series).
     const double w = 0.3;
-    TemporalStats ts(5);
-    for (int t = 0; t < 400; ++t) {
-        ChannelImage f(8, 4, 1);
-        for (size_t i = 0; i < f.pixelCount(); ++i) f.pixel(i)[0] = float(std::sin(w * t + 0.7 * double(i)));
-        ts.add(f);
-    }
-    const TemporalSummary s = ts.summary();
+    const auto sinusoid = [&](int frames) {
+        TemporalStats ts(5);
+        for (int t = 0; t < frames; ++t) {
+            ChannelImage f(8, 4, 1);
+            for (size_t i = 0; i < f.pixelCount(); ++i) f.pixel(i)[0] = float(std::sin(w * t + 0.7 * double(i)));
+            ts.add(f);
+        }
+        return ts.summary();
+    };
+    const TemporalSummary s = sinusoid(400);
     EXPECT_NEAR(s.temporalStd, 1.0 / std::sqrt(2.0), 5e-3);
     for (int L = 1; L <= 5; ++L) EXPECT_NEAR(s.autocorrelation[size_t(L - 1)], std::cos(w * L), 0.02) << "lag " << L;
     // Three frames have lags 1 and 2 only: the rest are NaN, not zero.
-    TemporalStats shortStats(5);
-    for (int t = 0; t < 3; ++t) {
-        ChannelImage f(8, 4, 1);
-        for (size_t i = 0; i < f.pixelCount(); ++i) f.pixel(i)[0] = float(std::sin(w * t + 0.7 * double(i)));
-        shortStats.add(f);
-    }
-    const TemporalSummary ss = shortStats.summary();
+    const TemporalSummary ss = sinusoid(3);
     EXPECT_FALSE(std::isnan(ss.autocorrelation[1]));
     for (int L = 3; L <= 5; ++L) EXPECT_TRUE(std::isnan(ss.autocorrelation[size_t(L - 1)])) << "lag " << L;
 }

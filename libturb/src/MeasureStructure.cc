@@ -22,59 +22,54 @@ using Mask = std::vector<unsigned char>;
 
 // The bodies below take the detail H = splitFrequencies(u, f).high: detailStructure splits once for all three.
 
+// N sums of per-voxel terms over the masked voxels of H's box: terms(i, j, k, sums) adds to them. Summed per x slab
+// and then in slab order: deterministic at any thread count.
+template<size_t N, class Terms>
+std::array<double, N> maskedSums(const VectorField& H, const Mask& mask, const Terms& terms)
+{
+    const CoordBBox& b = H.bbox();
+    std::vector<std::array<double, N>> part(size_t(b.dim().x()), std::array<double, N>{});
+    parallelFor(part.size(), 1, [&](size_t x0, size_t x1) {
+        for (size_t x = x0; x < x1; ++x) {
+            const int i = b.min().x() + int(x);
+            for (int j = b.min().y(); j <= b.max().y(); ++j)
+                for (int k = b.min().z(); k <= b.max().z(); ++k)
+                    if (mask[H.offset(i, j, k)]) terms(i, j, k, part[x]);
+        }
+    });
+    std::array<double, N> sum{};
+    for (const auto& p : part)
+        for (size_t a = 0; a < N; ++a) sum[a] += p[a];
+    return sum;
+}
+
 std::optional<double> anisotropyOf(const VectorField& H, const Mask& mask, const Vec3d& direction)
 {
     if (!(direction.length() > 0.0)) return std::nullopt;
     const Vec3d d = direction / direction.length();
-    const CoordBBox& b = H.bbox();
-    // Per x-slab sums, added in slab order: deterministic at any thread count.
-    std::vector<std::array<double, 3>> part(size_t(b.dim().x()), {0.0, 0.0, 0.0});
-    parallelFor(part.size(), 1, [&](size_t x0, size_t x1) {
-        for (size_t x = x0; x < x1; ++x) {
-            const int i = b.min().x() + int(x);
-            for (int j = b.min().y(); j <= b.max().y(); ++j)
-                for (int k = b.min().z(); k <= b.max().z(); ++k) {
-                    if (!mask[H.offset(i, j, k)]) continue;
-                    const Jacobian J = jacobianAt(H, i, j, k);
-                    const Vec3f along = J.d[0] * float(d.x()) + J.d[1] * float(d.y()) + J.d[2] * float(d.z());
-                    part[x][0] += double(along.lengthSqr());
-                    part[x][1] += double(J.frobeniusSq());
-                    part[x][2] += 1.0;
-                }
-        }
+    // along, all, voxels
+    const auto sums = maskedSums<3>(H, mask, [&](int i, int j, int k, std::array<double, 3>& s) {
+        const Jacobian J = jacobianAt(H, i, j, k);
+        const Vec3f along = J.d[0] * float(d.x()) + J.d[1] * float(d.y()) + J.d[2] * float(d.z());
+        s[0] += double(along.lengthSqr());
+        s[1] += double(J.frobeniusSq());
+        s[2] += 1.0;
     });
-    double along = 0.0, all = 0.0, n = 0.0;
-    for (const auto& p : part) {
-        along += p[0];
-        all += p[1];
-        n += p[2];
-    }
     // Two directions across the flow in 3D, one in 2D (a flat field has no z derivatives).
-    const double across = isFlat(b) ? all - along : 0.5 * (all - along);
-    if (n == 0.0 || !(across > 0.0)) return std::nullopt;
-    return along / across;
+    const double across = isFlat(H.bbox()) ? sums[1] - sums[0] : 0.5 * (sums[1] - sums[0]);
+    if (sums[2] == 0.0 || !(across > 0.0)) return std::nullopt;
+    return sums[0] / across;
 }
 
 std::optional<double> scaleOf(const VectorField& H, const Mask& mask)
 {
-    const CoordBBox& b = H.bbox();
-    // Per x-slab sums, added in slab order: deterministic at any thread count.
-    std::vector<std::array<double, 2>> part(size_t(b.dim().x()), {0.0, 0.0});
-    parallelFor(part.size(), 1, [&](size_t x0, size_t x1) {
-        for (size_t x = x0; x < x1; ++x) {
-            const int i = b.min().x() + int(x);
-            for (int j = b.min().y(); j <= b.max().y(); ++j)
-                for (int k = b.min().z(); k <= b.max().z(); ++k) {
-                    if (!mask[H.offset(i, j, k)]) continue;
-                    part[x][0] += double(H(i, j, k).lengthSqr());
-                    part[x][1] += double(jacobianAt(H, i, j, k).frobeniusSq());
-                }
-        }
+    // mean |H|^2 and mean |grad H|^2, as sums over the same voxels
+    const auto sums = maskedSums<2>(H, mask, [&](int i, int j, int k, std::array<double, 2>& s) {
+        s[0] += double(H(i, j, k).lengthSqr());
+        s[1] += double(jacobianAt(H, i, j, k).frobeniusSq());
     });
-    double e = 0.0, g = 0.0;
-    for (const auto& p : part) e += p[0], g += p[1];
-    if (!(g > 0.0)) return std::nullopt;
-    return std::sqrt(e / g);
+    if (!(sums[1] > 0.0)) return std::nullopt;
+    return std::sqrt(sums[0] / sums[1]);
 }
 
 std::optional<double> isotropyOf(const VectorField& H, const Mask& mask, int block)
