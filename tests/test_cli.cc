@@ -70,6 +70,30 @@ TEST(Cli, UsageErrorsExitTwoAndMissingInputsExitOne)
     EXPECT_NE(missing.out.find("/nonexistent/cache.vdb"), std::string::npos) << missing.out;
 }
 
+TEST(Cli, ASourceWithAGapSaysHowToSkipIt)
+{
+    // --source-wrap maps only frames past the source's ends: for a frame missing inside its range the hint names
+    // --source-frames (2026-12-05: it named --source-wrap, which cannot help there).
+    testutil::TempDir dir;
+    for (int f : {1, 2, 3, 5})
+        std::filesystem::create_symlink(
+            testutil::dataPath("blender-plume-128/fluid_data_000" + std::to_string(f) + ".vdb"),
+            dir / ("s." + std::to_string(f) + ".vdb"));
+    const std::string base = "transfer --target " + lo() + " --source '" + dir.path() + "/s.@.vdb' --out " +
+                             dir / "o/o.####.vdb --frames 4 --dry-run";
+    const CmdResult gap = run(base);
+    EXPECT_EQ(gap.code, 1) << gap.out;
+    EXPECT_NE(gap.out.find("has a gap there: give --source-frames"), std::string::npos) << gap.out;
+    const CmdResult skipped = run(base + " --source-frames 1-3");
+    EXPECT_EQ(skipped.code, 0) << skipped.out;
+    // Past the end with --source-wrap error, the hint is the wrap's.
+    const CmdResult past = run("transfer --target " + lo() + " --source '" + dir.path() + "/s.@.vdb' --out " +
+                               dir / "o/o.####.vdb --frames 6 --source-wrap error --dry-run");
+    EXPECT_EQ(past.code, 1) << past.out;
+    EXPECT_NE(past.out.find("another --source-wrap maps it"), std::string::npos) << past.out;
+    EXPECT_FALSE(std::filesystem::exists(dir / "o"));
+}
+
 TEST(Cli, TransferKeepsEightTargetVoxelsAroundTheSourcesSmoke)
 {
     // Ratio 4: 8 target voxels are 32 source voxels (docs/design.md: 8 source voxels moved block and tcoh at
@@ -1025,6 +1049,40 @@ TEST(Cli, TwoDCachesThroughSimTransferMeasureAndPreview)
                             "/o/o.####.vdb' --mode density,vorticity --frames 4 --sheet '" + d + "/sheet.png' -q");
     ASSERT_EQ(p.code, 0) << p.out;
     EXPECT_TRUE(std::filesystem::exists(d + "/sheet.png"));
+}
+
+TEST(Cli, EveryPrintedDefaultReadsBack)
+{
+    // --print-settings with every default uncommented is a valid settings file (2026-12-05: the fps and dt of the
+    // readers and measure's patch size printed 0, "from metadata", which their range checks refused). The inputs
+    // and outputs come from the command line, the rest from the file.
+    testutil::TempDir dir;
+    const struct
+    {
+        std::string command, paths;
+    } cases[] = {{"transfer", "--target " + lo() + " --source " + hi() + " --out " + dir / "o/o.####.vdb"},
+        {"measure", "--output " + hi() + " --target " + lo()}};
+    for (const auto& c : cases) {
+        const CmdResult printed = run(c.command + " --print-settings");
+        ASSERT_EQ(printed.code, 0) << printed.out;
+        std::istringstream in(printed.out);
+        std::ofstream file(dir / (c.command + ".toml"));
+        int lines = 0;
+        for (std::string line; std::getline(in, line);) {
+            if (line.rfind("# ", 0) == 0 && line.find('=') != std::string::npos && line.find(' ', 2) > line.find('=') &&
+                line.find("=\"\"") == std::string::npos) {
+                line = line.substr(2); // a default, uncommented; empty strings (the paths) stay commented
+                ++lines;
+            }
+            file << line << "\n";
+        }
+        file.close();
+        EXPECT_GT(lines, 10) << c.command;
+        const CmdResult r =
+            run(c.command + " --settings " + dir / (c.command + ".toml") + " " + c.paths + " --frames 1 --dry-run -q");
+        EXPECT_EQ(r.code, 0) << c.command << "\n" << r.out;
+    }
+    EXPECT_FALSE(std::filesystem::exists(dir / "o"));
 }
 
 TEST(Cli, SettingsFilesGiveEveryOptionAndTheCommandLineWins)

@@ -1,5 +1,7 @@
 #include "Console.h"
 
+#include "Commands.h"
+
 #include <turb/Error.h>
 
 #include <csignal>
@@ -247,7 +249,7 @@ void addGlobalOptions(CLI::App* app, unsigned which)
         ->group(kGroupRun);
     if (which & kThreads)
         app->add_option("--threads", globals().threads, "Worker threads (0 = all cores); results do not depend on it")
-            ->check(CLI::NonNegativeNumber)
+            ->check(finiteIn(0.0))
             ->group(kGroupRun);
     if (which & kDryRun)
         app->add_flag("--dry-run", globals().dryRun,

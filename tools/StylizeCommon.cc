@@ -93,7 +93,7 @@ void addCameraOptions(CLI::App* app, CameraArgs& c)
         "height");
     setting(
         app->add_option("--extinction", c.extinction, "Cache opacity: optical depth per unit density per world unit")
-            ->check(CLI::PositiveNumber),
+            ->check(finitePositive()),
         "extinction");
     setting(app->add_option("--step", c.step, "Cache ray-march step in voxels")->check(CLI::Range(0.05, 1.0)), "step");
 }

@@ -89,10 +89,10 @@ std::string humanLine(const turb::FrameMeasures& m)
     return "lf_err " + f(m.lfErr) + "  hf_ratio " + f(m.hfRatio) + "  div_rel " + f(m.divRel) + " (source " +
            f(m.divRelSource) + ")  block " + f(m.block) + "  tcoh " + f(m.tcoh) + " (source " + f(m.tcohSource) +
            ")  mass " + f(m.massRatio) + "  peak " + f(m.peakRatio) + "  density_err " + f(m.densityErr) +
-           "  imprint " + f(m.densityImprint) + "  aniso " + f(m.aniso) + " (source " + f(m.anisoSource) +
-           ")  detail_scale " + f(m.detailScaleRatio) + "  isotropy " + f(m.isotropy) + " (source " +
-           f(m.isotropySource) + ")  lattice " + f(m.lattice) + " (source " + f(m.latticeSource) + ")  vort_peak " +
-           f(m.vortPeakRatio) + "  air_detail " + f(m.airDetail) +
+           "  imprint " + f(m.densityImprint) + "  aniso_ratio " + f(m.anisoRatio) + " (" + f(m.aniso) + " against " +
+           f(m.anisoSource) + ")  detail_scale_ratio " + f(m.detailScaleRatio) + "  isotropy " + f(m.isotropy) +
+           " (source " + f(m.isotropySource) + ")  lattice " + f(m.lattice) + " (source " + f(m.latticeSource) +
+           ")  vort_peak_ratio " + f(m.vortPeakRatio) + "  air_detail " + f(m.airDetail) +
            (m.tileVoxels > 0 ? "  tile_block " + f(m.tileBlock) + "  tile_div_rel " + f(m.tileDivRel) +
                                    "  tile_hf_ratio " + f(m.tileHfRatio)
                              : std::string());
@@ -352,7 +352,7 @@ void addMeasureSettings(CLI::App* app, MeasureArgs& a)
     turb::MeasureSettings& s = a.settings;
     setting(app->add_option("--patch-size,--patchSize", s.patchSize,
                    "Seam spacing for block, in output voxels (0: the output's vdbturb_patch_size metadata)")
-                ->check(CLI::Range(2, 4096)),
+                ->check(CLI::Range(0, 0) | CLI::Range(2, 4096)),
         "patchSize");
     setting(app->add_option("--patch-origin,--patchOrigin", a.patchOrigin,
                 "An output voxel where a patch starts, X,Y,Z (default: vdbturb_patch_origin metadata, else 0,0,0)"),
@@ -410,7 +410,7 @@ Command measureCommand()
                "--frames", a.frames, "Frames to measure, e.g. 1-30x2 (default: those output and target both hold)")
             ->check(frameListCheck());
         app->add_option("--threshold", a.settings.densityThreshold, "Smoke region: density above this")
-            ->check(CLI::NonNegativeNumber);
+            ->check(finiteIn(0.0));
         app->add_flag("--spectra", a.spectraJson, "Include the E(k) arrays in the JSON lines");
         app->add_flag("--json", a.json, "Accepted for symmetry with other commands: measure always prints JSON");
         addReadOptions(app, a.read);

@@ -546,18 +546,18 @@ void addPictureSettings(CLI::App* app, PreviewArgs& a)
                 ->check(CLI::Range(0.0, 1.0)),
         "slice");
     setting(app->add_option("--exposure", a.exposure, "Density render exposure, fixed for all frames")
-                ->check(CLI::PositiveNumber),
+                ->check(finitePositive()),
         "exposure");
     setting(app->add_option("--extinction", a.extinction, "Optical depth per unit density per world unit")
-                ->check(CLI::PositiveNumber),
+                ->check(finitePositive()),
         "extinction");
     setting(app->add_option("--speed-max", a.speedMax,
                    "Speed at the top of the colour map (0: the last frame's 99.5th percentile)")
-                ->check(CLI::PositiveNumber),
+                ->check(finitePositive()),
         "speed-max");
     setting(app->add_option("--vorticity-max", a.vorticityMax,
                    "Vorticity at the top of the colour map (0: each cache's 99th percentile)")
-                ->check(CLI::PositiveNumber),
+                ->check(finitePositive()),
         "vorticity-max");
 }
 

@@ -303,8 +303,7 @@ void addSolverSettings(CLI::App* app, SimArgs& a)
                 {{"ic", Preconditioner::IncompleteCholesky}, {"jacobi", Preconditioner::Jacobi}},
                 "Pressure solve preconditioner: ic (incomplete Cholesky, one thread) or jacobi (all threads)"),
         "preconditioner");
-    setting(
-        app->add_option("--cfl", a.cfl, "Voxels the fastest flow may cross per substep")->check(CLI::PositiveNumber),
+    setting(app->add_option("--cfl", a.cfl, "Voxels the fastest flow may cross per substep")->check(finitePositive()),
         "cfl");
     setting(app->add_option("--max-substeps,--maxSubsteps", a.maxSubsteps, "Substeps per frame at most")
                 ->check(CLI::Range(1, 64)),

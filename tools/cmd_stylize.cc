@@ -379,11 +379,11 @@ void addLazyFluidsSettings(CLI::App* app, turb::StylizeSettings& s)
     knob("--patch,--patchSize", s.patchSize, "Patch size in pixels, odd (paper 5)", "patchSize")
         ->check(CLI::Range(3, 15));
     knob("--lambda", s.lambda, "Temporal coherence lambda (paper 0.2; 0 = independent frames)", "lambda")
-        ->check(CLI::NonNegativeNumber);
-    knob("--eta", s.eta, "Weight of the blurred-alpha guide (paper 3)", "eta")->check(CLI::NonNegativeNumber);
+        ->check(finiteIn(0.0));
+    knob("--eta", s.eta, "Weight of the blurred-alpha guide (paper 3)", "eta")->check(finiteIn(0.0));
     knob("--blur-radius,--blurRadius", s.blurRadius, "r: Gaussian standard deviation (pixels) of the guide alpha",
         "blurRadius")
-        ->check(CLI::PositiveNumber);
+        ->check(finitePositive());
     knob("--lower", s.lower, "l: boundary segment where the blurred alpha lies in (l, u)", "lower")
         ->check(CLI::Range(0.0, 1.0));
     knob("--upper", s.upper, "u: interior segment where the blurred alpha >= u", "upper")->check(CLI::Range(0.0, 1.0));
@@ -397,12 +397,12 @@ void addLazyFluidsSettings(CLI::App* app, turb::StylizeSettings& s)
         "rotations");
     knob("--motion-blur,--motionBlur", s.motionBlur, "Blur along F^t by this fraction of a frame's motion (0 = none)",
         "motionBlur")
-        ->check(CLI::NonNegativeNumber);
+        ->check(finiteIn(0.0));
     knob("--vote-weight,--voteWeight", s.voteWeight,
         "Beyond the paper: votes weighted by exp(-D / (w x the 75th percentile of D)) (Wexler 2007; 0 = the paper's "
         "plain average)",
         "voteWeight")
-        ->check(CLI::NonNegativeNumber);
+        ->check(finiteIn(0.0));
     boolSetting(app, "--startFromPrevious", s.startFromPrevious,
         "Beyond the paper: later frames start every level from the previous output advected (false: coarse to fine, "
         "the paper)",

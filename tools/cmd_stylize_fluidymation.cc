@@ -368,24 +368,23 @@ void addFluidymationOptions(CLI::App* app, StylizeArgs& a)
     knob("--r,--fluidy.cuboidFrames", s.cuboidFrames,
         "Occurrence cuboid half-length r in frames (the exemplar needs 2r+1)", "fluidy.cuboidFrames")
         ->check(CLI::Range(0, 50));
-    knob("--w-bound,--fluidy.wBound", s.wBound, "w^bound (0 = ablation)", "fluidy.wBound")
-        ->check(CLI::NonNegativeNumber);
-    knob("--w-ext,--fluidy.wExt", s.wExt, "w^ext", "fluidy.wExt")->check(CLI::NonNegativeNumber);
-    knob("--w-dir,--fluidy.wDir", s.wDir, "w^dir", "fluidy.wDir")->check(CLI::NonNegativeNumber);
-    knob("--w-temp,--fluidy.wTemp", s.wTemp, "w^temp", "fluidy.wTemp")->check(CLI::NonNegativeNumber);
-    knob("--w-uni,--fluidy.wUni", s.wUni, "w^uni", "fluidy.wUni")->check(CLI::NonNegativeNumber);
+    knob("--w-bound,--fluidy.wBound", s.wBound, "w^bound (0 = ablation)", "fluidy.wBound")->check(finiteIn(0.0));
+    knob("--w-ext,--fluidy.wExt", s.wExt, "w^ext", "fluidy.wExt")->check(finiteIn(0.0));
+    knob("--w-dir,--fluidy.wDir", s.wDir, "w^dir", "fluidy.wDir")->check(finiteIn(0.0));
+    knob("--w-temp,--fluidy.wTemp", s.wTemp, "w^temp", "fluidy.wTemp")->check(finiteIn(0.0));
+    knob("--w-uni,--fluidy.wUni", s.wUni, "w^uni", "fluidy.wUni")->check(finiteIn(0.0));
     knob("--m-lower,--fluidy.mLower", s.mLower, "m_l as a fraction of the target's larger side", "fluidy.mLower")
         ->check(CLI::Range(0.0, 10.0));
     knob("--m-upper,--fluidy.mUpper", s.mUpper, "m_u as a fraction of the target's larger side", "fluidy.mUpper")
         ->check(CLI::Range(0.0, 10.0));
     knob("--dir-clamp,--fluidy.dirClamp", s.dirClamp, "Clamp of |tan| in D^dir", "fluidy.dirClamp")
-        ->check(CLI::PositiveNumber);
+        ->check(finitePositive());
     knob("--extent-scale,--fluidy.extentScale", s.extentScale,
         "The exemplar's D^ext unit in pixels (0 = its 95th percentile)", "fluidy.extentScale")
-        ->check(CLI::NonNegativeNumber);
+        ->check(finiteIn(0.0));
     knob("--target-extent-scale,--fluidy.targetExtentScale", s.targetExtentScale,
         "The target's D^ext unit in pixels (0 = its own 95th percentile)", "fluidy.targetExtentScale")
-        ->check(CLI::NonNegativeNumber);
+        ->check(finiteIn(0.0));
     knob("--fluidy-levels,--fluidy.levels", s.levels, "Pyramid levels (0 = floor(log2(d_min / n)))", "fluidy.levels")
         ->check(CLI::Range(0, 8));
     knob(

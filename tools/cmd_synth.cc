@@ -810,9 +810,9 @@ void addInputSettings(CLI::App* app, SynthArgs& a)
         "flow-speed");
     knob(app, "--flow-angle", a.flowAngle, "Uniform flow direction in the xy plane, degrees from +x", "flow-angle");
     knob(app, "--slice-z", a.sliceZ, "Synthesise in 2D on coarse layer K of a 3D input", "slice-z")
-        ->check(CLI::NonNegativeNumber);
+        ->check(finiteIn(0.0));
     knob(app, "--exemplar-scale", a.exemplarScale, "Texture scale: features this many times larger", "exemplar-scale")
-        ->check(CLI::PositiveNumber);
+        ->check(finitePositive());
     knob(app, "--volume-crop", a.volumeCrop, "vdb3 exemplars: use the central N^3 voxels", "volume-crop")
         ->check(CLI::Range(8, 128));
     setting(app->add_flag("--periodic", a.periodic, "Picture/VDB exemplars tile seamlessly (procedurals always do)"),
@@ -877,13 +877,13 @@ void addSynthesisSettings(CLI::App* app, SynthArgs& a)
         ->check(CLI::Range(1, 100));
     knob(app, "--temporal-weight,--synth.temporalWeight", s.temporalWeight,
         "Later frames: pull toward the advected detail", "synth.temporalWeight")
-        ->check(CLI::NonNegativeNumber);
+        ->check(finiteIn(0.0));
     knob(app, "--wall-lambda,--synth.boundary.lambda", s.boundary.lambda,
         "Wall term weight: normal detail shrinks by 1/(1+lambda) on the wall", "synth.boundary.lambda")
-        ->check(CLI::NonNegativeNumber);
+        ->check(finiteIn(0.0));
     knob(app, "--wall-width,--synth.boundary.width", s.boundary.width,
         "Gaussian width of the wall term in voxels of each level", "synth.boundary.width")
-        ->check(CLI::PositiveNumber);
+        ->check(finitePositive());
     knob(app, "--face-padding,--synth.facePadding", s.facePadding,
         "Coarse cells synthesised beyond each open box face and cut off, so faces show no seams (0 = the paper)",
         "synth.facePadding")
@@ -1002,7 +1002,7 @@ Command synthCommand()
             "(default "
             "circles:16), rg:PICTURE[:SCALE], gray:PICTURE[:SCALE], vdb:FILE.vdb[:AXIS:INDEX], vdb3:FILE.vdb "
             "(docs/synth.md)");
-        app->add_option("--omega", a.seq.combine.omega, "Detail strength: times rms|L|")->check(CLI::NonNegativeNumber);
+        app->add_option("--omega", a.seq.combine.omega, "Detail strength: times rms|L|")->check(finiteIn(0.0));
         app->add_option(
             "--walls", a.walls, "Walls: x-,x+,y-,y+,z-,z+, all or none (default: a scene's closed faces, else none)");
         app->add_flag(

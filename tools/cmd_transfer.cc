@@ -384,11 +384,19 @@ std::vector<int> sourceFrames(
     const TransferArgs& a, const std::vector<int>& targetFrames, const turbio::Sequence& source)
 {
     std::vector<int> out;
-    try {
-        for (int t : targetFrames) out.push_back(turbio::mapSourceFrame(t, source.frames, a.sourceOffset, a.wrap));
-    } catch (const turb::ValueError& e) {
-        throw turb::ValueError(
-            std::string(e.what()) + "; --source-offset or another --source-wrap maps it", e.settings());
+    for (int t : targetFrames) {
+        try {
+            out.push_back(turbio::mapSourceFrame(t, source.frames, a.sourceOffset, a.wrap));
+        } catch (const turb::ValueError& e) {
+            // --source-wrap maps only frames past the ends; a gap inside the range is another matter.
+            const int s = t + a.sourceOffset;
+            const bool gap = !source.frames.empty() && s > source.frames.front() && s < source.frames.back();
+            throw turb::ValueError(
+                std::string(e.what()) + (gap ? "; the source has a gap there: give --source-frames up to the gap (the "
+                                               "wrap then maps the rest), or another --source-offset"
+                                             : "; --source-offset or another --source-wrap maps it"),
+                e.settings());
+        }
     }
     return out;
 }
@@ -760,11 +768,11 @@ void addSeamSettings(CLI::App* app, turb::SeamSettings& seams)
         "seams.cgTolerance,seams.cgTolerance2D");
     num(app, "--value-weight,--seams.valueWeight", seams.valueWeight,
         "Weight of seam-solve rows keeping carried detail at its value (0 = the paper's energy)", "seams.valueWeight")
-        ->check(CLI::NonNegativeNumber);
+        ->check(finiteIn(0.0));
     num(app, "--box-weight,--seams.boxWeight", seams.boxWeight,
         "Weight of the seam-solve rows holding U_h's coarse-cell means (0 = free; coarseTolerance bounds them)",
         "seams.boxWeight")
-        ->check(CLI::NonNegativeNumber);
+        ->check(finiteIn(0.0));
     setting(addEnum<turb::SeamSolver>(app, "--seam-solver,--seams.solver", seams.solver,
                 {{"cgnr", turb::SeamSolver::Cgnr}, {"eigen", turb::SeamSolver::EigenLscg}},
                 "Seam E-step solver: cgnr (matrix-free, parallel) or eigen (Eigen's LeastSquaresConjugateGradient)"),
@@ -796,7 +804,7 @@ void addDetailSettings(CLI::App* app, turb::TransferSettings& s)
     num(app, "--coherence", s.coherence,
         "Take a neighbour's continued source patch within this fraction of the best E_h (0 = off, the paper)",
         "coherence")
-        ->check(CLI::NonNegativeNumber);
+        ->check(finiteIn(0.0));
     setting(app->add_flag("--whole-fresh-patches,--solveFreshPatchesWhole", s.solveFreshPatchesWhole,
                 "Solve every voxel of patches without carried detail, not only the seam band"),
         "solveFreshPatchesWhole");
@@ -814,7 +822,7 @@ void addDetailSettings(CLI::App* app, turb::TransferSettings& s)
         "followSourceFlow", "false");
     num(app, "--follow-tolerance,--followTolerance", s.followTolerance,
         "Keep a patch's continuation while its E_h is within (1 + this) of the best", "followTolerance")
-        ->check(CLI::NonNegativeNumber);
+        ->check(finiteIn(0.0));
     num(app, "--source-smoke,--sourceSmoke", s.sourceSmoke,
         "Fraction of a source patch's voxels that must hold smoke for it to be a candidate (0 = any, the paper)",
         "sourceSmoke")
@@ -940,7 +948,7 @@ Command transferCommand()
         app->add_option("--preroll", a.preroll,
                "Run up to N cache frames before the first requested one without writing them, so the detail and "
                "density are established as in a longer run")
-            ->check(CLI::NonNegativeNumber);
+            ->check(finiteIn(0.0));
         app->add_flag(
             "--resume", a.resume, "Skip frames already written and continue from the state saved in the last one");
         app->add_flag("--json", a.json, "One JSON line per frame and a summary on stdout");

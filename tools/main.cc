@@ -105,7 +105,7 @@ void addReadOptions(CLI::App* app, turbio::ReadOptions& opt, const std::string& 
         ->group(kGroupInput);
     app->add_option(
            p + "fps", opt.fps, "Frames per second of the shot, for the default time per frame (0: 24, with a warning)")
-        ->check(CLI::PositiveNumber)
+        ->check(finiteIn(0.0))
         ->group(kGroupInput);
     setting(addEnum<turbio::VelocityUnits>(app, p + "vel-units", opt.velocityUnits,
                 {{"auto", turbio::VelocityUnits::Auto}, {"world", turbio::VelocityUnits::World},
@@ -115,14 +115,14 @@ void addReadOptions(CLI::App* app, turbio::ReadOptions& opt, const std::string& 
     setting(
         app->add_option(p + "dt", opt.dt,
                "Time per frame in the velocity's time unit (0: from metadata or the writer's convention, docs/io.md)")
-            ->check(CLI::PositiveNumber),
+            ->check(finiteIn(0.0)),
         p.substr(2) + "dt");
     setting(app->add_flag_function(
                 p + "no-crop", [&opt](int64_t) { opt.cropToSmoke = false; },
                 "Hold the grids' whole active boxes, stray voxels included (default: the smoke and a margin)"),
         p.substr(2) + "no-crop");
     setting(app->add_option(p + "crop-margin", opt.cropMargin, "Voxels kept around the smoke when cropping")
-                ->check(CLI::NonNegativeNumber),
+                ->check(finiteIn(0.0)),
         p.substr(2) + "crop-margin");
 }
 
@@ -199,6 +199,23 @@ std::string messageWithFlags(const turb::Error& e)
     return std::string(e.what()) + " (" + flags + ")";
 }
 
+namespace {
+
+// A check for a finite number that `accept` takes; "nan" is named as not a number, the rest get "must be a finite
+// TEXT".
+CLI::Validator finiteNumber(std::function<bool(double)> accept, const std::string& text)
+{
+    return CLI::Validator(
+        [accept, text](std::string& s) -> std::string {
+            double v = 0.0;
+            if (parseNumber(s, v) && std::isnan(v)) return s + " is not a number";
+            return parseNumber(s, v) && std::isfinite(v) && accept(v) ? std::string() : "must be a finite " + text;
+        },
+        text);
+}
+
+} // namespace
+
 CLI::Validator finiteIn(double lo, double hi)
 {
     const auto trimmed = [](std::string s) { // "0.000000" -> "0"
@@ -208,16 +225,15 @@ CLI::Validator finiteIn(double lo, double hi)
         }
         return s;
     };
-    std::string text = hi >= 1e30
-                           ? "NUMBER>=" + trimmed(std::to_string(lo))
-                           : "NUMBER in [" + trimmed(std::to_string(lo)) + ", " + trimmed(std::to_string(hi)) + "]";
-    return CLI::Validator(
-        [lo, hi, text](std::string& s) -> std::string {
-            double v = 0.0;
-            return parseNumber(s, v) && std::isfinite(v) && v >= lo && v <= hi ? std::string()
-                                                                               : "must be a finite " + text;
-        },
-        text);
+    const std::string text =
+        hi >= 1e30 ? "NUMBER>=" + trimmed(std::to_string(lo))
+                   : "NUMBER in [" + trimmed(std::to_string(lo)) + ", " + trimmed(std::to_string(hi)) + "]";
+    return finiteNumber([lo, hi](double v) { return v >= lo && v <= hi; }, text);
+}
+
+CLI::Validator finitePositive()
+{
+    return finiteNumber([](double v) { return v > 0.0; }, "NUMBER>0");
 }
 
 std::vector<Command> allCommands()
