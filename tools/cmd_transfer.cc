@@ -16,6 +16,7 @@
 #include <turbio/Vdb.h>
 
 #include <algorithm>
+#include <set>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -310,8 +311,19 @@ void checkResumable(const std::string& prevPath, const turb::Frame& prevOut, con
 {
     std::vector<std::string> diff;
     const auto saved = prevOut.metadata.find(turb::meta::kSettings);
-    if (saved != prevOut.metadata.end()) diff = turb::settingsDifferences(saved->second, turb::outputSettingsText(s));
-    else
+    if (saved != prevOut.metadata.end()) {
+        diff = turb::settingsDifferences(saved->second, turb::outputSettingsText(s));
+        // Of a setting with a 2D twin ("band", "band-2d"), only the one for the frame's kind matters.
+        const bool flat = turb::isFlat(prevOut.velocity.bbox());
+        static const std::set<std::string> kTwins3D = {
+            "band", "cg-tolerance", "detail-energy", "regenerate-blend", "structure-tolerance"};
+        const auto otherKind = [&](const std::string& d) {
+            const std::string name = d.substr(0, d.find(':'));
+            const bool twin2D = name.size() > 3 && name.compare(name.size() - 3, 3, "-2d") == 0;
+            return flat ? kTwins3D.count(name) > 0 : twin2D;
+        };
+        diff.erase(std::remove_if(diff.begin(), diff.end(), otherKind), diff.end());
+    } else
         logWarning(
             prevPath + ": no vdbturb_settings metadata (written by an older vdbturb): the settings cannot be checked");
     // Older outputs carry no write settings: nothing to compare them with.

@@ -164,8 +164,7 @@ std::vector<std::pair<std::string, std::string>> outputSettings(const TransferSe
         {"follow-tolerance", num(s.followTolerance)}, {"coherence", num(s.coherence)},
         {"coherence-sweeps", num(s.coherenceSweeps)}, {"temporal-blend", num(s.temporalBlend)},
         {"regenerate", num(s.regenerate)}, {"regenerate-blend", num(s.regenerateBlend)},
-        {"regenerate-blend-2d", num(s.regenerateBlend2D)}, {"structure-tolerance", num(s.structureTolerance)},
-        {"structure-tolerance-2d", num(s.structureTolerance2D)}, {"align", align[int(s.alignment)]},
+        {"regenerate-blend-2d", num(s.regenerateBlend2D)}, {"align", align[int(s.alignment)]},
         {"resample-source", flag(s.resampleSource)}, {"seams", flag(s.seams.enabled)}, {"band", num(s.seams.bandWidth)},
         {"boundary-patch", num(s.seams.boundaryPatch)}, {"gamma", num(s.seams.gamma)},
         {"em-iterations", num(s.seams.maxEmIterations)}, {"em-tolerance", num(s.seams.emTolerance)},
@@ -185,6 +184,10 @@ std::vector<std::pair<std::string, std::string>> outputSettings(const TransferSe
     if (s.seams.bandWidth2D != SeamSettings{}.bandWidth2D) out.emplace_back("band-2d", num(s.seams.bandWidth2D));
     if (s.seams.cgTolerance2D != SeamSettings{}.cgTolerance2D)
         out.emplace_back("cg-tolerance-2d", num(s.seams.cgTolerance2D));
+    if (s.structureTolerance != TransferSettings{}.structureTolerance)
+        out.emplace_back("structure-tolerance", num(s.structureTolerance));
+    if (s.structureTolerance2D != TransferSettings{}.structureTolerance2D)
+        out.emplace_back("structure-tolerance-2d", num(s.structureTolerance2D));
     return out;
 }
 
