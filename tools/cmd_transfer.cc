@@ -16,13 +16,13 @@
 #include <turbio/Vdb.h>
 
 #include <algorithm>
-#include <set>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <future>
 #include <memory>
 #include <optional>
+#include <set>
 #include <sstream>
 
 namespace vdbturb {
