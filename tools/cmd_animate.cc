@@ -839,14 +839,14 @@ void addAnimateSettings(CLI::App* app, AnimateArgs& a)
         "refine.orient");
     knob("--wf,--refine.wf", s.refine.wf, "w_f: blur of the refined orientation, Gaussian std in pixels (paper 12)",
         "refine.wf")
-        ->check(CLI::Range(0.1, 500.0));
+        ->check(finiteIn(0.1, 500.0));
     knob("--tau", s.tau, "Lifetime of a residual in frames (paper 16); the output has N - tau frames", "tau")
         ->check(CLI::Range(1, 10000));
     knob("--shutter,--average.shutter", s.average.shutter,
         "Sh: motion blur of the target along the flow for A', in frames", "average.shutter")
-        ->check(CLI::Range(0.0, 200.0));
+        ->check(finiteIn(0.0, 200.0));
     knob("--wa,--average.wa", s.average.wa, "w_a: Gaussian std in pixels after the motion blur for A'", "average.wa")
-        ->check(CLI::Range(0.0, 500.0));
+        ->check(finiteIn(0.0, 500.0));
     knob("--patch,--transfer.patchSize", s.transfer.patchSize, "Residual transfer patch size in pixels (paper 8-32)",
         "transfer.patchSize")
         ->check(CLI::Range(8, 64));
@@ -857,7 +857,7 @@ void addAnimateSettings(CLI::App* app, AnimateArgs& a)
         "Residual transfer: candidates within this fraction of the patch's design speed of the best are equally good, "
         "and the one farthest from its neighbours' windows is taken (0: the nearest, the paper)",
         "transfer.variety")
-        ->check(CLI::Range(0.0, 1.0));
+        ->check(finiteIn(0.0, 1.0));
     knob("--transfer.candidates", s.transfer.candidates,
         "Residual transfer: random example windows costed per patch besides the 8 nearest (only with variety > 0)",
         "transfer.candidates")

@@ -543,7 +543,7 @@ CLI::Validator modesCheck()
 void addPictureSettings(CLI::App* app, PreviewArgs& a)
 {
     setting(app->add_option("--slice", a.slice, "Slice position for speed/vorticity/lic, fraction along the view axis")
-                ->check(CLI::Range(0.0, 1.0)),
+                ->check(finiteIn(0.0, 1.0)),
         "slice");
     setting(app->add_option("--exposure", a.exposure, "Density render exposure, fixed for all frames")
                 ->check(finitePositive()),

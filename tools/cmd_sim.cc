@@ -297,7 +297,7 @@ void addSolverSettings(CLI::App* app, SimArgs& a)
         "scheme");
     setting(app->add_option(
                    "--tolerance,--pressureTolerance", a.pressureTolerance, "Pressure solve: max|div| after / before")
-                ->check(CLI::Range(1e-12, 0.5)),
+                ->check(finiteIn(1e-12, 0.5)),
         "pressureTolerance");
     setting(addEnum<Preconditioner>(app, "--preconditioner", a.preconditioner,
                 {{"ic", Preconditioner::IncompleteCholesky}, {"jacobi", Preconditioner::Jacobi}},

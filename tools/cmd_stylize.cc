@@ -385,8 +385,8 @@ void addLazyFluidsSettings(CLI::App* app, turb::StylizeSettings& s)
         "blurRadius")
         ->check(finitePositive());
     knob("--lower", s.lower, "l: boundary segment where the blurred alpha lies in (l, u)", "lower")
-        ->check(CLI::Range(0.0, 1.0));
-    knob("--upper", s.upper, "u: interior segment where the blurred alpha >= u", "upper")->check(CLI::Range(0.0, 1.0));
+        ->check(finiteIn(0.0, 1.0));
+    knob("--upper", s.upper, "u: interior segment where the blurred alpha >= u", "upper")->check(finiteIn(0.0, 1.0));
     knob("--levels", s.levels, "Pyramid levels (0 = short sides >= 32 px, at most 5)", "levels")
         ->check(CLI::Range(0, 8));
     knob("--iterations", s.iterations, "EM iterations on each coarser level", "iterations")->check(CLI::Range(1, 50));

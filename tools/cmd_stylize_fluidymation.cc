@@ -352,7 +352,7 @@ void addFluidymationOptions(CLI::App* app, StylizeArgs& a)
         "target-flow");
     knob("--mask-threshold", f.maskThreshold, "Target alpha / rendered opacity at or above this is inside the mask",
         "mask-threshold")
-        ->check(CLI::Range(0.001, 1.0));
+        ->check(finiteIn(0.001, 1.0));
     setting(app->add_flag("--estimate-flow", f.estimateFlow,
                 m + "Estimate the target's flow from its masks even when one is given"),
         "estimate-flow");
@@ -364,7 +364,7 @@ void addFluidymationOptions(CLI::App* app, StylizeArgs& a)
     knob("--n,--fluidy.patchSize", s.patchSize, "Patch size n", "fluidy.patchSize")->check(CLI::Range(3, 15));
     knob("--b,--fluidy.boundaryBlur", s.boundaryBlur, "Boundary blur radius b in pixels (sigma = b/3)",
         "fluidy.boundaryBlur")
-        ->check(CLI::Range(0.1, 1000.0));
+        ->check(finiteIn(0.1, 1000.0));
     knob("--r,--fluidy.cuboidFrames", s.cuboidFrames,
         "Occurrence cuboid half-length r in frames (the exemplar needs 2r+1)", "fluidy.cuboidFrames")
         ->check(CLI::Range(0, 50));
@@ -374,9 +374,9 @@ void addFluidymationOptions(CLI::App* app, StylizeArgs& a)
     knob("--w-temp,--fluidy.wTemp", s.wTemp, "w^temp", "fluidy.wTemp")->check(finiteIn(0.0));
     knob("--w-uni,--fluidy.wUni", s.wUni, "w^uni", "fluidy.wUni")->check(finiteIn(0.0));
     knob("--m-lower,--fluidy.mLower", s.mLower, "m_l as a fraction of the target's larger side", "fluidy.mLower")
-        ->check(CLI::Range(0.0, 10.0));
+        ->check(finiteIn(0.0, 10.0));
     knob("--m-upper,--fluidy.mUpper", s.mUpper, "m_u as a fraction of the target's larger side", "fluidy.mUpper")
-        ->check(CLI::Range(0.0, 10.0));
+        ->check(finiteIn(0.0, 10.0));
     knob("--dir-clamp,--fluidy.dirClamp", s.dirClamp, "Clamp of |tan| in D^dir", "fluidy.dirClamp")
         ->check(finitePositive());
     knob("--extent-scale,--fluidy.extentScale", s.extentScale,

@@ -857,7 +857,7 @@ void addSynthesisSettings(CLI::App* app, SynthArgs& a)
         ->check(CLI::Range(1, 256));
     knob(app, "--robust,--synth.robustExponent", s.robustExponent,
         "Robust exponent r of Kwatra's weights (2 = least squares)", "synth.robustExponent")
-        ->check(CLI::Range(0.01, 2.0));
+        ->check(finiteIn(0.01, 2.0));
     boolSetting(app, "--synth.matchVariance", s.matchVariance,
         "3D: views keep their mean and spread (false: the paper's plain average)", "synth.matchVariance");
     legacy(app->add_flag_function(
@@ -925,7 +925,7 @@ void addCombineSettings(CLI::App* app, SynthArgs& a)
         "combine.solenoidalDetail", "false");
     knob(app, "--combine.solenoidalTolerance", c.solenoidalTolerance,
         "Relative rms divergence left in the detail by that solve", "combine.solenoidalTolerance")
-        ->check(CLI::Range(1e-9, 0.999));
+        ->check(finiteIn(1e-9, 0.999));
     knob(app, "--combine.solenoidalIterations", c.solenoidalIterations, "Conjugate-gradient cap of that solve",
         "combine.solenoidalIterations")
         ->check(CLI::Range(1, 100000));

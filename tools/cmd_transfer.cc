@@ -770,13 +770,13 @@ void addSeamSettings(CLI::App* app, turb::SeamSettings& seams)
         "seams.maxCgIterations")
         ->check(CLI::Range(1, 100000));
     num(app, "--seams.cgTolerance", seams.cgTolerance, "CG relative residual (3D)", "seams.cgTolerance")
-        ->check(CLI::Range(1e-12, 1.0));
+        ->check(finiteIn(1e-12, 1.0));
     num(app, "--seams.cgTolerance2D", seams.cgTolerance2D, "CG relative residual on 2D caches", "seams.cgTolerance2D")
-        ->check(CLI::Range(1e-12, 1.0));
+        ->check(finiteIn(1e-12, 1.0));
     legacy(app->add_option_function<double>(
                   "--cg-tolerance", [&seams](double v) { seams.cgTolerance = seams.cgTolerance2D = v; },
                   "Both CG tolerances")
-               ->check(CLI::Range(1e-12, 1.0)),
+               ->check(finiteIn(1e-12, 1.0)),
         "seams.cgTolerance,seams.cgTolerance2D");
     num(app, "--value-weight,--seams.valueWeight", seams.valueWeight,
         "Weight of seam-solve rows keeping carried detail at its value (0 = the paper's energy)", "seams.valueWeight")
@@ -793,7 +793,7 @@ void addSeamSettings(CLI::App* app, turb::SeamSettings& seams)
         "Fraction of each coarse cell's mean of U_h the seam solve keeps (1: leaves the coarse motion; 0: pulls it to "
         "0)",
         "seams.boxKeep")
-        ->check(CLI::Range(0.0, 1.0));
+        ->check(finiteIn(0.0, 1.0));
     boolSetting(
         app, "--seams.enabled", seams.enabled, "Seam smoothing (false: paste patches as they are)", "seams.enabled");
     legacy(app->add_flag_function(
@@ -807,7 +807,7 @@ void addDetailSettings(CLI::App* app, turb::TransferSettings& s)
     num(app, "--coarse-tolerance,--coarseTolerance", s.coarseTolerance,
         "lf_err bound: U_h's coarse-cell means are reduced only down to this fraction of the target's (0 = exactly)",
         "coarseTolerance")
-        ->check(CLI::Range(0.0, 1.0));
+        ->check(finiteIn(0.0, 1.0));
     boolSetting(app, "--removeCoarseDetail", s.removeCoarseDetail, "Reduce U_h's coarse part (false lets lf_err grow)",
         "removeCoarseDetail");
     legacy(app->add_flag_function(
@@ -838,7 +838,7 @@ void addDetailSettings(CLI::App* app, turb::TransferSettings& s)
     num(app, "--source-smoke,--sourceSmoke", s.sourceSmoke,
         "Fraction of a source patch's voxels that must hold smoke for it to be a candidate (0 = any, the paper)",
         "sourceSmoke")
-        ->check(CLI::Range(0.0f, 1.0f));
+        ->check(finiteIn(0.0, 1.0));
     boolSetting(app, "--trackGlobalPatches", s.trackGlobalPatches,
         "Follow last frame's global patch (false: global search every frame)", "trackGlobalPatches");
     legacy(app->add_flag_function(
@@ -875,26 +875,26 @@ void addTimeSettings(CLI::App* app, TransferArgs& a)
     turb::TransferSettings& s = a.settings;
     num(app, "--temporal-blend,--temporalBlend", s.temporalBlend,
         "Weight of last frame's detail advected through the target (0 = the paper)", "temporalBlend")
-        ->check(CLI::Range(0.0, 0.999));
+        ->check(finiteIn(0.0, 0.999));
     num(app, "--regenerate", s.regenerate,
         "Regenerate carried detail stretched below this fraction of the fresh patches' anisotropy (0 = off)",
         "regenerate")
-        ->check(CLI::Range(0.0, 1.0));
+        ->check(finiteIn(0.0, 1.0));
     num(app, "--regenerateBlend", s.regenerateBlend, "Carried weight per frame in a regenerated patch (3D)",
         "regenerateBlend")
-        ->check(CLI::Range(0.0, 0.999));
+        ->check(finiteIn(0.0, 0.999));
     num(app, "--regenerateBlend2D", s.regenerateBlend2D, "The same on 2D caches", "regenerateBlend2D")
-        ->check(CLI::Range(0.0, 0.999));
+        ->check(finiteIn(0.0, 0.999));
     num(app, "--structureTolerance", s.structureTolerance,
         "Regenerate more patches while the detail's anisotropy is this fraction off the source's (3D; 0 = off)",
         "structureTolerance")
-        ->check(CLI::Range(0.0, 0.99));
+        ->check(finiteIn(0.0, 0.99));
     num(app, "--structureTolerance2D", s.structureTolerance2D, "The same on 2D caches", "structureTolerance2D")
-        ->check(CLI::Range(0.0, 0.99));
+        ->check(finiteIn(0.0, 0.99));
     legacy(app->add_option_function<float>(
                   "--regenerate-blend", [&s](float v) { s.regenerateBlend = s.regenerateBlend2D = v; },
                   "Both regeneration blends")
-               ->check(CLI::Range(0.0, 0.999)),
+               ->check(finiteIn(0.0, 0.999)),
         "regenerateBlend,regenerateBlend2D");
     setting(addEnum<turb::FlowAlignment>(app, "--align,--alignment", s.alignment,
                 {{"none", turb::FlowAlignment::None}, {"normalize", turb::FlowAlignment::Normalize},

@@ -218,16 +218,13 @@ CLI::Validator finiteNumber(std::function<bool(double)> accept, const std::strin
 
 CLI::Validator finiteIn(double lo, double hi)
 {
-    const auto trimmed = [](std::string s) { // "0.000000" -> "0"
-        if (s.find('.') != std::string::npos) {
-            while (!s.empty() && s.back() == '0') s.pop_back();
-            if (!s.empty() && s.back() == '.') s.pop_back();
-        }
-        return s;
+    const auto trimmed = [](double v) { // 0 -> "0", 1e-12 -> "1e-12", 0.999 -> "0.999"
+        char b[32];
+        std::snprintf(b, sizeof(b), "%g", v);
+        return std::string(b);
     };
     const std::string text =
-        hi >= 1e30 ? "NUMBER>=" + trimmed(std::to_string(lo))
-                   : "NUMBER in [" + trimmed(std::to_string(lo)) + ", " + trimmed(std::to_string(hi)) + "]";
+        hi >= 1e30 ? "NUMBER>=" + trimmed(lo) : "NUMBER in [" + trimmed(lo) + ", " + trimmed(hi) + "]";
     return finiteNumber([lo, hi](double v) { return v >= lo && v <= hi; }, text);
 }
 
