@@ -149,7 +149,17 @@ TEST(AnimateAnalysis, TracksOfTranslatedNoiseCarryItsShift)
 {
     // The tracks behind the mean flow, one by one: every pair tracked, each displacement the shift.
     const double sx = 1.5, sy = -0.5;
-    const std::vector<FlowTrack> tracks = trackFlow(translatedNoise(96, 80, 12, sx, sy), AnalysisSettings{});
+    const std::vector<ChannelImage> frames = translatedNoise(96, 80, 12, sx, sy);
+    const std::vector<FlowTrack> tracks = trackFlow(frames, AnalysisSettings{});
+    // estimateMeanFlow hands out the same tracks from its one tracking pass.
+    std::vector<FlowTrack> fromMeanFlow;
+    estimateMeanFlow(frames, AnalysisSettings{}, nullptr, nullptr, &fromMeanFlow);
+    ASSERT_EQ(fromMeanFlow.size(), tracks.size());
+    for (size_t i = 0; i < tracks.size(); ++i) {
+        EXPECT_EQ(fromMeanFlow[i].pair, tracks[i].pair);
+        EXPECT_EQ(fromMeanFlow[i].x, tracks[i].x);
+        EXPECT_EQ(fromMeanFlow[i].dx, tracks[i].dx);
+    }
     std::vector<int> perPair(11, 0);
     std::vector<double> err;
     for (const FlowTrack& t : tracks) {
@@ -787,8 +797,9 @@ MotionRun runMotion(const ChannelImage& target, HmApply apply)
             if (name == "refined") designed = img;
         });
     EXPECT_EQ(out.size(), 32u);
-    r.tracks = compareTracks(trackFlow(out, AnalysisSettings{}), designed);
-    r.field = compareFlows(estimateMeanFlow(out, AnalysisSettings{}), designed);
+    std::vector<FlowTrack> tracks;
+    r.field = compareFlows(estimateMeanFlow(out, AnalysisSettings{}, nullptr, nullptr, &tracks), designed);
+    r.tracks = compareTracks(tracks, designed);
     return r;
 }
 

@@ -494,10 +494,10 @@ Measures startMeasures(const AnimateArgs& a, const Example& example, const Targe
     // Calibration of the measurement: the same tracking on the example against the cache's own flow.
     if (example.flow)
         turb::withThreads(globals().threads, [&] {
-            m.exampleAgreement =
-                turb::compareFlows(turb::estimateMeanFlow(example.frames, s.analysis), *example.flow, nullptr, 0.25);
-            m.exampleTracks =
-                turb::compareTracks(turb::trackFlow(example.frames, s.analysis), *example.flow, nullptr, 0.25);
+            std::vector<turb::FlowTrack> tracks; // one tracking pass gives both measures
+            const turb::ChannelImage v = turb::estimateMeanFlow(example.frames, s.analysis, nullptr, nullptr, &tracks);
+            m.exampleAgreement = turb::compareFlows(v, *example.flow, nullptr, 0.25);
+            m.exampleTracks = turb::compareTracks(tracks, *example.flow, nullptr, 0.25);
         });
     return m;
 }
@@ -508,12 +508,13 @@ void finishMeasures(const AnimateArgs& a, const Measures& m, const turb::Channel
 {
     turb::AnalysisSettings as = a.settings.analysis;
     turb::AnalysisStats tracked;
-    const turb::ChannelImage measured = turb::estimateMeanFlow(m.outLuma, as, &tracked);
+    std::vector<turb::FlowTrack> tracks; // one tracking pass gives both measures
+    const turb::ChannelImage measured = turb::estimateMeanFlow(m.outLuma, as, &tracked, nullptr, &tracks);
     const turb::ChannelImage* matte = target.matte ? &*target.matte : nullptr;
     // No pair tracked: the interpolated field is zero by default, not a measurement.
     const turb::FlowAgreement fa = tracked.pairsUsed > 0 ? turb::compareFlows(measured, designed, matte)
                                                          : turb::FlowAgreement{std::nan(""), std::nan(""), 0.0};
-    const turb::FlowAgreement ft = turb::compareTracks(turb::trackFlow(m.outLuma, as), designed, matte);
+    const turb::FlowAgreement ft = turb::compareTracks(tracks, designed, matte);
     const turb::TemporalSummary te = m.exTemporal->summary(), to = m.outTemporal->summary();
     summary["quality"] = {{"track_median_angle_deg", ft.medianAngleDeg},
         {"track_median_speed_ratio", ft.medianSpeedRatio}, {"track_fraction", ft.pixels},

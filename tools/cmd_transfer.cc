@@ -623,7 +623,6 @@ int runTransfer(TransferArgs& a)
         // One box for the whole range, so --resume and the farm join see the same box on every frame.
         a.targetRead.holdBox = turb::parseTileBox(a.tileBox);
     }
-    globals().json = a.json;
     FramePlan p = planFrames(a);
     defaultSourceMargin(a, p.target, p.source, p.sourceFor);
     logVerbose("source crop margin: " + std::to_string(a.sourceRead.cropMargin) + " source voxels");

@@ -72,11 +72,6 @@ struct ExampleDecomposition
 ExampleDecomposition decomposeExample(std::vector<ChannelImage> frames, const AnalysisSettings& settings,
     Progress* progress = nullptr, const ChannelImage* givenFlow = nullptr);
 
-/// The mean flow of a sequence alone (section 4.2), e.g. to analyse an output: the frames' own average
-/// is removed first. Returns v (2 channels) and fills `stats` when given.
-ChannelImage estimateMeanFlow(const std::vector<ChannelImage>& frames, const AnalysisSettings& settings,
-    AnalysisStats* stats = nullptr, Progress* progress = nullptr);
-
 /// One feature tracked from frame `pair` to frame `pair + 1`.
 struct FlowTrack
 {
@@ -84,6 +79,12 @@ struct FlowTrack
     float x = 0.0f, y = 0.0f;   ///< position in frame `pair` (pixels, x right, y down)
     float dx = 0.0f, dy = 0.0f; ///< displacement to the next frame (pixels per frame)
 };
+
+/// The mean flow of a sequence alone (section 4.2), e.g. to analyse an output: the frames' own average
+/// is removed first. Returns v (2 channels), fills `stats` when given, and `tracks` with the tracks it was
+/// interpolated from (those of trackFlow, from the same single tracking pass) when given.
+ChannelImage estimateMeanFlow(const std::vector<ChannelImage>& frames, const AnalysisSettings& settings,
+    AnalysisStats* stats = nullptr, Progress* progress = nullptr, std::vector<FlowTrack>* tracks = nullptr);
 
 /// The tracks behind estimateMeanFlow, before any interpolation: the Lucas-Kanade tracks of section 4.2 between
 /// consecutive frames of the differences from the frames' own average that pass the round-trip and

@@ -147,12 +147,37 @@ std::vector<std::vector<cv::Track>> trackPairs(
     return tracks;
 }
 
+/// The frames less their own mean A (eq. 1's D_i), in place; A into `average` when given.
+std::vector<ChannelImage> differencesFromMean(std::vector<ChannelImage> frames, ChannelImage* average = nullptr)
+{
+    const ChannelImage A = meanImage(frames);
+    for (ChannelImage& f : frames) {
+        float* d = f.data().data();
+        const float* a = A.data().data();
+        parallelFor(f.data().size(), 1 << 14, [&](size_t b, size_t e) {
+            for (size_t q = b; q < e; ++q) d[q] -= a[q];
+        });
+    }
+    if (average) *average = A;
+    return frames;
+}
+
+/// The tracks of every pair, in pair order.
+std::vector<FlowTrack> flowTracks(const std::vector<std::vector<cv::Track>>& pairs)
+{
+    std::vector<FlowTrack> out;
+    for (size_t i = 0; i < pairs.size(); ++i)
+        for (const cv::Track& t : pairs[i]) out.push_back(FlowTrack{int(i), t.x, t.y, t.dx, t.dy});
+    return out;
+}
+
 /// Sparse Lucas-Kanade flow of each consecutive pair, interpolated with phi = r and averaged (4.2).
-ChannelImage trackedMeanFlow(
-    const std::vector<ChannelImage>& diffs, const AnalysisSettings& s, AnalysisStats& stats, Progress* progress)
+ChannelImage trackedMeanFlow(const std::vector<ChannelImage>& diffs, const AnalysisSettings& s, AnalysisStats& stats,
+    Progress* progress, std::vector<FlowTrack>* tracksOut = nullptr)
 {
     const int W = diffs[0].width(), H = diffs[0].height();
     const std::vector<std::vector<cv::Track>> tracks = trackPairs(diffs, s, progress);
+    if (tracksOut) *tracksOut = flowTracks(tracks);
     const size_t pairs = tracks.size(), chunks = (pairs + kPairGrain - 1) / kPairGrain;
     stats.pairs = int(pairs);
     std::vector<ChannelImage> chunkSum(chunks);
@@ -188,18 +213,6 @@ ChannelImage trackedMeanFlow(
     return flow;
 }
 
-/// The frames less their own mean, A.
-std::vector<ChannelImage> differencesFromMean(const std::vector<ChannelImage>& frames)
-{
-    const ChannelImage A = meanImage(frames);
-    std::vector<ChannelImage> diffs(frames.size());
-    for (size_t i = 0; i < frames.size(); ++i) {
-        diffs[i] = frames[i];
-        for (size_t q = 0; q < A.data().size(); ++q) diffs[i].data()[q] -= A.data()[q];
-    }
-    return diffs;
-}
-
 /// Mean |v| over the pixels that move: |v| >= 10% of the 99th percentile (a cache's background and a
 /// video's still parts would dilute the speed a stroke fetches).
 double meanSpeed(const ChannelImage& flow)
@@ -223,13 +236,13 @@ double meanSpeed(const ChannelImage& flow)
 
 } // namespace
 
-ChannelImage estimateMeanFlow(
-    const std::vector<ChannelImage>& frames, const AnalysisSettings& settings, AnalysisStats* stats, Progress* progress)
+ChannelImage estimateMeanFlow(const std::vector<ChannelImage>& frames, const AnalysisSettings& settings,
+    AnalysisStats* stats, Progress* progress, std::vector<FlowTrack>* tracks)
 {
     validate(settings);
     checkFrames(frames);
     AnalysisStats st;
-    ChannelImage v = trackedMeanFlow(differencesFromMean(frames), settings, st, progress);
+    ChannelImage v = trackedMeanFlow(differencesFromMean(frames), settings, st, progress, tracks);
     st.meanSpeed = meanSpeed(v);
     if (stats) *stats = st;
     return v;
@@ -240,11 +253,7 @@ std::vector<FlowTrack> trackFlow(
 {
     validate(settings);
     checkFrames(frames);
-    const std::vector<std::vector<cv::Track>> pairs = trackPairs(differencesFromMean(frames), settings, progress);
-    std::vector<FlowTrack> out;
-    for (size_t i = 0; i < pairs.size(); ++i)
-        for (const cv::Track& t : pairs[i]) out.push_back(FlowTrack{int(i), t.x, t.y, t.dx, t.dy});
-    return out;
+    return flowTracks(trackPairs(differencesFromMean(frames), settings, progress));
 }
 
 ExampleDecomposition decomposeExample(std::vector<ChannelImage> frames, const AnalysisSettings& settings,
@@ -255,14 +264,7 @@ ExampleDecomposition decomposeExample(std::vector<ChannelImage> frames, const An
     const int W = frames[0].width(), H = frames[0].height();
     ExampleDecomposition ex;
     if (progress) progress->begin("average");
-    ex.average = meanImage(frames);
-    for (ChannelImage& f : frames) {
-        float* d = f.data().data();
-        const float* a = ex.average.data().data();
-        parallelFor(f.data().size(), 1 << 14, [&](size_t b, size_t e) {
-            for (size_t q = b; q < e; ++q) d[q] -= a[q];
-        });
-    }
+    frames = differencesFromMean(std::move(frames), &ex.average);
     if (givenFlow) {
         if (givenFlow->channels() != 2 || givenFlow->width() != W || givenFlow->height() != H)
             throw ValueError(
