@@ -778,9 +778,11 @@ TEST(Transfer2D, BuiltInPairEndToEndWithinTheQualityTargets)
             EXPECT_LT(it.cgIterations, 80) << "frame " << i;
         }
     }
-    // The quality targets of the 3D transfer (docs/transfer.md), measured by `measure`'s own code, on frames 8-12:
-    // like the 3D transfer, the first frames of a shot carry more divergence than the source's.
-    for (size_t i = 7; i < out.size(); ++i) {
+    // The quality targets of the 3D transfer (docs/transfer.md), measured by `measure`'s own code: the structure
+    // target from frame 4, the rest on frames 8-12 (like the 3D transfer, the first frames of a shot carry more
+    // divergence than the source's).
+    int redone = 0;
+    for (size_t i = 3; i < out.size(); ++i) {
         MeasureInput in;
         in.output = &out[i].frame;
         in.target = &pr.targets[i];
@@ -791,6 +793,16 @@ TEST(Transfer2D, BuiltInPairEndToEndWithinTheQualityTargets)
         MeasureSettings ms;
         ms.spectra = false;
         const FrameMeasures m = measureFrame(in, ms);
+        // The structure target: the detail's anisotropy along the target's flow within 0.8-1.25 of the source's
+        // (measured 0.86-1.11 here; 0.59-0.82 on frames 8-12 without the structure goal, see the next test, and
+        // 0.74-0.76 on frames 4-5 before the goal checked the finished frame). The transfer's own figure is
+        // `measure`'s up to the source's smoke mask (measured within 6%).
+        ASSERT_TRUE(m.anisoRatio && out[i].stats.structureRatio) << "frame " << i;
+        EXPECT_GE(*m.anisoRatio, 0.8) << "frame " << i;
+        EXPECT_LE(*m.anisoRatio, 1.25) << "frame " << i;
+        EXPECT_NEAR(*out[i].stats.structureRatio, *m.anisoRatio, 0.1 * *m.anisoRatio) << "frame " << i;
+        redone += out[i].stats.structureRedone;
+        if (i < 7) continue;
         ASSERT_TRUE(m.lfErr && m.hfRatio && m.divRel && m.divRelSource && m.block) << "frame " << i;
         EXPECT_LE(*m.lfErr, 0.05) << "frame " << i;
         EXPECT_GE(*m.hfRatio, 0.8) << "frame " << i;
@@ -801,17 +813,14 @@ TEST(Transfer2D, BuiltInPairEndToEndWithinTheQualityTargets)
         ASSERT_TRUE(m.aniso && m.isotropy) << "frame " << i;
         EXPECT_GT(*m.isotropy, 0.0);
         EXPECT_LE(*m.isotropy, 1.0);
-        // The structure target: the detail's anisotropy along the target's flow within 0.8-1.25 of the source's
-        // (measured 0.97-1.15 here; 0.59-0.82 without the structure goal, see the next test).
-        ASSERT_TRUE(m.anisoRatio) << "frame " << i;
-        EXPECT_GE(*m.anisoRatio, 0.8) << "frame " << i;
-        EXPECT_LE(*m.anisoRatio, 1.25) << "frame " << i;
     }
+    // Frames 4-6 finished more than twice the tolerance off and ran the blend and seam solve again.
+    EXPECT_GT(redone, 0);
 }
 
 // The structure goal (structureTolerance2D) is what keeps the carried detail at the source's anisotropy: without it
 // the target's rising flow stretches the detail below 0.8 of the source's on frames 8-12 (measured 0.59-0.82); with
-// it the goal regenerates patches and every one of those frames is closer to the source's (0.97-1.15).
+// it the goal regenerates patches and every one of those frames is closer to the source's (1.02-1.11).
 TEST(Transfer2D, TheStructureGoalKeepsTheSourcesAnisotropy)
 {
     const Pair2D& pr = pair2D();

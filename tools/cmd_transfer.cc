@@ -547,6 +547,8 @@ nlohmann::json frameJson(const turb::TransferResult& r, const std::string& outPa
     extra["followed"] = st.followedPatches;
     extra["regenerated"] = st.regeneratedPatches;
     extra["regenerated_for_structure"] = st.structureRegenerated;
+    if (st.structureRatio) extra["structure_ratio"] = *st.structureRatio;
+    if (st.structureRedone) extra["structure_redone"] = true;
     extra["continuations"] = st.continuations;
     extra["mean_local_energy"] = st.meanLocalEnergy;
     extra["energy_scale"] = st.energyScale;
@@ -885,7 +887,8 @@ void addTimeSettings(CLI::App* app, TransferArgs& a)
     num(app, "--regenerateBlend2D", s.regenerateBlend2D, "The same on 2D caches", "regenerateBlend2D")
         ->check(finiteIn(0.0, 0.999));
     num(app, "--structureTolerance", s.structureTolerance,
-        "Regenerate more patches while the detail's anisotropy is this fraction off the source's (3D; 0 = off)",
+        "Regenerate more patches while the detail's anisotropy is this fraction off the source's, and redo a frame "
+        "that finishes 3x this off (3D; 0 = off)",
         "structureTolerance")
         ->check(finiteIn(0.0, 0.99));
     num(app, "--structureTolerance2D", s.structureTolerance2D, "The same on 2D caches", "structureTolerance2D")

@@ -118,12 +118,14 @@ struct TransferSettings
                                         ///< the built-in 2D pair, 0.6 on 4)
     float structureTolerance = 0.0f;    ///< beyond the paper: when the frame's blended detail is more than this
                                         ///< fraction off the source's anisotropy along the target's mean flow
-                                        ///< (measure's aniso, before the seam solve), more tracked patches are
-                                        ///< regenerated, at regenerateBlend and then at its square, those that move
-                                        ///< it most first, until it is within. In [0, 1); 0 = off (the 3D default:
-                                        ///< not measured in 3D)
+                                        ///< (measure's aniso, estimated before the seam solve), more tracked
+                                        ///< patches are regenerated, at regenerateBlend and then at its square,
+                                        ///< those that move it most first, until it is within. The finished frame
+                                        ///< is then measured; more than 3x this off, the blend, seam solve and
+                                        ///< calibration run once more, aimed past the goal by the seams' drift
+                                        ///< (TransferStats::structureRedone). In [0, 1); 0 = off (the 3D default)
     float structureTolerance2D = 0.05f; ///< the same for a 2D sequence (built-in 2D pair: aniso_ratio in range on
-                                        ///< 25 of 26 frames from frame 5, against 15 without; docs/transfer.md)
+                                        ///< every frame from 4, against 15 of 26 from 5 without; docs/transfer.md)
     FlowAlignment alignment = FlowAlignment::None; ///< see FlowAlignment
     bool resampleSource = true; ///< beyond the paper: a source at a non-integer ratio is resampled trilinearly to
                                 ///< the nearest integer ratio; false = such a source is an error
@@ -193,6 +195,11 @@ struct TransferStats
     int followedPatches = 0;      ///< patches that took it (followSourceFlow, followTolerance)
     int regeneratedPatches = 0;   ///< patches whose stretched carried detail was regenerated (regenerate)
     int structureRegenerated = 0; ///< of those, the ones the structure goal added (structureTolerance)
+    std::optional<double> structureRatio; ///< with the structure goal: the finished detail's anisotropy along the
+                                          ///< target's mean flow over the source's (`measure`'s aniso_ratio, up to
+                                          ///< its source smoke); empty without a goal or where undefined
+    bool structureRedone = false; ///< the blend, seam solve and calibration ran a second time, because the first
+                                  ///< finished more than 3x structureTolerance off the source's anisotropy
     double meanLocalEnergy = 0.0; ///< mean E_h of the chosen local patches
     double energyScale = 1.0;     ///< factor applied to U_h to meet TransferSettings::detailEnergy
     double coarseKept = 0.0;      ///< fraction of U_h's coarse part left in (coarseTolerance): 0 = removed exactly,

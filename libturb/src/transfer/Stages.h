@@ -215,19 +215,25 @@ PasteResult pastePatches(const LocalSearchResult& local, const SourceBands& src,
 /// anisotropy along the target's mean flow direction `d`; tolerance 0 = no goal.
 struct StructureGoal
 {
-    Vec3d d{0.0};
-    double sourceAniso = 0.0;
+    Vec3d d{0.0};        ///< the target's mean flow direction (unit)
+    double source = 0.0; ///< the source's detail anisotropy along d
+    double aim = 0.0;    ///< what the blend's pre-seam estimate aims at: `source`, moved by the seams' drift
     double tolerance = 0.0;
 };
 /// The goal for this frame: d the mean of up(u_t) over the target's smoke, the source's detail anisotropy over
 /// its smoke along d (as `measure` computes both); no goal when off or when either is undefined.
 StructureGoal structureGoal(const TargetAtOutput& t, const SourceBands& bands, const FrameSetup& fs);
+/// The finished frame's anisotropy along goal.d as `measure` computes it: U = up(u_t) + detail over the output's
+/// smoke (density > densityThreshold). nullopt where it is undefined (no smoke, no gradient).
+std::optional<double> finishedAnisotropy(const VectorField& detail, const TargetAtOutput& t, const ScalarField& density,
+    const StructureGoal& goal, const FrameSetup& fs);
 
 struct TemporalBlend
 {
     std::vector<float> weight;       ///< per layout patch; empty without carried detail
     int regenerated = 0;             ///< patches that took the regeneration weight
     int regeneratedForStructure = 0; ///< of those, the ones the structure goal added
+    double estimate = 0.0;           ///< the goal's estimate of the frame's anisotropy after it (0 without a goal)
 };
 TemporalBlend blendTemporal(VectorField& detail, const TargetAtOutput& t, const VectorField& advectedDetail,
     const LocalSearchResult& local, const PatchTracks& tracks, const FrameSetup& fs, const StructureGoal& goal);

@@ -140,7 +140,7 @@ StretchSums stretchSums(const VectorField& detail, const VectorField& advected, 
 // sorted list: the same at any thread count. Returns the patches whose weight it lowered.
 int regenerateTowardsGoal(const VectorField& fresh, const VectorField& carried, const std::vector<size_t>& act,
     const PatchTracks& tracks, const FrameSetup& fs, const StructureGoal& goal, float regenerated,
-    std::vector<uint8_t>& regen, std::vector<float>& weight)
+    std::vector<uint8_t>& regen, std::vector<float>& weight, double& estimate)
 {
     const auto sumsAt = [&](size_t i, float w, bool keepEnergy) {
         const CoordBBox pb = clippedPatchBox(fs, act[i]);
@@ -154,7 +154,7 @@ int regenerateTowardsGoal(const VectorField& fresh, const VectorField& carried, 
     });
     StructureSums frame; // in patch order
     for (const StructureSums& n : now) frame.along += n.along, frame.across += n.across;
-    const double lo = goal.sourceAniso * (1.0 - goal.tolerance), hi = goal.sourceAniso * (1.0 + goal.tolerance);
+    const double lo = goal.aim * (1.0 - goal.tolerance), hi = goal.aim * (1.0 + goal.tolerance);
     const bool raise = frame.ratio() < lo;
     const auto reached = [&] { return raise ? frame.ratio() >= lo : frame.ratio() <= hi; };
     std::vector<uint8_t> changed(act.size(), 0);
@@ -189,6 +189,7 @@ int regenerateTowardsGoal(const VectorField& fresh, const VectorField& carried, 
             weight[act[i]] = w;
         }
     }
+    estimate = frame.ratio();
     return int(std::count(changed.begin(), changed.end(), uint8_t(1)));
 }
 
@@ -207,9 +208,18 @@ StructureGoal structureGoal(const TargetAtOutput& t, const SourceBands& bands, c
     const std::optional<double> a = highBandAnisotropy(bands.split.high, smokeMask(bands.Ds, s.densityThreshold), mean);
     if (!a || !(*a > 0.0)) return g;
     g.d = mean.unit();
-    g.sourceAniso = *a;
+    g.source = g.aim = *a;
     g.tolerance = tolerance;
     return g;
+}
+
+std::optional<double> finishedAnisotropy(const VectorField& detail, const TargetAtOutput& t, const ScalarField& density,
+    const StructureGoal& goal, const FrameSetup& fs)
+{
+    if (detail.bbox() != t.Ut.bbox() || density.bbox() != detail.bbox()) return std::nullopt;
+    VectorField U = t.Ut;
+    for (size_t n = 0; n < U.size(); ++n) U.data()[n] += detail.data()[n];
+    return detailAnisotropy(U, smokeMask(density, fs.s->densityThreshold), fs.f, goal.d);
 }
 
 TemporalBlend blendTemporal(VectorField& detail, const TargetAtOutput& t, const VectorField& advected,
@@ -269,8 +279,8 @@ TemporalBlend blendTemporal(VectorField& detail, const TargetAtOutput& t, const 
         }
     });
     if (goal.tolerance > 0.0 && regenerated < lambda)
-        out.regeneratedForStructure =
-            regenerateTowardsGoal(detail, advected, act, tracks, fs, goal, regenerated, regen, out.weight);
+        out.regeneratedForStructure = regenerateTowardsGoal(
+            detail, advected, act, tracks, fs, goal, regenerated, regen, out.weight, out.estimate);
     out.regenerated = int(std::count(regen.begin(), regen.end(), uint8_t(1)));
     // A regenerated patch mixes two nearly unrelated fields at comparable weights, and such a mix has less energy
     // than either; the frame's one energy factor would then lift every other patch to make up for it (hf 1.27
