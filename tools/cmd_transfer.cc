@@ -609,6 +609,12 @@ void logFrameDetails(const turb::TransferResult& r, int t)
                           fmt(" (growth %.3f: at least ", st.detailGrowth) +
                           fmt("%.3f)", std::max(0.0, 1.0 - 1.0 / st.detailGrowth));
         logVerbose(detailLine);
+        if (st.structureRatio)
+            logVerbose(frame + ": structure: " + std::to_string(st.regeneratedPatches) + " patches regenerated (" +
+                       std::to_string(st.structureRegenerated) + " for the goal), finished at " +
+                       fmt("%.3f", *st.structureRatio) + " of the source's anisotropy" +
+                       (st.structureRedone ? " after a second pass (the first was more than 3x the tolerance off)"
+                                           : ""));
     }
     std::string timing = frame + ": time";
     for (const auto& [name, sec] : st.seconds.named())
