@@ -706,6 +706,23 @@ TEST(MeasureDensity, FrayIsLowForASmoothBallAndHighForAFrayedOne)
         << "no smaller scale at ratio 1";
 }
 
+TEST(MeasureDensity, FrayOfLayersAlongOneAxisIsZeroInOneLayerAtAnyThreadCount)
+{
+    // Density that varies along y only: its gradient is its smooth part's normal everywhere, so nothing lies across
+    // it, on one layer as in 3D. (The z components on one layer were once left uninitialised, and `measure` gave
+    // the 2D pair's frame 1 0.041902 or 0.041911 from run to run. This test passed with that bug too, the stack
+    // happening to hold zeros here; it holds the analytic answer, not the fix.)
+    const CoordBBox box({0, 0, 0}, {31, 39, 0});
+    ScalarField d(box, Lattice{0.1, {0.0, 0.0, 0.0}});
+    for (size_t n = 0; n < d.size(); ++n) d.data()[n] = float(0.6 + 0.4 * std::sin(0.45 * d.coordOf(n).y()));
+    for (const int threads : {1, 2}) {
+        std::optional<double> fray;
+        withThreads(threads, [&] { fray = densityFray(d, 4, 0.01f); });
+        ASSERT_TRUE(fray) << threads;
+        EXPECT_LT(*fray, 1e-9) << threads; // float differences: 6e-12 measured
+    }
+}
+
 TEST(Measure, TileFiguresCoverOnlyTheSmokeNearTheTileBorders)
 {
     const Lattice coarse{0.4, {0.0, 0.0, 0.0}};

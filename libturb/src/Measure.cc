@@ -386,7 +386,7 @@ std::optional<double> densityFray(const ScalarField& D, int f, float threshold)
             for (int k = b.min().z(); k <= b.max().z(); ++k) {
                 const size_t n = D.offset(i, j, k);
                 if (!(std::max(D.data()[n], low.data()[n]) > threshold)) continue;
-                Vec3d g, gl;
+                Vec3d g(0.0), gl(0.0); // one layer: the z components stay 0
                 for (int a = 0; a < (flat ? 2 : 3); ++a) {
                     g[a] = double(centralDifferenceAt(D, i, j, k, a));
                     gl[a] = double(centralDifferenceAt(low, i, j, k, a));

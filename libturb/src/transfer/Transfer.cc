@@ -378,6 +378,9 @@ VectorField TurbulenceTransfer::Impl::transferDetail(const Frame& target, const 
     if (progress) progress->begin("seams");
     StructureGoal goal = structureGoal(t, m.bands, fs);
     const VectorField pastedDetail = goal.tolerance > 0.0 ? detail : VectorField();
+    VectorField firstDetail;
+    TransferStats firstStats;
+    const auto off = [](double ratio) { return std::abs(std::log(ratio)); };
     for (int pass = 0;; ++pass) {
         const TemporalBlend blend = blendTemporal(detail, t, m.advectedDetail, m.local, tracks, fs, goal);
         st.regeneratedPatches = blend.regenerated;
@@ -391,8 +394,18 @@ VectorField TurbulenceTransfer::Impl::transferDetail(const Frame& target, const 
         const std::optional<double> a = finishedAnisotropy(detail, t, density, goal, fs);
         if (!a || !(*a > 0.0)) break;
         st.structureRatio = *a / goal.source;
-        if (pass > 0 || std::abs(*st.structureRatio - 1.0) <= 3.0 * goal.tolerance) break;
+        if (pass > 0) {
+            // The second pass is kept unless it came out farther off (not seen on the built-in 2D pair).
+            if (off(*st.structureRatio) > off(*firstStats.structureRatio)) {
+                detail = std::move(firstDetail);
+                st = firstStats;
+            }
+            break;
+        }
+        if (std::abs(*st.structureRatio - 1.0) <= 3.0 * goal.tolerance) break;
         st.structureRedone = true;
+        firstStats = st;
+        firstDetail = std::move(detail);
         goal.aim *= blend.estimate / *a;
         detail = pastedDetail;
     }
