@@ -122,7 +122,8 @@ struct TransferSettings
                                         ///< patches are regenerated, at regenerateBlend and then at its square,
                                         ///< those that move it most first, until it is within. The finished frame
                                         ///< is then measured; more than 3x this off, the blend, seam solve and
-                                        ///< calibration run once more, aimed past the goal by the seams' drift
+                                        ///< calibration run once more, aimed past the goal by the seams' drift,
+                                        ///< and the closer of the two passes is kept
                                         ///< (TransferStats::structureRedone). In [0, 1); 0 = off (the 3D default)
     float structureTolerance2D = 0.05f; ///< the same for a 2D sequence (built-in 2D pair: aniso_ratio in range on
                                         ///< every frame from 4, against 15 of 26 from 5 without; docs/transfer.md)
