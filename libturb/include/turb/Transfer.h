@@ -200,7 +200,8 @@ struct TransferStats
                                           ///< target's mean flow over the source's (`measure`'s aniso_ratio, up to
                                           ///< its source smoke); empty without a goal or where undefined
     bool structureRedone = false; ///< the blend, seam solve and calibration ran a second time, because the first
-                                  ///< finished more than 3x structureTolerance off the source's anisotropy
+                                  ///< finished more than 3x structureTolerance off the source's anisotropy; the
+                                  ///< closer of the two passes is the output (and structureRatio)
     double meanLocalEnergy = 0.0; ///< mean E_h of the chosen local patches
     double energyScale = 1.0;     ///< factor applied to U_h to meet TransferSettings::detailEnergy
     double coarseKept = 0.0;      ///< fraction of U_h's coarse part left in (coarseTolerance): 0 = removed exactly,
