@@ -233,7 +233,9 @@ struct TransferResult
 std::vector<std::pair<std::string, std::string>> outputSettings(const TransferSettings& s);
 
 /// Names of the settings whose values differ between two outputSettings() texts ("name=value;..."), each as
-/// "name: saved -> now"; a name present in only one text counts as differing. Empty when they agree.
+/// "name: saved -> now", numbers shown at float precision. A setting that outputSettings() records only when
+/// changed stands at its default where a text lacks it; any other name present in only one text counts as
+/// differing ("(not recorded)", "(unknown to this version)"). Empty when they agree.
 std::vector<std::string> settingsDifferences(const std::string& saved, const std::string& now);
 
 /// outputSettings() as one "name=value;name=value" text.

@@ -15,6 +15,7 @@
 #include <cmath>
 #include <map>
 #include <cstdio>
+#include <cstdlib>
 #include <sstream>
 
 namespace turb {
@@ -147,14 +148,42 @@ detail::PatchTracks TurbulenceTransfer::Impl::tracksFor(const detail::FrameSetup
     return t;
 }
 
+namespace {
+
+// %.9g: every float round-trips, so equal settings give equal text.
+std::string settingText(double v)
+{
+    char b[32];
+    std::snprintf(b, sizeof(b), "%.9g", v);
+    return b;
+}
+
+// The settings added after outputs were first written: recorded only where they differ from the default, so that
+// older outputs, which lack them, still resume. A name missing from a settings text therefore means its default.
+std::vector<std::pair<std::string, std::string>> settingsRecordedWhenChanged(const TransferSettings& s)
+{
+    return {{"seam-solver", s.seams.solver == SeamSolver::EigenLscg ? "eigen" : "cgnr"},
+        {"band-2d", settingText(s.seams.bandWidth2D)}, {"cg-tolerance-2d", settingText(s.seams.cgTolerance2D)},
+        {"structure-tolerance", settingText(s.structureTolerance)},
+        {"structure-tolerance-2d", settingText(s.structureTolerance2D)}};
+}
+
+// A value as a message shows it: numbers at float precision (0.1, not the text's 0.100000001).
+std::string shownSetting(const std::string& value)
+{
+    char* end = nullptr;
+    const double v = std::strtod(value.c_str(), &end);
+    if (value.empty() || end != value.c_str() + value.size()) return value;
+    char b[32];
+    std::snprintf(b, sizeof(b), "%.7g", v);
+    return b;
+}
+
+} // namespace
+
 std::vector<std::pair<std::string, std::string>> outputSettings(const TransferSettings& s)
 {
-    // %.9g: every float round-trips, so equal settings give equal text.
-    const auto num = [](double v) {
-        char b[32];
-        std::snprintf(b, sizeof(b), "%.9g", v);
-        return std::string(b);
-    };
+    const auto num = settingText;
     const auto flag = [](bool b) { return std::string(b ? "on" : "off"); };
     const char* align[] = {"none", "normalize", "rotate", "both"};
     std::vector<std::pair<std::string, std::string>> out = {{"alpha", num(s.alpha)}, {"beta", num(s.beta)},
@@ -181,14 +210,9 @@ std::vector<std::pair<std::string, std::string>> outputSettings(const TransferSe
         {"density-guide-threshold", num(s.densityGuide.threshold)},
         {"density-guide-max-gain", num(s.densityGuide.maxGain)}, {"lookback", num(s.lookBackFrames)}};
     // Only when not the default: the default outputs' settings text stays what earlier versions wrote.
-    if (s.seams.solver == SeamSolver::EigenLscg) out.emplace_back("seam-solver", "eigen");
-    if (s.seams.bandWidth2D != SeamSettings{}.bandWidth2D) out.emplace_back("band-2d", num(s.seams.bandWidth2D));
-    if (s.seams.cgTolerance2D != SeamSettings{}.cgTolerance2D)
-        out.emplace_back("cg-tolerance-2d", num(s.seams.cgTolerance2D));
-    if (s.structureTolerance != TransferSettings{}.structureTolerance)
-        out.emplace_back("structure-tolerance", num(s.structureTolerance));
-    if (s.structureTolerance2D != TransferSettings{}.structureTolerance2D)
-        out.emplace_back("structure-tolerance-2d", num(s.structureTolerance2D));
+    const auto defaults = settingsRecordedWhenChanged(TransferSettings{});
+    for (const auto& setting : settingsRecordedWhenChanged(s))
+        if (std::find(defaults.begin(), defaults.end(), setting) == defaults.end()) out.push_back(setting);
     return out;
 }
 
@@ -217,15 +241,21 @@ std::vector<std::string> settingsDifferences(const std::string& saved, const std
         }
         return m;
     };
-    const auto a = parse(saved), b = parse(now);
+    auto a = parse(saved), b = parse(now);
+    // A setting recorded only when changed is at its default where a text lacks it.
+    for (const auto& [name, value] : settingsRecordedWhenChanged(TransferSettings{}))
+        if (a.count(name) || b.count(name)) {
+            a.emplace(name, value);
+            b.emplace(name, value);
+        }
     std::vector<std::string> out;
     for (const auto& [name, value] : a) {
         const auto it = b.find(name);
-        if (it == b.end()) out.push_back(name + ": " + value + " -> (unknown to this version)");
-        else if (it->second != value) out.push_back(name + ": " + value + " -> " + it->second);
+        if (it == b.end()) out.push_back(name + ": " + shownSetting(value) + " -> (unknown to this version)");
+        else if (it->second != value) out.push_back(name + ": " + shownSetting(value) + " -> " + shownSetting(it->second));
     }
     for (const auto& [name, value] : b)
-        if (!a.count(name)) out.push_back(name + ": (not recorded) -> " + value);
+        if (!a.count(name)) out.push_back(name + ": (not recorded) -> " + shownSetting(value));
     return out;
 }
 
