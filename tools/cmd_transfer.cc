@@ -549,6 +549,7 @@ nlohmann::json frameJson(const turb::TransferResult& r, const std::string& outPa
     extra["regenerated_for_structure"] = st.structureRegenerated;
     if (st.structureRatio) extra["structure_ratio"] = *st.structureRatio;
     if (st.structureRedone) extra["structure_redone"] = true;
+    if (st.structureFirstRatio) extra["structure_ratio_first"] = *st.structureFirstRatio;
     extra["continuations"] = st.continuations;
     extra["mean_local_energy"] = st.meanLocalEnergy;
     extra["energy_scale"] = st.energyScale;
@@ -613,8 +614,9 @@ void logFrameDetails(const turb::TransferResult& r, int t)
             logVerbose(frame + ": structure: " + std::to_string(st.regeneratedPatches) + " patches regenerated (" +
                        std::to_string(st.structureRegenerated) + " for the goal), finished at " +
                        fmt("%.3f", *st.structureRatio) + " of the source's anisotropy" +
-                       (st.structureRedone ? " after a second pass (the first was more than 3x the tolerance off)"
-                                           : ""));
+                       (st.structureFirstRatio ? fmt(" after a second pass (the first finished at %.3f)",
+                                                     *st.structureFirstRatio)
+                                               : std::string()));
     }
     std::string timing = frame + ": time";
     for (const auto& [name, sec] : st.seconds.named())

@@ -197,11 +197,14 @@ struct TransferStats
     int regeneratedPatches = 0;   ///< patches whose stretched carried detail was regenerated (regenerate)
     int structureRegenerated = 0; ///< of those, the ones the structure goal added (structureTolerance)
     std::optional<double> structureRatio; ///< with the structure goal: the finished detail's anisotropy along the
-                                          ///< target's mean flow over the source's (`measure`'s aniso_ratio, up to
-                                          ///< its source smoke); empty without a goal or where undefined
+                                          ///< target's mean flow over the source's (`measure`'s aniso_ratio up to
+                                          ///< the source's side: within 7% on the built-in 2D pair); also on a
+                                          ///< shot's first frame, which has nothing to regenerate; empty without a
+                                          ///< goal or where undefined
     bool structureRedone = false; ///< the blend, seam solve and calibration ran a second time, because the first
                                   ///< finished more than 3x structureTolerance off the source's anisotropy; the
                                   ///< closer of the two passes is the output (and structureRatio)
+    std::optional<double> structureFirstRatio; ///< where redone: the first pass's finished ratio
     double meanLocalEnergy = 0.0; ///< mean E_h of the chosen local patches
     double energyScale = 1.0;     ///< factor applied to U_h to meet TransferSettings::detailEnergy
     double coarseKept = 0.0;      ///< fraction of U_h's coarse part left in (coarseTolerance): 0 = removed exactly,

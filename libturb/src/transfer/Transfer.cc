@@ -420,10 +420,12 @@ VectorField TurbulenceTransfer::Impl::transferDetail(const Frame& target, const 
             SeamInputs{t, m.bands, active, pasted.offsets, m.advectedDetail, blend.weight, scaleEstimate}, fs,
             progress);
         calibrateDetail(detail, t, target, smoke, referenceEnergy, m.bands.magnitudes, fs, st);
-        if (!(blend.estimate > 0.0)) break;
+        if (!(goal.tolerance > 0.0)) break;
         const std::optional<double> a = finishedAnisotropy(detail, t, density, goal, fs);
         if (!a || !(*a > 0.0)) break;
         st.structureRatio = *a / goal.source;
+        // Without carried detail (a shot's first frame) there is nothing to regenerate: reported, not redone.
+        if (!(blend.estimate > 0.0)) break;
         if (pass > 0) {
             // The second pass is kept unless it came out farther off (not seen on the built-in 2D pair).
             if (off(*st.structureRatio) > off(*firstStats.structureRatio)) {
@@ -434,6 +436,7 @@ VectorField TurbulenceTransfer::Impl::transferDetail(const Frame& target, const 
         }
         if (std::abs(*st.structureRatio - 1.0) <= 3.0 * goal.tolerance) break;
         st.structureRedone = true;
+        st.structureFirstRatio = st.structureRatio;
         firstStats = st;
         firstDetail = std::move(detail);
         goal.aim *= blend.estimate / *a;
