@@ -1069,6 +1069,17 @@ TEST(Cli, TwoDCachesThroughSimTransferMeasureAndPreview)
                             "/o/o.####.vdb' --mode density,vorticity --frames 4 --sheet '" + d + "/sheet.png' -q");
     ASSERT_EQ(p.code, 0) << p.out;
     EXPECT_TRUE(std::filesystem::exists(d + "/sheet.png"));
+    // A 3D source at the same voxel (2026-12-05: a new user's dry run printed a plan and exited 0, and `measure`
+    // printed meaningless ratios): refused by both, naming the mismatch.
+    ASSERT_EQ(run("sim plume --res 48x64x8 --frames 1 --out '" + d + "/s3/s.####.vdb' -q").code, 0);
+    const CmdResult dry3 = run("transfer --target '" + d + "/t/p.####.vdb' --source '" + d + "/s3/s.####.vdb' --out '" +
+                               d + "/o3/o.####.vdb' --frames 1 --dry-run");
+    EXPECT_EQ(dry3.code, 1) << dry3.out;
+    EXPECT_NE(dry3.out.find("the target is 2D (one z layer) but the source is not"), std::string::npos) << dry3.out;
+    const CmdResult m3 = run("measure --output '" + d + "/o/o.####.vdb' --target '" + d + "/t/p.####.vdb' --source '" +
+                             d + "/s3/s.####.vdb' --frames 1 --no-spectra");
+    EXPECT_EQ(m3.code, 1) << m3.out;
+    EXPECT_NE(m3.out.find("the output is 2D (one z layer) but the source is 3D"), std::string::npos) << m3.out;
 }
 
 TEST(Cli, EveryPrintedDefaultReadsBack)

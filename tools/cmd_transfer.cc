@@ -173,6 +173,11 @@ turb::CoordBBox preflight(const TransferArgs& a, const turbio::Sequence& target,
             throw turb::ValueError("--tile-box " + a.tileBox + " is one voxel thick in z, but the target is 3D: " +
                                    "a tile of a 3D cache must be at least 2 voxels thick");
     }
+    // As process() refuses it at the first frame, so that a dry run says so too.
+    // Frames without smoke (an empty first frame's 1-voxel placeholder) say nothing of the kind.
+    if (tl && sl && !tl->span.empty() && !sl->span.empty() && turb::isFlat(tBox) != turb::isFlat(sl->domain))
+        throw turb::ValueError(turb::isFlat(tBox) ? "the target is 2D (one z layer) but the source is not: give a 2D source"
+                                                  : "the target is 3D but the source is 2D (one z layer)");
     const double tVoxels = double(tBox.volume());
     const double sVoxels = sl ? double(sl->domain.volume()) : 0.0;
     const turb::Lattice outLattice = turb::refinedLattice(t0.lattice, tBox, f);

@@ -788,6 +788,11 @@ FrameMeasures measureFrame(const MeasureInput& in, const MeasureSettings& s, Pro
     if (in.source) {
         requireVelocity(in.source, "source");
         requireDensity(*in.source, "source");
+        // A slice against a volume: every source figure (hf_ratio, aniso_ratio, ...) would be meaningless.
+        const CoordBBox &ob = in.output->velocity.bbox(), &sb = in.source->velocity.bbox();
+        if (!ob.empty() && !sb.empty() && isFlat(ob) != isFlat(sb))
+            throw ValueError(isFlat(ob) ? "the output is 2D (one z layer) but the source is 3D: give the 2D source"
+                                        : "the output is 3D but the source is 2D (one z layer)");
     }
     if (!(s.densityThreshold >= 0.0f)) throw ValueError("measure: density threshold must be >= 0");
     const Frame& T = *in.target;
