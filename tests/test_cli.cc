@@ -1016,10 +1016,16 @@ TEST(Cli, TwoDCachesThroughSimTransferMeasureAndPreview)
     ASSERT_EQ(dry.code, 0) << dry.out;
     EXPECT_NE(dry.out.find("2D cache (one z layer): B^2 patches; detail energy pasted, seam band 4"), std::string::npos)
         << dry.out;
-    // The 3D tolerances given do not apply to a 2D cache; the 2D defaults do.
+    // The 3D tolerances given do not apply to a 2D cache; the 2D defaults do, and a warning names each one given.
     EXPECT_NE(
         dry.out.find("regenerate blend 0.6, seam CG tolerance 0.01, structure tolerance 0.05 ("), std::string::npos)
         << dry.out;
+    EXPECT_NE(dry.out.find("--structureTolerance is for 3D caches and has no effect on this 2D target: "
+                           "--structureTolerance2D is the one that applies"),
+        std::string::npos)
+        << dry.out;
+    EXPECT_NE(dry.out.find("--seams.cgTolerance is for 3D caches"), std::string::npos) << dry.out;
+    EXPECT_EQ(dry.out.find("--seams.bandWidth2D is for"), std::string::npos) << dry.out;
     EXPECT_FALSE(std::filesystem::exists(d + "/o"));
     const CmdResult x = run("transfer --target '" + d + "/t/p.####.vdb' --source '" + d + "/s/s.####.vdb' --out '" + d +
                             "/o/o.####.vdb' -q");

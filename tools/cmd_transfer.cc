@@ -46,6 +46,8 @@ struct TransferArgs
         return r;
     }();
     const CLI::Option* sourceCropMargin = nullptr; ///< given or not: its default depends on the ratio
+    /// (3D setting, its 2D twin): given for the other kind of cache, a setting has no effect, which is said.
+    std::vector<std::pair<const CLI::Option*, const CLI::Option*>> kindTwins;
     std::string tileBox; ///< "X0,Y0,Z0,X1,Y1,Z1": hold only this box of the target (a space tile and its halo)
     turbio::WriteOptions write;
     turb::TransferSettings settings;
@@ -203,6 +205,11 @@ turb::CoordBBox preflight(const TransferArgs& a, const turbio::Sequence& target,
                   (flat ? " (detailEnergy2D, seams.bandWidth2D, regenerateBlend2D, seams.cgTolerance2D, "
                           "structureTolerance2D)"
                         : ""));
+        for (const auto& [threeD, twoD] : a.kindTwins)
+            if ((flat ? threeD : twoD)->count() > 0)
+                logWarning((flat ? threeD : twoD)->get_name() + " is for " + (flat ? "3D" : "2D") +
+                           " caches and has no effect on this " + (flat ? "2D" : "3D") + " target: " +
+                           (flat ? twoD : threeD)->get_name() + " is the one that applies");
     }
     // Output size (Blosc gains little on noisy floats). Velocity covers the target velocity's box padded by two
     // voxels, at f^3 voxels each (zero beyond it: not written), or trimmed, the smoke and the margin's shell
@@ -996,6 +1003,10 @@ Command transferCommand()
             ->check(CLI::Range(-1, 64))
             ->group(kGroupOutput);
         addTransferSettings(app, a);
+        for (const auto& [threeD, twoD] : {std::pair<const char*, const char*>{"--seams.bandWidth", "--seams.bandWidth2D"},
+                 {"--seams.cgTolerance", "--seams.cgTolerance2D"}, {"--detailEnergy", "--detailEnergy2D"},
+                 {"--regenerateBlend", "--regenerateBlend2D"}, {"--structureTolerance", "--structureTolerance2D"}})
+            a.kindTwins.emplace_back(app->get_option(threeD), app->get_option(twoD));
     };
     c.run = [args] { return runTransfer(*args); };
     return c;
