@@ -222,8 +222,9 @@ Plan makePlan(const FarmArgs& a)
     checkPassThrough(a.transferArgs, p.tiled);
     const turbio::Sequence target = turbio::resolveSequence(a.target, a.frames);
     if (!target.missing.empty())
-        throw turb::IoError(
-            target.pattern.str() + ": missing target frames " + turbio::formatFrameList(target.missing));
+        throw turb::IoError(target.pattern.str() +
+                            (target.missing.size() == 1 ? ": missing target frame " : ": missing target frames ") +
+                            turbio::formatFrameList(target.missing));
     p.frames = target.frames;
     if (p.tiled) {
         if (a.prerollGiven->count() > 0 || a.overlapGiven->count() > 0)

@@ -183,7 +183,9 @@ public:
         if (!a.target.empty()) {
             mSeq = turbio::resolveSequence(a.target, a.frames);
             if (!mSeq->missing.empty())
-                throw turb::IoError(mSeq->pattern.str() + ": missing frames " + turbio::formatFrameList(mSeq->missing));
+                throw turb::IoError(mSeq->pattern.str() +
+                                    (mSeq->missing.size() == 1 ? ": missing frame " : ": missing frames ") +
+                                    turbio::formatFrameList(mSeq->missing));
             mFrames = mSeq->frames;
             mLabel = "cache " + mSeq->pattern.str();
         } else {

@@ -460,8 +460,9 @@ FramePlan planFrames(const TransferArgs& a)
     p.source = turbio::resolveSequence(a.source, a.sourceFrames);
     p.out = turbio::FramePattern::parse(a.out);
     if (!p.target.missing.empty())
-        throw turb::IoError(
-            p.target.pattern.str() + ": missing target frames " + turbio::formatFrameList(p.target.missing));
+        throw turb::IoError(p.target.pattern.str() +
+                            (p.target.missing.size() == 1 ? ": missing target frame " : ": missing target frames ") +
+                            turbio::formatFrameList(p.target.missing));
     if (p.target.frames.size() > 1 && !p.out.numbered())
         throw turb::ValueError("--out '" + a.out + "' has no frame token (####, %04d, $F4) but " +
                                std::to_string(p.target.frames.size()) + " frames are requested");
