@@ -805,8 +805,8 @@ TEST(Transfer2D, BuiltInPairEndToEndWithinTheQualityTargets)
         // A redone frame keeps the closer of its two passes.
         ASSERT_EQ(out[i].stats.structureRedone, out[i].stats.structureFirstRatio.has_value()) << "frame " << i;
         if (out[i].stats.structureFirstRatio)
-            EXPECT_LE(std::abs(std::log(*out[i].stats.structureRatio)),
-                std::abs(std::log(*out[i].stats.structureFirstRatio)))
+            EXPECT_LE(
+                std::abs(std::log(*out[i].stats.structureRatio)), std::abs(std::log(*out[i].stats.structureFirstRatio)))
                 << "frame " << i;
         if (i < 7) continue;
         ASSERT_TRUE(m.lfErr && m.hfRatio && m.divRel && m.divRelSource && m.block) << "frame " << i;

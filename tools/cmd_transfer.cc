@@ -178,8 +178,9 @@ turb::CoordBBox preflight(const TransferArgs& a, const turbio::Sequence& target,
     // As process() refuses it at the first frame, so that a dry run says so too.
     // Frames without smoke (an empty first frame's 1-voxel placeholder) say nothing of the kind.
     if (tl && sl && !tl->span.empty() && !sl->span.empty() && turb::isFlat(tBox) != turb::isFlat(sl->domain))
-        throw turb::ValueError(turb::isFlat(tBox) ? "the target is 2D (one z layer) but the source is not: give a 2D source"
-                                                  : "the target is 3D but the source is 2D (one z layer)");
+        throw turb::ValueError(turb::isFlat(tBox)
+                                   ? "the target is 2D (one z layer) but the source is not: give a 2D source"
+                                   : "the target is 3D but the source is 2D (one z layer)");
     const double tVoxels = double(tBox.volume());
     const double sVoxels = sl ? double(sl->domain.volume()) : 0.0;
     const turb::Lattice outLattice = turb::refinedLattice(t0.lattice, tBox, f);
@@ -208,8 +209,8 @@ turb::CoordBBox preflight(const TransferArgs& a, const turbio::Sequence& target,
         for (const auto& [threeD, twoD] : a.kindTwins)
             if ((flat ? threeD : twoD)->count() > 0)
                 logWarning((flat ? threeD : twoD)->get_name() + " is for " + (flat ? "3D" : "2D") +
-                           " caches and has no effect on this " + (flat ? "2D" : "3D") + " target: " +
-                           (flat ? twoD : threeD)->get_name() + " is the one that applies");
+                           " caches and has no effect on this " + (flat ? "2D" : "3D") +
+                           " target: " + (flat ? twoD : threeD)->get_name() + " is the one that applies");
     }
     // Output size (Blosc gains little on noisy floats). Velocity covers the target velocity's box padded by two
     // voxels, at f^3 voxels each (zero beyond it: not written), or trimmed, the smoke and the margin's shell
@@ -627,9 +628,9 @@ void logFrameDetails(const turb::TransferResult& r, int t)
             logVerbose(frame + ": structure: " + std::to_string(st.regeneratedPatches) + " patches regenerated (" +
                        std::to_string(st.structureRegenerated) + " for the goal), finished at " +
                        fmt("%.3f", *st.structureRatio) + " of the source's anisotropy" +
-                       (st.structureFirstRatio ? fmt(" after a second pass (the first finished at %.3f)",
-                                                     *st.structureFirstRatio)
-                                               : std::string()));
+                       (st.structureFirstRatio
+                               ? fmt(" after a second pass (the first finished at %.3f)", *st.structureFirstRatio)
+                               : std::string()));
     }
     std::string timing = frame + ": time";
     for (const auto& [name, sec] : st.seconds.named())
@@ -1004,9 +1005,10 @@ Command transferCommand()
             ->check(CLI::Range(-1, 64))
             ->group(kGroupOutput);
         addTransferSettings(app, a);
-        for (const auto& [threeD, twoD] : {std::pair<const char*, const char*>{"--seams.bandWidth", "--seams.bandWidth2D"},
-                 {"--seams.cgTolerance", "--seams.cgTolerance2D"}, {"--detailEnergy", "--detailEnergy2D"},
-                 {"--regenerateBlend", "--regenerateBlend2D"}, {"--structureTolerance", "--structureTolerance2D"}})
+        for (const auto& [threeD, twoD] :
+            {std::pair<const char*, const char*>{"--seams.bandWidth", "--seams.bandWidth2D"},
+                {"--seams.cgTolerance", "--seams.cgTolerance2D"}, {"--detailEnergy", "--detailEnergy2D"},
+                {"--regenerateBlend", "--regenerateBlend2D"}, {"--structureTolerance", "--structureTolerance2D"}})
             a.kindTwins.emplace_back(app->get_option(threeD), app->get_option(twoD));
     };
     c.run = [args] { return runTransfer(*args); };

@@ -252,7 +252,8 @@ std::vector<std::string> settingsDifferences(const std::string& saved, const std
     for (const auto& [name, value] : a) {
         const auto it = b.find(name);
         if (it == b.end()) out.push_back(name + ": " + shownSetting(value) + " -> (unknown to this version)");
-        else if (it->second != value) out.push_back(name + ": " + shownSetting(value) + " -> " + shownSetting(it->second));
+        else if (it->second != value)
+            out.push_back(name + ": " + shownSetting(value) + " -> " + shownSetting(it->second));
     }
     for (const auto& [name, value] : b)
         if (!a.count(name)) out.push_back(name + ": (not recorded) -> " + shownSetting(value));
