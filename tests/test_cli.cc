@@ -1009,9 +1009,13 @@ TEST(Cli, TwoDCachesThroughSimTransferMeasureAndPreview)
     ASSERT_EQ(t.code, 0) << t.out;
     const CmdResult s = run("sim swirl --res 48x64x1 --frames 4 --out '" + d + "/s/s.####.vdb' -q");
     ASSERT_EQ(s.code, 0) << s.out;
+    // A transfer of this pair into out/o.####.vdb, from the given source sequence.
+    const auto transferTo = [&](const std::string& out, const std::string& source = "s/s") {
+        return "transfer --target '" + d + "/t/p.####.vdb' --source '" + d + "/" + source + ".####.vdb' --out '" + d +
+               "/" + out + "/o.####.vdb'";
+    };
     // The dry run says the cache is 2D and which of the settings with a 2D twin apply.
-    const CmdResult dry = run("transfer --target '" + d + "/t/p.####.vdb' --source '" + d + "/s/s.####.vdb' --out '" +
-                              d + "/o/o.####.vdb' --dry-run --detail-energy-2d pasted --seams.bandWidth2D 4" +
+    const CmdResult dry = run(transferTo("o") + " --dry-run --detail-energy-2d pasted --seams.bandWidth2D 4" +
                               " --seams.cgTolerance 0.5 --structureTolerance 0.3");
     ASSERT_EQ(dry.code, 0) << dry.out;
     EXPECT_NE(dry.out.find("2D cache (one z layer): B^2 patches; detail energy pasted, seam band 4"), std::string::npos)
@@ -1027,12 +1031,10 @@ TEST(Cli, TwoDCachesThroughSimTransferMeasureAndPreview)
     EXPECT_NE(dry.out.find("--seams.cgTolerance is for 3D caches"), std::string::npos) << dry.out;
     EXPECT_EQ(dry.out.find("--seams.bandWidth2D is for"), std::string::npos) << dry.out;
     EXPECT_FALSE(std::filesystem::exists(d + "/o"));
-    const CmdResult x = run("transfer --target '" + d + "/t/p.####.vdb' --source '" + d + "/s/s.####.vdb' --out '" + d +
-                            "/o/o.####.vdb' -q");
+    const CmdResult x = run(transferTo("o") + " -q");
     ASSERT_EQ(x.code, 0) << x.out;
     // --resume over these 2D frames compares the 2D twins of the settings and not the 3D ones.
-    const std::string again = "transfer --target '" + d + "/t/p.####.vdb' --source '" + d + "/s/s.####.vdb' --out '" +
-                              d + "/o/o.####.vdb' --resume";
+    const std::string again = transferTo("o") + " --resume";
     const CmdResult threeD = run(again + " --band 3 --structureTolerance 0.3 --regenerateBlend 0.3");
     EXPECT_EQ(threeD.code, 0) << threeD.out;
     EXPECT_NE(threeD.out.find("nothing to do"), std::string::npos) << threeD.out;
@@ -1049,19 +1051,17 @@ TEST(Cli, TwoDCachesThroughSimTransferMeasureAndPreview)
         << o.velocity.bbox();
     for (const turb::Vec3f& v : o.velocity.values()) ASSERT_EQ(v.z(), 0.0f);
     // A 2D sequence resumes bit-identically (the state and the one-layer lattice read back from the last output).
-    const std::string pair = "transfer --target '" + d + "/t/p.####.vdb' --source '" + d + "/s/s.####.vdb' --out '" +
-                             d + "/r/r.####.vdb' -q";
+    const std::string pair = transferTo("r") + " -q";
     ASSERT_EQ(run(pair + " --frames 1-2").code, 0);
     const CmdResult resumed = run(pair + " --frames 1-4 --resume");
     ASSERT_EQ(resumed.code, 0) << resumed.out;
-    const turb::Frame r = turbio::readFrame(d + "/r/r.0004.vdb", 4, wholeBox);
+    const turb::Frame r = turbio::readFrame(d + "/r/o.0004.vdb", 4, wholeBox);
     ASSERT_EQ(r.velocity.bbox(), o.velocity.bbox());
     EXPECT_EQ(r.velocity.values(), o.velocity.values());
     EXPECT_EQ(r.density.values(), o.density.values());
     // A setting recorded only when changed, resumed at its default: the message names both values (2026-12-05: a
     // new user read "structure-tolerance-2d: 0 -> (unknown to this version)").
-    const std::string zero = "transfer --target '" + d + "/t/p.####.vdb' --source '" + d + "/s/s.####.vdb' --out '" +
-                             d + "/z/z.####.vdb' -q";
+    const std::string zero = transferTo("z") + " -q";
     ASSERT_EQ(run(zero + " --frames 1-2 --structureTolerance2D 0").code, 0);
     const CmdResult toDefault = run(zero + " --frames 1-3 --resume");
     EXPECT_EQ(toDefault.code, 1) << toDefault.out;
@@ -1078,8 +1078,7 @@ TEST(Cli, TwoDCachesThroughSimTransferMeasureAndPreview)
     // A 3D source at the same voxel (2026-12-05: a new user's dry run printed a plan and exited 0, and `measure`
     // printed meaningless ratios): refused by both, naming the mismatch.
     ASSERT_EQ(run("sim plume --res 48x64x8 --frames 1 --out '" + d + "/s3/s.####.vdb' -q").code, 0);
-    const CmdResult dry3 = run("transfer --target '" + d + "/t/p.####.vdb' --source '" + d + "/s3/s.####.vdb' --out '" +
-                               d + "/o3/o.####.vdb' --frames 1 --dry-run");
+    const CmdResult dry3 = run(transferTo("o3", "s3/s") + " --frames 1 --dry-run");
     EXPECT_EQ(dry3.code, 1) << dry3.out;
     EXPECT_NE(dry3.out.find("the target is 2D (one z layer) but the source is not"), std::string::npos) << dry3.out;
     const CmdResult m3 = run("measure --output '" + d + "/o/o.####.vdb' --target '" + d + "/t/p.####.vdb' --source '" +

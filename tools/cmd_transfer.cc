@@ -22,12 +22,23 @@
 #include <future>
 #include <memory>
 #include <optional>
-#include <set>
 #include <sstream>
 
 namespace vdbturb {
 
 namespace {
+
+// The settings with a 3D and a 2D form: the two options, and the 3D one's name in the recorded settings text
+// (the 2D one's is that name with "-2d"). Given for the other kind of cache, an option has no effect.
+struct KindTwin
+{
+    const char *option3D, *option2D, *recorded3D;
+};
+constexpr KindTwin kKindTwins[] = {{"--seams.bandWidth", "--seams.bandWidth2D", "band"},
+    {"--seams.cgTolerance", "--seams.cgTolerance2D", "cg-tolerance"},
+    {"--detailEnergy", "--detailEnergy2D", "detail-energy"},
+    {"--regenerateBlend", "--regenerateBlend2D", "regenerate-blend"},
+    {"--structureTolerance", "--structureTolerance2D", "structure-tolerance"}};
 
 struct TransferArgs
 {
@@ -46,7 +57,7 @@ struct TransferArgs
         return r;
     }();
     const CLI::Option* sourceCropMargin = nullptr; ///< given or not: its default depends on the ratio
-    /// (3D setting, its 2D twin): given for the other kind of cache, a setting has no effect, which is said.
+    /// kKindTwins' options as parsed (3D, 2D): one given for the other kind of cache gets a warning.
     std::vector<std::pair<const CLI::Option*, const CLI::Option*>> kindTwins;
     std::string tileBox; ///< "X0,Y0,Z0,X1,Y1,Z1": hold only this box of the target (a space tile and its halo)
     turbio::WriteOptions write;
@@ -328,12 +339,11 @@ void checkResumable(const std::string& prevPath, const turb::Frame& prevOut, con
         diff = turb::settingsDifferences(saved->second, turb::outputSettingsText(s));
         // Of a setting with a 2D twin ("band", "band-2d"), only the one for the frame's kind matters.
         const bool flat = turb::isFlat(prevOut.velocity.bbox());
-        static const std::set<std::string> kTwins3D = {
-            "band", "cg-tolerance", "detail-energy", "regenerate-blend", "structure-tolerance"};
         const auto otherKind = [&](const std::string& d) {
             const std::string name = d.substr(0, d.find(':'));
-            const bool twin2D = name.size() > 3 && name.compare(name.size() - 3, 3, "-2d") == 0;
-            return flat ? kTwins3D.count(name) > 0 : twin2D;
+            for (const KindTwin& k : kKindTwins)
+                if (name == (flat ? std::string(k.recorded3D) : std::string(k.recorded3D) + "-2d")) return true;
+            return false;
         };
         diff.erase(std::remove_if(diff.begin(), diff.end(), otherKind), diff.end());
     } else
@@ -1005,11 +1015,8 @@ Command transferCommand()
             ->check(CLI::Range(-1, 64))
             ->group(kGroupOutput);
         addTransferSettings(app, a);
-        for (const auto& [threeD, twoD] :
-            {std::pair<const char*, const char*>{"--seams.bandWidth", "--seams.bandWidth2D"},
-                {"--seams.cgTolerance", "--seams.cgTolerance2D"}, {"--detailEnergy", "--detailEnergy2D"},
-                {"--regenerateBlend", "--regenerateBlend2D"}, {"--structureTolerance", "--structureTolerance2D"}})
-            a.kindTwins.emplace_back(app->get_option(threeD), app->get_option(twoD));
+        for (const KindTwin& k : kKindTwins)
+            a.kindTwins.emplace_back(app->get_option(k.option3D), app->get_option(k.option2D));
     };
     c.run = [args] { return runTransfer(*args); };
     return c;
