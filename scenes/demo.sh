@@ -8,10 +8,18 @@
 # Environment: VDBTURB (the binary, default build/tools/vdbturb), DEMO_OUT (default demo-out),
 # DEMO_FRAMES (default 16 = 2/3 s; the 128x128x192 swirl costs about 7 s a frame on 2 idle cores),
 # DEMO_THREADS (default 0 = all cores).
+# Installed (cmake --install), it is PREFIX/share/vdbturb/demo.sh: it then runs PREFIX/bin/vdbturb and writes
+# demo-out/ in the current directory.
 set -eu
-cd "$(dirname "$0")/.."
+HERE="$(cd "$(dirname "$0")" && pwd)"
+if [ -d "$HERE/../libturb" ]; then
+  cd "$HERE/.."
+  DEFAULT_BIN=build/tools/vdbturb
+else
+  DEFAULT_BIN="$HERE/../../bin/vdbturb"
+fi
 
-BIN="${VDBTURB:-build/tools/vdbturb}"
+BIN="${VDBTURB:-$DEFAULT_BIN}"
 OUT="${DEMO_OUT:-demo-out}"
 FRAMES="${DEMO_FRAMES:-16}"
 THREADS="${DEMO_THREADS:-0}"

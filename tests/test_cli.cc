@@ -236,9 +236,10 @@ TEST(Cli, TransferWritesResumesAndNeverClobbers)
     EXPECT_EQ(c.code, 1);
     EXPECT_NE(c.out.find("no-clobber"), std::string::npos) << c.out;
     EXPECT_EQ(std::filesystem::last_write_time(dir / "up/turb.0001.vdb"), before);
-    // Three frames and the trimmed run's resume state (.turb.resume.vdb); no temporary files.
-    EXPECT_EQ(testutil::countEntries(dir / "up"), 4u) << "no temporary files may remain";
-    EXPECT_TRUE(std::filesystem::exists(dir / "up/.turb.resume.vdb"));
+    // Three frames and the trimmed run's resume state, odd and even frames; no temporary files.
+    EXPECT_EQ(testutil::countEntries(dir / "up"), 5u) << "no temporary files may remain";
+    EXPECT_TRUE(std::filesystem::exists(dir / "up/turb.resume-state-odd.vdb"));
+    EXPECT_TRUE(std::filesystem::exists(dir / "up/turb.resume-state-even.vdb"));
 }
 
 TEST(Cli, TrimmedHalfFramesResumeExactlyFromTheStateKeptBesideThem)
@@ -259,7 +260,8 @@ TEST(Cli, TrimmedHalfFramesResumeExactlyFromTheStateKeptBesideThem)
     const turb::Frame a3 = read("a/t.0003.vdb", 3), b3 = read("b/t.0003.vdb", 3);
     EXPECT_EQ(a3.velocity.values(), b3.velocity.values());
     EXPECT_EQ(a3.density.values(), b3.density.values());
-    EXPECT_EQ(read("a/.t.resume.vdb", 3).velocity.values(), read("b/.t.resume.vdb", 3).velocity.values());
+    EXPECT_EQ(
+        read("a/t.resume-state-odd.vdb", 3).velocity.values(), read("b/t.resume-state-odd.vdb", 3).velocity.values());
     // Written otherwise, the sequence would hold two formats: refused, naming each write setting that differs.
     const CmdResult other =
         run("transfer --target " + lo() + " --source " + hi() + " --velocity-margin 2 --clipping 1e-3 --out " +
@@ -281,7 +283,7 @@ TEST(Cli, TrimmedHalfFramesResumeExactlyFromTheStateKeptBesideThem)
         if (g.name == "vel") velocityVoxels = g.activeVoxels;
         if (g.name == "temperature") temperatureVoxels = g.activeVoxels;
     }
-    const turb::Frame state = read("a/.t.resume.vdb", 3);
+    const turb::Frame state = read("a/t.resume-state-odd.vdb", 3);
     ASSERT_GT(densityVoxels, 0);
     EXPECT_LT(velocityVoxels, (long long)(state.velocity.size()) / 2) << "velocity written over (nearly) the whole box";
     EXPECT_GE(velocityVoxels, densityVoxels);
@@ -291,15 +293,16 @@ TEST(Cli, TrimmedHalfFramesResumeExactlyFromTheStateKeptBesideThem)
     EXPECT_NE(shown.out.find("velocity written only within 1 voxel of the smoke, 16-bit floats"), std::string::npos)
         << shown.out;
 
-    // Without the state (deleted, or one frame ahead of the outputs) the run goes on from the small file, says so,
-    // and the frame is no longer the uninterrupted run's.
+    // Without the state (deleted, or holding another frame) the run goes on from the small file, says so, and the
+    // frame is no longer the uninterrupted run's.
     std::filesystem::remove(dir / "b/t.0003.vdb");
-    std::filesystem::remove(dir / "b/.t.resume.vdb");
+    std::filesystem::remove(dir / "b/t.resume-state-even.vdb");
     const CmdResult lost = run(base + " --out " + dir / "b/t.####.vdb --frames 1-3 --resume");
     ASSERT_EQ(lost.code, 0) << lost.out;
-    EXPECT_NE(lost.out.find("b/.t.resume.vdb cannot be used: it is missing"), std::string::npos) << lost.out;
+    EXPECT_NE(lost.out.find("b/t.resume-state-even.vdb cannot be used: it is missing"), std::string::npos) << lost.out;
     EXPECT_NE(read("b/t.0003.vdb", 3).velocity.values(), a3.velocity.values());
     std::filesystem::remove(dir / "b/t.0003.vdb");
+    std::filesystem::copy_file(dir / "b/t.resume-state-odd.vdb", dir / "b/t.resume-state-even.vdb");
     const CmdResult ahead = run(base + " --out " + dir / "b/t.####.vdb --frames 1-3 --resume");
     ASSERT_EQ(ahead.code, 0) << ahead.out;
     EXPECT_NE(ahead.out.find("it holds frame 3, not 2"), std::string::npos) << ahead.out;
@@ -522,7 +525,9 @@ TEST(Cli, ACorruptFrameStopsTheRunWithoutDamagingEarlierOutput)
     EXPECT_NE(d.out.find("t_0002.vdb: grid 'temperature' could not be read"), std::string::npos) << d.out;
     EXPECT_TRUE(std::filesystem::exists(dir / "out/o.0001.vdb"));
     EXPECT_FALSE(std::filesystem::exists(dir / "out/o.0002.vdb"));
-    EXPECT_EQ(testutil::countEntries(dir / "out"), 1u) << "no partial or temporary file";
+    // Frame 1 and its exact resume state: the frames hold velocity per second, the Blender target's unit is 0.4 s.
+    EXPECT_TRUE(std::filesystem::exists(dir / "out/o.resume-state-odd.vdb"));
+    EXPECT_EQ(testutil::countEntries(dir / "out"), 2u) << "no partial or temporary file";
     EXPECT_NO_THROW(turbio::readFrame(dir / "out/o.0001.vdb", 1, turbio::ReadOptions{}));
 }
 

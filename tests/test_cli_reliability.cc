@@ -261,7 +261,10 @@ TEST(CliReliability, TimeStepFpsAndUnitsShowWhereTheyCameFrom)
     ASSERT_EQ(r.code, 0) << r.out;
     EXPECT_EQ(clitest::count(r.out, "records no frame rate"), 1u) << r.out;
     const auto again = run("info '" + dir / "r/r.####.vdb' --headers-only");
-    EXPECT_NE(again.out.find("dt: 0.104167 per frame (vdbturb_dt metadata)"), std::string::npos) << again.out;
+    // Written for Houdini: per second, so 1/24 s a frame (the Blender input's 0.104167 units x 0.4 s).
+    EXPECT_NE(again.out.find("dt: 0.0416667 per frame (vdbturb_dt metadata)"), std::string::npos) << again.out;
+    EXPECT_NE(again.out.find("time unit 1 s (per second) (vdbturb_time_unit metadata)"), std::string::npos)
+        << again.out;
     EXPECT_EQ(again.out.find("records no frame rate"), std::string::npos) << again.out;
 }
 

@@ -12,10 +12,13 @@
 #include <sstream>
 #include <algorithm>
 #include <mutex>
+#include <regex>
 #include <map>
 #include <set>
 #include <stdexcept>
 #include <unistd.h>
+
+#include <nlohmann/json.hpp>
 
 namespace vdbturb {
 
@@ -365,6 +368,9 @@ void installSignalHandlers()
 {
     std::signal(SIGINT, onSignal);
     std::signal(SIGTERM, onSignal);
+    // Past `ulimit -f` the kernel kills the process with SIGXFSZ, silently and with a temporary file left behind;
+    // ignored, the write fails with EFBIG, which the writers report (exit 75) after removing the temporary file.
+    std::signal(SIGXFSZ, SIG_IGN);
 }
 
 bool interruptRequested() { return gInterrupted.load(); }
@@ -384,6 +390,26 @@ static void emit(const std::string& prefix, const std::string& msg)
 }
 
 void logError(const std::string& msg) { emit("vdbturb: error: ", msg); }
+
+int reportFailure(const std::string& message, int exitCode)
+{
+    logError(message);
+    if (!globals().json) return exitCode;
+    // Messages name what failed in a few fixed forms: "PATH: ...", "frame N", "grid 'NAME'".
+    nlohmann::json j{{"error", message}, {"file", nullptr}, {"frame", nullptr}, {"grid", nullptr}, {"exit", exitCode}};
+    std::smatch m;
+    static const std::regex file(
+        R"(^([^:\s][^:]*\.(?:vdb|nvdb|png|exr|jpg|jpeg|tif|tiff|json|toml|vdbturblib)):)", std::regex::icase);
+    static const std::regex frame(R"(\bframe (-?\d+))");
+    static const std::regex grid(R"(\bgrid '([^']*)')");
+    if (std::regex_search(message, m, file)) j["file"] = m[1].str();
+    if (std::regex_search(message, m, frame)) j["frame"] = std::stoi(m[1].str());
+    if (std::regex_search(message, m, grid)) j["grid"] = m[1].str();
+    std::lock_guard<std::mutex> lock(gLogMutex);
+    std::fputs((j.dump() + "\n").c_str(), stdout);
+    std::fflush(stdout);
+    return exitCode;
+}
 void logWarning(const std::string& msg)
 {
     if (globals().verbosity >= 1) emit("vdbturb: warning: ", msg);

@@ -3,6 +3,7 @@
 ///        the per-frame log line. Data (JSON) goes to stdout; everything for people goes to stderr.
 #pragma once
 
+#include <turb/Error.h>
 #include <turb/Progress.h>
 
 #include <CLI/CLI.hpp>
@@ -16,8 +17,23 @@
 
 namespace vdbturb {
 
-/// Exit codes (design.md): 0 success, 1 some frame failed, 2 usage error, 130 interrupted.
-enum ExitCode { kOk = 0, kFailed = 1, kUsage = 2, kInterrupted = 130 };
+/// Exit codes (README, --help): 0 success; 1 a failure a retry cannot fix (bad input, a frame failed); 2 a usage
+/// error (an option's value or a combination of options); 75 (EX_TEMPFAIL) a failure worth a retry on another node
+/// (disk full, a file-size limit, out of memory); 130 interrupted.
+enum ExitCode { kOk = 0, kFailed = 1, kUsage = 2, kTempFail = 75, kInterrupted = 130 };
+
+/// A command line that cannot run as given (an --out without a frame token for a sequence): exit 2, as CLI11's own
+/// parse errors.
+class UsageError : public turb::ValueError
+{
+public:
+    using turb::ValueError::ValueError;
+};
+
+/// Ends a command with an error: "vdbturb: error: MESSAGE" on stderr and, when the command was asked for --json,
+/// one JSON line on stdout, {"error", "file", "frame", "grid", "exit"} (file, frame and grid as the message names
+/// them, else null), so a wrapper that parses stdout gets the reason too. Returns `exitCode`.
+int reportFailure(const std::string& message, int exitCode);
 
 struct Globals
 {

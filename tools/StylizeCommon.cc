@@ -23,15 +23,13 @@ std::string fmt(const char* f, double v)
 int checkOutputPatterns(const std::string& out, const std::string& more)
 {
     if (out.empty()) {
-        logError("give --out PATTERN (.png, .exr or .tif with #### for the frame)");
-        return kUsage;
+        return reportFailure("give --out PATTERN (.png, .exr or .tif with #### for the frame)", kUsage);
     }
     try {
         turbio::outputFormatOf(out);
         if (!more.empty()) turbio::outputFormatOf(more);
     } catch (const turb::ValueError& e) {
-        logError(messageWithFlags(e));
-        return kUsage;
+        return reportFailure(messageWithFlags(e), kUsage);
     }
     return kOk;
 }

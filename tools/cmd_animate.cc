@@ -21,6 +21,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <optional>
 #include <sstream>
@@ -48,6 +49,31 @@ struct AnimateArgs
     turbio::ReadOptions read;
     turb::AnimateSettings settings;
 };
+
+// "builtin:river" names scenes/animate/river_strokes.json: in PREFIX/share/vdbturb/animate beside an installed
+// binary (found from /proc/self/exe, so a moved prefix works); the binary in the build tree reads the source tree.
+std::string builtinStrokes(const std::string& name)
+{
+    namespace fs = std::filesystem;
+    const std::string file = "animate/" + name + "_strokes.json";
+    std::vector<fs::path> dirs;
+    std::error_code ec;
+    const fs::path exeDir = fs::read_symlink("/proc/self/exe", ec).parent_path();
+    if (!ec && fs::equivalent(exeDir, VDBTURB_BUILD_BIN_DIR, ec)) {
+        dirs.emplace_back(VDBTURB_SOURCE_DATA_DIR);
+    } else if (!exeDir.empty()) {
+        fs::path prefix = exeDir;
+        for (const auto& part : fs::path(VDBTURB_INSTALL_BIN_DIR))
+            if (!part.empty()) prefix = prefix.parent_path();
+        dirs.push_back(prefix / VDBTURB_INSTALL_DATA_DIR);
+    }
+    std::string tried;
+    for (const fs::path& d : dirs) {
+        if (fs::exists(d / file)) return (d / file).string();
+        tried += (tried.empty() ? "" : ", ") + (d / file).string();
+    }
+    throw turb::IoError("--flow-strokes builtin:" + name + ": no such built-in design (looked for " + tried + ")");
+}
 
 std::string fmt(const char* f, double v)
 {
@@ -260,7 +286,8 @@ Target readTarget(const AnimateArgs& a)
             a.target + ": no flow design for the target: give --flow-strokes FILE.json or --flow IMAGE");
     if (!a.strokes.empty() && !a.flow.empty()) throw turb::ValueError("give --flow-strokes or --flow, not both");
     if (!a.strokes.empty()) {
-        t.strokes = turbio::readFlowStrokes(a.strokes, W, H);
+        const bool builtin = a.strokes.rfind("builtin:", 0) == 0;
+        t.strokes = turbio::readFlowStrokes(builtin ? builtinStrokes(a.strokes.substr(8)) : a.strokes, W, H);
     } else {
         const turb::RgbaImage f = turbio::readImage(a.flow);
         if (f.width() != W || f.height() != H)
@@ -701,7 +728,7 @@ int runAnimate(AnimateArgs& a)
     if (const int rc = stylize::checkOutputPatterns(a.out); rc != kOk) return rc;
     const turbio::FramePattern outPattern = turbio::FramePattern::parse(a.out);
     if (!outPattern.numbered())
-        throw turb::ValueError("--out " + a.out + " has no frame token (####): animate writes a sequence");
+        throw UsageError("--out " + a.out + " has no frame token (####): animate writes a sequence");
     // Everything is read and checked before the first file is written.
     const Target target = readTarget(a);
     // The matcher keeps cells of at least 8 pixels: say so when a given grid is finer.
@@ -744,8 +771,9 @@ void addInputOptions(CLI::App* app, AnimateArgs& a)
         "--target", a.target, "The still to animate (its alpha is kept in the output), or builtin:river[:WxH]");
     app->add_option(
         "--target-alpha", a.targetAlpha, "Matte of the fluid (grey image, target size): only the fluid moves");
-    app->add_option(
-        "--flow-strokes", a.strokes, "Flow design: orientation and speed strokes (JSON, scenes/animate/README.md)");
+    app->add_option("--flow-strokes", a.strokes,
+        "Flow design: orientation and speed strokes (JSON, scenes/animate/README.md), or builtin:river / builtin:plume "
+        "(the designs installed in share/vdbturb/animate)");
     app->add_option(
         "--flow", a.flow, "Flow design: a dense flow image, R,G = x,y in pixels per frame (x right, y down)");
     setting(app->add_flag("--flow-y-up", a.flowYUp, "The --flow image's G channel points up"), "flow-y-up");

@@ -215,7 +215,38 @@ turb::CoordBBox boxFromArray(const nlohmann::json& j)
     return turb::CoordBBox(turb::Coord(v[0], v[1], v[2]), turb::Coord(v[3], v[4], v[5]));
 }
 
-Plan makePlan(const FarmArgs& a)
+// The largest overlap that `chunks` chunks of `n` frames can hold (-1: none, too many chunks).
+int largestOverlap(size_t n, int chunks, int preroll)
+{
+    for (int o = int(std::min<size_t>(n, 1000)); o >= 0; --o) {
+        try {
+            turb::planTimeChunks(n, chunks, preroll, o);
+            return o;
+        } catch (const turb::ValueError&) {}
+    }
+    return -1;
+}
+
+// The time chunks. Without --overlap the default (20) shrinks to what the shot holds, with a line saying so; a given
+// --overlap that does not fit is refused, naming the largest that does.
+std::vector<turb::TimeChunk> timeChunks(FarmArgs& a, size_t n)
+{
+    try {
+        return turb::planTimeChunks(n, a.chunks, a.preroll, a.overlap);
+    } catch (const turb::ValueError& e) {
+        const int most = largestOverlap(n, a.chunks, a.preroll);
+        if (most < 0) throw UsageError(std::string(e.what()) + ": use fewer --chunks");
+        if (a.overlapGiven->count() > 0)
+            throw UsageError(std::string(e.what()) + ": --overlap " + std::to_string(most) + " is the most that " +
+                             std::to_string(a.chunks) + " chunks of this shot hold (or use fewer --chunks)");
+        logInfo("overlap " + std::to_string(most) + " frames: the default " + std::to_string(a.overlap) +
+                " does not fit " + std::to_string(n) + " frames in " + std::to_string(a.chunks) + " chunks");
+        a.overlap = most;
+        return turb::planTimeChunks(n, a.chunks, a.preroll, a.overlap);
+    }
+}
+
+Plan makePlan(FarmArgs& a) // settles a.overlap when the default does not fit the shot
 {
     Plan p;
     p.tiled = !a.tiles.empty();
@@ -262,10 +293,10 @@ Plan makePlan(const FarmArgs& a)
             throw turb::ValueError(std::string("--ramp: ") + e.what());
         }
     } else {
-        p.chunks = turb::planTimeChunks(p.frames.size(), a.chunks, a.preroll, a.overlap);
+        p.chunks = timeChunks(a, p.frames.size());
     }
     if (!turbio::FramePattern::parse(a.out).numbered())
-        throw turb::ValueError("--out '" + a.out + "' has no frame token (####)");
+        throw UsageError("--out '" + a.out + "' has no frame token (####)");
     p.dir = absolute(a.dir);
     p.exe = a.exe.empty() ? selfExe() : a.exe;
     p.target = absolute(a.target);
@@ -638,7 +669,8 @@ void joinTileFrame(const FarmArgs& a, const JoinPlan& p, size_t i, RunReport& re
     turbio::ReadOptions tro = a.targetRead;
     tro.cropToSmoke = true;
     tro.holdBox = p.tiles.box;
-    const turb::Frame ft = readingAs("target", [&] { return turbio::readFrame(p.target.path(t), t, tro); });
+    turb::Frame ft = readingAs("target", [&] { return turbio::readFrame(p.target.path(t), t, tro); });
+    turb::toTimeUnit(ft, tiles.front().timeUnit); // the tiles' vel is per second, a Blender target's per its unit
     const turb::VectorField up = turb::upsample(ft.velocity, p.ratio);
     for (turb::Frame& fr : tiles)
         if (fr.metadata.count(turb::meta::kVelocityMargin))
@@ -676,7 +708,9 @@ void blendFrame(const FarmArgs& a, const JoinPlan& p, size_t k, int j, RunReport
     turb::Frame fb = turbio::readFrame(pb.format(t), t, ro);
     turbio::ReadOptions tro = a.targetRead;
     tro.cropToSmoke = false;
-    const turb::Frame ft = readingAs("target", [&] { return turbio::readFrame(p.target.path(t), t, tro); });
+    turb::Frame ft = readingAs("target", [&] { return turbio::readFrame(p.target.path(t), t, tro); });
+    turb::toTimeUnit(ft, fb.timeUnit);
+    turb::toTimeUnit(fa, fb.timeUnit);
     const auto r = fb.metadata.find(turb::meta::kRatio);
     if (r == fb.metadata.end())
         throw turb::IoError(

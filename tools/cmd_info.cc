@@ -110,6 +110,7 @@ std::string gridTable(const turbio::FileInfo& fi)
                (fi.velocityMargin == 1 ? "" : "s") + " of the smoke";
     if (std::any_of(fi.grids.begin(), fi.grids.end(), [](const turbio::GridInfo& g) { return g.halfFloat; }))
         out += ", 16-bit floats";
+    if (!fi.sourceFrame.empty()) out += ", made from source frame " + fi.sourceFrame + " (vdbturb_source_frame)";
     out += "\n";
     std::vector<std::vector<std::string>> rows{{"#", "grid", "type", "class", "role", "voxel", "origin",
         "active box (index)", "world bounds", "active", "values"}};
@@ -209,7 +210,8 @@ std::string latticeLines(
             "\nvelocity units: " +
             (t.cells ? "grid cells per time unit, x voxel " + fmtNum("%g", first.lattice.voxelSize) + " = world units"
                      : std::string("world units per time unit")) +
-            " (" + source.units + ")";
+            " (" + source.units + "); time unit " + fmtNum("%.6g", t.timeUnit) + " s" +
+            (t.timeUnit == 1.0 ? " (per second)" : "") + " (" + t.timeUnitSource + ")";
     for (const auto& n : t.notes) head += "\nnote: " + n;
     return head;
 }
@@ -231,7 +233,8 @@ nlohmann::json sequenceJson(
         const TimingSources source = timingSources(first->timing);
         out["timing"] = {{"dt", first->timing.dt}, {"dt_source", source.dt}, {"fps", first->timing.fps},
             {"fps_source", source.fps}, {"velocity_units", first->timing.cells ? "cells" : "world"},
-            {"units_source", source.units}, {"convention_assumed", first->timing.conventionAssumed}};
+            {"units_source", source.units}, {"convention_assumed", first->timing.conventionAssumed},
+            {"time_unit_s", first->timing.timeUnit}, {"time_unit_source", first->timing.timeUnitSource}};
     }
     out["files"] = nlohmann::json::array();
     return out;
@@ -265,6 +268,8 @@ void fileJson(const turbio::FileInfo& fi, nlohmann::json& fj)
     fj["library_version"] = fi.libraryVersion;
     fj["creator"] = fi.creator;
     fj["velocity_margin"] = fi.velocityMargin >= 0 ? nlohmann::json(fi.velocityMargin) : nlohmann::json(nullptr);
+    if (!fi.sourceFrame.empty()) fj["source_frame"] = fi.sourceFrame;
+    if (fi.recordedTimeUnit > 0.0) fj["time_unit_s"] = fi.recordedTimeUnit;
     if (fi.baseResolution)
         fj["blender_base_resolution"] = {fi.baseResolution->x(), fi.baseResolution->y(), fi.baseResolution->z()};
     fj["grids"] = nlohmann::json::array();
@@ -347,6 +352,7 @@ int runInfo(const InfoArgs& a)
 
     nlohmann::json out = sequenceJson(seq, scan, first);
     Tally tally;
+    std::vector<int> damaged;
     for (size_t i = 0; i < seq.frames.size(); ++i) {
         const int frame = seq.frames[i];
         const std::string path = seq.path(frame);
@@ -356,12 +362,17 @@ int runInfo(const InfoArgs& a)
         try {
             describeFile(a, ro, scan, frame, path, i == 0, fj, tally);
         } catch (const turb::Error& e) {
+            // Every frame is listed: a damaged one gets its reason, and the walk goes on.
             ++tally.failures;
+            damaged.push_back(frame);
             fj["error"] = messageWithFlags(e);
-            logError(messageWithFlags(e));
+            printData("frame " + std::to_string(frame) + ": DAMAGED: " + messageWithFlags(e), a.json);
         }
         out["files"].push_back(fj);
     }
+    if (!damaged.empty())
+        logError(std::to_string(damaged.size()) + " of " + std::to_string(seq.frames.size()) + " frame" +
+                 (seq.frames.size() == 1 ? " is" : "s are") + " damaged: " + turbio::formatFrameList(damaged));
     if (a.validate) {
         const std::string verdict = tally.failures ? std::to_string(tally.failures) + " of " +
                                                          std::to_string(seq.frames.size()) + " frames fail to read"

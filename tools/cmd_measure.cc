@@ -176,6 +176,12 @@ void preflight(const MeasureArgs& a, const MeasurePlan& p)
         const turbio::SequenceScan srcScan =
             checkInput("measure", "source", *p.src, p.src->frames, p.readSrc, LatticePolicy::Report);
         reportTiming("source", srcScan, true);
+        const turbio::FrameScan* sf = srcScan.frames.empty() ? nullptr : &srcScan.frames.front();
+        if (sf && sf->timing.cells && p.readSrc.extendVelocity == 0)
+            logWarning("the source is a Blender cache, whose velocity stops at the smoke's edge: that step counts as "
+                       "turbulence in hf_energy_source, so hf_ratio reads low while the plume is small (frame 1 of "
+                       "the Blender plume2 pair: 0.17; 1.12 measured as transfer calibrates). "
+                       "--source-extend-velocity 4 measures the source as transfer reads it");
     }
     // An up-res sits on a lattice an integer number of times finer than its target's.
     if (!outScan.frames.empty() && !tgtScan.frames.empty()) {
@@ -226,6 +232,9 @@ turb::FrameMeasures measureOne(const MeasurePlan& p, const turb::MeasureSettings
         if (holds(*p.src, sn)) sf = turbio::readFrame(p.src->path(sn), sn, p.readSrc);
         else logWarning("frame " + std::to_string(f) + ": source frame " + std::to_string(sn) + " missing");
     }
+    // One time unit for all three: an output written for Houdini is per second, a Blender target per Mantaflow unit.
+    turb::toTimeUnit(o, t.timeUnit);
+    if (sf) turb::toTimeUnit(*sf, t.timeUnit);
     // tcoh compares with the previous *processed* frame, over the real time between the two, and only on one
     // lattice (a sequence whose lattice changes is measured frame by frame).
     const bool consecutive = prev.out && prev.tgt && prev.out->number < f &&
@@ -300,8 +309,8 @@ int runMeasure(MeasureArgs& a)
     const turb::MeasureSettings s = measureSettings(a);
     const MeasurePlan p = planMeasure(a);
     if (p.frames.empty()) {
-        logError("no frame is present in both " + p.out.pattern.str() + " and " + p.tgt.pattern.str());
-        return kFailed;
+        return reportFailure(
+            "no frame is present in both " + p.out.pattern.str() + " and " + p.tgt.pattern.str(), kFailed);
     }
     logInfo("measure: output " + p.out.pattern.str() + ", target " + p.tgt.pattern.str() +
             (p.src ? ", source " + p.src->pattern.str() : std::string(", no source")) + ", frames " +

@@ -9,6 +9,7 @@
 #include <turb/Operators.h>
 #include <turb/Parallel.h>
 #include <turb/Render.h>
+#include <turb/Reorient.h>
 #include <turb/Resample.h>
 #include <turbio/ImageIO.h>
 #include <turbio/Sequence.h>
@@ -45,6 +46,7 @@ struct PreviewArgs
     float extinction = 6.0f;
     float speedMax = 0.0f;
     float vorticityMax = 0.0f;
+    std::string up = "auto"; ///< auto, y or z: the world axis drawn upward
     bool json = false;
     turbio::ReadOptions read;
 };
@@ -59,6 +61,7 @@ struct Input
     turb::CoordBBox held;                       // the union of the frames' held boxes (before shareCamera)
     int extraMargin = 0;                        // voxels more than the read margin, so a read covers frameBox
     bool still = false;                         // one unnumbered file: drawn in every row
+    bool yUp = false;                           // a y-up cache (Houdini): turned so that +y is drawn upward
 };
 
 std::string fmt(const char* f, double v)
@@ -171,6 +174,16 @@ void shareCamera(std::vector<Input>& inputs)
 
 /// A thin outline of the domain on a picture (where the smoke can go).
 void outline(turb::Image& img) { img.drawRect(0, 0, img.width(), img.height(), turb::Rgb(0.35f)); }
+
+turb::Image render(const turb::Frame& f, Mode m, const PreviewArgs& a, const Input& in);
+
+// The views draw +z up. A y-up cache is turned a quarter about x first (+y onto +z, exactly: voxels move, nothing
+// is resampled); a 2D cache is drawn in its own plane either way.
+turb::Image renderUpright(const turb::Frame& f, Mode m, const PreviewArgs& a, const Input& in)
+{
+    if (!in.yUp || turb::isFlat(f.bbox())) return render(f, m, a, in);
+    return render(turb::reorientFrame(f, turb::AxisRotation::quarterTurns(0, 1)), m, a, in);
+}
 
 turb::Image render(const turb::Frame& f, Mode m, const PreviewArgs& a, const Input& in)
 {
@@ -306,7 +319,27 @@ std::vector<int> rowFrames(const PreviewArgs& a, const std::vector<Input>& input
 
 // Every picture's frames, checked before the first is drawn, and one camera per input for the whole run. Returns
 // the files the pictures are drawn from.
-std::vector<std::string> checkAndFrame(PreviewPlan& p)
+// Which way is up in a cache: --up, else the vdbturb_up_axis metadata, else y for Houdini's files (its world is y
+// up and its VDBs say so only through their creator), else z (Blender, EmberGen, vdbturb's scenes).
+void chooseUpAxis(const std::string& up, Input& in, int frame)
+{
+    if (up != "auto") {
+        in.yUp = up == "y";
+        return;
+    }
+    const turbio::FileInfo fi = turbio::inspectFile(in.seq.path(frame), false);
+    std::string why;
+    if (!fi.upAxis.empty()) {
+        in.yUp = fi.upAxis == "y";
+        why = "vdbturb_up_axis metadata";
+    } else if (fi.creator.find("Houdini") != std::string::npos) {
+        in.yUp = true;
+        why = "written by Houdini ('" + fi.creator + "')";
+    }
+    if (in.yUp) logInfo(in.label + ": drawn with +y up (" + why + "; --up z draws it as stored)");
+}
+
+std::vector<std::string> checkAndFrame(PreviewPlan& p, const std::string& up)
 {
     std::vector<std::string> inputPaths;
     for (auto& in : p.inputs) {
@@ -330,6 +363,11 @@ std::vector<std::string> checkAndFrame(PreviewPlan& p)
             }
         }
         if (in.frameBox) in.held = *in.frameBox;
+        for (int f : p.frames)
+            if (exists(in, f)) {
+                chooseUpAxis(up, in, fileFrame(in, f));
+                break;
+            }
     }
     shareCamera(p.inputs);
     // A shared camera can reach past what a read holds (the smoke and its margin): read that much more, so the
@@ -346,9 +384,10 @@ std::vector<std::string> checkAndFrame(PreviewPlan& p)
 int checkOutputPaths(const PreviewArgs& a, const PreviewPlan& p, const std::vector<std::string>& inputPaths)
 {
     if (a.sheet.empty() && p.frames.size() > 1 && !turbio::FramePattern::parse(a.out).numbered()) {
-        logError("--out '" + a.out + "' has no frame token (####, %04d, $F4) but " + std::to_string(p.frames.size()) +
-                 " frames are requested; every frame would overwrite the last");
-        return kUsage;
+        return reportFailure("--out '" + a.out + "' has no frame token (####, %04d, $F4) but " +
+                                 std::to_string(p.frames.size()) +
+                                 " frames are requested; every frame would overwrite the last",
+            kUsage);
     }
     std::vector<std::string> outputs;
     if (a.sheet.empty())
@@ -359,8 +398,7 @@ int checkOutputPaths(const PreviewArgs& a, const PreviewPlan& p, const std::vect
         turbio::outputFormatOf(a.sheet.empty() ? a.out : a.sheet); // an unknown extension fails before any drawing
                                                                    // (after "out is an input", the worse mistake)
     } catch (const turb::ValueError& e) {
-        logError(messageWithFlags(e));
-        return kUsage;
+        return reportFailure(messageWithFlags(e), kUsage);
     }
     return kOk;
 }
@@ -379,7 +417,8 @@ void colourRanges(const PreviewArgs& a, PreviewPlan& p)
         turbio::ReadOptions ro = p.read;
         ro.requireDensity = false;
         ro.cropMargin += in.extraMargin;
-        const turb::Frame f = turbio::readFrame(in.seq.path(fileFrame(in, ref)), fileFrame(in, ref), ro);
+        turb::Frame f = turbio::readFrame(in.seq.path(fileFrame(in, ref)), fileFrame(in, ref), ro);
+        turb::toTimeUnit(f, 1.0); // one speed scale for every column: world units per second
         const turb::ScalarField* d = f.hasDensity() ? &f.density : nullptr;
         in.speedMax = a.speedMax > 0.0f ? a.speedMax : percentile(turb::magnitude(f.velocity), d, 0.995);
         in.vorticityMax =
@@ -401,6 +440,7 @@ std::vector<turb::Image> renderRow(
             turbio::ReadOptions ro = p.read;
             ro.cropMargin += in.extraMargin;
             f = turbio::readFrame(in.seq.path(fileFrame(in, frame)), fileFrame(in, frame), ro);
+            turb::toTimeUnit(*f, 1.0);
             if (in.frameBox) {
                 if (f->hasDensity()) f->density = turb::cropped(f->density, *in.frameBox);
                 if (f->hasVelocity()) f->velocity = turb::cropped(f->velocity, *in.frameBox);
@@ -410,7 +450,7 @@ std::vector<turb::Image> renderRow(
         }
         for (Mode m : p.modes) {
             progress.begin(std::string("rendering ") + modeName(m));
-            images.push_back(f ? render(*f, m, a, in) : turb::Image());
+            images.push_back(f ? renderUpright(*f, m, a, in) : turb::Image());
             labels.push_back(cellLabel(in, m, p.inputs.size(), p.modes.size()));
         }
     }
@@ -505,12 +545,10 @@ int runPreview(PreviewArgs& a)
     p.modes = parseModes(a.modes);
     // Argument combinations CLI11 cannot express are usage errors too (exit 2).
     if (a.sheet.empty() && a.out.empty()) {
-        logError("give --out PATTERN.png|.exr (one picture per frame) or --sheet FILE.png|.exr");
-        return kUsage;
+        return reportFailure("give --out PATTERN.png|.exr (one picture per frame) or --sheet FILE.png|.exr", kUsage);
     }
     if (a.sheet.empty() && a.inputs.size() > 1) {
-        logError("several caches go side by side into a contact sheet: add --sheet FILE.png");
-        return kUsage;
+        return reportFailure("several caches go side by side into a contact sheet: add --sheet FILE.png", kUsage);
     }
     p.inputs = resolveInputs(a);
     p.frames = rowFrames(a, p.inputs);
@@ -519,7 +557,7 @@ int runPreview(PreviewArgs& a)
     p.read.requireDensity = std::find(p.modes.begin(), p.modes.end(), Mode::Density) != p.modes.end();
     p.read.readExtras = false;
 
-    const std::vector<std::string> inputPaths = checkAndFrame(p);
+    const std::vector<std::string> inputPaths = checkAndFrame(p, a.up);
     if (const int rc = checkOutputPaths(a, p, inputPaths); rc != kOk) return rc;
     turb::withThreads(globals().threads, [&] { drawRows(a, p); });
     return kOk;
@@ -582,7 +620,11 @@ Command previewCommand()
         app->add_option(
                "--frames", a.frames, "Frames, e.g. 10,30,60 or 1-60 (default: all; a sheet: three spread frames)")
             ->check(frameListCheck());
-        addEnum<turb::View>(app, "--view", a.view, kViews, "Camera: front (along +y), side (along +x), top (down -z)");
+        addEnum<turb::View>(app, "--view", a.view, kViews,
+            "Camera: front (along +y), side (along +x), top (down -z), for a z-up cache");
+        app->add_option("--up", a.up,
+               "World axis drawn upward: auto (vdbturb_up_axis metadata, else y for Houdini's files, else z), y, z")
+            ->check(CLI::IsMember({"auto", "y", "z"}));
         app->add_option("--width", a.width, "Width of each picture in pixels")->check(CLI::Range(16, 8192));
         app->add_flag("--json", a.json, "One JSON line per frame and a summary on stdout");
         addReadOptions(app, a.read);

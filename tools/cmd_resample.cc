@@ -131,7 +131,7 @@ int runResample(ResampleArgs& a)
     const turbio::Sequence seq = turbio::resolveSequence(a.in, a.frames);
     const turbio::FramePattern outPattern = turbio::FramePattern::parse(a.out);
     if (seq.frames.size() > 1 && !outPattern.numbered())
-        throw turb::ValueError("--out '" + a.out + "' has no frame token but several frames are requested");
+        throw UsageError("--out '" + a.out + "' has no frame token but several frames are requested");
     a.read.requireDensity = a.read.requireVelocity = false;
     // Each frame is resampled on its own, so a lattice change within the sequence is carried through.
     const turbio::SequenceScan scan = checkInput("resample", "cache", seq, seq.frames, a.read, LatticePolicy::Report);

@@ -97,7 +97,7 @@ int runInk(const SimArgs& a)
     s.seed = a.seed;
     const std::string outText = a.out.empty() ? "sim/ink_" + res + "/ink.####.png" : a.out;
     const turbio::FramePattern rgb = turbio::FramePattern::parse(outText);
-    if (!rgb.numbered() && a.frames > 1) throw turb::ValueError("--out '" + outText + "' has no frame token (####)");
+    if (!rgb.numbered() && a.frames > 1) throw UsageError("--out '" + outText + "' has no frame token (####)");
     turbio::outputFormatOf(outText);
     const turbio::FramePattern mask = sibling(rgb, "mask", ".png"), flow = sibling(rgb, "flow", ".exr");
     logInfo("scene ink at " + res + ", " + std::to_string(a.frames) + " frames, seed " + std::to_string(a.seed) + ": " +
@@ -238,8 +238,8 @@ int runSim(const SimArgs& a)
         a.out.empty() ? "sim/" + a.scene + "_" + resText(res) + "/" + a.scene + ".####.vdb" : a.out;
     const turbio::FramePattern pattern = turbio::FramePattern::parse(outText);
     if (!pattern.numbered() && a.frames > 1)
-        throw turb::ValueError("--out '" + outText + "' has no frame token (####, %04d, $F4) but " +
-                               std::to_string(a.frames) + " frames were asked for");
+        throw UsageError("--out '" + outText + "' has no frame token (####, %04d, $F4) but " +
+                         std::to_string(a.frames) + " frames were asked for");
 
     turb::scenes::SmokeSim sim(s); // validates the settings before anything is written
     logInfo(domainLine(a, sim, s, res));

@@ -295,8 +295,8 @@ int runStylize(StylizeArgs& a)
     const turbio::FramePattern outPattern = turbio::FramePattern::parse(a.out);
     TargetSource target(a);
     if (!outPattern.numbered() && target.frames().size() > 1)
-        throw turb::ValueError("--out " + a.out + " has no frame token (####) but there are " +
-                               std::to_string(target.frames().size()) + " frames");
+        throw UsageError("--out " + a.out + " has no frame token (####) but there are " +
+                         std::to_string(target.frames().size()) + " frames");
     ExemplarSource exemplar(a, s.patchSize);
     logInfo("stylize: " + target.label() + ", exemplar " + exemplar.label() +
             (exemplar.video() ? " (video, " + std::to_string(exemplar.count()) + " frames)" : "") + ", " +

@@ -471,8 +471,8 @@ int runFluidymation(StylizeArgs& a)
     TargetSource target(targetArgs, true);
     const turbio::FramePattern outPattern = turbio::FramePattern::parse(a.out);
     if (!outPattern.numbered() && target.frames().size() > 1)
-        throw turb::ValueError("--out " + a.out + " has no frame token (####) but there are " +
-                               std::to_string(target.frames().size()) + " frames");
+        throw UsageError("--out " + a.out + " has no frame token (####) but there are " +
+                         std::to_string(target.frames().size()) + " frames");
     target.validate2D(true);
 
     // Everything is read and checked before the first frame is written.

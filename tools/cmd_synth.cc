@@ -634,8 +634,8 @@ SynthPlan planSynth(SynthArgs& a, CoarseSource& source)
     p.frames = source.frames();
     p.out = turbio::FramePattern::parse(a.out);
     if (p.frames.size() > 1 && !p.out.numbered())
-        throw turb::ValueError("--out '" + a.out + "' has no frame token (####, %04d, $F4) but " +
-                               std::to_string(p.frames.size()) + " frames are requested");
+        throw UsageError("--out '" + a.out + "' has no frame token (####, %04d, $F4) but " +
+                         std::to_string(p.frames.size()) + " frames are requested");
     p.scan = preflightSynth(a, source, p.frames, p.out);
     if (a.exemplars.empty()) a.exemplars.push_back("circles:16");
     std::vector<turb::Exemplar> ex;
@@ -698,6 +698,7 @@ void synthFrame(const SynthArgs& a, CoarseSource& source, SynthPlan& p, turb::Sy
     in.obstacle = p.obstacle ? &*p.obstacle : nullptr;
     in.frame = fr;
     in.dt = cf.dt > 0.0 ? cf.dt : a.flowDt;
+    in.timeUnit = cf.timeUnit;
     const std::optional<turb::ScalarField> emitters =
         cf.hasDensity() && a.seq.density ? source.sceneEmitters(cf.density, fr) : std::nullopt;
     in.emitters = emitters ? &*emitters : nullptr;
@@ -784,8 +785,7 @@ int runSynth(SynthArgs& a)
     const std::string msg = std::to_string(unconverged.size()) +
                             " frame(s) with a projection or a detail divergence solve that did not converge: " + list;
     if (a.strict) {
-        logError(msg + " (--strict)");
-        return kFailed;
+        return reportFailure(msg + " (--strict)", kFailed);
     }
     logWarning(msg);
     return kOk;

@@ -131,15 +131,19 @@ double velocityBoxVoxels(const turbio::FrameScan& fr)
     return double(fr.domain.volume());
 }
 
-// A frame written trimmed to the smoke, in half floats or Blender style is not the state the next frame starts
-// from. The exact state is then kept beside the outputs in one file, rewritten after every frame: one frame's
-// disk, not the sequence's. "up/turb.####.vdb" keeps "up/.turb.resume.vdb". None for a single unnumbered file.
-std::string resumeStatePath(const turbio::FramePattern& out, const turbio::WriteOptions& w)
+// A frame written trimmed to the smoke, in half floats, Blender style or in another time unit than the target's is
+// not the state the next frame starts from. The exact state is then kept beside the outputs in two files that take
+// turns, odd and even frames, each written before its frame: whichever write a kill cuts, the state of the last
+// whole frame survives. Two frames' disk, not the sequence's. "up/turb.####.vdb" keeps "up/turb.resume-state-odd.vdb"
+// and "-even", visible names that no frame pattern takes (a hidden file was picked up by publish tools unseen). None
+// for a single unnumbered file.
+std::string resumeStatePath(const turbio::FramePattern& out, const turbio::WriteOptions& w, double timeUnit, int frame)
 {
-    const bool lossy = w.velocityMargin >= 0 || w.halfFloat || w.style == turbio::WriteStyle::Blender;
+    // A Houdini-style frame holds velocity per second: scaling a Blender target's time unit back is not exact.
+    const bool lossy =
+        w.velocityMargin >= 0 || w.halfFloat || w.style == turbio::WriteStyle::Blender || timeUnit != 1.0;
     if (!lossy || !out.numbered()) return {};
-    const std::filesystem::path p(out.prefix() + "resume" + out.suffix());
-    return (p.parent_path() / ("." + p.filename().string())).string();
+    return out.prefix() + ((frame & 1) ? "resume-state-odd" : "resume-state-even") + out.suffix();
 }
 
 // Everything the run needs, checked before its first frame (and all a dry run does): every target and source
@@ -159,6 +163,13 @@ turb::CoordBBox preflight(const TransferArgs& a, const turbio::Sequence& target,
         checkInput("transfer", "source", source, sourceFrames, a.sourceRead, LatticePolicy::Refuse, "source");
     reportTiming("target", ts, true, "target");
     reportTiming("source", ss, true, "source");
+    if (!ss.frames.empty() && ss.frames.front().timing.cells && a.sourceRead.extendVelocity > 0)
+        logInfo("source: Blender clips its velocity to the smoke; the detail is calibrated to it continued " +
+                std::to_string(a.sourceRead.extendVelocity) + " voxels past the edge, at full strength from the " +
+                "first frame. Measure it so (vdbturb measure --source-extend-velocity " +
+                std::to_string(a.sourceRead.extendVelocity) + "): against the clipped source the edge's step " +
+                "counts as turbulence and the first frames' hf_ratio reads low (0.17 at frame 1 of Blender plume2, " +
+                "1.12 so measured)");
 
     const turbio::FrameScan& t0 = ts.frames.front();
     const turbio::FrameScan& s0 = ss.frames.front();
@@ -259,9 +270,10 @@ turb::CoordBBox preflight(const TransferArgs& a, const turbio::Sequence& target,
     printData("output size: about " + turbio::formatBytes(outBytes) + " for the largest frame, " +
               turbio::formatBytes(totalBytes) + " for " + std::to_string(targetFrames.size()) + " frame" +
               (targetFrames.size() == 1 ? "" : "s"));
-    if (const std::string state = resumeStatePath(outPattern, a.write); !state.empty())
-        printData("resume state: " + state + ", about " + turbio::formatBytes(stateBytes) +
-                  " (the last frame in full precision, rewritten every frame)");
+    const double unit = ts.frames.front().timing.timeUnit;
+    if (const std::string odd = resumeStatePath(outPattern, a.write, unit, 1); !odd.empty())
+        printData("resume state: " + odd + " and " + resumeStatePath(outPattern, a.write, unit, 0) + ", about " +
+                  turbio::formatBytes(stateBytes) + " each (odd and even frames in full precision, for --resume)");
 
     // The source is matched at the ratio's voxel: a non-integer ratio resamples it first.
     const auto matchedVoxels = [&](double sourceVoxel, double voxels, int ratio) {
@@ -292,6 +304,20 @@ turb::CoordBBox preflight(const TransferArgs& a, const turbio::Sequence& target,
         "target " + dims(tBox.dim()) + " at ratio " + std::to_string(f) + " = " + dims(outDim) +
             " output voxels, source " + (sl ? dims(sl->domain.dim()) : std::string("?")),
         fits);
+
+    // The time, frame by frame from each frame's held box (the model's error: docs/performance.md, Time estimate).
+    double seconds = 0.0, worst = 0.0;
+    for (const turbio::FrameScan& fs : ts.frames) {
+        const double s = turb::transferSecondsPerFrame(double(fs.domain.volume()), f, matchedVoxels(sv, sVoxels, f));
+        seconds += s;
+        worst = std::max(worst, s);
+    }
+    if (!ts.frames.empty())
+        printData("time: about " + fmt("%.2g", seconds / double(ts.frames.size())) + " s/frame on 2 cores (up to " +
+                  fmt("%.2g", worst) + "), " + fmt("%.3g", seconds / 60.0) + " min for " +
+                  std::to_string(ts.frames.size()) +
+                  " frames (the model's totals were within 0.9-1.25x on the bench's pairs, " +
+                  "single frames within 2.3x: docs/performance.md)");
 
     std::vector<std::string> outputs, inputs;
     for (size_t i = first; i < target.frames.size(); ++i) outputs.push_back(outPattern.format(target.frames[i]));
@@ -436,6 +462,45 @@ std::vector<int> sourceFrames(
     return out;
 }
 
+// Which source frame each target frame reads: a source numbered otherwise (1001-1012 for a target at 1-12) is
+// wrapped silently by the mapping rules, so the plan says how, and warns where the two ranges do not meet.
+void reportSourceMapping(const TransferArgs& a, const FramePlan& p)
+{
+    if (p.target.frames.empty() || p.source.frames.empty()) return;
+    const std::vector<int>& t = p.target.frames;
+    size_t wrapped = 0;
+    for (size_t i = 0; i < t.size(); ++i) wrapped += p.sourceFor[i] != t[i] + a.sourceOffset;
+    const int s0 = p.source.frames.front(), s1 = p.source.frames.back();
+    std::string line = "source frames: source = target + " + std::to_string(a.sourceOffset) + " (--source-offset)";
+    if (wrapped > 0)
+        line += ", " + std::to_string(wrapped) + " of " + std::to_string(t.size()) + " wrapped by --source-wrap " +
+                wrapName(a.wrap) + " into the source's " + std::to_string(s0) + "-" + std::to_string(s1);
+    line += "; target " + std::to_string(t.front()) + " -> source " + std::to_string(p.sourceFor.front());
+    if (t.size() > 1)
+        line += ", target " + std::to_string(t.back()) + " -> source " + std::to_string(p.sourceFor.back());
+    logInfo(line);
+    const int t0 = t.front() + a.sourceOffset, t1 = t.back() + a.sourceOffset;
+    if (t1 < s0 || t0 > s1)
+        logWarning("the source's frames " + std::to_string(s0) + "-" + std::to_string(s1) +
+                   " do not overlap the target's " + std::to_string(t.front()) + "-" + std::to_string(t.back()) +
+                   (a.sourceOffset != 0 ? " + offset " + std::to_string(a.sourceOffset) : std::string()) +
+                   ": every source frame is chosen by --source-wrap " + wrapName(a.wrap) + "; --source-offset " +
+                   std::to_string(s0 - t.front()) + " lines their first frames up");
+}
+
+// Stepped frames (--frames 1001-1100x2): the carried detail and density jump over the skipped frames.
+void reportFrameStep(const std::vector<int>& frames)
+{
+    int step = 1;
+    for (size_t i = 1; i < frames.size(); ++i) step = std::max(step, frames[i] - frames[i - 1]);
+    if (step > 1)
+        logWarning("frames step by up to " + std::to_string(step) + ": the detail and density are carried across " +
+                   "the skipped frames in one advection step of " + std::to_string(step) +
+                   " frames' time with the earlier frame's velocity, so these frames differ from the same frames of a "
+                   "run over every frame (run every frame and keep every " +
+                   std::to_string(step) + "th for those); see docs/transfer.md");
+}
+
 // The detail and the advected density are state: a run that starts at a later frame than the cache's first differs
 // from a longer run's frames there. --preroll runs up to N earlier cache frames first, unwritten.
 void addPreroll(const TransferArgs& a, FramePlan& p)
@@ -475,12 +540,14 @@ FramePlan planFrames(const TransferArgs& a)
                             (p.target.missing.size() == 1 ? ": missing target frame " : ": missing target frames ") +
                             turbio::formatFrameList(p.target.missing));
     if (p.target.frames.size() > 1 && !p.out.numbered())
-        throw turb::ValueError("--out '" + a.out + "' has no frame token (####, %04d, $F4) but " +
-                               std::to_string(p.target.frames.size()) + " frames are requested");
+        throw UsageError("--out '" + a.out + "' has no frame token (####, %04d, $F4) but " +
+                         std::to_string(p.target.frames.size()) + " frames are requested");
     p.sourceFor = sourceFrames(a, p.target.frames, p.source);
     logInfo("transfer: target " + p.target.pattern.str() + " frames " + turbio::formatFrameList(p.target.frames) +
             ", source " + p.source.pattern.str() + " frames " + turbio::formatFrameList(p.source.frames) +
             (p.source.frames.size() < p.target.frames.size() ? " (" + wrapName(a.wrap) + ")" : ""));
+    reportSourceMapping(a, p);
+    reportFrameStep(p.target.frames);
     if (a.resume)
         while (p.first < p.target.frames.size() && std::filesystem::exists(p.out.format(p.target.frames[p.first])))
             ++p.first;
@@ -496,15 +563,17 @@ void restoreFromLastWritten(const TransferArgs& a, const FramePlan& p, turb::Tur
     const std::string prevPath = p.out.format(prev);
     turbio::ReadOptions ro;
     ro.cropToSmoke = false; // the file holds the box the run held (written cropped); restore needs all of it
-    const turb::Frame prevOut = turbio::readFrame(prevPath, prev, ro);
+    turb::Frame prevOut = turbio::readFrame(prevPath, prev, ro);
     const auto it = prevOut.metadata.find(turb::meta::kState);
     if (it == prevOut.metadata.end()) throw turb::IoError(prevPath + ": no vdbturb_state metadata to resume from");
     checkResumable(prevPath, prevOut, a.settings, a.write, p.target, p.source, a.tileBox);
     const turb::Frame prevTarget =
         readingAs("target", [&] { return turbio::readFrame(p.target.path(prev), prev, a.targetRead); });
     try {
-        const std::optional<turb::Frame> state = resumeStateFrame(prevPath, prev, prevOut);
-        transfer.restore(it->second, state ? *state : prevOut, prevTarget);
+        std::optional<turb::Frame> state = resumeStateFrame(prevPath, prev, prevOut);
+        turb::Frame& from = state ? *state : prevOut;
+        turb::toTimeUnit(from, prevTarget.timeUnit); // a no-op for the state, which keeps the target's unit
+        transfer.restore(it->second, from, prevTarget);
     } catch (const turb::Error& e) {
         throw turb::IoError(prevPath + ": cannot resume from this frame: " + e.what(), e.settings());
     } catch (const std::exception& e) {
@@ -533,26 +602,29 @@ void tagOutput(turb::Frame& frame, const TransferArgs& a, const FramePlan& p, si
     }
 }
 
-// Writes the frame and, for small (lossy) outputs, the full-precision state beside it, after the output: a run
-// stopped between the two leaves a state one frame behind, which resume detects. The frame's fields move into the
-// state: it is not needed any more.
+// Writes, for small (lossy) outputs, the full-precision state into the frame's slot (resumeStatePath), then the
+// frame: an output on disk always has its state, and a kill between the two leaves the other slot, the previous
+// frame's, untouched.
 void writeOutput(turb::Frame& frame, int t, const TransferArgs& a, const std::string& outPath,
     const std::string& statePath, bool& warnedClipping)
 {
     turbio::ensureParentDirectory(outPath);
     warnIfClippedAway(frame, a.write, outPath, warnedClipping);
-    if (!statePath.empty())
+    if (!statePath.empty()) {
+        // The state is velocity and density (what restore reads), in the target's time unit, in full float.
+        std::optional<turb::ScalarField> temperature = std::move(frame.temperature), flame = std::move(frame.flame);
+        frame.temperature.reset();
+        frame.flame.reset();
+        frame.metadata[turb::meta::kResumeFrame] = std::to_string(t);
+        turbio::WriteOptions exact;
+        exact.keepTimeUnit = true;
+        turbio::writeFrame(statePath, frame, exact);
+        frame.metadata.erase(turb::meta::kResumeFrame);
+        frame.temperature = std::move(temperature);
+        frame.flame = std::move(flame);
         frame.metadata[turb::meta::kResumeStateFile] = std::filesystem::path(statePath).filename().string();
+    }
     turbio::writeFrame(outPath, frame, a.write);
-    if (statePath.empty()) return;
-    turb::Frame st;
-    st.number = t;
-    st.dt = frame.dt;
-    st.velocity = std::move(frame.velocity);
-    st.density = std::move(frame.density);
-    st.metadata = std::move(frame.metadata);
-    st.metadata[turb::meta::kResumeFrame] = std::to_string(t);
-    turbio::writeFrame(statePath, st, turbio::WriteOptions{});
 }
 
 // The frame's JSON line: what the transfer did and how its solvers ended.
@@ -687,9 +759,8 @@ int runTransfer(TransferArgs& a)
         logWarning("--velocity-margin " + std::to_string(a.write.velocityMargin) +
                    " is ignored with --style blender: Blender's staggered velocity is written over the whole box");
     RunReport report("transfer", a.json);
-    const std::string statePath = resumeStatePath(p.out, a.write);
+    double targetUnit = 0.0; // the resume state's need: known from the first target frame's time unit
     bool warnedClipping = false;
-    if (!statePath.empty()) logVerbose("resume state: " + statePath + " (the last frame in full precision)");
     const int count = int(p.target.frames.size());
     // Frame k's two inputs are read while frame k - 1 is computed and written: a read is mostly its guarded reader's
     // child process (fork, decode, the copy back), time the cores otherwise spend waiting. A read that fails throws
@@ -710,6 +781,12 @@ int runTransfer(TransferArgs& a)
         ConsoleProgress progress(int(i), count, t);
         progress.begin("reading");
         const auto [tf, sf] = ahead.get();
+        if (i == p.first) {
+            targetUnit = tf.timeUnit;
+            if (const std::string odd = resumeStatePath(p.out, a.write, targetUnit, 1); !odd.empty())
+                logInfo("resume state: " + odd + " and " + resumeStatePath(p.out, a.write, targetUnit, 0) +
+                        " (odd and even frames in full precision, for --resume; not frames of the shot)");
+        }
         if (i + 1 < p.target.frames.size()) ahead = std::async(std::launch::async, readInputs, i + 1);
         turb::TransferResult r;
         try {
@@ -730,7 +807,7 @@ int runTransfer(TransferArgs& a)
         progress.begin("writing");
         const std::string outPath = p.out.format(t);
         const nlohmann::json extra = frameJson(r, outPath, p.sourceFor[i]); // before the fields move into the state
-        writeOutput(r.frame, t, a, outPath, statePath, warnedClipping);
+        writeOutput(r.frame, t, a, outPath, resumeStatePath(p.out, a.write, targetUnit, t), warnedClipping);
         progress.clear();
         if (r.stats.sourceResampled && i == p.first)
             logInfo("source resampled trilinearly from ratio " + fmt("%.4g", r.stats.sourceRatio) + " to " +

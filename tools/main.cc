@@ -418,28 +418,25 @@ int main(int argc, char** argv)
                 return {flag}; // no such command: the parser says so
             });
     } catch (const turb::ValueError& e) {
-        logError(messageWithFlags(e));
-        return kUsage;
+        return reportFailure(messageWithFlags(e), kUsage);
     }
     std::vector<char*> argvExpanded;
     for (auto& a : args) argvExpanded.push_back(a.data());
     argc = int(argvExpanded.size());
     argvExpanded.push_back(nullptr);
     argv = argvExpanded.data();
-    if (const std::string typo = checkSpelling(argc, argv, app, subs); !typo.empty()) {
-        logError(typo);
-        return kUsage;
-    }
+    // Before parsing: a parse error of a command asked for --json ends with its JSON line too.
+    globals().json = std::any_of(argv + 1, argv + argc, [](const char* w) { return std::string(w) == "--json"; }) ||
+                     (argc > 1 && std::string(argv[1]) == "measure");
+    if (const std::string typo = checkSpelling(argc, argv, app, subs); !typo.empty())
+        return reportFailure(typo, kUsage);
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
-        const int rc = app.exit(e);
-        return rc == 0 ? kOk : kUsage;
+        if (e.get_exit_code() == 0) return app.exit(e) == 0 ? kOk : kUsage; // --help, --version
+        return reportFailure(std::string(e.what()) + " (--help lists the options)", kUsage);
     }
-    if (const std::string nan = notANumber(app); !nan.empty()) {
-        logError(nan);
-        return kUsage;
-    }
+    if (const std::string nan = notANumber(app); !nan.empty()) return reportFailure(nan, kUsage);
     installSignalHandlers();
     // Read before the command runs: its preflight and --dry-run lines come before it would set this itself.
     globals().json = asksForJson(app);
@@ -448,20 +445,19 @@ int main(int argc, char** argv)
         try {
             return cmd->run();
         } catch (const turb::Cancelled&) {
-            logError("interrupted");
-            return kInterrupted;
-        } catch (const turb::ValueError& e) {
-            logError(messageWithFlags(e));
-            return kFailed;
+            return reportFailure("interrupted", kInterrupted);
+        } catch (const UsageError& e) {
+            return reportFailure(messageWithFlags(e), kUsage);
+        } catch (const turb::TransientError& e) {
+            return reportFailure(messageWithFlags(e) + " (exit 75: worth a retry)", kTempFail);
         } catch (const turb::Error& e) {
-            logError(messageWithFlags(e));
-            return kFailed;
+            return reportFailure(messageWithFlags(e), kFailed);
         } catch (const std::bad_alloc&) {
-            logError("out of memory (std::bad_alloc); a --dry-run estimates what a run needs");
-            return kFailed;
+            return reportFailure(
+                "out of memory (std::bad_alloc); a --dry-run estimates what a run needs (exit 75: worth a retry)",
+                kTempFail);
         } catch (const std::exception& e) {
-            logError(std::string("unexpected: ") + e.what());
-            return kFailed;
+            return reportFailure(std::string("unexpected: ") + e.what(), kFailed);
         }
     }
     return kUsage;

@@ -123,7 +123,8 @@ void resolveFrame(FrameScan& fs, const FileInfo& info, const ReadOptions& option
         if (!problem.empty()) throw turb::IoError(problem);
     }
     const bool blenderVel = v && info.baseResolution && v->name == "velocity" && v->gridClass == "staggered";
-    fs.timing = resolveTiming(blenderVel, info.baseResolution.has_value(), info.recordedDt, options);
+    fs.timing =
+        resolveTiming(blenderVel, info.baseResolution.has_value(), info.recordedDt, options, info.recordedTimeUnit);
     if (fs.velocityVoxel > 0.0) {
         std::ostringstream note;
         note << "grid '" << v->name << "' (voxel " << v->voxelSize << ") will be resampled trilinearly onto the "

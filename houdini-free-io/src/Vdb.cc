@@ -31,6 +31,7 @@
 #include <unordered_map>
 #include <sstream>
 #include <dirent.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -679,7 +680,8 @@ std::string denseSizeProblem(const std::string& path, const turb::CoordBBox& dom
 
 } // namespace detail
 
-ReadReport resolveTiming(bool blenderVelocity, bool blenderCache, double recordedDt, const ReadOptions& options)
+ReadReport resolveTiming(
+    bool blenderVelocity, bool blenderCache, double recordedDt, const ReadOptions& options, double recordedTimeUnit)
 {
     ReadReport r;
     switch (options.velocityUnits) {
@@ -726,6 +728,20 @@ ReadReport resolveTiming(bool blenderVelocity, bool blenderCache, double recorde
         r.fpsSource = fpsText;
         r.fpsSetting = fpsSetting;
         r.conventionAssumed = options.fps <= 0.0;
+    }
+    // Seconds per time unit. A frame lasts 1/fps seconds and dt time units, so one unit is 1 / (fps x dt) seconds:
+    // 0.4 for Mantaflow at time scale 1 (0.1 x 25/fps units a frame), whatever the frame rate. vdbturb records it;
+    // other writers (Houdini, EmberGen) write world units per second.
+    if (recordedTimeUnit > 0.0) {
+        r.timeUnit = recordedTimeUnit;
+        r.timeUnitSource = "vdbturb_time_unit metadata";
+    } else if (blenderCache) {
+        r.timeUnit = 1.0 / (r.fps * r.dt);
+        r.timeUnitSource = std::string("Blender's time unit: a frame is 1/fps s and dt units, fps ") +
+                           (options.fps > 0.0 ? "given" : "24 assumed");
+    } else {
+        r.timeUnit = 1.0;
+        r.timeUnitSource = "seconds (Houdini, EmberGen and vdbturb write world units per second)";
     }
     return r;
 }
@@ -1280,9 +1296,10 @@ static turb::Frame readFrameUnchecked(
     copyFileMetadata(*r.meta, frame);
 
     // Time per frame and the units: explicit option > recorded by vdbturb > the writer's convention.
-    const ReadReport timing =
-        resolveTiming(blenderVelocity, spans.baseRes.has_value(), metaDouble(*r.meta, turb::meta::kDt, 0.0), options);
+    const ReadReport timing = resolveTiming(blenderVelocity, spans.baseRes.has_value(),
+        metaDouble(*r.meta, turb::meta::kDt, 0.0), options, metaDouble(*r.meta, turb::meta::kTimeUnit, 0.0));
     frame.dt = timing.dt;
+    frame.timeUnit = timing.timeUnit;
     if (report) {
         *report = timing;
         report->notes = rep.notes;
@@ -1417,14 +1434,22 @@ public:
 };
 
 // The message for a failed write: a full disk and a file-size limit say so in words.
-std::string writeFailure(const std::string& path, int err)
+// A write that failed with errno `err`: the machine's limits (disk, quota, file size) are worth a retry elsewhere.
+[[noreturn]] void throwWriteFailure(const std::string& path, int err)
 {
     std::string why = std::strerror(err);
     if (err == ENOSPC) why += ": the disk is full";
-    else if (err == EFBIG)
-        why += ": the file-size limit (ulimit -f) or the file system's maximum file size was reached";
-    else if (err == EDQUOT) why += ": the disk quota is exhausted";
-    return path + ": write failed (" + why + "); nothing was written under this name";
+    else if (err == EFBIG) {
+        struct rlimit lim
+        {};
+        if (::getrlimit(RLIMIT_FSIZE, &lim) == 0 && lim.rlim_cur != RLIM_INFINITY)
+            why = "file size limit reached: ulimit -f allows " + std::to_string((unsigned long long)lim.rlim_cur) +
+                  " bytes a file (" + formatBytes(double(lim.rlim_cur)) + ")";
+        else why += ": the file system's maximum file size was reached";
+    } else if (err == EDQUOT) why += ": the disk quota is exhausted";
+    const std::string msg = path + ": write failed (" + why + "); nothing was written under this name";
+    if (err == ENOSPC || err == EFBIG || err == EDQUOT) throw turb::TransientError(msg);
+    throw IoError(msg);
 }
 
 // Test hook for tests/test_faults.cc: with VDBTURB_TEST_KILL_IN_WRITE=N the process sends itself SIGKILL
@@ -1467,7 +1492,7 @@ void writeVdbChecked(
     if (::close(fd) != 0 && err == 0 && other.empty()) err = errno;
     if (err != 0 || !other.empty()) {
         ::unlink(tmp.c_str());
-        if (err != 0) throw IoError(writeFailure(path, err));
+        if (err != 0) throwWriteFailure(path, err);
         throw IoError(path + ": write failed (" + cleanMessage(other) + ")");
     }
 }
@@ -1608,7 +1633,7 @@ void writeFileAtomic(const std::string& path, const std::string& bytes, bool noC
     if (::close(fd) != 0 && err == 0) err = errno;
     if (err != 0) {
         ::unlink(tmp.c_str());
-        throw IoError(writeFailure(path, err));
+        throwWriteFailure(path, err);
     }
     commitTemp(tmp, path, noClobber);
 }
@@ -1630,7 +1655,7 @@ void writeAtomically(const std::string& path, bool noClobber, const std::functio
     if (fd >= 0) ::close(fd);
     if (err != 0) {
         ::unlink(tmp.c_str());
-        throw IoError(writeFailure(path, err));
+        throwWriteFailure(path, err);
     }
     commitTemp(tmp, path, noClobber);
 }
@@ -1639,7 +1664,7 @@ namespace {
 
 // The file's metadata: the creator, the frame's own entries, the velocity margin of a trimmed write and dt. For
 // Blender, the grids the frame made (not those passed on as read) move to Blender's placement, recorded too.
-openvdb::MetaMap fileMetadata(const turb::Frame& frame, const WriteOptions& options, bool trimmed,
+openvdb::MetaMap fileMetadata(const turb::Frame& frame, const WriteOptions& options, bool trimmed, double timeUnit,
     openvdb::GridPtrVec& grids, const std::vector<openvdb::GridBase::Ptr>& passedAsRead)
 {
     const bool blender = options.style == WriteStyle::Blender;
@@ -1669,12 +1694,15 @@ openvdb::MetaMap fileMetadata(const turb::Frame& frame, const WriteOptions& opti
     }
     if (trimmed)
         meta.insertMeta(turb::meta::kVelocityMargin, openvdb::StringMetadata(std::to_string(options.velocityMargin)));
-    if (frame.dt > 0.0) {
+    const auto exact = [](double v) {
         std::ostringstream os;
         os.precision(17);
-        os << frame.dt;
-        meta.insertMeta(turb::meta::kDt, openvdb::StringMetadata(os.str()));
-    }
+        os << v;
+        return openvdb::StringMetadata(os.str());
+    };
+    // dt in the written time unit: the motion per frame, velocity x dt, is what the frame holds.
+    if (frame.dt > 0.0) meta.insertMeta(turb::meta::kDt, exact(frame.dt * frame.timeUnit / timeUnit));
+    meta.insertMeta(turb::meta::kTimeUnit, exact(timeUnit));
 
     return meta;
 }
@@ -1691,6 +1719,11 @@ void writeFrame(
     openvdb::GridPtrVec grids;
     const bool blender = options.style == WriteStyle::Blender;
     const turb::Lattice& lat = frame.lattice();
+    // The written time unit: seconds for Houdini and renderers; Blender's own (0.4 s at time scale 1) for Blender.
+    const double timeUnit = options.keepTimeUnit ? frame.timeUnit
+                            : blender            ? (frame.timeUnit != 1.0 ? frame.timeUnit : 0.4)
+                                                 : 1.0;
+    const float velocityScale = float(timeUnit / frame.timeUnit);
     const turb::Coord res = frame.bbox().dim();
 
     const auto addBlenderMeta = [&](openvdb::GridBase& g) {
@@ -1720,7 +1753,7 @@ void writeFrame(
     if (frame.hasVelocity()) {
         openvdb::Vec3SGrid::Ptr g;
         if (blender) {
-            g = centredToStaggered(frame.velocity, float(1.0 / lat.voxelSize));
+            g = centredToStaggered(frame.velocity, float(1.0 / lat.voxelSize) * velocityScale);
             g->setName("velocity");
             g->setGridClass(openvdb::GRID_STAGGERED);
             addBlenderMeta(*g);
@@ -1733,6 +1766,8 @@ void writeFrame(
             g->setName("vel");
             g->setGridClass(openvdb::GRID_UNKNOWN);
         }
+        if (!blender && velocityScale != 1.0f)
+            for (auto it = g->beginValueOn(); it; ++it) it.setValue(*it * velocityScale);
         g->setVectorType(openvdb::VEC_CONTRAVARIANT_RELATIVE);
         g->setSaveFloatAsHalf(options.halfFloat);
         grids.push_back(g);
@@ -1766,7 +1801,7 @@ void writeFrame(
         }
     }
 
-    const openvdb::MetaMap meta = fileMetadata(frame, options, near != nullptr, grids, passedAsRead);
+    const openvdb::MetaMap meta = fileMetadata(frame, options, near != nullptr, timeUnit, grids, passedAsRead);
     removeStaleTemporaries(path);
     const std::string tmp = tempPathFor(path);
     writeVdbChecked(tmp, path, grids, meta);
@@ -1931,6 +1966,9 @@ FileInfo inspectFile(const std::string& path, bool readValues)
     if (auto m = r.meta->getMetadata<openvdb::StringMetadata>("__turb_lib_version")) info.libraryVersion = m->value();
     if (auto c = r.meta->getMetadata<openvdb::StringMetadata>("creator")) info.creator = c->value();
     info.recordedDt = metaDouble(*r.meta, turb::meta::kDt, 0.0);
+    info.recordedTimeUnit = metaDouble(*r.meta, turb::meta::kTimeUnit, 0.0);
+    if (auto m = r.meta->getMetadata<openvdb::StringMetadata>(turb::meta::kSourceFrame)) info.sourceFrame = m->value();
+    if (auto m = r.meta->getMetadata<openvdb::StringMetadata>(turb::meta::kUpAxis)) info.upAxis = m->value();
     info.recordedDomain = recordedDomain(*r.meta);
     info.sequenceDomain = recordedDomain(*r.meta, turb::meta::kSequenceDomain);
     info.velocityMargin = int(metaDouble(*r.meta, turb::meta::kVelocityMargin, -1.0));

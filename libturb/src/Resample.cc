@@ -223,6 +223,7 @@ Frame zLayer(const Frame& f, int k)
     Frame out;
     out.number = f.number;
     out.dt = f.dt;
+    out.timeUnit = f.timeUnit;
     out.metadata = f.metadata;
     if (f.hasVelocity()) {
         out.velocity = VectorField(s, f.velocity.lattice());
@@ -244,6 +245,18 @@ Frame zLayer(const Frame& f, int k)
 Frame resampledToVoxel(const Frame& frame, double voxelSize)
 {
     return mapFields(frame, [&](const auto& field) { return resampledToVoxel(field, voxelSize); });
+}
+
+void toTimeUnit(Frame& f, double seconds)
+{
+    if (!(std::isfinite(seconds) && seconds > 0.0))
+        throw ValueError("time unit must be a finite number of seconds > 0, not " + std::to_string(seconds));
+    if (seconds == f.timeUnit) return;
+    // u [world / unit_old] = u / timeUnit [world / s] = u * seconds / timeUnit [world / unit_new].
+    const float scale = float(seconds / f.timeUnit);
+    for (size_t n = 0; n < f.velocity.size(); ++n) f.velocity.data()[n] *= scale;
+    f.dt *= f.timeUnit / seconds;
+    f.timeUnit = seconds;
 }
 
 template Field<float> resampledToVoxel(const Field<float>&, double);

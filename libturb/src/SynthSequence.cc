@@ -90,6 +90,7 @@ SynthFrameResult SynthSequence::next(const SynthFrameInput& in, Progress* progre
 
     r.frame.number = in.frame;
     r.frame.dt = in.dt;
+    r.frame.timeUnit = in.timeUnit;
     r.frame.velocity = r.motion;
     if (s.detailOnly) {
         const VectorField up = upsampleCoarse(*in.coarse, s.factor);

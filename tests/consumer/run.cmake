@@ -39,3 +39,18 @@ execute_process(COMMAND ${CMAKE_COMMAND} -E env --unset=LD_LIBRARY_PATH "${exe}"
 if(NOT rc EQUAL 0 OR NOT out MATCHES "density")
   message(FATAL_ERROR "installed vdbturb info failed (${rc}): ${out}${err}")
 endif()
+# The installed share/vdbturb: the demo, the docs and animate's stroke designs, which the installed binary's
+# built-ins read from there (never from the source tree), run from a directory outside both trees.
+foreach(f share/vdbturb/demo.sh share/vdbturb/README.md share/vdbturb/docs/transfer.md
+    share/vdbturb/animate/river_strokes.json)
+  if(NOT EXISTS "${WORK_DIR}/prefix/${f}")
+    message(FATAL_ERROR "install gave no ${f}")
+  endif()
+endforeach()
+execute_process(COMMAND ${CMAKE_COMMAND} -E env --unset=LD_LIBRARY_PATH "${exe}" animate
+  --example builtin:river:48x40x20 --target builtin:river:48x40 --flow-strokes builtin:river
+  --out "${WORK_DIR}/anim/river.####.png" -q
+  WORKING_DIRECTORY "${WORK_DIR}" RESULT_VARIABLE rc ERROR_VARIABLE err)
+if(NOT rc EQUAL 0 OR NOT EXISTS "${WORK_DIR}/anim/river.0001.png")
+  message(FATAL_ERROR "installed vdbturb animate --flow-strokes builtin:river failed (${rc}): ${err}")
+endif()

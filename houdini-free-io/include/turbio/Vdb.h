@@ -117,6 +117,9 @@ struct ReadReport
     std::string unitsSource;  ///< why the units were taken as they were
     std::string unitsSetting; ///< "velocityUnits" when ReadOptions::velocityUnits decided them (not Auto), else ""
     bool conventionAssumed = false; ///< dt rests on an assumed frame rate / time scale (warn the user once)
+    double timeUnit = 1.0;          ///< seconds per time unit of velocity and dt (Frame::timeUnit): 1 = per second;
+                                    ///< Blender's is 1 / (fps x dt), 0.4 at time scale 1
+    std::string timeUnitSource;     ///< why: "vdbturb_time_unit metadata", "Blender's time unit, 1 / (fps x dt)", ...
     std::vector<std::string> notes; ///< conversions worth one log line (e.g. velocity resampled onto density)
     turb::CoordBBox span;           ///< readFrame: the union of the grids' active boxes (or Blender's domain)
     turb::CoordBBox held;           ///< readFrame: the box the frame's fields cover (span cropped to the smoke)
@@ -125,8 +128,10 @@ struct ReadReport
 
 /// The time step and units rules, shared by readFrame and header scans. `blenderVelocity`: the velocity
 /// grid is Blender's (staggered `velocity` with file_base_resolution); `blenderCache`: the file has
-/// Blender's domain metadata; `recordedDt`: vdbturb_dt metadata, <= 0 if absent.
-ReadReport resolveTiming(bool blenderVelocity, bool blenderCache, double recordedDt, const ReadOptions& options);
+/// Blender's domain metadata; `recordedDt`: vdbturb_dt metadata, <= 0 if absent; `recordedTimeUnit`:
+/// vdbturb_time_unit metadata (seconds per time unit), <= 0 if absent.
+ReadReport resolveTiming(bool blenderVelocity, bool blenderCache, double recordedDt, const ReadOptions& options,
+    double recordedTimeUnit = 0.0);
 
 /// The aliases of a role, in priority order.
 const std::vector<std::string>& gridAliases(GridRole role);
@@ -165,6 +170,11 @@ struct WriteOptions
     /// travel per frame in voxels. The Blender style always writes the whole box.
     int velocityMargin = -1;
     float smokeThreshold = 1e-3f; ///< density above this is smoke for velocityMargin
+    /// Write velocity and dt in the frame's own time unit (Frame::timeUnit) instead of the style's: transfer's
+    /// exact resume state only. Otherwise the Houdini style writes world units per second, as Houdini, Karma,
+    /// Arnold and RenderMan read `vel`, and the Blender style a Blender time unit (the frame's when it is not
+    /// seconds, else 0.4 s: Mantaflow at time scale 1). Either way the file records its unit (vdbturb_time_unit).
+    bool keepTimeUnit = false;
 };
 
 /// The grids of a file that readFrame does not take: Blender's flags, colour, shadow, level sets and previous
@@ -271,6 +281,9 @@ struct FileInfo
     std::string creator;                           ///< file-level "creator" metadata, if any
     std::optional<turb::Coord> baseResolution;     ///< Blender's file_base_resolution
     double recordedDt = 0.0;                       ///< vdbturb_dt metadata, 0 if absent
+    double recordedTimeUnit = 0.0;                 ///< vdbturb_time_unit metadata (seconds), 0 if absent
+    std::string sourceFrame;                       ///< vdbturb_source_frame metadata: the transfer's source frame
+    std::string upAxis;                            ///< vdbturb_up_axis metadata ("y", "z"), "" if absent
     std::optional<turb::CoordBBox> recordedDomain; ///< vdbturb_domain metadata: the box a vdbturb output spans
     std::optional<turb::CoordBBox> sequenceDomain; ///< vdbturb_sequence_domain metadata: the domain of the input it was
                                                    ///< made from (for framing only)

@@ -20,6 +20,12 @@ namespace turb {
 /// the output's dense fields.
 double transferPeakBytes(double targetVoxels, int ratio, double sourceVoxels);
 
+/// Seconds per frame of `transfer` on two cores, for the same held boxes as transferPeakBytes: a linear model
+/// c0 + c1 x output voxels (targetVoxels x ratio^3) + c2 x sourceVoxels, fitted to per-frame times of Blender and
+/// built-in pairs at ratios 2-8 (docs/performance.md, "Time estimate", states the fit's error). A guide for plans
+/// and farm requests, not a promise: the smoke's share of the box and the machine move it.
+double transferSecondsPerFrame(double targetVoxels, int ratio, double sourceVoxels);
+
 /// Peak bytes of `synth` over a coarse domain of `coarseVoxels` at up-sampling `factor`, for a run of `frames`
 /// frames with look-back density over `lookback` frames (0 = none): 50 MB + (200 B + 18 B x min(frames,
 /// lookback)) per output voxel (coarseVoxels x factor^3); the look-back keeps that many velocity frames.

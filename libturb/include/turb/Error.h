@@ -54,6 +54,15 @@ public:
     using Error::Error;
 };
 
+/// A failure of the machine rather than of the input, which a retry (on another node, with more disk) may fix:
+/// the disk full, a file-size limit (ulimit -f) or quota reached, memory exhausted. Commands exit 75
+/// (EX_TEMPFAIL) on it, the code farm wrappers requeue on.
+class TransientError : public IoError
+{
+public:
+    using IoError::IoError;
+};
+
 /// An argument or an input value is invalid (NaN voxels, a non-integer ratio, mismatched transforms...).
 class ValueError : public Error
 {

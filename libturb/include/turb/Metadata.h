@@ -8,6 +8,8 @@ namespace turb::meta {
 // Written by every command.
 inline constexpr const char* kCommand = "vdbturb_command"; ///< the command that wrote the file
 inline constexpr const char* kDt = "vdbturb_dt";           ///< time per frame of the velocity
+/// Seconds per time unit of the written velocity and dt: "1" (world units per second) in the Houdini style.
+inline constexpr const char* kTimeUnit = "vdbturb_time_unit";
 inline constexpr const char* kDomain = "vdbturb_domain";   ///< "x0 y0 z0 x1 y1 z1": the index box the frame spans
                                                            ///< (a reader holds it whole even where grids are sparse)
 /// "x0 y0 z0 x1 y1 z1", the frame's index box: the whole domain of the input the frame was made from (transfer: the

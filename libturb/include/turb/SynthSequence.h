@@ -48,6 +48,7 @@ struct SynthFrameInput
     const ScalarField* emitters = nullptr; ///< optional: where a scene's emitters are, on the density's box
     int frame = 0;                         ///< frame number; a gap to the previous call is advected over
     double dt = 0.0;                       ///< time per frame, > 0
+    double timeUnit = 1.0;                 ///< seconds per time unit of `coarse` and dt (Frame::timeUnit)
 };
 
 /// Where one frame's time went, seconds.

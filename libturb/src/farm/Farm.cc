@@ -383,6 +383,7 @@ Frame joinTiles(const std::vector<Frame>& tiles, const TilePlan& plan, int ratio
     Frame out;
     out.number = first.number;
     out.dt = first.dt;
+    out.timeUnit = first.timeUnit;
     out.metadata = first.metadata;
     out.metadata.erase(meta::kState);
     out.metadata.erase(meta::kResumeStateFile);

@@ -33,6 +33,7 @@ Frame assembleOutput(
     Frame out;
     out.number = target.number;
     out.dt = target.dt;
+    out.timeUnit = target.timeUnit;
     out.velocity = VectorField(fs.fineBox, fs.fineLattice);
     for (size_t n = 0; n < out.velocity.size(); ++n) out.velocity.data()[n] = t.Ut.data()[n] + detail.data()[n];
     if (target.temperature) out.temperature = upsample(*target.temperature, fs.f);
