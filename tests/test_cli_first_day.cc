@@ -275,3 +275,25 @@ TEST(FirstDay, TheDryRunEstimatesTheTime)
     // Frame 1 carries the detail at full strength; the plan says why measure's default reading of it is low.
     EXPECT_TRUE(has(r.out, "Measure it so (vdbturb measure --source-extend-velocity 4)")) << r.out;
 }
+
+// Every column of a sheet on one world box: the Blender 128^3 source's small plume, inside the target's domain, was
+// framed on its own box (zoomed in 2.8x beside the target).
+TEST(FirstDay, SheetColumnsOfOneSceneShareOneWorldBox)
+{
+    testutil::TempDir dir;
+    const Result r = runStdout("preview target=" + lo() + " source=" + hi() + " --frames 5 --width 64 --sheet " +
+                               dir / "s.png --json");
+    ASSERT_EQ(r.code, 0) << r.out;
+    std::istringstream lines(r.out);
+    std::string line;
+    bool seen = false;
+    while (std::getline(lines, line)) {
+        const nlohmann::json j = nlohmann::json::parse(line);
+        if (!j.contains("framed")) continue;
+        seen = true;
+        const auto& t = j["framed"]["target"];
+        const auto& s = j["framed"]["source"];
+        for (int k = 0; k < 6; ++k) EXPECT_NEAR(t[k].get<double>(), s[k].get<double>(), 0.07) << j.dump();
+    }
+    EXPECT_TRUE(seen) << r.out;
+}

@@ -62,6 +62,7 @@ struct Input
     int extraMargin = 0;                        // voxels more than the read margin, so a read covers frameBox
     bool still = false;                         // one unnumbered file: drawn in every row
     bool yUp = false;                           // a y-up cache (Houdini): turned so that +y is drawn upward
+    bool ownCamera = false;                     // not framed with the first input (another scene): labelled so
 };
 
 std::string fmt(const char* f, double v)
@@ -129,8 +130,10 @@ float percentile(const turb::ScalarField& f, const turb::ScalarField* density, d
 
 /// Sheet columns of one scene (target, source, output) are drawn over the union of their framed world boxes, so they
 /// line up at one scale; an up-res is otherwise framed tighter than its target (its margin is in fine voxels). One
-/// scene: the box overlaps the first input's and, along every axis, their union is at most twice the shorter of
-/// the two. Other inputs (another scene that happens to share the origin) keep their own camera.
+/// scene: the box lies inside the first input's and is at least an eighth of its size (a high-res source's smoke
+/// inside the target's domain), or it overlaps the first's and, along every axis, their union is at most twice the
+/// shorter of the two. Other inputs (another scene that
+/// happens to share the origin) keep their own camera, and their labels say so.
 void shareCamera(std::vector<Input>& inputs)
 {
     using turb::Vec3d;
@@ -144,13 +147,23 @@ void shareCamera(std::vector<Input>& inputs)
     for (size_t i = 1; i < inputs.size(); ++i) {
         if (!inputs[i].frameBox) continue;
         const auto w = world(inputs[i]), first = world(inputs.front());
-        bool sameScene = true;
+        bool similar = true, inside = true;
+        double extent = 0.0, firstExtent = 0.0;
+        for (int a = 0; a < 3; ++a) {
+            extent = std::max(extent, w.second[a] - w.first[a]);
+            firstExtent = std::max(firstExtent, first.second[a] - first.first[a]);
+        }
         for (int a = 0; a < 3; ++a) {
             const double lo = std::min(w.first[a], first.first[a]), hi = std::max(w.second[a], first.second[a]);
             const double shorter = std::min(w.second[a] - w.first[a], first.second[a] - first.first[a]);
-            sameScene =
-                sameScene && w.first[a] < first.second[a] && first.first[a] < w.second[a] && hi - lo <= 2.0 * shorter;
+            similar =
+                similar && w.first[a] < first.second[a] && first.first[a] < w.second[a] && hi - lo <= 2.0 * shorter;
+            const double slack = 1e-6 * (first.second[a] - first.first[a]);
+            inside = inside && w.first[a] >= first.first[a] - slack && w.second[a] <= first.second[a] + slack;
         }
+        // Inside, but tiny (under an eighth of the first's size): drawn at the first's scale it would be a few pixels.
+        const bool sameScene = similar || (inside && extent >= firstExtent / 8.0);
+        inputs[i].ownCamera = !sameScene;
         if (!sameScene) continue;
         group.push_back(&inputs[i]);
         for (int a = 0; a < 3; ++a) {
@@ -240,6 +253,7 @@ std::string cellLabel(const Input& in, Mode m, size_t inputs, size_t modes)
     std::string unit;
     if (m == Mode::Speed) unit = " 0-" + fmt("%.3g", in.speedMax) + "/s";
     if (m == Mode::Vorticity) unit = " 0-" + fmt("%.3g", in.vorticityMax) + "/s";
+    if (in.ownCamera) unit += " (own framing)"; // another scene beside the first: not at the first column's scale
     if (inputs > 1 && modes > 1) return in.label + " " + modeName(m) + unit;
     if (inputs > 1) return in.label + unit;
     return std::string(modeName(m)) + unit;
