@@ -281,8 +281,8 @@ TEST(FirstDay, TheDryRunEstimatesTheTime)
 TEST(FirstDay, SheetColumnsOfOneSceneShareOneWorldBox)
 {
     testutil::TempDir dir;
-    const Result r = runStdout("preview target=" + lo() + " source=" + hi() + " --frames 5 --width 64 --sheet " +
-                               dir / "s.png --json");
+    const Result r = runStdout(
+        "preview target=" + lo() + " source=" + hi() + " --frames 5 --width 64 --sheet " + dir / "s.png --json");
     ASSERT_EQ(r.code, 0) << r.out;
     std::istringstream lines(r.out);
     std::string line;
