@@ -497,8 +497,8 @@ void reportFrameStep(const std::vector<int>& frames)
         logWarning("frames step by up to " + std::to_string(step) + ": the detail and density are carried across " +
                    "the skipped frames in one advection step of " + std::to_string(step) +
                    " frames' time with the earlier frame's velocity, so these frames differ from the same frames of a "
-                   "run over every frame (run every frame and keep every " +
-                   std::to_string(step) + "th for those); see docs/transfer.md");
+                   "run over every frame (for those, run every frame and keep one in " +
+                   std::to_string(step) + "); see docs/transfer.md");
 }
 
 // The detail and the advected density are state: a run that starts at a later frame than the cache's first differs
@@ -806,7 +806,7 @@ int runTransfer(TransferArgs& a)
         tagOutput(r.frame, a, p, i, transfer.saveState(), sequenceDomain);
         progress.begin("writing");
         const std::string outPath = p.out.format(t);
-        const nlohmann::json extra = frameJson(r, outPath, p.sourceFor[i]); // before the fields move into the state
+        const nlohmann::json extra = frameJson(r, outPath, p.sourceFor[i]);
         writeOutput(r.frame, t, a, outPath, resumeStatePath(p.out, a.write, targetUnit, t), warnedClipping);
         progress.clear();
         if (r.stats.sourceResampled && i == p.first)
