@@ -100,7 +100,11 @@ TEST(FirstDay, ASourceNumberedOtherwiseIsMappedAloudAndInfoShowsTheSourceFrame)
     EXPECT_TRUE(has(plain.out, "source frames: source = target + 0")) << plain.out;
     EXPECT_TRUE(has(plain.out, "3 of 3 wrapped by --source-wrap loop into the source's 1001-1003")) << plain.out;
     EXPECT_TRUE(has(plain.out, "do not overlap the target's 1-3")) << plain.out;
-    EXPECT_TRUE(has(plain.out, "--source-offset 1000 lines their first frames up")) << plain.out;
+    EXPECT_TRUE(has(plain.out, "--source-offset 1000 lines up the caches' first frames (target 1, source 1001)"))
+        << plain.out;
+    // The same offset whichever frames the run takes.
+    const Result later = run(base + " --frames 8-10 --dry-run");
+    EXPECT_TRUE(has(later.out, "--source-offset 1000 lines up")) << later.out;
 
     const Result offset = run(base + " --source-offset 1000 --frames 1 --velocity-margin 1");
     ASSERT_EQ(offset.code, 0) << offset.out;
@@ -166,6 +170,7 @@ TEST(FirstDay, JsonRunsEndAnErrorWithOneJsonLineOnStdout)
     const nlohmann::json j = nlohmann::json::parse(lastLine(r.out));
     EXPECT_EQ(j["exit"], 1);
     EXPECT_EQ(j["file"], dir / "t/t.0002.vdb") << j.dump();
+    EXPECT_EQ(j["frame"], 2) << "the file's frame: " << j.dump();
     EXPECT_TRUE(has(j["error"].get<std::string>(), "t.0002.vdb")) << j.dump();
 
     const Result grid = runStdout("info " + loFrame(1) + " --density-grid smoke --validate --json");

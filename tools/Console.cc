@@ -3,6 +3,7 @@
 #include "Commands.h"
 
 #include <turb/Error.h>
+#include <turbio/Sequence.h>
 
 #include <csignal>
 #include <cstdio>
@@ -402,7 +403,11 @@ int reportFailure(const std::string& message, int exitCode)
         R"(^([^:\s][^:]*\.(?:vdb|nvdb|png|exr|jpg|jpeg|tif|tiff|json|toml|vdbturblib)):)", std::regex::icase);
     static const std::regex frame(R"(\bframe (-?\d+))");
     static const std::regex grid(R"(\bgrid '([^']*)')");
-    if (std::regex_search(message, m, file)) j["file"] = m[1].str();
+    if (std::regex_search(message, m, file)) {
+        j["file"] = m[1].str();
+        // A cache file's stem ends in its frame number (the rule every command reads file names by).
+        if (const auto named = turbio::FramePattern::fromFileName(m[1].str())) j["frame"] = named->second;
+    }
     if (std::regex_search(message, m, frame)) j["frame"] = std::stoi(m[1].str());
     if (std::regex_search(message, m, grid)) j["grid"] = m[1].str();
     std::lock_guard<std::mutex> lock(gLogMutex);

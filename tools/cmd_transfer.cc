@@ -314,7 +314,8 @@ turb::CoordBBox preflight(const TransferArgs& a, const turbio::Sequence& target,
     }
     if (!ts.frames.empty())
         printData("time: about " + fmt("%.2g", seconds / double(ts.frames.size())) + " s/frame on 2 cores (up to " +
-                  fmt("%.2g", worst) + "), " + fmt("%.3g", seconds / 60.0) + " min for " +
+                  fmt("%.2g", worst) + "), " +
+                  (seconds < 90.0 ? fmt("%.2g", seconds) + " s" : fmt("%.3g", seconds / 60.0) + " min") + " for " +
                   std::to_string(ts.frames.size()) +
                   " frames (the model's totals were within 0.9-1.25x on the bench's pairs, " +
                   "single frames within 2.3x: docs/performance.md)");
@@ -480,12 +481,16 @@ void reportSourceMapping(const TransferArgs& a, const FramePlan& p)
         line += ", target " + std::to_string(t.back()) + " -> source " + std::to_string(p.sourceFor.back());
     logInfo(line);
     const int t0 = t.front() + a.sourceOffset, t1 = t.back() + a.sourceOffset;
+    // The offset that lines up the two caches' first frames, whichever --frames this run takes.
+    const std::vector<int> cache = turbio::resolveSequence(a.target).frames;
+    const int firstOfCache = cache.empty() ? t.front() : cache.front();
     if (t1 < s0 || t0 > s1)
         logWarning("the source's frames " + std::to_string(s0) + "-" + std::to_string(s1) +
                    " do not overlap the target's " + std::to_string(t.front()) + "-" + std::to_string(t.back()) +
                    (a.sourceOffset != 0 ? " + offset " + std::to_string(a.sourceOffset) : std::string()) +
                    ": every source frame is chosen by --source-wrap " + wrapName(a.wrap) + "; --source-offset " +
-                   std::to_string(s0 - t.front()) + " lines their first frames up");
+                   std::to_string(s0 - firstOfCache) + " lines up the caches' first frames (target " +
+                   std::to_string(firstOfCache) + ", source " + std::to_string(s0) + ")");
 }
 
 // Stepped frames (--frames 1001-1100x2): the carried detail and density jump over the skipped frames.
