@@ -213,7 +213,7 @@ TEST(FirstDay, InfoOnADamagedSequenceListsEveryFrameAndExitsOne)
     for (const std::string f : {"frame 1", "frame 4"}) EXPECT_TRUE(has(r.out, f + ":")) << r.out;
     EXPECT_TRUE(has(r.out, "c.0002.vdb")) << r.out;
     EXPECT_TRUE(has(r.out, "c.0003.vdb")) << r.out;
-    EXPECT_TRUE(has(r.out, "2 of 4 frames are damaged")) << r.out;
+    EXPECT_TRUE(has(r.out, "2 of 4 frames failed to read: 2,3")) << r.out;
     const nlohmann::json j = nlohmann::json::parse(runStdout("info " + dir / "c.####.vdb --json").out);
     ASSERT_EQ(j["files"].size(), 4u);
     EXPECT_FALSE(j["files"][0].contains("error"));

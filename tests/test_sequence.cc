@@ -114,9 +114,15 @@ TEST(Sequence, ScanFindsFramesAndReportsMissingOnes)
     EXPECT_EQ(seq.frames, (std::vector<int>{1001, 1002, 1004, 1005}));
     EXPECT_EQ(seq.missing, (std::vector<int>{1003}));
 
-    // From one real file name, siblings are found.
+    // One real file name means that file (as oiiotool, vdb_print and Houdini's File SOP read it); the siblings on
+    // disk are only mentioned, with the pattern that takes them all. With --frames it names its sequence.
     const auto fromFile = turbio::resolveSequence(dir / "pyro.1002.vdb");
-    EXPECT_EQ(fromFile.frames.size(), 4u);
+    EXPECT_EQ(fromFile.frames, (std::vector<int>{1002}));
+    EXPECT_EQ(fromFile.path(1002), dir / "pyro.1002.vdb");
+    EXPECT_NE(fromFile.oneOfSequence.find("is frame 1002 of"), std::string::npos) << fromFile.oneOfSequence;
+    EXPECT_NE(fromFile.oneOfSequence.find("pyro.####.vdb (frames 1001,1002,1004,1005 on disk)"), std::string::npos)
+        << fromFile.oneOfSequence;
+    EXPECT_EQ(turbio::resolveSequence(dir / "pyro.1002.vdb", "1001-1002").frames, (std::vector<int>{1001, 1002}));
 
     // An explicit list reports the frames it names that are absent.
     const auto listed = turbio::resolveSequence(dir / "pyro.$F4.vdb", "1001-1007x2");
@@ -164,6 +170,7 @@ TEST(Sequence, ALoneNumberedFileKeepsItsFrameNumber)
     ASSERT_EQ(seq.frames, (std::vector<int>{1001}));
     EXPECT_EQ(seq.path(1001), dir / "pyro.1001.vdb");
     EXPECT_TRUE(seq.missing.empty());
+    EXPECT_TRUE(seq.oneOfSequence.empty()) << "alone on disk: nothing to mention";
     // A file without a frame number stays frame 0.
     std::ofstream(dir / "smoke.vdb") << "x";
     EXPECT_EQ(turbio::resolveSequence(dir / "smoke.vdb").frames, (std::vector<int>{0}));

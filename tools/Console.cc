@@ -255,6 +255,12 @@ void addGlobalOptions(CLI::App* app, unsigned which)
         app->add_option("--threads", globals().threads, "Worker threads (0 = all cores); results do not depend on it")
             ->check(finiteIn(0.0))
             ->group(kGroupRun);
+    if (which & (kThreads | kDryRun)) // the commands that work frame by frame
+        app->add_option("--progress", globals().progress,
+               "auto (a bar on a terminal, a line a frame otherwise), lines, alf (Tractor: ALF_PROGRESS NN%), "
+               "percent (Deadline: Progress: NN%)")
+            ->check(CLI::IsMember({"auto", "lines", "alf", "percent"}))
+            ->group(kGroupRun);
     if (which & kDryRun)
         app->add_flag("--dry-run", globals().dryRun,
                "Check everything the run needs (every input's headers, the output paths, memory), print the plan, "
@@ -392,6 +398,17 @@ static void emit(const std::string& prefix, const std::string& msg)
 
 void logError(const std::string& msg) { emit("vdbturb: error: ", msg); }
 
+void reportWrapperProgress(int done, int total)
+{
+    const std::string& how = globals().progress;
+    if ((how != "alf" && how != "percent") || total <= 0) return;
+    const int percent = int(100LL * done / total);
+    std::lock_guard<std::mutex> lock(gLogMutex);
+    std::FILE* out = globals().json ? stderr : stdout;
+    std::fprintf(out, how == "alf" ? "ALF_PROGRESS %d%%\n" : "Progress: %d%%\n", percent);
+    std::fflush(out);
+}
+
 int reportFailure(const std::string& message, int exitCode)
 {
     logError(message);
@@ -473,7 +490,8 @@ void warnOnce(const std::string& key, const std::string& warning)
 }
 
 ConsoleProgress::ConsoleProgress(int frameIndex, int frameCount, int frameNumber)
-    : mIndex(frameIndex), mCount(frameCount), mFrame(frameNumber), mTty(stderrIsTty() && globals().verbosity >= 1)
+    : mIndex(frameIndex), mCount(frameCount), mFrame(frameNumber),
+      mTty(stderrIsTty() && globals().verbosity >= 1 && globals().progress == "auto")
 {}
 
 ConsoleProgress::~ConsoleProgress() { clear(); }

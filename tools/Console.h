@@ -35,12 +35,20 @@ public:
 /// them, else null), so a wrapper that parses stdout gets the reason too. Returns `exitCode`.
 int reportFailure(const std::string& message, int exitCode);
 
+/// A farm wrapper's progress line for `done` of `total` frames, as Globals::progress asks (nothing for auto and
+/// lines).
+void reportWrapperProgress(int done, int total);
+
 struct Globals
 {
     int verbosity = 1;   ///< 0 = -q (errors only), 1 = normal, 2 = -v
     int threads = 0;     ///< 0 = all cores
     bool dryRun = false; ///< resolve inputs and print the plan, write nothing
     bool json = false;   ///< stdout carries JSON lines only: printData's text goes to stderr
+    /// How progress is shown: auto (a bar on a terminal, one line a frame otherwise), lines (one line a frame, also
+    /// on a terminal), alf (also "ALF_PROGRESS NN%" a frame, Tractor's), percent (also "Progress: NN%", Deadline's
+    /// stdout handler). The wrapper lines go to stdout, or to stderr with --json.
+    std::string progress = "auto";
 };
 
 Globals& globals();

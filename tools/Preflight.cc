@@ -34,6 +34,7 @@ turbio::SequenceScan checkInput(const std::string& command, const std::string& r
     const std::vector<int>& frames, const turbio::ReadOptions& read, LatticePolicy policy,
     const std::string& readPrefix)
 {
+    if (!seq.oneOfSequence.empty()) logInfo(role + ": " + seq.oneOfSequence);
     turbio::SequenceScan scan = turbio::scanSequence(seq, frames, read, /*readVoxelsIfNeeded=*/true);
     if (const turbio::FrameScan* failed = scan.firstFailure()) {
         turb::IoError error(failed->error, failed->errorSettings);

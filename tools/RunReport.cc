@@ -23,6 +23,7 @@ void RunReport::frameDone(
     char head[96];
     std::snprintf(head, sizeof(head), "frame %d (%d/%d) %.2f s", frame, index + 1, count, seconds);
     logInfo(std::string(head) + (human.empty() ? "" : "  " + human));
+    reportWrapperProgress(index + 1, count);
     if (mJson) {
         nlohmann::json j = extra;
         j["frame"] = frame;

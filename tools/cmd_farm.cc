@@ -365,7 +365,7 @@ nlohmann::json taskJson(const FarmArgs& a, const Plan& p, size_t k)
     t["log"] = p.dir + "/logs/" + p.word() + "_" + std::to_string(k) + ".log";
     t["command"] = taskCommand(a, p, k);
     t["depends_on"] = nlohmann::json::array();
-    t["retry_exit_codes"] = {1, 130, 137, 143};
+    t["retry_exit_codes"] = {75, 130, 137, 143};
     return t;
 }
 
@@ -403,9 +403,13 @@ nlohmann::json planJson(const FarmArgs& a, const Plan& p)
             {"box", boxArray(p.tiles.box)}, {"halo", p.tiles.halo}, {"ratio", p.ratio}, {"ramp", p.ramp},
             {"borders", turb::formatTileBorders(turb::tileBorders(p.tiles, p.ratio))}};
     plan["transfer_args"] = a.transferArgs;
-    plan["exit_codes"] = {{"0", "done"}, {"1", "a frame failed: retry (resumes from the last whole frame)"},
-        {"2", "usage error: do not retry"}, {"130", "interrupted: retry"},
-        {"137", "killed (SIGKILL: OOM killer, kill -9): retry"}, {"143", "terminated (SIGTERM): retry"}};
+    plan["exit_codes"] = {{"0", "done"},
+        {"1", "a failure a retry cannot fix (bad input, a resume with other settings): do not retry"},
+        {"2", "usage error: do not retry"},
+        {"75",
+            "worth a retry (disk full, a file-size limit, out of memory): retry, resuming from the last whole frame"},
+        {"130", "interrupted: retry"}, {"137", "killed (SIGKILL: OOM killer, kill -9): retry"},
+        {"143", "terminated (SIGTERM): retry"}};
     nlohmann::json tasks = nlohmann::json::array();
     for (size_t k = 0; k < p.taskCount(); ++k) tasks.push_back(taskJson(a, p, k));
     tasks.push_back(joinTask(a, p));
@@ -433,7 +437,8 @@ std::string sbatchResources(const FarmArgs& a)
     return common;
 }
 
-// A task that failed (exit 1), was interrupted (130) or killed (137, 143) requeues itself up to --retries times;
+// A task that failed in a way a retry can fix (exit 75), was interrupted (130) or killed (137, 143) requeues itself
+// up to --retries times;
 // transfer --resume then continues from the last whole frame in the chunk's scratch directory. A usage error (2)
 // would fail again and is not retried. Slurm's own --requeue covers node failure and preemption.
 std::string tasksScript(const FarmArgs& a, const Plan& p)
@@ -467,8 +472,13 @@ std::string tasksScript(const FarmArgs& a, const Plan& p)
            "echo \"farm: " +
            w +
            " $SLURM_ARRAY_TASK_ID exit $rc\" >&2\n"
+           "# Only what a retry can fix requeues: vdbturb's 75 (disk full, a file-size limit, out of memory), an\n"
+           "# interruption (130) or a kill (137 SIGKILL: the OOM killer, kill -9; 143 SIGTERM). 1 (bad input, a "
+           "resume\n"
+           "# with other settings) and 2 (usage) would fail again.\n"
            "case $rc in\n"
-           "  0|2) exit $rc ;;\n"
+           "  75|130|137|143) ;;\n"
+           "  *) exit $rc ;;\n"
            "esac\n"
            "if [ \"${SLURM_RESTART_COUNT:-0}\" -lt " +
            std::to_string(a.retries) +

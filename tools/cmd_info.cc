@@ -348,7 +348,9 @@ int runInfo(const InfoArgs& a)
             first = &f;
             break;
         }
-    printData(sequenceLine(seq) + (first ? latticeLines(*first, scan, ro) : std::string()), toStderr);
+    printData(sequenceLine(seq) + (seq.oneOfSequence.empty() ? "" : "\nnote: " + seq.oneOfSequence) +
+                  (first ? latticeLines(*first, scan, ro) : std::string()),
+        toStderr);
 
     nlohmann::json out = sequenceJson(seq, scan, first);
     Tally tally;
@@ -366,13 +368,13 @@ int runInfo(const InfoArgs& a)
             ++tally.failures;
             damaged.push_back(frame);
             fj["error"] = messageWithFlags(e);
-            printData("frame " + std::to_string(frame) + ": DAMAGED: " + messageWithFlags(e), a.json);
+            printData("frame " + std::to_string(frame) + ": FAILED: " + messageWithFlags(e), a.json);
         }
         out["files"].push_back(fj);
     }
     if (!damaged.empty())
         logError(std::to_string(damaged.size()) + " of " + std::to_string(seq.frames.size()) + " frame" +
-                 (seq.frames.size() == 1 ? " is" : "s are") + " damaged: " + turbio::formatFrameList(damaged));
+                 (seq.frames.size() == 1 ? "" : "s") + " failed to read: " + turbio::formatFrameList(damaged));
     if (a.validate) {
         const std::string verdict = tally.failures ? std::to_string(tally.failures) + " of " +
                                                          std::to_string(seq.frames.size()) + " frames fail to read"

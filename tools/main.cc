@@ -9,6 +9,7 @@
 #include <cctype>
 #include <cmath>
 #include <iostream>
+#include <regex>
 #include <sstream>
 
 #include <malloc.h>
@@ -381,6 +382,16 @@ std::string checkSpelling(int argc, char** argv, CLI::App& app, const std::vecto
     return "";
 }
 
+// CLI11's range check says "--width: Value abc not in range 16 to 8192": say what is allowed, in words.
+std::string plainParseMessage(const std::string& message)
+{
+    static const std::regex range(R"(^(\S+): Value (.*) not in range (\S+) to (\S+)$)");
+    std::smatch m;
+    if (std::regex_match(message, m, range))
+        return m[1].str() + " must be a number from " + m[3].str() + " to " + m[4].str() + ", not '" + m[2].str() + "'";
+    return message;
+}
+
 } // namespace
 
 int main(int argc, char** argv)
@@ -401,6 +412,9 @@ int main(int argc, char** argv)
         sub->option_defaults()->always_capture_default(); // --help and --print-settings show each default
         c.setup(sub);
         addGlobalOptions(sub, c.globals); // after the command's own: --help lists them last
+        sub->footer("Exit codes: 0 done; 1 a failure a retry cannot fix (bad input, a resume with other settings); "
+                    "2 a usage error; 75 worth a retry on another node (disk full, a file-size limit, out of memory); "
+                    "130 interrupted.");
         subs.emplace_back(sub, &c);
     }
     // --settings files become command-line options before anything reads argv.
@@ -434,7 +448,7 @@ int main(int argc, char** argv)
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
         if (e.get_exit_code() == 0) return app.exit(e) == 0 ? kOk : kUsage; // --help, --version
-        return reportFailure(std::string(e.what()) + " (--help lists the options)", kUsage);
+        return reportFailure(plainParseMessage(e.what()) + " (--help lists the options)", kUsage);
     }
     if (const std::string nan = notANumber(app); !nan.empty()) return reportFailure(nan, kUsage);
     installSignalHandlers();

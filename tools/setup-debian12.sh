@@ -12,7 +12,7 @@ PACKAGES="g++ cmake ninja-build ccache pkg-config make git
   libopenvdb-dev libboost-iostreams-dev libtbb-dev libeigen3-dev libflann-dev liblz4-dev libblosc-dev
   libgtest-dev libgmock-dev libcli11-dev nlohmann-json3-dev libfftw3-dev
   libopenimageio-dev openimageio-tools libopencv-dev fonts-dejavu-core gnuplot-nox
-  clang-14 libfuzzer-14-dev python3 slurm-wlm munge"
+  clang-14 libfuzzer-14-dev python3 python3-openvdb slurm-wlm munge"
 case "${1:-}" in
 --bench) PACKAGES="$PACKAGES blender" ;;
 "") ;;

@@ -125,6 +125,20 @@ void resolveFrame(FrameScan& fs, const FileInfo& info, const ReadOptions& option
     const bool blenderVel = v && info.baseResolution && v->name == "velocity" && v->gridClass == "staggered";
     fs.timing =
         resolveTiming(blenderVel, info.baseResolution.has_value(), info.recordedDt, options, info.recordedTimeUnit);
+    // Houdini writes two grids of one name when two primitives share it: say which one is read, and how to pick
+    // another (readFrame reads the same one: the selector resolveGrid chose).
+    for (const GridInfo* chosen : {d, v}) {
+        if (!chosen) continue;
+        const bool chosenByName = (chosen == d ? options.densityGrid : options.velocityGrid).empty();
+        std::string twins;
+        for (const GridInfo& g : info.grids)
+            if (g.name == chosen->name && g.index != chosen->index) twins += (twins.empty() ? "" : ", ") + g.selector;
+        if (!twins.empty())
+            fs.timing.notes.push_back("the file has more than one grid named '" + chosen->name + "': reading #" +
+                                      std::to_string(chosen->index) + " (" + chosen->selector + ")" +
+                                      (chosenByName ? ", the first, as OpenVDB's readGrid does" : "") +
+                                      "; the grid selector " + twins + " reads another");
+    }
     if (fs.velocityVoxel > 0.0) {
         std::ostringstream note;
         note << "grid '" << v->name << "' (voxel " << v->voxelSize << ") will be resampled trilinearly onto the "

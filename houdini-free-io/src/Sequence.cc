@@ -364,9 +364,13 @@ Sequence resolveSequence(const std::string& text, const std::string& frameSpec)
         auto detected = FramePattern::fromFileName(text);
         if (detected && (exists || !frameSpec.empty())) {
             pattern = detected->first;
-            if (frameSpec.empty() && exists && scanFrames(pattern).size() <= 1) {
+            if (frameSpec.empty()) { // a file name means that file; its siblings are only mentioned
                 seq.pattern = pattern;
                 seq.frames = {detected->second};
+                if (const std::vector<int> siblings = scanFrames(pattern); siblings.size() > 1)
+                    seq.oneOfSequence = text + " is frame " + std::to_string(detected->second) + " of " +
+                                        pattern.str() + " (frames " + formatFrameList(siblings) +
+                                        " on disk): give that pattern, or --frames, for more than this file";
                 return seq;
             }
         } else if (exists) {

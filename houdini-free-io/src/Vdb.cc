@@ -610,16 +610,49 @@ std::string describeGrids(const std::vector<GridInfo>& grids)
 
 namespace detail {
 
+// The grid name in `listing` ("#0 'velocity' vec3s staggered, ...") nearest to a mistyped `name`, within two edits
+// (and under half its length); "" when none is that near.
+std::string nearestGridName(const std::string& name, const std::string& listing)
+{
+    std::string best;
+    size_t bestDistance = std::min<size_t>(3, (name.size() + 1) / 2);
+    for (size_t at = listing.find('\''); at != std::string::npos; at = listing.find('\'', at)) {
+        const size_t end = listing.find('\'', at + 1);
+        if (end == std::string::npos) break;
+        const std::string candidate = listing.substr(at + 1, end - at - 1);
+        at = end + 1;
+        std::vector<size_t> row(candidate.size() + 1);
+        for (size_t j = 0; j < row.size(); ++j) row[j] = j;
+        for (size_t i = 1; i <= name.size(); ++i) {
+            size_t diagonal = row[0];
+            row[0] = i;
+            for (size_t j = 1; j <= candidate.size(); ++j) {
+                const size_t up = row[j];
+                row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (name[i - 1] != candidate[j - 1])});
+                diagonal = up;
+            }
+        }
+        if (row.back() < bestDistance && candidate != name) {
+            bestDistance = row.back();
+            best = candidate;
+        }
+    }
+    return best;
+}
+
 turb::IoError missingGrid(
     const std::string& path, GridRole role, const ReadOptions& options, const std::string& listing)
 {
     const bool density = role == GridRole::Density;
     const std::string& chosen = density ? options.densityGrid : options.velocityGrid;
+    const std::string nearest = chosen.empty() ? std::string() : nearestGridName(chosen, listing);
     const std::string wanted = !chosen.empty() ? "'" + chosen + "'"
                                : density       ? std::string("density (density, density_noise)")
                                                : std::string("velocity (vel, velocity, v, or vel.x/vel.y/vel.z)");
-    return turb::IoError(
-        path + ": no " + wanted + " grid; the file has: " + listing + ".", {density ? "densityGrid" : "velocityGrid"});
+    return turb::IoError(path + ": no " + wanted + " grid" +
+                             (nearest.empty() ? "" : " (did you mean '" + nearest + "'?)") +
+                             "; the file has: " + listing + ".",
+        {density ? "densityGrid" : "velocityGrid"});
 }
 
 turb::IoError noRequestedGrid(const std::string& path, const std::string& listing)

@@ -67,15 +67,20 @@ struct Sequence
     FramePattern pattern;
     std::vector<int> frames;  ///< requested frames that exist
     std::vector<int> missing; ///< requested frames that do not exist
+    /// Set when one real file of a longer sequence was named without a frame list: "fluid_data_0010.vdb is frame 10
+    /// of fluid_data_####.vdb (frames 1-30 on disk): give that pattern or --frames for more". Commands say it once.
+    std::string oneOfSequence;
 
     std::string path(int frame) const { return pattern.format(frame); }
 };
 
-/// Resolves user input to a sequence. `text` may be a pattern or one real file name (auto-detected,
-/// siblings found by scanning; a lone file whose stem ends in digits is that frame, e.g. pyro.1001.vdb
-/// is frame 1001). `frameSpec` (parseFrameList syntax) restricts/extends the request; empty means
-/// "every frame on disk". Throws turb::IoError when no file matches at all; the message says what is
-/// there instead (other paddings of the same name, the sequences in a directory given as the cache).
+/// Resolves user input to a sequence. `text` may be a pattern or one real file name. A file name means that
+/// file, as in oiiotool, vdb_print and Houdini's File SOP: its frame is the digits that end its stem
+/// (pyro.1001.vdb is frame 1001; smoke.vdb frame 0), and siblings on disk only fill `oneOfSequence`. With
+/// `frameSpec` (parseFrameList syntax) a file name stands for the numbered sequence it belongs to, and the list
+/// restricts or extends the request; a pattern with an empty `frameSpec` means "every frame on disk". Throws
+/// turb::IoError when no file matches at all; the message says what is there instead (other paddings of the same name,
+/// the sequences in a directory given as the cache).
 Sequence resolveSequence(const std::string& text, const std::string& frameSpec = "");
 
 /// The frame sequences in directory `dir`, as patterns with '#' padding and their frame counts, most

@@ -1,0 +1,205 @@
+// A TD's second day (issue 45): one file name meaning that file, farm-wrapper progress lines and exit codes, and
+// option errors that say what is allowed. Real Blender caches.
+#include "CliUtil.h"
+#include "TestUtil.h"
+
+#include <turbio/Vdb.h>
+
+#include <nlohmann/json.hpp>
+#include <openvdb/io/File.h>
+#include <openvdb/openvdb.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+namespace {
+
+namespace fs = std::filesystem;
+using clitest::Result;
+
+Result run(const std::string& args) { return clitest::run(args); }
+Result runStdout(const std::string& args) { return clitest::run(args, false); }
+
+std::string lo() { return testutil::dataPath("blender-plume-32/fluid_data_####.vdb"); }
+std::string hi() { return testutil::dataPath("blender-plume-128/fluid_data_####.vdb"); }
+std::string loFile(int f)
+{
+    char name[40];
+    std::snprintf(name, sizeof(name), "blender-plume-32/fluid_data_%04d.vdb", f);
+    return testutil::dataPath(name);
+}
+std::string hiFile(int f)
+{
+    char name[40];
+    std::snprintf(name, sizeof(name), "blender-plume-128/fluid_data_%04d.vdb", f);
+    return testutil::dataPath(name);
+}
+
+bool has(const std::string& text, const std::string& piece) { return text.find(piece) != std::string::npos; }
+
+} // namespace
+
+// `preview fluid_data_0010.vdb --out f10.png` exited 2 ("30 frames are requested") and `info fluid_data_0010.vdb`
+// described frame 1: one file name means that file, in every command, and one line names the sequence it is part of.
+TEST(SecondDay, OneFileNameMeansThatFileInEveryCommand)
+{
+    testutil::TempDir dir;
+    const std::string note = "is frame 10 of ";
+    const Result info = run("info " + loFile(10));
+    ASSERT_EQ(info.code, 0) << info.out;
+    EXPECT_TRUE(has(info.out, ": 1 frame (10)")) << info.out;
+    EXPECT_TRUE(has(info.out, note + testutil::dataPath("blender-plume-32/fluid_data_####.vdb") +
+                                  " (frames 1-10 on disk): give that pattern, or --frames"))
+        << info.out;
+    EXPECT_TRUE(has(info.out, "frame 10: ")) << info.out;
+
+    const Result preview = run("preview " + loFile(10) + " --width 32 --out " + dir / "f10.png");
+    EXPECT_EQ(preview.code, 0) << preview.out;
+    EXPECT_TRUE(fs::exists(dir / "f10.png"));
+
+    const Result resample = run("resample " + loFile(10) + " --down 2 --out " + dir / "r.vdb");
+    EXPECT_EQ(resample.code, 0) << resample.out;
+    EXPECT_TRUE(has(resample.out, note)) << resample.out;
+    EXPECT_TRUE(fs::exists(dir / "r.vdb"));
+
+    // A single target file is a one-frame shot; the source named by one file is that frame.
+    const Result transfer =
+        run("transfer --target " + loFile(2) + " --source " + hiFile(2) + " --out " + dir / "up.0002.vdb --dry-run");
+    EXPECT_EQ(transfer.code, 0) << transfer.out;
+    EXPECT_TRUE(has(transfer.out, "target: " + loFile(2) + " is frame 2 of")) << transfer.out;
+    EXPECT_TRUE(has(transfer.out, "would write " + dir / "up.0002.vdb")) << transfer.out;
+    EXPECT_FALSE(has(transfer.out, "would write " + dir / "up.0003.vdb")) << transfer.out;
+
+    // With --frames, the file names its sequence.
+    const Result framed = run("info " + loFile(10) + " --frames 1-3 --headers-only");
+    EXPECT_TRUE(has(framed.out, ": 3 frames (1-3)")) << framed.out;
+}
+
+// Tractor and Deadline read progress from a job's output; the default on a non-terminal stays a line a frame.
+TEST(SecondDay, FarmWrapperProgressLines)
+{
+    testutil::TempDir dir;
+    const std::string base = "resample " + lo() + " --frames 1-4 --down 2 --out ";
+    const Result alf = runStdout(base + dir / "a.####.vdb --progress alf");
+    ASSERT_EQ(alf.code, 0) << alf.out;
+    EXPECT_EQ(alf.out, "ALF_PROGRESS 25%\nALF_PROGRESS 50%\nALF_PROGRESS 75%\nALF_PROGRESS 100%\n");
+    const Result percent = runStdout(base + dir / "p.####.vdb --progress percent");
+    EXPECT_EQ(percent.out, "Progress: 25%\nProgress: 50%\nProgress: 75%\nProgress: 100%\n");
+    const Result plain = run(base + dir / "l.####.vdb");
+    EXPECT_EQ(clitest::count(plain.out, "/4) "), 4u) << "one line a frame: " << plain.out;
+    EXPECT_FALSE(has(plain.out, "Progress:")) << plain.out;
+    // With --json, stdout stays JSON: the wrapper lines go to stderr.
+    const Result json = runStdout(base + dir / "j.####.vdb --progress alf --json");
+    std::istringstream lines(json.out);
+    std::string line;
+    while (std::getline(lines, line)) EXPECT_NO_THROW((void)nlohmann::json::parse(line)) << line;
+    EXPECT_EQ(run("info " + lo() + " --progress bar").code, 2) << "info takes no --progress";
+}
+
+// Exit codes a wrapper can act on: 1 (a resume with other settings) was retried twice by farm's Slurm scripts; now
+// only 75, an interruption and a kill are.
+TEST(SecondDay, FarmScriptsRequeueOnlyWhatARetryCanFix)
+{
+    testutil::TempDir dir;
+    const Result plan = run("farm plan --dir " + dir / "f" + " --target " + lo() + " --source " + hi() + " --out " +
+                            dir / "o.####.vdb --chunks 2 --overlap 2");
+    ASSERT_EQ(plan.code, 0) << plan.out;
+    std::ifstream in(dir / "f/chunks.sbatch");
+    const std::string script((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    EXPECT_TRUE(has(script, "  75|130|137|143) ;;\n  *) exit $rc ;;")) << script;
+    std::ifstream pj(dir / "f/plan.json");
+    const nlohmann::json j = nlohmann::json::parse(pj);
+    EXPECT_EQ(j["tasks"][0]["retry_exit_codes"], nlohmann::json({75, 130, 137, 143})) << j.dump();
+    const Result help = run("transfer --help");
+    EXPECT_TRUE(has(help.out, "75 worth a retry on another node")) << help.out;
+}
+
+// CLI11's integer ranges printed "Value abc not in range 16 to 8192": the message says what is allowed.
+TEST(SecondDay, OptionValueErrorsSayWhatIsAllowed)
+{
+    const Result width = run("preview " + lo() + " --width abc");
+    EXPECT_EQ(width.code, 2);
+    EXPECT_TRUE(has(width.out, "vdbturb: error: --width must be a number from 16 to 8192, not 'abc'")) << width.out;
+    const Result margin = run("transfer --target " + lo() + " --source " + hi() +
+                              " --out o.####.vdb "
+                              "--velocity-margin 99");
+    EXPECT_EQ(margin.code, 2);
+    EXPECT_TRUE(has(margin.out, "--velocity-margin must be a number from -1 to 64, not '99'")) << margin.out;
+    EXPECT_FALSE(has(margin.out, "Value 99 not in range")) << margin.out;
+    // A mistyped grid name gets the nearest of the file's grids.
+    const Result grid = run("resample " + loFile(1) + " --vel-grid velocty --down 2 --out never.vdb");
+    EXPECT_EQ(grid.code, 1);
+    EXPECT_TRUE(has(grid.out, "no 'velocty' grid (did you mean 'velocity'?); the file has: #0 'velocity'")) << grid.out;
+    const Result far = run("resample " + loFile(1) + " --density-grid smoke --down 2 --out never.vdb");
+    EXPECT_FALSE(has(far.out, "did you mean")) << "nothing near 'smoke': " << far.out;
+}
+
+namespace {
+
+// A frame file holding two grids named 'density' (a small and a large box) and a velocity, written with OpenVDB's
+// C++ API (`writer` "cpp") or with pyopenvdb (`writer` "py", Debian's python3-openvdb).
+void writeTwinDensities(const std::string& path, const std::string& writer)
+{
+    if (writer == "py") {
+        const std::string script =
+            "import pyopenvdb as vdb\n"
+            "def dens(n, v):\n"
+            "    g = vdb.FloatGrid(); g.name = 'density'; g.transform = vdb.createLinearTransform(0.1)\n"
+            "    g.fill((0, 0, 0), (n - 1, n - 1, n - 1), v); return g\n"
+            "vel = vdb.Vec3SGrid(); vel.name = 'vel'; vel.transform = vdb.createLinearTransform(0.1)\n"
+            "vel.fill((0, 0, 0), (7, 7, 7), (0.0, 0.0, 1.0))\n"
+            "vdb.write('" +
+            path + "', grids=[dens(4, 0.25), vel, dens(8, 0.875)])\n";
+        const Result r = clitest::shell("/usr/bin/python3 -c \"" + script + "\" 2>&1");
+        ASSERT_EQ(r.code, 0) << r.out;
+        return;
+    }
+    const auto dens = [](int n, float v) {
+        auto g = openvdb::FloatGrid::create(0.0f);
+        g->setName("density");
+        g->setTransform(openvdb::math::Transform::createLinearTransform(0.1));
+        g->fill(openvdb::CoordBBox(openvdb::Coord(0), openvdb::Coord(n - 1)), v);
+        return g;
+    };
+    auto vel = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.0f));
+    vel->setName("vel");
+    vel->setTransform(openvdb::math::Transform::createLinearTransform(0.1));
+    vel->fill(openvdb::CoordBBox(openvdb::Coord(0), openvdb::Coord(7)), openvdb::Vec3s(0.0f, 0.0f, 1.0f));
+    openvdb::io::File(path).write({dens(4, 0.25f), vel, dens(8, 0.875f)});
+}
+
+} // namespace
+
+// Houdini writes two grids named 'density' when two primitives share a name: info lists both with their own ranges,
+// a command reading by name says which one it reads and how to pick the other, and the selector picks it.
+TEST(SecondDay, TwoGridsOfOneNameAreListedAndTheOneReadIsNamed)
+{
+    openvdb::initialize();
+    testutil::TempDir dir;
+    for (const std::string writer : {"cpp", "py"}) {
+        const std::string file = dir / ("twins_" + writer + ".vdb");
+        writeTwinDensities(file, writer);
+        const Result info = run("info " + file);
+        ASSERT_EQ(info.code, 0) << info.out;
+        EXPECT_TRUE(has(info.out, "density[0]")) << info.out;
+        EXPECT_TRUE(has(info.out, "density[1]")) << info.out;
+        EXPECT_TRUE(has(info.out, "[0.25, 0.25]")) << "each its own range: " << info.out;
+        EXPECT_TRUE(has(info.out, "[0.875, 0.875]")) << info.out;
+        EXPECT_TRUE(has(info.out, "more than one grid named 'density': reading #0 (density[0]), the first, as "
+                                  "OpenVDB's readGrid does; the grid selector density[1] reads another"))
+            << writer << ": " << info.out;
+        const Result first = run("resample " + file + " --down 2 --out " + dir / (writer + "_a.vdb"));
+        ASSERT_EQ(first.code, 0) << first.out;
+        EXPECT_TRUE(has(first.out, "more than one grid named 'density'")) << first.out;
+        const Result second =
+            run("resample " + file + " --density-grid 'density[1]' --down 2 --out " + dir / (writer + "_b.vdb"));
+        ASSERT_EQ(second.code, 0) << second.out;
+        EXPECT_TRUE(has(second.out, "reading #2 (density[1]); the grid selector density[0] reads another"))
+            << second.out;
+        const turb::Frame a = turbio::readFrame(dir / (writer + "_a.vdb"), 0, turbio::ReadOptions{});
+        const turb::Frame b = turbio::readFrame(dir / (writer + "_b.vdb"), 0, turbio::ReadOptions{});
+        EXPECT_NEAR(a.density(0, 0, 0), 0.25, 1e-6) << writer;
+        EXPECT_NEAR(b.density(3, 3, 3), 0.875, 1e-6) << writer;
+    }
+}
