@@ -111,6 +111,10 @@ std::string gridTable(const turbio::FileInfo& fi)
     if (std::any_of(fi.grids.begin(), fi.grids.end(), [](const turbio::GridInfo& g) { return g.halfFloat; }))
         out += ", 16-bit floats";
     if (!fi.sourceFrame.empty()) out += ", made from source frame " + fi.sourceFrame + " (vdbturb_source_frame)";
+    if (!fi.tileBox.empty()) out += ", a space tile of target box " + fi.tileBox + " (vdbturb_tile_box)";
+    if (!fi.farmTiles.empty())
+        out += ", joined from tiles " + fi.farmTiles + (fi.tileBorders.empty() ? "" : ", borders " + fi.tileBorders) +
+               " (vdbturb_farm_tiles)";
     out += "\n";
     std::vector<std::vector<std::string>> rows{{"#", "grid", "type", "class", "role", "voxel", "origin",
         "active box (index)", "world bounds", "active", "values"}};
@@ -269,6 +273,9 @@ void fileJson(const turbio::FileInfo& fi, nlohmann::json& fj)
     fj["creator"] = fi.creator;
     fj["velocity_margin"] = fi.velocityMargin >= 0 ? nlohmann::json(fi.velocityMargin) : nlohmann::json(nullptr);
     if (!fi.sourceFrame.empty()) fj["source_frame"] = fi.sourceFrame;
+    if (!fi.tileBox.empty()) fj["tile_box"] = fi.tileBox;
+    if (!fi.farmTiles.empty()) fj["farm_tiles"] = fi.farmTiles;
+    if (!fi.tileBorders.empty()) fj["tile_borders"] = fi.tileBorders;
     if (fi.recordedTimeUnit > 0.0) fj["time_unit_s"] = fi.recordedTimeUnit;
     if (fi.baseResolution)
         fj["blender_base_resolution"] = {fi.baseResolution->x(), fi.baseResolution->y(), fi.baseResolution->z()};

@@ -1077,8 +1077,9 @@ Command transferCommand()
                "Run up to N cache frames before the first requested one without writing them, so the detail and "
                "density are established as in a longer run")
             ->check(finiteIn(0.0));
-        app->add_flag(
-            "--resume", a.resume, "Skip frames already written and continue from the state saved in the last one");
+        app->add_flag("--resume,--skip-existing", a.resume,
+            "Skip frames already written (refused unless the last was made with these settings) and continue from the "
+            "state saved in it; --skip-existing is the farm wrappers' name for it");
         app->add_flag("--json", a.json, "One JSON line per frame and a summary on stdout");
         addReadOptions(app, a.targetRead, "target");
         addReadOptions(app, a.sourceRead, "source");

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <sstream>
 
 namespace turbio {
@@ -76,6 +77,13 @@ void resolveFrame(FrameScan& fs, const FileInfo& info, const ReadOptions& option
     fs.domainKnown = true;
     std::vector<std::pair<std::string, turb::CoordBBox>> spans;
     double bytesPerVoxel = 0.0;
+    // Blender writes nothing outside its simulation box (a vdbturb Blender-style file may: its box starts where the
+    // frame's does): voxels there are strays, which readFrame leaves out too.
+    std::optional<turb::CoordBBox> simulationBox;
+    if (info.baseResolution && info.creator.rfind("vdbturb", 0) != 0)
+        simulationBox = turb::CoordBBox(turb::Coord(0), *info.baseResolution - turb::Coord(1));
+    std::vector<std::string> notes;
+    bool densityOutside = false; // its header box says nothing of where the smoke is inside the box then
     for (const GridInfo* g : used) {
         bytesPerVoxel += isVectorType(g->valueType) ? 12.0 : 4.0;
         if (!g->hasBBox) {
@@ -87,6 +95,18 @@ void resolveFrame(FrameScan& fs, const FileInfo& info, const ReadOptions& option
         // A staggered grid's faces on the domain's upper boundary are not voxels of the domain.
         if (info.baseResolution && g->gridClass == "staggered")
             b.intersect(turb::CoordBBox(turb::Coord(0), *info.baseResolution - turb::Coord(1)));
+        if (simulationBox && !simulationBox->isInside(b)) {
+            if (g == d) {
+                densityOutside = true;
+                const turb::Coord r = *info.baseResolution;
+                notes.push_back("grid '" + g->name + "' has active voxels outside Blender's simulation box " +
+                                std::to_string(r.x()) + "x" + std::to_string(r.y()) + "x" + std::to_string(r.z()) +
+                                " (its active box reaches " + std::to_string(b.max().x()) + "," +
+                                std::to_string(b.max().y()) + "," + std::to_string(b.max().z()) +
+                                "): strays, left out of every read");
+            }
+            b.intersect(*simulationBox);
+        }
         spans.emplace_back(g->name, b);
         fs.domain.expand(b);
     }
@@ -99,6 +119,7 @@ void resolveFrame(FrameScan& fs, const FileInfo& info, const ReadOptions& option
         // worth one read of the density alone, which is what readFrame will hold.
         fs.region.hasDensity = true;
         if (d->hasBBox && d->activeVoxels != 0) fs.region.smoke = d->activeBBox;
+        if (simulationBox) fs.region.smoke.intersect(*simulationBox);
         // As readFrame: the margin reaches as far as the other grids (or Blender's domain), not the strays.
         turb::CoordBBox& others = fs.others;
         if (info.baseResolution) others = turb::CoordBBox(turb::Coord(0), *info.baseResolution - turb::Coord(1));
@@ -112,7 +133,8 @@ void resolveFrame(FrameScan& fs, const FileInfo& info, const ReadOptions& option
         fs.domain = heldRegion(fs.region, reach(), options);
         const double held = double(fs.domain.volume());
         const bool tooBig = !detail::denseSizeProblem(fs.path, fs.domain, spans, bytesPerVoxel, options).empty();
-        if (tooBig || (held > 1.0e6 && d->activeVoxels >= 0 && held > 64.0 * double(d->activeVoxels))) {
+        if (tooBig || densityOutside ||
+            (held > 1.0e6 && d->activeVoxels >= 0 && held > 64.0 * double(d->activeVoxels))) {
             fs.region = smokeRegion(fs.path, options);
             fs.regionFromVoxels = true;
             fs.domain = heldRegion(fs.region, reach(), options);
@@ -125,6 +147,7 @@ void resolveFrame(FrameScan& fs, const FileInfo& info, const ReadOptions& option
     const bool blenderVel = v && info.baseResolution && v->name == "velocity" && v->gridClass == "staggered";
     fs.timing =
         resolveTiming(blenderVel, info.baseResolution.has_value(), info.recordedDt, options, info.recordedTimeUnit);
+    fs.timing.notes = std::move(notes);
     // Houdini writes two grids of one name when two primitives share it: say which one is read, and how to pick
     // another (readFrame reads the same one: the selector resolveGrid chose).
     for (const GridInfo* chosen : {d, v}) {

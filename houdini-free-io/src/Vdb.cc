@@ -337,6 +337,17 @@ std::optional<turb::Coord> baseResolution(const openvdb::GridBase& g)
     return std::nullopt;
 }
 
+// Blender's simulation box, [0, file_base_resolution), for a cache Blender wrote: Mantaflow writes nothing outside
+// it, so voxels there are strays (an edit, a broken source). Not for vdbturb's Blender-style files, whose boxes start
+// where the frame's do.
+std::optional<turb::CoordBBox> blenderSimulationBox(const openvdb::GridBase& g, const openvdb::MetaMap& fileMeta)
+{
+    const auto creator = fileMeta.getMetadata<openvdb::StringMetadata>("creator");
+    if (creator && creator->value().rfind("vdbturb", 0) == 0) return std::nullopt;
+    if (const auto res = baseResolution(g)) return turb::CoordBBox(turb::Coord(0), *res - turb::Coord(1));
+    return std::nullopt;
+}
+
 bool isBlenderVelocity(const openvdb::GridBase& g)
 {
     return g.getName() == "velocity" && g.getGridClass() == openvdb::GRID_STAGGERED && baseResolution(g).has_value();
@@ -944,7 +955,9 @@ int boxGap(const turb::CoordBBox& a, const turb::CoordBBox& b)
 // Clusters the smoke of `grid` at leaf-node granularity: a leaf's smoke joins that of its 26 neighbour leaves,
 // an active tile that of every node within one leaf of it. Serial and ordered, so the answer never depends on
 // threads; a pass over the active voxels, far cheaper than the dense copy it saves.
-SmokeRegion findSmoke(const openvdb::FloatGrid& grid, const ReadOptions& o)
+// `simulationBox` (a Blender cache's): smoke outside it is a stray whatever its size or mass.
+SmokeRegion findSmoke(
+    const openvdb::FloatGrid& grid, const ReadOptions& o, const std::optional<turb::CoordBBox>& simulationBox)
 {
     struct Node
     {
@@ -952,6 +965,7 @@ SmokeRegion findSmoke(const openvdb::FloatGrid& grid, const ReadOptions& o)
         long long voxels = 0;
         double mass = 0.0;
     };
+    Node outside;
     std::vector<Node> nodes;
     std::unordered_map<uint64_t, size_t> leafIndex;
     const auto key = [](const openvdb::Coord& c) {
@@ -962,11 +976,13 @@ SmokeRegion findSmoke(const openvdb::FloatGrid& grid, const ReadOptions& o)
     std::vector<turb::CoordBBox> tiles;
     for (auto leaf = grid.tree().cbeginLeaf(); leaf; ++leaf) {
         Node n;
+        const bool whole = !simulationBox || simulationBox->isInside(leaf->getNodeBoundingBox());
         for (auto v = leaf->cbeginValueOn(); v; ++v)
             if (*v > thr) {
-                n.box.expand(v.getCoord());
-                ++n.voxels;
-                n.mass += double(*v);
+                Node& to = whole || simulationBox->isInside(v.getCoord()) ? n : outside;
+                to.box.expand(v.getCoord());
+                ++to.voxels;
+                to.mass += double(*v);
             }
         if (n.voxels == 0) continue;
         leafIndex.emplace(key(leaf->origin()), nodes.size());
@@ -982,7 +998,13 @@ SmokeRegion findSmoke(const openvdb::FloatGrid& grid, const ReadOptions& o)
                 n.box = it.getBoundingBox();
                 n.voxels = (long long)n.box.volume();
                 n.mass = double(*it) * double(n.voxels);
-                nodes.push_back(n);
+                if (simulationBox && !simulationBox->isInside(n.box)) {
+                    outside.box.expand(n.box);
+                    outside.voxels += n.voxels;
+                    outside.mass += n.mass;
+                } else {
+                    nodes.push_back(n);
+                }
             }
     }
     std::vector<size_t> parent(nodes.size());
@@ -1011,7 +1033,7 @@ SmokeRegion findSmoke(const openvdb::FloatGrid& grid, const ReadOptions& o)
             if (i != t && boxGap(nodes[t].box, nodes[i].box) <= 8) join(t, i);
 
     std::map<size_t, Node> clusters; // by root: the lowest node index, so the order is the tree's
-    double total = 0.0;
+    double total = outside.mass;
     for (size_t i = 0; i < nodes.size(); ++i) {
         Node& c = clusters[root(i)];
         c.box.expand(nodes[i].box);
@@ -1051,6 +1073,16 @@ SmokeRegion findSmoke(const openvdb::FloatGrid& grid, const ReadOptions& o)
         s.massShare = total > 0.0 ? list[i].mass / total : 0.0;
         s.distance = boxGap(r.smoke, list[i].box);
         r.strays.push_back(s);
+    }
+    if (outside.voxels > 0) { // left out whatever its size: Blender writes nothing there
+        StrayCluster s;
+        s.box = outside.box;
+        s.voxels = outside.voxels;
+        s.massShare = total > 0.0 ? outside.mass / total : 0.0;
+        s.distance = r.smoke.empty() ? 0 : boxGap(r.smoke, outside.box);
+        r.strays.push_back(s);
+        std::stable_sort(r.strays.begin(), r.strays.end(),
+            [](const StrayCluster& a, const StrayCluster& b) { return a.massShare > b.massShare; });
     }
     return r;
 }
@@ -1114,7 +1146,8 @@ SmokeRegion smokeRegion(const std::string& path, const ReadOptions& options)
         },
         options.readTimeout);
     if (r.grids.empty()) return SmokeRegion{};
-    return findSmoke(*asFloatGrid(path, r.grids.front(), "density"), options);
+    return findSmoke(
+        *asFloatGrid(path, r.grids.front(), "density"), options, blenderSimulationBox(*r.grids.front(), *r.meta));
 }
 
 namespace {
@@ -1145,6 +1178,7 @@ struct GridSpans
 {
     turb::Lattice lattice;              ///< the frame's: the density's (the velocity's without density)
     std::optional<turb::Coord> baseRes; ///< Blender's simulation box, when the file records it
+    std::optional<turb::CoordBBox> simulationBox; ///< that box for a cache Blender wrote (blenderSimulationBox)
     std::vector<turb::CoordBBox> boxes; ///< each grid's active box (RoleGrids::all() order)
     double bytesPerVoxel = 0.0;         ///< of the dense fields the grids become
     turb::CoordBBox domain;             ///< Blender's box or vdbturb's recorded one, and the boxes' union
@@ -1166,8 +1200,10 @@ GridSpans gridSpans(const std::string& path, const RoleGrids& g, const std::vect
                               quoted(g.comp[a]->getName()) + " lie on different lattices");
 
     // Domain: Blender records its full simulation box; otherwise the union of the grids' active boxes.
-    for (const auto& grid : all)
+    for (const auto& grid : all) {
         if (auto res = baseResolution(*grid)) s.baseRes = res;
+        if (auto box = blenderSimulationBox(*grid, meta)) s.simulationBox = box;
+    }
     if (s.baseRes) s.domain = turb::CoordBBox(turb::Coord(0), *s.baseRes - turb::Coord(1));
     // vdbturb's own outputs record the box they span; their grids may be sparse within it.
     if (const auto recorded = recordedDomain(meta)) s.domain.expand(*recorded);
@@ -1177,6 +1213,9 @@ GridSpans gridSpans(const std::string& path, const RoleGrids& g, const std::vect
         // faces) are not voxels of the domain.
         if (s.baseRes && all[i]->getGridClass() == openvdb::GRID_STAGGERED)
             b.intersect(turb::CoordBBox(turb::Coord(0), *s.baseRes - turb::Coord(1)));
+        // Nothing a Blender cache holds outside its simulation box is part of the simulation: a stray voxel there
+        // must not stretch the span (and with it the margin's reach) toward itself.
+        if (s.simulationBox) b.intersect(*s.simulationBox);
         s.boxes.push_back(b);
         if (!b.empty()) s.domain.expand(b);
         const bool vector = all[i] == openvdb::GridBase::ConstPtr(g.vel);
@@ -1197,7 +1236,7 @@ turb::CoordBBox heldBox(const std::string& path, const RoleGrids& g,
     rep.span = domain;
     if (g.density && options.cropToSmoke) {
         stage = "finding the smoke in grid " + quoted(g.density->getName());
-        rep.region = findSmoke(*g.density, options);
+        rep.region = findSmoke(*g.density, options, spans.simulationBox);
         // The margin reaches as far as the other grids (or Blender's domain) do, never toward the strays.
         turb::CoordBBox reach = rep.region.smoke;
         if (spans.baseRes) reach.expand(turb::CoordBBox(turb::Coord(0), *spans.baseRes - turb::Coord(1)));
@@ -2002,6 +2041,9 @@ FileInfo inspectFile(const std::string& path, bool readValues)
     info.recordedTimeUnit = metaDouble(*r.meta, turb::meta::kTimeUnit, 0.0);
     if (auto m = r.meta->getMetadata<openvdb::StringMetadata>(turb::meta::kSourceFrame)) info.sourceFrame = m->value();
     if (auto m = r.meta->getMetadata<openvdb::StringMetadata>(turb::meta::kUpAxis)) info.upAxis = m->value();
+    if (auto m = r.meta->getMetadata<openvdb::StringMetadata>(turb::meta::kTileBox)) info.tileBox = m->value();
+    if (auto m = r.meta->getMetadata<openvdb::StringMetadata>(turb::meta::kFarmTiles)) info.farmTiles = m->value();
+    if (auto m = r.meta->getMetadata<openvdb::StringMetadata>(turb::meta::kTileBorders)) info.tileBorders = m->value();
     info.recordedDomain = recordedDomain(*r.meta);
     info.sequenceDomain = recordedDomain(*r.meta, turb::meta::kSequenceDomain);
     info.velocityMargin = int(metaDouble(*r.meta, turb::meta::kVelocityMargin, -1.0));

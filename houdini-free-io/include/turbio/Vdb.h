@@ -284,6 +284,9 @@ struct FileInfo
     double recordedTimeUnit = 0.0;                 ///< vdbturb_time_unit metadata (seconds), 0 if absent
     std::string sourceFrame;                       ///< vdbturb_source_frame metadata: the transfer's source frame
     std::string upAxis;                            ///< vdbturb_up_axis metadata ("y", "z"), "" if absent
+    std::string tileBox;     ///< vdbturb_tile_box: a space tile's transfer output, the target box it held
+    std::string farmTiles;   ///< vdbturb_farm_tiles: a frame farm join assembled from tiles ("2x1x1 halo 4 ramp 8")
+    std::string tileBorders; ///< vdbturb_tile_borders: the borders between those tiles' cores ("x:64")
     std::optional<turb::CoordBBox> recordedDomain; ///< vdbturb_domain metadata: the box a vdbturb output spans
     std::optional<turb::CoordBBox> sequenceDomain; ///< vdbturb_sequence_domain metadata: the domain of the input it was
                                                    ///< made from (for framing only)
