@@ -104,6 +104,17 @@ inline std::string slurp(const std::string& path)
     return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
 }
 
+inline bool has(const std::string& text, const std::string& piece) { return text.find(piece) != std::string::npos; }
+
+/// The shared Blender plume pair (../shared/data): `res` 32 or 128; frame < 0 gives the fluid_data_####.vdb pattern.
+inline std::string plume(int res, int frame = -1)
+{
+    char name[48];
+    if (frame < 0) std::snprintf(name, sizeof(name), "blender-plume-%d/fluid_data_####.vdb", res);
+    else std::snprintf(name, sizeof(name), "blender-plume-%d/fluid_data_%04d.vdb", res, frame);
+    return testutil::dataPath(name);
+}
+
 inline size_t count(const std::string& text, const std::string& what)
 {
     size_t n = 0;

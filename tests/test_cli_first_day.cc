@@ -19,21 +19,14 @@
 namespace {
 
 namespace fs = std::filesystem;
+using clitest::has;
 using clitest::Result;
 
 Result run(const std::string& args) { return clitest::run(args); }
 Result runStdout(const std::string& args) { return clitest::run(args, false); }
-
-std::string lo() { return testutil::dataPath("blender-plume-32/fluid_data_####.vdb"); }
-std::string hi() { return testutil::dataPath("blender-plume-128/fluid_data_####.vdb"); }
-std::string loFrame(int f)
-{
-    char name[32];
-    std::snprintf(name, sizeof(name), "fluid_data_%04d.vdb", f);
-    return testutil::dataPath(std::string("blender-plume-32/") + name);
-}
-
-bool has(const std::string& text, const std::string& piece) { return text.find(piece) != std::string::npos; }
+std::string lo() { return clitest::plume(32); }
+std::string hi() { return clitest::plume(128); }
+std::string loFrame(int f) { return clitest::plume(32, f); }
 
 // The last non-empty line of `text`.
 std::string lastLine(const std::string& text)

@@ -16,27 +16,15 @@
 namespace {
 
 namespace fs = std::filesystem;
+using clitest::has;
 using clitest::Result;
 
 Result run(const std::string& args) { return clitest::run(args); }
 Result runStdout(const std::string& args) { return clitest::run(args, false); }
-
-std::string lo() { return testutil::dataPath("blender-plume-32/fluid_data_####.vdb"); }
-std::string hi() { return testutil::dataPath("blender-plume-128/fluid_data_####.vdb"); }
-std::string loFile(int f)
-{
-    char name[40];
-    std::snprintf(name, sizeof(name), "blender-plume-32/fluid_data_%04d.vdb", f);
-    return testutil::dataPath(name);
-}
-std::string hiFile(int f)
-{
-    char name[40];
-    std::snprintf(name, sizeof(name), "blender-plume-128/fluid_data_%04d.vdb", f);
-    return testutil::dataPath(name);
-}
-
-bool has(const std::string& text, const std::string& piece) { return text.find(piece) != std::string::npos; }
+std::string lo() { return clitest::plume(32); }
+std::string hi() { return clitest::plume(128); }
+std::string loFile(int f) { return clitest::plume(32, f); }
+std::string hiFile(int f) { return clitest::plume(128, f); }
 
 } // namespace
 
