@@ -5,8 +5,10 @@
 #include <turb/Error.h>
 #include <turbio/Sequence.h>
 
+#include <climits>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <iostream>
@@ -425,13 +427,17 @@ int reportFailure(const std::string& message, int exitCode)
         // A cache file's stem ends in its frame number (the rule every command reads file names by).
         if (const auto named = turbio::FramePattern::fromFileName(m[1].str())) j["frame"] = named->second;
     }
-    if (std::regex_search(message, m, frame)) j["frame"] = std::stoi(m[1].str());
+    if (std::regex_search(message, m, frame)) {
+        const long long n = std::strtoll(m[1].str().c_str(), nullptr, 10); // saturates; never throws here
+        if (n >= INT_MIN && n <= INT_MAX) j["frame"] = int(n);
+    }
     if (std::regex_search(message, m, grid)) j["grid"] = m[1].str();
     std::lock_guard<std::mutex> lock(gLogMutex);
     std::fputs((j.dump() + "\n").c_str(), stdout);
     std::fflush(stdout);
     return exitCode;
 }
+
 void logWarning(const std::string& msg)
 {
     if (globals().verbosity >= 1) emit("vdbturb: warning: ", msg);
