@@ -481,16 +481,16 @@ void reportSourceMapping(const TransferArgs& a, const FramePlan& p)
         line += ", target " + std::to_string(t.back()) + " -> source " + std::to_string(p.sourceFor.back());
     logInfo(line);
     const int t0 = t.front() + a.sourceOffset, t1 = t.back() + a.sourceOffset;
+    if (t1 >= s0 && t0 <= s1) return;
     // The offset that lines up the two caches' first frames, whichever --frames this run takes.
     const std::vector<int> cache = turbio::resolveSequence(a.target).frames;
     const int firstOfCache = cache.empty() ? t.front() : cache.front();
-    if (t1 < s0 || t0 > s1)
-        logWarning("the source's frames " + std::to_string(s0) + "-" + std::to_string(s1) +
-                   " do not overlap the target's " + std::to_string(t.front()) + "-" + std::to_string(t.back()) +
-                   (a.sourceOffset != 0 ? " + offset " + std::to_string(a.sourceOffset) : std::string()) +
-                   ": every source frame is chosen by --source-wrap " + wrapName(a.wrap) + "; --source-offset " +
-                   std::to_string(s0 - firstOfCache) + " lines up the caches' first frames (target " +
-                   std::to_string(firstOfCache) + ", source " + std::to_string(s0) + ")");
+    logWarning("the source's frames " + std::to_string(s0) + "-" + std::to_string(s1) +
+               " do not overlap the target's " + std::to_string(t.front()) + "-" + std::to_string(t.back()) +
+               (a.sourceOffset != 0 ? " + offset " + std::to_string(a.sourceOffset) : std::string()) +
+               ": every source frame is chosen by --source-wrap " + wrapName(a.wrap) + "; --source-offset " +
+               std::to_string(s0 - firstOfCache) + " lines up the caches' first frames (target " +
+               std::to_string(firstOfCache) + ", source " + std::to_string(s0) + ")");
 }
 
 // Stepped frames (--frames 1001-1100x2): the carried detail and density jump over the skipped frames.

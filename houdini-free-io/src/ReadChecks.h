@@ -5,6 +5,7 @@
 #include <turb/Error.h>
 #include <turbio/Vdb.h>
 
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -30,5 +31,11 @@ turb::CoordBBox boxOnLattice(const turb::CoordBBox& b, const turb::Lattice& own,
 std::string denseSizeProblem(const std::string& path, const turb::CoordBBox& domain,
     const std::vector<std::pair<std::string, turb::CoordBBox>>& spans, double bytesPerVoxel,
     const ReadOptions& options);
+
+/// Blender's simulation box [0, `baseResolution`) when Blender wrote the file (its `creator` is not vdbturb): Mantaflow
+/// writes nothing outside it, so voxels there are strays. None for vdbturb's Blender-style files, whose boxes start
+/// where the frame's does, and for files without Blender's metadata.
+std::optional<turb::CoordBBox> blenderSimulationBox(
+    const std::optional<turb::Coord>& baseResolution, const std::string& creator);
 
 } // namespace turbio::detail

@@ -77,11 +77,9 @@ void resolveFrame(FrameScan& fs, const FileInfo& info, const ReadOptions& option
     fs.domainKnown = true;
     std::vector<std::pair<std::string, turb::CoordBBox>> spans;
     double bytesPerVoxel = 0.0;
-    // Blender writes nothing outside its simulation box (a vdbturb Blender-style file may: its box starts where the
-    // frame's does): voxels there are strays, which readFrame leaves out too.
-    std::optional<turb::CoordBBox> simulationBox;
-    if (info.baseResolution && info.creator.rfind("vdbturb", 0) != 0)
-        simulationBox = turb::CoordBBox(turb::Coord(0), *info.baseResolution - turb::Coord(1));
+    // Voxels outside Blender's simulation box are strays, which readFrame leaves out too.
+    const std::optional<turb::CoordBBox> simulationBox =
+        detail::blenderSimulationBox(info.baseResolution, info.creator);
     std::vector<std::string> notes;
     bool densityOutside = false; // its header box says nothing of where the smoke is inside the box then
     for (const GridInfo* g : used) {

@@ -337,15 +337,11 @@ std::optional<turb::Coord> baseResolution(const openvdb::GridBase& g)
     return std::nullopt;
 }
 
-// Blender's simulation box, [0, file_base_resolution), for a cache Blender wrote: Mantaflow writes nothing outside
-// it, so voxels there are strays (an edit, a broken source). Not for vdbturb's Blender-style files, whose boxes start
-// where the frame's do.
+// detail::blenderSimulationBox for grid `g` of a file with metadata `fileMeta`.
 std::optional<turb::CoordBBox> blenderSimulationBox(const openvdb::GridBase& g, const openvdb::MetaMap& fileMeta)
 {
     const auto creator = fileMeta.getMetadata<openvdb::StringMetadata>("creator");
-    if (creator && creator->value().rfind("vdbturb", 0) == 0) return std::nullopt;
-    if (const auto res = baseResolution(g)) return turb::CoordBBox(turb::Coord(0), *res - turb::Coord(1));
-    return std::nullopt;
+    return detail::blenderSimulationBox(baseResolution(g), creator ? creator->value() : std::string());
 }
 
 bool isBlenderVelocity(const openvdb::GridBase& g)
@@ -620,6 +616,13 @@ std::string describeGrids(const std::vector<GridInfo>& grids)
 }
 
 namespace detail {
+
+std::optional<turb::CoordBBox> blenderSimulationBox(
+    const std::optional<turb::Coord>& baseResolution, const std::string& creator)
+{
+    if (!baseResolution || creator.rfind("vdbturb", 0) == 0) return std::nullopt;
+    return turb::CoordBBox(turb::Coord(0), *baseResolution - turb::Coord(1));
+}
 
 // The grid name in `listing` ("#0 'velocity' vec3s staggered, ...") nearest to a mistyped `name`, within two edits
 // (and under half its length); "" when none is that near.
