@@ -17,6 +17,7 @@
 #include <nlohmann/json.hpp>
 
 #include <array>
+#include <climits>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -215,10 +216,11 @@ turb::CoordBBox boxFromArray(const nlohmann::json& j)
     return turb::CoordBBox(turb::Coord(v[0], v[1], v[2]), turb::Coord(v[3], v[4], v[5]));
 }
 
-// The largest overlap that `chunks` chunks of `n` frames can hold (-1: none, too many chunks).
-int largestOverlap(size_t n, int chunks, int preroll)
+// The largest overlap under `below` that `chunks` chunks of `n` frames can hold (-1: none, too many chunks). The
+// overlaps that fit are those up to a limit: planTimeChunks, the one rule, is asked from `below` down.
+int largestOverlap(size_t n, int chunks, int preroll, int below)
 {
-    for (int o = int(std::min<size_t>(n, 1000)); o >= 0; --o) {
+    for (int o = std::min(below, int(std::min<size_t>(n, INT_MAX))) - 1; o >= 0; --o) {
         try {
             turb::planTimeChunks(n, chunks, preroll, o);
             return o;
@@ -234,7 +236,7 @@ std::vector<turb::TimeChunk> timeChunks(FarmArgs& a, size_t n)
     try {
         return turb::planTimeChunks(n, a.chunks, a.preroll, a.overlap);
     } catch (const turb::ValueError& e) {
-        const int most = largestOverlap(n, a.chunks, a.preroll);
+        const int most = largestOverlap(n, a.chunks, a.preroll, a.overlap);
         if (most < 0) throw UsageError(std::string(e.what()) + ": use fewer --chunks");
         if (a.overlapGiven->count() > 0)
             throw UsageError(std::string(e.what()) + ": --overlap " + std::to_string(most) + " is the most that " +

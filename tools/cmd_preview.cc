@@ -132,8 +132,8 @@ float percentile(const turb::ScalarField& f, const turb::ScalarField* density, d
 /// line up at one scale; an up-res is otherwise framed tighter than its target (its margin is in fine voxels). One
 /// scene: the box lies inside the first input's and is at least an eighth of its size (a high-res source's smoke
 /// inside the target's domain), or it overlaps the first's and, along every axis, their union is at most twice the
-/// shorter of the two. Other inputs (another scene that
-/// happens to share the origin) keep their own camera, and their labels say so.
+/// shorter of the two. Other inputs (another scene that happens to share the origin) keep their own camera, and
+/// their labels say so.
 void shareCamera(std::vector<Input>& inputs)
 {
     using turb::Vec3d;
@@ -187,16 +187,6 @@ void shareCamera(std::vector<Input>& inputs)
 
 /// A thin outline of the domain on a picture (where the smoke can go).
 void outline(turb::Image& img) { img.drawRect(0, 0, img.width(), img.height(), turb::Rgb(0.35f)); }
-
-turb::Image render(const turb::Frame& f, Mode m, const PreviewArgs& a, const Input& in);
-
-// The views draw +z up. A y-up cache is turned a quarter about x first (+y onto +z, exactly: voxels move, nothing
-// is resampled); a 2D cache is drawn in its own plane either way.
-turb::Image renderUpright(const turb::Frame& f, Mode m, const PreviewArgs& a, const Input& in)
-{
-    if (!in.yUp || turb::isFlat(f.bbox())) return render(f, m, a, in);
-    return render(turb::reorientFrame(f, turb::AxisRotation::quarterTurns(0, 1)), m, a, in);
-}
 
 turb::Image render(const turb::Frame& f, Mode m, const PreviewArgs& a, const Input& in)
 {
@@ -459,12 +449,15 @@ std::vector<turb::Image> renderRow(
                 if (f->hasDensity()) f->density = turb::cropped(f->density, *in.frameBox);
                 if (f->hasVelocity()) f->velocity = turb::cropped(f->velocity, *in.frameBox);
             }
+            // The views draw +z up: a y-up cache is turned a quarter about x, once for all its modes (+y onto +z,
+            // exactly: voxels move, nothing is resampled); a 2D cache is drawn in its own plane either way.
+            if (in.yUp && !turb::isFlat(f->bbox())) f = turb::reorientFrame(*f, turb::AxisRotation::quarterTurns(0, 1));
         } else {
             logWarning(in.seq.path(frame) + ": missing, left empty");
         }
         for (Mode m : p.modes) {
             progress.begin(std::string("rendering ") + modeName(m));
-            images.push_back(f ? renderUpright(*f, m, a, in) : turb::Image());
+            images.push_back(f ? render(*f, m, a, in) : turb::Image());
             labels.push_back(cellLabel(in, m, p.inputs.size(), p.modes.size()));
         }
     }

@@ -4,6 +4,7 @@
 
 #include <turb/Error.h>
 #include <turbio/Sequence.h>
+#include <turbio/Vdb.h>
 
 #include <algorithm>
 #include <cctype>
@@ -255,37 +256,6 @@ bool asksForJson(const CLI::App& app)
     return false;
 }
 
-// Optimal string alignment distance (edits and adjacent swaps): "tranfser" is one swap from "transfer".
-size_t editDistance(const std::string& a, const std::string& b)
-{
-    std::vector<std::vector<size_t>> d(a.size() + 1, std::vector<size_t>(b.size() + 1));
-    for (size_t i = 0; i <= a.size(); ++i) d[i][0] = i;
-    for (size_t j = 0; j <= b.size(); ++j) d[0][j] = j;
-    for (size_t i = 1; i <= a.size(); ++i)
-        for (size_t j = 1; j <= b.size(); ++j) {
-            d[i][j] = std::min({d[i - 1][j] + 1, d[i][j - 1] + 1, d[i - 1][j - 1] + (a[i - 1] != b[j - 1])});
-            if (i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1])
-                d[i][j] = std::min(d[i][j], d[i - 2][j - 2] + 1);
-        }
-    return d[a.size()][b.size()];
-}
-
-// The candidate nearest to `word`, when it is near enough to be a typo.
-std::string nearest(const std::string& word, const std::vector<std::string>& candidates)
-{
-    std::string best;
-    size_t bestD = std::string::npos;
-    for (const auto& c : candidates) {
-        const size_t d = editDistance(word, c);
-        if (d < bestD) {
-            bestD = d;
-            best = c;
-        }
-    }
-    const size_t limit = std::max<size_t>(2, word.size() / 3);
-    return bestD <= limit ? best : std::string();
-}
-
 std::vector<std::string> longOptions(CLI::App* sub)
 {
     std::vector<std::string> names;
@@ -322,7 +292,7 @@ std::string checkSpelling(int argc, char** argv, CLI::App& app, const std::vecto
         if (c->name == first) sub = s;
     }
     if (!sub) {
-        const std::string near = nearest(first, names);
+        const std::string near = turbio::nearestName(first, names);
         std::string all;
         for (const auto& n : names) all += (all.empty() ? "" : ", ") + n;
         return "unknown command '" + first + "'" + (near.empty() ? "" : "; did you mean '" + near + "'?") +
@@ -346,7 +316,7 @@ std::string checkSpelling(int argc, char** argv, CLI::App& app, const std::vecto
         }
         const std::string second = argv[2];
         if (!parent && !second.empty() && second[0] != '-') {
-            const std::string near = nearest(second, nested);
+            const std::string near = turbio::nearestName(second, nested);
             std::string all;
             for (const auto& n : nested) all += (all.empty() ? "" : ", ") + n;
             return "'" + first + "' has no subcommand '" + second + "'" +
@@ -363,7 +333,7 @@ std::string checkSpelling(int argc, char** argv, CLI::App& app, const std::vecto
             if (name == "--help" || name == "--version" || isLongOption(sub, name) ||
                 (parent && isLongOption(parent, name)))
                 continue;
-            const std::string near = nearest(name, longOptions(sub));
+            const std::string near = turbio::nearestName(name, longOptions(sub));
             return "'" + label + "' has no option " + name + (near.empty() ? "." : "; did you mean " + near + "?") +
                    " See vdbturb " + label + " --help.";
         }
@@ -374,7 +344,7 @@ std::string checkSpelling(int argc, char** argv, CLI::App& app, const std::vecto
         if (arg.size() > 2 && !allShort) {
             const std::string dashed = "-" + arg.substr(0, arg.find('='));
             if (isLongOption(sub, dashed)) return "'" + arg + "' has one dash; long options take two: " + dashed;
-            const std::string near = nearest(dashed, longOptions(sub));
+            const std::string near = turbio::nearestName(dashed, longOptions(sub));
             return "'" + label + "' has no option " + arg + (near.empty() ? "." : "; did you mean " + near + "?");
         }
     }

@@ -13,9 +13,10 @@
 namespace turbio::detail {
 
 /// "PATH: no velocity (...) grid; the file has: LISTING.", naming the setting that chooses the grid
-/// ("velocityGrid"; the caller's own name for it, such as a flag, follows the listing).
-turb::IoError missingGrid(
-    const std::string& path, GridRole role, const ReadOptions& options, const std::string& listing);
+/// ("velocityGrid"; the caller's own name for it, such as a flag, follows the listing); a selector given in `options`
+/// that is a typo of one of `names` (the file's grid selectors) gets "(did you mean 'NAME'?)".
+turb::IoError missingGrid(const std::string& path, GridRole role, const ReadOptions& options, const std::string& listing,
+    const std::vector<std::string>& names);
 
 /// "PATH: none of the requested grids is present; the file has: LISTING.", naming densityGrid and velocityGrid.
 turb::IoError noRequestedGrid(const std::string& path, const std::string& listing);

@@ -35,9 +35,9 @@ void resolveFrame(FrameScan& fs, const FileInfo& info, const ReadOptions& option
     const auto dens = resolveGrid(names, GridRole::Density, options.densityGrid);
     const auto vel = resolveGrid(names, GridRole::Velocity, options.velocityGrid);
     if (dens.empty() && (options.requireDensity || !options.densityGrid.empty()))
-        throw detail::missingGrid(fs.path, GridRole::Density, options, listing);
+        throw detail::missingGrid(fs.path, GridRole::Density, options, listing, names);
     if (vel.empty() && (options.requireVelocity || !options.velocityGrid.empty()))
-        throw detail::missingGrid(fs.path, GridRole::Velocity, options, listing);
+        throw detail::missingGrid(fs.path, GridRole::Velocity, options, listing, names);
 
     std::vector<const GridInfo*> used;
     const GridInfo* d = dens.empty() ? nullptr : findSelector(info.grids, dens[0]);

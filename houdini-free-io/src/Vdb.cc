@@ -561,6 +561,30 @@ const std::vector<std::string>& gridAliases(GridRole role)
     }
 }
 
+std::string nearestName(const std::string& word, const std::vector<std::string>& candidates)
+{
+    const auto distance = [](const std::string& a, const std::string& b) {
+        std::vector<std::vector<size_t>> d(a.size() + 1, std::vector<size_t>(b.size() + 1));
+        for (size_t i = 0; i <= a.size(); ++i) d[i][0] = i;
+        for (size_t j = 0; j <= b.size(); ++j) d[0][j] = j;
+        for (size_t i = 1; i <= a.size(); ++i)
+            for (size_t j = 1; j <= b.size(); ++j) {
+                d[i][j] = std::min({d[i - 1][j] + 1, d[i][j - 1] + 1, d[i - 1][j - 1] + (a[i - 1] != b[j - 1])});
+                if (i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1])
+                    d[i][j] = std::min(d[i][j], d[i - 2][j - 2] + 1);
+            }
+        return d[a.size()][b.size()];
+    };
+    std::string best;
+    size_t bestDistance = std::string::npos;
+    for (const auto& c : candidates)
+        if (const size_t d = distance(word, c); d < bestDistance) {
+            bestDistance = d;
+            best = c;
+        }
+    return bestDistance <= std::max<size_t>(2, word.size() / 3) ? best : std::string();
+}
+
 std::vector<std::string> resolveGrid(
     const std::vector<std::string>& names, GridRole role, const std::string& overrideName)
 {
@@ -624,42 +648,12 @@ std::optional<turb::CoordBBox> blenderSimulationBox(
     return turb::CoordBBox(turb::Coord(0), *baseResolution - turb::Coord(1));
 }
 
-// The grid name in `listing` ("#0 'velocity' vec3s staggered, ...") nearest to a mistyped `name`, within two edits
-// (and under half its length); "" when none is that near.
-std::string nearestGridName(const std::string& name, const std::string& listing)
-{
-    std::string best;
-    size_t bestDistance = std::min<size_t>(3, (name.size() + 1) / 2);
-    for (size_t at = listing.find('\''); at != std::string::npos; at = listing.find('\'', at)) {
-        const size_t end = listing.find('\'', at + 1);
-        if (end == std::string::npos) break;
-        const std::string candidate = listing.substr(at + 1, end - at - 1);
-        at = end + 1;
-        std::vector<size_t> row(candidate.size() + 1);
-        for (size_t j = 0; j < row.size(); ++j) row[j] = j;
-        for (size_t i = 1; i <= name.size(); ++i) {
-            size_t diagonal = row[0];
-            row[0] = i;
-            for (size_t j = 1; j <= candidate.size(); ++j) {
-                const size_t up = row[j];
-                row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (name[i - 1] != candidate[j - 1])});
-                diagonal = up;
-            }
-        }
-        if (row.back() < bestDistance && candidate != name) {
-            bestDistance = row.back();
-            best = candidate;
-        }
-    }
-    return best;
-}
-
-turb::IoError missingGrid(
-    const std::string& path, GridRole role, const ReadOptions& options, const std::string& listing)
+turb::IoError missingGrid(const std::string& path, GridRole role, const ReadOptions& options, const std::string& listing,
+    const std::vector<std::string>& names)
 {
     const bool density = role == GridRole::Density;
     const std::string& chosen = density ? options.densityGrid : options.velocityGrid;
-    const std::string nearest = chosen.empty() ? std::string() : nearestGridName(chosen, listing);
+    const std::string nearest = chosen.empty() ? std::string() : nearestName(chosen, names);
     const std::string wanted = !chosen.empty() ? "'" + chosen + "'"
                                : density       ? std::string("density (density, density_noise)")
                                                : std::string("velocity (vel, velocity, v, or vel.x/vel.y/vel.z)");
@@ -804,9 +798,9 @@ void readRoles(openvdb::io::File& file, const std::vector<Descriptor>& order, op
     const auto densName = resolveGrid(names, GridRole::Density, options.densityGrid);
     const auto velName = resolveGrid(names, GridRole::Velocity, options.velocityGrid);
     if (densName.empty() && (options.requireDensity || !options.densityGrid.empty()))
-        throw detail::missingGrid(path, GridRole::Density, options, describeEntries(entries));
+        throw detail::missingGrid(path, GridRole::Density, options, describeEntries(entries), names);
     if (velName.empty() && (options.requireVelocity || !options.velocityGrid.empty()))
-        throw detail::missingGrid(path, GridRole::Velocity, options, describeEntries(entries));
+        throw detail::missingGrid(path, GridRole::Velocity, options, describeEntries(entries), names);
     const auto take = [&](const std::string& name, const std::string& role) {
         auto g = readGridNamed(file, path, name);
         g->insertMeta(kRoleKey, openvdb::StringMetadata(role));
@@ -1142,9 +1136,10 @@ SmokeRegion smokeRegion(const std::string& path, const ReadOptions& options)
         [&](openvdb::io::File& file, const std::vector<Descriptor>& order, openvdb::GridPtrVec& out,
             openvdb::MetaMap&) {
             const std::vector<GridEntry> entries = listGrids(file, order);
-            const auto name = resolveGrid(uniqueNames(entries), GridRole::Density, options.densityGrid);
+            const std::vector<std::string> names = uniqueNames(entries);
+            const auto name = resolveGrid(names, GridRole::Density, options.densityGrid);
             if (name.empty() && !options.densityGrid.empty())
-                throw detail::missingGrid(path, GridRole::Density, options, describeEntries(entries));
+                throw detail::missingGrid(path, GridRole::Density, options, describeEntries(entries), names);
             if (!name.empty()) out.push_back(readGridNamed(file, path, name[0]));
         },
         options.readTimeout);
@@ -1794,9 +1789,11 @@ void writeFrame(
     openvdb::GridPtrVec grids;
     const bool blender = options.style == WriteStyle::Blender;
     const turb::Lattice& lat = frame.lattice();
-    // The written time unit: seconds for Houdini and renderers; Blender's own (0.4 s at time scale 1) for Blender.
+    // The written time unit: seconds for Houdini and renderers; for Blender the frame's own when it came from Blender,
+    // else Mantaflow's at time scale 1 (a frame is 0.1 x 25/fps units and 1/fps s: 0.4 s a unit).
+    constexpr double kMantaflowTimeUnit = 0.4;
     const double timeUnit = options.keepTimeUnit ? frame.timeUnit
-                            : blender            ? (frame.timeUnit != 1.0 ? frame.timeUnit : 0.4)
+                            : blender            ? (frame.timeUnit != 1.0 ? frame.timeUnit : kMantaflowTimeUnit)
                                                  : 1.0;
     const float velocityScale = float(timeUnit / frame.timeUnit);
     const turb::Coord res = frame.bbox().dim();
@@ -2042,11 +2039,15 @@ FileInfo inspectFile(const std::string& path, bool readValues)
     if (auto c = r.meta->getMetadata<openvdb::StringMetadata>("creator")) info.creator = c->value();
     info.recordedDt = metaDouble(*r.meta, turb::meta::kDt, 0.0);
     info.recordedTimeUnit = metaDouble(*r.meta, turb::meta::kTimeUnit, 0.0);
-    if (auto m = r.meta->getMetadata<openvdb::StringMetadata>(turb::meta::kSourceFrame)) info.sourceFrame = m->value();
-    if (auto m = r.meta->getMetadata<openvdb::StringMetadata>(turb::meta::kUpAxis)) info.upAxis = m->value();
-    if (auto m = r.meta->getMetadata<openvdb::StringMetadata>(turb::meta::kTileBox)) info.tileBox = m->value();
-    if (auto m = r.meta->getMetadata<openvdb::StringMetadata>(turb::meta::kFarmTiles)) info.farmTiles = m->value();
-    if (auto m = r.meta->getMetadata<openvdb::StringMetadata>(turb::meta::kTileBorders)) info.tileBorders = m->value();
+    const auto text = [&](const char* key) {
+        const auto m = r.meta->getMetadata<openvdb::StringMetadata>(key);
+        return m ? m->value() : std::string();
+    };
+    info.sourceFrame = text(turb::meta::kSourceFrame);
+    info.upAxis = text(turb::meta::kUpAxis);
+    info.tileBox = text(turb::meta::kTileBox);
+    info.farmTiles = text(turb::meta::kFarmTiles);
+    info.tileBorders = text(turb::meta::kTileBorders);
     info.recordedDomain = recordedDomain(*r.meta);
     info.sequenceDomain = recordedDomain(*r.meta, turb::meta::kSequenceDomain);
     info.velocityMargin = int(metaDouble(*r.meta, turb::meta::kVelocityMargin, -1.0));

@@ -136,6 +136,11 @@ ReadReport resolveTiming(bool blenderVelocity, bool blenderCache, double recorde
 /// The aliases of a role, in priority order.
 const std::vector<std::string>& gridAliases(GridRole role);
 
+/// The candidate nearest to `word` when it is near enough to be a typo: an optimal string alignment distance (edits
+/// and adjacent swaps: "tranfser" is one from "transfer") of at most max(2, word length / 3); "" otherwise. For grid
+/// names here, and for the command line's commands and flags.
+std::string nearestName(const std::string& word, const std::vector<std::string>& candidates);
+
 /// Chooses the grid of `role` among `names` (an override wins and must exist). `names` are OpenVDB's
 /// unique grid names in file order ("density", "[0]" for an unnamed grid, "vel[1]" for a second "vel");
 /// an override may also be "#N" (the N-th name) or "name[0]" (the first grid of that name). For velocity
