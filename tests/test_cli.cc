@@ -264,8 +264,8 @@ TEST(Cli, TrimmedHalfFramesResumeExactlyFromTheStateKeptBesideThem)
         read("a/t.resume-state-odd.vdb", 3).velocity.values(), read("b/t.resume-state-odd.vdb", 3).velocity.values());
     // Written otherwise, the sequence would hold two formats: refused, naming each write setting that differs.
     const CmdResult other =
-        run("transfer --target " + lo() + " --source " + hi() + " --velocity-margin 2 --clipping 1e-3 --out " +
-            dir / "b/t.####.vdb --frames 1-4 --resume");
+        run("transfer --target " + lo() + " --source " + hi() +
+            " --full-float --velocity-margin 2 --clipping 1e-3 --out " + dir / "b/t.####.vdb --frames 1-4 --resume");
     EXPECT_EQ(other.code, 1) << other.out;
     EXPECT_NE(other.out.find("half: 1 -> 0"), std::string::npos) << other.out;
     EXPECT_NE(other.out.find("velocity-margin: 1 -> 2"), std::string::npos) << other.out;

@@ -10,6 +10,7 @@
 #include <openvdb/io/File.h>
 
 #include <fstream>
+#include <sstream>
 #include <map>
 #include <regex>
 
@@ -37,6 +38,18 @@ double numberAfter(const std::string& text, const std::string& key)
 {
     const size_t at = text.find(key);
     return at == std::string::npos ? -1.0 : std::stod(text.substr(at + key.size()));
+}
+
+// A size as turbio::formatBytes prints it ("515 kB", "14 MB", "1.2 GB") after `key`, in MB; -1 without one.
+double megabytesAfter(const std::string& text, const std::string& key)
+{
+    const size_t at = text.find(key);
+    if (at == std::string::npos) return -1.0;
+    std::istringstream in(text.substr(at + key.size()));
+    double v = 0.0;
+    std::string unit;
+    if (!(in >> v >> unit)) return -1.0;
+    return unit == "GB" ? v * 1e3 : unit == "MB" ? v : unit == "kB" ? v * 1e-3 : unit == "B" ? v * 1e-6 : -1.0;
 }
 
 } // namespace
@@ -202,9 +215,9 @@ TEST(CliReliability, DryRunPrintsTheLatticeRatioTimingAndEstimatesThatHold)
         << dry.out;
     const double estimateMb = numberAfter(dry.out, "memory: about ");
     ASSERT_GT(estimateMb, 0.0) << dry.out;
-    const double sizeMb = numberAfter(dry.out, "output size: about ");
+    const double sizeMb = megabytesAfter(dry.out, "output size: about ");
     ASSERT_GT(sizeMb, 0.0) << dry.out;
-    const double totalMb = numberAfter(dry.out, " for the largest frame, "); // the run's: summed over its frames
+    const double totalMb = megabytesAfter(dry.out, " for the largest frame, "); // the run's: summed over its frames
     ASSERT_GT(totalMb, sizeMb) << dry.out;
     EXPECT_FALSE(std::filesystem::exists(dir / "o"));
 

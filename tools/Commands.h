@@ -86,5 +86,12 @@ CLI::Validator finitePositive();
 
 /// Adds --style, --no-clobber, --half and --clipping for writing caches.
 void addWriteOptions(CLI::App* app, turbio::WriteOptions& opt);
+/// What an up-res (transfer, farm join) writes by default: 16-bit floats and velocity within two voxels of the
+/// smoke, as Blender and Houdini caches are written (docs/io.md, Size). --full-float and --velocity-margin -1 give
+/// the whole frame in 32-bit floats.
+turbio::WriteOptions upResWriteDefaults();
+/// Adds --vel-voxel-scale N (Houdini's velocity voxel scale: `vel` on an N times coarser lattice) and
+/// --no-velocity (no velocity grid) for an up-res's output.
+void addVelocityWriteOptions(CLI::App* app, turbio::WriteOptions& opt);
 
 } // namespace vdbturb

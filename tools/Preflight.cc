@@ -4,12 +4,16 @@
 #include "Console.h"
 
 #include <turb/Error.h>
+#include <turb/Metadata.h>
+#include <turb/Transfer.h>
 #include <turbio/System.h>
 
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <set>
+#include <sstream>
 #include <fcntl.h>
 #include <unistd.h>
 
@@ -68,6 +72,9 @@ TimingSources timingSources(const turbio::ReadReport& t, const std::string& read
     return s;
 }
 
+// A header scan's note of stray voxels (turbio::SmokeRegion::describeStrays, Blender's outside-the-box note).
+bool isStrayNote(const std::string& note) { return note.find("see --keep-isolated") != std::string::npos; }
+
 std::vector<std::string> timingLines(const std::string& role, const turbio::FrameScan& f, const std::string& readPrefix)
 {
     const turbio::ReadReport& t = f.timing;
@@ -82,7 +89,8 @@ std::vector<std::string> timingLines(const std::string& role, const turbio::Fram
             (t.cells ? "grid cells per time unit x voxel " + num("%g", f.lattice.voxelSize) + " = world units"
                      : std::string("world units")) +
             " (" + source.units + ")");
-    for (const auto& n : t.notes) lines.push_back(role + ": " + n);
+    for (const auto& n : t.notes)
+        if (!isStrayNote(n)) lines.push_back(role + ": " + n);
     return lines;
 }
 
@@ -93,7 +101,28 @@ void reportTiming(const std::string& role, const turbio::SequenceScan& scan, boo
     if (dryOrVerbose())
         for (const auto& line : timingLines(role, f, readPrefix)) printData(line);
     else
-        for (const auto& n : f.timing.notes) warnOnce("note " + role, role + ": " + n);
+        for (const auto& n : f.timing.notes)
+            if (!isStrayNote(n)) warnOnce("note " + role + n, role + ": " + n);
+    // Strays are said once for the sequence: the first frame that has them, and how many more do.
+    const turbio::FrameScan* first = nullptr;
+    std::string stray;
+    int more = 0;
+    for (const auto& fr : scan.frames)
+        for (const auto& n : fr.timing.notes)
+            if (isStrayNote(n)) {
+                if (first) {
+                    ++more;
+                } else {
+                    first = &fr;
+                    stray = n;
+                }
+                break;
+            }
+    if (first)
+        warnOnce("strays " + role,
+            role + " " + first->path + ": " + stray +
+                (more > 0 ? " (and in " + std::to_string(more) + " more frame" + (more == 1 ? "" : "s") + ")"
+                          : std::string()));
     if (usesDt && f.timing.conventionAssumed)
         warnOnce("fps " + role,
             role + " " + f.path + ": the cache records no frame rate; dt " + num("%.6g", f.timing.dt) +
@@ -157,6 +186,52 @@ void checkMemory(double estimateBytes, const std::string& what, const std::strin
         throw turb::IoError("not enough memory for this run: it needs about " + turbio::formatBytes(estimateBytes) +
                             " (" + what + "), this machine has " + turbio::formatBytes(double(usable)) + ". " +
                             whatFits);
+}
+
+std::string commandSettingsText(const CLI::App& app, const std::vector<std::string>& inputs)
+{
+    // Options that say how or where to run, not what a frame holds.
+    static const std::set<std::string> kRunOnly = {"threads", "progress", "verbose", "quiet", "frames", "out", "input",
+        "dry-run", "skip-existing", "no-clobber", "json", "settings", "print-settings", "help-all"};
+    std::ostringstream os;
+    std::istringstream lines(app.config_to_str(true, false));
+    std::string line;
+    while (std::getline(lines, line)) {
+        const size_t eq = line.find('=');
+        if (eq == std::string::npos || line[0] == '#' || line[0] == '[') continue;
+        std::string name = line.substr(0, eq), value = line.substr(eq + 1);
+        const auto trim = [](std::string& t) {
+            t.erase(0, t.find_first_not_of(" \t\""));
+            t.erase(t.find_last_not_of(" \t\"") + 1);
+        };
+        trim(name);
+        trim(value);
+        if (kRunOnly.count(name)) continue;
+        os << name << '=' << value << ';';
+    }
+    for (size_t i = 0; i < inputs.size(); ++i)
+        os << "input" << (i ? std::to_string(i + 1) : std::string()) << '='
+           << fs::absolute(inputs[i]).lexically_normal().string() << ';';
+    return os.str();
+}
+
+bool writtenWithSettings(const std::string& path, const std::string& command, const std::string& settings)
+{
+    std::error_code ec;
+    if (!fs::exists(path, ec)) return false;
+    const turbio::FileInfo info = turbio::inspectFile(path, false);
+    std::vector<std::string> diff;
+    if (info.command != command)
+        diff.push_back("written by " +
+                       (info.command.empty() ? std::string("another program") : "vdbturb " + info.command) +
+                       ", not vdbturb " + command);
+    else if (info.settings.empty()) diff.push_back("no vdbturb_settings metadata (written by an older vdbturb)");
+    else diff = turb::settingsDifferences(info.settings, settings);
+    if (diff.empty()) return true;
+    std::string list;
+    for (const std::string& d : diff) list += "\n  " + d;
+    throw turb::ValueError(path + " exists and was made otherwise; --skip-existing skips only frames of the same run:" +
+                           list + "\n  (remove it, or run without --skip-existing to replace it)");
 }
 
 } // namespace vdbturb

@@ -12,6 +12,10 @@
 #include <string>
 #include <vector>
 
+namespace CLI {
+class App;
+}
+
 namespace vdbturb {
 
 /// What a command does with a sequence whose lattice changes between frames.
@@ -50,6 +54,16 @@ void reportTiming(
 /// output that exists, unless `skipExisting` (a resume) will skip it.
 void checkOutputs(
     const std::vector<std::string>& outputs, const std::vector<std::string>& inputs, bool noClobber, bool skipExisting);
+
+/// The settings that make a command's frames, as "name=value;..." for vdbturb_settings: every option of `app` with
+/// its value (defaults included), less those that do not change a frame (threads, progress, verbosity, frames,
+/// paths, dry run, skip-existing, no-clobber), and each input as an absolute path. What --skip-existing compares.
+std::string commandSettingsText(const CLI::App& app, const std::vector<std::string>& inputs);
+
+/// --skip-existing for one frame: true when `path` exists and was written by `command` with `settings` (the
+/// frame is complete: vdbturb renames a file into place only when whole). False when it does not exist. Throws
+/// turb::ValueError (exit 1: a retry cannot fix it) when it exists but was made otherwise, naming what differs.
+bool writtenWithSettings(const std::string& path, const std::string& command, const std::string& settings);
 
 /// Refuses a run whose peak memory estimate exceeds what this process may use, with the estimate, the
 /// reason and `whatFits` (what would run instead). Logged at -v and in dry runs either way.

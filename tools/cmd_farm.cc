@@ -60,7 +60,7 @@ struct FarmArgs
     bool keepScratch = true;
     bool json = false;
     turbio::ReadOptions targetRead;
-    turbio::WriteOptions write;
+    turbio::WriteOptions write = upResWriteDefaults(); // as transfer writes its chunks
 };
 
 std::string shellQuote(const std::string& s)
@@ -122,10 +122,12 @@ std::vector<std::string> joinArgs(const std::vector<std::string>& args)
     std::vector<std::string> out;
     for (size_t i = 0; i < args.size(); ++i)
         if (args[i].rfind("--target-", 0) == 0 || args[i].rfind("--style", 0) == 0 ||
-            args[i].rfind("--velocity-margin", 0) == 0 || args[i].rfind("--clipping", 0) == 0) {
+            args[i].rfind("--velocity-margin", 0) == 0 || args[i].rfind("--clipping", 0) == 0 ||
+            args[i].rfind("--vel-voxel-scale", 0) == 0) {
             out.push_back(args[i]);
             if (args[i].find('=') == std::string::npos && i + 1 < args.size()) out.push_back(args[++i]);
-        } else if (args[i] == "--half" || args[i] == "--no-clobber") {
+        } else if (args[i] == "--half" || args[i] == "--full-float" || args[i] == "--no-velocity" ||
+                   args[i] == "--no-clobber") {
             out.push_back(args[i]);
         }
     return out;
@@ -844,8 +846,9 @@ void addJoinOptions(CLI::App* join, FarmArgs& a)
     join->add_option("--velocity-margin", a.write.velocityMargin,
             "Write the blended velocity only within N voxels of the smoke, as transfer (-1: the whole box)")
         ->check(CLI::Range(-1, 64));
+    addVelocityWriteOptions(join, a.write);
     for (const char* name : {"target-density-grid", "target-vel-grid", "target-fps", "style", "no-clobber", "half",
-             "clipping", "velocity-margin"})
+             "clipping", "velocity-margin", "vel-voxel-scale", "no-velocity"})
         setting(join->get_option(std::string("--") + name), name);
 }
 

@@ -27,8 +27,10 @@ struct ResampleArgs
     int down = 1;
     std::string rotate;
     bool dropOtherGrids = false;
+    bool skipExisting = false;
     turbio::ReadOptions read;
     turbio::WriteOptions write;
+    const CLI::App* app = nullptr; ///< for the settings its frames record (--skip-existing)
 };
 
 // Metadata in output voxels (the up-res ratio, the recorded domain, the patch lattice) kept true after a box
@@ -141,9 +143,16 @@ int runResample(ResampleArgs& a)
         outputs.push_back(outPattern.format(f));
         inputs.push_back(seq.path(f));
     }
-    checkOutputs(outputs, inputs, a.write.noClobber, false);
+    checkOutputs(outputs, inputs, a.write.noClobber, a.skipExisting);
+    // Each frame is made from its input alone, so a frame written by the same settings is whole and final.
+    const std::string settings = commandSettingsText(*a.app, {seq.pattern.str()});
+    std::vector<bool> skip(seq.frames.size(), false);
+    if (a.skipExisting)
+        for (size_t i = 0; i < seq.frames.size(); ++i) skip[i] = writtenWithSettings(outputs[i], "resample", settings);
     if (globals().dryRun) {
-        for (int f : seq.frames) printData("would write " + outPattern.format(f) + " from " + seq.path(f));
+        for (size_t i = 0; i < seq.frames.size(); ++i)
+            printData((skip[i] ? "would skip " : "would write ") + outputs[i] +
+                      (skip[i] ? " (written by the same settings)" : " from " + inputs[i]));
         return kOk;
     }
     RunReport report("resample", false);
@@ -151,6 +160,11 @@ int runResample(ResampleArgs& a)
     for (size_t i = 0; i < seq.frames.size(); ++i) {
         const int f = seq.frames[i];
         const auto t0 = std::chrono::steady_clock::now();
+        if (skip[i]) {
+            report.frameDone(f, int(i), int(seq.frames.size()), secondsSince(t0),
+                "skipped: " + outputs[i] + " was written by the same settings");
+            continue;
+        }
         turb::Frame frame = turbio::readFrame(seq.path(f), f, a.read);
         std::optional<turbio::OtherGrids> others;
         if (!a.dropOtherGrids) others = carriedGrids(a, seq.path(f), frame, rot, i == 0);
@@ -158,6 +172,7 @@ int runResample(ResampleArgs& a)
         if (!rot.isIdentity()) frame = turb::reorientFrame(frame, rot);
         rescaleIndexMetadata(frame.metadata, a.down, !rot.isIdentity());
         frame.metadata[turb::meta::kCommand] = "resample";
+        frame.metadata[turb::meta::kSettings] = settings;
         const std::string path = outPattern.format(f);
         turbio::ensureParentDirectory(path);
         warnIfClippedAway(frame, a.write, path, warnedClipping);
@@ -190,6 +205,11 @@ Command resampleCommand()
             ->group(kGroupOutput);
         addWriteOptions(app, args->write);
         // Rarely wanted: a proxy normally keeps Blender's flags, colours and level sets (docs/io.md).
+        app->add_flag("--skip-existing", args->skipExisting,
+               "Skip the frames already written by the same settings (farm wrappers' retries); a frame written "
+               "otherwise is refused (exit 1)")
+            ->group(kGroupOutput);
+        args->app = app;
         setting(app->add_flag("--drop-other-grids", args->dropOtherGrids,
                     "Write only density, velocity, temperature and flame, not the file's other grids"),
             "drop-other-grids");

@@ -57,10 +57,11 @@ struct TransferArgs
         return r;
     }();
     const CLI::Option* sourceCropMargin = nullptr; ///< given or not: its default depends on the ratio
+    const CLI::Option* velocityMargin = nullptr;   ///< given or not: --style blender ignores it, saying so if given
     /// kKindTwins' options as parsed (3D, 2D): one given for the other kind of cache gets a warning.
     std::vector<std::pair<const CLI::Option*, const CLI::Option*>> kindTwins;
     std::string tileBox; ///< "X0,Y0,Z0,X1,Y1,Z1": hold only this box of the target (a space tile and its halo)
-    turbio::WriteOptions write;
+    turbio::WriteOptions write = upResWriteDefaults();
     turb::TransferSettings settings;
 };
 
@@ -140,8 +141,8 @@ double velocityBoxVoxels(const turbio::FrameScan& fr)
 std::string resumeStatePath(const turbio::FramePattern& out, const turbio::WriteOptions& w, double timeUnit, int frame)
 {
     // A Houdini-style frame holds velocity per second: scaling a Blender target's time unit back is not exact.
-    const bool lossy =
-        w.velocityMargin >= 0 || w.halfFloat || w.style == turbio::WriteStyle::Blender || timeUnit != 1.0;
+    const bool lossy = w.velocityMargin >= 0 || w.halfFloat || w.velocityVoxelScale > 1 || !w.writeVelocity ||
+                       w.style == turbio::WriteStyle::Blender || timeUnit != 1.0;
     if (!lossy || !out.numbered()) return {};
     return out.prefix() + ((frame & 1) ? "resume-state-odd" : "resume-state-even") + out.suffix();
 }
@@ -262,7 +263,11 @@ turb::CoordBBox preflight(const TransferArgs& a, const turbio::Sequence& target,
         const double smoke = std::min(box,
             1.2 * cells * (fr.densityActive > 0 ? smokeShare * double(fr.densityActive) : double(fr.domain.volume())));
         const double whole = std::min(box, cells * velocityBoxVoxels(fr));
-        const double vel = trimmed ? std::min(whole, smoke * (1.0 + 0.25 * a.write.velocityMargin)) : whole;
+        const double scale = a.write.style == turbio::WriteStyle::Houdini ? a.write.velocityVoxelScale : 1.0;
+        const double vel = !a.write.writeVelocity
+                               ? 0.0
+                               : (trimmed ? std::min(whole, smoke * (1.0 + 0.25 * a.write.velocityMargin)) : whole) /
+                                     (turb::isFlat(tBox) ? scale * scale : scale * scale * scale);
         outBytes = std::max(outBytes, floatBytes * (3.0 * vel + 2.0 * smoke));
         totalBytes += floatBytes * (3.0 * vel + 2.0 * smoke);
         stateBytes = std::max(stateBytes, 12.0 * whole + 4.0 * smoke);
@@ -352,6 +357,9 @@ std::string writeSettingsText(const turbio::WriteOptions& w)
     os << "style=" << (w.style == turbio::WriteStyle::Blender ? "blender" : "houdini")
        << ";half=" << (w.halfFloat ? 1 : 0) << ";clipping=" << w.densityTolerance
        << ";velocity-margin=" << w.velocityMargin;
+    // Recorded only when set, so that frames written before these options existed still compare equal.
+    if (w.velocityVoxelScale != 1) os << ";vel-voxel-scale=" << w.velocityVoxelScale;
+    if (!w.writeVelocity) os << ";no-velocity=1";
     return os.str();
 }
 
@@ -760,9 +768,13 @@ int runTransfer(TransferArgs& a)
         return kOk;
     }
     if (a.resume && p.first > 0) restoreFromLastWritten(a, p, transfer);
-    if (a.write.style == turbio::WriteStyle::Blender && a.write.velocityMargin >= 0)
+    if (a.write.style == turbio::WriteStyle::Blender && a.velocityMargin && a.velocityMargin->count() > 0 &&
+        a.write.velocityMargin >= 0)
         logWarning("--velocity-margin " + std::to_string(a.write.velocityMargin) +
                    " is ignored with --style blender: Blender's staggered velocity is written over the whole box");
+    if (a.write.style == turbio::WriteStyle::Blender && a.write.velocityVoxelScale > 1)
+        logWarning("--vel-voxel-scale is ignored with --style blender: Blender's velocity is written on the frame's "
+                   "lattice");
     RunReport report("transfer", a.json);
     double targetUnit = 0.0; // the resume state's need: known from the first target frame's time unit
     bool warnedClipping = false;
@@ -1092,11 +1104,14 @@ Command transferCommand()
             ->check(parsedBy([](const std::string& t) { turb::parseTileBox(t); }, "X0,Y0,Z0,X1,Y1,Z1"))
             ->group(kGroupInput);
         addWriteOptions(app, a.write);
-        app->add_option("--velocity-margin", a.write.velocityMargin,
-               "Write velocity only within N voxels of the smoke (smaller files; 1 covers motion blur); -1 = the whole "
-               "box. --resume stays exact")
-            ->check(CLI::Range(-1, 64))
-            ->group(kGroupOutput);
+        a.velocityMargin = app->add_option("--velocity-margin", a.write.velocityMargin,
+                                  "Write velocity only within N voxels of the smoke (smaller files; 1 covers motion "
+                                  "blur); -1 = the whole "
+                                  "box. --resume stays exact")
+                               ->capture_default_str()
+                               ->check(CLI::Range(-1, 64))
+                               ->group(kGroupOutput);
+        addVelocityWriteOptions(app, a.write);
         addTransferSettings(app, a);
         for (const KindTwin& k : kKindTwins)
             a.kindTwins.emplace_back(app->get_option(k.option3D), app->get_option(k.option2D));

@@ -123,9 +123,34 @@ void addReadOptions(CLI::App* app, turbio::ReadOptions& opt, const std::string& 
                 p + "no-crop", [&opt](int64_t) { opt.cropToSmoke = false; },
                 "Hold the grids' whole active boxes, stray voxels included (default: the smoke and a margin)"),
         p.substr(2) + "no-crop");
+    setting(app->add_flag(p + "keep-isolated", opt.keepIsolated,
+                "Hold stray voxels far from the smoke (and a Blender cache's voxels outside its simulation box) "
+                "instead of ignoring them; the held box then spans them"),
+        p.substr(2) + "keep-isolated");
     setting(app->add_option(p + "crop-margin", opt.cropMargin, "Voxels kept around the smoke when cropping")
                 ->check(finiteIn(0.0)),
         p.substr(2) + "crop-margin");
+}
+
+turbio::WriteOptions upResWriteDefaults()
+{
+    turbio::WriteOptions w;
+    w.halfFloat = true;
+    w.velocityMargin = 2;
+    return w;
+}
+
+void addVelocityWriteOptions(CLI::App* app, turbio::WriteOptions& opt)
+{
+    app->add_option("--vel-voxel-scale", opt.velocityVoxelScale,
+           "Write vel on an N times coarser lattice, each voxel its block's mean (Houdini's Velocity Voxel Scale): "
+           "an eighth of the velocity bytes at 2, enough for motion blur; measure then sees no finest-octave detail")
+        ->check(CLI::Range(1, 8))
+        ->group(kGroupOutput);
+    app->add_flag_function(
+           "--no-velocity", [&opt](int64_t) { opt.writeVelocity = false; },
+           "Write no velocity grid (density, temperature and flame only, as Blender's noise cache)")
+        ->group(kGroupOutput);
 }
 
 void addWriteOptions(CLI::App* app, turbio::WriteOptions& opt)
@@ -135,7 +160,10 @@ void addWriteOptions(CLI::App* app, turbio::WriteOptions& opt)
         "Output grid convention: houdini (vel, world units) or blender (staggered vel in cells)")
         ->group(kGroupOutput);
     app->add_flag("--no-clobber", opt.noClobber, "Never replace an existing output file")->group(kGroupOutput);
-    app->add_flag("--half", opt.halfFloat, "Store floats as half precision (smaller files)")->group(kGroupOutput);
+    app->add_flag("--half,!--full-float", opt.halfFloat,
+           std::string("Store floats as 16-bit halves (smaller files; ~3 significant digits), or as 32-bit floats (") +
+               (opt.halfFloat ? "default: --half" : "default: --full-float") + ")")
+        ->group(kGroupOutput);
     app->add_option("--clipping", opt.densityTolerance,
            "Density at or below this is written as empty space, as Blender's Clipping (0: every non-zero voxel)")
         ->check(CLI::Validator(
@@ -160,8 +188,9 @@ struct SettingFlag
 };
 constexpr SettingFlag kSettingFlags[] = {{"densityGrid", "density-grid", true}, {"velocityGrid", "vel-grid", true},
     {"velocityUnits", "vel-units", true}, {"dt", "dt", true}, {"cropToSmoke", "no-crop", true},
-    {"cropMargin", "crop-margin", true}, {"fps", "fps", true}, {"style", "style", false},
-    {"noClobber", "no-clobber", false}, {"halfFloat", "half", false}, {"densityTolerance", "clipping", false}};
+    {"cropMargin", "crop-margin", true}, {"keepIsolated", "keep-isolated", true}, {"fps", "fps", true},
+    {"style", "style", false}, {"noClobber", "no-clobber", false}, {"halfFloat", "half", false},
+    {"densityTolerance", "clipping", false}};
 
 bool isGridSelector(const std::string& setting)
 {

@@ -79,7 +79,7 @@ void resolveFrame(FrameScan& fs, const FileInfo& info, const ReadOptions& option
     double bytesPerVoxel = 0.0;
     // Voxels outside Blender's simulation box are strays, which readFrame leaves out too.
     const std::optional<turb::CoordBBox> simulationBox =
-        detail::blenderSimulationBox(info.baseResolution, info.creator);
+        options.keepIsolated ? std::nullopt : detail::blenderSimulationBox(info.baseResolution, info.creator);
     std::vector<std::string> notes;
     bool densityOutside = false; // its header box says nothing of where the smoke is inside the box then
     for (const GridInfo* g : used) {
@@ -101,7 +101,7 @@ void resolveFrame(FrameScan& fs, const FileInfo& info, const ReadOptions& option
                                 std::to_string(r.x()) + "x" + std::to_string(r.y()) + "x" + std::to_string(r.z()) +
                                 " (its active box reaches " + std::to_string(b.max().x()) + "," +
                                 std::to_string(b.max().y()) + "," + std::to_string(b.max().z()) +
-                                "): strays, left out of every read");
+                                "): strays, ignored: see --keep-isolated");
             }
             b.intersect(*simulationBox);
         }
@@ -136,6 +136,8 @@ void resolveFrame(FrameScan& fs, const FileInfo& info, const ReadOptions& option
             fs.region = smokeRegion(fs.path, options);
             fs.regionFromVoxels = true;
             fs.domain = heldRegion(fs.region, reach(), options);
+            // Outside Blender's box the note above already says it; these are strays inside it, or any cache's.
+            if (!densityOutside && !fs.region.strays.empty()) notes.push_back(fs.region.describeStrays(d->name));
         }
     }
     if (fs.domainKnown) {

@@ -8,6 +8,7 @@
 #include <turb/Metadata.h>
 #include <turb/Error.h>
 #include <turb/Operators.h>
+#include <turb/Resample.h>
 #include <turbio/System.h>
 
 #include <openvdb/openvdb.h>
@@ -1046,7 +1047,7 @@ SmokeRegion findSmoke(
     r.hasDensity = true;
     std::vector<bool> kept(list.size(), false);
     for (size_t i = 0; i < list.size(); ++i)
-        if (i == 0 || (list[i].mass >= o.strayShare * total && list[i].voxels >= o.strayVoxels)) {
+        if (i == 0 || o.keepIsolated || (list[i].mass >= o.strayShare * total && list[i].voxels >= o.strayVoxels)) {
             kept[i] = true;
             r.smoke.expand(list[i].box);
         }
@@ -1099,13 +1100,12 @@ std::string SmokeRegion::describeStrays(const std::string& grid) const
         share += s.massShare;
     }
     std::ostringstream os;
-    os << grid << " has " << voxels << " active voxel" << (voxels == 1 ? "" : "s");
+    os << voxels << " voxel" << (voxels == 1 ? "" : "s") << " of " << grid << " far from the smoke";
     if (strays.size() > 1) os << " in " << strays.size() << " clusters";
-    os << " " << (lo == hi ? std::to_string(lo) : std::to_string(lo) + "-" + std::to_string(hi))
-       << " voxels away from the rest";
+    os << " (" << (lo == hi ? std::to_string(lo) : std::to_string(lo) + "-" + std::to_string(hi)) << " voxels away, ";
     os.precision(2);
-    os << " (" << (share * 100.0) << "% of its mass, first at " << strays.front().box.min()
-       << "): left out of the region held in memory";
+    os << (share * 100.0) << "% of its mass, first at " << strays.front().box.min()
+       << "), ignored: see --keep-isolated";
     return os.str();
 }
 
@@ -1144,8 +1144,8 @@ SmokeRegion smokeRegion(const std::string& path, const ReadOptions& options)
         },
         options.readTimeout);
     if (r.grids.empty()) return SmokeRegion{};
-    return findSmoke(
-        *asFloatGrid(path, r.grids.front(), "density"), options, blenderSimulationBox(*r.grids.front(), *r.meta));
+    return findSmoke(*asFloatGrid(path, r.grids.front(), "density"), options,
+        options.keepIsolated ? std::nullopt : blenderSimulationBox(*r.grids.front(), *r.meta));
 }
 
 namespace {
@@ -1183,7 +1183,7 @@ struct GridSpans
 };
 
 GridSpans gridSpans(const std::string& path, const RoleGrids& g, const std::vector<openvdb::GridBase::ConstPtr>& all,
-    const openvdb::MetaMap& meta)
+    bool keepIsolated, const openvdb::MetaMap& meta)
 {
     // One lattice for the frame: the density's (the velocity's without density). Grids on another uniform
     // lattice (Houdini's velocity voxel scale) are resampled onto it; components must share one lattice.
@@ -1200,7 +1200,7 @@ GridSpans gridSpans(const std::string& path, const RoleGrids& g, const std::vect
     // Domain: Blender records its full simulation box; otherwise the union of the grids' active boxes.
     for (const auto& grid : all) {
         if (auto res = baseResolution(*grid)) s.baseRes = res;
-        if (auto box = blenderSimulationBox(*grid, meta)) s.simulationBox = box;
+        if (auto box = blenderSimulationBox(*grid, meta); box && !keepIsolated) s.simulationBox = box;
     }
     if (s.baseRes) s.domain = turb::CoordBBox(turb::Coord(0), *s.baseRes - turb::Coord(1));
     // vdbturb's own outputs record the box they span; their grids may be sparse within it.
@@ -1341,7 +1341,7 @@ static turb::Frame readFrameUnchecked(
     const RoleGrids g = gridsByRole(path, r);
     const std::vector<openvdb::GridBase::ConstPtr> all = g.all();
     if (all.empty()) throw IoError(path + ": none of the requested grids is present");
-    const GridSpans spans = gridSpans(path, g, all, *r.meta);
+    const GridSpans spans = gridSpans(path, g, all, options.keepIsolated, *r.meta);
     const turb::Lattice& lattice = spans.lattice;
     ReadReport rep;
     const turb::CoordBBox domain = heldBox(path, g, all, spans, options, rep, stage);
@@ -1684,6 +1684,24 @@ typename GridT::Ptr maskedGrid(const turb::Field<T>& field, const openvdb::MaskG
     return g;
 }
 
+// Velocity on a lattice `scale` times coarser (Houdini's velocity voxel scale): each coarse voxel the mean of its
+// block (turb::boxDownsample), written where `near` (or, without it, the field) has a voxel of the block.
+openvdb::Vec3SGrid::Ptr coarseVelocityGrid(const turb::VectorField& velocity, int scale, const openvdb::MaskGrid* near)
+{
+    const turb::VectorField coarse = turb::boxDownsample(velocity, scale);
+    if (!near) return fieldToGrid<openvdb::Vec3SGrid>(coarse, turb::Vec3f(0.0f));
+    auto mask = openvdb::MaskGrid::create(false);
+    mask->setTransform(transformOf(coarse.lattice()));
+    auto acc = mask->getAccessor();
+    const bool flat = turb::isFlat(velocity.bbox());
+    for (auto it = near->cbeginValueOn(); it; ++it) {
+        const openvdb::Coord c = it.getCoord();
+        acc.setValueOn(openvdb::Coord(
+            turb::floorDiv(c.x(), scale), turb::floorDiv(c.y(), scale), flat ? c.z() : turb::floorDiv(c.z(), scale)));
+    }
+    return maskedGrid<openvdb::Vec3SGrid>(coarse, *mask);
+}
+
 } // namespace
 
 void writeFileAtomic(const std::string& path, const std::string& bytes, bool noClobber)
@@ -1822,9 +1840,13 @@ void writeFrame(
         if (blender) addBlenderMeta(*g);
         grids.push_back(g);
     }
-    if (frame.hasVelocity()) {
+    if (frame.hasVelocity() && options.writeVelocity) {
         openvdb::Vec3SGrid::Ptr g;
-        if (blender) {
+        if (!blender && options.velocityVoxelScale > 1) {
+            g = coarseVelocityGrid(frame.velocity, options.velocityVoxelScale, near.get());
+            g->setName("vel");
+            g->setGridClass(openvdb::GRID_UNKNOWN);
+        } else if (blender) {
             g = centredToStaggered(frame.velocity, float(1.0 / lat.voxelSize) * velocityScale);
             g->setName("velocity");
             g->setGridClass(openvdb::GRID_STAGGERED);
@@ -2048,6 +2070,8 @@ FileInfo inspectFile(const std::string& path, bool readValues)
     info.tileBox = text(turb::meta::kTileBox);
     info.farmTiles = text(turb::meta::kFarmTiles);
     info.tileBorders = text(turb::meta::kTileBorders);
+    info.command = text(turb::meta::kCommand);
+    info.settings = text(turb::meta::kSettings);
     info.recordedDomain = recordedDomain(*r.meta);
     info.sequenceDomain = recordedDomain(*r.meta, turb::meta::kSequenceDomain);
     info.velocityMargin = int(metaDouble(*r.meta, turb::meta::kVelocityMargin, -1.0));

@@ -68,6 +68,9 @@ struct ReadOptions
                               ///< farther than strayDistance from the rest, is a stray: reported, not held, in [0, 1)
     int strayVoxels = 8;     ///< a far cluster of fewer active smoke voxels than this is a stray whatever its mass
     int strayDistance = 32;  ///< voxels; clusters nearer the kept smoke than this are kept, >= 0
+    /// Hold every cluster of smoke, strays included (and, in a Blender cache, voxels outside its simulation box):
+    /// `--keep-isolated`. The held box then spans them all, which may not fit.
+    bool keepIsolated = false;
     turb::CoordBBox holdBox; ///< non-empty (with cropToSmoke): hold this box instead of the frame's own, for
                              ///< stages that need one box over a sequence (synth: the union of the scans' boxes; a
                              ///< transfer space tile: its core and halo), whether or not it holds smoke
@@ -92,7 +95,8 @@ struct SmokeRegion
     long long smokeVoxels = 0;        ///< active smoke voxels in the kept clusters
     std::vector<StrayCluster> strays; ///< left out, largest mass first
 
-    /// "density has 1 active voxel 580 voxels away from the rest" (one line, "" without strays).
+    /// "1 voxel of density far from the smoke (580 voxels away, 0.067% of its mass, first at [600, 600, 600]),
+    /// ignored: see --keep-isolated" (one line, "" without strays).
     std::string describeStrays(const std::string& grid = "density") const;
 };
 
@@ -174,6 +178,12 @@ struct WriteOptions
     /// there is smoke (N = 1 covers its trilinear lookups); re-advecting the density for a frame needs about its
     /// travel per frame in voxels. The Blender style always writes the whole box.
     int velocityMargin = -1;
+    /// Houdini style: write `vel` on a lattice this many times coarser than the frame's (Houdini's "Velocity Voxel
+    /// Scale"), each voxel the mean of its scale^3 block, where any voxel of the block is written; >= 1. 2 writes an
+    /// eighth of the velocity voxels: enough for a renderer's motion blur, not for the finest octave of detail
+    /// (`measure` reads it back resampled, so its velocity numbers change).
+    int velocityVoxelScale = 1;
+    bool writeVelocity = true;    ///< false: no velocity grid at all (a density-only cache, as Blender's noise)
     float smokeThreshold = 1e-3f; ///< density above this is smoke for velocityMargin
     /// Write velocity and dt in the frame's own time unit (Frame::timeUnit) instead of the style's: transfer's
     /// exact resume state only. Otherwise the Houdini style writes world units per second, as Houdini, Karma,
@@ -296,6 +306,8 @@ struct FileInfo
     std::optional<turb::CoordBBox> sequenceDomain; ///< vdbturb_sequence_domain metadata: the domain of the input it was
                                                    ///< made from (for framing only)
     int velocityMargin = -1; ///< vdbturb_velocity_margin: velocity written only this near the smoke; -1 = not trimmed
+    std::string command;     ///< vdbturb_command: the vdbturb command that wrote the file, "" for other writers
+    std::string settings;    ///< vdbturb_settings: the settings that made it ("name=value;..."), for --skip-existing
     std::vector<GridInfo> grids; ///< in file order
 };
 
