@@ -13,6 +13,9 @@
 #include <sstream>
 #include <map>
 #include <regex>
+#include <system_error>
+
+#include <unistd.h>
 
 using clitest::run;
 
@@ -527,4 +530,67 @@ TEST(CliReliability, ResampleKeepsTheRecordedDomainRatioAndPatchLatticeTrue)
     const auto t = meta(dir / "t.0001.vdb");
     EXPECT_EQ(t.at(turb::meta::kDomain), "0 0 0 10 10 10");
     EXPECT_EQ(t.count(turb::meta::kRatio) + t.count(turb::meta::kPatchSize) + t.count(turb::meta::kPatchOrigin), 0u);
+}
+
+// Issue 49: on a farm node the memory a run may use is the job's (Slurm's cgroup, a wrapper's ulimit -v), not the
+// machine's. The pre-flight check compares its estimate with the smallest limit and names it; over it, the run
+// exits 75 (a retry on a bigger node can run it) before writing anything.
+TEST(FarmNode, AnAddressSpaceLimitIsTheBudgetAndARunOverItExits75)
+{
+    testutil::TempDir dir;
+    const std::string args =
+        "transfer --target " + lo() + " --source " + hi() + " --frames 1-2 --out '" + dir / "o/o.####.vdb'";
+    const auto free = run(args + " --dry-run", false);
+    ASSERT_EQ(free.code, 0) << free.out;
+    EXPECT_NE(free.out.find("; this process may use "), std::string::npos) << free.out;
+    // The run's estimate is about 324 MB; 300 MB of address space less what the libraries map is not enough.
+    const auto limited = clitest::shell("prlimit --as=300000000 " + std::string(VDBTURB_EXE) + " " + args + " 2>&1");
+    EXPECT_EQ(limited.code, 75) << limited.out;
+    EXPECT_NE(limited.out.find("not enough memory for this run: it needs about "), std::string::npos) << limited.out;
+    EXPECT_NE(limited.out.find("(RLIMIT_AS, ulimit -v, less "), std::string::npos) << limited.out;
+    EXPECT_FALSE(std::filesystem::exists(dir / "o/o.0001.vdb")) << "nothing written";
+    // With room to spare the limit is only said.
+    const auto roomy = clitest::shell("prlimit --as=4000000000 " + std::string(VDBTURB_EXE) + " " + args + " -q 2>&1");
+    EXPECT_EQ(roomy.code, 0) << roomy.out;
+    EXPECT_TRUE(std::filesystem::exists(dir / "o/o.0002.vdb"));
+}
+
+// The same with the memory cgroup a Slurm job (--mem) or a container sets, v1 or v2: a child group of this
+// process's own with a 300 MB limit. Skipped where the test cannot create one (not root, no memory controller).
+TEST(FarmNode, ACgroupMemoryLimitIsTheBudget)
+{
+    std::string group;
+    {
+        std::ifstream in("/proc/self/cgroup");
+        std::string line;
+        while (std::getline(in, line)) {
+            const size_t a = line.find(':'), b = line.find(':', a + 1);
+            const std::string controllers = line.substr(a + 1, b - a - 1), path = line.substr(b + 1);
+            if (("," + controllers + ",").find(",memory,") != std::string::npos)
+                group = "/sys/fs/cgroup/memory" + (path == "/" ? std::string() : path);
+            else if (controllers.empty() && group.empty() &&
+                     std::filesystem::exists("/sys/fs/cgroup" + path + "/memory.max"))
+                group = "/sys/fs/cgroup" + (path == "/" ? std::string() : path);
+        }
+    }
+    if (group.empty()) GTEST_SKIP() << "no memory cgroup for this process";
+    const std::string child = group + "/vdbturb-test-" + std::to_string(::getpid());
+    std::error_code ec;
+    if (!std::filesystem::create_directory(child, ec))
+        GTEST_SKIP() << "cannot create " << child << ": " << ec.message();
+    const bool v1 = std::filesystem::exists(child + "/memory.limit_in_bytes");
+    {
+        std::ofstream limit(child + (v1 ? "/memory.limit_in_bytes" : "/memory.max"));
+        limit << 300000000;
+    }
+    testutil::TempDir dir;
+    const std::string args =
+        "transfer --target " + lo() + " --source " + hi() + " --frames 1-2 --out '" + dir / "o/o.####.vdb'";
+    const auto r =
+        clitest::shell("sh -c 'echo $$ > " + child + "/cgroup.procs && exec " + VDBTURB_EXE + " " + args + "' 2>&1");
+    std::filesystem::remove(child, ec);
+    EXPECT_EQ(r.code, 75) << r.out;
+    EXPECT_NE(r.out.find("this process may use 300 MB (the cgroup's "), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find(child), std::string::npos) << "names the limit's file: " << r.out;
+    EXPECT_FALSE(std::filesystem::exists(dir / "o/o.0001.vdb"));
 }

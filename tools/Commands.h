@@ -86,12 +86,19 @@ CLI::Validator finitePositive();
 
 /// Adds --style, --no-clobber, --half and --clipping for writing caches.
 void addWriteOptions(CLI::App* app, turbio::WriteOptions& opt);
-/// What an up-res (transfer, farm join) writes by default: 16-bit floats and velocity within two voxels of the
-/// smoke, as Blender and Houdini caches are written (docs/io.md, Size). --full-float and --velocity-margin -1 give
-/// the whole frame in 32-bit floats.
+/// --velocity-margin auto: one target voxel, resolved to the ratio once it is known (resolveVelocityMargin).
+constexpr int kVelocityMarginAuto = -2;
+/// What an up-res (transfer, farm join) writes by default: 16-bit floats and velocity within one target voxel of
+/// the smoke, as Blender and Houdini caches are written (docs/io.md, Size). --full-float and --velocity-margin -1
+/// give the whole frame in 32-bit floats.
 turbio::WriteOptions upResWriteDefaults();
-/// Adds --vel-voxel-scale N (Houdini's velocity voxel scale: `vel` on an N times coarser lattice) and
-/// --no-velocity (no velocity grid) for an up-res's output.
+/// Adds --velocity-margin N|auto, --vel-voxel-scale N (Houdini's velocity voxel scale: `vel` on an N times coarser
+/// lattice) and --no-velocity (no velocity grid) for an up-res's output.
 void addVelocityWriteOptions(CLI::App* app, turbio::WriteOptions& opt);
+/// --velocity-margin auto becomes `ratio` output voxels (one target voxel); other values are kept.
+inline void resolveVelocityMargin(turbio::WriteOptions& w, int ratio)
+{
+    if (w.velocityMargin == kVelocityMarginAuto) w.velocityMargin = ratio;
+}
 
 } // namespace vdbturb

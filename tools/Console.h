@@ -49,6 +49,7 @@ struct Globals
     /// on a terminal), alf (also "ALF_PROGRESS NN%" a frame, Tractor's), percent (also "Progress: NN%", Deadline's
     /// stdout handler). The wrapper lines go to stdout, or to stderr with --json.
     std::string progress = "auto";
+    double predictedPeakBytes = 0.0; ///< the run's memory estimate (checkMemory), named when memory runs out
 };
 
 Globals& globals();

@@ -178,14 +178,23 @@ void checkOutputs(
 
 void checkMemory(double estimateBytes, const std::string& what, const std::string& whatFits)
 {
-    const long long usable = turbio::usableMemoryBytes();
+    const turbio::MemoryLimit limit = turbio::memoryLimit();
+    globals().predictedPeakBytes = estimateBytes; // for an out-of-memory failure's message
     const std::string line = "memory: about " + turbio::formatBytes(estimateBytes) + " at peak (" + what + ")" +
-                             (usable > 0 ? "; this machine has " + turbio::formatBytes(double(usable)) : "");
+                             (limit.bytes > 0 ? "; this process may use " + limit.describe() : "");
     if (dryOrVerbose()) printData(line);
-    if (usable > 0 && estimateBytes > 0.9 * double(usable))
-        throw turb::IoError("not enough memory for this run: it needs about " + turbio::formatBytes(estimateBytes) +
-                            " (" + what + "), this machine has " + turbio::formatBytes(double(usable)) + ". " +
-                            whatFits);
+    if (limit.bytes > 0 && estimateBytes > 0.9 * double(limit.bytes)) {
+        const std::string message = "not enough memory for this run: it needs about " +
+                                    turbio::formatBytes(estimateBytes) + " (" + what + "), this process may use " +
+                                    limit.describe();
+        // Held back by a job's limit or by other processes, on a machine that has the memory: a retry elsewhere
+        // (or later) can run it (exit 75). More than the machine has: only other settings can (exit 1).
+        const long pages = ::sysconf(_SC_PHYS_PAGES), page = ::sysconf(_SC_PAGESIZE);
+        const double machine = pages > 0 && page > 0 ? double(pages) * double(page) : 0.0;
+        if (estimateBytes < 0.9 * machine)
+            throw turb::TransientError(message + "; it fits this machine's memory where more is free. " + whatFits);
+        throw turb::IoError(message + ". " + whatFits);
+    }
 }
 
 std::string commandSettingsText(const CLI::App& app, const std::vector<std::string>& inputs)

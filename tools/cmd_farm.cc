@@ -757,6 +757,14 @@ int runJoin(FarmArgs& a)
 {
     const JoinPlan p = readJoinPlan(a);
     checkChunksComplete(p);
+    // --velocity-margin auto writes the joined frames as the chunks' transfer wrote theirs: one target voxel.
+    if (p.tiled) {
+        resolveVelocityMargin(a.write, p.ratio);
+    } else if (a.write.velocityMargin == kVelocityMarginAuto && !p.chunks.empty()) {
+        const turb::TimeChunk& c = p.chunks.front();
+        a.write.velocityMargin =
+            turbio::inspectFile(p.chunkFrames(0).format(p.frames[c.keepBegin]), false).velocityMargin;
+    }
     if (globals().dryRun) {
         printData("every " + std::string(p.word()) + "'s frames are present and read; would write " +
                   std::to_string(p.frames.size()) + " frames to " + p.out + " (dry run: nothing written)");
@@ -843,9 +851,6 @@ void addJoinOptions(CLI::App* join, FarmArgs& a)
     join->add_flag("--json", a.json, "One JSON line per frame and a summary on stdout");
     addReadOptions(join, a.targetRead, "target");
     addWriteOptions(join, a.write);
-    join->add_option("--velocity-margin", a.write.velocityMargin,
-            "Write the blended velocity only within N voxels of the smoke, as transfer (-1: the whole box)")
-        ->check(CLI::Range(-1, 64));
     addVelocityWriteOptions(join, a.write);
     for (const char* name : {"target-density-grid", "target-vel-grid", "target-fps", "style", "no-clobber", "half",
              "clipping", "velocity-margin", "vel-voxel-scale", "no-velocity"})

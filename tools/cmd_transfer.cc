@@ -70,17 +70,21 @@ struct TransferArgs
 // on the ratio-8 pair (docs/design.md). The default margin is therefore 8 target voxels.
 constexpr int kSourceMarginCoarseVoxels = 8;
 
-void defaultSourceMargin(
+// The margins the ratio sets: the source's crop margin above, and --velocity-margin auto, one target voxel of
+// written velocity around the smoke (2 output voxels moved measure's lf_err by 13% at ratio 8: docs/io.md, Size).
+void defaultMargins(
     TransferArgs& a, const turbio::Sequence& target, const turbio::Sequence& source, const std::vector<int>& sourceFor)
 {
-    if (a.sourceCropMargin->count() > 0 || target.frames.empty() || !a.sourceRead.cropToSmoke) return;
+    if (target.frames.empty()) return;
     try {
         const double tv = turbio::scanFrame(target.path(target.frames.front()), target.frames.front(), a.targetRead)
                               .lattice.voxelSize;
         const double sv =
             turbio::scanFrame(source.path(sourceFor.front()), sourceFor.front(), a.sourceRead).lattice.voxelSize;
-        a.sourceRead.cropMargin = std::max(a.sourceRead.cropMargin,
-            kSourceMarginCoarseVoxels * turb::transferRatio(tv, sv, a.settings.resampleSource));
+        const int ratio = turb::transferRatio(tv, sv, a.settings.resampleSource);
+        resolveVelocityMargin(a.write, ratio);
+        if (a.sourceCropMargin->count() == 0 && a.sourceRead.cropToSmoke)
+            a.sourceRead.cropMargin = std::max(a.sourceRead.cropMargin, kSourceMarginCoarseVoxels * ratio);
     } catch (const std::exception&) {
         // The preflight reports an unreadable frame or a bad ratio with its own message.
     }
@@ -743,7 +747,7 @@ int runTransfer(TransferArgs& a)
         a.targetRead.holdBox = turb::parseTileBox(a.tileBox);
     }
     FramePlan p = planFrames(a);
-    defaultSourceMargin(a, p.target, p.source, p.sourceFor);
+    defaultMargins(a, p.target, p.source, p.sourceFor);
     logVerbose("source crop margin: " + std::to_string(a.sourceRead.cropMargin) + " source voxels");
     const turb::CoordBBox sequenceDomain = preflight(a, p.target, p.source, p.sourceFor, p.out, p.writeFrom);
     if (globals().dryRun) {
@@ -1104,14 +1108,8 @@ Command transferCommand()
             ->check(parsedBy([](const std::string& t) { turb::parseTileBox(t); }, "X0,Y0,Z0,X1,Y1,Z1"))
             ->group(kGroupInput);
         addWriteOptions(app, a.write);
-        a.velocityMargin = app->add_option("--velocity-margin", a.write.velocityMargin,
-                                  "Write velocity only within N voxels of the smoke (smaller files; 1 covers motion "
-                                  "blur); -1 = the whole "
-                                  "box. --resume stays exact")
-                               ->capture_default_str()
-                               ->check(CLI::Range(-1, 64))
-                               ->group(kGroupOutput);
         addVelocityWriteOptions(app, a.write);
+        a.velocityMargin = app->get_option("--velocity-margin");
         addTransferSettings(app, a);
         for (const KindTwin& k : kKindTwins)
             a.kindTwins.emplace_back(app->get_option(k.option3D), app->get_option(k.option2D));

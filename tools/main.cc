@@ -4,12 +4,14 @@
 
 #include <turb/Error.h>
 #include <turbio/Sequence.h>
+#include <turbio/System.h>
 #include <turbio/Vdb.h>
 
 #include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <iostream>
+#include <system_error>
 #include <regex>
 #include <sstream>
 
@@ -136,12 +138,26 @@ turbio::WriteOptions upResWriteDefaults()
 {
     turbio::WriteOptions w;
     w.halfFloat = true;
-    w.velocityMargin = 2;
+    w.velocityMargin = kVelocityMarginAuto;
     return w;
 }
 
 void addVelocityWriteOptions(CLI::App* app, turbio::WriteOptions& opt)
 {
+    app->add_option("--velocity-margin", opt.velocityMargin,
+           "Write velocity only within N output voxels of the smoke (1 covers motion blur; re-advection needs about "
+           "the smoke's travel a frame); -1 = the whole box; auto (-2, the default) = one target voxel, the ratio: "
+           "measure's numbers then stay within 1% of the whole frame's. --resume stays exact")
+        ->transform(CLI::Transformer(std::map<std::string, int>{{"auto", kVelocityMarginAuto}}))
+        ->check(CLI::Validator(
+            [](std::string& text) -> std::string {
+                double v = 0.0;
+                const bool ok = parseNumber(text, v) && v == std::floor(v) && v >= kVelocityMarginAuto && v <= 64.0;
+                return ok ? std::string()
+                          : "must be auto, -1 (the whole box) or a number of voxels from 0 to 64, not '" + text + "'";
+            },
+            "auto|-1|0..64"))
+        ->group(kGroupOutput);
     app->add_option("--vel-voxel-scale", opt.velocityVoxelScale,
            "Write vel on an N times coarser lattice, each voxel its block's mean (Houdini's Velocity Voxel Scale): "
            "an eighth of the velocity bytes at 2, enough for motion blur; measure then sees no finest-octave detail")
@@ -466,11 +482,26 @@ int main(int argc, char** argv)
         } catch (const turb::Error& e) {
             return reportFailure(messageWithFlags(e), kFailed);
         } catch (const std::bad_alloc&) {
+            const double need = globals().predictedPeakBytes;
             return reportFailure(
-                "out of memory (std::bad_alloc); a --dry-run estimates what a run needs (exit 75: worth a retry)",
+                "out of memory (std::bad_alloc): this process may use " + turbio::memoryLimit().describe() +
+                    (need > 0.0 ? " and the run was estimated to need about " + turbio::formatBytes(need)
+                                : std::string("; a --dry-run estimates what a run needs")) +
+                    "; no partial file is left (exit 75: worth a retry on a node with more)",
                 kTempFail);
         } catch (const std::exception& e) {
-            return reportFailure(std::string("unexpected: ") + e.what(), kFailed);
+            // A thread that cannot start under an address-space or task limit (std::thread's EAGAIN, TBB's
+            // "pthread_create has failed") is out of a resource another node has, as std::bad_alloc is.
+            const auto* sys = dynamic_cast<const std::system_error*>(&e);
+            const std::string what = e.what();
+            if ((sys && (sys->code() == std::errc::resource_unavailable_try_again ||
+                            sys->code() == std::errc::not_enough_memory)) ||
+                what.find("pthread_create") != std::string::npos)
+                return reportFailure("out of memory or threads (" + what + "): this process may use " +
+                                         turbio::memoryLimit().describe() + "; --threads 1 needs fewer" +
+                                         " (exit 75: worth a retry on a node with more)",
+                    kTempFail);
+            return reportFailure(std::string("unexpected: ") + what, kFailed);
         }
     }
     return kUsage;

@@ -33,6 +33,12 @@ std::string denseSizeProblem(const std::string& path, const turb::CoordBBox& dom
     const std::vector<std::pair<std::string, turb::CoordBBox>>& spans, double bytesPerVoxel,
     const ReadOptions& options);
 
+/// Throws denseSizeProblem's message, if any: a turb::TransientError (exit 75: retry) when the dense fields would
+/// fit this machine's memory and only a job's limit or other processes hold them back, else a turb::IoError.
+void checkDenseSize(const std::string& path, const turb::CoordBBox& domain,
+    const std::vector<std::pair<std::string, turb::CoordBBox>>& spans, double bytesPerVoxel,
+    const ReadOptions& options);
+
 /// Blender's simulation box [0, `baseResolution`) when Blender wrote the file (its `creator` is not vdbturb): Mantaflow
 /// writes nothing outside it, so voxels there are strays. None for vdbturb's Blender-style files, whose boxes start
 /// where the frame's does, and for files without Blender's metadata.

@@ -141,8 +141,7 @@ void resolveFrame(FrameScan& fs, const FileInfo& info, const ReadOptions& option
         }
     }
     if (fs.domainKnown) {
-        const std::string problem = detail::denseSizeProblem(fs.path, fs.domain, spans, bytesPerVoxel, options);
-        if (!problem.empty()) throw turb::IoError(problem);
+        detail::checkDenseSize(fs.path, fs.domain, spans, bytesPerVoxel, options);
     }
     const bool blenderVel = v && info.baseResolution && v->name == "velocity" && v->gridClass == "staggered";
     fs.timing =

@@ -2,6 +2,9 @@
 
 #include <cstdio>
 #include <fstream>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include <sys/resource.h>
 #include <thread>
@@ -18,22 +21,112 @@ long long peakRssBytes()
     return -1;
 }
 
-long long usableMemoryBytes()
+namespace {
+
+// A number of bytes in a cgroup limit file; -1 for "max", a missing file or text that is not a number.
+long long limitFile(const std::string& path)
 {
-    const long pages = ::sysconf(_SC_PHYS_PAGES), page = ::sysconf(_SC_PAGESIZE);
-    long long mem = (pages > 0 && page > 0) ? (long long)pages * page : -1;
-    // cgroup v2, then v1: a container or a Slurm job may get less than the machine has.
-    for (const char* path : {"/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory/memory.limit_in_bytes"}) {
-        std::ifstream in(path);
-        std::string text;
-        if (!(in >> text) || text == "max") continue;
-        try {
-            const long long limit = std::stoll(text);
-            if (limit > 0 && (mem < 0 || limit < mem)) mem = limit;
-        } catch (...) {}
+    std::ifstream in(path);
+    std::string text;
+    if (!(in >> text) || text == "max") return -1;
+    try {
+        const long long v = std::stoll(text);
+        return v > 0 ? v : -1;
+    } catch (...) {
+        return -1;
     }
-    return mem;
 }
+
+// The memory cgroup this process is in: cgroup v2's unified path ("0::/PATH") or v1's memory controller
+// ("N:...memory...:/PATH"), with the directory its limit files live under.
+std::vector<std::string> cgroupLimitFiles()
+{
+    std::vector<std::string> files;
+    std::ifstream in("/proc/self/cgroup");
+    std::string line;
+    while (std::getline(in, line)) {
+        const size_t a = line.find(':'), b = a == std::string::npos ? a : line.find(':', a + 1);
+        if (b == std::string::npos) continue;
+        const std::string controllers = line.substr(a + 1, b - a - 1);
+        std::string path = line.substr(b + 1);
+        std::string root, file;
+        if (controllers.empty()) {
+            root = "/sys/fs/cgroup";
+            file = "memory.max";
+        } else if (("," + controllers + ",").find(",memory,") != std::string::npos) {
+            root = "/sys/fs/cgroup/memory";
+            file = "memory.limit_in_bytes";
+        } else {
+            continue;
+        }
+        // A limit on any ancestor holds too (Slurm sets it on the job, the process sits in a step below it).
+        for (;;) {
+            files.push_back(root + (path == "/" ? std::string() : path) + "/" + file);
+            if (path.empty() || path == "/") break;
+            const size_t slash = path.rfind('/');
+            path = slash == 0 || slash == std::string::npos ? "/" : path.substr(0, slash);
+        }
+    }
+    // Inside a container the cgroup's files are mounted at the root.
+    files.push_back("/sys/fs/cgroup/memory.max");
+    files.push_back("/sys/fs/cgroup/memory/memory.limit_in_bytes");
+    return files;
+}
+
+} // namespace
+
+std::string MemoryLimit::describe() const
+{
+    return bytes < 0 ? std::string("unknown") : formatBytes(double(bytes)) + " (" + source + ")";
+}
+
+MemoryLimit memoryLimit()
+{
+    MemoryLimit m;
+    const auto consider = [&m](long long bytes, const std::string& source) {
+        if (bytes > 0 && (m.bytes < 0 || bytes < m.bytes)) {
+            m.bytes = bytes;
+            m.source = source;
+        }
+    };
+    const long pages = ::sysconf(_SC_PHYS_PAGES), page = ::sysconf(_SC_PAGESIZE);
+    if (pages > 0 && page > 0) consider((long long)pages * page, "this machine's memory");
+    {
+        std::ifstream in("/proc/meminfo");
+        std::string key;
+        long long kb = 0;
+        std::string unit;
+        while (in >> key >> kb >> unit)
+            if (key == "MemAvailable:") consider(kb * 1024, "MemAvailable: what other processes leave free");
+    }
+    for (const std::string& f : cgroupLimitFiles())
+        consider(limitFile(f), "the cgroup's " + f.substr(f.rfind('/') + 1) + ", " + f);
+    // An address-space limit also counts what is mapped and not resident (libraries, thread stacks, malloc's
+    // arenas): what is mapped so far beyond the resident set is not there for the run's data.
+    long long mappedNotResident = 0;
+    {
+        std::ifstream in("/proc/self/status");
+        std::string line;
+        long long size = -1, rss = -1;
+        while (std::getline(in, line)) {
+            if (line.rfind("VmSize:", 0) == 0) size = std::stoll(line.substr(7)) * 1024;
+            if (line.rfind("VmRSS:", 0) == 0) rss = std::stoll(line.substr(6)) * 1024;
+        }
+        if (size > 0 && rss > 0 && size > rss) mappedNotResident = size - rss;
+    }
+    for (const auto& [resource, name] : {std::pair<int, const char*>{RLIMIT_AS, "RLIMIT_AS, ulimit -v"},
+             std::pair<int, const char*>{RLIMIT_DATA, "RLIMIT_DATA, ulimit -d"}}) {
+        rlimit rl{};
+        if (::getrlimit(resource, &rl) != 0 || rl.rlim_cur == RLIM_INFINITY) continue;
+        if (resource == RLIMIT_AS && mappedNotResident > 0)
+            consider((long long)rl.rlim_cur - mappedNotResident,
+                std::string(name) + ", less " + formatBytes(double(mappedNotResident)) + " mapped and not resident");
+        else consider((long long)rl.rlim_cur, name);
+    }
+    return m;
+}
+
+long long usableMemoryBytes() { return memoryLimit().bytes; }
 
 std::string formatBytes(double bytes)
 {

@@ -696,7 +696,8 @@ std::string denseSizeProblem(const std::string& path, const turb::CoordBBox& dom
 {
     const double voxels = double(domain.dim().x()) * double(domain.dim().y()) * double(domain.dim().z());
     const double bytes = voxels * bytesPerVoxel;
-    const long long usable = usableMemoryBytes();
+    const MemoryLimit limit = memoryLimit();
+    const long long usable = limit.bytes;
     const bool tooMany = voxels > options.maxVoxels;
     const bool tooBig = usable > 0 && bytes > 0.8 * double(usable);
     if (!tooMany && !tooBig) return "";
@@ -710,7 +711,7 @@ std::string denseSizeProblem(const std::string& path, const turb::CoordBBox& dom
     os << path << ": not enough memory to load the frame: its grids span " << span(domain) << ", " << formatBytes(bytes)
        << " as dense fields";
     if (tooMany) os << "; vdbturb holds at most " << options.maxVoxels << " voxels";
-    if (usable > 0) os << "; this machine has " << formatBytes(double(usable));
+    if (usable > 0) os << "; this process may use " << limit.describe();
     os << ". Spans:";
     for (size_t i = 0; i < spans.size(); ++i)
         os << (i ? "," : "") << " grid '" << spans[i].first << "' "
@@ -718,6 +719,19 @@ std::string denseSizeProblem(const std::string& path, const turb::CoordBBox& dom
     os << ". A grid whose span is far larger than the others' holds stray voxels or a damaged bounding box;"
           " clip or resample it.";
     return os.str();
+}
+
+void checkDenseSize(const std::string& path, const turb::CoordBBox& domain,
+    const std::vector<std::pair<std::string, turb::CoordBBox>>& spans, double bytesPerVoxel, const ReadOptions& options)
+{
+    const std::string problem = denseSizeProblem(path, domain, spans, bytesPerVoxel, options);
+    if (problem.empty()) return;
+    const double voxels = double(domain.dim().x()) * double(domain.dim().y()) * double(domain.dim().z());
+    const long pages = ::sysconf(_SC_PHYS_PAGES), page = ::sysconf(_SC_PAGESIZE);
+    const double machine = pages > 0 && page > 0 ? double(pages) * double(page) : 0.0;
+    if (voxels <= options.maxVoxels && voxels * bytesPerVoxel < 0.8 * machine)
+        throw turb::TransientError(problem + " It fits this machine's memory where more is free.");
+    throw IoError(problem);
 }
 
 } // namespace detail
@@ -1248,8 +1262,7 @@ turb::CoordBBox heldBox(const std::string& path, const RoleGrids& g,
     rep.held = domain;
     std::vector<std::pair<std::string, turb::CoordBBox>> named;
     for (size_t i = 0; i < all.size(); ++i) named.emplace_back(all[i]->getName(), spans.boxes[i]);
-    const std::string problem = detail::denseSizeProblem(path, domain, named, spans.bytesPerVoxel, options);
-    if (!problem.empty()) throw IoError(problem);
+    detail::checkDenseSize(path, domain, named, spans.bytesPerVoxel, options);
     return domain;
 }
 

@@ -9,8 +9,25 @@ namespace turbio {
 /// Peak resident set size of this process in bytes (VmHWM), or -1 if unknown.
 long long peakRssBytes();
 
-/// Memory this process may use in bytes: the smaller of physical RAM and the cgroup limit (a farm job's
-/// memory.max), or -1 if unknown. The budget dry runs and preflight checks compare estimates against.
+/// The memory this process may use, and what sets it.
+struct MemoryLimit
+{
+    long long bytes = -1; ///< -1 if unknown
+    /// What the bytes are, for messages: "this machine's memory", "MemAvailable (what other processes leave
+    /// free)", "the cgroup's memory.max (/sys/fs/cgroup/...)", "RLIMIT_AS (ulimit -v)", "RLIMIT_DATA (ulimit -d)".
+    std::string source;
+    /// "25.3 GB (MemAvailable: what other processes leave free)".
+    std::string describe() const;
+};
+
+/// The smallest of: physical RAM; MemAvailable (/proc/meminfo: other jobs hold the rest); the memory cgroup's
+/// limit, cgroup v2 memory.max or v1 memory.limit_in_bytes, of this process's own cgroup and its ancestors (Slurm's
+/// --mem, a container's limit); RLIMIT_AS and RLIMIT_DATA (a wrapper's ulimit -v / -d: address space, which
+/// exceeds resident memory by the allocator's and thread pools' reservations). What dry runs and preflight
+/// checks compare estimates against, and what an out-of-memory failure names.
+MemoryLimit memoryLimit();
+
+/// memoryLimit().bytes: -1 if unknown.
 long long usableMemoryBytes();
 
 /// Human form of a byte count: "512 MB", "3.2 GB".
