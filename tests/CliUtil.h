@@ -38,6 +38,14 @@ inline Result shell(const std::string& cmd)
     return r;
 }
 
+/// `s` as one word for sh: single-quoted, a single quote written as '\''.
+inline std::string shellQuote(const std::string& s)
+{
+    std::string q = "'";
+    for (const char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+    return q + "'";
+}
+
 /// Runs `vdbturb ARGS` through the shell (ARGS is shell text: quote patterns with $). `stderrToo` merges it.
 inline Result run(const std::string& args, bool stderrToo = true)
 {

@@ -165,7 +165,12 @@ TEST(CliReliability, DryRunFailsOnEveryFatalInputAsTheRunDoes)
     // by default only the smoke of this large Blender domain is held, and it fits (below).
     const std::string c42 = testutil::dataPath("blender-c42/fluid_data_####.vdb");
     const auto cropped = run("transfer --target " + c42 + " --source " + hi() + out + " --frames 1-2 --dry-run");
-    EXPECT_EQ(cropped.code, 0) << cropped.out;
+    // It needs about 20.6 GB: on a 24 GB machine whose other processes (a parallel ctest) hold some, the budget
+    // (MemAvailable) may be short of it, which is exit 75, a retry's case, and not the whole domain's refusal.
+    if (cropped.code == 75)
+        EXPECT_NE(cropped.out.find("(MemAvailable: what other processes leave free)"), std::string::npos)
+            << cropped.out;
+    else EXPECT_EQ(cropped.code, 0) << cropped.out;
     EXPECT_EQ(cropped.out.find("3250x3250x1560"), std::string::npos) << cropped.out;
     for (const std::string dry : {" --dry-run", ""}) {
         const auto r =
@@ -593,4 +598,109 @@ TEST(FarmNode, ACgroupMemoryLimitIsTheBudget)
     EXPECT_NE(r.out.find("this process may use 300 MB (the cgroup's "), std::string::npos) << r.out;
     EXPECT_NE(r.out.find(child), std::string::npos) << "names the limit's file: " << r.out;
     EXPECT_FALSE(std::filesystem::exists(dir / "o/o.0001.vdb"));
+}
+
+// A --settings file from a farm template: unknown keys, a key given twice (CLI11 merged the two into a list and
+// printed "At Most 1 required but received 2"), NaN and huge values are refused with the file, the key and what
+// is allowed (exit 2), before anything is read.
+TEST(FarmNode, ASettingsFileWithUnknownDuplicateNaNOrHugeValuesIsRefused)
+{
+    testutil::TempDir dir;
+    const std::string base = "transfer --target " + lo() + " --source " + hi() + " --frames 1 --dry-run --out '" +
+                             dir / "o/o.####.vdb' --settings ";
+    const std::vector<std::pair<std::string, std::string>> cases = {
+        {"bogus_key = 3\n", "'bogus_key' is not an option of vdbturb transfer"},
+        {"gamma = 1\n# a comment\ngamma = 2\n", "'gamma' is set on lines 1 and 3; give it once"},
+        {"[seams]\ngamma = 1\ngamma = 2\n", "'seams.gamma' is set on lines 2 and 3"},
+        {"gamma = nan\n", "--gamma: nan is not a number"},
+        {"gamma = 1e300\n", "--gamma: must be a finite NUMBER>=0 (at most 1e+30)"},
+        {"velocity-margin = 1e12\n", "--velocity-margin: must be auto, -1 (the whole box) or a number of voxels"}};
+    int n = 0;
+    for (const auto& [text, says] : cases) {
+        const std::string file = dir / ("s" + std::to_string(n++) + ".toml");
+        std::ofstream(file) << text;
+        const auto r = run(base + file);
+        EXPECT_EQ(r.code, 2) << text << r.out;
+        EXPECT_NE(r.out.find(says), std::string::npos) << text << r.out;
+    }
+    // The file --print-settings writes reads back whole: its sections hold no key twice.
+    const std::string printed = dir / "printed.toml";
+    std::ofstream(printed) << run("transfer --print-settings", false).out;
+    const auto back = run(base + printed);
+    EXPECT_EQ(back.code, 0) << back.out;
+}
+
+// Issue 49: a path is data. A folder named with spaces, $, ;, backquotes, both quotes and non-ASCII letters, and
+// a cache whose file names begin with '-', through every command and through farm plan's Slurm scripts run as
+// sh runs them: every frame lands where it should and nothing in a name is executed.
+TEST(FarmNode, HostileNamesAreOnlyNames)
+{
+    testutil::TempDir dir;
+    const std::string root = dir / "sp ace $(touch pwned1);`touch pwned2`'q\"\xc3\xb1";
+    std::filesystem::create_directories(root);
+    for (int f = 1; f <= 2; ++f)
+        std::filesystem::copy_file(testutil::dataPath("blender-plume-32/fluid_data_000" + std::to_string(f) + ".vdb"),
+            root + "/-lo.000" + std::to_string(f) + ".vdb");
+    const auto q = [](const std::string& s) { return clitest::shellQuote(s); };
+    const std::string lo = root + "/-lo.####.vdb", out = root + "/o;touch pwned3;.####.vdb";
+    const auto ok = [&](const std::string& args) {
+        const auto r = clitest::shell("cd " + q(dir.path()) + " && " + std::string(VDBTURB_EXE) + " " + args + " 2>&1");
+        EXPECT_EQ(r.code, 0) << args << "\n" << r.out;
+    };
+    ok("info " + q(lo));
+    ok("resample " + q(lo) + " --down 2 -q --out " + q(root + "/r $x.####.vdb"));
+    ok("transfer --target " + q(lo) + " --source " + q(hi()) + " -q --out " + q(out));
+    ok("measure --output " + q(out) + " --target " + q(lo) + " -q");
+    ok("preview " + q(out) + " --frames 2 --width 64 -q --out " + q(root + "/p \xc3\xb1.png"));
+    for (const char* name : {"r $x.0002.vdb", "o;touch pwned3;.0002.vdb", "p \xc3\xb1.png"})
+        EXPECT_TRUE(std::filesystem::exists(root + "/" + name)) << name;
+
+    ok("farm plan --target " + q(lo) + " --source " + q(hi()) +
+        " --frames 1-2 --chunks 1 --overlap 0 --preroll 0 --out " + q(root + "/f `touch pwned4`.####.vdb") + " --dir " +
+        q(root + "/farm $HOME"));
+    const std::string farm = root + "/farm $HOME";
+    const auto task = clitest::shell("cd " + q(dir.path()) + " && SLURM_ARRAY_TASK_ID=0 sh " +
+                                     q(farm + "/chunks.sbatch") + " 2>&1 && sh " + q(farm + "/join.sbatch") + " 2>&1");
+    EXPECT_EQ(task.code, 0) << task.out;
+    EXPECT_TRUE(std::filesystem::exists(root + "/f `touch pwned4`.0002.vdb")) << task.out;
+    const std::string script = clitest::slurp(farm + "/chunks.sbatch");
+    EXPECT_NE(script.find("# --output is given by vdbturb farm submit"), std::string::npos) << script;
+    for (const char* p : {"pwned1", "pwned2", "pwned3", "pwned4"}) {
+        EXPECT_FALSE(std::filesystem::exists(dir / p)) << p << " was executed";
+        EXPECT_FALSE(std::filesystem::exists(root + "/" + p)) << p << " was executed";
+    }
+    const auto name = run("farm plan --target " + q(lo) + " --source " + q(hi()) + " --out x.####.vdb --dir " +
+                          q(dir / "f2") + " --name 'a\nb'");
+    EXPECT_EQ(name.code, 2) << name.out;
+    EXPECT_NE(name.out.find("only letters, digits and ._:,+=@%- may go into an #SBATCH line"), std::string::npos);
+}
+
+// Issue 49: two processes given the same frame must not both write it. A transfer holds its frames (an fcntl lock
+// per frame in .o.####.vdb.lock beside them); a second run of overlapping frames exits 75 naming the first's pid,
+// one of other frames into the same folder runs beside it, and the lock file is gone when both are done.
+TEST(FarmNode, TwoTasksNeverWriteOneFrame)
+{
+    testutil::TempDir dir;
+    const std::string out = dir / "o/o.####.vdb";
+    const std::string pair = "transfer --target " + testutil::dataPath("blender-plume2-32/fluid_data_####.vdb") +
+                             " --source " + testutil::dataPath("blender-plume2-128/fluid_data_####.vdb") +
+                             " --threads 1 --out ";
+    clitest::Process first(pair + "'" + out + "' --frames 1-10 --progress lines", dir / "first.log");
+    ASSERT_TRUE(first.waitForFile(dir / "o/o.0001.vdb", 120.0)) << clitest::slurp(dir / "first.log");
+    const auto second = run(pair + "'" + out + "' --frames 5-6 -q");
+    // Other frames of the shot into the same folder (the farm's case), and another folder, run beside it.
+    const auto disjoint = run(pair + "'" + out + "' --frames 11-12 -q");
+    const auto other = run(pair + "'" + dir / "p/o.####.vdb" + "' --frames 1-2 -q");
+    const bool firstStillRunning = !std::filesystem::exists(dir / "o/o.0010.vdb");
+    EXPECT_EQ(first.wait(), 0) << clitest::slurp(dir / "first.log");
+    EXPECT_EQ(second.code, 75) << second.out;
+    EXPECT_NE(second.out.find(dir / "o/o.0005.vdb: another vdbturb (pid "), std::string::npos) << second.out;
+    EXPECT_NE(second.out.find("is writing this frame"), std::string::npos) << second.out;
+    EXPECT_EQ(disjoint.code, 0) << disjoint.out;
+    EXPECT_TRUE(firstStillRunning) << "frames 11-12 were written while 1-10 were (the runs overlapped)";
+    EXPECT_EQ(other.code, 0) << other.out;
+    for (const char* f : {"o.0001.vdb", "o.0010.vdb", "o.0011.vdb", "o.0012.vdb"})
+        EXPECT_TRUE(std::filesystem::exists(dir / ("o/" + std::string(f)))) << f;
+    EXPECT_FALSE(std::filesystem::exists(dir / "o/o.0005.vdb.tmp"));
+    EXPECT_FALSE(std::filesystem::exists(dir / "o/.o.####.vdb.lock")) << "the last holder removes it";
 }

@@ -81,7 +81,7 @@ std::string checkOutputs(const std::string& out, int code, int badFrame)
     std::string problems;
     for (const auto& e : std::filesystem::directory_iterator(out)) {
         const std::string name = e.path().filename().string();
-        if (name[0] == '.') {
+        if (name[0] == '.' && !(name.size() > 5 && name.compare(name.size() - 5, 5, ".lock") == 0 && code != 0)) {
             problems += " temporary file " + name + " left;";
             continue;
         }

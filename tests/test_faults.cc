@@ -26,11 +26,15 @@ void expectSameFrame(const std::string& a, const std::string& b, int frame)
     EXPECT_EQ(fa.density.values(), fb.density.values()) << a << " vs " << b;
 }
 
-// Names in `dir` that start with '.' (temporary files of unfinished writes).
+// Names in `dir` that start with '.' (temporary files of unfinished writes), less the frame lock file a killed run
+// leaves (.PATTERN.lock: the next run takes it over).
 size_t temporaries(const std::string& dir)
 {
     size_t n = 0;
-    for (const auto& e : std::filesystem::directory_iterator(dir)) n += e.path().filename().string()[0] == '.';
+    for (const auto& e : std::filesystem::directory_iterator(dir)) {
+        const std::string name = e.path().filename().string();
+        n += name[0] == '.' && !(name.size() > 5 && name.compare(name.size() - 5, 5, ".lock") == 0);
+    }
     return n;
 }
 

@@ -328,7 +328,31 @@ std::vector<std::string> expandSettingsFiles(const std::vector<std::string>& arg
         try {
             std::ifstream in(file);
             if (!in) throw CLI::FileError::Missing(file);
-            std::istringstream text(withoutComments(in));
+            const std::string body = withoutComments(in);
+            // TOML forbids a key twice, and CLI11 would merge the two into a list; which one should win is a guess.
+            {
+                std::istringstream lines(body);
+                std::string line, section;
+                std::map<std::string, int> firstLine;
+                for (int n = 1; std::getline(lines, line); ++n) {
+                    const size_t start = line.find_first_not_of(" \t");
+                    if (start == std::string::npos) continue;
+                    if (line[start] == '[') {
+                        section = line.substr(start + 1, line.find(']', start) - start - 1) + ".";
+                        continue;
+                    }
+                    const size_t eq = line.find('=', start);
+                    if (eq == std::string::npos) continue;
+                    std::string key = line.substr(start, eq - start);
+                    key.erase(key.find_last_not_of(" \t") + 1);
+                    const auto [it, fresh] = firstLine.emplace(section + key, n);
+                    if (!fresh)
+                        throw turb::ValueError("--settings " + file + ": '" + section + key + "' is set on lines " +
+                                               std::to_string(it->second) + " and " + std::to_string(n) +
+                                               "; give it once");
+                }
+            }
+            std::istringstream text(body);
             CLI::ConfigTOML toml;
             toml.comment('\0');
             items = toml.from_config(text);

@@ -15,6 +15,7 @@
 #include <set>
 #include <sstream>
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 namespace fs = std::filesystem;
@@ -241,6 +242,78 @@ bool writtenWithSettings(const std::string& path, const std::string& command, co
     for (const std::string& d : diff) list += "\n  " + d;
     throw turb::ValueError(path + " exists and was made otherwise; --skip-existing skips only frames of the same run:" +
                            list + "\n  (remove it, or run without --skip-existing to replace it)");
+}
+
+namespace {
+
+// The lock files this process holds frames in, removed when it ends normally (a kill leaves them: the next run
+// takes them over, and removes them when it is the last holder).
+struct HeldLocks
+{
+    std::vector<std::pair<int, std::string>> files; // descriptor, path
+    ~HeldLocks()
+    {
+        for (const auto& [fd, path] : files) {
+            // Only the last holder removes it: a lock on the whole file is granted when no other process holds a
+            // frame (this process's own locks never conflict with it).
+            struct flock all
+            {};
+            all.l_type = F_WRLCK;
+            all.l_whence = SEEK_SET;
+            if (::fcntl(fd, F_SETLK, &all) == 0) ::unlink(path.c_str());
+            ::close(fd);
+        }
+    }
+};
+
+HeldLocks& heldLocks()
+{
+    static HeldLocks h;
+    return h;
+}
+
+} // namespace
+
+void lockOutputFrames(const turbio::FramePattern& pattern, const std::vector<int>& frames)
+{
+    if (frames.empty()) return;
+    const fs::path first(pattern.format(frames.front()));
+    const fs::path lockPath = first.parent_path() / ("." + fs::path(pattern.str()).filename().string() + ".lock");
+    std::error_code ec;
+    if (!first.parent_path().empty()) fs::create_directories(first.parent_path(), ec);
+    for (int attempt = 0; attempt < 8; ++attempt) {
+        const int fd = ::open(lockPath.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+        if (fd < 0) return; // no lock without a writable folder; the frame's own write reports that
+        for (const int f : frames) {
+            struct flock l
+            {};
+            l.l_type = F_WRLCK;
+            l.l_whence = SEEK_SET;
+            l.l_start = off_t(int64_t(f) + (int64_t(1) << 31)); // negative frame numbers too
+            l.l_len = 1;
+            if (::fcntl(fd, F_SETLK, &l) == 0) continue;
+            const int err = errno;
+            struct flock who = l;
+            const bool known = ::fcntl(fd, F_GETLK, &who) == 0 && who.l_type != F_UNLCK;
+            ::close(fd);                                // drops the frames locked so far
+            if (err != EACCES && err != EAGAIN) return; // a file system without locks: go on unguarded
+            throw turb::TransientError(pattern.format(f) + ": another vdbturb" +
+                                       (known ? " (pid " + std::to_string(who.l_pid) + ")" : std::string()) +
+                                       " is writing this frame (lock " + lockPath.string() +
+                                       "); two tasks never write one frame: retry when it is done");
+        }
+        // The last holder of another run may have removed the file between the open and the locks: lock the file
+        // the name now gives, or another process could hold the same frames in a new one.
+        struct stat byName
+        {
+        }, byFd{};
+        if (::stat(lockPath.c_str(), &byName) == 0 && ::fstat(fd, &byFd) == 0 && byName.st_ino == byFd.st_ino &&
+            byName.st_dev == byFd.st_dev) {
+            heldLocks().files.emplace_back(fd, lockPath.string());
+            return;
+        }
+        ::close(fd);
+    }
 }
 
 } // namespace vdbturb

@@ -65,6 +65,15 @@ std::string commandSettingsText(const CLI::App& app, const std::vector<std::stri
 /// turb::ValueError (exit 1: a retry cannot fix it) when it exists but was made otherwise, naming what differs.
 bool writtenWithSettings(const std::string& path, const std::string& command, const std::string& settings);
 
+/// Takes, for this process's life, a write lock on each of `frames` of the output `pattern`: an fcntl byte-range
+/// lock per frame in one lock file beside the outputs (`.NAME.lock`, NAME the pattern's file name), so that two
+/// processes given the same frame never both write it while tasks writing other frames of the shot into the same
+/// folder run side by side (the farm's case). The kernel drops the locks when the process ends, however it ends;
+/// the last holder removes the file when it ends normally (a killed run leaves it, for the next to take over).
+/// Throws turb::TransientError (exit 75: retry once the other is done) naming the other process when one of the
+/// frames is held, and nothing when the folder cannot hold a lock file (read-only: the write fails later, named).
+void lockOutputFrames(const turbio::FramePattern& pattern, const std::vector<int>& frames);
+
 /// Refuses a run whose peak memory estimate exceeds what this process may use, with the estimate, the
 /// reason and `whatFits` (what would run instead). Logged at -v and in dry runs either way.
 void checkMemory(double estimateBytes, const std::string& what, const std::string& whatFits);

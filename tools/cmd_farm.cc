@@ -19,6 +19,8 @@
 #include <array>
 #include <climits>
 #include <cstdio>
+#include <cctype>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -432,6 +434,25 @@ nlohmann::json planJson(const FarmArgs& a, const Plan& p)
     return plan;
 }
 
+// An #SBATCH line is read by sbatch, not a shell, and ends at the line's end: a value with a newline would add lines
+// (a command in the script), one with spaces or quotes is split or unquoted by sbatch's own rules. Names, partitions,
+// times and memory sizes never need either.
+void checkSbatchValue(const std::string& flag, const std::string& value)
+{
+    for (const char c : value)
+        if (!(std::isalnum(static_cast<unsigned char>(c)) || std::strchr("._:,+=@%-", c)))
+            throw UsageError(flag + " '" + value + "': only letters, digits and ._:,+=@%- may go into an #SBATCH line");
+}
+
+// The log path as an #SBATCH directive when sbatch reads it back as written (no whitespace, quotes or backslash);
+// otherwise farm submit gives --output on sbatch's command line, and the script says so.
+std::string sbatchOutput(const std::string& path)
+{
+    if (path.find_first_of(" \t\n\r\"'\\") == std::string::npos) return "#SBATCH --output=" + path + "\n";
+    // Not the path itself: a comment ends at a newline a hostile name may hold, and the shell runs the rest.
+    return "# --output is given by vdbturb farm submit: an #SBATCH line cannot hold this directory's name\n";
+}
+
 std::string sbatchResources(const FarmArgs& a)
 {
     std::string common = "#SBATCH --cpus-per-task=" + std::to_string(a.cpus) + "\n";
@@ -462,10 +483,9 @@ std::string tasksScript(const FarmArgs& a, const Plan& p)
            std::to_string(p.taskCount() - 1) +
            "\n"
            "#SBATCH --requeue\n"
-           "#SBATCH --open-mode=append\n"
-           "#SBATCH --output=" +
-           p.dir + "/logs/" + w + "_%a.log\n" + sbatchResources(a) + "case \"$SLURM_ARRAY_TASK_ID\" in\n" + cases +
-           "  *) echo \"farm: no " + w +
+           "#SBATCH --open-mode=append\n" +
+           sbatchOutput(p.dir + "/logs/" + w + "_%a.log") + sbatchResources(a) + "case \"$SLURM_ARRAY_TASK_ID\" in\n" +
+           cases + "  *) echo \"farm: no " + w +
            " $SLURM_ARRAY_TASK_ID\" >&2; exit 2 ;;\n"
            "esac\n"
            "echo \"farm: " +
@@ -504,17 +524,16 @@ std::string joinScript(const FarmArgs& a, const Plan& p)
                p.tiled ? "tiles (after every tile" : "chunks and cross-fades their overlaps (after every chunk") +
            " succeeded).\n"
            "#SBATCH --job-name=" +
-           a.name +
-           "-join\n"
-           "#SBATCH --output=" +
-           p.dir +
-           "/logs/join.log\n"
-           "#SBATCH --open-mode=append\n" +
+           a.name + "-join\n" + sbatchOutput(p.dir + "/logs/join.log") + "#SBATCH --open-mode=append\n" +
            sbatchResources(a) + "exec " + joinCommand(joinCommandLine(a, p)) + "\n";
 }
 
 int runPlan(FarmArgs& a)
 {
+    checkSbatchValue("--name", a.name);
+    checkSbatchValue("--partition", a.partition);
+    checkSbatchValue("--time", a.time);
+    checkSbatchValue("--mem", a.mem);
     const Plan p = makePlan(a);
     const std::string script = std::string(p.word()) + "s.sbatch";
     if (!globals().dryRun) {
@@ -551,8 +570,8 @@ int runPlan(FarmArgs& a)
         printData("would write " + p.dir + "/plan.json, " + script + ", join.sbatch (dry run: nothing written)");
         return kOk;
     }
-    printData(
-        "wrote " + p.dir + "/plan.json, " + script + ", join.sbatch; submit with: vdbturb farm submit --dir " + p.dir);
+    printData("wrote " + p.dir + "/plan.json, " + script + ", join.sbatch; submit with: vdbturb farm submit --dir " +
+              shellQuote(p.dir));
     return kOk;
 }
 
@@ -588,10 +607,12 @@ int runSubmit(FarmArgs& a)
         return kOk;
     }
     // --parsable prints "jobid[;cluster]".
-    std::string chunks = trim(runCapture("sbatch --parsable " + shellQuote(dir + "/" + word + "s.sbatch")));
+    // --output on the command line too: it wins over the script's, and holds any directory name.
+    std::string chunks = trim(runCapture("sbatch --parsable --output=" + shellQuote(dir + "/logs/" + word + "_%a.log") +
+                                         " " + shellQuote(dir + "/" + word + "s.sbatch")));
     chunks = chunks.substr(0, chunks.find(';'));
-    std::string join =
-        trim(runCapture("sbatch --parsable --dependency=afterok:" + chunks + " " + shellQuote(dir + "/join.sbatch")));
+    std::string join = trim(runCapture("sbatch --parsable --dependency=afterok:" + chunks + " --output=" +
+                                       shellQuote(dir + "/logs/join.log") + " " + shellQuote(dir + "/join.sbatch")));
     join = join.substr(0, join.find(';'));
     nlohmann::json j = {{word + "s_job", chunks}, {"join_job", join}};
     writeText(dir + "/submitted.json", j.dump() + "\n");
@@ -655,7 +676,9 @@ void checkChunksComplete(const JoinPlan& p)
         const turb::TimeChunk& c = p.chunks[p.tiled ? 0 : k];
         const turbio::FramePattern pattern = p.chunkFrames(k);
         for (size_t i = c.keepBegin; i < c.end; ++i) {
-            const std::string rerun = "sbatch --array=" + std::to_string(k) + " " + p.dir + "/" + p.word() + "s.sbatch";
+            const std::string rerun = "sbatch --array=" + std::to_string(k) +
+                                      " --output=" + shellQuote(p.dir + "/logs/" + p.word() + "_%a.log") + " " +
+                                      shellQuote(p.dir + "/" + p.word() + "s.sbatch");
             const std::string path = pattern.format(p.frames[i]);
             if (!fs::exists(path))
                 throw turb::IoError(std::string(p.word()) + " " + std::to_string(k) + " is not complete: " + path +

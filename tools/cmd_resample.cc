@@ -155,6 +155,10 @@ int runResample(ResampleArgs& a)
                       (skip[i] ? " (written by the same settings)" : " from " + inputs[i]));
         return kOk;
     }
+    std::vector<int> writing;
+    for (size_t i = 0; i < seq.frames.size(); ++i)
+        if (!skip[i]) writing.push_back(seq.frames[i]);
+    lockOutputFrames(outPattern, writing);
     RunReport report("resample", false);
     bool warnedClipping = false;
     for (size_t i = 0; i < seq.frames.size(); ++i) {

@@ -758,6 +758,8 @@ int runTransfer(TransferArgs& a)
         }
         return kOk;
     }
+    lockOutputFrames(
+        p.out, std::vector<int>(p.target.frames.begin() + long(std::max(p.first, p.writeFrom)), p.target.frames.end()));
     turb::TurbulenceTransfer transfer(a.settings);
     if (a.resume && p.first == p.target.frames.size()) {
         // Nothing left to compute, but the frames must be this run's: a plan rewritten with other settings over the

@@ -270,8 +270,8 @@ CLI::Validator finiteIn(double lo, double hi)
         std::snprintf(b, sizeof(b), "%g", v);
         return std::string(b);
     };
-    const std::string text =
-        hi >= 1e30 ? "NUMBER>=" + trimmed(lo) : "NUMBER in [" + trimmed(lo) + ", " + trimmed(hi) + "]";
+    const std::string text = hi >= 1e30 ? "NUMBER>=" + trimmed(lo) + " (at most " + trimmed(hi) + ")"
+                                        : "NUMBER in [" + trimmed(lo) + ", " + trimmed(hi) + "]";
     return finiteNumber([lo, hi](double v) { return v >= lo && v <= hi; }, text);
 }
 

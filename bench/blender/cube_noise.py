@@ -6,13 +6,10 @@
 
 Defaults: 30 frames, NOISE 4, RES 32. Writes OUTDIR/data/fluid_data_####.vdb (the base sim: the transfer's
 target) and OUTDIR/noise/fluid_noise_####.vdb (Blender's up-res density), with bake_replay's JSON lines.
-The scene is the shared script's (its scene settings are Blender's defaults, fps included), not
-mantaflow_scene's 4x4x6 domain.
+The scene is the shared script's (a 4x4x4 cube domain at 24 fps), not mantaflow_scene's 4x4x6 domain.
 """
 import os
 import sys
-
-import bpy
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import mantaflow_scene as ms  # noqa: E402
@@ -20,22 +17,8 @@ import mantaflow_scene as ms  # noqa: E402
 a = ms.script_args(["OUTDIR", "FRAMES", "NOISE", "RES", "THREADS"],
                    {"FRAMES": "30", "NOISE": "4", "RES": "32", "THREADS": "0"})
 res, frames, noise = int(a["RES"]), int(a["FRAMES"]), int(a["NOISE"])
-bpy.ops.wm.read_factory_settings(use_empty=True)
-sc = bpy.context.scene
-sc.frame_start, sc.frame_end = 1, frames
-bpy.ops.mesh.primitive_cube_add(size=4, location=(0, 0, 0))
-dom = bpy.context.active_object
-bpy.ops.object.modifier_add(type="FLUID")
-m = dom.modifiers["Fluid"]
-m.fluid_type = "DOMAIN"
-ds = m.domain_settings
-ds.domain_type = "GAS"
-ds.resolution_max = res
-ds.cache_directory = os.path.abspath(a["OUTDIR"])
-ds.cache_type = "REPLAY"
-ds.cache_data_format = "OPENVDB"
-ds.cache_noise_format = "OPENVDB"
-ds.cache_frame_start, ds.cache_frame_end = 1, frames
+ms.new_scene(frames)
+dom, ds = ms.add_domain(res, a["OUTDIR"], frames, size=(4.0, 4.0, 4.0))
 ds.use_noise = True
 ds.noise_scale = noise
 ms.add_sphere_inflow(0.5, (0, 0, -1.5))

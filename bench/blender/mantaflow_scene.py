@@ -41,12 +41,12 @@ def new_scene(frames):
     return sc
 
 
-def add_domain(res_max, cache_dir, frames, cache_type="REPLAY"):
-    """A gas domain filling DOMAIN_SIZE, cells along z = res_max, OpenVDB cache in cache_dir (absolute)."""
+def add_domain(res_max, cache_dir, frames, cache_type="REPLAY", size=DOMAIN_SIZE):
+    """A gas domain filling `size` (DOMAIN_SIZE), cells along its longest side = res_max, OpenVDB cache in cache_dir."""
     bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0.0, 0.0, 0.0))
     dom = bpy.context.active_object
     dom.name = "Domain"
-    dom.scale = DOMAIN_SIZE
+    dom.scale = size
     bpy.ops.object.transform_apply(location=False, rotation=False, scale=True)
     bpy.ops.object.modifier_add(type="FLUID")
     m = dom.modifiers["Fluid"]
