@@ -1,5 +1,7 @@
 #include "GuardedRead.h"
 
+#include <turbio/System.h>
+
 #include <turb/Error.h>
 
 #include <openvdb/io/Stream.h>
@@ -16,6 +18,7 @@
 #include <poll.h>
 #include <sstream>
 #include <sys/resource.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 #include <vector>
@@ -204,7 +207,15 @@ extern "C" __attribute__((weak)) void __sanitizer_set_death_callback(void (*)(vo
     } catch (const turb::Error& e) {
         payload = errorPayload(e.what(), e.settings());
     } catch (const std::bad_alloc&) {
-        payload = errorPayload(path + ": corrupt file (a size field asks for more memory than exists)");
+        // Either a damaged size field or a tree genuinely too large to hold (a 761 MB file of active tiles over
+        // 2^35 voxels was called corrupt): say both, with the file's size to tell them apart.
+        struct stat st
+        {};
+        const std::string size = ::stat(path.c_str(), &st) == 0 ? formatBytes(double(st.st_size)) : std::string("?");
+        payload = errorPayload(path +
+                               ": reading it asked for more than 16 GB of memory: a damaged size field, or "
+                               "grids too large to hold (the file is " +
+                               size + ")");
     } catch (const std::exception& e) {
         payload = errorPayload(path + ": truncated or corrupt file (" + cleanMessage(e.what()) + ")");
     } catch (...) {
