@@ -311,6 +311,21 @@ TEST(SecondDay, StrayVoxelsFarFromAHoudiniCachesSmokeAreIgnoredUnlessKept)
         EXPECT_TRUE(has(r.out, "ignored: see --keep-isolated")) << r.out;
         EXPECT_EQ(gridsChecksum(run("info " + out + " --checksum")), expected) << n << " strays";
     }
+    // A stray 49 voxels from the smoke: the header scan does not read the voxels for it (the box is not far larger
+    // than the smoke), the frame's read finds it, and that is said too, once.
+    {
+        openvdb::io::File file(smoke);
+        file.open();
+        openvdb::GridPtrVecPtr grids = file.getGrids();
+        openvdb::MetaMap::Ptr meta = file.getMetadata();
+        file.close();
+        openvdb::gridPtrCast<openvdb::FloatGrid>(grids->front())->tree().setValueOn(openvdb::Coord(160, 100, 50), 0.5f);
+        openvdb::io::File(dir / "near.vdb").write(*grids, *meta);
+    }
+    const Result near = run("resample " + dir / "near.vdb --down 2 --out " + dir / "r_near.vdb");
+    ASSERT_EQ(near.code, 0) << near.out;
+    EXPECT_EQ(clitest::count(near.out, "1 voxel of density far from the smoke (49 voxels away"), 1u) << near.out;
+    EXPECT_EQ(gridsChecksum(run("info " + dir / "r_near.vdb --checksum")), expected);
     const Result kept = run("info " + dir / "ten.vdb --keep-isolated");
     ASSERT_EQ(kept.code, 0) << kept.out;
     EXPECT_FALSE(has(kept.out, "far from the smoke")) << kept.out;

@@ -125,6 +125,10 @@ void addReadOptions(CLI::App* app, turbio::ReadOptions& opt, const std::string& 
                 p + "no-crop", [&opt](int64_t) { opt.cropToSmoke = false; },
                 "Hold the grids' whole active boxes, stray voxels included (default: the smoke and a margin)"),
         p.substr(2) + "no-crop");
+    // Strays a frame's read leaves out are said once per input, as the header scan's are (reportTiming's key): the
+    // scan sees them only where the density's box is far larger than its voxels.
+    const std::string role = prefix.empty() ? "cache" : prefix;
+    opt.strayNote = [role](const std::string& note) { warnOnce("strays " + role, role + " " + note); };
     setting(app->add_flag(p + "keep-isolated", opt.keepIsolated,
                 "Hold stray voxels far from the smoke (and a Blender cache's voxels outside its simulation box) "
                 "instead of ignoring them; the held box then spans them"),

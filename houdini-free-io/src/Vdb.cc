@@ -1257,7 +1257,10 @@ turb::CoordBBox heldBox(const std::string& path, const RoleGrids& g,
                 reach.expand(spans.boxes[i]);
         domain = heldRegion(rep.region, reach.empty() ? domain : reach, options);
         if (!options.holdBox.empty()) domain = options.holdBox;
-        if (!rep.region.strays.empty()) rep.notes.push_back(rep.region.describeStrays(g.density->getName()));
+        if (!rep.region.strays.empty()) {
+            rep.notes.push_back(rep.region.describeStrays(g.density->getName()));
+            if (options.strayNote) options.strayNote(path + ": " + rep.notes.back());
+        }
     }
     rep.held = domain;
     std::vector<std::pair<std::string, turb::CoordBBox>> named;

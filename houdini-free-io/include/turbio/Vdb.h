@@ -71,6 +71,9 @@ struct ReadOptions
     /// Hold every cluster of smoke, strays included (and, in a Blender cache, voxels outside its simulation box):
     /// `--keep-isolated`. The held box then spans them all, which may not fit.
     bool keepIsolated = false;
+    /// Called with the strays note (SmokeRegion::describeStrays) of each frame readFrame finds strays in, for a
+    /// command to show; empty: the note is in the ReadReport only. The library prints nothing itself.
+    std::function<void(const std::string&)> strayNote;
     turb::CoordBBox holdBox; ///< non-empty (with cropToSmoke): hold this box instead of the frame's own, for
                              ///< stages that need one box over a sequence (synth: the union of the scans' boxes; a
                              ///< transfer space tile: its core and halo), whether or not it holds smoke
