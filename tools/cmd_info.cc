@@ -115,6 +115,9 @@ std::string gridTable(const turbio::FileInfo& fi)
     if (!fi.farmTiles.empty())
         out += ", joined from tiles " + fi.farmTiles + (fi.tileBorders.empty() ? "" : ", borders " + fi.tileBorders) +
                " (vdbturb_farm_tiles)";
+    if (fi.rangesSkipped > 0)
+        out += ", value ranges of the last " + std::to_string(fi.rangesSkipped) +
+               " grids not read (1 GB of grids read for ranges already)";
     out += "\n";
     std::vector<std::vector<std::string>> rows{{"#", "grid", "type", "class", "role", "voxel", "origin",
         "active box (index)", "world bounds", "active", "values"}};

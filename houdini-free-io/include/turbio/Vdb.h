@@ -311,6 +311,7 @@ struct FileInfo
     int velocityMargin = -1; ///< vdbturb_velocity_margin: velocity written only this near the smoke; -1 = not trimmed
     std::string command;     ///< vdbturb_command: the vdbturb command that wrote the file, "" for other writers
     std::string settings;    ///< vdbturb_settings: the settings that made it ("name=value;..."), for --skip-existing
+    int rangesSkipped = 0;   ///< grids whose value range was not read: past 1 GB of grids read for ranges
     std::vector<GridInfo> grids; ///< in file order
 };
 
