@@ -1,6 +1,7 @@
 // vdbturb sim SCENE: simulate a built-in smoke scene into a VDB sequence.
 #include "Commands.h"
 #include "Console.h"
+#include "Preflight.h"
 #include "RunReport.h"
 
 #include <scenes/Ink2D.h>
@@ -249,6 +250,9 @@ int runSim(const SimArgs& a)
         return kOk;
     }
 
+    std::vector<int> numbers(size_t(a.frames));
+    for (int i = 0; i < a.frames; ++i) numbers[size_t(i)] = a.start + i;
+    lockOutputFrames(pattern, numbers); // two tasks never write one frame (a second exits 75)
     RunReport report("sim " + a.scene + " " + resText(res), a.json);
     const int unconverged = writeFrames(a, sim, pattern, report);
     report.finish();

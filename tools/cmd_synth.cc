@@ -763,6 +763,7 @@ int runSynth(SynthArgs& a)
         for (int fr : p.frames) printData("would write " + p.out.format(fr));
         return kOk;
     }
+    lockOutputFrames(p.out, p.frames); // two tasks never write one frame (a second exits 75)
     if (a.seq.synth.traceDescent && !a.json) logWarning("--trace-descent reports in the JSON lines only: add --json");
     // The report's clock starts here, so its total includes building the exemplar indices.
     RunReport report("synth", a.json);
