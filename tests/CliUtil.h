@@ -123,6 +123,13 @@ inline std::string plume(int res, int frame = -1)
     return testutil::dataPath(name);
 }
 
+/// The shared plume pair's target (32^3) and source (128^3): the pattern, or frame `frame`'s file.
+inline std::string plumeLo(int frame = -1) { return plume(32, frame); }
+inline std::string plumeHi(int frame = -1) { return plume(128, frame); }
+
+/// `vdbturb ARGS` with stdout only (JSON lines, a dry run's plan).
+inline Result runStdout(const std::string& args) { return run(args, false); }
+
 inline size_t count(const std::string& text, const std::string& what)
 {
     size_t n = 0;

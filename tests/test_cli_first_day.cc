@@ -22,11 +22,10 @@ namespace fs = std::filesystem;
 using clitest::has;
 using clitest::Result;
 
-Result run(const std::string& args) { return clitest::run(args); }
-Result runStdout(const std::string& args) { return clitest::run(args, false); }
-std::string lo() { return clitest::plume(32); }
-std::string hi() { return clitest::plume(128); }
-std::string loFrame(int f) { return clitest::plume(32, f); }
+using clitest::plumeHi;
+using clitest::plumeLo;
+using clitest::run;
+using clitest::runStdout;
 
 // The last non-empty line of `text`.
 std::string lastLine(const std::string& text)
@@ -45,9 +44,9 @@ std::string lastLine(const std::string& text)
 TEST(FirstDay, ABlenderCacheResampledForHoudiniHasVelocityPerSecond)
 {
     testutil::TempDir dir;
-    const Result r = run("resample " + loFrame(10) + " --frames 10 --down 2 --out " + dir / "proxy.0010.vdb");
+    const Result r = run("resample " + plumeLo(10) + " --frames 10 --down 2 --out " + dir / "proxy.0010.vdb");
     ASSERT_EQ(r.code, 0) << r.out;
-    const turb::Frame in = turbio::readFrame(loFrame(10), 10, turbio::ReadOptions{});
+    const turb::Frame in = turbio::readFrame(plumeLo(10), 10, turbio::ReadOptions{});
     EXPECT_NEAR(in.timeUnit, 0.4, 1e-12) << "Blender: a frame is 1/24 s and 0.1 x 25/24 time units";
     const turb::Frame out = turbio::readFrame(dir / "proxy.0010.vdb", 20, turbio::ReadOptions{});
     EXPECT_EQ(out.timeUnit, 1.0);
@@ -70,7 +69,7 @@ TEST(FirstDay, ABlenderCacheResampledForHoudiniHasVelocityPerSecond)
     EXPECT_LT(worst, 1e-5 * peak) << "peak " << peak;
     const Result info = run("info " + dir / "proxy.0010.vdb");
     EXPECT_TRUE(has(info.out, "time unit 1 s (per second)")) << info.out;
-    const Result blenderInfo = run("info " + loFrame(10));
+    const Result blenderInfo = run("info " + plumeLo(10));
     EXPECT_TRUE(has(blenderInfo.out, "time unit 0.4 s")) << blenderInfo.out;
 }
 
@@ -87,7 +86,7 @@ TEST(FirstDay, ASourceNumberedOtherwiseIsMappedAloudAndInfoShowsTheSourceFrame)
             testutil::dataPath(std::string("blender-plume-128/") + from), fs::path(dir.path()) / "src" / to);
     }
     const std::string base =
-        "transfer --target " + lo() + " --source " + dir / "src/hi.####.vdb" + " --out " + dir / "o.####.vdb";
+        "transfer --target " + plumeLo() + " --source " + dir / "src/hi.####.vdb" + " --out " + dir / "o.####.vdb";
     const Result plain = run(base + " --frames 1-3 --dry-run");
     ASSERT_EQ(plain.code, 0) << plain.out;
     EXPECT_TRUE(has(plain.out, "source frames: source = target + 0")) << plain.out;
@@ -118,12 +117,12 @@ TEST(FirstDay, SteppedFramesAreNamedInThePlan)
 {
     testutil::TempDir dir;
     const Result r = run(
-        "transfer --target " + lo() + " --source " + hi() + " --frames 1-5x2 --dry-run --out " + dir / "o.####.vdb");
+        "transfer --target " + plumeLo() + " --source " + plumeHi() + " --frames 1-5x2 --dry-run --out " + dir / "o.####.vdb");
     ASSERT_EQ(r.code, 0) << r.out;
     EXPECT_TRUE(has(r.out, "frames step by up to 2: the detail and density are carried across the skipped frames"))
         << r.out;
     const Result every =
-        run("transfer --target " + lo() + " --source " + hi() + " --frames 1-3 --dry-run --out " + dir / "o.####.vdb");
+        run("transfer --target " + plumeLo() + " --source " + plumeHi() + " --frames 1-3 --dry-run --out " + dir / "o.####.vdb");
     EXPECT_FALSE(has(every.out, "frames step by")) << every.out;
 }
 
@@ -132,15 +131,15 @@ TEST(FirstDay, UsageErrorsExitTwoWithThePrefixEverywhere)
 {
     testutil::TempDir dir;
     const Result noToken =
-        run("transfer --target " + lo() + " --source " + hi() + " --frames 1-3 --out " + dir / "out/turb.vdb");
+        run("transfer --target " + plumeLo() + " --source " + plumeHi() + " --frames 1-3 --out " + dir / "out/turb.vdb");
     EXPECT_EQ(noToken.code, 2) << noToken.out;
     EXPECT_TRUE(has(noToken.out, "vdbturb: error: --out")) << noToken.out;
-    const Result preview = run("preview " + lo() + " --frames 1-3 --out " + dir / "p.png");
+    const Result preview = run("preview " + plumeLo() + " --frames 1-3 --out " + dir / "p.png");
     EXPECT_EQ(preview.code, 2) << preview.out;
-    const Result frames = run("info " + lo() + " --frames 10-1");
+    const Result frames = run("info " + plumeLo() + " --frames 10-1");
     EXPECT_EQ(frames.code, 2) << frames.out;
     EXPECT_TRUE(has(frames.out, "vdbturb: error: ")) << frames.out;
-    const Result range = run("preview " + lo() + " --width abc");
+    const Result range = run("preview " + plumeLo() + " --width abc");
     EXPECT_EQ(range.code, 2) << range.out;
     EXPECT_EQ(range.out.rfind("vdbturb: error: ", 0), 0u) << range.out;
     EXPECT_EQ(testutil::countEntries(dir.path()), 0u) << "nothing written";
@@ -154,11 +153,11 @@ TEST(FirstDay, JsonRunsEndAnErrorWithOneJsonLineOnStdout)
     for (int f = 1; f <= 2; ++f) {
         char to[32];
         std::snprintf(to, sizeof(to), "t.%04d.vdb", f);
-        fs::copy_file(loFrame(f), fs::path(dir.path()) / "t" / to);
+        fs::copy_file(plumeLo(f), fs::path(dir.path()) / "t" / to);
     }
     fs::resize_file(fs::path(dir.path()) / "t/t.0002.vdb", 3000); // a damaged frame 2
     const Result r = runStdout(
-        "transfer --target " + dir / "t/t.####.vdb" + " --source " + hi() + " --out " + dir / "o.####.vdb --json");
+        "transfer --target " + dir / "t/t.####.vdb" + " --source " + plumeHi() + " --out " + dir / "o.####.vdb --json");
     EXPECT_EQ(r.code, 1) << r.out;
     const nlohmann::json j = nlohmann::json::parse(lastLine(r.out));
     EXPECT_EQ(j["exit"], 1);
@@ -166,9 +165,9 @@ TEST(FirstDay, JsonRunsEndAnErrorWithOneJsonLineOnStdout)
     EXPECT_EQ(j["frame"], 2) << "the file's frame: " << j.dump();
     EXPECT_TRUE(has(j["error"].get<std::string>(), "t.0002.vdb")) << j.dump();
 
-    const Result grid = runStdout("info " + loFrame(1) + " --density-grid smoke --validate --json");
+    const Result grid = runStdout("info " + plumeLo(1) + " --density-grid smoke --validate --json");
     EXPECT_EQ(grid.code, 1);
-    const Result usage = runStdout("transfer --json --target " + lo() + " --source " + hi() + " --frames 5-1");
+    const Result usage = runStdout("transfer --json --target " + plumeLo() + " --source " + plumeHi() + " --frames 5-1");
     EXPECT_EQ(usage.code, 2);
     const nlohmann::json u = nlohmann::json::parse(lastLine(usage.out));
     EXPECT_EQ(u["exit"], 2);
@@ -194,7 +193,7 @@ TEST(FirstDay, InfoOnADamagedSequenceListsEveryFrameAndExitsOne)
     for (int f = 1; f <= 4; ++f) {
         char to[32];
         std::snprintf(to, sizeof(to), "c.%04d.vdb", f);
-        fs::copy_file(loFrame(f), fs::path(dir.path()) / to);
+        fs::copy_file(plumeLo(f), fs::path(dir.path()) / to);
     }
     fs::resize_file(fs::path(dir.path()) / "c.0002.vdb", 2000);
     {
@@ -219,7 +218,7 @@ TEST(FirstDay, InfoOnADamagedSequenceListsEveryFrameAndExitsOne)
 TEST(FirstDay, PreviewDrawsAYUpCacheUpright)
 {
     testutil::TempDir dir;
-    const turb::Frame zUp = turbio::readFrame(loFrame(10), 10, turbio::ReadOptions{});
+    const turb::Frame zUp = turbio::readFrame(plumeLo(10), 10, turbio::ReadOptions{});
     turb::Frame yUp = turb::reorientFrame(zUp, turb::AxisRotation::quarterTurns(0, -1)); // +z onto +y
     yUp.metadata[turb::meta::kUpAxis] = "y";
     turbio::writeFrame(dir / "z.0010.vdb", zUp, turbio::WriteOptions{});
@@ -252,7 +251,7 @@ TEST(FirstDay, PreviewDrawsAYUpCacheUpright)
 TEST(FirstDay, FarmPlanFitsTheOverlapToTheShot)
 {
     testutil::TempDir dir;
-    const std::string base = "farm plan --dir " + dir / "f" + " --target " + lo() + " --source " + hi() + " --out " +
+    const std::string base = "farm plan --dir " + dir / "f" + " --target " + plumeLo() + " --source " + plumeHi() + " --out " +
                              dir / "o.####.vdb --chunks 3 --dry-run";
     const Result fit = run(base);
     EXPECT_EQ(fit.code, 0) << fit.out;
@@ -266,7 +265,7 @@ TEST(FirstDay, FarmPlanFitsTheOverlapToTheShot)
 TEST(FirstDay, TheDryRunEstimatesTheTime)
 {
     testutil::TempDir dir;
-    const Result r = run("transfer --target " + lo() + " --source " + hi() + " --dry-run --out " + dir / "o.####.vdb");
+    const Result r = run("transfer --target " + plumeLo() + " --source " + plumeHi() + " --dry-run --out " + dir / "o.####.vdb");
     ASSERT_EQ(r.code, 0) << r.out;
     EXPECT_TRUE(has(r.out, "time: about ")) << r.out;
     EXPECT_TRUE(has(r.out, " s/frame on 2 cores")) << r.out;
@@ -280,7 +279,7 @@ TEST(FirstDay, SheetColumnsOfOneSceneShareOneWorldBox)
 {
     testutil::TempDir dir;
     const Result r = runStdout(
-        "preview target=" + lo() + " source=" + hi() + " --frames 5 --width 64 --sheet " + dir / "s.png --json");
+        "preview target=" + plumeLo() + " source=" + plumeHi() + " --frames 5 --width 64 --sheet " + dir / "s.png --json");
     ASSERT_EQ(r.code, 0) << r.out;
     std::istringstream lines(r.out);
     std::string line;

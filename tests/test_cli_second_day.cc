@@ -20,12 +20,10 @@ namespace fs = std::filesystem;
 using clitest::has;
 using clitest::Result;
 
-Result run(const std::string& args) { return clitest::run(args); }
-Result runStdout(const std::string& args) { return clitest::run(args, false); }
-std::string lo() { return clitest::plume(32); }
-std::string hi() { return clitest::plume(128); }
-std::string loFile(int f) { return clitest::plume(32, f); }
-std::string hiFile(int f) { return clitest::plume(128, f); }
+using clitest::plumeHi;
+using clitest::plumeLo;
+using clitest::run;
+using clitest::runStdout;
 
 } // namespace
 
@@ -35,7 +33,7 @@ TEST(SecondDay, OneFileNameMeansThatFileInEveryCommand)
 {
     testutil::TempDir dir;
     const std::string note = "is frame 10 of ";
-    const Result info = run("info " + loFile(10));
+    const Result info = run("info " + plumeLo(10));
     ASSERT_EQ(info.code, 0) << info.out;
     EXPECT_TRUE(has(info.out, ": 1 frame (10)")) << info.out;
     EXPECT_TRUE(has(info.out, note + testutil::dataPath("blender-plume-32/fluid_data_####.vdb") +
@@ -43,25 +41,25 @@ TEST(SecondDay, OneFileNameMeansThatFileInEveryCommand)
         << info.out;
     EXPECT_TRUE(has(info.out, "frame 10: ")) << info.out;
 
-    const Result preview = run("preview " + loFile(10) + " --width 32 --out " + dir / "f10.png");
+    const Result preview = run("preview " + plumeLo(10) + " --width 32 --out " + dir / "f10.png");
     EXPECT_EQ(preview.code, 0) << preview.out;
     EXPECT_TRUE(fs::exists(dir / "f10.png"));
 
-    const Result resample = run("resample " + loFile(10) + " --down 2 --out " + dir / "r.vdb");
+    const Result resample = run("resample " + plumeLo(10) + " --down 2 --out " + dir / "r.vdb");
     EXPECT_EQ(resample.code, 0) << resample.out;
     EXPECT_TRUE(has(resample.out, note)) << resample.out;
     EXPECT_TRUE(fs::exists(dir / "r.vdb"));
 
     // A single target file is a one-frame shot; the source named by one file is that frame.
     const Result transfer =
-        run("transfer --target " + loFile(2) + " --source " + hiFile(2) + " --out " + dir / "up.0002.vdb --dry-run");
+        run("transfer --target " + plumeLo(2) + " --source " + plumeHi(2) + " --out " + dir / "up.0002.vdb --dry-run");
     EXPECT_EQ(transfer.code, 0) << transfer.out;
-    EXPECT_TRUE(has(transfer.out, "target: " + loFile(2) + " is frame 2 of")) << transfer.out;
+    EXPECT_TRUE(has(transfer.out, "target: " + plumeLo(2) + " is frame 2 of")) << transfer.out;
     EXPECT_TRUE(has(transfer.out, "would write " + dir / "up.0002.vdb")) << transfer.out;
     EXPECT_FALSE(has(transfer.out, "would write " + dir / "up.0003.vdb")) << transfer.out;
 
     // With --frames, the file names its sequence.
-    const Result framed = run("info " + loFile(10) + " --frames 1-3 --headers-only");
+    const Result framed = run("info " + plumeLo(10) + " --frames 1-3 --headers-only");
     EXPECT_TRUE(has(framed.out, ": 3 frames (1-3)")) << framed.out;
 }
 
@@ -69,7 +67,7 @@ TEST(SecondDay, OneFileNameMeansThatFileInEveryCommand)
 TEST(SecondDay, FarmWrapperProgressLines)
 {
     testutil::TempDir dir;
-    const std::string base = "resample " + lo() + " --frames 1-4 --down 2 --out ";
+    const std::string base = "resample " + plumeLo() + " --frames 1-4 --down 2 --out ";
     const Result alf = runStdout(base + dir / "a.####.vdb --progress alf");
     ASSERT_EQ(alf.code, 0) << alf.out;
     EXPECT_EQ(alf.out, "ALF_PROGRESS 25%\nALF_PROGRESS 50%\nALF_PROGRESS 75%\nALF_PROGRESS 100%\n");
@@ -83,7 +81,7 @@ TEST(SecondDay, FarmWrapperProgressLines)
     std::istringstream lines(json.out);
     std::string line;
     while (std::getline(lines, line)) EXPECT_NO_THROW((void)nlohmann::json::parse(line)) << line;
-    EXPECT_EQ(run("info " + lo() + " --progress bar").code, 2) << "info takes no --progress";
+    EXPECT_EQ(run("info " + plumeLo() + " --progress bar").code, 2) << "info takes no --progress";
 }
 
 // Exit codes a wrapper can act on: 1 (a resume with other settings) was retried twice by farm's Slurm scripts; now
@@ -91,7 +89,7 @@ TEST(SecondDay, FarmWrapperProgressLines)
 TEST(SecondDay, FarmScriptsRequeueOnlyWhatARetryCanFix)
 {
     testutil::TempDir dir;
-    const Result plan = run("farm plan --dir " + dir / "f" + " --target " + lo() + " --source " + hi() + " --out " +
+    const Result plan = run("farm plan --dir " + dir / "f" + " --target " + plumeLo() + " --source " + plumeHi() + " --out " +
                             dir / "o.####.vdb --chunks 2 --overlap 2");
     ASSERT_EQ(plan.code, 0) << plan.out;
     std::ifstream in(dir / "f/chunks.sbatch");
@@ -107,10 +105,10 @@ TEST(SecondDay, FarmScriptsRequeueOnlyWhatARetryCanFix)
 // CLI11's integer ranges printed "Value abc not in range 16 to 8192": the message says what is allowed.
 TEST(SecondDay, OptionValueErrorsSayWhatIsAllowed)
 {
-    const Result width = run("preview " + lo() + " --width abc");
+    const Result width = run("preview " + plumeLo() + " --width abc");
     EXPECT_EQ(width.code, 2);
     EXPECT_TRUE(has(width.out, "vdbturb: error: --width must be a number from 16 to 8192, not 'abc'")) << width.out;
-    const Result margin = run("transfer --target " + lo() + " --source " + hi() +
+    const Result margin = run("transfer --target " + plumeLo() + " --source " + plumeHi() +
                               " --out o.####.vdb "
                               "--velocity-margin 99");
     EXPECT_EQ(margin.code, 2);
@@ -119,10 +117,10 @@ TEST(SecondDay, OptionValueErrorsSayWhatIsAllowed)
         << margin.out;
     EXPECT_FALSE(has(margin.out, "Value 99 not in range")) << margin.out;
     // A mistyped grid name gets the nearest of the file's grids.
-    const Result grid = run("resample " + loFile(1) + " --vel-grid velocty --down 2 --out never.vdb");
+    const Result grid = run("resample " + plumeLo(1) + " --vel-grid velocty --down 2 --out never.vdb");
     EXPECT_EQ(grid.code, 1);
     EXPECT_TRUE(has(grid.out, "no 'velocty' grid (did you mean 'velocity'?); the file has: #0 'velocity'")) << grid.out;
-    const Result far = run("resample " + loFile(1) + " --density-grid smoke --down 2 --out never.vdb");
+    const Result far = run("resample " + plumeLo(1) + " --density-grid smoke --down 2 --out never.vdb");
     EXPECT_FALSE(has(far.out, "did you mean")) << "nothing near 'smoke': " << far.out;
 }
 
@@ -237,10 +235,10 @@ TEST(SecondDay, StrayVoxelsOutsideBlendersBoxCostNothing)
 {
     openvdb::initialize();
     testutil::TempDir dir;
-    const std::string args = " --source " + hi() + " --frames 1-3 -q --out ";
-    ASSERT_EQ(run("transfer --target " + lo() + args + dir / "ref/o.####.vdb").code, 0);
+    const std::string args = " --source " + plumeHi() + " --frames 1-3 -q --out ";
+    ASSERT_EQ(run("transfer --target " + plumeLo() + args + dir / "ref/o.####.vdb").code, 0);
     const std::string plan =
-        run("transfer --target " + lo() + " --source " + hi() + " --frames 1-3 --dry-run --out " + dir / "x/o.####.vdb")
+        run("transfer --target " + plumeLo() + " --source " + plumeHi() + " --frames 1-3 --dry-run --out " + dir / "x/o.####.vdb")
             .out;
     const auto memoryLine = [](const std::string& text) { // the estimate, not the free memory beside it
         const size_t at = text.find("memory: about ");
@@ -253,10 +251,10 @@ TEST(SecondDay, StrayVoxelsOutsideBlendersBoxCostNothing)
         for (int f = 1; f <= 3; ++f) {
             char name[32];
             std::snprintf(name, sizeof(name), "/fluid_data_%04d.vdb", f);
-            writeWithStrays(loFile(f), in + name, n);
+            writeWithStrays(plumeLo(f), in + name, n);
         }
         const std::string target = in + "/fluid_data_####.vdb";
-        const Result dry = run("transfer --target " + target + " --source " + hi() + " --frames 1-3 --dry-run --out " +
+        const Result dry = run("transfer --target " + target + " --source " + plumeHi() + " --frames 1-3 --dry-run --out " +
                                dir / "x/o.####.vdb");
         ASSERT_EQ(dry.code, 0) << n << ": " << dry.out;
         EXPECT_EQ(memoryLine(dry.out), memoryLine(plan)) << n << " strays: the same memory estimate";
@@ -341,7 +339,7 @@ TEST(SecondDay, StrayVoxelsFarFromAHoudiniCachesSmokeAreIgnoredUnlessKept)
 TEST(SecondDay, TransferWritesHalfFloatsNearTheSmokeByDefault)
 {
     testutil::TempDir dir;
-    const std::string base = "transfer --target " + lo() + " --source " + hi() + " --frames 1-3 -q --out ";
+    const std::string base = "transfer --target " + plumeLo() + " --source " + plumeHi() + " --frames 1-3 -q --out ";
     ASSERT_EQ(run(base + dir / "d/o.####.vdb").code, 0);
     ASSERT_EQ(run(base + dir / "f/o.####.vdb --full-float --velocity-margin -1").code, 0);
     const Result info = run("info " + dir / "d/o.0003.vdb");
@@ -354,7 +352,7 @@ TEST(SecondDay, TransferWritesHalfFloatsNearTheSmokeByDefault)
     const auto numbers = [&](const std::string& out) {
         std::vector<nlohmann::json> frames;
         std::istringstream lines(
-            runStdout("measure --output " + out + " --target " + lo() + " --source " + hi() + " --frames 1-3").out);
+            runStdout("measure --output " + out + " --target " + plumeLo() + " --source " + plumeHi() + " --frames 1-3").out);
         std::string line;
         while (std::getline(lines, line))
             if (!line.empty() && line[0] == '{') {
@@ -365,7 +363,7 @@ TEST(SecondDay, TransferWritesHalfFloatsNearTheSmokeByDefault)
     };
     // Houdini's velocity voxel scale: vel on a lattice twice as coarse, about an eighth of the voxels, each the mean
     // of its block; measure reads it back. --no-velocity: no velocity grid.
-    const std::string one = "transfer --target " + lo() + " --source " + hi() + " --frames 3 -q --out ";
+    const std::string one = "transfer --target " + plumeLo() + " --source " + plumeHi() + " --frames 3 -q --out ";
     ASSERT_EQ(run(one + dir / "s/o.####.vdb --vel-voxel-scale 2").code, 0);
     ASSERT_EQ(run(one + dir / "n/o.####.vdb --no-velocity").code, 0);
     ASSERT_EQ(run(one + dir / "f3/o.####.vdb --full-float --velocity-margin -1").code, 0); // the same frame 3, whole
@@ -423,7 +421,7 @@ TEST(SecondDay, SkipExistingAndTileMetadataForFarmWrappers)
 {
     testutil::TempDir dir;
     const std::string base =
-        "transfer --target " + lo() + " --source " + hi() + " --tile-box 4,6,0,19,21,11 --out " + dir / "t/o.####.vdb";
+        "transfer --target " + plumeLo() + " --source " + plumeHi() + " --tile-box 4,6,0,19,21,11 --out " + dir / "t/o.####.vdb";
     ASSERT_EQ(run(base + " --frames 1-2 -q").code, 0);
     const auto written = fs::last_write_time(dir / "t/o.0001.vdb");
     const Result again = run(base + " --frames 1-3 --skip-existing");
@@ -436,7 +434,7 @@ TEST(SecondDay, SkipExistingAndTileMetadataForFarmWrappers)
     EXPECT_TRUE(has(info.out, "a space tile of target box 4,6,0,19,21,11 (vdbturb_tile_box)")) << info.out;
 
     // resample, whose frames are each made from their input alone, skips the same way.
-    const std::string rs = "resample " + lo() + " --down 2 --out " + dir / "r/r.####.vdb";
+    const std::string rs = "resample " + plumeLo() + " --down 2 --out " + dir / "r/r.####.vdb";
     ASSERT_EQ(run(rs + " --frames 1-2 -q").code, 0);
     const auto r1 = fs::last_write_time(dir / "r/r.0001.vdb");
     const Result more = run(rs + " --frames 1-3 --skip-existing");
@@ -445,7 +443,7 @@ TEST(SecondDay, SkipExistingAndTileMetadataForFarmWrappers)
     EXPECT_EQ(fs::last_write_time(dir / "r/r.0001.vdb"), r1);
     EXPECT_TRUE(fs::exists(dir / "r/r.0003.vdb"));
     const Result changed =
-        run("resample " + lo() + " --down 4 --frames 1-3 --skip-existing --out " + dir / "r/r.####.vdb");
+        run("resample " + plumeLo() + " --down 4 --frames 1-3 --skip-existing --out " + dir / "r/r.####.vdb");
     EXPECT_EQ(changed.code, 1) << changed.out;
     EXPECT_TRUE(has(changed.out, "down: 2 -> 4")) << changed.out;
     EXPECT_EQ(fs::last_write_time(dir / "r/r.0001.vdb"), r1) << "nothing written is replaced";

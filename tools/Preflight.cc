@@ -73,9 +73,6 @@ TimingSources timingSources(const turbio::ReadReport& t, const std::string& read
     return s;
 }
 
-// A header scan's note of stray voxels (turbio::SmokeRegion::describeStrays, Blender's outside-the-box note).
-bool isStrayNote(const std::string& note) { return note.find("see --keep-isolated") != std::string::npos; }
-
 std::vector<std::string> timingLines(const std::string& role, const turbio::FrameScan& f, const std::string& readPrefix)
 {
     const turbio::ReadReport& t = f.timing;
@@ -90,8 +87,7 @@ std::vector<std::string> timingLines(const std::string& role, const turbio::Fram
             (t.cells ? "grid cells per time unit x voxel " + num("%g", f.lattice.voxelSize) + " = world units"
                      : std::string("world units")) +
             " (" + source.units + ")");
-    for (const auto& n : t.notes)
-        if (!isStrayNote(n)) lines.push_back(role + ": " + n);
+    for (const auto& n : t.notes) lines.push_back(role + ": " + n);
     return lines;
 }
 
@@ -102,28 +98,7 @@ void reportTiming(const std::string& role, const turbio::SequenceScan& scan, boo
     if (dryOrVerbose())
         for (const auto& line : timingLines(role, f, readPrefix)) printData(line);
     else
-        for (const auto& n : f.timing.notes)
-            if (!isStrayNote(n)) warnOnce("note " + role + n, role + ": " + n);
-    // Strays are said once for the sequence: the first frame that has them, and how many more do.
-    const turbio::FrameScan* first = nullptr;
-    std::string stray;
-    int more = 0;
-    for (const auto& fr : scan.frames)
-        for (const auto& n : fr.timing.notes)
-            if (isStrayNote(n)) {
-                if (first) {
-                    ++more;
-                } else {
-                    first = &fr;
-                    stray = n;
-                }
-                break;
-            }
-    if (first)
-        warnOnce("strays " + role,
-            role + " " + first->path + ": " + stray +
-                (more > 0 ? " (and in " + std::to_string(more) + " more frame" + (more == 1 ? "" : "s") + ")"
-                          : std::string()));
+        for (const auto& n : f.timing.notes) warnOnce("note " + role + n, role + ": " + n);
     if (usesDt && f.timing.conventionAssumed)
         warnOnce("fps " + role,
             role + " " + f.path + ": the cache records no frame rate; dt " + num("%.6g", f.timing.dt) +
@@ -190,9 +165,7 @@ void checkMemory(double estimateBytes, const std::string& what, const std::strin
                                     limit.describe();
         // Held back by a job's limit or by other processes, on a machine that has the memory: a retry elsewhere
         // (or later) can run it (exit 75). More than the machine has: only other settings can (exit 1).
-        const long pages = ::sysconf(_SC_PHYS_PAGES), page = ::sysconf(_SC_PAGESIZE);
-        const double machine = pages > 0 && page > 0 ? double(pages) * double(page) : 0.0;
-        if (estimateBytes < 0.9 * machine)
+        if (estimateBytes < 0.9 * double(turbio::machineMemoryBytes()))
             throw turb::TransientError(message + "; it fits this machine's memory where more is free. " + whatFits);
         throw turb::IoError(message + ". " + whatFits);
     }

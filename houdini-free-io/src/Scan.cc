@@ -97,7 +97,8 @@ void resolveFrame(FrameScan& fs, const FileInfo& info, const ReadOptions& option
             if (g == d) {
                 densityOutside = true;
                 const turb::Coord r = *info.baseResolution;
-                notes.push_back("grid '" + g->name + "' has active voxels outside Blender's simulation box " +
+                if (options.strayNote)
+                    options.strayNote(fs.path + ": grid '" + g->name + "' has active voxels outside Blender's simulation box " +
                                 std::to_string(r.x()) + "x" + std::to_string(r.y()) + "x" + std::to_string(r.z()) +
                                 " (its active box reaches " + std::to_string(b.max().x()) + "," +
                                 std::to_string(b.max().y()) + "," + std::to_string(b.max().z()) +
@@ -137,7 +138,8 @@ void resolveFrame(FrameScan& fs, const FileInfo& info, const ReadOptions& option
             fs.regionFromVoxels = true;
             fs.domain = heldRegion(fs.region, reach(), options);
             // Outside Blender's box the note above already says it; these are strays inside it, or any cache's.
-            if (!densityOutside && !fs.region.strays.empty()) notes.push_back(fs.region.describeStrays(d->name));
+            if (!densityOutside && !fs.region.strays.empty() && options.strayNote)
+                options.strayNote(fs.path + ": " + fs.region.describeStrays(d->name));
         }
     }
     if (fs.domainKnown) {

@@ -2,6 +2,7 @@
 
 #include <cstdio>
 #include <fstream>
+#include <sstream>
 #include <string>
 #include <utility>
 #include <vector>
@@ -37,43 +38,70 @@ long long limitFile(const std::string& path)
     }
 }
 
-// The memory cgroup this process is in: cgroup v2's unified path ("0::/PATH") or v1's memory controller
-// ("N:...memory...:/PATH"), with the directory its limit files live under.
-std::vector<std::string> cgroupLimitFiles()
+// The limit files of the memory cgroup `procSelfCgroup` (/proc/self/cgroup's text) names, under the cgroup mount
+// `root`: cgroup v2's unified path ("0::/PATH") or v1's memory controller ("N:...memory...:/PATH"), each with its
+// ancestors, then the mount's own (inside a container the cgroup's files are at the root).
+std::vector<std::string> cgroupLimitFiles(const std::string& procSelfCgroup, const std::string& root)
 {
     std::vector<std::string> files;
-    std::ifstream in("/proc/self/cgroup");
+    std::istringstream in(procSelfCgroup);
     std::string line;
     while (std::getline(in, line)) {
         const size_t a = line.find(':'), b = a == std::string::npos ? a : line.find(':', a + 1);
         if (b == std::string::npos) continue;
         const std::string controllers = line.substr(a + 1, b - a - 1);
         std::string path = line.substr(b + 1);
-        std::string root, file;
+        std::string dir, file;
         if (controllers.empty()) {
-            root = "/sys/fs/cgroup";
+            dir = root;
             file = "memory.max";
         } else if (("," + controllers + ",").find(",memory,") != std::string::npos) {
-            root = "/sys/fs/cgroup/memory";
+            dir = root + "/memory";
             file = "memory.limit_in_bytes";
         } else {
             continue;
         }
         // A limit on any ancestor holds too (Slurm sets it on the job, the process sits in a step below it).
         for (;;) {
-            files.push_back(root + (path == "/" ? std::string() : path) + "/" + file);
+            files.push_back(dir + (path == "/" ? std::string() : path) + "/" + file);
             if (path.empty() || path == "/") break;
             const size_t slash = path.rfind('/');
             path = slash == 0 || slash == std::string::npos ? "/" : path.substr(0, slash);
         }
     }
-    // Inside a container the cgroup's files are mounted at the root.
-    files.push_back("/sys/fs/cgroup/memory.max");
-    files.push_back("/sys/fs/cgroup/memory/memory.limit_in_bytes");
+    files.push_back(root + "/memory.max");
+    files.push_back(root + "/memory/memory.limit_in_bytes");
     return files;
 }
 
+// Keeps the smaller of `m` and (bytes, source); bytes <= 0 means no limit.
+void keepSmaller(MemoryLimit& m, long long bytes, const std::string& source)
+{
+    if (bytes > 0 && (m.bytes < 0 || bytes < m.bytes)) {
+        m.bytes = bytes;
+        m.source = source;
+    }
+}
+
 } // namespace
+
+long long machineMemoryBytes()
+{
+    const long pages = ::sysconf(_SC_PHYS_PAGES), page = ::sysconf(_SC_PAGESIZE);
+    return pages > 0 && page > 0 ? (long long)pages * page : -1;
+}
+
+namespace detail {
+
+MemoryLimit cgroupMemoryLimit(const std::string& procSelfCgroup, const std::string& root)
+{
+    MemoryLimit m;
+    for (const std::string& f : cgroupLimitFiles(procSelfCgroup, root))
+        keepSmaller(m, limitFile(f), "the cgroup's " + f.substr(f.rfind('/') + 1) + ", " + f);
+    return m;
+}
+
+} // namespace detail
 
 std::string MemoryLimit::describe() const
 {
@@ -83,14 +111,8 @@ std::string MemoryLimit::describe() const
 MemoryLimit memoryLimit()
 {
     MemoryLimit m;
-    const auto consider = [&m](long long bytes, const std::string& source) {
-        if (bytes > 0 && (m.bytes < 0 || bytes < m.bytes)) {
-            m.bytes = bytes;
-            m.source = source;
-        }
-    };
-    const long pages = ::sysconf(_SC_PHYS_PAGES), page = ::sysconf(_SC_PAGESIZE);
-    if (pages > 0 && page > 0) consider((long long)pages * page, "this machine's memory");
+    const auto consider = [&m](long long bytes, const std::string& source) { keepSmaller(m, bytes, source); };
+    consider(machineMemoryBytes(), "this machine's memory");
     {
         std::ifstream in("/proc/meminfo");
         std::string key;
@@ -99,8 +121,13 @@ MemoryLimit memoryLimit()
         while (in >> key >> kb >> unit)
             if (key == "MemAvailable:") consider(kb * 1024, "MemAvailable: what other processes leave free");
     }
-    for (const std::string& f : cgroupLimitFiles())
-        consider(limitFile(f), "the cgroup's " + f.substr(f.rfind('/') + 1) + ", " + f);
+    {
+        std::ifstream in("/proc/self/cgroup");
+        std::stringstream text;
+        text << in.rdbuf();
+        const MemoryLimit group = detail::cgroupMemoryLimit(text.str(), "/sys/fs/cgroup");
+        consider(group.bytes, group.source);
+    }
     // An address-space limit also counts what is mapped and not resident (libraries, thread stacks, malloc's
     // arenas): what is mapped so far beyond the resident set is not there for the run's data.
     long long mappedNotResident = 0;

@@ -727,9 +727,7 @@ void checkDenseSize(const std::string& path, const turb::CoordBBox& domain,
     const std::string problem = denseSizeProblem(path, domain, spans, bytesPerVoxel, options);
     if (problem.empty()) return;
     const double voxels = double(domain.dim().x()) * double(domain.dim().y()) * double(domain.dim().z());
-    const long pages = ::sysconf(_SC_PHYS_PAGES), page = ::sysconf(_SC_PAGESIZE);
-    const double machine = pages > 0 && page > 0 ? double(pages) * double(page) : 0.0;
-    if (voxels <= options.maxVoxels && voxels * bytesPerVoxel < 0.8 * machine)
+    if (voxels <= options.maxVoxels && voxels * bytesPerVoxel < 0.8 * double(machineMemoryBytes()))
         throw turb::TransientError(problem + " It fits this machine's memory where more is free.");
     throw IoError(problem);
 }

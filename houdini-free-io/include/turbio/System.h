@@ -30,6 +30,16 @@ MemoryLimit memoryLimit();
 /// memoryLimit().bytes: -1 if unknown.
 long long usableMemoryBytes();
 
+/// Physical memory of this machine in bytes, or -1 if unknown.
+long long machineMemoryBytes();
+
+namespace detail {
+/// The smallest memory limit of the cgroup that `procSelfCgroup` (the text of /proc/self/cgroup) names, and of its
+/// ancestors, under the cgroup mount `root` ("/sys/fs/cgroup"): v2 memory.max, v1 memory/memory.limit_in_bytes.
+/// memoryLimit()'s cgroup part, apart for tests.
+MemoryLimit cgroupMemoryLimit(const std::string& procSelfCgroup, const std::string& root);
+} // namespace detail
+
 /// Human form of a byte count: "512 MB", "3.2 GB".
 std::string formatBytes(double bytes);
 
