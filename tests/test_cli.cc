@@ -441,6 +441,36 @@ TEST(Cli, SheetColumnsOfOneSceneShareOneCamera)
             << aligned.out;
 }
 
+TEST(Cli, MeasureAndPreviewTakeADensityOnlyCacheAsBlendersNoiseWrites)
+{
+    // Blender's noise up-res writes density_noise and no velocity (issue 42 measured it by copying it into a file
+    // with a zero vel). measure gives its density numbers; a sheet draws it beside velocity caches, its velocity
+    // cells left empty and labelled; alone in a velocity mode it is refused, naming the file.
+    testutil::TempDir dir;
+    turb::Frame f = turbio::readFrame(testutil::dataPath("blender-plume-128/fluid_data_0002.vdb"), 2, {});
+    f.velocity = turb::VectorField();
+    std::filesystem::create_directories(dir / "noise");
+    turbio::writeFrame(dir / "noise/n.0002.vdb", f, turbio::WriteOptions{});
+    const CmdResult m = clitest::runStdout("measure --output " + dir / "noise/n.####.vdb" + " --target " + lo() +
+                                           " --source " + hi() + " --frames 2 --no-spectra -q");
+    ASSERT_EQ(m.code, 0) << m.out;
+    const nlohmann::json j = nlohmann::json::parse(m.out.substr(0, m.out.find('\n')));
+    EXPECT_TRUE(j.at("edge_crispness").is_number()) << m.out;
+    EXPECT_TRUE(j.at("density_fray").is_number()) << m.out;
+    EXPECT_TRUE(j.at("mass_ratio").is_number()) << m.out;
+    EXPECT_TRUE(j.at("lf_err").is_null()) << m.out;
+    EXPECT_EQ(j.at("ratio").get<int>(), 4);
+
+    const CmdResult sheet = run("preview t=" + lo() + " n=" + dir / "noise/n.####.vdb" +
+                                " --mode density,vorticity --frames 2 --width 32 --sheet " + dir / "s.png" + " -q");
+    EXPECT_EQ(sheet.code, 0) << sheet.out;
+    const CmdResult alone = run("preview " + dir / "noise/n.####.vdb" + " --mode vorticity --frames 2 --width 32 --out " +
+                                dir / "v.####.png" + " -q");
+    EXPECT_EQ(alone.code, 1) << alone.out;
+    EXPECT_NE(alone.out.find("n.0002.vdb"), std::string::npos) << alone.out;
+    EXPECT_NE(alone.out.find("no velocity"), std::string::npos) << alone.out;
+}
+
 TEST(Cli, MeasureCanReadTheSourceAsTransferReadsIt)
 {
     // Frame 1 of the Blender plume: the clipped source's edge step dominates its high-frequency energy;

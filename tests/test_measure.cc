@@ -11,6 +11,7 @@
 #include <turbio/Sequence.h>
 #include <turbio/Vdb.h>
 
+#include <algorithm>
 #include <cmath>
 #include <functional>
 #include <random>
@@ -704,6 +705,162 @@ TEST(MeasureDensity, FrayIsLowForASmoothBallAndHighForAFrayedOne)
     EXPECT_FALSE(densityFray(ScalarField(CoordBBox({0, 0, 0}, {7, 7, 7}), Lattice{}), 4, 0.01f)) << "no smoke";
     EXPECT_FALSE(densityFray(ScalarField(CoordBBox({0, 0, 0}, {7, 7, 7}), Lattice{}, 1.0f), 1, 0.01f))
         << "no smaller scale at ratio 1";
+}
+
+namespace {
+
+// A separable 1-2-1 blur applied `passes` times along each axis (a Gaussian of variance passes / 2 voxels^2).
+ScalarField blurred(const ScalarField& d, int passes)
+{
+    ScalarField a = d;
+    for (int axis = 0; axis < 3; ++axis)
+        for (int p = 0; p < passes; ++p) {
+            ScalarField b = a;
+            forEachVoxel(a.bbox(), [&](int i, int j, int k) {
+                Coord lo(i, j, k), hi(i, j, k);
+                lo[axis] -= 1;
+                hi[axis] += 1;
+                b(i, j, k) = 0.25f * a.valueOr(lo.x(), lo.y(), lo.z(), 0.0f) + 0.5f * a(i, j, k) +
+                             0.25f * a.valueOr(hi.x(), hi.y(), hi.z(), 0.0f);
+            });
+            a = std::move(b);
+        }
+    return a;
+}
+
+// `soft` with hairs at its edge: multiplied by 1 + 1.5 N where it is below a third of its peak, N a fixed unit
+// noise stretched along z (the vertical hair of issue 42's stem), fading to nothing inside the smoke.
+ScalarField hairy(const ScalarField& soft)
+{
+    std::mt19937 rng(7);
+    std::normal_distribution<float> normal;
+    ScalarField noise(soft.bbox(), soft.lattice());
+    for (float& v : noise.values()) v = normal(rng);
+    // Stretch along z: a running mean of 9 voxels.
+    ScalarField streaks = noise;
+    forEachVoxel(soft.bbox(), [&](int i, int j, int k) {
+        float sum = 0.0f;
+        for (int d = -4; d <= 4; ++d) sum += noise.valueOr(i, j, k + d, 0.0f);
+        streaks(i, j, k) = sum / 3.0f; // unit variance again
+    });
+    float peak = 0.0f;
+    for (float v : soft.values()) peak = std::max(peak, v);
+    ScalarField out = soft;
+    for (size_t n = 0; n < out.size(); ++n) {
+        const float edge = std::clamp(1.0f - 3.0f * soft.data()[n] / peak, 0.0f, 1.0f);
+        out.data()[n] = std::max(0.0f, soft.data()[n] * (1.0f + 1.5f * streaks.data()[n] * edge));
+    }
+    return out;
+}
+
+} // namespace
+
+TEST(MeasureDensity, CrispnessRanksACrispABlurredAndAHairyDensityAsAPersonDoes)
+{
+    // Analytic: a ball whose edge is a tanh of width w voxels. At f = 4 a near step reads about f, an edge blurred
+    // wider than a coarse cell about 1, and the hairy ball (its radius varying quickly with direction) much less than
+    // the crisp one: its gradient lies across the surface.
+    const Lattice lat{0.1, {0.0, 0.0, 0.0}};
+    const CoordBBox box({0, 0, 0}, {47, 47, 47});
+    const auto ball = [&](double width, double hair) {
+        ScalarField d(box, lat);
+        for (size_t n = 0; n < d.size(); ++n) {
+            const Vec3d x = d.coordOf(n).asVec3d() - Vec3d(23.5);
+            const double r = x.length(), theta = std::atan2(x.y(), x.x()), phi = std::acos(r > 0 ? x.z() / r : 0.0);
+            const double edge = 14.0 + hair * std::sin(20.0 * theta) * std::sin(17.0 * phi);
+            d.data()[n] = float(0.5 * (1.0 - std::tanh((r - edge) / width)));
+        }
+        return d;
+    };
+    const auto crisp = edgeCrispness(ball(0.5, 0.0), 4, 0.01f), soft = edgeCrispness(ball(4.0, 0.0), 4, 0.01f),
+               hair = edgeCrispness(ball(1.5, 3.0), 4, 0.01f);
+    ASSERT_TRUE(crisp && soft && hair);
+    // Measured: 3.27, 1.22 and 2.05.
+    EXPECT_GT(*crisp, 2.0);
+    EXPECT_GT(*soft, 0.8);
+    EXPECT_LT(*soft, 1.3);
+    EXPECT_LT(*hair, 0.7 * *crisp);
+    EXPECT_FALSE(edgeCrispness(ScalarField(box, lat), 4, 0.01f)) << "no smoke";
+    EXPECT_FALSE(edgeCrispness(ball(1.0, 0.0), 1, 0.01f)) << "no smaller scale at ratio 1";
+
+    // A real one: Blender's own 128^3 simulation of the plume2 scene at frame 30 (crisp billows), a blurred copy
+    // (Gaussian of 2 voxels, half a coarse cell at f = 4: soft) and that copy with hairs at its edge (fur). A person
+    // ranks them crisp, then soft and fur far behind; fray puts the fur above the soft copy.
+    const Frame f = turbio::readFrame(testutil::dataPath("blender-plume2-128/fluid_data_0030.vdb"), 30, {});
+    const ScalarField& D = f.density;
+    const ScalarField S = blurred(D, 8), H = hairy(S);
+    const auto cD = edgeCrispness(D, 4, 0.01f), cS = edgeCrispness(S, 4, 0.01f), cH = edgeCrispness(H, 4, 0.01f);
+    ASSERT_TRUE(cD && cS && cH);
+    // Measured: 3.29, 1.44 and 1.61; fray 0.23, 0.04 and 0.18 (the crisp billows fray a little themselves).
+    EXPECT_GT(*cD, 2.0 * *cS);
+    EXPECT_GT(*cD, 2.0 * *cH);
+    EXPECT_GT(*densityFray(H, 4, 0.01f), 3.0 * *densityFray(S, 4, 0.01f));
+}
+
+TEST(MeasureStructure, DetailProfileFollowsTheDetailsStrengthWithHeight)
+{
+    // Detail of amplitude 1 in the bottom half of the smoke and 2 in the top half (a checkerboard: all of it above a
+    // coarse cell): the profile is 1/rms and 2/rms with rms = sqrt(5/2), band 0 at the bottom. Along z, and along y
+    // for a y-up cache.
+    const Lattice lat{0.1, {0.0, 0.0, 0.0}};
+    const CoordBBox box({0, 0, 0}, {15, 15, 15});
+    for (const int up : {2, 1}) {
+        VectorField u(box, lat);
+        for (size_t n = 0; n < u.size(); ++n) {
+            const Coord c = u.coordOf(n);
+            const float sign = (c.x() + c.y() + c.z()) % 2 ? 1.0f : -1.0f;
+            u.data()[n] = Vec3f(sign * (c[up] < 8 ? 1.0f : 2.0f), 0.0f, 0.0f);
+        }
+        const std::vector<unsigned char> mask(u.size(), 1);
+        const auto p = detailProfile(u, mask, 4, up, 2);
+        ASSERT_EQ(p.size(), 2u);
+        ASSERT_TRUE(p[0] && p[1]);
+        EXPECT_NEAR(*p[0], 1.0 / std::sqrt(2.5), 0.02) << up;
+        EXPECT_NEAR(*p[1], 2.0 / std::sqrt(2.5), 0.02) << up;
+        // Against a flat profile, the worst band is the bottom one, sqrt(2.5) = 1.58 times too weak.
+        EXPECT_NEAR(*detailProfileRatio(p, {1.0, 1.0}), std::sqrt(2.5), 0.02);
+    }
+    EXPECT_NEAR(*detailProfileRatio({1.0, 0.5, std::nullopt}, {1.0, 1.0, 3.0}), 2.0, 1e-12) << "a weak band counts too";
+    EXPECT_FALSE(detailProfileRatio({std::nullopt}, {1.0}));
+    EXPECT_TRUE(detailProfile(VectorField(box, lat), std::vector<unsigned char>(size_t(box.volume()), 1), 4, 2).empty())
+        << "no detail";
+    EXPECT_THROW(detailProfile(VectorField(box, lat), {}, 4, 2), ValueError);
+}
+
+TEST(MeasureDensity, AnOutputWithDensityOnlyGetsItsDensityNumbers)
+{
+    // Blender's noise up-res writes density_noise and no velocity. Its density numbers are measured; the velocity
+    // numbers are absent and a note says why. A frame with neither grid is refused.
+    const Lattice coarse{0.4, {0.0, 0.0, 0.0}};
+    const CoordBBox cbox({0, 0, 0}, {7, 7, 7});
+    const auto blob = [](const Vec3d& x, double c) { return float(std::exp(-(x - Vec3d(c)).lengthSqr() / 0.8)); };
+    Frame T = makeFrame(
+        3, cbox, coarse, [](const Vec3d&) { return Vec3f(0.0f, 0.0f, 1.0f); },
+        [&](const Coord& c) { return blob(coarse.indexToWorld(c.asVec3d()), 1.6); });
+    const int f = 4;
+    Frame O;
+    O.number = 3;
+    O.dt = T.dt;
+    O.density = ScalarField(refineDomain(cbox, f), refinedLattice(coarse, cbox, f));
+    for (size_t n = 0; n < O.density.size(); ++n)
+        O.density.data()[n] = blob(O.density.lattice().indexToWorld(O.density.coordOf(n).asVec3d()), 1.6);
+    MeasureInput in;
+    in.output = &O;
+    in.target = &T;
+    const FrameMeasures m = measureFrame(in);
+    EXPECT_EQ(m.ratio, f);
+    ASSERT_TRUE(m.massRatio && m.densityErr && m.densityFray && m.edgeCrispness);
+    EXPECT_NEAR(*m.massRatio, 1.0, 0.05);
+    EXPECT_LT(*m.densityErr, 0.1);
+    EXPECT_FALSE(m.lfErr);
+    EXPECT_FALSE(m.hfEnergy);
+    EXPECT_FALSE(m.detailProfileRatio);
+    EXPECT_NE(std::find(m.notes.begin(), m.notes.end(), "the output has no velocity: density numbers only"),
+        m.notes.end());
+    Frame empty;
+    empty.number = 3;
+    in.output = &empty;
+    EXPECT_THROW(measureFrame(in), ValueError);
 }
 
 TEST(MeasureDensity, FrayOfLayersAlongOneAxisIsZeroInOneLayerAtAnyThreadCount)

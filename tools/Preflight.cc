@@ -289,4 +289,20 @@ void lockOutputFrames(const turbio::FramePattern& pattern, const std::vector<int
     }
 }
 
+int upAxisOf(const std::string& path, const std::string& requested, std::string& why)
+{
+    why.clear();
+    if (requested != "auto") return requested == "y" ? 1 : 2;
+    const turbio::FileInfo fi = turbio::inspectFile(path, false);
+    if (!fi.upAxis.empty()) {
+        why = "vdbturb_up_axis metadata";
+        return fi.upAxis == "y" ? 1 : 2;
+    }
+    if (fi.creator.find("Houdini") != std::string::npos) {
+        why = "written by Houdini ('" + fi.creator + "')";
+        return 1;
+    }
+    return 2;
+}
+
 } // namespace vdbturb

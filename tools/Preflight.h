@@ -78,4 +78,10 @@ void lockOutputFrames(const turbio::FramePattern& pattern, const std::vector<int
 /// reason and `whatFits` (what would run instead). Logged at -v and in dry runs either way.
 void checkMemory(double estimateBytes, const std::string& what, const std::string& whatFits);
 
+/// Which world axis points up in the cache file `path` (1 y, 2 z) under `requested` ("auto", "y" or "z"): auto
+/// reads the vdbturb_up_axis metadata, else takes y for a file written by Houdini (its world is y up and its VDBs
+/// say so only through their creator), else z (Blender, EmberGen, vdbturb's scenes). `why` gets the reason auto
+/// chose y (empty otherwise).
+int upAxisOf(const std::string& path, const std::string& requested, std::string& why);
+
 } // namespace vdbturb

@@ -33,7 +33,7 @@ namespace {
 
 struct MeasureArgs
 {
-    std::string output, target, source, frames, plotDir, plotFormat = "png", patchOrigin, tileBorders;
+    std::string output, target, source, frames, plotDir, plotFormat = "png", patchOrigin, tileBorders, up = "auto";
     bool json = false;          // accepted for symmetry with the other commands; JSON is always written
     bool spectraJson = false;   // include the E(k) arrays in the JSON lines
     bool computeSpectra = true; // --plot and --spectra compute them whatever this says
@@ -54,6 +54,13 @@ nlohmann::json frameJson(const turb::FrameMeasures& m, bool spectra)
 {
     nlohmann::json j;
     for (const auto& [name, v] : m.scalars()) j[name] = opt(v);
+    const auto profile = [](const std::vector<std::optional<double>>& p) {
+        nlohmann::json a = nlohmann::json::array();
+        for (const auto& v : p) a.push_back(opt(v));
+        return a;
+    };
+    j["detail_profile"] = profile(m.detailProfile);
+    j["detail_profile_source"] = profile(m.detailProfileSource);
     j["ratio"] = m.ratio;
     j["source_ratio"] = m.sourceRatio;
     j["alignment"] = turb::alignmentName(m.alignment);
@@ -158,6 +165,7 @@ MeasurePlan planMeasure(const MeasureArgs& a)
     p.readOut = p.readTgt = p.readSrc = a.read;
     p.readOut.readExtras = p.readTgt.readExtras = p.readSrc.readExtras = false;
     p.readOut.requireDensity = false; // an up-res may carry velocity only; the target then gives the region
+    p.readOut.requireVelocity = false; // or density only (Blender's noise): its density numbers
     p.readSrc.extendVelocity = a.sourceExtend;
     return p;
 }
@@ -306,11 +314,16 @@ void reportSummary(const std::vector<turb::FrameMeasures>& results, const std::v
 int runMeasure(MeasureArgs& a)
 {
     const auto t0 = std::chrono::steady_clock::now();
-    const turb::MeasureSettings s = measureSettings(a);
+    turb::MeasureSettings s = measureSettings(a);
     const MeasurePlan p = planMeasure(a);
     if (p.frames.empty()) {
         return reportFailure(
             "no frame is present in both " + p.out.pattern.str() + " and " + p.tgt.pattern.str(), kFailed);
+    }
+    if (holds(p.out, p.frames.front())) {
+        std::string why;
+        s.upAxis = upAxisOf(p.out.path(p.frames.front()), a.up, why);
+        if (!why.empty()) logInfo("detail_profile: heights along +y (" + why + "; --up z measures along z)");
     }
     logInfo("measure: output " + p.out.pattern.str() + ", target " + p.tgt.pattern.str() +
             (p.src ? ", source " + p.src->pattern.str() : std::string(", no source")) + ", frames " +
@@ -422,6 +435,10 @@ Command measureCommand()
             ->check(finiteIn(0.0));
         app->add_flag("--spectra", a.spectraJson, "Include the E(k) arrays in the JSON lines");
         app->add_flag("--json", a.json, "Accepted for symmetry with other commands: measure always prints JSON");
+        app->add_option("--up", a.up,
+               "World axis pointing up, for detail_profile's heights: auto (vdbturb_up_axis metadata, else y for "
+               "Houdini's files, else z), y, z")
+            ->check(CLI::IsMember({"auto", "y", "z"}));
         addReadOptions(app, a.read);
         app->add_option("--plot", a.plotDir,
                "Write plots into DIR with gnuplot: spectrum.####.png per frame, metrics.png, and their .gp scripts")

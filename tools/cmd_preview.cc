@@ -327,20 +327,9 @@ std::vector<int> rowFrames(const PreviewArgs& a, const std::vector<Input>& input
 // up and its VDBs say so only through their creator), else z (Blender, EmberGen, vdbturb's scenes).
 void chooseUpAxis(const std::string& up, Input& in, int frame)
 {
-    if (up != "auto") {
-        in.yUp = up == "y";
-        return;
-    }
-    const turbio::FileInfo fi = turbio::inspectFile(in.seq.path(frame), false);
     std::string why;
-    if (!fi.upAxis.empty()) {
-        in.yUp = fi.upAxis == "y";
-        why = "vdbturb_up_axis metadata";
-    } else if (fi.creator.find("Houdini") != std::string::npos) {
-        in.yUp = true;
-        why = "written by Houdini ('" + fi.creator + "')";
-    }
-    if (in.yUp) logInfo(in.label + ": drawn with +y up (" + why + "; --up z draws it as stored)");
+    in.yUp = upAxisOf(in.seq.path(frame), up, why) == 1;
+    if (in.yUp && !why.empty()) logInfo(in.label + ": drawn with +y up (" + why + "; --up z draws it as stored)");
 }
 
 std::vector<std::string> checkAndFrame(PreviewPlan& p, const std::string& up)
@@ -422,6 +411,7 @@ void colourRanges(const PreviewArgs& a, PreviewPlan& p)
         ro.requireDensity = false;
         ro.cropMargin += in.extraMargin;
         turb::Frame f = turbio::readFrame(in.seq.path(fileFrame(in, ref)), fileFrame(in, ref), ro);
+        if (!f.hasVelocity()) continue;
         turb::toTimeUnit(f, 1.0); // one speed scale for every column: world units per second
         const turb::ScalarField* d = f.hasDensity() ? &f.density : nullptr;
         in.speedMax = a.speedMax > 0.0f ? a.speedMax : percentile(turb::magnitude(f.velocity), d, 0.995);
@@ -457,8 +447,11 @@ std::vector<turb::Image> renderRow(
         }
         for (Mode m : p.modes) {
             progress.begin(std::string("rendering ") + modeName(m));
-            images.push_back(f ? render(*f, m, a, in) : turb::Image());
-            labels.push_back(cellLabel(in, m, p.inputs.size(), p.modes.size()));
+            const bool drawable = f && (m == Mode::Density ? f->hasDensity() : f->hasVelocity());
+            images.push_back(drawable ? render(*f, m, a, in) : turb::Image());
+            labels.push_back(f && !drawable
+                                 ? in.label + " " + modeName(m) + (m == Mode::Density ? " (no density)" : " (no velocity)")
+                                 : cellLabel(in, m, p.inputs.size(), p.modes.size()));
         }
     }
     return images;
@@ -560,7 +553,9 @@ int runPreview(PreviewArgs& a)
     p.inputs = resolveInputs(a);
     p.frames = rowFrames(a, p.inputs);
     p.read = a.read;
-    p.read.requireVelocity = needsVelocity(p.modes);
+    // A sheet may set a density-only cache (Blender's noise up-res) beside others: its velocity cells are left
+    // empty, labelled. One cache alone must have what its modes draw.
+    p.read.requireVelocity = needsVelocity(p.modes) && p.inputs.size() == 1;
     p.read.requireDensity = std::find(p.modes.begin(), p.modes.end(), Mode::Density) != p.modes.end();
     p.read.readExtras = false;
 

@@ -259,13 +259,15 @@ Field<T> realign(const Field<T>& field, const Lattice& lattice, const CoordBBox&
 template Field<float> realign(const Field<float>&, const Lattice&, const CoordBBox&, Alignment);
 template Field<Vec3f> realign(const Field<Vec3f>&, const Lattice&, const CoordBBox&, Alignment);
 
-Alignment resolveAlignment(
-    Alignment requested, const Field<Vec3f>& output, const Lattice& refined, const CoordBBox& refinedBox)
+namespace {
+
+Alignment resolveAlignmentOf(Alignment requested, const Lattice& outLattice, const CoordBBox& outBox,
+    const Lattice& refined, const CoordBBox& refinedBox)
 {
     if (requested != Alignment::Auto) return requested;
-    const Vec3d off = (output.lattice().origin - refined.origin) / refined.voxelSize;
+    const Vec3d off = (outLattice.origin - refined.origin) / refined.voxelSize;
     const bool nests = off.length() < 1e-3;
-    if (!nests && output.bbox() == refinedBox) return Alignment::Index;
+    if (!nests && outBox == refinedBox) return Alignment::Index;
     // Two resolutions of one Blender domain put index 0 at the same world point (a shared corner, not nested
     // cells): the output's origin then sits (f - 1) / 2 fine voxels from the refined target's on every axis. Held
     // over their smoke, the boxes no longer tell this apart by their extent, the origins still do.
@@ -274,6 +276,20 @@ Alignment resolveAlignment(
         std::abs(off.x() - off.z()) < 1e-3)
         return Alignment::Index;
     return Alignment::World;
+}
+
+} // namespace
+
+Alignment resolveAlignment(
+    Alignment requested, const Field<Vec3f>& output, const Lattice& refined, const CoordBBox& refinedBox)
+{
+    return resolveAlignmentOf(requested, output.lattice(), output.bbox(), refined, refinedBox);
+}
+
+Alignment resolveAlignment(
+    Alignment requested, const Field<float>& output, const Lattice& refined, const CoordBBox& refinedBox)
+{
+    return resolveAlignmentOf(requested, output.lattice(), output.bbox(), refined, refinedBox);
 }
 
 std::vector<unsigned char> smokeMask(const ScalarField& density, float threshold)
@@ -375,13 +391,16 @@ DensityMeasures densityMeasures(
     return d;
 }
 
-std::optional<double> densityFray(const ScalarField& D, int f, float threshold)
+namespace {
+
+// One pass over the density's edge for densityFray and edgeCrispness: sums of |grad D|^2 across n, |grad D|^2,
+// (grad D . n)^2 and |grad L|^2.
+std::array<double, 4> densityEdgeSums(const ScalarField& D, int f, float threshold)
 {
-    if (f < 2 || D.empty()) return std::nullopt;
     const ScalarField low = cropped(upsample(boxDownsample(D, f), f), D.bbox());
     const CoordBBox& b = D.bbox();
     const bool flat = isFlat(b);
-    const auto s = slabSums<2>(b, [&](int i, std::array<double, 2>& acc) {
+    return slabSums<4>(b, [&](int i, std::array<double, 4>& acc) {
         for (int j = b.min().y(); j <= b.max().y(); ++j)
             for (int k = b.min().z(); k <= b.max().z(); ++k) {
                 const size_t n = D.offset(i, j, k);
@@ -396,10 +415,72 @@ std::optional<double> densityFray(const ScalarField& D, int f, float threshold)
                 const double along = g.dot(gl);
                 acc[0] += g.lengthSqr() - along * along / ll; // |grad D| across the smooth surface's normal
                 acc[1] += g.lengthSqr();
+                acc[2] += along * along / ll; // |grad D| along it
+                acc[3] += ll;
             }
     });
+}
+
+} // namespace
+
+std::optional<double> densityFray(const ScalarField& D, int f, float threshold)
+{
+    if (f < 2 || D.empty()) return std::nullopt;
+    const auto s = densityEdgeSums(D, f, threshold);
     if (!(s[1] > 0.0)) return std::nullopt;
     return s[0] / s[1];
+}
+
+std::optional<double> edgeCrispness(const ScalarField& D, int f, float threshold)
+{
+    if (f < 2 || D.empty()) return std::nullopt;
+    const auto s = densityEdgeSums(D, f, threshold);
+    if (!(s[3] > 0.0)) return std::nullopt;
+    return s[2] / s[3];
+}
+
+std::vector<std::optional<double>> detailProfile(
+    const VectorField& u, const std::vector<unsigned char>& mask, int f, int upAxis, int bands)
+{
+    if (mask.size() != u.size()) throw ValueError("detailProfile: mask and field sizes differ");
+    if (upAxis < 0 || upAxis > 2) throw ValueError("detailProfile: the up axis must be 0, 1 or 2");
+    if (bands < 1) throw ValueError("detailProfile: at least one band");
+    const CoordBBox mb = maskBBox(u.bbox(), mask);
+    if (mb.empty()) return {};
+    const FrequencySplit split = splitFrequencies(u, f);
+    const int lo = mb.min()[upAxis], extent = mb.max()[upAxis] - lo + 1;
+    std::vector<double> sum(size_t(bands), 0.0), count(size_t(bands), 0.0);
+    // Serial: a fixed order of additions keeps the result the same at any thread count.
+    for (size_t n = 0; n < mask.size(); ++n) {
+        if (!mask[n]) continue;
+        const int h = u.coordOf(n)[upAxis] - lo;
+        const size_t band = size_t(std::min(bands - 1, int(int64_t(h) * bands / extent)));
+        sum[band] += double(split.high.data()[n].lengthSqr());
+        count[band] += 1.0;
+    }
+    double all = 0.0, voxels = 0.0;
+    for (int b = 0; b < bands; ++b) {
+        all += sum[size_t(b)];
+        voxels += count[size_t(b)];
+    }
+    if (!(all > 0.0)) return {};
+    const double rmsAll = std::sqrt(all / voxels);
+    std::vector<std::optional<double>> out(static_cast<size_t>(bands));
+    for (size_t b = 0; b < size_t(bands); ++b)
+        if (count[b] >= 0.01 * voxels) out[b] = std::sqrt(sum[b] / count[b]) / rmsAll;
+    return out;
+}
+
+std::optional<double> detailProfileRatio(
+    const std::vector<std::optional<double>>& output, const std::vector<std::optional<double>>& source)
+{
+    std::optional<double> worst;
+    for (size_t b = 0; b < std::min(output.size(), source.size()); ++b) {
+        if (!output[b] || !source[b] || !(*output[b] > 0.0) || !(*source[b] > 0.0)) continue;
+        const double r = *output[b] / *source[b];
+        worst = std::max(worst.value_or(0.0), std::max(r, 1.0 / r));
+    }
+    return worst;
 }
 
 std::optional<double> densityImprint(const ScalarField& fine, int f, float threshold)
@@ -484,7 +565,9 @@ std::vector<std::pair<std::string, std::optional<double>>> FrameMeasures::scalar
         {"tile_div_rel", tileDivRel}, {"tile_hf_ratio", tileHfRatio}, {"tcoh", tcoh}, {"tcoh_source", tcohSource},
         {"mass_ratio", massRatio}, {"peak_density", peakDensity}, {"peak_ratio", peakRatio},
         {"density_err", densityErr}, {"density_imprint", densityImprint}, {"density_fray", densityFray},
-        {"density_fray_source", densityFraySource}, {"density_fray_ratio", densityFrayRatio}, {"aniso", aniso},
+        {"density_fray_source", densityFraySource}, {"density_fray_ratio", densityFrayRatio},
+        {"edge_crispness", edgeCrispness}, {"edge_crispness_source", edgeCrispnessSource},
+        {"detail_profile_ratio", detailProfileRatio}, {"aniso", aniso},
         {"aniso_source", anisoSource}, {"aniso_ratio", anisoRatio}, {"detail_scale", detailScale},
         {"detail_scale_source", detailScaleSource}, {"detail_scale_ratio", detailScaleRatio}, {"isotropy", isotropy},
         {"isotropy_source", isotropySource}, {"lattice", lattice}, {"lattice_source", latticeSource},
@@ -592,6 +675,7 @@ Mask outputMeasures(const Frame& O, const Frame& T, const Aligned& a, const Meas
         m.densityErr = dm.coarseErr;
         m.densityImprint = dm.imprint;
         m.densityFray = densityFray(onRefined, a.f, s.densityThreshold);
+        m.edgeCrispness = edgeCrispness(onRefined, a.f, s.densityThreshold);
     }
     m.hfEnergy = highFrequencyEnergy(O.velocity, ownMask, a.f);
     m.divRel = relativeDivergence(O.velocity, ownMask);
@@ -615,6 +699,7 @@ Mask sourceMeasures(const MeasuredSources& sources, const Frame& T, const Measur
     m.hfEnergySource = highFrequencyEnergy(S.velocity, srcMask, m.sourceRatio);
     m.divRelSource = relativeDivergence(S.velocity, srcMask);
     m.densityFraySource = densityFray(S.density, m.sourceRatio, s.densityThreshold);
+    m.edgeCrispnessSource = edgeCrispness(S.density, m.sourceRatio, s.densityThreshold);
     if (m.densityFray && m.densityFraySource && *m.densityFraySource > 0.0)
         m.densityFrayRatio = *m.densityFray / *m.densityFraySource;
     if (m.hfEnergy && m.hfEnergySource && *m.hfEnergySource > 0.0) m.hfRatio = *m.hfEnergy / *m.hfEnergySource;
@@ -625,8 +710,13 @@ Mask sourceMeasures(const MeasuredSources& sources, const Frame& T, const Measur
 // aniso, isotropy, lattice (with a patch size, from blockMeasure) and vort_peak of the output, and of the source
 // (aniso along the same direction, lattice on the same patch size: its chance level).
 void structureMeasures(const Frame& O, const Frame& T, const Frame* src, const Aligned& a, const Mask& ownMask,
-    const Mask& srcMask, const Mask& coarseMask, FrameMeasures& m)
+    const Mask& srcMask, const Mask& coarseMask, int upAxis, FrameMeasures& m)
 {
+    m.detailProfile = detailProfile(O.velocity, ownMask, a.f, upAxis);
+    if (src) {
+        m.detailProfileSource = detailProfile(src->velocity, srcMask, m.sourceRatio, upAxis);
+        m.detailProfileRatio = detailProfileRatio(m.detailProfile, m.detailProfileSource);
+    }
     // d: the target's mean flow over its smoke cells; the source's detail is measured along the same d.
     Vec3d mean(0.0);
     for (size_t n = 0; n < T.velocity.size(); ++n)
@@ -778,10 +868,65 @@ void sourceCoherence(const MeasuredSources& sources, const Mask& srcMask, const 
     }
 }
 
+// The density numbers of an output without velocity (Blender's noise up-res writes density_noise alone): the
+// target's density gives the ratio and the refined lattice.
+FrameMeasures measureDensityOnly(const MeasureInput& in, const MeasureSettings& s)
+{
+    const Frame& O = *in.output;
+    const Frame& T = *in.target;
+    FrameMeasures m;
+    m.frame = O.number;
+    m.notes.push_back("the output has no velocity: density numbers only");
+    withThreads(s.threads, [&] {
+        const ScalarField& Dt = T.density;
+        const int f = integerRatio(Dt.lattice().voxelSize, O.density.lattice().voxelSize);
+        const Lattice refined = refinedLattice(Dt.lattice(), Dt.bbox(), f);
+        const CoordBBox box = refineDomain(Dt.bbox(), f);
+        const Alignment al = resolveAlignment(s.alignment, O.density, refined, box);
+        m.ratio = f;
+        m.alignment = al;
+        m.alignmentOffset = (O.density.lattice().origin - refined.origin) / O.density.lattice().voxelSize;
+        m.resampled = al == Alignment::World && !nestsExactly(O.density.lattice(), refined);
+        m.targetNyquist = M_PI / Dt.lattice().voxelSize;
+        m.smokeVoxels = countMask(thresholdMask(O.density, O.density.bbox(), s.densityThreshold));
+        m.smokeCells = countMask(thresholdMask(Dt, Dt.bbox(), s.densityThreshold));
+        const ScalarField onRefined = realign(O.density, refined, box, al);
+        const DensityMeasures dm = densityMeasures(O.density, onRefined, Dt, f, s.densityThreshold);
+        m.massRatio = dm.massRatio;
+        m.peakDensity = dm.peak;
+        m.peakRatio = dm.peakRatio;
+        m.densityErr = dm.coarseErr;
+        m.densityImprint = dm.imprint;
+        m.densityFray = densityFray(onRefined, f, s.densityThreshold);
+        m.edgeCrispness = edgeCrispness(onRefined, f, s.densityThreshold);
+        MeasuredSources sources;
+        measuredSources(in, T, sources);
+        if (sources.source) {
+            const Frame& S = *sources.source;
+            m.sourceRatio = integerRatio(Dt.lattice().voxelSize, S.density.lattice().voxelSize);
+            m.densityFraySource = densityFray(S.density, m.sourceRatio, s.densityThreshold);
+            m.edgeCrispnessSource = edgeCrispness(S.density, m.sourceRatio, s.densityThreshold);
+            if (m.densityFray && m.densityFraySource && *m.densityFraySource > 0.0)
+                m.densityFrayRatio = *m.densityFray / *m.densityFraySource;
+        }
+    });
+    return m;
+}
+
 } // namespace
 
 FrameMeasures measureFrame(const MeasureInput& in, const MeasureSettings& s, Progress* progress)
 {
+    if (!in.output) throw ValueError("measure: no output frame given");
+    if (!in.output->hasVelocity()) {
+        if (!in.output->hasDensity())
+            throw ValueError("measure: the output frame " + std::to_string(in.output->number) +
+                             " has neither a velocity nor a density grid");
+        if (!in.target) throw ValueError("measure: no target frame given");
+        requireDensity(*in.target, "target");
+        if (in.source) requireDensity(*in.source, "source");
+        return measureDensityOnly(in, s);
+    }
     requireVelocity(in.output, "output");
     requireVelocity(in.target, "target");
     requireDensity(*in.target, "target");
@@ -826,7 +971,7 @@ FrameMeasures measureFrame(const MeasureInput& in, const MeasureSettings& s, Pro
         tileMeasures(O, a, uh, ownMask, s, m);
         if (s.structure) {
             if (progress) progress->begin("structure");
-            structureMeasures(O, T, src, a, ownMask, srcMask, coarseMask, m);
+            structureMeasures(O, T, src, a, ownMask, srcMask, coarseMask, s.upAxis, m);
             checkCancelled(progress);
         }
         if (in.previousOutput && in.previousTarget) {

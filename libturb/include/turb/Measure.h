@@ -72,6 +72,7 @@ struct MeasureSettings
     Alignment alignment = Alignment::Auto; ///< how output voxels meet the refined target lattice
     bool spectra = true;                   ///< compute E(k) of output, target and source
     bool structure = true;                 ///< aniso, isotropy, lattice, vort_peak (source figures need a source)
+    int upAxis = 2;                        ///< the world axis pointing up (0 x, 1 y, 2 z), for detail_profile
     SpectrumSettings spectrum;             ///< window and mean removal of the spectra
     AdvectSettings advect;                 ///< scheme advecting U_h(f-1) for tcoh (default BFECC + clamp)
     int threads = 0;                       ///< worker threads, 0 = all; results are identical at any count
@@ -80,7 +81,8 @@ struct MeasureSettings
 /// What measureFrame needs. Frames are not copied; all pointers must outlive the call.
 struct MeasureInput
 {
-    const Frame* output = nullptr; ///< required: the up-res (velocity; density optional)
+    const Frame* output = nullptr; ///< required: the up-res (velocity, density or both; density only gives the
+                                   ///< density numbers, as of Blender's noise up-res)
     const Frame* target = nullptr; ///< required: the low-res frame it was made from (velocity, density)
     const Frame* source = nullptr; ///< optional: the high-res source (velocity, density): hf_ratio, div_rel_source
     const Frame* previousOutput = nullptr; ///< optional: the previous processed output (any earlier frame), for tcoh
@@ -131,6 +133,11 @@ struct FrameMeasures
     std::optional<double> densityFraySource; ///< the same of the source at its own ratio
     std::optional<double> densityFrayRatio;  ///< densityFray / densityFraySource: well above 1 for a silhouette
                                              ///< frayed into fine hairs where the source's is soft
+    std::optional<double> edgeCrispness;       ///< edgeCrispness() of the output (on the refined target lattice)
+    std::optional<double> edgeCrispnessSource; ///< the same of the source at its own ratio
+    std::vector<std::optional<double>> detailProfile;       ///< detailProfile() of the output over its smoke
+    std::vector<std::optional<double>> detailProfileSource; ///< the same of the source over its smoke
+    std::optional<double> detailProfileRatio; ///< detailProfileRatio(): the worst height band against the source's
     std::optional<double> aniso;       ///< detail anisotropy along the target's mean flow (detailAnisotropy): about 1
                                        ///< for isotropic detail, well below 1 for streaks stretched along the flow
     std::optional<double> anisoSource; ///< the same of the source's detail, along the same direction
@@ -159,8 +166,10 @@ struct FrameMeasures
     std::vector<std::pair<std::string, std::optional<double>>> scalars() const;
 };
 
-/// All metrics of one frame. Throws ValueError on broken preconditions: missing velocity, a target or
-/// source without density, a non-integer resolution ratio.
+/// All metrics of one frame. An output with density but no velocity (Blender's noise up-res) gets the density
+/// numbers alone (mass, peak, density_err, imprint, fray, crispness) and a note. Throws ValueError on broken
+/// preconditions: an output with neither grid, a target without velocity or density, a source without either, a
+/// non-integer resolution ratio.
 FrameMeasures measureFrame(const MeasureInput& in, const MeasureSettings& s = {}, Progress* progress = nullptr);
 
 /// Statistics of one metric over frames (only the frames where it exists).
@@ -185,6 +194,9 @@ Field<T> realign(const Field<T>& field, const Lattice& lattice, const CoordBBox&
 /// Resolves Auto for an output over the refined target lattice/box.
 Alignment resolveAlignment(
     Alignment requested, const Field<Vec3f>& output, const Lattice& refined, const CoordBBox& refinedBox);
+/// The same for an output that holds density only (Blender's noise up-res writes no velocity).
+Alignment resolveAlignment(
+    Alignment requested, const Field<float>& output, const Lattice& refined, const CoordBBox& refinedBox);
 
 /// density > threshold as a 0/1 mask on density's box.
 std::vector<unsigned char> smokeMask(const ScalarField& density, float threshold);
@@ -219,6 +231,31 @@ std::optional<double> densityImprint(const ScalarField& fine, int f, float thres
 /// papers: added when the density sheets of the Blender plume2 and demo transfers showed a "furry" silhouette
 /// where the source's and the target's are soft, which no other number caught.
 std::optional<double> densityFray(const ScalarField& D, int f, float threshold);
+
+/// How crisp the density's edges and billows are at the fine voxel size: the energy of grad D along the normal of
+/// D's smooth part over the energy of that smooth part's own gradient,
+///   sum (grad D . n)^2 / sum |grad L|^2,  n = grad L / |grad L|,  L = up_f(boxdown_f(D)),
+/// over the voxels and with the differences densityFray uses. About 1 (a little below) for a density no sharper
+/// than the coarse lattice resolves (a trilinear up-sampling, a blurred copy); about f / w for edges w fine voxels
+/// wide (a one-voxel step reads near f); hairs across the surface add little, since their gradient lies across n
+/// (densityFray counts them). Compare against a reference at the same f (Blender's high-res simulation of the scene,
+/// Blender's noise up-res). >= 0; nullopt for f < 2 or no smoke. Beyond the papers: added for issue 42 (a "soft,
+/// furry" output beside Blender's crisp billows); docs/measure.md shows how it ranks a crisp, a blurred and a hairy
+/// density.
+std::optional<double> edgeCrispness(const ScalarField& D, int f, float threshold);
+
+/// Detail strength against height: the rms of H = U - up_f(boxdown_f(U)) over the mask's voxels in each of `bands`
+/// equal slabs of the mask's extent along `upAxis` (0 x, 1 y, 2 z; band 0 at the bottom, where an emitter sits),
+/// each over the rms over the whole mask. A band holding fewer than 1% of the mask's voxels is nullopt. An empty
+/// vector when the mask is empty or H is zero. Beyond the papers: issue 42's "band at the emitter" (detail at full
+/// strength along the inflow where the source has little) is a bottom band far above the source's profile.
+std::vector<std::optional<double>> detailProfile(
+    const VectorField& u, const std::vector<unsigned char>& mask, int f, int upAxis, int bands = 8);
+
+/// The worst band of two detailProfile()s: max over bands present in both of max(r, 1/r), r = output / source
+/// (1 = the source's profile; issue 42's goal: <= 1.5). nullopt when no band is present in both.
+std::optional<double> detailProfileRatio(
+    const std::vector<std::optional<double>>& output, const std::vector<std::optional<double>>& source);
 
 /// rms(boxdown_f(fine) - coarse) / rms(coarse) over the coarse cells where `coarse` exceeds `threshold` (0 when
 /// there are none): density_err. `fine` must cover refineDomain(coarse box, f); throws ValueError otherwise.
