@@ -14,6 +14,9 @@
 #include <scenes/Smoke.h>
 
 #include <algorithm>
+#include <array>
+#include <map>
+#include <sstream>
 #include <cmath>
 #include <cstdio>
 #include <functional>
@@ -148,6 +151,11 @@ TEST_F(TransferPair, DistributionGivesTheDetailTheSourcesMagnitudes)
     for (DetailEnergy mode : {DetailEnergy::Distribution, DetailEnergy::Source}) {
         TransferSettings s;
         s.detailEnergy = mode;
+        // The steps after calibration (issue 42) cap the peaks too: off, so the two modes are compared alone.
+        s.localEnergy = 0.0f;
+        s.evenPatches = 0.0f;
+        s.vorticityLimit = 0.0f;
+        s.repeatRadius = 0;
         TurbulenceTransfer transfer(s);
         for (size_t i = 0; i < targets.size(); ++i) {
             const TransferResult r = transfer.process(targets[i], sources[i]);
@@ -955,6 +963,13 @@ TEST(TransferStructure, RegenerationKeepsTheSourcesStructureOverAShot)
         TransferSettings s;
         s.threads = 2;
         s.regenerate = regenerate;
+        // Regeneration alone: issue 42's steps after calibration also undo some stretching (with them the carried
+        // detail alone keeps 0.50-0.86 here), and its repeat rule moves frame 8 to the test's bounds (0.50 and 0.70
+        // against 0.75), which would hide what this test guards.
+        s.localEnergy = 0.0f;
+        s.evenPatches = 0.0f;
+        s.vorticityLimit = 0.0f;
+        s.repeatRadius = 0;
         TurbulenceTransfer transfer(s);
         std::vector<Frame> out;
         std::vector<double> ratio;
@@ -997,4 +1012,135 @@ TEST(TransferStructure, RegenerationKeepsTheSourcesStructureOverAShot)
         EXPECT_LE(on[i], 1.25) << "frame " << i + 1;
         EXPECT_GT(on[i], 1.5 * off[i]) << "frame " << i + 1;
     }
+}
+
+// Issue 42's look, on the first frames of a small 3D pair (built-in plume 16x16x24 -> swirl 64x64x96, ratio 4):
+// every patch is fresh at frame 1, so nothing the flow does hides how the patches were chosen and joined.
+namespace {
+
+struct LookPair
+{
+    std::vector<Frame> targets, sources;
+    LookPair()
+    {
+        scenes::SmokeSim plume(scenes::sceneSettings("plume", Coord(16, 16, 24), 1));
+        scenes::SmokeSettings ss = scenes::sceneSettings("swirl", Coord(64, 64, 96), 2);
+        ss.maxSubsteps = 1;
+        scenes::SmokeSim swirl(ss);
+        for (int i = 1; i <= 3; ++i) {
+            plume.advanceFrame();
+            swirl.advanceFrame();
+            targets.push_back(plume.frame());
+            sources.push_back(swirl.frame());
+        }
+    }
+};
+
+const LookPair& lookPair()
+{
+    static const LookPair p;
+    return p;
+}
+
+struct LookRun
+{
+    std::vector<TransferResult> results;
+    std::vector<FrameMeasures> measures;
+    std::string state; // after the last frame
+};
+
+LookRun runLook(const TransferSettings& s, int frames)
+{
+    const LookPair& p = lookPair();
+    TurbulenceTransfer transfer(s);
+    LookRun run;
+    for (int i = 0; i < frames; ++i) {
+        run.results.push_back(transfer.process(p.targets[size_t(i)], p.sources[size_t(i)]));
+        MeasureInput in;
+        in.output = &run.results.back().frame;
+        in.target = &p.targets[size_t(i)];
+        in.source = &p.sources[size_t(i)];
+        MeasureSettings ms;
+        ms.spectra = false;
+        ms.patchSize = s.localPatch;
+        run.measures.push_back(measureFrame(in, ms));
+    }
+    run.state = transfer.saveState();
+    return run;
+}
+
+// The patch tracks of a saved state: patch coordinate -> source corner.
+std::map<std::array<int, 3>, std::array<double, 3>> stateTracks(const std::string& state)
+{
+    std::map<std::array<int, 3>, std::array<double, 3>> out;
+    const size_t at = state.find("tracks=");
+    if (at == std::string::npos) return out;
+    std::istringstream items(state.substr(at + 7));
+    std::string item;
+    while (std::getline(items, item, ';')) {
+        std::replace(item.begin(), item.end(), ',', ' ');
+        std::istringstream v(item);
+        std::array<int, 3> p{};
+        std::array<double, 3> c{};
+        if (v >> p[0] >> p[1] >> p[2] >> c[0] >> c[1] >> c[2]) out[p] = c;
+    }
+    return out;
+}
+
+} // namespace
+
+TEST(TransferLook, NeighbouringPatchesDoNotRepeatOneSourcePatch)
+{
+    // The paper's search gives many fresh patches the same few source patches when the source offers few like the
+    // target's (3 source patches for 336 patches at frame 1 of the paper's Blender pair): a lattice of equal blobs.
+    // Counted here: pairs of neighbouring patches whose source corners lie within half a patch on every axis.
+    // Measured: 125 such pairs among 43 patches without the rule, 4 with it (31 patches re-chosen).
+    int repeated[2] = {0, 0}, avoided[2] = {0, 0};
+    for (const int radius : {0, 1}) {
+        TransferSettings s;
+        s.threads = 2;
+        s.repeatRadius = radius;
+        const LookRun run = runLook(s, 1);
+        const auto tracks = stateTracks(run.state);
+        ASSERT_GT(tracks.size(), 20u);
+        for (const auto& [P, c] : tracks)
+            for (const auto& [Q, d] : tracks) {
+                const bool near = P < Q && std::abs(P[0] - Q[0]) <= 1 && std::abs(P[1] - Q[1]) <= 1 &&
+                                  std::abs(P[2] - Q[2]) <= 1;
+                if (near && std::abs(c[0] - d[0]) < 4 && std::abs(c[1] - d[1]) < 4 && std::abs(c[2] - d[2]) < 4)
+                    ++repeated[radius];
+            }
+        avoided[radius] = run.results[0].stats.repeatsAvoided;
+    }
+    EXPECT_GT(repeated[0], 40);
+    EXPECT_LE(repeated[1], repeated[0] / 10);
+    EXPECT_EQ(avoided[0], 0);
+    EXPECT_GT(avoided[1], 10);
+}
+
+TEST(TransferLook, EvenedPatchesAndTheVorticityLimitMeetTheLookGoals)
+{
+    // Without the variance-preserving correction the seam solve leaves the detail weaker at the seams: lattice 0.14
+    // at frame 1 (the goal is <= 0.1); with it 0.04, and block (seams sharper than the rest) stays <= 1.05. The
+    // vorticity limit holds vort_peak_ratio near 1 (1.12 at frame 1 without it). The other numbers stay in range.
+    const auto run = [](float even, float limit) {
+        TransferSettings s;
+        s.threads = 2;
+        s.evenPatches = even;
+        s.vorticityLimit = limit;
+        return runLook(s, 3);
+    };
+    const LookRun paper = run(0.0f, 0.0f), look = run(1.0f, 1.0f);
+    EXPECT_GT(paper.measures[0].lattice.value_or(0.0), 0.12);
+    EXPECT_GT(paper.measures[0].vortPeakRatio.value_or(0.0), 1.1);
+    for (const FrameMeasures& m : look.measures) {
+        ASSERT_TRUE(m.lattice && m.vortPeakRatio && m.hfRatio && m.lfErr && m.block) << m.frame;
+        EXPECT_LE(*m.lattice, 0.1) << m.frame;
+        EXPECT_LE(*m.vortPeakRatio, 1.05) << m.frame;
+        EXPECT_LE(*m.block, 1.05) << m.frame;
+        EXPECT_GE(*m.hfRatio, 0.8) << m.frame;
+        EXPECT_LE(*m.hfRatio, 1.25) << m.frame;
+        EXPECT_LE(*m.lfErr, 0.05 + 1e-6) << m.frame;
+    }
+    EXPECT_GT(look.results[0].stats.patchStrengthGain, 1.05) << "the first frame had a lattice to even out";
 }

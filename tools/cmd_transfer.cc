@@ -659,6 +659,9 @@ nlohmann::json frameJson(const turb::TransferResult& r, const std::string& outPa
     extra["tracked"] = st.trackedPatches;
     extra["followed"] = st.followedPatches;
     extra["regenerated"] = st.regeneratedPatches;
+    extra["repeats_avoided"] = st.repeatsAvoided;
+    extra["vorticity_limited_voxels"] = st.vorticityLimited;
+    extra["patch_strength_gain"] = st.patchStrengthGain;
     extra["regenerated_for_structure"] = st.structureRegenerated;
     if (st.structureRatio) extra["structure_ratio"] = *st.structureRatio;
     if (st.structureRedone) extra["structure_redone"] = true;
@@ -972,6 +975,26 @@ void addDetailSettings(CLI::App* app, turb::TransferSettings& s)
         "Fraction of a source patch's voxels that must hold smoke for it to be a candidate (0 = any, the paper)",
         "sourceSmoke")
         ->check(finiteIn(0.0, 1.0));
+    num(app, "--even-patches,--evenPatches", s.evenPatches,
+        "How far to even out the detail's strength over the position in the patch (variance-preserving seams; 0 = "
+        "off, the paper)",
+        "evenPatches")
+        ->check(finiteIn(0.0, 1.0));
+    num(app, "--local-energy,--localEnergy", s.localEnergy,
+        "How far each patch's detail strength moves toward the source detail pasted into it, the frame's total kept "
+        "(0 = one factor per frame)",
+        "localEnergy")
+        ->check(finiteIn(0.0, 1.0));
+    num(app, "--vorticity-limit,--vorticityLimit", s.vorticityLimit,
+        "Scale the detail down where the vorticity exceeds this times the source's 0.999 quantile (0 = off)",
+        "vorticityLimit")
+        ->check(finiteIn(0.0));
+    num(app, "--repeat-radius,--repeatRadius", s.repeatRadius,
+        "Patches within this many patches never take overlapping source patches (0 = off, the paper)", "repeatRadius")
+        ->check(CLI::Range(0, 4));
+    num(app, "--repeatTolerance", s.repeatTolerance,
+        "Avoid a repeat with a candidate whose E_h is within (1 + this) of the best", "repeatTolerance")
+        ->check(finiteIn(0.0));
     boolSetting(app, "--trackGlobalPatches", s.trackGlobalPatches,
         "Follow last frame's global patch (false: global search every frame)", "trackGlobalPatches");
     legacy(app->add_flag_function(

@@ -103,6 +103,24 @@ struct TransferSettings
     float coherence = 0.0f;       ///< beyond the paper: take a neighbour's continued source patch when its E_h is
                                   ///< within this fraction of the best (fewer seams); 0 = off
     int coherenceSweeps = 2;      ///< red-black sweeps of the coherence pass, >= 1
+    int repeatRadius = 1;         ///< beyond the paper: fresh patches (no carried detail) within this many patches
+                                  ///< of each other (Chebyshev) never take source patches overlapping by more than
+                                  ///< half along every axis,
+                                  ///< unless every candidate within repeatTolerance does (issue 42: the frame-1
+                                  ///< lattice and the emitter band were one source patch repeated); 0 = off, the
+                                  ///< paper; at most 4
+    float repeatTolerance = 1.0f; ///< a repeat is avoided with a candidate whose E_h is at most (1 + this) times
+                                  ///< the best, >= 0
+    float evenPatches = 1.0f;     ///< beyond the paper: a variance-preserving correction of the seams: U_h's
+                                  ///< strength evened out over the position in the patch (issue 42's lattice), this
+                                  ///< fraction of the way (the exponent of the gain), in [0, 1]; 0 = off, the paper
+    float localEnergy = 1.0f;     ///< beyond the paper: after calibration each patch's detail rms moves toward the
+                                  ///< rms of the source detail pasted into it, this fraction of the way in log
+                                  ///< (gains in [1/3, 3], interpolated between patch centres), the frame's total
+                                  ///< energy kept; in [0, 1], 0 = one factor per frame (before issue 42)
+    float vorticityLimit = 1.0f;  ///< beyond the paper: after calibration, U_h is scaled down, smoothly, where
+                                  ///< |curl(up(u_t) + U_h)| in the smoke exceeds this times the source's 0.999
+                                  ///< quantile of |curl U_s| over its smoke (measure's vort_peak); 0 = off, >= 0
     float temporalBlend = 0.95f;  ///< beyond the paper: weight of last frame's detail (advected through the target)
                                   ///< mixed into patches that had detail, in [0, 0.999]; 0 = the paper
     float regenerate = 0.6f;      ///< beyond the paper: carried detail that the flow has stretched is
@@ -196,6 +214,9 @@ struct TransferStats
     int followedPatches = 0;      ///< patches that took it (followSourceFlow, followTolerance)
     int regeneratedPatches = 0;   ///< patches whose stretched carried detail was regenerated (regenerate)
     int structureRegenerated = 0; ///< of those, the ones the structure goal added (structureTolerance)
+    double patchStrengthGain = 1.0; ///< the largest gain evenPatches applied (1 = the detail had no lattice)
+    size_t vorticityLimited = 0;  ///< smoke voxels whose vorticity exceeded the cap (vorticityLimit)
+    int repeatsAvoided = 0;       ///< patches that took another candidate than their best (repeatRadius)
     std::optional<double> structureRatio; ///< with the structure goal: the finished detail's anisotropy along the
                                           ///< target's mean flow over the source's (`measure`'s aniso_ratio up to
                                           ///< the source's side: within 7% on the built-in 2D pair); also on a

@@ -136,6 +136,9 @@ LocalSearchResult localSearch(const PatchEnergy& energy, const std::vector<uint8
     for (size_t p = 0; p < active.size(); ++p)
         if (active[p]) out.activeList.push_back(p);
     const bool haveAdvected = !energy.advectedDetail.empty();
+    // Every re-scored candidate of every patch, best first, for the repeat rule below.
+    const bool noRepeats = s.repeatRadius > 0;
+    std::vector<std::vector<std::pair<double, Coord>>> ranked(noRepeats ? fs.layout.patchCount() : 0);
     parallelFor(out.activeList.size(), 8, [&](size_t b, size_t e) {
         checkCancelled(fs.progress);
         std::vector<float> desc(ldim), red(rk);
@@ -160,11 +163,13 @@ LocalSearchResult localSearch(const PatchEnergy& energy, const std::vector<uint8
             Coord bestC = best.empty() ? out.corners.min() : best.front().second;
             for (const auto& cand : best) {
                 const double en = energy(tCorner, cand.second, temporal);
+                if (noRepeats) ranked[p].emplace_back(en, cand.second);
                 if (bestE < 0.0 || en < bestE || (en == bestE && cand.second < bestC)) {
                     bestE = en;
                     bestC = cand.second;
                 }
             }
+            if (noRepeats) std::sort(ranked[p].begin(), ranked[p].end());
             out.chosen[p] = bestC;
             out.chosenExact[p] = bestC.asVec3d();
             out.energy[p] = std::max(0.0, bestE);
@@ -183,7 +188,70 @@ LocalSearchResult localSearch(const PatchEnergy& energy, const std::vector<uint8
         }
     });
     out.followed = int(std::count(followed.begin(), followed.end(), uint8_t(1)));
+    if (noRepeats) {
+        // Patches that carried detail keep their choice (and are the others' constraints): their match continues
+        // last frame's, and re-choosing it for variety cost the plume2 pair its anisotropy (aniso_ratio up to 1.49).
+        std::vector<uint8_t> fixed = followed;
+        for (size_t p = 0; p < fixed.size(); ++p) fixed[p] |= tracks.tracked[p];
+        out.repeatsAvoided = avoidRepeats(out, ranked, fixed, fs);
+    }
     return out;
+}
+
+int avoidRepeats(LocalSearchResult& out, const std::vector<std::vector<std::pair<double, Coord>>>& ranked,
+    const std::vector<uint8_t>& fixed, const FrameSetup& fs)
+{
+    // Beyond the paper: where the source offers few patches like the target's (a shot's first frames, an emitter
+    // the source's floor matches best), the search gives many patches the same source patch, and the repeats show
+    // as a regular lattice of equal blobs (issue 42: 336 patches from 3 source patches at frame 1 of the paper's
+    // pair) or a band of one detail along an emitter. So patches within repeatRadius of each other do not take
+    // source patches overlapping by more than half along every axis; a copy continued across a seam (source
+    // corners as far apart as the patches') is no repeat. Patches are decided in index order, the `fixed` ones (those
+    // following the source's flow or carrying detail) first and unchanged, so the choice is the same at any thread
+    // count; a patch whose every candidate within repeatTolerance of its best repeats a neighbour's keeps its best.
+    const TransferSettings& s = *fs.s;
+    const PatchLayout& L = fs.layout;
+    const int R = s.repeatRadius;
+    const Coord half(std::max(1, fs.patch.x() / 2), std::max(1, fs.patch.y() / 2), std::max(1, fs.patch.z() / 2));
+    std::vector<uint8_t> decided(L.patchCount(), 0);
+    for (size_t p : out.activeList) decided[p] = fixed[p];
+    const auto repeats = [&](size_t p, const Coord& c) {
+        const Coord P = L.patchCoord(p);
+        for (int dx = -R; dx <= R; ++dx)
+            for (int dy = -R; dy <= R; ++dy)
+                for (int dz = L.flat ? 0 : -R; dz <= (L.flat ? 0 : R); ++dz) {
+                    const Coord Q = P + Coord(dx, dy, dz);
+                    if ((dx == 0 && dy == 0 && dz == 0) || Q.x() < 0 || Q.y() < 0 || Q.z() < 0 ||
+                        Q.x() >= L.count.x() || Q.y() >= L.count.y() || Q.z() >= L.count.z())
+                        continue;
+                    const size_t q = L.patchIndex(Q);
+                    if (!decided[q]) continue;
+                    const Coord d = c - out.chosen[q];
+                    if (std::abs(d.x()) < half.x() && std::abs(d.y()) < half.y() && std::abs(d.z()) < half.z())
+                        return true;
+                }
+        return false;
+    };
+    int changed = 0;
+    for (size_t p : out.activeList) {
+        if (fixed[p]) continue;
+        const auto& r = ranked[p];
+        if (!r.empty() && repeats(p, out.chosen[p])) {
+            const double limit = (1.0 + double(s.repeatTolerance)) * std::max(0.0, r.front().first);
+            for (const auto& [en, c] : r) {
+                if (en > limit) break;
+                if (!repeats(p, c)) {
+                    out.chosen[p] = c;
+                    out.chosenExact[p] = c.asVec3d();
+                    out.energy[p] = std::max(0.0, en);
+                    ++changed;
+                    break;
+                }
+            }
+        }
+        decided[p] = 1;
+    }
+    return changed;
 }
 
 } // namespace turb::detail

@@ -3,6 +3,7 @@
 
 #include <turb/Advect.h>
 #include <turb/Error.h>
+#include <turb/Measure.h>
 
 namespace turb::detail {
 
@@ -70,6 +71,12 @@ SourceBands splitSource(const Frame& source, const Frame& target, const FrameSet
             split.low.data()[n] += cu.data()[n];
         }
     }
+    if (s.vorticityLimit > 0.0f) {
+        // The source's hottest vorticity, the cap of TransferSettings::vorticityLimit (in output units below).
+        std::vector<unsigned char> mask(out.Ds.size());
+        for (size_t n = 0; n < mask.size(); ++n) mask[n] = out.Ds.data()[n] > s.densityThreshold;
+        out.vortPeak = vorticityPeak(Us, mask, kVortPeakQuantile).value_or(0.0);
+    }
     out.ds = boxDownsample(out.Ds, f);
     // Velocity scale into matching units: grid units (coarse cells per frame) by default; with normalisation,
     // units of each sequence's RMS speed.
@@ -84,6 +91,7 @@ SourceBands splitSource(const Frame& source, const Frame& target, const FrameSet
         }
     }
     out.detailScale = out.ks / out.kt;
+    out.vortPeak *= double(out.detailScale);
     out.reference *= double(out.detailScale) * double(out.detailScale);
     if (fs.detailEnergy() == DetailEnergy::Distribution) {
         std::vector<float> m;

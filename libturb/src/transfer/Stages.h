@@ -116,6 +116,7 @@ struct SourceBands
     /// DetailEnergy::Distribution: |U_sh| (output units, coarse part out) over the source's smoke at
     /// kMagnitudeRanks + 1 evenly spaced ranks, smallest first; empty otherwise
     std::vector<float> magnitudes;
+    double vortPeak = 0.0; ///< the 0.999 quantile of |curl U_s| over the source's smoke, output units (0 = not taken)
 };
 constexpr int kMagnitudeRanks = 1024;
 /// `values` sorted and sampled at ranks + 1 evenly spaced ranks (linear between neighbours); empty for no values.
@@ -189,8 +190,14 @@ struct LocalSearchResult
     int followed = 0;               ///< patches that took their continuation (followSourceFlow)
     std::vector<double> energy;     ///< per patch: its E_h
     CoordBBox corners;              ///< allowed source corners
+    int repeatsAvoided = 0;         ///< patches that took another candidate than their best (avoidRepeats)
     double meanEnergy() const;
 };
+/// TransferSettings::repeatRadius: patches within that many patches of each other do not take overlapping source
+/// patches. `ranked` holds every patch's re-scored candidates, best first; `fixed` patches keep their choice.
+/// Returns the patches changed.
+int avoidRepeats(LocalSearchResult& out, const std::vector<std::vector<std::pair<double, Coord>>>& ranked,
+    const std::vector<uint8_t>& fixed, const FrameSetup& fs);
 LocalSearchResult localSearch(const PatchEnergy& energy, const std::vector<uint8_t>& active,
     const GlobalSearchResult& global, const PatchTracks& tracks, const MatchWeights& w);
 
@@ -274,6 +281,32 @@ double reduceCoarsePartBeforeSeams(VectorField& detail, const TargetAtOutput& t,
 
 /// After the seam solve: the coarse part out, the energy factor applied, the coarse part put back within the
 /// tolerance. Fills energyScale, coarseKept and lfErr.
+/// Per patch of `layout`: the rms of `detail` over the patch's voxels where density > threshold (0 without smoke).
+std::vector<double> patchRms(const VectorField& detail, const ScalarField& density, float threshold,
+    const PatchLayout& layout);
+/// Multiplies `detail` by per-patch gains interpolated trilinearly between patch centres (no step at a seam).
+void applyPatchGain(VectorField& detail, const std::vector<float>& gain, const PatchLayout& layout);
+/// Beyond the paper (TransferSettings::localEnergy): each patch's rms over its smoke moves toward `pastedRms` (the
+/// source detail pasted into it), `strength` of the way in log, gains in [1/3, 3] interpolated between patch centres;
+/// the frame's mean energy over the smoke is kept. One energy factor per frame lifted detail that nothing carries
+/// away (the floor under an emitter) every frame, issue 42's band.
+void matchPatchStrength(VectorField& detail, const std::vector<double>& pastedRms, const SmokeEnergy& smoke,
+    const PatchLayout& layout, float strength);
+/// Removes from `detail` the coarse-cell means of its change since `before` (the box means a voxel-by-voxel gain puts
+/// in), so that a post-step leaves the target's coarse motion (lf_err) as calibration set it.
+void keepCoarseMeans(VectorField& detail, const VectorField& before, int f);
+/// Beyond the paper (TransferSettings::evenPatches): a variance-preserving correction of the blend at the seams. The
+/// seam solve averages neighbouring patches' gradients, and an average of unrelated fields is weaker than either, so
+/// the detail's strength rose and fell with the patch period (issue 42's lattice). U_h is scaled by a per-axis gain
+/// of the voxel's position in its patch that evens out the mean |U_h|^2 over the smoke (clamped to [0.5, 2],
+/// circularly smoothed) raised to `strength` (in (0, 1]: how far to go), twice. Returns the largest full gain (or its
+/// inverse) of the first pass: the lattice it found.
+double evenPatchStrength(
+    VectorField& detail, const ScalarField& density, float threshold, const PatchLayout& layout, float strength);
+/// Scales U_h down where |curl(up(u_t) + U_h)| exceeds `cap` inside the smoke (density > threshold): gain cap / |curl|
+/// there, spread over its 3^3 neighbourhood and smoothed, twice. Returns the voxels that were over the cap.
+size_t limitVorticity(VectorField& detail, const VectorField& Ut, const ScalarField& density, float threshold,
+    double cap);
 void calibrateDetail(VectorField& detail, const TargetAtOutput& t, const Frame& target, const SmokeEnergy& smoke,
     double referenceEnergy, const std::vector<float>& sourceMagnitudes, const FrameSetup& fs, TransferStats& st);
 

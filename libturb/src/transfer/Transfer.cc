@@ -192,7 +192,9 @@ std::vector<std::pair<std::string, std::string>> outputSettings(const TransferSe
         {"candidates", num(s.refineCandidates)}, {"tracking", flag(s.trackGlobalPatches)},
         {"follow-source", flag(s.followSourceFlow)}, {"source-smoke", num(s.sourceSmoke)},
         {"follow-tolerance", num(s.followTolerance)}, {"coherence", num(s.coherence)},
-        {"coherence-sweeps", num(s.coherenceSweeps)}, {"temporal-blend", num(s.temporalBlend)},
+        {"coherence-sweeps", num(s.coherenceSweeps)}, {"repeat-radius", num(s.repeatRadius)},
+        {"repeat-tolerance", num(s.repeatTolerance)}, {"vorticity-limit", num(s.vorticityLimit)},
+        {"even-patches", num(s.evenPatches)}, {"local-energy", num(s.localEnergy)}, {"temporal-blend", num(s.temporalBlend)},
         {"regenerate", num(s.regenerate)}, {"regenerate-blend", num(s.regenerateBlend)},
         {"regenerate-blend-2d", num(s.regenerateBlend2D)}, {"align", align[int(s.alignment)]},
         {"resample-source", flag(s.resampleSource)}, {"seams", flag(s.seams.enabled)}, {"band", num(s.seams.bandWidth)},
@@ -298,6 +300,11 @@ TurbulenceTransfer::TurbulenceTransfer(const TransferSettings& settings) : mImpl
     if (!(s.seams.boxKeep >= 0.0f && s.seams.boxKeep <= 1.0f)) throw ValueError("box keep must lie in [0, 1]");
     if (!(s.followTolerance >= 0.0f)) throw ValueError("follow tolerance must be >= 0");
     if (!(s.sourceSmoke >= 0.0f && s.sourceSmoke <= 1.0f)) throw ValueError("source smoke fraction must lie in [0, 1]");
+    if (!(s.vorticityLimit >= 0.0f)) throw ValueError("vorticity limit must be >= 0");
+    if (!(s.evenPatches >= 0.0f && s.evenPatches <= 1.0f)) throw ValueError("even patches must lie in [0, 1]");
+    if (!(s.localEnergy >= 0.0f && s.localEnergy <= 1.0f)) throw ValueError("local energy must lie in [0, 1]");
+    if (s.repeatRadius < 0 || s.repeatRadius > 4 || !(s.repeatTolerance >= 0.0f))
+        throw ValueError("repeat radius must lie in [0, 4] and repeat tolerance be >= 0");
     if (!(s.densityGuide.strength >= 0.0f && s.densityGuide.strength <= 1.0f))
         throw ValueError("density guide strength must lie in [0, 1]");
     mImpl->s = settings;
@@ -377,6 +384,7 @@ MatchedPatches TurbulenceTransfer::Impl::matchPatches(const Frame& target, const
     coherencePass(m.local, energy, active, tracks);
     st.meanLocalEnergy = m.local.meanEnergy();
     st.followedPatches = m.local.followed;
+    st.repeatsAvoided = m.local.repeatsAvoided;
     st.continuations = int(std::count(tracks.following.begin(), tracks.following.end(), uint8_t(1)));
     time.local = lap(t0);
     return m;
@@ -392,6 +400,12 @@ VectorField TurbulenceTransfer::Impl::transferDetail(const Frame& target, const 
     const SmokeEnergy smoke(density, s.densityThreshold);
     const MatchedPatches m = matchPatches(target, src, t, active, tracks, fs, st, t0, progress);
     PasteResult pasted = pastePatches(m.local, m.bands, fs);
+    // The steps after calibration below are for 3D caches: on 2D ones the structure goal steers the finished detail,
+    // and these moved its anisotropy out of range (the built-in 2D pair: aniso_ratio 0.72 at frame 3).
+    const bool look = !fs.flat;
+    // Each patch's pasted rms over its smoke: the source's own detail strength where it was matched.
+    std::vector<double> pastedRms;
+    if (look && s.localEnergy > 0.0f) pastedRms = patchRms(pasted.detail, density, s.densityThreshold, fs.layout);
     VectorField detail = std::move(pasted.detail);
     time.paste = lap(t0);
     const DetailEnergy mode = fs.detailEnergy();
@@ -442,6 +456,22 @@ VectorField TurbulenceTransfer::Impl::transferDetail(const Frame& target, const 
         firstDetail = std::move(detail);
         goal.aim *= blend.estimate / *a;
         detail = pastedDetail;
+    }
+    // Beyond the paper (issue 42), on the calibrated detail; each step's box means are taken out again at the end, so
+    // the coarse motion stays as calibration left it (lf_err).
+    if (look && (!pastedRms.empty() || s.evenPatches > 0.0f || s.vorticityLimit > 0.0f)) {
+        const VectorField before = detail;
+        // Each patch's strength toward the source detail it was pasted from, the frame's total kept: one energy
+        // factor per frame lifted detail that nothing carries away (the floor under an emitter) every frame, a band
+        // 2.6 times the source's profile there on the plume2 pair.
+        if (!pastedRms.empty()) matchPatchStrength(detail, pastedRms, smoke, fs.layout, s.localEnergy);
+        if (s.evenPatches > 0.0f)
+            st.patchStrengthGain = evenPatchStrength(detail, density, s.densityThreshold, fs.layout, s.evenPatches);
+        // Hot spots hotter than anything in the source (the emitter's saturated band: 1.3-1.65 times the source's
+        // 0.999-quantile vorticity on the plume2 pair) are scaled down to it.
+        st.vorticityLimited =
+            limitVorticity(detail, t.Ut, density, s.densityThreshold, s.vorticityLimit * m.bands.vortPeak);
+        keepCoarseMeans(detail, before, fs.f);
     }
     time.seams = lap(t0);
     carried.tracks.clear();
