@@ -1105,8 +1105,8 @@ TEST(TransferLook, NeighbouringPatchesDoNotRepeatOneSourcePatch)
         ASSERT_GT(tracks.size(), 20u);
         for (const auto& [P, c] : tracks)
             for (const auto& [Q, d] : tracks) {
-                const bool near = P < Q && std::abs(P[0] - Q[0]) <= 1 && std::abs(P[1] - Q[1]) <= 1 &&
-                                  std::abs(P[2] - Q[2]) <= 1;
+                const bool near =
+                    P < Q && std::abs(P[0] - Q[0]) <= 1 && std::abs(P[1] - Q[1]) <= 1 && std::abs(P[2] - Q[2]) <= 1;
                 if (near && std::abs(c[0] - d[0]) < 4 && std::abs(c[1] - d[1]) < 4 && std::abs(c[2] - d[2]) < 4)
                     ++repeated[radius];
             }

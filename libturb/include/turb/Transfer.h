@@ -214,9 +214,9 @@ struct TransferStats
     int followedPatches = 0;      ///< patches that took it (followSourceFlow, followTolerance)
     int regeneratedPatches = 0;   ///< patches whose stretched carried detail was regenerated (regenerate)
     int structureRegenerated = 0; ///< of those, the ones the structure goal added (structureTolerance)
-    double patchStrengthGain = 1.0; ///< the largest gain evenPatches applied (1 = the detail had no lattice)
-    size_t vorticityLimited = 0;  ///< smoke voxels whose vorticity exceeded the cap (vorticityLimit)
-    int repeatsAvoided = 0;       ///< patches that took another candidate than their best (repeatRadius)
+    double patchStrengthGain = 1.0;       ///< the largest gain evenPatches applied (1 = the detail had no lattice)
+    size_t vorticityLimited = 0;          ///< smoke voxels whose vorticity exceeded the cap (vorticityLimit)
+    int repeatsAvoided = 0;               ///< patches that took another candidate than their best (repeatRadius)
     std::optional<double> structureRatio; ///< with the structure goal: the finished detail's anisotropy along the
                                           ///< target's mean flow over the source's (`measure`'s aniso_ratio up to
                                           ///< the source's side: within 7% on the built-in 2D pair); also on a

@@ -35,8 +35,8 @@ double energyFactor(double reference, double now)
     return now > 0.0 ? std::clamp(std::sqrt(reference / now), 1.0 / 3.0, 3.0) : 1.0;
 }
 
-std::vector<double> patchRms(const VectorField& detail, const ScalarField& density, float threshold,
-    const PatchLayout& layout)
+std::vector<double> patchRms(
+    const VectorField& detail, const ScalarField& density, float threshold, const PatchLayout& layout)
 {
     std::vector<double> sum(layout.patchCount(), 0.0), cnt(layout.patchCount(), 0.0);
     for (size_t n = 0; n < detail.size(); ++n) {
@@ -143,8 +143,8 @@ double evenPatchStrength(
         for (int a = 0; a < axes; ++a) {
             std::vector<double> g(size_t(B), 1.0);
             for (int r = 0; r < B; ++r) {
-                const double m = cnt[size_t(a)][size_t(r)] > 0.0 ? sum[size_t(a)][size_t(r)] / cnt[size_t(a)][size_t(r)]
-                                                                 : mean;
+                const double m =
+                    cnt[size_t(a)][size_t(r)] > 0.0 ? sum[size_t(a)][size_t(r)] / cnt[size_t(a)][size_t(r)] : mean;
                 g[size_t(r)] = m > 0.0 ? std::clamp(std::sqrt(mean / m), 0.5, 2.0) : 1.0;
                 dev = std::max(dev, std::abs(std::log(g[size_t(r)])));
                 g[size_t(r)] = std::pow(g[size_t(r)], double(strength));
@@ -167,7 +167,8 @@ double evenPatchStrength(
     return worst;
 }
 
-size_t limitVorticity(VectorField& detail, const VectorField& Ut, const ScalarField& density, float threshold, double cap)
+size_t limitVorticity(
+    VectorField& detail, const VectorField& Ut, const ScalarField& density, float threshold, double cap)
 {
     if (!(cap > 0.0)) return 0;
     const CoordBBox b = detail.bbox();

@@ -282,8 +282,8 @@ double reduceCoarsePartBeforeSeams(VectorField& detail, const TargetAtOutput& t,
 /// After the seam solve: the coarse part out, the energy factor applied, the coarse part put back within the
 /// tolerance. Fills energyScale, coarseKept and lfErr.
 /// Per patch of `layout`: the rms of `detail` over the patch's voxels where density > threshold (0 without smoke).
-std::vector<double> patchRms(const VectorField& detail, const ScalarField& density, float threshold,
-    const PatchLayout& layout);
+std::vector<double> patchRms(
+    const VectorField& detail, const ScalarField& density, float threshold, const PatchLayout& layout);
 /// Multiplies `detail` by per-patch gains interpolated trilinearly between patch centres (no step at a seam).
 void applyPatchGain(VectorField& detail, const std::vector<float>& gain, const PatchLayout& layout);
 /// Beyond the paper (TransferSettings::localEnergy): each patch's rms over its smoke moves toward `pastedRms` (the
@@ -305,8 +305,8 @@ double evenPatchStrength(
     VectorField& detail, const ScalarField& density, float threshold, const PatchLayout& layout, float strength);
 /// Scales U_h down where |curl(up(u_t) + U_h)| exceeds `cap` inside the smoke (density > threshold): gain cap / |curl|
 /// there, spread over its 3^3 neighbourhood and smoothed, twice. Returns the voxels that were over the cap.
-size_t limitVorticity(VectorField& detail, const VectorField& Ut, const ScalarField& density, float threshold,
-    double cap);
+size_t limitVorticity(
+    VectorField& detail, const VectorField& Ut, const ScalarField& density, float threshold, double cap);
 void calibrateDetail(VectorField& detail, const TargetAtOutput& t, const Frame& target, const SmokeEnergy& smoke,
     double referenceEnergy, const std::vector<float>& sourceMagnitudes, const FrameSetup& fs, TransferStats& st);
 
