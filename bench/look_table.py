@@ -4,7 +4,8 @@ high-res simulation of the same scene, with the goals checked.
     python3 bench/look_table.py PAIR PREFIX
 
 reads PREFIX.vdbturb.json, PREFIX.noise.json and PREFIX.hires.json (`vdbturb measure` JSON lines) and prints a
-Markdown table: per number the worst and the median over frames of each, the goal and whether vdbturb meets it.
+Markdown table: per number the range and the median over frames of each (from the goal's first frame), the goal and
+whether vdbturb meets it.
 "Frame k" below counts the measured frames from 1 (the steady pair starts at cache frame 91).
 """
 import json
@@ -32,7 +33,7 @@ def series(rows, key, first=1):
 def cell(v, worst):
     if not v:
         return "-"
-    return "%.3g (%.3g)" % (worst(v), statistics.median(v))
+    return "%.3g-%.3g (%.3g)" % (min(v), max(v), statistics.median(v))
 
 
 pair, prefix = sys.argv[1], sys.argv[2]
@@ -81,7 +82,7 @@ rows = [
     ("mass_ratio", "0.9-1.1", max, within(0.9, 1.1), 1),
     ("peak_ratio", "<= 1.05", max, below(1.05), 1),
 ]
-print("\n### %s: %d frames (worst (median) over frames)\n" % (pair, len(ours)))
+print("\n### %s: %d frames (min-max (median) over frames)\n" % (pair, len(ours)))
 print("| number | vdbturb | Blender noise | Blender high-res | goal | met |")
 print("|---|---|---|---|---|---|")
 for key, goal, worst, check, first in rows:

@@ -114,7 +114,7 @@ struct TransferSettings
     float evenPatches = 1.0f;     ///< beyond the paper: a variance-preserving correction of the seams: U_h's
                                   ///< strength evened out over the position in the patch (issue 42's lattice), this
                                   ///< fraction of the way (the exponent of the gain), in [0, 1]; 0 = off, the paper
-    float localEnergy = 1.0f;     ///< beyond the paper: after calibration each patch's detail rms moves toward the
+    float localEnergy = 0.5f;     ///< beyond the paper: after calibration each patch's detail rms moves toward the
                                   ///< rms of the source detail pasted into it, this fraction of the way in log
                                   ///< (gains in [1/3, 3], interpolated between patch centres), the frame's total
                                   ///< energy kept; in [0, 1], 0 = one factor per frame (before issue 42)
