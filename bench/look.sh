@@ -34,36 +34,23 @@ while [ $# -gt 0 ]; do
     *) echo "look: unknown argument $1" >&2; exit 2 ;;
     esac
 done
-if ! command -v "$BLENDER" >/dev/null 2>&1; then
-    echo "look: skipped: no '$BLENDER' on PATH (apt-get install blender)" >&2
-    exit 0
-fi
+. "$ROOT/bench/blender_bake.sh"
+require_blender look
 OUT="$WORK/look/$NAME"
 mkdir -p "$OUT" "$WORK/blender-noise" "$WORK/blender-hires"
-
-# bake DIR LAST SCRIPT ARGS...: a Blender bake into DIR unless its frame LAST exists. Mantaflow's noise writes its
-# wavelet tile into the working directory, hence the cd.
-bake() {
-    dir=$1; last=$2; script=$3; shift 3
-    if [ ! -f "$dir/$last" ]; then
-        rm -rf "$dir"; mkdir -p "$dir"
-        echo "look: baking $dir with $script $* (minutes)" >&2
-        (cd "$dir" && "$BLENDER" -b --factory-startup --python "$ROOT/bench/blender/$script" -- "$@" > bake.log 2>&1)
-    fi
-}
 
 for pair in $PAIRS; do
     case $pair in
     cube)
-        bake "$WORK/blender-noise/cube" noise/fluid_noise_0030.vdb cube_noise.py "$WORK/blender-noise/cube" 30 4 32
+        blender_bake "$WORK/blender-noise/cube" noise/fluid_noise_0030.vdb cube_noise.py "$WORK/blender-noise/cube" 30 4 32
         target="$DATA/blender-plume2-32/fluid_data_####.vdb"
         source="$DATA/blender-plume2-128/fluid_data_####.vdb"
         noise="$WORK/blender-noise/cube/noise/fluid_noise_####.vdb"
         noisebase="$WORK/blender-noise/cube/data/fluid_data_####.vdb"
         hires="$source"; frames=1-30; shown=1,5,15,30 ;;
     paper)
-        bake "$WORK/blender-noise/paper" noise/fluid_noise_0030.vdb plume_noise.py "$WORK/blender-noise/paper" 30 8 24
-        bake "$WORK/blender-hires/paper" data/fluid_data_0030.vdb plume.py 192 "$WORK/blender-hires/paper" 30
+        blender_bake "$WORK/blender-noise/paper" noise/fluid_noise_0030.vdb plume_noise.py "$WORK/blender-noise/paper" 30 8 24
+        blender_bake "$WORK/blender-hires/paper" data/fluid_data_0030.vdb plume.py 192 "$WORK/blender-hires/paper" 30
         swirl=$(VDBTURB_BENCH_WORK="$WORK" "$ROOT/bench/blender_pairs.sh" | awk '/^swirl/ { print $2 }')
         target="$WORK/blender-noise/paper/data/fluid_data_####.vdb"
         source="$swirl/data/fluid_data_####.vdb"
@@ -71,7 +58,7 @@ for pair in $PAIRS; do
         noisebase="$target"
         hires="$WORK/blender-hires/paper/data/fluid_data_####.vdb"; frames=1-30; shown=1,5,15,30 ;;
     steady)
-        bake "$WORK/blender-noise/steady" noise/fluid_noise_0120.vdb steady_noise.py 16 "$WORK/blender-noise/steady" 120 4
+        blender_bake "$WORK/blender-noise/steady" noise/fluid_noise_0120.vdb steady_noise.py 16 "$WORK/blender-noise/steady" 120 4
         hires="$DATA/blender-steady-64/fluid_data_####.vdb"
         target="$WORK/look/steady16/fluid_data_####.vdb"
         [ -f "$WORK/look/steady16/fluid_data_0120.vdb" ] ||

@@ -28,21 +28,14 @@ while [ $# -gt 0 ]; do
     *) echo "output_size: unknown argument $1" >&2; exit 2 ;;
     esac
 done
-if ! command -v "$BLENDER" >/dev/null 2>&1; then
-    echo "output_size: skipped: no '$BLENDER' on PATH (apt-get install blender)" >&2
-    exit 0
-fi
+. "$ROOT/bench/blender_bake.sh"
+require_blender output_size
 mkdir -p "$WORK/blender-noise"
 
 # noise_bake NAME SCRIPT ARGS...: Blender's noise up-res with its base sim, in WORK/blender-noise/NAME.
 noise_bake() {
     name=$1; script=$2; shift 2
-    dir="$WORK/blender-noise/$name"
-    if [ ! -f "$dir/noise/fluid_noise_0030.vdb" ]; then
-        rm -rf "$dir"; mkdir -p "$dir"
-        # Mantaflow's noise writes its wavelet tile into the working directory.
-        (cd "$dir" && "$BLENDER" -b --factory-startup --python "$ROOT/bench/blender/$script" -- "$dir" "$@" > bake.log 2>&1)
-    fi
+    blender_bake "$WORK/blender-noise/$name" noise/fluid_noise_0030.vdb "$script" "$WORK/blender-noise/$name" "$@"
 }
 
 for pair in $PAIRS; do

@@ -26,6 +26,19 @@ using testutil::Modes;
 
 namespace {
 
+// Frames 1..n of two built-in scenes, simulated side by side: the target's and the source's.
+void simulatePair(const scenes::SmokeSettings& target, const scenes::SmokeSettings& source, int n,
+    std::vector<Frame>& targets, std::vector<Frame>& sources)
+{
+    scenes::SmokeSim t(target), s(source);
+    for (int i = 1; i <= n; ++i) {
+        t.advanceFrame();
+        s.advanceFrame();
+        targets.push_back(t.frame());
+        sources.push_back(s.frame());
+    }
+}
+
 // Density given as a function of world position, as the analytic fields here are.
 Frame makeFrame(const CoordBBox& box, const Lattice& lat, const std::function<Vec3f(const Vec3d&)>& vel,
     const std::function<float(const Vec3d&)>& dens, int number, double dt)
@@ -732,14 +745,8 @@ struct Pair2D
     std::vector<Frame> targets, sources;
     Pair2D()
     {
-        scenes::SmokeSim plume(scenes::sceneSettings("plume", Coord(24, 32, 1), 1));
-        scenes::SmokeSim swirl(scenes::sceneSettings("swirl", Coord(192, 256, 1), 1));
-        for (int i = 1; i <= 12; ++i) {
-            plume.advanceFrame();
-            swirl.advanceFrame();
-            targets.push_back(plume.frame());
-            sources.push_back(swirl.frame());
-        }
+        simulatePair(scenes::sceneSettings("plume", Coord(24, 32, 1), 1),
+            scenes::sceneSettings("swirl", Coord(192, 256, 1), 1), 12, targets, sources);
     }
 };
 
@@ -948,16 +955,9 @@ TEST(TransferStructure, RegenerationKeepsTheSourcesStructureOverAShot)
 {
     std::vector<Frame> targets, sources;
     {
-        scenes::SmokeSim plume(scenes::sceneSettings("plume", Coord(16, 16, 24), 1));
         scenes::SmokeSettings ss = scenes::sceneSettings("swirl", Coord(64, 64, 96), 2);
         ss.maxSubsteps = 1;
-        scenes::SmokeSim swirl(ss);
-        for (int i = 1; i <= 20; ++i) {
-            plume.advanceFrame();
-            swirl.advanceFrame();
-            targets.push_back(plume.frame());
-            sources.push_back(swirl.frame());
-        }
+        simulatePair(scenes::sceneSettings("plume", Coord(16, 16, 24), 1), ss, 20, targets, sources);
     }
     const auto run = [&](float regenerate, int* regenerated) {
         TransferSettings s;
@@ -1023,16 +1023,10 @@ struct LookPair
     std::vector<Frame> targets, sources;
     LookPair()
     {
-        scenes::SmokeSim plume(scenes::sceneSettings("plume", Coord(16, 16, 24), 1));
+        // The pair of TransferStructure above, its first three frames.
         scenes::SmokeSettings ss = scenes::sceneSettings("swirl", Coord(64, 64, 96), 2);
         ss.maxSubsteps = 1;
-        scenes::SmokeSim swirl(ss);
-        for (int i = 1; i <= 3; ++i) {
-            plume.advanceFrame();
-            swirl.advanceFrame();
-            targets.push_back(plume.frame());
-            sources.push_back(swirl.frame());
-        }
+        simulatePair(scenes::sceneSettings("plume", Coord(16, 16, 24), 1), ss, 3, targets, sources);
     }
 };
 

@@ -301,6 +301,8 @@ void keepCoarseMeans(VectorField& detail, const VectorField& before, int f);
 /// of the voxel's position in its patch that evens out the mean |U_h|^2 over the smoke (clamped to [0.5, 2],
 /// circularly smoothed) raised to `strength` (in (0, 1]: how far to go), twice. Returns the largest full gain (or its
 /// inverse) of the first pass: the lattice it found.
+/// The smallest lattice (largest gain of evenPatchStrength's first pass) that is evened.
+constexpr double kEvenPatchesFrom = 1.2;
 double evenPatchStrength(
     VectorField& detail, const ScalarField& density, float threshold, const PatchLayout& layout, float strength);
 /// Scales U_h down where |curl(up(u_t) + U_h)| exceeds `cap` inside the smoke (density > threshold): gain cap / |curl|
