@@ -193,13 +193,15 @@ struct TransferTimings
     double local = 0.0;        ///< local search (eq. 2) and the coherence pass
     double paste = 0.0;        ///< pasting U_h
     double seams = 0.0;        ///< temporal blend, coarse part, seam smoothing (section 3.3)
+    double look = 0.0;         ///< issue 42's steps after calibration: local strength, even patches, vorticity cap
     double output = 0.0;       ///< coarse part, energy, assembling the frame
     double total = 0.0;        ///< the whole process() call
     /// (name, seconds) in report order; the names are the JSON keys of `steps_s`.
     std::vector<std::pair<const char*, double>> named() const
     {
         return {{"split", split}, {"advect_detail", advectDetail}, {"global", global}, {"local", local},
-            {"paste", paste}, {"seams", seams}, {"output", output}, {"density", density}, {"total", total}};
+            {"paste", paste}, {"seams", seams}, {"look", look}, {"output", output}, {"density", density},
+            {"total", total}};
     }
 };
 

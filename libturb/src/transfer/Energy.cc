@@ -6,6 +6,7 @@
 #include <turb/Parallel.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 namespace turb::detail {
@@ -39,51 +40,87 @@ std::vector<double> patchRms(
     const VectorField& detail, const ScalarField& density, float threshold, const PatchLayout& layout)
 {
     std::vector<double> sum(layout.patchCount(), 0.0), cnt(layout.patchCount(), 0.0);
-    for (size_t n = 0; n < detail.size(); ++n) {
-        if (!(density.data()[n] > threshold)) continue;
-        const Coord P = layout.patchOf(detail.coordOf(n));
-        if (P.x() < 0 || P.y() < 0 || P.z() < 0 || P.x() >= layout.count.x() || P.y() >= layout.count.y() ||
-            P.z() >= layout.count.z())
-            continue;
-        const size_t p = layout.patchIndex(P);
-        sum[p] += double(detail.data()[n].lengthSqr());
-        cnt[p] += 1.0;
+    // Serial, in a fixed order: the same sums at any thread count. The patch of each coordinate, once per axis.
+    const CoordBBox b = detail.bbox();
+    std::array<std::vector<int>, 3> patch;
+    for (int a = 0; a < 3; ++a) {
+        patch[size_t(a)].resize(size_t(b.dim()[a]));
+        for (int i = 0; i < b.dim()[a]; ++i) {
+            Coord c = b.min();
+            c[a] += i;
+            patch[size_t(a)][size_t(i)] = layout.patchOf(c)[a];
+        }
     }
+    size_t n = 0;
+    for (int x = 0; x < b.dim().x(); ++x)
+        for (int y = 0; y < b.dim().y(); ++y)
+            for (int z = 0; z < b.dim().z(); ++z, ++n) {
+                if (!(density.data()[n] > threshold)) continue;
+                const Coord P(patch[0][size_t(x)], patch[1][size_t(y)], patch[2][size_t(z)]);
+                if (P.x() < 0 || P.y() < 0 || P.z() < 0 || P.x() >= layout.count.x() || P.y() >= layout.count.y() ||
+                    P.z() >= layout.count.z())
+                    continue;
+                const size_t p = layout.patchIndex(P);
+                sum[p] += double(detail.data()[n].lengthSqr());
+                cnt[p] += 1.0;
+            }
     for (size_t p = 0; p < sum.size(); ++p) sum[p] = cnt[p] > 0.0 ? std::sqrt(sum[p] / cnt[p]) : 0.0;
     return sum;
 }
 
 void applyPatchGain(VectorField& detail, const std::vector<float>& gain, const PatchLayout& layout)
 {
+    // Trilinear between patch centres is separable: each axis's lower patch and weight, once per coordinate.
+    const CoordBBox b = detail.bbox();
     const Coord e = layout.extent();
+    std::array<std::vector<int>, 3> lower;
+    std::array<std::vector<float>, 3> weight;
+    for (int a = 0; a < 3; ++a) {
+        const int n = b.dim()[a];
+        lower[size_t(a)].resize(size_t(n));
+        weight[size_t(a)].resize(size_t(n));
+        for (int i = 0; i < n; ++i) {
+            const double u = (double(b.min()[a] + i - layout.origin[a]) + 0.5) / double(e[a]) - 0.5;
+            const int i0 = int(std::floor(u));
+            lower[size_t(a)][size_t(i)] = i0;
+            weight[size_t(a)][size_t(i)] = float(u - i0);
+        }
+    }
+    // The gains with one clamped layer around them, so the eight reads below need no bounds: index p + 1.
+    const Coord c = layout.count, g2 = c + Coord(2);
+    std::vector<float> padded(size_t(g2.x()) * size_t(g2.y()) * size_t(g2.z()));
+    for (int x = 0; x < g2.x(); ++x)
+        for (int y = 0; y < g2.y(); ++y)
+            for (int z = 0; z < g2.z(); ++z)
+                padded[(size_t(x) * size_t(g2.y()) + size_t(y)) * size_t(g2.z()) + size_t(z)] =
+                    gain[layout.patchIndex(Coord(std::clamp(x - 1, 0, c.x() - 1), std::clamp(y - 1, 0, c.y() - 1),
+                        std::clamp(z - 1, 0, c.z() - 1)))];
+    for (int a = 0; a < 3; ++a)
+        for (int& i0 : lower[size_t(a)]) i0 = std::clamp(i0 + 1, 0, g2[a] - 2); // a corner pair inside the padding
     const auto at = [&](int x, int y, int z) {
-        x = std::clamp(x, 0, layout.count.x() - 1);
-        y = std::clamp(y, 0, layout.count.y() - 1);
-        z = std::clamp(z, 0, layout.count.z() - 1);
-        return gain[layout.patchIndex(Coord(x, y, z))];
+        return padded[(size_t(x) * size_t(g2.y()) + size_t(y)) * size_t(g2.z()) + size_t(z)];
     };
-    parallelFor(detail.size(), 1 << 14, [&](size_t b, size_t end) {
-        for (size_t n = b; n < end; ++n) {
-            const Coord c = detail.coordOf(n);
-            double u[3];
-            int i0[3];
-            for (int a = 0; a < 3; ++a) {
-                u[a] = (double(c[a] - layout.origin[a]) + 0.5) / double(e[a]) - 0.5;
-                i0[a] = int(std::floor(u[a]));
-                u[a] -= i0[a];
-            }
-            double g = 0.0;
-            for (int corner = 0; corner < 8; ++corner) {
-                double w = 1.0;
-                int q[3];
-                for (int a = 0; a < 3; ++a) {
-                    const int bit = (corner >> a) & 1;
-                    q[a] = i0[a] + bit;
-                    w *= bit ? u[a] : 1.0 - u[a];
+    const int ny = b.dim().y(), nz = b.dim().z();
+    parallelFor(size_t(b.dim().x()), 1, [&](size_t x0, size_t x1) {
+        for (size_t x = x0; x < x1; ++x) {
+            const int px = lower[0][x];
+            const float wx = weight[0][x];
+            for (int y = 0; y < ny; ++y) {
+                const int py = lower[1][size_t(y)];
+                const float wy = weight[1][size_t(y)];
+                Vec3f* row = &detail.data()[(x * size_t(ny) + size_t(y)) * size_t(nz)];
+                for (int z = 0; z < nz; ++z) {
+                    const int pz = lower[2][size_t(z)];
+                    const float wz = weight[2][size_t(z)];
+                    float g = 0.0f;
+                    for (int corner = 0; corner < 8; ++corner) {
+                        const int bx = corner & 1, by = (corner >> 1) & 1, bz = (corner >> 2) & 1;
+                        g += (bx ? wx : 1.0f - wx) * (by ? wy : 1.0f - wy) * (bz ? wz : 1.0f - wz) *
+                             at(px + bx, py + by, pz + bz);
+                    }
+                    row[z] *= g;
                 }
-                g += w * double(at(q[0], q[1], q[2]));
             }
-            detail.data()[n] *= float(g);
         }
     });
 }
@@ -124,18 +161,22 @@ double evenPatchStrength(
         std::vector<std::vector<double>> sum(size_t(axes), std::vector<double>(size_t(B), 0.0)),
             cnt(size_t(axes), std::vector<double>(size_t(B), 0.0));
         double all = 0.0, voxels = 0.0;
-        for (size_t n = 0; n < detail.size(); ++n) {
-            if (!(density.data()[n] > threshold)) continue;
-            const Coord c = detail.coordOf(n);
-            const double e = double(detail.data()[n].lengthSqr());
-            for (int a = 0; a < axes; ++a) {
-                const size_t r = size_t(((c[a] - layout.origin[a]) % B + B) % B);
-                sum[size_t(a)][r] += e;
-                cnt[size_t(a)][r] += 1.0;
-            }
-            all += e;
-            voxels += 1.0;
-        }
+        const CoordBBox box = detail.bbox();
+        const auto residue = [&](int a, int i) { return size_t(((box.min()[a] + i - layout.origin[a]) % B + B) % B); };
+        size_t n = 0;
+        for (int x = 0; x < box.dim().x(); ++x)
+            for (int y = 0; y < box.dim().y(); ++y)
+                for (int z = 0; z < box.dim().z(); ++z, ++n) {
+                    if (!(density.data()[n] > threshold)) continue;
+                    const double e = double(detail.data()[n].lengthSqr());
+                    const size_t r[3] = {residue(0, x), residue(1, y), residue(2, z)};
+                    for (int a = 0; a < axes; ++a) {
+                        sum[size_t(a)][r[a]] += e;
+                        cnt[size_t(a)][r[a]] += 1.0;
+                    }
+                    all += e;
+                    voxels += 1.0;
+                }
         if (!(all > 0.0)) return worst;
         const double mean = all / voxels;
         std::vector<std::vector<float>> gain(size_t(axes), std::vector<float>(size_t(B), 1.0f));
@@ -171,48 +212,50 @@ double evenPatchStrength(
     return worst;
 }
 
-size_t limitVorticity(
-    VectorField& detail, const VectorField& Ut, const ScalarField& density, float threshold, double cap)
+size_t limitVorticity(VectorField& detail, const VectorField& Ut, const ScalarField& density, float threshold, double cap)
 {
     if (!(cap > 0.0)) return 0;
     const CoordBBox b = detail.bbox();
     size_t over = 0;
-    for (int pass = 0; pass < 2; ++pass) {
+    for (int pass = 0; pass < 1; ++pass) {
         VectorField u(b, detail.lattice());
-        for (size_t n = 0; n < u.size(); ++n) u.data()[n] = Ut.data()[n] + detail.data()[n];
+        parallelFor(u.size(), 1 << 14, [&](size_t lo, size_t hi) {
+            for (size_t n = lo; n < hi; ++n) u.data()[n] = Ut.data()[n] + detail.data()[n];
+        });
         const VectorField w = curl(u);
-        ScalarField gain(b, detail.lattice(), 1.0f);
-        size_t count = 0;
-        for (size_t n = 0; n < gain.size(); ++n) {
+        // The hot voxels are few (tens in a frame of the Blender pairs), so the gain is made around them only.
+        std::vector<std::pair<size_t, float>> hot;
+        for (size_t n = 0; n < w.size(); ++n) {
             const double m = double(w.data()[n].length());
-            if (density.data()[n] > threshold && m > cap) {
-                gain.data()[n] = float(cap / m);
-                ++count;
-            }
+            if (density.data()[n] > threshold && m > cap) hot.emplace_back(n, float(cap / m));
         }
-        if (pass == 0) over = count;
-        if (count == 0) break;
+        if (pass == 0) over = hot.size();
+        if (hot.empty()) break;
         // The smallest gain of the 3^3 neighbourhood, then a 3^3 mean: the whole hot spot is scaled, smoothly, so no
-        // new gradient (and vorticity) is made at its edge.
-        const auto filter = [&](const ScalarField& in, bool takeMin) {
-            ScalarField out = in;
-            forEachVoxel(b, [&](int i, int j, int k) {
-                float acc = takeMin ? 1.0f : 0.0f;
-                int cnt = 0;
-                for (int di = -1; di <= 1; ++di)
-                    for (int dj = -1; dj <= 1; ++dj)
-                        for (int dk = -1; dk <= 1; ++dk) {
-                            if (!in.contains(i + di, j + dj, k + dk)) continue;
-                            const float v = in(i + di, j + dj, k + dk);
-                            acc = takeMin ? std::min(acc, v) : acc + v;
-                            ++cnt;
-                        }
-                out(i, j, k) = takeMin ? acc : acc / float(cnt);
-            });
-            return out;
+        // new gradient (and vorticity) is made at its edge. Away from hot voxels both are exactly 1.
+        ScalarField least(b, detail.lattice(), 1.0f);
+        const auto around = [&](const Coord& c, int r, const auto& fn) {
+            for (int di = -r; di <= r; ++di)
+                for (int dj = -r; dj <= r; ++dj)
+                    for (int dk = -r; dk <= r; ++dk)
+                        if (b.isInside(c + Coord(di, dj, dk))) fn(c + Coord(di, dj, dk));
         };
-        const ScalarField g = filter(filter(gain, true), false);
-        for (size_t n = 0; n < detail.size(); ++n) detail.data()[n] *= g.data()[n];
+        for (const auto& [n, g] : hot)
+            around(detail.coordOf(n), 1, [&](const Coord& q) { least[q] = std::min(least[q], g); });
+        std::vector<uint8_t> done(detail.size(), 0);
+        for (const auto& [n, g] : hot)
+            around(detail.coordOf(n), 2, [&](const Coord& q) {
+                const size_t k = detail.offset(q.x(), q.y(), q.z());
+                if (done[k]) return;
+                done[k] = 1;
+                float sum = 0.0f;
+                int count = 0;
+                around(q, 1, [&](const Coord& r) {
+                    sum += least[r];
+                    ++count;
+                });
+                detail.data()[k] *= sum / float(count);
+            });
     }
     return over;
 }

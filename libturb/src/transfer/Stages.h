@@ -306,7 +306,7 @@ constexpr double kEvenPatchesFrom = 1.2;
 double evenPatchStrength(
     VectorField& detail, const ScalarField& density, float threshold, const PatchLayout& layout, float strength);
 /// Scales U_h down where |curl(up(u_t) + U_h)| exceeds `cap` inside the smoke (density > threshold): gain cap / |curl|
-/// there, spread over its 3^3 neighbourhood and smoothed, twice. Returns the voxels that were over the cap.
+/// there, spread over its 3^3 neighbourhood and smoothed. Returns the voxels that were over the cap.
 size_t limitVorticity(
     VectorField& detail, const VectorField& Ut, const ScalarField& density, float threshold, double cap);
 void calibrateDetail(VectorField& detail, const TargetAtOutput& t, const Frame& target, const SmokeEnergy& smoke,

@@ -458,6 +458,7 @@ VectorField TurbulenceTransfer::Impl::transferDetail(const Frame& target, const 
         goal.aim *= blend.estimate / *a;
         detail = pastedDetail;
     }
+    time.seams = lap(t0);
     // Beyond the paper (issue 42), on the calibrated detail; each step's box means are taken out again at the end, so
     // the coarse motion stays as calibration left it (lf_err).
     if (look && (!pastedRms.empty() || s.evenPatches > 0.0f || s.vorticityLimit > 0.0f)) {
@@ -470,10 +471,10 @@ VectorField TurbulenceTransfer::Impl::transferDetail(const Frame& target, const 
             st.patchStrengthGain = evenPatchStrength(detail, density, s.densityThreshold, fs.layout, s.evenPatches);
         // Hot spots hotter than anything in the source (the emitter's saturated band: 1.3-1.65 times the source's
         // 0.999-quantile vorticity on the plume2 pair) are scaled down to it, and the frame's energy is given back to
-        // the rest (limited alone, hf_ratio fell to 0.77 at frame 3 of that pair): twice, so the peaks end near the
-        // cap.
+        // the rest (limited alone, hf_ratio fell to 0.77 at frame 3 of that pair), which lifts the peaks a few percent
+        // over the cap again.
         const double calibrated = smoke(detail);
-        for (int round = 0; round < 2 && s.vorticityLimit > 0.0f; ++round) {
+        for (int round = 0; round < 1 && s.vorticityLimit > 0.0f; ++round) {
             const size_t over =
                 limitVorticity(detail, t.Ut, density, s.densityThreshold, s.vorticityLimit * m.bands.vortPeak);
             if (round == 0) st.vorticityLimited = over;
@@ -484,7 +485,7 @@ VectorField TurbulenceTransfer::Impl::transferDetail(const Frame& target, const 
         }
         keepCoarseMeans(detail, before, fs.f);
     }
-    time.seams = lap(t0);
+    time.look = lap(t0);
     carried.tracks.clear();
     for (size_t p = 0; p < active.size(); ++p)
         if (active[p]) carried.tracks[fs.absolutePatch(fs.layout.patchCoord(p))] = m.local.chosenExact[p];
