@@ -111,11 +111,13 @@ struct TransferSettings
                                   ///< paper; at most 4
     float repeatTolerance = 1.0f; ///< a repeat is avoided with a candidate whose E_h is at most (1 + this) times
                                   ///< the best, >= 0
-    float evenPatches = 0.5f;     ///< beyond the paper: a variance-preserving correction of the seams: U_h's
+    float evenPatches = 0.0f;     ///< beyond the paper: a variance-preserving correction of the seams: U_h's
                                   ///< strength evened out over the position in the patch (issue 42's lattice), this
                                   ///< fraction of the way (the exponent of the gain), on frames whose modulation is
                                   ///< clear (a largest gain of kEvenPatchesFrom = 1.2: a shot's first frames), in
-                                  ///< [0, 1]; 0 = off, the paper. At 1, block rose to 1.06 on the farm test's pair
+                                  ///< [0, 1]; 0 = off (the default and the paper): at 0.5 the paper pair's frame-1
+                                  ///< lattice fell from 0.17 to 0.14, but block rose to 1.05 on the farm test's
+                                  ///< pair (1.06 at 1), over its goal
     float localEnergy = 0.5f;     ///< beyond the paper: after calibration each patch's detail rms moves toward the
                                   ///< rms of the source detail pasted into it, this fraction of the way in log
                                   ///< (gains in [1/3, 3], interpolated between patch centres), the frame's total
