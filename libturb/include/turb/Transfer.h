@@ -116,7 +116,7 @@ struct TransferSettings
                                   ///< fraction of the way (the exponent of the gain), on frames whose modulation is
                                   ///< clear (a largest gain of kEvenPatchesFrom = 1.2: a shot's first frames), in
                                   ///< [0, 1]; 0 = off (the default and the paper): at 0.5 the paper pair's frame-1
-                                  ///< lattice fell from 0.17 to 0.14, but block rose to 1.05 on the farm test's
+                                  ///< lattice fell from 0.18 to 0.14, but block rose to 1.05 on the farm test's
                                   ///< pair (1.06 at 1), over its goal
     float localEnergy = 0.5f;     ///< beyond the paper: after calibration each patch's detail rms moves toward the
                                   ///< rms of the source detail pasted into it, this fraction of the way in log
