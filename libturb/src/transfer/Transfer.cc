@@ -473,15 +473,15 @@ VectorField TurbulenceTransfer::Impl::transferDetail(const Frame& target, const 
         // 0.999-quantile vorticity on the plume2 pair) are scaled down to it, and the frame's energy is given back to
         // the rest (limited alone, hf_ratio fell to 0.77 at frame 3 of that pair), which lifts the peaks a few percent
         // over the cap again.
-        const double calibrated = smoke(detail);
-        for (int round = 0; round < 1 && s.vorticityLimit > 0.0f; ++round) {
-            const size_t over =
+        if (s.vorticityLimit > 0.0f) {
+            const double calibrated = smoke(detail);
+            st.vorticityLimited =
                 limitVorticity(detail, t.Ut, density, s.densityThreshold, s.vorticityLimit * m.bands.vortPeak);
-            if (round == 0) st.vorticityLimited = over;
             const double now = smoke(detail);
-            if (over == 0 || !(now > 0.0)) break;
-            const float k = float(std::sqrt(calibrated / now));
-            for (auto& v : detail.values()) v *= k;
+            if (st.vorticityLimited > 0 && now > 0.0) {
+                const float k = float(std::sqrt(calibrated / now));
+                for (auto& v : detail.values()) v *= k;
+            }
         }
         keepCoarseMeans(detail, before, fs.f);
     }
