@@ -423,20 +423,24 @@ std::array<double, 4> densityEdgeSums(const ScalarField& D, int f, float thresho
 
 } // namespace
 
+DensityEdge densityEdge(const ScalarField& D, int f, float threshold)
+{
+    DensityEdge e;
+    if (f < 2 || D.empty()) return e;
+    const auto s = densityEdgeSums(D, f, threshold);
+    if (s[1] > 0.0) e.fray = s[0] / s[1];
+    if (s[3] > 0.0) e.crispness = s[2] / s[3];
+    return e;
+}
+
 std::optional<double> densityFray(const ScalarField& D, int f, float threshold)
 {
-    if (f < 2 || D.empty()) return std::nullopt;
-    const auto s = densityEdgeSums(D, f, threshold);
-    if (!(s[1] > 0.0)) return std::nullopt;
-    return s[0] / s[1];
+    return densityEdge(D, f, threshold).fray;
 }
 
 std::optional<double> edgeCrispness(const ScalarField& D, int f, float threshold)
 {
-    if (f < 2 || D.empty()) return std::nullopt;
-    const auto s = densityEdgeSums(D, f, threshold);
-    if (!(s[3] > 0.0)) return std::nullopt;
-    return s[2] / s[3];
+    return densityEdge(D, f, threshold).crispness;
 }
 
 std::vector<std::optional<double>> detailProfile(
@@ -652,6 +656,32 @@ void coarseMeasures(
     if (m.smokeCells > 0 && !m.airDetail) m.notes.push_back("air_detail: no still air or no detail in the smoke");
 }
 
+// The output density's numbers against the target's, on the refined target lattice (`onRefined`): mass, peak,
+// density_err, imprint, and fray and crispness from one pass over its edge.
+void outputDensityNumbers(const ScalarField& D, const ScalarField& onRefined, const ScalarField& Dt, int f,
+    float threshold, FrameMeasures& m)
+{
+    const DensityMeasures dm = densityMeasures(D, onRefined, Dt, f, threshold);
+    m.massRatio = dm.massRatio;
+    m.peakDensity = dm.peak;
+    m.peakRatio = dm.peakRatio;
+    m.densityErr = dm.coarseErr;
+    m.densityImprint = dm.imprint;
+    const DensityEdge e = densityEdge(onRefined, f, threshold);
+    m.densityFray = e.fray;
+    m.edgeCrispness = e.crispness;
+}
+
+// The source density's fray and crispness at its own ratio, and the fray ratio.
+void sourceDensityNumbers(const ScalarField& Ds, int ratio, float threshold, FrameMeasures& m)
+{
+    const DensityEdge e = densityEdge(Ds, ratio, threshold);
+    m.densityFraySource = e.fray;
+    m.edgeCrispnessSource = e.crispness;
+    if (m.densityFray && m.densityFraySource && *m.densityFraySource > 0.0)
+        m.densityFrayRatio = *m.densityFray / *m.densityFraySource;
+}
+
 // Intrinsic numbers of the output on its own lattice (no alignment can blur them) and its density against the
 // target's. Returns the output's smoke region on its own lattice.
 Mask outputMeasures(const Frame& O, const Frame& T, const Aligned& a, const MeasureSettings& s, FrameMeasures& m)
@@ -665,17 +695,9 @@ Mask outputMeasures(const Frame& O, const Frame& T, const Aligned& a, const Meas
     }
     m.smokeVoxels = countMask(ownMask);
     if (O.hasDensity()) {
-        const ScalarField onRefined = realign(O.density, a.refined, a.box, a.alignment);
-        const DensityMeasures dm = densityMeasures(O.density, onRefined,
+        outputDensityNumbers(O.density, realign(O.density, a.refined, a.box, a.alignment),
             T.density.bbox() == T.velocity.bbox() ? T.density : cropped(T.density, T.velocity.bbox()), a.f,
-            s.densityThreshold);
-        m.massRatio = dm.massRatio;
-        m.peakDensity = dm.peak;
-        m.peakRatio = dm.peakRatio;
-        m.densityErr = dm.coarseErr;
-        m.densityImprint = dm.imprint;
-        m.densityFray = densityFray(onRefined, a.f, s.densityThreshold);
-        m.edgeCrispness = edgeCrispness(onRefined, a.f, s.densityThreshold);
+            s.densityThreshold, m);
     }
     m.hfEnergy = highFrequencyEnergy(O.velocity, ownMask, a.f);
     m.divRel = relativeDivergence(O.velocity, ownMask);
@@ -698,10 +720,7 @@ Mask sourceMeasures(const MeasuredSources& sources, const Frame& T, const Measur
     srcMask = thresholdMask(S.density, S.velocity.bbox(), s.densityThreshold);
     m.hfEnergySource = highFrequencyEnergy(S.velocity, srcMask, m.sourceRatio);
     m.divRelSource = relativeDivergence(S.velocity, srcMask);
-    m.densityFraySource = densityFray(S.density, m.sourceRatio, s.densityThreshold);
-    m.edgeCrispnessSource = edgeCrispness(S.density, m.sourceRatio, s.densityThreshold);
-    if (m.densityFray && m.densityFraySource && *m.densityFraySource > 0.0)
-        m.densityFrayRatio = *m.densityFray / *m.densityFraySource;
+    sourceDensityNumbers(S.density, m.sourceRatio, s.densityThreshold, m);
     if (m.hfEnergy && m.hfEnergySource && *m.hfEnergySource > 0.0) m.hfRatio = *m.hfEnergy / *m.hfEnergySource;
     else m.notes.push_back("hf_ratio: the source has no smoke or no high-frequency energy");
     return srcMask;
@@ -890,24 +909,13 @@ FrameMeasures measureDensityOnly(const MeasureInput& in, const MeasureSettings& 
         m.targetNyquist = M_PI / Dt.lattice().voxelSize;
         m.smokeVoxels = countMask(thresholdMask(O.density, O.density.bbox(), s.densityThreshold));
         m.smokeCells = countMask(thresholdMask(Dt, Dt.bbox(), s.densityThreshold));
-        const ScalarField onRefined = realign(O.density, refined, box, al);
-        const DensityMeasures dm = densityMeasures(O.density, onRefined, Dt, f, s.densityThreshold);
-        m.massRatio = dm.massRatio;
-        m.peakDensity = dm.peak;
-        m.peakRatio = dm.peakRatio;
-        m.densityErr = dm.coarseErr;
-        m.densityImprint = dm.imprint;
-        m.densityFray = densityFray(onRefined, f, s.densityThreshold);
-        m.edgeCrispness = edgeCrispness(onRefined, f, s.densityThreshold);
+        outputDensityNumbers(O.density, realign(O.density, refined, box, al), Dt, f, s.densityThreshold, m);
         MeasuredSources sources;
         measuredSources(in, T, sources);
         if (sources.source) {
             const Frame& S = *sources.source;
             m.sourceRatio = integerRatio(Dt.lattice().voxelSize, S.density.lattice().voxelSize);
-            m.densityFraySource = densityFray(S.density, m.sourceRatio, s.densityThreshold);
-            m.edgeCrispnessSource = edgeCrispness(S.density, m.sourceRatio, s.densityThreshold);
-            if (m.densityFray && m.densityFraySource && *m.densityFraySource > 0.0)
-                m.densityFrayRatio = *m.densityFray / *m.densityFraySource;
+            sourceDensityNumbers(S.density, m.sourceRatio, s.densityThreshold, m);
         }
     });
     return m;

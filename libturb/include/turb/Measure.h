@@ -244,6 +244,13 @@ std::optional<double> densityFray(const ScalarField& D, int f, float threshold);
 /// density.
 std::optional<double> edgeCrispness(const ScalarField& D, int f, float threshold);
 
+/// densityFray and edgeCrispness from one pass over the density's edge (each nullopt as the function says).
+struct DensityEdge
+{
+    std::optional<double> fray, crispness;
+};
+DensityEdge densityEdge(const ScalarField& D, int f, float threshold);
+
 /// Detail strength against height: the rms of H = U - up_f(boxdown_f(U)) over the mask's voxels in each of `bands`
 /// equal slabs of the mask's extent along `upAxis` (0 x, 1 y, 2 z; band 0 at the bottom, where an emitter sits),
 /// each over the rms over the whole mask. A band holding fewer than 1% of the mask's voxels is nullopt. An empty

@@ -71,8 +71,9 @@ SourceBands splitSource(const Frame& source, const Frame& target, const FrameSet
             split.low.data()[n] += cu.data()[n];
         }
     }
-    if (s.vorticityLimit > 0.0f) {
-        // The source's hottest vorticity, the cap of TransferSettings::vorticityLimit (in output units below).
+    if (s.vorticityLimit > 0.0f && !fs.flat) {
+        // The source's hottest vorticity, the cap of TransferSettings::vorticityLimit (in output units below; the
+        // cap applies to 3D caches only).
         std::vector<unsigned char> mask(out.Ds.size());
         for (size_t n = 0; n < mask.size(); ++n) mask[n] = out.Ds.data()[n] > s.densityThreshold;
         out.vortPeak = vorticityPeak(Us, mask, kVortPeakQuantile).value_or(0.0);
