@@ -78,7 +78,7 @@ for pair in $PAIRS; do
     "$VDBTURB" measure --output "$hires" --target "$target" --source "$source" --frames "$frames" -q \
         > "$OUT/$pair.hires.json"
     for mode in density vorticity; do
-        "$VDBTURB" preview --mode $mode --frames "$shown" --width 220 --sheet "$OUT/$pair-$mode.png" -q \
+        "$VDBTURB" preview --mode $mode --frames "$shown" --width 220 --match-density --sheet "$OUT/$pair-$mode.png" -q \
             target="$target" "Blender noise=$noise" "Blender high-res=$hires" vdbturb="$dir/out.####.vdb"
     done
     /usr/bin/env python3 "$ROOT/bench/look_table.py" "$pair" "$OUT/$pair"

@@ -469,6 +469,36 @@ TEST(Cli, MeasureAndPreviewTakeADensityOnlyCacheAsBlendersNoiseWrites)
     EXPECT_EQ(alone.code, 1) << alone.out;
     EXPECT_NE(alone.out.find("n.0002.vdb"), std::string::npos) << alone.out;
     EXPECT_NE(alone.out.find("no velocity"), std::string::npos) << alone.out;
+
+    // Blender's noise writes about f times its base's density. --match-density draws each cache at the first one's
+    // peak: the same smoke at 8 times the density is drawn as the original, pixel for pixel.
+    for (auto& v : f.density.values()) v *= 8.0f;
+    turbio::writeFrame(dir / "noise/n8.0002.vdb", f, turbio::WriteOptions{});
+    const auto cell = [&](const std::string& second, const std::string& extra, const std::string& png) {
+        const CmdResult r = run("preview a=" + dir / "noise/n.####.vdb" + " b=" + dir / second +
+                                " --mode density --frames 2 --width 48 --sheet " + dir / png + " --json -q " + extra);
+        EXPECT_EQ(r.code, 0) << r.out;
+        const auto at = r.out.find("{\"");
+        EXPECT_NE(at, std::string::npos) << r.out;
+        const nlohmann::json js = nlohmann::json::parse(r.out.substr(at, r.out.find('\n', at) - at));
+        return std::make_pair(js.at("density_scale").at("b").get<double>(), turbio::readImage(dir / png));
+    };
+    const auto same = cell("noise/n.####.vdb", "", "same.png");
+    const auto matched = cell("noise/n8.####.vdb", "--match-density", "matched.png");
+    const auto unmatched = cell("noise/n8.####.vdb", "", "unmatched.png");
+    EXPECT_DOUBLE_EQ(same.first, 1.0);
+    EXPECT_NEAR(matched.first, 0.125, 1e-6);
+    EXPECT_DOUBLE_EQ(unmatched.first, 1.0);
+    ASSERT_EQ(matched.second.width(), same.second.width());
+    // The picture above the labels: equal with the scale, far from it without.
+    double dMatched = 0.0, dUnmatched = 0.0;
+    for (int y = 0; y < same.second.height() * 2 / 3; ++y)
+        for (int x = same.second.width() / 2; x < same.second.width(); ++x) {
+            dMatched = std::max(dMatched, double((matched.second.at(x, y) - same.second.at(x, y)).length()));
+            dUnmatched = std::max(dUnmatched, double((unmatched.second.at(x, y) - same.second.at(x, y)).length()));
+        }
+    EXPECT_LT(dMatched, 0.01);
+    EXPECT_GT(dUnmatched, 0.1);
 }
 
 TEST(Cli, MeasureCanReadTheSourceAsTransferReadsIt)

@@ -47,6 +47,7 @@ struct PreviewArgs
     float speedMax = 0.0f;
     float vorticityMax = 0.0f;
     std::string up = "auto"; ///< auto, y or z: the world axis drawn upward
+    bool matchDensity = false; ///< draw every cache's density at the first cache's peak (see densityScales)
     bool json = false;
     turbio::ReadOptions read;
 };
@@ -56,6 +57,7 @@ struct Input
     std::string label;
     turbio::Sequence seq;
     float speedMax = 0.0f, vorticityMax = 0.0f; // fixed colour ranges for the whole run
+    float densityScale = 1.0f;                  // --match-density: the density render's extinction times this
     std::optional<turb::CoordBBox> frameBox;    // one camera for the whole run (see below)
     turb::Lattice lattice;                      // frameBox's
     turb::CoordBBox held;                       // the union of the frames' held boxes (before shareCamera)
@@ -209,7 +211,7 @@ turb::Image render(const turb::Frame& f, Mode m, const PreviewArgs& a, const Inp
         s.view = view;
         s.width = a.width;
         s.exposure = a.exposure;
-        s.extinction = a.extinction;
+        s.extinction = a.extinction * in.densityScale;
         turb::Image img = turb::renderDensity(f.density, s);
         outline(img);
         return img;
@@ -243,6 +245,7 @@ std::string cellLabel(const Input& in, Mode m, size_t inputs, size_t modes)
     std::string unit;
     if (m == Mode::Speed) unit = " 0-" + fmt("%.3g", in.speedMax) + "/s";
     if (m == Mode::Vorticity) unit = " 0-" + fmt("%.3g", in.vorticityMax) + "/s";
+    if (m == Mode::Density && in.densityScale != 1.0f) unit += " (density x" + fmt("%.3g", in.densityScale) + ")";
     if (in.ownCamera) unit += " (own framing)"; // another scene beside the first: not at the first column's scale
     if (inputs > 1 && modes > 1) return in.label + " " + modeName(m) + unit;
     if (inputs > 1) return in.label + unit;
@@ -422,6 +425,32 @@ void colourRanges(const PreviewArgs& a, PreviewPlan& p)
     for (auto& in : p.inputs) in.speedMax = speedAll > 0.0f ? speedAll : 1.0f;
 }
 
+// --match-density: each cache's density drawn at the first cache's peak, from the last row's frame, fixed for the
+// run. Blender's noise up-res writes its density at about f times its base's peak (8x at f = 8): drawn as written
+// it is 8 times as opaque as its own target and its edges look harder than the same shape at the target's density.
+void densityScales(const PreviewArgs& a, PreviewPlan& p)
+{
+    if (!a.matchDensity || std::find(p.modes.begin(), p.modes.end(), Mode::Density) == p.modes.end()) return;
+    float firstPeak = 0.0f;
+    for (size_t i = 0; i < p.inputs.size(); ++i) {
+        Input& in = p.inputs[i];
+        int ref = -1;
+        for (auto it = p.frames.rbegin(); it != p.frames.rend() && ref < 0; ++it)
+            if (exists(in, *it)) ref = *it;
+        if (ref < 0) continue;
+        turbio::ReadOptions ro = p.read;
+        ro.requireVelocity = false;
+        ro.cropMargin += in.extraMargin;
+        const turb::Frame f = turbio::readFrame(in.seq.path(fileFrame(in, ref)), fileFrame(in, ref), ro);
+        if (!f.hasDensity()) continue;
+        float peak = 0.0f;
+        for (float v : f.density.values()) peak = std::max(peak, v);
+        if (!(peak > 0.0f)) continue;
+        if (i == 0) firstPeak = peak;
+        else if (firstPeak > 0.0f) in.densityScale = firstPeak / peak;
+    }
+}
+
 // One row: every cache's pictures of `frame` in every mode (empty where the cache lacks the frame), labelled.
 std::vector<turb::Image> renderRow(
     const PreviewArgs& a, const PreviewPlan& p, int frame, ConsoleProgress& progress, std::vector<std::string>& labels)
@@ -457,7 +486,7 @@ std::vector<turb::Image> renderRow(
     return images;
 }
 
-// The world box each input is drawn over (one camera per scene), for the frame's JSON line.
+// The world box each input is drawn over (one camera per scene) and its density scale, for the frame's JSON line.
 nlohmann::json framedJson(const std::vector<Input>& inputs)
 {
     nlohmann::json extra;
@@ -468,6 +497,7 @@ nlohmann::json framedJson(const std::vector<Input>& inputs)
             const auto clean = [](double x) { return std::round(x * 1e9) / 1e9; }; // no 1.9999999999999858
             extra["framed"][in.label] = {
                 clean(lo.x()), clean(lo.y()), clean(lo.z()), clean(hi.x()), clean(hi.y()), clean(hi.z())};
+            extra["density_scale"][in.label] = in.densityScale;
         }
     return extra;
 }
@@ -509,6 +539,7 @@ void writeSheet(const PreviewArgs& a, const PreviewPlan& p, const std::vector<st
 void drawRows(const PreviewArgs& a, PreviewPlan& p)
 {
     colourRanges(a, p);
+    densityScales(a, p);
     RunReport report("preview", a.json);
     std::vector<std::vector<turb::Image>> rowImages;
     std::vector<std::vector<turb::SheetCell>> rows;
@@ -591,6 +622,10 @@ void addPictureSettings(CLI::App* app, PreviewArgs& a)
     setting(app->add_option("--extinction", a.extinction, "Optical depth per unit density per world unit")
                 ->check(finitePositive()),
         "extinction");
+    setting(app->add_flag("--match-density", a.matchDensity,
+                "Draw each cache's density scaled to the first cache's peak (on the last row's frame, fixed for the "
+                "run; Blender's noise up-res writes about f times its base's density), labelled with the scale"),
+        "match-density");
     setting(app->add_option("--speed-max", a.speedMax,
                    "Speed at the top of the colour map (0: the last frame's 99.5th percentile)")
                 ->check(finitePositive()),
