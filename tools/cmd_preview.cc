@@ -399,6 +399,19 @@ int checkOutputPaths(const PreviewArgs& a, const PreviewPlan& p, const std::vect
     return kOk;
 }
 
+// The input's frame of the last row that it has (none: nullopt), read with its density or its velocity optional.
+std::optional<turb::Frame> lastRowFrame(const Input& in, const PreviewPlan& p, bool forDensity)
+{
+    int ref = -1;
+    for (auto it = p.frames.rbegin(); it != p.frames.rend() && ref < 0; ++it)
+        if (exists(in, *it)) ref = *it;
+    if (ref < 0) return std::nullopt;
+    turbio::ReadOptions ro = p.read;
+    (forDensity ? ro.requireVelocity : ro.requireDensity) = false;
+    ro.cropMargin += in.extraMargin;
+    return turbio::readFrame(in.seq.path(fileFrame(in, ref)), fileFrame(in, ref), ro);
+}
+
 // Fixed colour ranges for the whole run, from the last row's frame, so sequences do not flicker. Speed shares one
 // range across caches (same world units, comparable); vorticity grows with resolution, so each cache gets its own.
 void colourRanges(const PreviewArgs& a, PreviewPlan& p)
@@ -406,15 +419,9 @@ void colourRanges(const PreviewArgs& a, PreviewPlan& p)
     if (!needsVelocity(p.modes)) return;
     float speedAll = a.speedMax;
     for (auto& in : p.inputs) {
-        int ref = -1;
-        for (auto it = p.frames.rbegin(); it != p.frames.rend() && ref < 0; ++it)
-            if (exists(in, *it)) ref = *it;
-        if (ref < 0) continue;
-        turbio::ReadOptions ro = p.read;
-        ro.requireDensity = false;
-        ro.cropMargin += in.extraMargin;
-        turb::Frame f = turbio::readFrame(in.seq.path(fileFrame(in, ref)), fileFrame(in, ref), ro);
-        if (!f.hasVelocity()) continue;
+        std::optional<turb::Frame> last = lastRowFrame(in, p, false);
+        if (!last || !last->hasVelocity()) continue;
+        turb::Frame& f = *last;
         turb::toTimeUnit(f, 1.0); // one speed scale for every column: world units per second
         const turb::ScalarField* d = f.hasDensity() ? &f.density : nullptr;
         in.speedMax = a.speedMax > 0.0f ? a.speedMax : percentile(turb::magnitude(f.velocity), d, 0.995);
@@ -434,17 +441,10 @@ void densityScales(const PreviewArgs& a, PreviewPlan& p)
     float firstPeak = 0.0f;
     for (size_t i = 0; i < p.inputs.size(); ++i) {
         Input& in = p.inputs[i];
-        int ref = -1;
-        for (auto it = p.frames.rbegin(); it != p.frames.rend() && ref < 0; ++it)
-            if (exists(in, *it)) ref = *it;
-        if (ref < 0) continue;
-        turbio::ReadOptions ro = p.read;
-        ro.requireVelocity = false;
-        ro.cropMargin += in.extraMargin;
-        const turb::Frame f = turbio::readFrame(in.seq.path(fileFrame(in, ref)), fileFrame(in, ref), ro);
-        if (!f.hasDensity()) continue;
+        const std::optional<turb::Frame> f = lastRowFrame(in, p, true);
+        if (!f || !f->hasDensity()) continue;
         float peak = 0.0f;
-        for (float v : f.density.values()) peak = std::max(peak, v);
+        for (float v : f->density.values()) peak = std::max(peak, v);
         if (!(peak > 0.0f)) continue;
         if (i == 0) firstPeak = peak;
         else if (firstPeak > 0.0f) in.densityScale = firstPeak / peak;
