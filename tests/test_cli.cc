@@ -107,6 +107,26 @@ TEST(Cli, TransferKeepsEightTargetVoxelsAroundTheSourcesSmoke)
     EXPECT_NE(given.out.find("source crop margin: 5 source voxels"), std::string::npos) << given.out;
 }
 
+TEST(Cli, FrameRatesTakeARatioAsEditorialWritesThem)
+{
+    // 23.976 and 24000/1001 both name NTSC film: the ratio is read as its value; a ratio that is not one is a usage
+    // error naming it.
+    const std::string file = testutil::dataPath("blender-plume-32/fluid_data_0002.vdb");
+    const auto fps = [&](const std::string& value) {
+        const CmdResult r = clitest::runStdout("info " + file + " --fps " + value + " --json -q");
+        const nlohmann::json j = nlohmann::json::parse(r.out);
+        return j.at("timing").at("fps").get<double>();
+    };
+    EXPECT_DOUBLE_EQ(fps("24000/1001"), 24000.0 / 1001.0);
+    EXPECT_DOUBLE_EQ(fps("23.976"), 23.976);
+    EXPECT_DOUBLE_EQ(fps("25"), 25.0);
+    for (const char* bad : {"24/0", "abc/2", "24/", "-24000/1001"}) {
+        const CmdResult r = run("info " + file + " --fps " + bad);
+        EXPECT_EQ(r.code, 2) << bad << ": " << r.out;
+        EXPECT_NE(r.out.find("--fps"), std::string::npos) << r.out;
+    }
+}
+
 TEST(Cli, InfoJsonGoesToStdoutAndReportsMissingFrames)
 {
     testutil::TempDir dir;

@@ -81,6 +81,8 @@ void warnIfClippedAway(
 bool parseNumber(const std::string& s, double& v);
 /// A CLI check for a finite number in [lo, hi] (CLI11's own number checks let NaN through).
 CLI::Validator finiteIn(double lo, double hi = 1e30);
+/// A transform that turns a ratio "N/D" (24000/1001) into its value, for a range check after it.
+CLI::Validator rationalNumber();
 /// A finite number > 0 (CLI11's PositiveNumber lets NaN through and prints DBL_MAX in full in its message).
 CLI::Validator finitePositive();
 

@@ -107,8 +107,10 @@ void addReadOptions(CLI::App* app, turbio::ReadOptions& opt, const std::string& 
                "density-grid, or the stem of NAME.x/.y/.z; empty: vel, velocity, v")
         ->check(selector("vel-grid"))
         ->group(kGroupInput);
-    app->add_option(
-           p + "fps", opt.fps, "Frames per second of the shot, for the default time per frame (0: 24, with a warning)")
+    app->add_option(p + "fps", opt.fps,
+           "Frames per second of the shot, for the default time per frame: 23.976 or 24000/1001 (0: 24, with a "
+           "warning)")
+        ->transform(rationalNumber())
         ->check(finiteIn(0.0))
         ->group(kGroupInput);
     setting(addEnum<turbio::VelocityUnits>(app, p + "vel-units", opt.velocityUnits,
@@ -277,6 +279,30 @@ CLI::Validator finiteIn(double lo, double hi)
     const std::string text = hi >= 1e30 ? "NUMBER>=" + trimmed(lo) + " (at most " + trimmed(hi) + ")"
                                         : "NUMBER in [" + trimmed(lo) + ", " + trimmed(hi) + "]";
     return finiteNumber([lo, hi](double v) { return v >= lo && v <= hi; }, text);
+}
+
+CLI::Validator rationalNumber()
+{
+    // Frame rates come as ratios in editorial and in OpenTimelineIO (24000/1001): the ratio becomes its value, which
+    // the option's range check then reads; anything else is left to that check.
+    return CLI::Validator(
+        [](std::string& text) {
+            const auto slash = text.find('/');
+            if (slash == std::string::npos) return std::string();
+            const auto number = [](const std::string& t, double& v) {
+                char* end = nullptr;
+                v = std::strtod(t.c_str(), &end);
+                return !t.empty() && end == t.c_str() + t.size() && std::isfinite(v);
+            };
+            double n = 0.0, d = 0.0;
+            if (!number(text.substr(0, slash), n) || !number(text.substr(slash + 1), d) || !(d > 0.0))
+                return "'" + text + "' is not a ratio of two numbers such as 24000/1001";
+            char b[40];
+            std::snprintf(b, sizeof(b), "%.17g", n / d);
+            text = b;
+            return std::string();
+        },
+        "", "");
 }
 
 CLI::Validator finitePositive()
