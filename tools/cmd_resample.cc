@@ -132,6 +132,7 @@ int runResample(ResampleArgs& a)
     const turb::AxisRotation rot = parseRotation(a.rotate);
     const turbio::Sequence seq = turbio::resolveSequence(a.in, a.frames);
     const turbio::FramePattern outPattern = turbio::FramePattern::parse(a.out);
+    checkOutputFormat(a.write, a.out, a.skipExisting ? "--skip-existing" : "");
     if (seq.frames.size() > 1 && !outPattern.numbered())
         throw UsageError("--out '" + a.out + "' has no frame token but several frames are requested");
     a.read.requireDensity = a.read.requireVelocity = false;
@@ -204,10 +205,11 @@ Command resampleCommand()
         app->add_option(
             "--rotate", args->rotate, "AXIS:TURNS quarter turns about x, y or z (e.g. y:1), grids and vectors");
         addReadOptions(app, args->read);
-        app->add_option("--out", args->out, "Output pattern, e.g. proxy/plume.####.vdb")
+        app->add_option("--out", args->out, "Output pattern, e.g. proxy/plume.####.vdb (.nvdb: NanoVDB)")
             ->required()
             ->group(kGroupOutput);
         addWriteOptions(app, args->write);
+        addFormatOptions(app, args->write);
         // Rarely wanted: a proxy normally keeps Blender's flags, colours and level sets (docs/io.md).
         app->add_flag("--skip-existing", args->skipExisting,
                "Skip the frames already written by the same settings (farm wrappers' retries); a frame written "
