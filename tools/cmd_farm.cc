@@ -607,6 +607,7 @@ int runPlan(FarmArgs& a)
                       turbio::formatFrameList(p.sub(c.computeBegin, c.end)) + ", keeps " +
                       turbio::formatFrameList(p.sub(c.keepBegin, c.end)));
     }
+    if (a.json) std::printf("%s\n", planJson(a, p).dump().c_str());
     if (globals().dryRun) {
         printData("would write " + p.dir + "/plan.json, " + script + ", join.sbatch (dry run: nothing written)");
         return kOk;
@@ -949,6 +950,7 @@ Command farmCommand()
         CLI::App* plan = app->add_subcommand(
             "plan", "Write sbatch scripts (an array of chunks or tiles + a dependent join) and plan.json");
         addPlanOptions(plan, a);
+        plan->add_flag("--json", a.json, "Print the plan (plan.json's content) as one JSON line on stdout");
         CLI::App* submit =
             app->add_subcommand("submit", "Submit a plan with sbatch: the chunk array, then the join with afterok");
         submit->add_option("--dir", a.dir, "Farm directory written by farm plan");

@@ -28,6 +28,7 @@ struct ResampleArgs
     std::string rotate;
     bool dropOtherGrids = false;
     bool skipExisting = false;
+    bool json = false;
     turbio::ReadOptions read;
     turbio::WriteOptions write;
     const CLI::App* app = nullptr; ///< for the settings its frames record (--skip-existing)
@@ -160,14 +161,15 @@ int runResample(ResampleArgs& a)
     for (size_t i = 0; i < seq.frames.size(); ++i)
         if (!skip[i]) writing.push_back(seq.frames[i]);
     lockOutputFrames(outPattern, writing);
-    RunReport report("resample", false);
+    RunReport report("resample", a.json);
     bool warnedClipping = false;
     for (size_t i = 0; i < seq.frames.size(); ++i) {
         const int f = seq.frames[i];
         const auto t0 = std::chrono::steady_clock::now();
         if (skip[i]) {
             report.frameDone(f, int(i), int(seq.frames.size()), secondsSince(t0),
-                "skipped: " + outputs[i] + " was written by the same settings");
+                "skipped: " + outputs[i] + " was written by the same settings",
+                {{"out", outputs[i]}, {"in", inputs[i]}, {"skipped", true}});
             continue;
         }
         turb::Frame frame = turbio::readFrame(seq.path(f), f, a.read);
@@ -182,7 +184,8 @@ int runResample(ResampleArgs& a)
         turbio::ensureParentDirectory(path);
         warnIfClippedAway(frame, a.write, path, warnedClipping);
         turbio::writeFrame(path, frame, a.write, others ? &*others : nullptr);
-        report.frameDone(f, int(i), int(seq.frames.size()), secondsSince(t0), "-> " + path);
+        report.frameDone(
+            f, int(i), int(seq.frames.size()), secondsSince(t0), "-> " + path, {{"out", path}, {"in", inputs[i]}});
     }
     report.finish();
     return kOk;
@@ -215,6 +218,7 @@ Command resampleCommand()
                "Skip the frames already written by the same settings (farm wrappers' retries); a frame written "
                "otherwise is refused (exit 1)")
             ->group(kGroupOutput);
+        app->add_flag("--json", args->json, "One JSON line per frame and a summary on stdout");
         args->app = app;
         setting(app->add_flag("--drop-other-grids", args->dropOtherGrids,
                     "Write only density, velocity, temperature and flame, not the file's other grids"),
