@@ -313,7 +313,7 @@ TEST(CliReliability, TyposAndNearMissesGetTheFix)
         << subFlag.out;
     // Options that mean nothing for a command are not accepted.
     EXPECT_EQ(run("info --threads 2 " + loFrame(1)).code, 2);
-    EXPECT_EQ(run("preview --dry-run " + loFrame(1) + " --out x.png").code, 2);
+    EXPECT_EQ(run("info --dry-run " + loFrame(1)).code, 2);
     EXPECT_EQ(run("resample --threads 2 " + loFrame(1) + " --out x.vdb").code, 2);
     // Patterns: a padding that is not on disk says which is; a directory is not "no such file".
     const auto pad = run("info '" + testutil::dataPath("blender-plume-32/fluid_data_###.vdb") + "'");
