@@ -616,7 +616,7 @@ int runSubmit(FarmArgs& a)
     join = join.substr(0, join.find(';'));
     nlohmann::json j = {{word + "s_job", chunks}, {"join_job", join}};
     writeText(dir + "/submitted.json", j.dump() + "\n");
-    if (a.json) std::printf("%s\n", j.dump().c_str());
+    if (a.json) writeData(j.dump() + "\n");
     printData(
         "submitted: " + word + "s job " + chunks + " (array), join job " + join + " (after the " + word + "s succeed)",
         a.json);

@@ -392,7 +392,7 @@ int runInfo(const InfoArgs& a)
         printData("validate: " + verdict + "; " + usability(tally.anyDensity, tally.anyVelocity), toStderr);
         out["usable"] = usability(tally.anyDensity, tally.anyVelocity);
     }
-    if (a.json) std::cout << out.dump(1) << std::endl;
+    if (a.json) writeData(out.dump(1) + "\n");
     return tally.failures ? kFailed : kOk;
 }
 
