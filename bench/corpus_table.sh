@@ -5,13 +5,13 @@
 set -eu
 results="${1:-build}/tests/corpus/results"
 [ -d "$results" ] || { echo "corpus_table.sh: no results in $results (run the corpus tests first)" >&2; exit 1; }
-echo "| case | what | info | transfer | synth | measure | resample | preview | message |"
-echo "|---|---|---|---|---|---|---|---|---|"
+echo "| case | what | info | transfer | synth | measure | resample | preview | convert | message |"
+echo "|---|---|---|---|---|---|---|---|---|---|"
 for f in "$results"/*.info.tsv; do
   c=$(basename "$f" .info.tsv)
   row="| \`$c\` | $(cut -f5 "$f") |"
   msg=""
-  for cmd in info transfer synth measure resample preview; do
+  for cmd in info transfer synth measure resample preview convert; do
     line=$(cat "$results/$c.$cmd.tsv")
     code=$(printf '%s' "$line" | cut -f3)
     row="$row $code |"

@@ -107,6 +107,26 @@ TEST(Cli, TransferKeepsEightTargetVoxelsAroundTheSourcesSmoke)
     EXPECT_NE(given.out.find("source crop margin: 5 source voxels"), std::string::npos) << given.out;
 }
 
+TEST(Cli, FrameRatesTakeARatioAsEditorialWritesThem)
+{
+    // 23.976 and 24000/1001 both name NTSC film: the ratio is read as its value; a ratio that is not one is a usage
+    // error naming it.
+    const std::string file = testutil::dataPath("blender-plume-32/fluid_data_0002.vdb");
+    const auto fps = [&](const std::string& value) {
+        const CmdResult r = clitest::runStdout("info " + file + " --fps " + value + " --json -q");
+        const nlohmann::json j = nlohmann::json::parse(r.out);
+        return j.at("timing").at("fps").get<double>();
+    };
+    EXPECT_DOUBLE_EQ(fps("24000/1001"), 24000.0 / 1001.0);
+    EXPECT_DOUBLE_EQ(fps("23.976"), 23.976);
+    EXPECT_DOUBLE_EQ(fps("25"), 25.0);
+    for (const char* bad : {"24/0", "abc/2", "24/", "-24000/1001"}) {
+        const CmdResult r = run("info " + file + " --fps " + bad);
+        EXPECT_EQ(r.code, 2) << bad << ": " << r.out;
+        EXPECT_NE(r.out.find("--fps"), std::string::npos) << r.out;
+    }
+}
+
 TEST(Cli, InfoJsonGoesToStdoutAndReportsMissingFrames)
 {
     testutil::TempDir dir;
@@ -143,6 +163,38 @@ TEST(Cli, WithJsonStdoutCarriesJsonLinesOnlyAlsoOnADryRun)
         EXPECT_GT(both.out.size(), stdoutOnly.out.size() + 40) << cmd << "\n" << both.out;
     }
     EXPECT_TRUE(std::filesystem::is_empty(dir.path()));
+}
+
+TEST(Cli, EveryCommandsJsonIsOnStdoutOnly)
+{
+    // Issue 47: a pipeline reads stdout as JSON whatever the command; the human lines go to stderr. (resample and
+    // farm plan had no --json; preview had no --dry-run.)
+    testutil::TempDir dir;
+    const std::string data = testutil::dataPath("blender-plume-32/fluid_data_####.vdb");
+    const std::vector<std::string> commands = {"sim plume --res 8x8x12 --frames 2 --out " + dir / "s.####.vdb",
+        "preview " + dir / "s.####.vdb" + " --mode density,vorticity --width 32 --sheet " + dir / "s.png",
+        "preview " + dir / "s.####.vdb" + " --width 32 --out " + dir / "p.####.png" + " --dry-run",
+        "resample " + data + " --frames 1-2 --down 2 --out " + dir / "r.####.vdb",
+        "convert " + dir / "s.####.vdb" + " --out " + dir / "c.####.nvdb",
+        "farm plan --dir " + dir / "farm" + " --target " + lo() + " --source " + hi() + " --out " + dir / "f.####.vdb" +
+            " --frames 1-6 --chunks 2 --overlap 1 --preroll 1"};
+    for (const std::string& cmd : commands) {
+        const clitest::Result stdoutOnly = clitest::shell(std::string(VDBTURB_EXE) + " " + cmd + " --json 2>/dev/null");
+        EXPECT_EQ(stdoutOnly.code, 0) << cmd << "\n" << run(cmd + " --json").out;
+        std::istringstream lines(stdoutOnly.out);
+        int n = 0;
+        for (std::string line; std::getline(lines, line); ++n)
+            EXPECT_TRUE(nlohmann::json::accept(line)) << cmd << ": not JSON on stdout: " << line;
+        const bool dry = cmd.find("--dry-run") != std::string::npos;
+        if (!dry) EXPECT_GE(n, 1) << cmd;
+    }
+    EXPECT_FALSE(std::filesystem::exists(dir / "p.0001.png")) << "a dry run writes nothing";
+    // info prints one JSON document (indented for people), and nothing else on stdout.
+    const clitest::Result info =
+        clitest::shell(std::string(VDBTURB_EXE) + " info " +
+                       testutil::dataPath("blender-plume-32/fluid_data_0002.vdb") + " --json 2>/dev/null");
+    EXPECT_EQ(info.code, 0);
+    EXPECT_TRUE(nlohmann::json::accept(info.out)) << info.out;
 }
 
 TEST(Cli, TransferWritesResumesAndNeverClobbers)

@@ -5,6 +5,7 @@
 #include "CliUtil.h"
 #include "corpus/Cases.h"
 
+#include <turbio/NanoVdb.h>
 #include <turbio/Vdb.h>
 
 #include <fstream>
@@ -53,6 +54,7 @@ std::string commandLine(const Case& c, int cmd, const std::string& dir, const st
     case kMeasure: return "measure --output " + S + " --target " + T + " --no-spectra";
     case kResample: return "resample " + subject + " --out " + outArg("r.####.vdb");
     case kPreview: return "preview " + subject + " --width 48 --out " + outArg("p.####.png");
+    case kConvert: return "convert " + subject + " --out " + outArg("c.####.nvdb");
     }
     return "";
 }
@@ -85,7 +87,7 @@ std::string checkOutputs(const std::string& out, int code, int badFrame)
             problems += " temporary file " + name + " left;";
             continue;
         }
-        const std::regex numbered(R"(\w\.(\d{4})\.(vdb|png))");
+        const std::regex numbered(R"(\w\.(\d{4})\.(vdb|png|nvdb))");
         // transfer's exact resume state beside frames written in half floats or trimmed (its default): whole too.
         const std::regex state(R"(\w\.resume-state-(odd|even)\.vdb)");
         std::smatch m;
@@ -112,6 +114,12 @@ std::string checkOutputs(const std::string& out, int code, int badFrame)
                 turbio::ReadOptions any;
                 any.requireDensity = any.requireVelocity = false;
                 turbio::readFrame(e.path().string(), frame, any);
+            } catch (const std::exception& x) {
+                problems += std::string(" ") + name + " is not whole (" + x.what() + ");";
+            }
+        } else if (m[2] == "nvdb") {
+            try {
+                turbio::inspectNanoFile(e.path().string());
             } catch (const std::exception& x) {
                 problems += std::string(" ") + name + " is not whole (" + x.what() + ");";
             }

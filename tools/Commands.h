@@ -28,6 +28,7 @@ Command simCommand();
 Command previewCommand();
 Command transferCommand();
 Command resampleCommand();
+Command convertCommand();
 Command measureCommand();
 Command synthCommand();
 Command stylizeCommand();
@@ -81,11 +82,19 @@ void warnIfClippedAway(
 bool parseNumber(const std::string& s, double& v);
 /// A CLI check for a finite number in [lo, hi] (CLI11's own number checks let NaN through).
 CLI::Validator finiteIn(double lo, double hi = 1e30);
+/// A transform that turns a ratio "N/D" (24000/1001) into its value, for a range check after it.
+CLI::Validator rationalNumber();
 /// A finite number > 0 (CLI11's PositiveNumber lets NaN through and prints DBL_MAX in full in its message).
 CLI::Validator finitePositive();
 
 /// Adds --style, --no-clobber, --half and --clipping for writing caches.
 void addWriteOptions(CLI::App* app, turbio::WriteOptions& opt);
+/// Adds --format auto|vdb|nanovdb and --nanovdb-quant float|fp16|fp8 for the commands that write NanoVDB too.
+void addFormatOptions(CLI::App* app, turbio::WriteOptions& opt);
+/// Refuses (UsageError, exit 2) output options that contradict each other for the output pattern `out`: --format
+/// against the name's extension (.vdb / .nvdb), --nanovdb-quant for OpenVDB output, and for NanoVDB output the Blender
+/// style and `resumeFlag` ("--resume", "--skip-existing"; "" when not given), which need metadata NanoVDB cannot hold.
+void checkOutputFormat(const turbio::WriteOptions& w, const std::string& out, const std::string& resumeFlag = "");
 /// --velocity-margin auto: one target voxel, resolved to the ratio once it is known (resolveVelocityMargin).
 constexpr int kVelocityMarginAuto = -2;
 /// What an up-res (transfer, farm join) writes by default: 16-bit floats and velocity within one target voxel of

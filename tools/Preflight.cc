@@ -173,9 +173,12 @@ void checkMemory(double estimateBytes, const std::string& what, const std::strin
 
 std::string commandSettingsText(const CLI::App& app, const std::vector<std::string>& inputs)
 {
-    // Options that say how or where to run, not what a frame holds.
+    // Options that say how or where to run, not what a frame holds. --skip-existing compares VDB frames only (NanoVDB
+    // files hold no settings: checkOutputFormat), so the NanoVDB options say nothing here, and frames written before
+    // they existed still compare equal.
     static const std::set<std::string> kRunOnly = {"threads", "progress", "verbose", "quiet", "frames", "out", "input",
-        "dry-run", "skip-existing", "no-clobber", "json", "settings", "print-settings", "help-all"};
+        "dry-run", "skip-existing", "no-clobber", "json", "settings", "print-settings", "help-all", "format",
+        "nanovdb-quant"};
     std::ostringstream os;
     std::istringstream lines(app.config_to_str(true, false));
     std::string line;

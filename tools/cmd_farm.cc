@@ -10,6 +10,7 @@
 #include <turb/Metadata.h>
 #include <turb/Resample.h>
 #include <turb/Transfer.h>
+#include <turbio/NanoVdb.h>
 #include <turbio/Scan.h>
 #include <turbio/Sequence.h>
 #include <turbio/Vdb.h>
@@ -110,11 +111,44 @@ void writeText(const std::string& path, const std::string& text, bool executable
 }
 
 // The chunk's scratch pattern: every frame it computes, pre-roll included, so --resume can continue a killed task.
+// Always VDB: a NanoVDB output (.nvdb) is made by the join, from chunks that can resume and that it can read.
 std::string chunkPattern(const std::string& dir, int k, const std::string& out, const char* word = "chunk")
 {
     char sub[32];
     std::snprintf(sub, sizeof(sub), "%ss/%03d/", word, k);
-    return (fs::path(dir) / sub / fs::path(out).filename()).string();
+    fs::path name = fs::path(out).filename();
+    if (turbio::outputFormatFor(name.string()) == turbio::OutputFormat::NanoVdb) name.replace_extension(".vdb");
+    return (fs::path(dir) / sub / name).string();
+}
+
+// The options of the final file's format (--format, --nanovdb-quant): the join's, never the chunks' (they write VDB).
+bool isFormatOption(const std::string& arg)
+{
+    const std::string name = arg.substr(0, arg.find('='));
+    return name == "--format" || name == "--nanovdb-quant";
+}
+
+// The final output's format options from the ones after -- (the join gets them), checked at plan time: a NanoVDB
+// output in the Blender style would otherwise fail only in the join, after every chunk ran.
+void checkPlannedFormat(const FarmArgs& a)
+{
+    turbio::WriteOptions w;
+    const auto& t = a.transferArgs;
+    for (size_t i = 0; i < t.size(); ++i) {
+        const std::string name = t[i].substr(0, t[i].find('='));
+        const bool inline_ = t[i].find('=') != std::string::npos;
+        const std::string value = inline_ ? t[i].substr(t[i].find('=') + 1) : i + 1 < t.size() ? t[i + 1] : "";
+        if (name == "--style" && value == "blender") w.style = turbio::WriteStyle::Blender;
+        if (name == "--format")
+            w.format = value == "vdb"       ? turbio::OutputFormat::Vdb
+                       : value == "nanovdb" ? turbio::OutputFormat::NanoVdb
+                                            : turbio::OutputFormat::Auto;
+        if (name == "--nanovdb-quant")
+            w.nanoQuantization = value == "fp16"  ? turbio::NanoQuantization::Fp16
+                                 : value == "fp8" ? turbio::NanoQuantization::Fp8
+                                                  : turbio::NanoQuantization::Float;
+    }
+    checkOutputFormat(w, a.out);
 }
 
 // The transfer's options the join needs too: the target's read options (it reads u_t as the chunks did) and the
@@ -125,7 +159,7 @@ std::vector<std::string> joinArgs(const std::vector<std::string>& args)
     for (size_t i = 0; i < args.size(); ++i)
         if (args[i].rfind("--target-", 0) == 0 || args[i].rfind("--style", 0) == 0 ||
             args[i].rfind("--velocity-margin", 0) == 0 || args[i].rfind("--clipping", 0) == 0 ||
-            args[i].rfind("--vel-voxel-scale", 0) == 0) {
+            args[i].rfind("--vel-voxel-scale", 0) == 0 || isFormatOption(args[i])) {
             out.push_back(args[i]);
             if (args[i].find('=') == std::string::npos && i + 1 < args.size()) out.push_back(args[++i]);
         } else if (args[i] == "--half" || args[i] == "--full-float" || args[i] == "--no-velocity" ||
@@ -257,6 +291,7 @@ Plan makePlan(FarmArgs& a) // settles a.overlap when the default does not fit th
     Plan p;
     p.tiled = !a.tiles.empty();
     checkPassThrough(a.transferArgs, p.tiled);
+    checkPlannedFormat(a);
     const turbio::Sequence target = turbio::resolveSequence(a.target, a.frames);
     if (!target.missing.empty())
         throw turb::IoError(target.pattern.str() +
@@ -343,7 +378,13 @@ std::vector<std::string> taskCommand(const FarmArgs& a, const Plan& p, size_t k)
         // get different output boxes and the join could not blend them.
         argv.insert(argv.end(), {"--target-no-crop", "--source-no-crop"});
     }
-    argv.insert(argv.end(), a.transferArgs.begin(), a.transferArgs.end());
+    for (size_t i = 0; i < a.transferArgs.size(); ++i) {
+        if (isFormatOption(a.transferArgs[i])) { // the join's (chunkPattern)
+            if (a.transferArgs[i].find('=') == std::string::npos) ++i;
+            continue;
+        }
+        argv.push_back(a.transferArgs[i]);
+    }
     return argv;
 }
 
@@ -566,6 +607,7 @@ int runPlan(FarmArgs& a)
                       turbio::formatFrameList(p.sub(c.computeBegin, c.end)) + ", keeps " +
                       turbio::formatFrameList(p.sub(c.keepBegin, c.end)));
     }
+    if (a.json) std::printf("%s\n", planJson(a, p).dump().c_str());
     if (globals().dryRun) {
         printData("would write " + p.dir + "/plan.json, " + script + ", join.sbatch (dry run: nothing written)");
         return kOk;
@@ -779,6 +821,9 @@ void blendFrame(const FarmArgs& a, const JoinPlan& p, size_t k, int j, RunReport
 int runJoin(FarmArgs& a)
 {
     const JoinPlan p = readJoinPlan(a);
+    checkOutputFormat(a.write, p.out);
+    // NanoVDB output: frames a chunk owns are converted from its VDB frame, blended ones written as NanoVDB.
+    const bool nano = turbio::outputFormatFor(p.out, a.write.format) == turbio::OutputFormat::NanoVdb;
     checkChunksComplete(p);
     // --velocity-margin auto writes the joined frames as the chunks' transfer wrote theirs: one target voxel.
     if (p.tiled) {
@@ -811,7 +856,14 @@ int runJoin(FarmArgs& a)
             const auto t0 = std::chrono::steady_clock::now();
             const std::string dst = outPattern.format(p.frames[i]);
             turbio::ensureParentDirectory(dst);
-            copyAtomic(pattern.format(p.frames[i]), dst);
+            if (nano) {
+                turbio::NanoConvertOptions to;
+                to.quantization = a.write.nanoQuantization;
+                to.noClobber = a.write.noClobber;
+                turbio::convertToNanoVdb(pattern.format(p.frames[i]), dst, to);
+            } else {
+                copyAtomic(pattern.format(p.frames[i]), dst);
+            }
             report.frameDone(p.frames[i], int(i), count, secondsSince(t0),
                 "chunk " + std::to_string(c.index) + " -> " + dst, {{"chunk", c.index}, {"out", dst}});
         }
@@ -874,9 +926,10 @@ void addJoinOptions(CLI::App* join, FarmArgs& a)
     join->add_flag("--json", a.json, "One JSON line per frame and a summary on stdout");
     addReadOptions(join, a.targetRead, "target");
     addWriteOptions(join, a.write);
+    addFormatOptions(join, a.write);
     addVelocityWriteOptions(join, a.write);
     for (const char* name : {"target-density-grid", "target-vel-grid", "target-fps", "style", "no-clobber", "half",
-             "clipping", "velocity-margin", "vel-voxel-scale", "no-velocity"})
+             "clipping", "velocity-margin", "vel-voxel-scale", "no-velocity", "format", "nanovdb-quant"})
         setting(join->get_option(std::string("--") + name), name);
 }
 
@@ -897,6 +950,7 @@ Command farmCommand()
         CLI::App* plan = app->add_subcommand(
             "plan", "Write sbatch scripts (an array of chunks or tiles + a dependent join) and plan.json");
         addPlanOptions(plan, a);
+        plan->add_flag("--json", a.json, "Print the plan (plan.json's content) as one JSON line on stdout");
         CLI::App* submit =
             app->add_subcommand("submit", "Submit a plan with sbatch: the chunk array, then the join with afterok");
         submit->add_option("--dir", a.dir, "Farm directory written by farm plan");

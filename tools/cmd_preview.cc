@@ -592,6 +592,19 @@ int runPreview(PreviewArgs& a)
 
     const std::vector<std::string> inputPaths = checkAndFrame(p, a.up);
     if (const int rc = checkOutputPaths(a, p, inputPaths); rc != kOk) return rc;
+    if (globals().dryRun) {
+        // Every input's headers were read to frame the pictures, and the output paths checked.
+        const std::string what = std::to_string(p.inputs.size()) + " cache" + (p.inputs.size() == 1 ? "" : "s") +
+                                 " x " + std::to_string(p.modes.size()) + " mode" + (p.modes.size() == 1 ? "" : "s");
+        if (!a.sheet.empty())
+            printData(
+                "would write " + a.sheet + " (a sheet: " + std::to_string(p.frames.size()) + " rows, " + what + ")");
+        else
+            for (int f : p.frames)
+                printData("would write " + turbio::FramePattern::parse(a.out).format(f) + " (frame " +
+                          std::to_string(f) + ", " + what + ")");
+        return kOk;
+    }
     turb::withThreads(globals().threads, [&] { drawRows(a, p); });
     return kOk;
 }
@@ -642,7 +655,7 @@ Command previewCommand()
 {
     auto args = std::make_shared<PreviewArgs>();
     Command c;
-    c.globals = kVerbosity | kThreads;
+    c.globals = kVerbosity | kThreads | kDryRun;
     c.name = "preview";
     c.help = "Pictures of caches (PNG, EXR, TIFF, JPEG): lit density, speed/vorticity slices, LIC, and labelled "
              "contact sheets (a 2D cache, one z layer, is shown in its x-y plane)";

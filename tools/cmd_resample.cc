@@ -28,6 +28,7 @@ struct ResampleArgs
     std::string rotate;
     bool dropOtherGrids = false;
     bool skipExisting = false;
+    bool json = false;
     turbio::ReadOptions read;
     turbio::WriteOptions write;
     const CLI::App* app = nullptr; ///< for the settings its frames record (--skip-existing)
@@ -132,6 +133,7 @@ int runResample(ResampleArgs& a)
     const turb::AxisRotation rot = parseRotation(a.rotate);
     const turbio::Sequence seq = turbio::resolveSequence(a.in, a.frames);
     const turbio::FramePattern outPattern = turbio::FramePattern::parse(a.out);
+    checkOutputFormat(a.write, a.out, a.skipExisting ? "--skip-existing" : "");
     if (seq.frames.size() > 1 && !outPattern.numbered())
         throw UsageError("--out '" + a.out + "' has no frame token but several frames are requested");
     a.read.requireDensity = a.read.requireVelocity = false;
@@ -159,14 +161,15 @@ int runResample(ResampleArgs& a)
     for (size_t i = 0; i < seq.frames.size(); ++i)
         if (!skip[i]) writing.push_back(seq.frames[i]);
     lockOutputFrames(outPattern, writing);
-    RunReport report("resample", false);
+    RunReport report("resample", a.json);
     bool warnedClipping = false;
     for (size_t i = 0; i < seq.frames.size(); ++i) {
         const int f = seq.frames[i];
         const auto t0 = std::chrono::steady_clock::now();
         if (skip[i]) {
             report.frameDone(f, int(i), int(seq.frames.size()), secondsSince(t0),
-                "skipped: " + outputs[i] + " was written by the same settings");
+                "skipped: " + outputs[i] + " was written by the same settings",
+                {{"out", outputs[i]}, {"in", inputs[i]}, {"skipped", true}});
             continue;
         }
         turb::Frame frame = turbio::readFrame(seq.path(f), f, a.read);
@@ -181,7 +184,8 @@ int runResample(ResampleArgs& a)
         turbio::ensureParentDirectory(path);
         warnIfClippedAway(frame, a.write, path, warnedClipping);
         turbio::writeFrame(path, frame, a.write, others ? &*others : nullptr);
-        report.frameDone(f, int(i), int(seq.frames.size()), secondsSince(t0), "-> " + path);
+        report.frameDone(
+            f, int(i), int(seq.frames.size()), secondsSince(t0), "-> " + path, {{"out", path}, {"in", inputs[i]}});
     }
     report.finish();
     return kOk;
@@ -204,15 +208,17 @@ Command resampleCommand()
         app->add_option(
             "--rotate", args->rotate, "AXIS:TURNS quarter turns about x, y or z (e.g. y:1), grids and vectors");
         addReadOptions(app, args->read);
-        app->add_option("--out", args->out, "Output pattern, e.g. proxy/plume.####.vdb")
+        app->add_option("--out", args->out, "Output pattern, e.g. proxy/plume.####.vdb (.nvdb: NanoVDB)")
             ->required()
             ->group(kGroupOutput);
         addWriteOptions(app, args->write);
+        addFormatOptions(app, args->write);
         // Rarely wanted: a proxy normally keeps Blender's flags, colours and level sets (docs/io.md).
         app->add_flag("--skip-existing", args->skipExisting,
                "Skip the frames already written by the same settings (farm wrappers' retries); a frame written "
                "otherwise is refused (exit 1)")
             ->group(kGroupOutput);
+        app->add_flag("--json", args->json, "One JSON line per frame and a summary on stdout");
         args->app = app;
         setting(app->add_flag("--drop-other-grids", args->dropOtherGrids,
                     "Write only density, velocity, temperature and flame, not the file's other grids"),

@@ -147,7 +147,9 @@ std::string resumeStatePath(const turbio::FramePattern& out, const turbio::Write
     // A Houdini-style frame holds velocity per second: scaling a Blender target's time unit back is not exact.
     const bool lossy = w.velocityMargin >= 0 || w.halfFloat || w.velocityVoxelScale > 1 || !w.writeVelocity ||
                        w.style == turbio::WriteStyle::Blender || timeUnit != 1.0;
-    if (!lossy || !out.numbered()) return {};
+    // NanoVDB output cannot be resumed (checkOutputFormat): no state to keep.
+    const bool nano = turbio::outputFormatFor(out.format(0), w.format) == turbio::OutputFormat::NanoVdb;
+    if (!lossy || !out.numbered() || nano) return {};
     return out.prefix() + ((frame & 1) ? "resume-state-odd" : "resume-state-even") + out.suffix();
 }
 
@@ -259,7 +261,16 @@ turb::CoordBBox preflight(const TransferArgs& a, const turbio::Sequence& target,
         }
     }
     const bool trimmed = a.write.velocityMargin >= 0 && a.write.style == turbio::WriteStyle::Houdini;
-    const double floatBytes = a.write.halfFloat ? 2.0 : 4.0;
+    // NanoVDB stores no half floats and compresses nothing: vel is 4 bytes a component, density its quantisation, in
+    // whole 8^3 leaves (0.55 of a leaf's voxels active on plume2's frame 10 at 128^3), plus about 300 kB of internal
+    // node tables a grid (docs/nanovdb.md, Size).
+    const bool nano = turbio::outputFormatFor(outPattern.format(0), a.write.format) == turbio::OutputFormat::NanoVdb;
+    const double leafFill = nano ? 0.55 : 1.0, gridTables = nano ? 4 * 300e3 : 0.0;
+    const double floatBytes = nano ? 4.0 : a.write.halfFloat ? 2.0 : 4.0;
+    const double scalarBytes = !nano                                                        ? floatBytes
+                               : a.write.nanoQuantization == turbio::NanoQuantization::Fp16 ? 2.0
+                               : a.write.nanoQuantization == turbio::NanoQuantization::Fp8  ? 1.0
+                                                                                            : 4.0;
     const double box = double(outDim.x()) * outDim.y() * outDim.z();
     double outBytes = 0.0, totalBytes = 0.0, stateBytes = 0.0; // the largest frame's, the run's (summed), state's
     for (const auto& fr : ts.frames) {
@@ -272,8 +283,9 @@ turb::CoordBBox preflight(const TransferArgs& a, const turbio::Sequence& target,
                                ? 0.0
                                : (trimmed ? std::min(whole, smoke * (1.0 + 0.25 * a.write.velocityMargin)) : whole) /
                                      (turb::isFlat(tBox) ? scale * scale : scale * scale * scale);
-        outBytes = std::max(outBytes, floatBytes * (3.0 * vel + 2.0 * smoke));
-        totalBytes += floatBytes * (3.0 * vel + 2.0 * smoke);
+        const double bytes = (floatBytes * 3.0 * vel + scalarBytes * 2.0 * smoke) / leafFill + gridTables;
+        outBytes = std::max(outBytes, bytes);
+        totalBytes += bytes;
         stateBytes = std::max(stateBytes, 12.0 * whole + 4.0 * smoke);
     }
     printData("output size: about " + turbio::formatBytes(outBytes) + " for the largest frame, " +
@@ -552,6 +564,7 @@ FramePlan planFrames(const TransferArgs& a)
     p.target = turbio::resolveSequence(a.target, a.frames);
     p.source = turbio::resolveSequence(a.source, a.sourceFrames);
     p.out = turbio::FramePattern::parse(a.out);
+    checkOutputFormat(a.write, a.out, a.resume ? "--resume" : "");
     if (!p.target.missing.empty())
         throw turb::IoError(p.target.pattern.str() +
                             (p.target.missing.size() == 1 ? ": missing target frame " : ": missing target frames ") +
@@ -1133,6 +1146,7 @@ Command transferCommand()
             ->check(parsedBy([](const std::string& t) { turb::parseTileBox(t); }, "X0,Y0,Z0,X1,Y1,Z1"))
             ->group(kGroupInput);
         addWriteOptions(app, a.write);
+        addFormatOptions(app, a.write);
         addVelocityWriteOptions(app, a.write);
         a.velocityMargin = app->get_option("--velocity-margin");
         addTransferSettings(app, a);

@@ -5,6 +5,7 @@
 #include "Preflight.h"
 
 #include <turb/Error.h>
+#include <turbio/NanoVdb.h>
 #include <turbio/Sequence.h>
 #include <turbio/System.h>
 #include <turbio/Vdb.h>
@@ -107,8 +108,10 @@ void addReadOptions(CLI::App* app, turbio::ReadOptions& opt, const std::string& 
                "density-grid, or the stem of NAME.x/.y/.z; empty: vel, velocity, v")
         ->check(selector("vel-grid"))
         ->group(kGroupInput);
-    app->add_option(
-           p + "fps", opt.fps, "Frames per second of the shot, for the default time per frame (0: 24, with a warning)")
+    app->add_option(p + "fps", opt.fps,
+           "Frames per second of the shot, for the default time per frame: 23.976 or 24000/1001 (0: 24, with a "
+           "warning)")
+        ->transform(rationalNumber())
         ->check(finiteIn(0.0))
         ->group(kGroupInput);
     setting(addEnum<turbio::VelocityUnits>(app, p + "vel-units", opt.velocityUnits,
@@ -196,6 +199,47 @@ void addWriteOptions(CLI::App* app, turbio::WriteOptions& opt)
         ->group(kGroupOutput);
 }
 
+void addFormatOptions(CLI::App* app, turbio::WriteOptions& opt)
+{
+    addEnum<turbio::OutputFormat>(app, "--format", opt.format,
+        {{"auto", turbio::OutputFormat::Auto}, {"vdb", turbio::OutputFormat::Vdb},
+            {"nanovdb", turbio::OutputFormat::NanoVdb}},
+        "Output file format: auto (by --out's extension: .nvdb is NanoVDB), vdb (OpenVDB) or nanovdb (NanoVDB, as GPU "
+        "renderers load it; docs/nanovdb.md)")
+        ->group(kGroupOutput);
+    addEnum<turbio::NanoQuantization>(app, "--nanovdb-quant", opt.nanoQuantization,
+        {{"float", turbio::NanoQuantization::Float}, {"fp16", turbio::NanoQuantization::Fp16},
+            {"fp8", turbio::NanoQuantization::Fp8}},
+        "NanoVDB float grids (density, temperature, flame): float (exact), fp16 or fp8 (16 or 8 bits a voxel, each 8^3 "
+        "leaf quantised over its range: off by at most range/131070 or range/510); vel is always Vec3f")
+        ->group(kGroupOutput);
+}
+
+void checkOutputFormat(const turbio::WriteOptions& w, const std::string& out, const std::string& resumeFlag)
+{
+    const bool nvdbName = turbio::outputFormatFor(out) == turbio::OutputFormat::NanoVdb;
+    if (w.format == turbio::OutputFormat::Vdb && nvdbName)
+        throw UsageError("--format vdb but --out '" + out + "' ends in .nvdb: give a .vdb name, or --format nanovdb");
+    if (w.format == turbio::OutputFormat::NanoVdb && !nvdbName && out.size() >= 4 &&
+        out.compare(out.size() - 4, 4, ".vdb") == 0)
+        throw UsageError("--format nanovdb but --out '" + out + "' ends in .vdb: give a .nvdb name");
+    const bool nano = turbio::outputFormatFor(out, w.format) == turbio::OutputFormat::NanoVdb;
+    if (!nano) {
+        if (w.nanoQuantization != turbio::NanoQuantization::Float)
+            throw UsageError(std::string("--nanovdb-quant ") + turbio::quantizationName(w.nanoQuantization) +
+                             " applies to NanoVDB output; --out '" + out +
+                             "' is written as OpenVDB (--half stores 16-bit floats there)");
+        return;
+    }
+    if (w.style == turbio::WriteStyle::Blender)
+        throw UsageError("--style blender cannot be written as NanoVDB (Blender's placement and domain live in "
+                         "metadata NanoVDB cannot hold; Blender reads OpenVDB): write .vdb, or the default style");
+    if (!resumeFlag.empty())
+        throw UsageError(resumeFlag +
+                         " needs the settings and state a frame records, and NanoVDB files hold no vdbturb metadata: "
+                         "write .vdb, and turn the finished frames into NanoVDB with vdbturb convert");
+}
+
 namespace {
 
 // The flags addReadOptions and addWriteOptions declare, by the ReadOptions / WriteOptions field they set (the names
@@ -210,7 +254,7 @@ constexpr SettingFlag kSettingFlags[] = {{"densityGrid", "density-grid", true}, 
     {"velocityUnits", "vel-units", true}, {"dt", "dt", true}, {"cropToSmoke", "no-crop", true},
     {"cropMargin", "crop-margin", true}, {"keepIsolated", "keep-isolated", true}, {"fps", "fps", true},
     {"style", "style", false}, {"noClobber", "no-clobber", false}, {"halfFloat", "half", false},
-    {"densityTolerance", "clipping", false}};
+    {"densityTolerance", "clipping", false}, {"format", "format", false}, {"nanoQuantization", "nanovdb-quant", false}};
 
 bool isGridSelector(const std::string& setting)
 {
@@ -279,6 +323,30 @@ CLI::Validator finiteIn(double lo, double hi)
     return finiteNumber([lo, hi](double v) { return v >= lo && v <= hi; }, text);
 }
 
+CLI::Validator rationalNumber()
+{
+    // Frame rates come as ratios in editorial and in OpenTimelineIO (24000/1001): the ratio becomes its value, which
+    // the option's range check then reads; anything else is left to that check.
+    return CLI::Validator(
+        [](std::string& text) {
+            const auto slash = text.find('/');
+            if (slash == std::string::npos) return std::string();
+            const auto number = [](const std::string& t, double& v) {
+                char* end = nullptr;
+                v = std::strtod(t.c_str(), &end);
+                return !t.empty() && end == t.c_str() + t.size() && std::isfinite(v);
+            };
+            double n = 0.0, d = 0.0;
+            if (!number(text.substr(0, slash), n) || !number(text.substr(slash + 1), d) || !(d > 0.0))
+                return "'" + text + "' is not a ratio of two numbers such as 24000/1001";
+            char b[40];
+            std::snprintf(b, sizeof(b), "%.17g", n / d);
+            text = b;
+            return std::string();
+        },
+        "", "");
+}
+
 CLI::Validator finitePositive()
 {
     return finiteNumber([](double v) { return v > 0.0; }, "NUMBER>0");
@@ -287,7 +355,7 @@ CLI::Validator finitePositive()
 std::vector<Command> allCommands()
 {
     return {infoCommand(), transferCommand(), measureCommand(), simCommand(), previewCommand(), synthCommand(),
-        stylizeCommand(), animateCommand(), resampleCommand(), farmCommand()};
+        stylizeCommand(), animateCommand(), resampleCommand(), convertCommand(), farmCommand()};
 }
 
 } // namespace vdbturb

@@ -1,6 +1,7 @@
 // The VDB reader/writer. All OpenVDB file handling and cache conventions live here.
 #include <turbio/Vdb.h>
 
+#include "GridSet.h"
 #include "GuardedRead.h"
 #include "OtherGrids.h"
 #include "ReadChecks.h"
@@ -18,6 +19,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -1547,10 +1549,10 @@ bool killThisWrite()
     return ++writes == std::atoi(env);
 }
 
-// Writes `grids` to the new file `tmp` through a checked stream, fsyncs it, and throws naming `path` on any
-// error (the temporary file is removed).
-void writeVdbChecked(
-    const std::string& tmp, const std::string& path, const openvdb::GridPtrVec& grids, const openvdb::MetaMap& meta)
+// Runs `body` on a checked stream over the new file `tmp`, fsyncs it, and throws naming `path` on any error (the
+// temporary file is removed).
+void writeChecked(
+    const std::string& tmp, const std::string& path, const std::function<void(std::ostream&)>& body, bool forkGuarded)
 {
     const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
     if (fd < 0) throw IoError(path + ": cannot write (" + std::strerror(errno) + ")");
@@ -1560,10 +1562,9 @@ void writeVdbChecked(
         FdOutBuf buf(fd, killThisWrite());
         std::ostream os(&buf);
         try {
-            const std::lock_guard<std::mutex> noFork(detail::forkGuard()); // Blosc's global mutex (GuardedRead.h)
-            CheckedArchive archive;
-            archive.setCompression(openvdb::io::COMPRESS_BLOSC | openvdb::io::COMPRESS_ACTIVE_MASK);
-            archive.writeTo(os, grids, meta);
+            std::unique_lock<std::mutex> noFork(detail::forkGuard(), std::defer_lock); // Blosc's global mutex
+            if (forkGuarded) noFork.lock();                                            // (GuardedRead.h)
+            body(os);
             os.flush();
             buf.flushBuffer();
         } catch (const std::exception& e) {
@@ -1740,6 +1741,44 @@ void writeFileAtomic(const std::string& path, const std::string& bytes, bool noC
     commitTemp(tmp, path, noClobber);
 }
 
+OutputFormat outputFormatFor(const std::string& path, OutputFormat format)
+{
+    if (format != OutputFormat::Auto) return format;
+    std::string ext = path.size() >= 5 ? path.substr(path.size() - 5) : std::string();
+    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+    return ext == ".nvdb" ? OutputFormat::NanoVdb : OutputFormat::Vdb;
+}
+
+namespace detail {
+
+void writeFileChecked(
+    const std::string& path, bool noClobber, const std::function<void(std::ostream&)>& body, bool forkGuarded)
+{
+    removeStaleTemporaries(path);
+    const std::string tmp = tempPathFor(path);
+    writeChecked(tmp, path, body, forkGuarded);
+    commitTemp(tmp, path, noClobber);
+}
+
+GridSet readEveryGrid(const std::string& path, double timeout)
+{
+    const GuardedResult r = guarded(
+        path,
+        [&](openvdb::io::File& file, const std::vector<Descriptor>& order, openvdb::GridPtrVec& out,
+            openvdb::MetaMap& meta) {
+            for (const auto& n : uniqueNames(listGrids(file, order))) out.push_back(readGridNamed(file, path, n));
+            if (auto fm = file.getMetadata())
+                for (auto it = fm->beginMeta(); it != fm->endMeta(); ++it) meta.insertMeta(it->first, *it->second);
+        },
+        timeout);
+    GridSet set;
+    set.grids = r.grids;
+    for (auto it = r.meta->beginMeta(); it != r.meta->endMeta(); ++it) set.meta.insertMeta(it->first, *it->second);
+    return set;
+}
+
+} // namespace detail
+
 void writeAtomically(const std::string& path, bool noClobber, const std::function<void(const std::string& tmp)>& write)
 {
     if (noClobber && fileExists(path)) throw IoError(path + ": exists, not replaced", {"noClobber"});
@@ -1817,6 +1856,13 @@ void writeFrame(
     initOpenVdb();
     if (options.noClobber && fileExists(path)) throw IoError(path + ": exists, not replaced", {"noClobber"});
     if (!frame.hasVelocity() && !frame.hasDensity()) throw IoError(path + ": frame has no grids to write");
+    const bool nano = outputFormatFor(path, options.format) == OutputFormat::NanoVdb;
+    // Blender's placement offset and simulation box live in metadata, which NanoVDB files cannot hold: such a file
+    // would read back shifted.
+    if (nano && options.style == WriteStyle::Blender)
+        throw turb::ValueError(path + ": NanoVDB output takes the Houdini style (vel in world units per second): "
+                                      "the Blender style's placement and domain live in metadata NanoVDB cannot hold",
+            {"style"});
 
     openvdb::GridPtrVec grids;
     const bool blender = options.style == WriteStyle::Blender;
@@ -1910,10 +1956,18 @@ void writeFrame(
     }
 
     const openvdb::MetaMap meta = fileMetadata(frame, options, near != nullptr, timeUnit, grids, passedAsRead);
-    removeStaleTemporaries(path);
-    const std::string tmp = tempPathFor(path);
-    writeVdbChecked(tmp, path, grids, meta);
-    commitTemp(tmp, path, options.noClobber);
+    if (nano) {
+        detail::writeNanoVdb(path, {grids, meta}, options.nanoQuantization, options.noClobber);
+        return;
+    }
+    detail::writeFileChecked(
+        path, options.noClobber,
+        [&](std::ostream& os) {
+            CheckedArchive archive;
+            archive.setCompression(openvdb::io::COMPRESS_BLOSC | openvdb::io::COMPRESS_ACTIVE_MASK);
+            archive.writeTo(os, grids, meta);
+        },
+        /*forkGuarded=*/true);
 }
 
 OtherGrids OtherGrids::read(const std::string& path, const ReadOptions& options, const turb::Lattice& frameLattice)

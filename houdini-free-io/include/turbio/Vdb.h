@@ -168,9 +168,28 @@ enum class WriteStyle {
     Blender  ///< `velocity` (staggered, grid cells per time unit) + `density`, with Blender's metadata
 };
 
+/// The file format a frame is written in.
+enum class OutputFormat {
+    Auto,   ///< by the path's extension: ".nvdb" is NanoVDB, any other OpenVDB (as images go by theirs)
+    Vdb,    ///< OpenVDB: Blosc, optional half floats, every metadata entry (the default for other extensions)
+    NanoVdb ///< NanoVDB (format 32.4, what GPU renderers load): one uncompressed grid per role (docs/nanovdb.md)
+};
+
+/// How a NanoVDB file stores its float grids (density, temperature, flame and carried float grids other than level
+/// sets). Vectors are always Vec3f and level sets float. Fp16 and Fp8 quantise each 8^3 leaf between its lowest and
+/// highest value: a voxel is off by at most half a step, (leaf max - leaf min) / 2 / (2^bits - 1).
+enum class NanoQuantization {
+    Float, ///< 32-bit floats: the values exactly
+    Fp16,  ///< 16 bits a voxel: error <= leaf range / 131070
+    Fp8    ///< 8 bits a voxel: error <= leaf range / 510
+};
+
 struct WriteOptions
 {
     WriteStyle style = WriteStyle::Houdini; ///< naming and unit convention of the written grids
+    OutputFormat format = OutputFormat::Auto; ///< OpenVDB or NanoVDB; Auto goes by the path's extension
+    /// NanoVDB only: the float grids' storage. NanoVDB holds no half floats, so halfFloat does not apply to it.
+    NanoQuantization nanoQuantization = NanoQuantization::Float;
     bool noClobber = false;                 ///< refuse to replace an existing file
     bool halfFloat = false;                 ///< store floats as half (smaller, ~3 significant digits)
     /// Density at or below this is written inactive (sparse), as Blender's cache "Clipping" does. >= 0.
@@ -247,12 +266,22 @@ private:
     friend void writeFrame(const std::string&, const turb::Frame&, const WriteOptions&, const OtherGrids*);
 };
 
+/// `format` resolved for the file `path`: Auto becomes NanoVdb for a name ending in ".nvdb" (any case), else Vdb.
+OutputFormat outputFormatFor(const std::string& path, OutputFormat format = OutputFormat::Auto);
+
 /// Writes a frame atomically: to a temporary file in the same directory, then renamed over `path`,
 /// so readers never see a partial file and a failed write leaves any previous file untouched.
 /// Frame metadata becomes grid metadata; "vdbturb_dt" records dt. `others` (optional) are written after the
 /// frame's grids: those that follow the frame on its lattice (and with Blender's placement in the Blender style),
 /// the rest as read. A name the frame's grids also use is kept: OpenVDB files allow it, and readers that look a
 /// name up find the frame's grid, written first.
+///
+/// NanoVDB (outputFormatFor(path, options.format)): the same grids, names, classes and transforms, one NanoVDB grid
+/// each (float grids quantised as options.nanoQuantization says, vectors Vec3f), uncompressed, with NanoVDB's
+/// statistics and full checksum; the file-level string metadata (vdbturb_dt, ...) has no place there and is not
+/// written (docs/nanovdb.md). Throws turb::ValueError naming "style" for the Blender style (its placement and
+/// domain live in metadata NanoVDB cannot hold), and turb::IoError naming the grid for one NanoVDB cannot hold
+/// (a non-affine transform).
 void writeFrame(
     const std::string& path, const turb::Frame& frame, const WriteOptions& options, const OtherGrids* others = nullptr);
 
