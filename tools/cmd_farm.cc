@@ -607,7 +607,7 @@ int runPlan(FarmArgs& a)
                       turbio::formatFrameList(p.sub(c.computeBegin, c.end)) + ", keeps " +
                       turbio::formatFrameList(p.sub(c.keepBegin, c.end)));
     }
-    if (a.json) std::printf("%s\n", planJson(a, p).dump().c_str());
+    if (a.json) writeData(planJson(a, p).dump() + "\n");
     if (globals().dryRun) {
         printData("would write " + p.dir + "/plan.json, " + script + ", join.sbatch (dry run: nothing written)");
         return kOk;

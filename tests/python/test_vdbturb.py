@@ -129,6 +129,17 @@ class ModuleAgainstCli(unittest.TestCase):
         self.assertEqual(p.stdout, "")
         self.assertNotIn("vdbturb: ", p.stderr)
 
+    def test_run_converts_and_info_reads_nanovdb(self):
+        nvdb = os.path.join(self.work, "nano", "o.####.nvdb")
+        docs = vdbturb.run(["convert", os.path.join(self.module_out, "o.####.vdb"), "--frames", "2", "--out", nvdb,
+                            "--json"])
+        self.assertEqual([d["frame"] for d in docs if "summary" not in d], [2])
+        d = vdbturb.info(nvdb.replace("####", "0002"))
+        self.assertIn("density", [g["name"] for g in d["files"][0]["grids"]])
+        code, stdout, err = cli("info", nvdb.replace("####", "0002"), "--json")
+        self.assertEqual(code, 0, err)
+        self.assertEqual(d, json.loads(stdout))
+
     def test_preview_draws_the_cli_picture(self):
         cache = os.path.join(DATA, "blender-plume2-32", "fluid_data_####.vdb")
         module_png = os.path.join(self.work, "pic", "m.####.png")
