@@ -28,6 +28,7 @@ namespace vdbturb {
 namespace {
 std::atomic<bool> gInterrupted{false};
 std::mutex gLogMutex;
+std::atomic<const OutputHooks*> gHooks{nullptr};
 
 extern "C" void onSignal(int)
 {
@@ -278,7 +279,7 @@ void addGlobalOptions(CLI::App* app, unsigned which)
     app->add_flag_callback(
            "--print-settings",
            [app] {
-               std::fputs(settingsFile(app).c_str(), stdout);
+               writeData(settingsFile(app));
                throw CLI::Success();
            },
            "Print every option of this command with its value as a --settings file (TOML) on stdout, and exit")
@@ -408,31 +409,57 @@ void installSignalHandlers()
 
 bool interruptRequested() { return gInterrupted.load(); }
 
+void requestInterrupt() { gInterrupted = true; }
+
+void setOutputHooks(const OutputHooks* hooks) { gHooks = hooks; }
+
 bool stderrIsTty()
 {
     static const bool tty = ::isatty(STDERR_FILENO) == 1;
     return tty;
 }
 
-static void emit(const std::string& prefix, const std::string& msg)
+static void emit(OutputHooks::Level level, const std::string& prefix, const std::string& msg)
 {
     std::lock_guard<std::mutex> lock(gLogMutex);
+    if (const OutputHooks* h = gHooks.load(); h && h->log) {
+        h->log(level, msg);
+        return;
+    }
     if (stderrIsTty()) std::fputs("\r\033[K", stderr);
     std::fprintf(stderr, "%s%s\n", prefix.c_str(), msg.c_str());
     std::fflush(stderr);
 }
 
-void logError(const std::string& msg) { emit("vdbturb: error: ", msg); }
+void logError(const std::string& msg) { emit(OutputHooks::Level::Error, "vdbturb: error: ", msg); }
+
+void writeData(const std::string& text)
+{
+    std::lock_guard<std::mutex> lock(gLogMutex);
+    if (const OutputHooks* h = gHooks.load(); h && h->data) {
+        h->data(text);
+        return;
+    }
+    std::fputs(text.c_str(), stdout);
+    std::fflush(stdout);
+}
+
+void frameReported(int frame, int done, int total)
+{
+    if (const OutputHooks* h = gHooks.load(); h && h->frame) h->frame(frame, done, total);
+}
 
 void reportWrapperProgress(int done, int total)
 {
     const std::string& how = globals().progress;
     if ((how != "alf" && how != "percent") || total <= 0) return;
     const int percent = int(100LL * done / total);
+    const std::string line = (how == "alf" ? "ALF_PROGRESS " : "Progress: ") + std::to_string(percent) + "%";
+    if (!globals().json) return writeData(line + "\n");
     std::lock_guard<std::mutex> lock(gLogMutex);
-    std::FILE* out = globals().json ? stderr : stdout;
-    std::fprintf(out, how == "alf" ? "ALF_PROGRESS %d%%\n" : "Progress: %d%%\n", percent);
-    std::fflush(out);
+    if (const OutputHooks* h = gHooks.load(); h && h->log) return h->log(OutputHooks::Level::Info, line);
+    std::fputs((line + "\n").c_str(), stderr);
+    std::fflush(stderr);
 }
 
 int reportFailure(const std::string& message, int exitCode)
@@ -456,35 +483,36 @@ int reportFailure(const std::string& message, int exitCode)
         if (n >= INT_MIN && n <= INT_MAX) j["frame"] = int(n);
     }
     if (std::regex_search(message, m, grid)) j["grid"] = m[1].str();
-    std::lock_guard<std::mutex> lock(gLogMutex);
-    std::fputs((j.dump() + "\n").c_str(), stdout);
-    std::fflush(stdout);
+    writeData(j.dump() + "\n");
     return exitCode;
 }
 
 void logWarning(const std::string& msg)
 {
-    if (globals().verbosity >= 1) emit("vdbturb: warning: ", msg);
+    if (globals().verbosity >= 1) emit(OutputHooks::Level::Warning, "vdbturb: warning: ", msg);
 }
 void logInfo(const std::string& msg)
 {
-    if (globals().verbosity >= 1) emit("", msg);
+    if (globals().verbosity >= 1) emit(OutputHooks::Level::Info, "", msg);
 }
 void logVerbose(const std::string& msg)
 {
-    if (globals().verbosity >= 2) emit("  ", msg);
+    if (globals().verbosity >= 2) emit(OutputHooks::Level::Verbose, "  ", msg);
 }
 
 void printData(const std::string& text, bool toStderr)
 {
     if (globals().verbosity < 1) return;
-    std::lock_guard<std::mutex> lock(gLogMutex);
     if (globals().json) toStderr = true;
-    std::FILE* out = toStderr ? stderr : stdout;
-    if (toStderr && stderrIsTty()) std::fputs("\r\033[K", stderr);
-    std::fputs(text.c_str(), out);
-    if (!text.empty() && text.back() != '\n') std::fputc('\n', out);
-    std::fflush(out);
+    if (!toStderr) return writeData(text.empty() || text.back() == '\n' ? text : text + "\n");
+    std::lock_guard<std::mutex> lock(gLogMutex);
+    if (const OutputHooks* h = gHooks.load(); h && h->log)
+        return h->log(
+            OutputHooks::Level::Info, text.empty() || text.back() != '\n' ? text : text.substr(0, text.size() - 1));
+    if (stderrIsTty()) std::fputs("\r\033[K", stderr);
+    std::fputs(text.c_str(), stderr);
+    if (!text.empty() && text.back() != '\n') std::fputc('\n', stderr);
+    std::fflush(stderr);
 }
 
 std::string alignColumns(const std::vector<std::vector<std::string>>& rows, const std::string& indent)
@@ -508,20 +536,36 @@ std::string alignColumns(const std::vector<std::vector<std::string>>& rows, cons
     return out;
 }
 
+namespace {
+std::mutex gOnceMutex;
+std::set<std::string> gSaidOnce; // warnOnce's keys: once per command line
+} // namespace
+
 void warnOnce(const std::string& key, const std::string& warning)
 {
-    static std::mutex m;
-    static std::set<std::string> seen;
     {
-        std::lock_guard<std::mutex> lock(m);
-        if (!seen.insert(key).second) return;
+        std::lock_guard<std::mutex> lock(gOnceMutex);
+        if (!gSaidOnce.insert(key).second) return;
     }
     logWarning(warning);
 }
 
+void resetRunState()
+{
+    globals() = Globals{};
+    gInterrupted = false;
+    {
+        std::lock_guard<std::mutex> lock(gOnceMutex);
+        gSaidOnce.clear();
+    }
+    // Keyed by option address: a later parser's options may reuse the addresses of a destroyed one's.
+    tiers().clear();
+    enumNames().clear();
+}
+
 ConsoleProgress::ConsoleProgress(int frameIndex, int frameCount, int frameNumber)
     : mIndex(frameIndex), mCount(frameCount), mFrame(frameNumber),
-      mTty(stderrIsTty() && globals().verbosity >= 1 && globals().progress == "auto")
+      mTty(stderrIsTty() && globals().verbosity >= 1 && globals().progress == "auto" && !gHooks.load())
 {}
 
 ConsoleProgress::~ConsoleProgress() { clear(); }

@@ -50,6 +50,7 @@ struct Globals
     /// stdout handler). The wrapper lines go to stdout, or to stderr with --json.
     std::string progress = "auto";
     double predictedPeakBytes = 0.0; ///< the run's memory estimate (checkMemory), named when memory runs out
+    bool failedOnInput = false;      ///< the run ended on a turb::IoError (a file missing, unreadable, damaged)
 };
 
 Globals& globals();
@@ -138,6 +139,28 @@ std::vector<std::string> spellingsOf(const CLI::App* app, const std::string& fla
 /// Installs the SIGINT/SIGTERM handler that turns Ctrl-C into a cancellation request.
 void installSignalHandlers();
 bool interruptRequested();
+/// Asks the running command to stop as Ctrl-C does: its stages throw turb::Cancelled at their next check, so the
+/// frame in flight is dropped whole (a host's cancel button: the Python module's progress callback).
+void requestInterrupt();
+
+/// Where a command's output goes when it runs inside a host process (the Python module) rather than as vdbturb:
+/// what would go to stdout, the lines for people that would go to stderr, and each finished frame. A hook left empty
+/// keeps the console's own destination. Installed by runCommandLine for one command line.
+struct OutputHooks
+{
+    enum class Level { Error, Warning, Info, Verbose };
+    std::function<void(const std::string&)> data;              ///< one stdout document: a JSON line, info's report
+    std::function<void(Level, const std::string&)> log;        ///< one line for people, without "vdbturb: error: "
+    std::function<void(int frame, int done, int total)> frame; ///< after a frame's report: `done` of `total`
+};
+void setOutputHooks(const OutputHooks* hooks);
+/// A command's data for programs (JSON lines, info's report) on stdout, or to the data hook.
+void writeData(const std::string& text);
+/// A finished frame, `done` of `total`, for the frame hook (RunReport and measure report theirs).
+void frameReported(int frame, int done, int total);
+/// Forgets what one command line left behind (globals, an interrupt, warnings said once, the options' tiers of a
+/// parser now gone), so that a host process can run command lines one after another as separate processes would.
+void resetRunState();
 
 void logError(const std::string& msg);   ///< always printed: "vdbturb: error: msg"
 void logWarning(const std::string& msg); ///< printed unless -q

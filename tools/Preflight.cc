@@ -227,7 +227,8 @@ namespace {
 struct HeldLocks
 {
     std::vector<std::pair<int, std::string>> files; // descriptor, path
-    ~HeldLocks()
+    ~HeldLocks() { release(); }
+    void release()
     {
         for (const auto& [fd, path] : files) {
             // Only the last holder removes it: a lock on the whole file is granted when no other process holds a
@@ -239,6 +240,7 @@ struct HeldLocks
             if (::fcntl(fd, F_SETLK, &all) == 0) ::unlink(path.c_str());
             ::close(fd);
         }
+        files.clear();
     }
 };
 
@@ -291,6 +293,8 @@ void lockOutputFrames(const turbio::FramePattern& pattern, const std::vector<int
         ::close(fd);
     }
 }
+
+void releaseOutputLocks() { heldLocks().release(); }
 
 int upAxisOf(const std::string& path, const std::string& requested, std::string& why)
 {

@@ -73,6 +73,9 @@ bool writtenWithSettings(const std::string& path, const std::string& command, co
 /// Throws turb::TransientError (exit 75: retry once the other is done) naming the other process when one of the
 /// frames is held, and nothing when the folder cannot hold a lock file (read-only: the write fails later, named).
 void lockOutputFrames(const turbio::FramePattern& pattern, const std::vector<int>& frames);
+/// Drops the locks lockOutputFrames took, as the end of the process does: a host process (the Python module)
+/// calls it after each command line.
+void releaseOutputLocks();
 
 /// Refuses a run whose peak memory estimate exceeds what this process may use, with the estimate, the
 /// reason and `whatFits` (what would run instead). Logged at -v and in dry runs either way.

@@ -8,7 +8,6 @@
 
 #include <algorithm>
 #include <cstdio>
-#include <iostream>
 
 namespace vdbturb {
 
@@ -28,8 +27,9 @@ void RunReport::frameDone(
         nlohmann::json j = extra;
         j["frame"] = frame;
         j["seconds"] = seconds;
-        std::cout << j.dump() << std::endl;
+        writeData(j.dump() + "\n");
     }
+    frameReported(frame, index + 1, count);
 }
 
 nlohmann::json RunReport::finish(int failed, const nlohmann::json& extra)
@@ -56,7 +56,7 @@ nlohmann::json RunReport::finish(int failed, const nlohmann::json& extra)
         mCommand.c_str(), mSeconds.size(), mSeconds.size() == 1 ? "" : "s", median, j["total_s"].get<double>(),
         j["cpu_s"].get<double>(), j["peak_rss_mb"].get<double>(), threads);
     logInfo(line);
-    if (mJson) std::cout << j.dump() << std::endl;
+    if (mJson) writeData(j.dump() + "\n");
     return j;
 }
 

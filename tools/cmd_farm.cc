@@ -607,7 +607,7 @@ int runPlan(FarmArgs& a)
                       turbio::formatFrameList(p.sub(c.computeBegin, c.end)) + ", keeps " +
                       turbio::formatFrameList(p.sub(c.keepBegin, c.end)));
     }
-    if (a.json) std::printf("%s\n", planJson(a, p).dump().c_str());
+    if (a.json) writeData(planJson(a, p).dump() + "\n");
     if (globals().dryRun) {
         printData("would write " + p.dir + "/plan.json, " + script + ", join.sbatch (dry run: nothing written)");
         return kOk;
@@ -658,7 +658,7 @@ int runSubmit(FarmArgs& a)
     join = join.substr(0, join.find(';'));
     nlohmann::json j = {{word + "s_job", chunks}, {"join_job", join}};
     writeText(dir + "/submitted.json", j.dump() + "\n");
-    if (a.json) std::printf("%s\n", j.dump().c_str());
+    if (a.json) writeData(j.dump() + "\n");
     printData(
         "submitted: " + word + "s job " + chunks + " (array), join job " + join + " (after the " + word + "s succeed)",
         a.json);

@@ -461,7 +461,7 @@ int runNanoInfo(const InfoArgs& a, const turbio::Sequence& seq)
     if (!damaged.empty())
         logError(std::to_string(damaged.size()) + " of " + std::to_string(seq.frames.size()) + " frame" +
                  (seq.frames.size() == 1 ? "" : "s") + " failed to read: " + turbio::formatFrameList(damaged));
-    if (a.json) std::cout << out.dump(1) << std::endl;
+    if (a.json) writeData(out.dump(1) + "\n");
     return damaged.empty() ? kOk : kFailed;
 }
 
@@ -515,7 +515,7 @@ int runInfo(const InfoArgs& a)
         printData("validate: " + verdict + "; " + usability(tally.anyDensity, tally.anyVelocity), toStderr);
         out["usable"] = usability(tally.anyDensity, tally.anyVelocity);
     }
-    if (a.json) std::cout << out.dump(1) << std::endl;
+    if (a.json) writeData(out.dump(1) + "\n");
     return tally.failures ? kFailed : kOk;
 }
 

@@ -1,5 +1,6 @@
 // vdbturb measure --output OUT --target TGT [--source SRC]: quality numbers of an up-res, per frame.
 // stdout: one JSON line per frame and a summary line (always: the numbers are this command's product).
+#include "CommandLine.h"
 #include "Commands.h"
 #include "Console.h"
 #include "Figures.h"
@@ -283,7 +284,8 @@ void reportFrame(const MeasureArgs& a, const turb::FrameMeasures& m, int f, size
     nlohmann::json j = frameJson(m, a.spectraJson);
     j["frame"] = f;
     j["seconds"] = sec;
-    std::cout << j.dump() << std::endl;
+    writeData(j.dump() + "\n");
+    frameReported(f, int(i + 1), int(count));
 }
 
 void reportSummary(const std::vector<turb::FrameMeasures>& results, const std::vector<double>& seconds, int failed,
@@ -308,7 +310,7 @@ void reportSummary(const std::vector<turb::FrameMeasures>& results, const std::v
         human += b;
     }
     logInfo(human + " (means)");
-    std::cout << sum.dump() << std::endl;
+    writeData(sum.dump() + "\n");
 }
 
 int runMeasure(MeasureArgs& a)
@@ -413,6 +415,8 @@ void addMeasureSettings(CLI::App* app, MeasureArgs& a)
 }
 
 } // namespace
+
+std::string measureJsonText(const turb::FrameMeasures& m, bool spectra) { return frameJson(m, spectra).dump(); }
 
 Command measureCommand()
 {

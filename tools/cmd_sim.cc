@@ -130,12 +130,13 @@ int runInk(const SimArgs& a)
 
 void listScenes()
 {
+    std::ostringstream os;
     for (const auto& s : turb::scenes::sceneList())
-        std::cout << s.name << "\t" << s.description << " (" << s.width << " units wide; pair " << resText(s.pairLow)
-                  << " / " << resText(s.pairHigh) << ")\n";
-    std::cout
-        << "ink\t2D: a drop of ink spreading on wet paper, painted like watercolour (PNG frames, masks and EXR flows: "
-           "Fluidymation's moving exemplar; --res WxH, default 320x240)\n";
+        os << s.name << "\t" << s.description << " (" << s.width << " units wide; pair " << resText(s.pairLow) << " / "
+           << resText(s.pairHigh) << ")\n";
+    os << "ink\t2D: a drop of ink spreading on wet paper, painted like watercolour (PNG frames, masks and EXR flows: "
+          "Fluidymation's moving exemplar; --res WxH, default 320x240)\n";
+    writeData(os.str());
 }
 
 // The scene's settings with the command's solver settings.

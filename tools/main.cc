@@ -1,6 +1,8 @@
-// vdbturb: command-line entry point. Table-driven: see Commands.h.
+// vdbturb's command line, run by main() (cli_main.cc) and the Python module. Table-driven: see Commands.h.
+#include "CommandLine.h"
 #include "Commands.h"
 #include "Console.h"
+#include "Preflight.h"
 
 #include <turb/Error.h>
 #include <turbio/NanoVdb.h>
@@ -15,8 +17,6 @@
 #include <system_error>
 #include <regex>
 #include <sstream>
-
-#include <malloc.h>
 
 using namespace vdbturb;
 
@@ -479,31 +479,36 @@ std::string plainParseMessage(const std::string& message)
     return message;
 }
 
-} // namespace
-
-int main(int argc, char** argv)
+// The parser: each command a subcommand with its options, as `vdbturb --help` lists them.
+struct Parser
 {
-    // Image stages allocate and free many frame-sized buffers (a few MB each). Keep them in the heap
-    // instead of mapping fresh pages for each one: measured 0.70 -> 0.52 CPU-s per 640x480 frame of
-    // animate's histogram matching (docs/performance.md).
-    mallopt(M_MMAP_THRESHOLD, 64 << 20);
-    mallopt(M_TRIM_THRESHOLD, 256 << 20);
     CLI::App app{"vdbturb: turbulence up-res for smoke caches (VDB in, VDB out)"};
-    app.require_subcommand(1);
-    app.set_version_flag("--version", std::string("vdbturb ") + VDBTURB_VERSION_STRING);
-
     std::vector<Command> commands = allCommands();
     std::vector<std::pair<CLI::App*, Command*>> subs;
-    for (auto& c : commands) {
-        CLI::App* sub = app.add_subcommand(c.name, c.help);
-        sub->option_defaults()->always_capture_default(); // --help and --print-settings show each default
-        c.setup(sub);
-        addGlobalOptions(sub, c.globals); // after the command's own: --help lists them last
-        sub->footer("Exit codes: 0 done; 1 a failure a retry cannot fix (bad input, a resume with other settings); "
-                    "2 a usage error; 75 worth a retry on another node (disk full, a file-size limit, out of memory); "
-                    "130 interrupted.");
-        subs.emplace_back(sub, &c);
+
+    Parser()
+    {
+        app.require_subcommand(1);
+        app.set_version_flag("--version", std::string("vdbturb ") + VDBTURB_VERSION_STRING);
+        for (auto& c : commands) {
+            CLI::App* sub = app.add_subcommand(c.name, c.help);
+            sub->option_defaults()->always_capture_default(); // --help and --print-settings show each default
+            c.setup(sub);
+            addGlobalOptions(sub, c.globals); // after the command's own: --help lists them last
+            sub->footer("Exit codes: 0 done; 1 a failure a retry cannot fix (bad input, a resume with other settings); "
+                        "2 a usage error; 75 worth a retry on another node (disk full, a file-size limit, out of "
+                        "memory); 130 interrupted.");
+            subs.emplace_back(sub, &c);
+        }
     }
+};
+
+// The command line as the executable's main() ran it, argv[0] its name; `ownProcess`: take Ctrl-C's signals.
+int runArgv(int argc, char** argv, bool ownProcess)
+{
+    Parser parser;
+    CLI::App& app = parser.app;
+    const auto& subs = parser.subs;
     // --settings files become command-line options before anything reads argv.
     std::vector<std::string> args;
     try {
@@ -534,11 +539,16 @@ int main(int argc, char** argv)
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
-        if (e.get_exit_code() == 0) return app.exit(e) == 0 ? kOk : kUsage; // --help, --version
+        if (e.get_exit_code() == 0) { // --help, --version: stdout, through writeData for a host
+            std::ostringstream out, err;
+            const int code = app.exit(e, out, err);
+            writeData(out.str());
+            return code == 0 ? kOk : kUsage;
+        }
         return reportFailure(plainParseMessage(e.what()) + " (--help lists the options)", kUsage);
     }
     if (const std::string nan = notANumber(app); !nan.empty()) return reportFailure(nan, kUsage);
-    installSignalHandlers();
+    if (ownProcess) installSignalHandlers();
     // Read before the command runs: its preflight and --dry-run lines come before it would set this itself.
     globals().json = asksForJson(app);
     for (auto& [sub, cmd] : subs) {
@@ -551,6 +561,9 @@ int main(int argc, char** argv)
             return reportFailure(messageWithFlags(e), kUsage);
         } catch (const turb::TransientError& e) {
             return reportFailure(messageWithFlags(e) + " (exit 75: worth a retry)", kTempFail);
+        } catch (const turb::IoError& e) {
+            globals().failedOnInput = true;
+            return reportFailure(messageWithFlags(e), kFailed);
         } catch (const turb::Error& e) {
             return reportFailure(messageWithFlags(e), kFailed);
         } catch (const std::bad_alloc&) {
@@ -578,3 +591,52 @@ int main(int argc, char** argv)
     }
     return kUsage;
 }
+
+} // namespace
+
+namespace vdbturb {
+
+int runCommandLine(const std::vector<std::string>& words, const OutputHooks* hooks)
+{
+    resetRunState();
+    setOutputHooks(hooks);
+    // The hooks point into the caller's frame: never left installed, whatever escapes.
+    struct Restore
+    {
+        ~Restore()
+        {
+            releaseOutputLocks();
+            setOutputHooks(nullptr);
+        }
+    } restore;
+    std::vector<std::string> args{"vdbturb"};
+    args.insert(args.end(), words.begin(), words.end());
+    std::vector<char*> argv;
+    for (auto& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    return runArgv(int(args.size()), argv.data(), hooks == nullptr);
+}
+
+std::vector<OptionInfo> commandOptions(const std::string& command)
+{
+    resetRunState(); // the tiers of the options registered below, not of an earlier parser's
+    Parser parser;
+    std::vector<OptionInfo> out;
+    for (const auto& [sub, cmd] : parser.subs) {
+        if (cmd->name != command) continue;
+        for (const CLI::Option* o : sub->get_options()) {
+            OptionInfo info;
+            info.longNames = o->get_lnames();
+            info.falseNames = o->get_fnames();
+            if (o->get_positional()) info.positional = o->get_name();
+            info.flag = o->get_expected_max() == 0;
+            info.multiple = o->get_expected_max() > 1;
+            info.help = o->get_description();
+            info.defaultValue = o->get_default_str();
+            out.push_back(std::move(info));
+        }
+    }
+    return out;
+}
+
+} // namespace vdbturb

@@ -7,10 +7,11 @@
 # add-on's test (tests/blender/test_addon.py, ctest blender_addon) and the blender-* benchmarks (bench/blender_pairs.sh).
 # openimageio-tools is not used, but Debian's OpenImageIOConfig.cmake names its binaries and fails to configure
 # without them when packages come without their recommends.
+# python3-dev, pybind11-dev and python3-numpy build and test the Python module (docs/python.md).
 #   tools/setup-debian12.sh          build, test and demo
 #   tools/setup-debian12.sh --bench  the same (Blender was once installed for the benchmarks only; kept for scripts)
 set -eu
-PACKAGES="g++ cmake ninja-build ccache pkg-config make git
+PACKAGES="g++ cmake ninja-build ccache pkg-config make git python3-dev pybind11-dev python3-pybind11 python3-numpy
   libopenvdb-dev libboost-iostreams-dev libtbb-dev libeigen3-dev libflann-dev liblz4-dev libblosc-dev
   libgtest-dev libgmock-dev libcli11-dev nlohmann-json3-dev libfftw3-dev
   libopenimageio-dev openimageio-tools libopencv-dev fonts-dejavu-core gnuplot-nox libnanovdb-dev libnanovdb-tools
