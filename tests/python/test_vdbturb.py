@@ -1,7 +1,7 @@
 """The Python module against the vdbturb executable (docs/python.md), under ctest: python_module.
 
 Run by hand from the repository root after a build:
-    PYTHONPATH=build/python VDBTURB_EXE=build/tools/vdbturb /usr/bin/python3 -m unittest discover -s tests/python -v
+    PYTHONPATH=build/tools/python VDBTURB_EXE=build/tools/vdbturb /usr/bin/python3 -m unittest discover -s tests/python -v
 One three-frame transfer of the Blender plume2 pair (32^3 target, 128^3 source) is made through the module and
 through the executable, once for the whole file; about 20 s on two cores.
 """
