@@ -1,6 +1,6 @@
 /// @file CommandLine.h
 /// @brief The whole command line as one call, for the vdbturb executable and for hosts that run commands in their
-///        own process (the Python module, python/vdbturb_module.cc).
+///        own process (the Python module, tools/python/vdbturb_module.cc).
 #pragma once
 
 #include <string>

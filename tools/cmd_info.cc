@@ -16,6 +16,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <iostream>
 #include <memory>
 #include <sstream>
@@ -414,6 +415,33 @@ std::string nanoGridTable(const turbio::NanoFileInfo& fi)
     return out + alignColumns(rows, "  ");
 }
 
+// Every frame of `seq` is described by `describe` into its own JSON object in out["files"]; a damaged one gets its
+// reason (and a FAILED line) instead, and the walk goes on. Returns the damaged frames, logged as one error.
+std::vector<int> describeFrames(const turbio::Sequence& seq, bool json, nlohmann::json& out,
+    const std::function<void(int, const std::string&, size_t, nlohmann::json&)>& describe)
+{
+    std::vector<int> damaged;
+    for (size_t i = 0; i < seq.frames.size(); ++i) {
+        const int frame = seq.frames[i];
+        const std::string path = seq.path(frame);
+        nlohmann::json fj;
+        fj["frame"] = frame;
+        fj["path"] = path;
+        try {
+            describe(frame, path, i, fj);
+        } catch (const turb::Error& e) {
+            damaged.push_back(frame);
+            fj["error"] = messageWithFlags(e);
+            printData("frame " + std::to_string(frame) + ": FAILED: " + messageWithFlags(e), json);
+        }
+        out["files"].push_back(fj);
+    }
+    if (!damaged.empty())
+        logError(std::to_string(damaged.size()) + " of " + std::to_string(seq.frames.size()) + " frame" +
+                 (seq.frames.size() == 1 ? "" : "s") + " failed to read: " + turbio::formatFrameList(damaged));
+    return damaged;
+}
+
 // `info` on NanoVDB files: each frame's headers (grids, types and quantisation, voxel counts, boxes, voxel size,
 // sizes). No voxel is read, and no vdbturb metadata exists to show: NanoVDB files hold none.
 int runNanoInfo(const InfoArgs& a, const turbio::Sequence& seq)
@@ -432,14 +460,8 @@ int runNanoInfo(const InfoArgs& a, const turbio::Sequence& seq)
     out["frames"] = seq.frames;
     out["missing"] = seq.missing;
     out["files"] = nlohmann::json::array();
-    std::vector<int> damaged;
-    for (size_t i = 0; i < seq.frames.size(); ++i) {
-        const int frame = seq.frames[i];
-        const std::string path = seq.path(frame);
-        nlohmann::json fj;
-        fj["frame"] = frame;
-        fj["path"] = path;
-        try {
+    const std::vector<int> damaged =
+        describeFrames(seq, a.json, out, [&](int frame, const std::string& path, size_t i, nlohmann::json& fj) {
             const turbio::NanoFileInfo fi = turbio::inspectNanoFile(path);
             fj["file_bytes"] = fi.fileBytes;
             fj["grids"] = nlohmann::json::array();
@@ -451,16 +473,7 @@ int runNanoInfo(const InfoArgs& a, const turbio::Sequence& seq)
                 for (const auto& g : fi.grids) line += " " + g.name + "=" + std::to_string(g.activeVoxels);
                 printData(line + " active voxels, " + turbio::formatBytes(double(fi.fileBytes)), a.json);
             }
-        } catch (const turb::Error& e) {
-            damaged.push_back(frame);
-            fj["error"] = messageWithFlags(e);
-            printData("frame " + std::to_string(frame) + ": FAILED: " + messageWithFlags(e), a.json);
-        }
-        out["files"].push_back(fj);
-    }
-    if (!damaged.empty())
-        logError(std::to_string(damaged.size()) + " of " + std::to_string(seq.frames.size()) + " frame" +
-                 (seq.frames.size() == 1 ? "" : "s") + " failed to read: " + turbio::formatFrameList(damaged));
+        });
     if (a.json) writeData(out.dump(1) + "\n");
     return damaged.empty() ? kOk : kFailed;
 }
@@ -487,27 +500,10 @@ int runInfo(const InfoArgs& a)
 
     nlohmann::json out = sequenceJson(seq, scan, first);
     Tally tally;
-    std::vector<int> damaged;
-    for (size_t i = 0; i < seq.frames.size(); ++i) {
-        const int frame = seq.frames[i];
-        const std::string path = seq.path(frame);
-        nlohmann::json fj;
-        fj["frame"] = frame;
-        fj["path"] = path;
-        try {
+    tally.failures +=
+        int(describeFrames(seq, a.json, out, [&](int frame, const std::string& path, size_t i, nlohmann::json& fj) {
             describeFile(a, ro, scan, frame, path, i == 0, fj, tally);
-        } catch (const turb::Error& e) {
-            // Every frame is listed: a damaged one gets its reason, and the walk goes on.
-            ++tally.failures;
-            damaged.push_back(frame);
-            fj["error"] = messageWithFlags(e);
-            printData("frame " + std::to_string(frame) + ": FAILED: " + messageWithFlags(e), a.json);
-        }
-        out["files"].push_back(fj);
-    }
-    if (!damaged.empty())
-        logError(std::to_string(damaged.size()) + " of " + std::to_string(seq.frames.size()) + " frame" +
-                 (seq.frames.size() == 1 ? "" : "s") + " failed to read: " + turbio::formatFrameList(damaged));
+        }).size());
     if (a.validate) {
         const std::string verdict = tally.failures ? std::to_string(tally.failures) + " of " +
                                                          std::to_string(seq.frames.size()) + " frames fail to read"
