@@ -1083,6 +1083,18 @@ void addTimeSettings(CLI::App* app, TransferArgs& a)
         "Fraction of the way the output density's coarse means move onto the target's per frame (0 = off)",
         "densityGuide.strength")
         ->check(finiteIn(0.0, 1.0));
+    num(app, "--interface-compression,--interfaceCompression", s.interfaceCompression,
+        "Sharpen the output density's edge: interface compression in voxels per frame (0 = off; docs/look.md: 0.5)",
+        "interfaceCompression")
+        ->check(finiteIn(0.0, 1.0));
+    num(app, "--level-set-diffusion,--levelSetDiffusion", s.levelSetDiffusion,
+        "Even out hairs along the output density's surface: diffusion along its level sets per pass (0 = off; "
+        "docs/look.md: 0.15)",
+        "levelSetDiffusion")
+        ->check(finiteIn(0.0, 1.0 / 6.0));
+    num(app, "--level-set-diffusion-passes,--levelSetDiffusionPasses", s.levelSetDiffusionPasses,
+        "Passes of the level-set diffusion per frame", "levelSetDiffusionPasses")
+        ->check(CLI::Range(0, 20));
     num(app, "--extend-velocity,--sourceRead.extendVelocity", a.sourceRead.extendVelocity,
         "Continue the source's velocity this many voxels past its active region (Blender clips it to the smoke; 0 = "
         "off)",

@@ -181,6 +181,12 @@ struct TransferSettings
     DensityGuideSettings
         densityGuide;        ///< beyond the paper: the output density's coarse means are moved onto the
                              ///< target's every frame (strength 0 = off), so it does not drift from the target
+    /// Beyond the paper (issue 42's fur): the advected output density's edge shaped every frame before the guide
+    /// (3D only; DensityShaping.h): interface compression at this speed in voxels per frame, in [0, 1], 0 = off
+    /// (the default until a blind pick and the farm goals are rerun with it: docs/look.md measures 0.5)
+    float interfaceCompression = 0.0f;
+    float levelSetDiffusion = 0.0f;  ///< then diffusion along the density's level sets, k per pass in [0, 1/6], 0 = off
+    int levelSetDiffusionPasses = 3; ///< passes of it per frame, >= 0
     int lookBackFrames = 12; ///< m for DensityMode::LookBack (Ma et al. suggest 10-20)
     int threads = 0;         ///< worker threads, 0 = all; results do not depend on it
 };

@@ -3,6 +3,7 @@
 
 #include <turb/Advect.h>
 #include <turb/DensityGuide.h>
+#include <turb/DensityShaping.h>
 
 #include <algorithm>
 
@@ -25,6 +26,20 @@ void addBoundedEmission(ScalarField& d, const ScalarField& emissionFine, const S
     }
 }
 
+// Issue 42's fur: the advected density's edge sharpened across and evened out along its surface (3D only: the 2D
+// pair's structure goal steers its detail, and these steps were measured on 3D pairs only).
+void shapeEdge(ScalarField& d, const ScalarField& targetFine, const FrameSetup& fs)
+{
+    const TransferSettings& s = *fs.s;
+    if (fs.flat) return;
+    if (s.interfaceCompression > 0.0f) {
+        float peak = 0.0f;
+        for (float v : targetFine.values()) peak = std::max(peak, v);
+        if (peak > 0.0f) compressInterface(d, s.interfaceCompression, peak);
+    }
+    if (s.levelSetDiffusion > 0.0f) diffuseAlongLevelSets(d, s.levelSetDiffusion, s.levelSetDiffusionPasses);
+}
+
 } // namespace
 
 DensityStep advanceDensity(const Frame& target, const TargetAtOutput& t, const CarriedState& c, const FrameSetup& fs)
@@ -41,6 +56,7 @@ DensityStep advanceDensity(const Frame& target, const TargetAtOutput& t, const C
         } else {
             d = cropped(advect(c.prevDensity, c.prevVelocity, fs.elapsed, scheme), fs.fineBox);
             addBoundedEmission(d, upsample(t.emission, f), t.Dt);
+            shapeEdge(d, t.Dt, fs);
         }
     } else if (c.history.empty()) {
         d = t.Dt;

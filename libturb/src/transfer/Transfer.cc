@@ -211,7 +211,9 @@ std::vector<std::pair<std::string, std::string>> outputSettings(const TransferSe
         {"density-scheme", schemeName(s.densityScheme)}, {"density-guide", num(s.densityGuide.strength)},
         {"density-guide-passes", num(s.densityGuide.passes)},
         {"density-guide-threshold", num(s.densityGuide.threshold)},
-        {"density-guide-max-gain", num(s.densityGuide.maxGain)}, {"lookback", num(s.lookBackFrames)}};
+        {"density-guide-max-gain", num(s.densityGuide.maxGain)}, {"lookback", num(s.lookBackFrames)},
+        {"interface-compression", num(s.interfaceCompression)}, {"level-set-diffusion", num(s.levelSetDiffusion)},
+        {"level-set-diffusion-passes", num(s.levelSetDiffusionPasses)}};
     // Only when not the default: the default outputs' settings text stays what earlier versions wrote.
     const auto defaults = settingsRecordedWhenChanged(TransferSettings{});
     for (const auto& setting : settingsRecordedWhenChanged(s))
@@ -308,6 +310,10 @@ TurbulenceTransfer::TurbulenceTransfer(const TransferSettings& settings) : mImpl
         throw ValueError("repeat radius must lie in [0, 4] and repeat tolerance be >= 0");
     if (!(s.densityGuide.strength >= 0.0f && s.densityGuide.strength <= 1.0f))
         throw ValueError("density guide strength must lie in [0, 1]");
+    if (!(s.interfaceCompression >= 0.0f && s.interfaceCompression <= 1.0f))
+        throw ValueError("interface compression must lie in [0, 1]");
+    if (!(s.levelSetDiffusion >= 0.0f && s.levelSetDiffusion <= 1.0f / 6.0f) || s.levelSetDiffusionPasses < 0)
+        throw ValueError("level-set diffusion must lie in [0, 1/6] with passes >= 0");
     mImpl->s = settings;
     mImpl->w = detail::MatchWeights{s.alpha, s.beta, s.densityThreshold};
 }
