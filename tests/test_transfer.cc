@@ -1117,7 +1117,8 @@ TEST(TransferLook, EvenedPatchesAndTheVorticityLimitMeetTheLookGoals)
     // Without the variance-preserving correction the seam solve leaves the detail weaker at the seams: lattice 0.14
     // at frame 1 (the goal is <= 0.1); with it 0.04, and block (seams sharper than the rest) stays <= 1.05. The
     // vorticity limit holds vort_peak_ratio near 1 (1.12 at frame 1 without it; 1.056 at frame 3 with it once the
-    // density's edge is shaped: the quantile is taken over the output density's smoke, which the shaping changes). The other numbers stay in range.
+    // density's edge is shaped: the quantile is taken over the output density's smoke, which the shaping changes).
+    // The other numbers stay in range.
     const auto run = [](float even, float limit) {
         TransferSettings s;
         s.threads = 2;
