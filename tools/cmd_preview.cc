@@ -47,7 +47,7 @@ struct PreviewArgs
     float speedMax = 0.0f;
     float vorticityMax = 0.0f;
     std::string up = "auto"; ///< auto, y or z: the world axis drawn upward
-    bool matchDensity = false; ///< draw every cache's density at the first cache's peak (see densityScales)
+    bool matchDensity = false; ///< draw every cache's density at the first cache's peak (see fixedRanges)
     bool json = false;
     turbio::ReadOptions read;
 };
@@ -399,29 +399,42 @@ int checkOutputPaths(const PreviewArgs& a, const PreviewPlan& p, const std::vect
     return kOk;
 }
 
-// The input's frame of the last row that it has (none: nullopt), read with its density or its velocity optional.
-std::optional<turb::Frame> lastRowFrame(const Input& in, const PreviewPlan& p, bool forDensity)
+// The input's frame of the last row that it has (none: nullopt), its density and velocity both optional.
+std::optional<turb::Frame> lastRowFrame(const Input& in, const PreviewPlan& p)
 {
     int ref = -1;
     for (auto it = p.frames.rbegin(); it != p.frames.rend() && ref < 0; ++it)
         if (exists(in, *it)) ref = *it;
     if (ref < 0) return std::nullopt;
     turbio::ReadOptions ro = p.read;
-    (forDensity ? ro.requireVelocity : ro.requireDensity) = false;
+    ro.requireDensity = ro.requireVelocity = false;
     ro.cropMargin += in.extraMargin;
     return turbio::readFrame(in.seq.path(fileFrame(in, ref)), fileFrame(in, ref), ro);
 }
 
-// Fixed colour ranges for the whole run, from the last row's frame, so sequences do not flicker. Speed shares one
-// range across caches (same world units, comparable); vorticity grows with resolution, so each cache gets its own.
-void colourRanges(const PreviewArgs& a, PreviewPlan& p)
+// Fixed ranges for the whole run, from each input's last-row frame (read once), so sequences do not flicker.
+// Colours: speed shares one range across caches (same world units, comparable); vorticity grows with resolution, so
+// each cache gets its own. --match-density: each cache's density drawn at the first cache's peak. Blender's noise
+// up-res writes its density at about f times its base's peak (8x at f = 8): drawn as written it is 8 times as
+// opaque as its own target and its edges look harder than the same shape at the target's density.
+void fixedRanges(const PreviewArgs& a, PreviewPlan& p)
 {
-    if (!needsVelocity(p.modes)) return;
-    float speedAll = a.speedMax;
-    for (auto& in : p.inputs) {
-        std::optional<turb::Frame> last = lastRowFrame(in, p, false);
-        if (!last || !last->hasVelocity()) continue;
+    const bool velocity = needsVelocity(p.modes);
+    const bool density = a.matchDensity && std::find(p.modes.begin(), p.modes.end(), Mode::Density) != p.modes.end();
+    if (!velocity && !density) return;
+    float speedAll = a.speedMax, firstPeak = 0.0f;
+    for (size_t i = 0; i < p.inputs.size(); ++i) {
+        Input& in = p.inputs[i];
+        std::optional<turb::Frame> last = lastRowFrame(in, p);
+        if (!last) continue;
         turb::Frame& f = *last;
+        if (density && f.hasDensity()) {
+            float peak = 0.0f;
+            for (float v : f.density.values()) peak = std::max(peak, v);
+            if (peak > 0.0f && i == 0) firstPeak = peak;
+            else if (peak > 0.0f && firstPeak > 0.0f) in.densityScale = firstPeak / peak;
+        }
+        if (!velocity || !f.hasVelocity()) continue;
         turb::toTimeUnit(f, 1.0); // one speed scale for every column: world units per second
         const turb::ScalarField* d = f.hasDensity() ? &f.density : nullptr;
         in.speedMax = a.speedMax > 0.0f ? a.speedMax : percentile(turb::magnitude(f.velocity), d, 0.995);
@@ -429,26 +442,8 @@ void colourRanges(const PreviewArgs& a, PreviewPlan& p)
             a.vorticityMax > 0.0f ? a.vorticityMax : percentile(turb::magnitude(turb::curl(f.velocity)), d, 0.99);
         if (a.speedMax <= 0.0f) speedAll = std::max(speedAll, in.speedMax);
     }
-    for (auto& in : p.inputs) in.speedMax = speedAll > 0.0f ? speedAll : 1.0f;
-}
-
-// --match-density: each cache's density drawn at the first cache's peak, from the last row's frame, fixed for the
-// run. Blender's noise up-res writes its density at about f times its base's peak (8x at f = 8): drawn as written
-// it is 8 times as opaque as its own target and its edges look harder than the same shape at the target's density.
-void densityScales(const PreviewArgs& a, PreviewPlan& p)
-{
-    if (!a.matchDensity || std::find(p.modes.begin(), p.modes.end(), Mode::Density) == p.modes.end()) return;
-    float firstPeak = 0.0f;
-    for (size_t i = 0; i < p.inputs.size(); ++i) {
-        Input& in = p.inputs[i];
-        const std::optional<turb::Frame> f = lastRowFrame(in, p, true);
-        if (!f || !f->hasDensity()) continue;
-        float peak = 0.0f;
-        for (float v : f->density.values()) peak = std::max(peak, v);
-        if (!(peak > 0.0f)) continue;
-        if (i == 0) firstPeak = peak;
-        else if (firstPeak > 0.0f) in.densityScale = firstPeak / peak;
-    }
+    if (velocity)
+        for (auto& in : p.inputs) in.speedMax = speedAll > 0.0f ? speedAll : 1.0f;
 }
 
 // One row: every cache's pictures of `frame` in every mode (empty where the cache lacks the frame), labelled.
@@ -538,8 +533,7 @@ void writeSheet(const PreviewArgs& a, const PreviewPlan& p, const std::vector<st
 // Draws every row: a picture per frame, or the rows of one sheet.
 void drawRows(const PreviewArgs& a, PreviewPlan& p)
 {
-    colourRanges(a, p);
-    densityScales(a, p);
+    fixedRanges(a, p);
     RunReport report("preview", a.json);
     std::vector<std::vector<turb::Image>> rowImages;
     std::vector<std::vector<turb::SheetCell>> rows;
