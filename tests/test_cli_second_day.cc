@@ -13,6 +13,9 @@
 #include <fstream>
 #include <map>
 #include <sstream>
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 namespace {
 
@@ -24,6 +27,15 @@ using clitest::plumeHi;
 using clitest::plumeLo;
 using clitest::run;
 using clitest::runStdout;
+using clitest::slurp;
+
+// A file's inode: a frame written again is a new file renamed into place, a skipped one keeps its inode.
+ino_t inode(const std::string& path)
+{
+    struct stat st
+    {};
+    return ::stat(path.c_str(), &st) == 0 ? st.st_ino : 0;
+}
 
 } // namespace
 
@@ -449,4 +461,151 @@ TEST(SecondDay, SkipExistingAndTileMetadataForFarmWrappers)
     EXPECT_EQ(fs::last_write_time(dir / "r/r.0001.vdb"), r1) << "nothing written is replaced";
     const nlohmann::json j = nlohmann::json::parse(runStdout("info " + dir / "t/o.0003.vdb --json").out);
     EXPECT_EQ(j["files"][0]["tile_box"], "4,6,0,19,21,11");
+}
+
+// --skip-existing in the commands that make frames in order (sim, synth, stylize) or all at once (animate): a frame
+// written by the same settings is left as it is (the same inode), a missing one comes back byte for byte as the
+// first run wrote it, a frame of other settings is refused naming the setting, and nothing is replaced.
+TEST(SecondDay, SkipExistingInSimSynthStylizeAndAnimate)
+{
+    testutil::TempDir dir;
+    struct Case
+    {
+        std::string command, pattern; ///< the run without --out, and its output pattern (#### = 4 digits)
+        int frames;                   ///< frames it writes, numbered from 1
+        std::string other, changed;   ///< an option that changes the frames, and the difference the refusal names
+    };
+    const std::vector<Case> cases = {
+        {"sim plume --res 16 --frames 4", "sim/s.####.vdb", 4, "--seed 2", "seed: 1 -> 2"},
+        {"synth --flow vortex --frames 3 --factor 2", "synth/s.####.vdb", 3, "--omega 0.7", "omega: 0.5 -> 0.7"},
+        {"stylize --scene swirl --scene-size 48x48 --frames 4 --exemplar builtin:fire", "styl/f.####.png", 4,
+            "--seed 7", "seed: 1 -> 7"},
+        {"stylize --method fluidymation --scene swirl --scene-size 48x48 --frames 3 --exemplar builtin:ink:48x48x12",
+            "fluidy/f.####.exr", 3, "--seed 7", "seed: 1 -> 7"},
+        {"animate --example builtin:river:48x32x20 --target builtin:river:48x32 --flow-strokes builtin:river",
+            "anim/a.####.png", 4, "--tau 15", "tau: 16 -> 15"},
+    };
+    for (const Case& c : cases) {
+        SCOPED_TRACE(c.command);
+        const std::string pattern = dir / c.pattern;
+        const auto frame = [&](int f) {
+            std::string p = pattern;
+            char num[8];
+            std::snprintf(num, sizeof(num), "%04d", f);
+            return p.replace(p.find("####"), 4, num);
+        };
+        const std::string base = c.command + " --out " + pattern;
+        ASSERT_EQ(run(base + " -q").code, 0);
+        // A VDB file holds a fresh UUID each write: its grids' checksums say whether they are the same.
+        const auto content = [&](int f) {
+            return frame(f).find(".vdb") != std::string::npos ? run("info --checksum " + frame(f)).out
+                                                              : slurp(frame(f));
+        };
+        const std::string second = content(2);
+        ASSERT_FALSE(second.empty());
+        fs::remove(frame(2));
+        std::vector<ino_t> before;
+        for (int f = 1; f <= c.frames; ++f) before.push_back(inode(frame(f)));
+
+        const Result plan = runStdout(base + " --skip-existing --dry-run");
+        ASSERT_EQ(plan.code, 0) << plan.out;
+        EXPECT_TRUE(has(plan.out, "would skip " + frame(1) + " (written by the same settings)")) << plan.out;
+        EXPECT_TRUE(has(plan.out, "would write " + frame(2) + "\n")) << plan.out;
+
+        const Result again = run(base + " --skip-existing");
+        ASSERT_EQ(again.code, 0) << again.out;
+        EXPECT_TRUE(has(again.out, "skipped: " + frame(1) + " was written by the same settings")) << again.out;
+        EXPECT_TRUE(content(2) == second) << "the missing frame, as the first run made it";
+        for (int f = 1; f <= c.frames; ++f)
+            if (f != 2) EXPECT_EQ(inode(frame(f)), before[size_t(f - 1)]) << "frame " << f << " left as it was";
+
+        const Result other = run(base + " --skip-existing " + c.other);
+        EXPECT_EQ(other.code, 1) << other.out;
+        EXPECT_TRUE(has(other.out, "exists and was made otherwise")) << other.out;
+        EXPECT_TRUE(has(other.out, c.changed)) << other.out;
+        for (int f = 1; f <= c.frames; ++f)
+            if (f != 2) EXPECT_EQ(inode(frame(f)), before[size_t(f - 1)]) << "nothing replaced: frame " << f;
+    }
+
+    // A frame follows the one before it: a run that begins later would continue from frames it did not make.
+    const Result later =
+        run("synth --flow vortex --frames 2-3 --factor 2 --skip-existing --out " + dir / "synth/s.####.vdb");
+    EXPECT_EQ(later.code, 1) << later.out;
+    EXPECT_TRUE(has(later.out, "shot_frames: 1,2 -> 2")) << later.out;
+    // NanoVDB files record no settings.
+    EXPECT_EQ(run("sim plume --res 16 --frames 2 --skip-existing --out " + dir / "n/s.####.nvdb").code, 2);
+}
+
+// stylize and animate take the frame locks transfer, resample, sim and synth take: with frame 2's lock held by
+// another process (here the test itself, through the lock file's byte for frame 2), a run given frame 2 stops
+// before writing anything, exit 75, naming the holder; a run given other frames of the shot goes on.
+TEST(FarmNode, StylizeAndAnimateLockTheFramesTheyWrite)
+{
+    testutil::TempDir dir;
+    const struct
+    {
+        std::string command, folder, name;
+    } cases[] = {
+        {"stylize --scene swirl --scene-size 32x32 --exemplar builtin:fire", "styl", "f.####.png"},
+        {"animate --example builtin:river:48x32x20 --target builtin:river:48x32 --flow-strokes builtin:river", "anim",
+            "a.####.png"},
+    };
+    for (const auto& c : cases) {
+        SCOPED_TRACE(c.command);
+        const fs::path folder(dir / c.folder);
+        fs::create_directories(folder);
+        const std::string lockPath = (folder / ("." + c.name + ".lock")).string();
+        const int fd = ::open(lockPath.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+        ASSERT_GE(fd, 0);
+        struct flock l
+        {};
+        l.l_type = F_WRLCK;
+        l.l_whence = SEEK_SET;
+        l.l_start = off_t(2 + (int64_t(1) << 31)); // frame 2's byte (turbio's frame locks)
+        l.l_len = 1;
+        ASSERT_EQ(::fcntl(fd, F_SETLK, &l), 0);
+        const std::string out = (folder / c.name).string();
+        // animate writes frames 1-4 (20 example frames, tau 16); stylize is given frames 1-3.
+        const Result held = run(c.command + (c.folder == "styl" ? " --frames 3" : "") + " --out " + out);
+        EXPECT_EQ(held.code, 75) << held.out;
+        EXPECT_TRUE(has(held.out, "is writing this frame")) << held.out;
+        EXPECT_TRUE(has(held.out, "(pid " + std::to_string(::getpid()) + ")")) << held.out;
+        EXPECT_FALSE(fs::exists(folder / (c.name.substr(0, 2) + "0001.png"))) << "nothing written";
+        if (c.folder == "styl") {
+            const Result other = run(c.command + " --frames 3-4 -q --out " + out);
+            EXPECT_EQ(other.code, 0) << other.out;
+            EXPECT_TRUE(fs::exists(folder / "f.0004.png"));
+        }
+        ::close(fd);
+    }
+}
+
+// A tree of active tiles whose box spans 1290^3 (2.1e9) voxels, as pyopenvdb's fill writes one: info lists it and
+// resample refuses it with the span and the memory it would need, in bounded memory (a 4 GB address-space limit).
+// The smoke clustering compared every tile with every node: info took 272 s and resample 122 s before the refusal.
+TEST(FarmNode, ATreeOfActiveTilesOverTwoBillionVoxelsIsListedAndRefusedClearly)
+{
+    openvdb::initialize();
+    testutil::TempDir dir;
+    {
+        const openvdb::CoordBBox box(openvdb::Coord(0), openvdb::Coord(1289));
+        auto density = openvdb::FloatGrid::create(0.0f);
+        density->setName("density");
+        density->tree().fill(box, 0.5f, true);
+        auto vel = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.0f));
+        vel->setName("vel");
+        vel->tree().fill(box, openvdb::Vec3s(0, 0, 1), true);
+        ASSERT_EQ(density->activeVoxelCount(), openvdb::Index64(1290) * 1290 * 1290);
+        openvdb::io::File(dir / "tiles.vdb").write({density, vel});
+    }
+    const std::string limit = "prlimit --as=4000000000 " + std::string(VDBTURB_EXE);
+    const auto info = clitest::shell(limit + " info '" + dir / "tiles.vdb" + "' 2>&1");
+    EXPECT_EQ(info.code, 0) << info.out;
+    EXPECT_TRUE(has(info.out, "2146689000")) << "the active voxel count: " << info.out;
+    const auto resample =
+        clitest::shell(limit + " resample '" + dir / "tiles.vdb" + "' --down 2 --out '" + dir / "r.vdb" + "' 2>&1");
+    EXPECT_EQ(resample.code, 1) << resample.out;
+    EXPECT_TRUE(has(resample.out, "not enough memory to load the frame: its grids span [0, 0, 0]-[1289, 1289, 1289]"))
+        << resample.out;
+    EXPECT_FALSE(fs::exists(dir / "r.vdb"));
 }

@@ -6,8 +6,10 @@
 #include <turb/Error.h>
 #include <turb/Metadata.h>
 #include <turb/Transfer.h>
+#include <turbio/ImageIO.h>
 #include <turbio/System.h>
 
+#include <cctype>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -176,9 +178,11 @@ std::string commandSettingsText(const CLI::App& app, const std::vector<std::stri
     // Options that say how or where to run, not what a frame holds. --skip-existing compares VDB frames only (NanoVDB
     // files hold no settings: checkOutputFormat), so the NanoVDB options say nothing here, and frames written before
     // they existed still compare equal.
+    // The pictures, sheets, dumps and measures some commands make beside their frames change no frame either.
     static const std::set<std::string> kRunOnly = {"threads", "progress", "verbose", "quiet", "frames", "out", "input",
         "dry-run", "skip-existing", "no-clobber", "json", "settings", "print-settings", "help-all", "format",
-        "nanovdb-quant"};
+        "nanovdb-quant", "preview", "preview-format", "preview-view", "preview-width", "stats", "sheet", "dump",
+        "measure", "write-target"};
     std::ostringstream os;
     std::istringstream lines(app.config_to_str(true, false));
     std::string line;
@@ -205,19 +209,71 @@ bool writtenWithSettings(const std::string& path, const std::string& command, co
 {
     std::error_code ec;
     if (!fs::exists(path, ec)) return false;
-    const turbio::FileInfo info = turbio::inspectFile(path, false);
+    std::string madeBy, madeWith;
+    std::string ext = fs::path(path).extension().string();
+    for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+    if (ext == ".vdb") {
+        const turbio::FileInfo info = turbio::inspectFile(path, false);
+        madeBy = info.command;
+        madeWith = info.settings;
+    } else {
+        const turbio::ImageFileInfo info = turbio::inspectImage(path);
+        madeBy = info.attribute(turb::meta::kCommand);
+        madeWith = info.attribute(turb::meta::kSettings);
+    }
     std::vector<std::string> diff;
-    if (info.command != command)
-        diff.push_back("written by " +
-                       (info.command.empty() ? std::string("another program") : "vdbturb " + info.command) +
+    if (madeBy != command)
+        diff.push_back("written by " + (madeBy.empty() ? std::string("another program") : "vdbturb " + madeBy) +
                        ", not vdbturb " + command);
-    else if (info.settings.empty()) diff.push_back("no vdbturb_settings metadata (written by an older vdbturb)");
-    else diff = turb::settingsDifferences(info.settings, settings);
+    else if (madeWith.empty()) diff.push_back("no vdbturb_settings metadata (written by an older vdbturb)");
+    else diff = turb::settingsDifferences(madeWith, settings);
     if (diff.empty()) return true;
     std::string list;
     for (const std::string& d : diff) list += "\n  " + d;
     throw turb::ValueError(path + " exists and was made otherwise; --skip-existing skips only frames of the same run:" +
                            list + "\n  (remove it, or run without --skip-existing to replace it)");
+}
+
+SkipPlan planSkips(const std::vector<std::string>& outputs, const std::vector<int>& frames, const std::string& command,
+    const std::string& settings, bool skipExisting)
+{
+    return planSkips(outputs, frames, command, std::vector<std::string>(outputs.size(), settings), skipExisting);
+}
+
+SkipPlan planSkips(const std::vector<std::string>& outputs, const std::vector<int>& frames, const std::string& command,
+    const std::vector<std::string>& settings, bool skipExisting)
+{
+    SkipPlan plan;
+    plan.skip.assign(outputs.size(), false);
+    for (size_t i = 0; i < outputs.size(); ++i) {
+        if (skipExisting) plan.skip[i] = writtenWithSettings(outputs[i], command, settings[i]);
+        if (!plan.skip[i]) {
+            plan.writing.push_back(frames[i]);
+            plan.end = i + 1;
+        }
+    }
+    return plan;
+}
+
+std::vector<std::string> sequentialSettings(const std::string& settings, const std::vector<int>& frames)
+{
+    std::vector<std::string> out;
+    for (size_t i = 0; i < frames.size(); ++i)
+        out.push_back(settings + "shot_frames=" +
+                      turbio::formatFrameList(std::vector<int>(frames.begin(), frames.begin() + long(i) + 1)) + ";");
+    return out;
+}
+
+void printSkipPlan(const SkipPlan& plan, const std::vector<std::string>& outputs)
+{
+    for (size_t i = 0; i < outputs.size(); ++i)
+        printData((plan.skipped(i) ? "would skip " : "would write ") + outputs[i] +
+                  (plan.skipped(i) ? " (written by the same settings)" : ""));
+}
+
+std::vector<std::pair<std::string, std::string>> frameMetadata(const std::string& command, const std::string& settings)
+{
+    return {{turb::meta::kCommand, command}, {turb::meta::kSettings, settings}};
 }
 
 namespace {

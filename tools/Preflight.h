@@ -10,6 +10,7 @@
 #include <turbio/Vdb.h>
 
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace CLI {
@@ -60,10 +61,43 @@ void checkOutputs(
 /// paths, dry run, skip-existing, no-clobber), and each input as an absolute path. What --skip-existing compares.
 std::string commandSettingsText(const CLI::App& app, const std::vector<std::string>& inputs);
 
-/// --skip-existing for one frame: true when `path` exists and was written by `command` with `settings` (the
-/// frame is complete: vdbturb renames a file into place only when whole). False when it does not exist. Throws
-/// turb::ValueError (exit 1: a retry cannot fix it) when it exists but was made otherwise, naming what differs.
+/// --skip-existing for one frame: true when `path` (a VDB file, or an image with frameMetadata) exists and was
+/// written by `command` with `settings` (the frame is complete: vdbturb renames a file into place only when whole).
+/// False when it does not exist. Throws turb::ValueError (exit 1: a retry cannot fix it) when it exists but was made
+/// otherwise, naming what differs.
 bool writtenWithSettings(const std::string& path, const std::string& command, const std::string& settings);
+
+/// --skip-existing's plan for a command's outputs (`outputs[i]` is frame `frames[i]`, in the order it makes them).
+struct SkipPlan
+{
+    std::vector<bool> skip;   ///< per output: already written by the same command and settings
+    std::vector<int> writing; ///< the frame numbers still to write (what lockOutputFrames takes)
+    size_t end = 0;           ///< one past the last output to write: a command that makes frames in order stops there
+    bool skipped(size_t i) const { return i < skip.size() && skip[i]; }
+};
+
+/// Which outputs --skip-existing skips: with `skipExisting` off, none (every frame written, `end` the count);
+/// on, each one writtenWithSettings finds (VDB frames by their metadata, images by their header's text
+/// attributes, frameMetadata). Throws as writtenWithSettings for a frame made otherwise.
+SkipPlan planSkips(const std::vector<std::string>& outputs, const std::vector<int>& frames, const std::string& command,
+    const std::string& settings, bool skipExisting);
+/// The same with each output's own settings (`settings[i]` for `outputs[i]`: sequentialSettings).
+SkipPlan planSkips(const std::vector<std::string>& outputs, const std::vector<int>& frames, const std::string& command,
+    const std::vector<std::string>& settings, bool skipExisting);
+
+/// Each frame's settings for a command whose frame follows the one before it (synth, stylize): `settings` and
+/// "shot_frames=FIRST-THIS" (the run's frames up to it, turbio::formatFrameList), since a frame made in a run that
+/// began elsewhere, or stepped otherwise, differs. So a longer run of the same shot skips the frames an earlier
+/// one wrote, and a run that began later is refused rather than continued from them.
+std::vector<std::string> sequentialSettings(const std::string& settings, const std::vector<int>& frames);
+
+/// A dry run's plan under --skip-existing: "would skip PATH (written by the same settings)" or "would write PATH",
+/// one line per output on stdout, as the dry run's data.
+void printSkipPlan(const SkipPlan& plan, const std::vector<std::string>& outputs);
+
+/// The header attributes an image frame records (vdbturb_command, vdbturb_settings) so that --skip-existing knows
+/// it again: give them to turbio::ImageWriteOptions::metadata.
+std::vector<std::pair<std::string, std::string>> frameMetadata(const std::string& command, const std::string& settings);
 
 /// Takes, for this process's life, a write lock on each of `frames` of the output `pattern`: an fcntl byte-range
 /// lock per frame in one lock file beside the outputs (`.NAME.lock`, NAME the pattern's file name), so that two

@@ -32,6 +32,14 @@ void RunReport::frameDone(
     frameReported(frame, index + 1, count);
 }
 
+void RunReport::frameSkipped(int frame, int index, int count, double seconds, const std::string& path, bool madeAgain)
+{
+    frameDone(frame, index, count, seconds,
+        "skipped: " + path + " was written by the same settings" +
+            (madeAgain ? " (made again for the next frames)" : ""),
+        {{"out", path}, {"skipped", true}});
+}
+
 nlohmann::json RunReport::finish(int failed, const nlohmann::json& extra)
 {
     std::vector<double> s = mSeconds;

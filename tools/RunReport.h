@@ -26,6 +26,9 @@ public:
     /// `extra` is merged into the frame's JSON line.
     void frameDone(int frame, int index, int count, double seconds, const std::string& human,
         const nlohmann::json& extra = nlohmann::json::object());
+    /// Records a frame --skip-existing left as it was (`path` was written by the same settings): `madeAgain` when
+    /// it was made anyway, for the frames after it.
+    void frameSkipped(int frame, int index, int count, double seconds, const std::string& path, bool madeAgain);
     /// Prints the summary (JSON on stdout when enabled, a human line on stderr) with `extra` merged into
     /// the JSON. Returns it.
     nlohmann::json finish(int failed = 0, const nlohmann::json& extra = nlohmann::json::object());

@@ -20,6 +20,17 @@ std::string fmt(const char* f, double v)
     return b;
 }
 
+SkipPlan planOutputFrames(const StylizeArgs& a, const std::vector<int>& frames, const turbio::FramePattern& out,
+    std::vector<std::string>& settings)
+{
+    std::vector<std::string> outputs;
+    for (int f : frames) outputs.push_back(out.format(f));
+    settings = sequentialSettings(commandSettingsText(*a.app, {}), frames);
+    SkipPlan plan = planSkips(outputs, frames, "stylize", settings, a.skipExisting);
+    if (globals().dryRun && a.skipExisting) printSkipPlan(plan, outputs);
+    return plan;
+}
+
 int checkOutputPatterns(const std::string& out, const std::string& more)
 {
     if (out.empty()) {

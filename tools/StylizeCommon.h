@@ -5,6 +5,7 @@
 #pragma once
 
 #include "Commands.h"
+#include "Preflight.h"
 
 #include <scenes/Targets2D.h>
 #include <turb/CameraBridge.h>
@@ -67,11 +68,18 @@ struct StylizeArgs
     std::string out;
     std::string preview, writeTarget;
     bool json = false, noClobber = false;
+    bool skipExisting = false;
+    const CLI::App* app = nullptr; ///< for the settings its frames record (--skip-existing)
     turbio::ReadOptions read;
     turb::StylizeSettings settings;
     std::vector<const CLI::Option*> lazyFluidsOnly;   ///< options --method fluidymation does not read (it warns)
     std::vector<const CLI::Option*> fluidymationOnly; ///< options --method lazyfluids does not read (it warns)
 };
+
+/// --skip-existing's plan for the output frames `frames` of `out` (a dry run prints it), and each frame's settings
+/// (sequentialSettings: a frame follows the one before it) into `settings`.
+SkipPlan planOutputFrames(const StylizeArgs& a, const std::vector<int>& frames, const turbio::FramePattern& out,
+    std::vector<std::string>& settings);
 
 std::string fmt(const char* f, double v);
 /// kOk, or kUsage (said) when --out is missing or it or `more` (--out-rot) has no image extension the writers know.

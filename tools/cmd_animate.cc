@@ -46,6 +46,8 @@ struct AnimateArgs
     std::string out, dump, sheet, exportBuiltin;
     int start = 1;
     bool json = false, noClobber = false, measure = false;
+    bool skipExisting = false;
+    const CLI::App* app = nullptr; ///< for the settings its frames record (--skip-existing)
     turbio::ReadOptions read;
     turb::AnimateSettings settings;
 };
@@ -614,6 +616,8 @@ struct FrameWriter
     SheetParts& sheet;
     RunReport& report;
     ConsoleProgress& stages;
+    const SkipPlan& plan;
+    const std::string& settings; ///< what each frame records (--skip-existing)
 
     void operator()(const turb::AnimatedFrame& f) const
     {
@@ -621,6 +625,10 @@ struct FrameWriter
         const auto tw = std::chrono::steady_clock::now();
         const int number = a.start + f.index;
         const std::string path = outPattern.format(number);
+        if (plan.skipped(size_t(f.index))) {
+            report.frameSkipped(number, f.index, count, f.seconds + secondsSince(tw), path, false);
+            return;
+        }
         turb::RgbaImage img(f.image.width(), f.image.height());
         for (size_t i = 0; i < img.size(); ++i) {
             const float* p = f.image.pixel(i);
@@ -630,6 +638,7 @@ struct FrameWriter
         turbio::ensureParentDirectory(path);
         turbio::ImageWriteOptions wo;
         wo.noClobber = a.noClobber;
+        wo.metadata = frameMetadata("animate", settings);
         turbio::writeImage(path, img, wo);
         if (measures.outTemporal) {
             measures.outTemporal->add(f.image);
@@ -681,7 +690,7 @@ void logPlan(const AnimateArgs& a, const Example& example, const Target& target)
 
 // The animation: the library's stages, each frame written as it comes, then the summary (and --measure, --sheet).
 void animateFrames(const AnimateArgs& a, Example& example, const Target& target, const turbio::FramePattern& outPattern,
-    std::chrono::steady_clock::time_point started)
+    const SkipPlan& plan, const std::string& settings, std::chrono::steady_clock::time_point started)
 {
     const turb::AnimateSettings& s = a.settings;
     const int N = int(example.frames.size());
@@ -704,9 +713,9 @@ void animateFrames(const AnimateArgs& a, Example& example, const Target& target,
         RunReport report("animate", a.json, started);
         const int count = N - s.tau;
         ConsoleProgress stages(0, count, a.start);
-        const turb::AnimateStats st =
-            turb::animate(std::move(in), s, FrameWriter{a, target, outPattern, count, measures, sheet, report, stages},
-                &stages, Inspector{a, sheet, designed});
+        const turb::AnimateStats st = turb::animate(std::move(in), s,
+            FrameWriter{a, target, outPattern, count, measures, sheet, report, stages, plan, settings}, &stages,
+            Inspector{a, sheet, designed});
         nlohmann::json summary = statsJson(st);
         logStages(st);
         if (a.measure) finishMeasures(a, measures, designed, target, summary);
@@ -739,23 +748,42 @@ int runAnimate(AnimateArgs& a)
                    std::to_string(target.rgb.width()) + "x" + std::to_string(target.rgb.height()) + " still; using " +
                    std::to_string(cols) + "x" + std::to_string(rows));
     Example example = readExample(a, a.settings.tau);
-    {
-        std::vector<std::string> outputs;
-        for (int j = 0; j < int(example.frames.size()) - a.settings.tau; ++j)
-            outputs.push_back(outPattern.format(a.start + j));
-        if (!a.sheet.empty()) outputs.push_back(a.sheet);
-        if (!a.dump.empty()) outputs.push_back(a.dump + "/A.exr");
-        checkOutputs(outputs, {a.target, a.targetAlpha, a.strokes, a.flow}, a.noClobber, false);
+    std::vector<std::string> outputs;
+    std::vector<int> numbers;
+    for (int j = 0; j < int(example.frames.size()) - a.settings.tau; ++j) {
+        outputs.push_back(outPattern.format(a.start + j));
+        numbers.push_back(a.start + j);
     }
+    {
+        std::vector<std::string> paths = outputs;
+        if (!a.sheet.empty()) paths.push_back(a.sheet);
+        if (!a.dump.empty()) paths.push_back(a.dump + "/A.exr");
+        checkOutputs(paths, {a.target, a.targetAlpha, a.strokes, a.flow}, a.noClobber, a.skipExisting);
+    }
+    // Every frame is made from the whole example (the design, eq. 8's statistics): its frames are a setting here.
+    const std::string settings =
+        commandSettingsText(*a.app, {}) + "example_frames=" + turbio::formatFrameList(example.numbers) + ";";
+    const SkipPlan plan = planSkips(outputs, numbers, "animate", settings, a.skipExisting);
     if (!a.settings.histogramMatch && a.settings.hmApply != turb::HmApply::PerFrame)
         logWarning("--hm-apply is ignored with --hm off");
     logPlan(a, example, target);
     if (globals().dryRun) {
-        for (int j = 0; j < int(example.frames.size()) - a.settings.tau; ++j)
-            printData("would write " + outPattern.format(a.start + j) + " (frame " + std::to_string(a.start + j) + ")");
+        if (a.skipExisting) {
+            printSkipPlan(plan, outputs);
+        } else {
+            for (int j = 0; j < int(outputs.size()); ++j)
+                printData("would write " + outputs[size_t(j)] + " (frame " + std::to_string(a.start + j) + ")");
+        }
         return kOk;
     }
-    animateFrames(a, example, target, outPattern, started);
+    if (a.skipExisting && !outputs.empty() && plan.writing.empty()) {
+        // The frames come from one pass over the whole shot: with all of them written, there is nothing to make.
+        logInfo("animate: all " + std::to_string(outputs.size()) +
+                " frames were written by the same settings (--skip-existing): nothing to do");
+        return kOk;
+    }
+    lockOutputFrames(outPattern, plan.writing); // two tasks never write one frame (a second exits 75)
+    animateFrames(a, example, target, outPattern, plan, settings, started);
     return kOk;
 }
 
@@ -788,6 +816,12 @@ void addOutputOptions(CLI::App* app, AnimateArgs& a)
     app->add_option("--out", a.out, "Output frames, e.g. anim/still.####.exr (EXR: half, premultiplied) or .png");
     app->add_option("--start", a.start, "Frame number of the first output frame")->group(kGroupOutput);
     app->add_flag("--no-clobber", a.noClobber, "Never replace an existing output file")->group(kGroupOutput);
+    app->add_flag("--skip-existing", a.skipExisting,
+           "Skip the frames already written by the same settings (farm wrappers' retries; when some are missing the "
+           "whole shot is made again, since each frame comes from the whole example); a frame written otherwise is "
+           "refused (exit 1)")
+        ->group(kGroupOutput);
+    a.app = app;
     app->add_option("--sheet", a.sheet, "Write a contact sheet PNG: example, design and output frames")
         ->group(kGroupOutput);
     app->add_flag("--json", a.json, "One JSON line per frame and a summary with stage times on stdout");

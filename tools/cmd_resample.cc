@@ -148,25 +148,20 @@ int runResample(ResampleArgs& a)
     checkOutputs(outputs, inputs, a.write.noClobber, a.skipExisting);
     // Each frame is made from its input alone, so a frame written by the same settings is whole and final.
     const std::string settings = commandSettingsText(*a.app, {seq.pattern.str()});
-    std::vector<bool> skip(seq.frames.size(), false);
-    if (a.skipExisting)
-        for (size_t i = 0; i < seq.frames.size(); ++i) skip[i] = writtenWithSettings(outputs[i], "resample", settings);
+    const SkipPlan plan = planSkips(outputs, seq.frames, "resample", settings, a.skipExisting);
     if (globals().dryRun) {
         for (size_t i = 0; i < seq.frames.size(); ++i)
-            printData((skip[i] ? "would skip " : "would write ") + outputs[i] +
-                      (skip[i] ? " (written by the same settings)" : " from " + inputs[i]));
+            printData((plan.skip[i] ? "would skip " : "would write ") + outputs[i] +
+                      (plan.skip[i] ? " (written by the same settings)" : " from " + inputs[i]));
         return kOk;
     }
-    std::vector<int> writing;
-    for (size_t i = 0; i < seq.frames.size(); ++i)
-        if (!skip[i]) writing.push_back(seq.frames[i]);
-    lockOutputFrames(outPattern, writing);
+    lockOutputFrames(outPattern, plan.writing);
     RunReport report("resample", a.json);
     bool warnedClipping = false;
     for (size_t i = 0; i < seq.frames.size(); ++i) {
         const int f = seq.frames[i];
         const auto t0 = std::chrono::steady_clock::now();
-        if (skip[i]) {
+        if (plan.skip[i]) {
             report.frameDone(f, int(i), int(seq.frames.size()), secondsSince(t0),
                 "skipped: " + outputs[i] + " was written by the same settings",
                 {{"out", outputs[i]}, {"in", inputs[i]}, {"skipped", true}});

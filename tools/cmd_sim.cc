@@ -38,6 +38,8 @@ struct SimArgs
     std::string out;
     bool json = false;
     bool list = false;
+    bool skipExisting = false;
+    const CLI::App* app = nullptr; ///< for the settings its frames record (--skip-existing)
     // Solver settings: every scene keeps turb::scenes::SmokeSettings' defaults for these.
     turb::AdvectSettings::Scheme scheme = turb::scenes::SmokeSettings{}.densityScheme;
     Preconditioner preconditioner = Preconditioner::IncompleteCholesky;
@@ -191,22 +193,30 @@ std::string frameLine(const turb::scenes::FrameStats& st, const std::string& pat
            ", div_rel " + fmt("%.3f", st.divRel) + ", max speed " + fmt("%.2f", st.maxSpeed) + " -> " + path;
 }
 
-// Simulates and writes every frame; returns how many stopped before the pressure tolerance.
-int writeFrames(const SimArgs& a, turb::scenes::SmokeSim& sim, const turbio::FramePattern& pattern, RunReport& report)
+// Simulates every frame up to the last one to write and writes those not skipped (each frame follows the last, so
+// a skipped one is simulated again); returns how many stopped before the pressure tolerance.
+int writeFrames(const SimArgs& a, turb::scenes::SmokeSim& sim, const turbio::FramePattern& pattern,
+    const SkipPlan& plan, const std::string& settings, RunReport& report)
 {
     int unconverged = 0;
     bool warnedClipping = false;
     turb::withThreads(globals().threads, [&] {
-        for (int i = 0; i < a.frames; ++i) {
+        for (int i = 0; i < int(plan.end); ++i) {
             const int number = a.start + i;
             const auto t0 = std::chrono::steady_clock::now();
             ConsoleProgress progress(i, a.frames, number);
             const turb::scenes::FrameStats st = sim.advanceFrame(&progress);
+            const std::string path = pattern.format(number);
+            if (plan.skipped(size_t(i))) {
+                progress.clear();
+                report.frameSkipped(number, i, a.frames, secondsSince(t0), path, true);
+                continue;
+            }
             progress.begin("writing");
             turb::Frame frame = sim.frame();
             frame.number = number;
             frame.metadata[turb::meta::kCommand] = "sim";
-            const std::string path = pattern.format(number);
+            frame.metadata[turb::meta::kSettings] = settings;
             turbio::ensureParentDirectory(path);
             warnIfClippedAway(frame, a.write, path, warnedClipping);
             turbio::writeFrame(path, frame, a.write);
@@ -230,7 +240,11 @@ int runSim(const SimArgs& a)
         listScenes();
         return kOk;
     }
-    if (a.scene == "ink") return runInk(a);
+    if (a.scene == "ink") {
+        if (a.skipExisting)
+            throw UsageError("sim ink makes its exemplar's frames together: --skip-existing is for the 3D scenes");
+        return runInk(a);
+    }
     if (a.scene.empty()) throw turb::ValueError("no scene given (try --list)");
     if (a.frames < 1) throw turb::ValueError("--frames must be >= 1");
     const turb::Coord res = parseResolution(a.res);
@@ -239,23 +253,36 @@ int runSim(const SimArgs& a)
     const std::string outText =
         a.out.empty() ? "sim/" + a.scene + "_" + resText(res) + "/" + a.scene + ".####.vdb" : a.out;
     const turbio::FramePattern pattern = turbio::FramePattern::parse(outText);
+    checkOutputFormat(a.write, outText, a.skipExisting ? "--skip-existing" : "");
     if (!pattern.numbered() && a.frames > 1)
         throw UsageError("--out '" + outText + "' has no frame token (####, %04d, $F4) but " +
                          std::to_string(a.frames) + " frames were asked for");
 
     turb::scenes::SmokeSim sim(s); // validates the settings before anything is written
     logInfo(domainLine(a, sim, s, res));
+    std::vector<int> numbers(size_t(a.frames));
+    std::vector<std::string> outputs;
+    for (int i = 0; i < a.frames; ++i) {
+        numbers[size_t(i)] = a.start + i;
+        outputs.push_back(pattern.format(a.start + i));
+    }
+    checkOutputs(outputs, {}, a.write.noClobber, a.skipExisting);
+    // Frame k of a scene depends on its settings, --start and k only: the settings say all of it.
+    const std::string settings = commandSettingsText(*a.app, {});
+    const SkipPlan plan = planSkips(outputs, numbers, "sim", settings, a.skipExisting);
     if (globals().dryRun) {
-        logInfo("would write " + pattern.format(a.start) +
-                (a.frames > 1 ? " .. " + pattern.format(a.start + a.frames - 1) : ""));
+        if (a.skipExisting) {
+            printSkipPlan(plan, outputs);
+        } else {
+            logInfo("would write " + pattern.format(a.start) +
+                    (a.frames > 1 ? " .. " + pattern.format(a.start + a.frames - 1) : ""));
+        }
         return kOk;
     }
 
-    std::vector<int> numbers(size_t(a.frames));
-    for (int i = 0; i < a.frames; ++i) numbers[size_t(i)] = a.start + i;
-    lockOutputFrames(pattern, numbers); // two tasks never write one frame (a second exits 75)
+    lockOutputFrames(pattern, plan.writing); // two tasks never write one frame (a second exits 75)
     RunReport report("sim " + a.scene + " " + resText(res), a.json);
-    const int unconverged = writeFrames(a, sim, pattern, report);
+    const int unconverged = writeFrames(a, sim, pattern, plan, settings, report);
     report.finish();
     if (unconverged)
         logWarning(std::to_string(unconverged) +
@@ -343,7 +370,12 @@ Command simCommand()
                "--out", a.out, "Output pattern, e.g. sim/plume.####.vdb (default: sim/SCENE_RES/SCENE.####.vdb)")
             ->group(kGroupOutput);
         addWriteOptions(app, a.write);
+        app->add_flag("--skip-existing", a.skipExisting,
+               "Skip the frames already written by the same settings (farm wrappers' retries; the frames before the "
+               "last one to write are simulated again, not written); a frame written otherwise is refused (exit 1)")
+            ->group(kGroupOutput);
         addSolverSettings(app, a);
+        a.app = app;
     };
     c.run = [args] { return runSim(*args); };
     return c;

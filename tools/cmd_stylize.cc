@@ -203,11 +203,13 @@ struct Previous
 
 // Writes the stylized frame and what --write-target and --preview ask for; returns the frame's JSON.
 nlohmann::json writeStylized(const StylizeArgs& a, int fr, const TargetFrame& t, const TargetSource& target,
-    const turb::RgbaImage& ex, const turb::StylizedFrame& outFrame, const Previous& prev, const std::string& outPath)
+    const turb::RgbaImage& ex, const turb::StylizedFrame& outFrame, const Previous& prev, const std::string& outPath,
+    const std::string& settings)
 {
     turbio::ensureParentDirectory(outPath);
     turbio::ImageWriteOptions wo;
     wo.noClobber = a.noClobber;
+    wo.metadata = frameMetadata("stylize", settings);
     turbio::writeImage(outPath, outFrame.image, wo);
     nlohmann::json extra = statsJson(outFrame.stats);
     extra["out"] = outPath;
@@ -228,14 +230,14 @@ nlohmann::json writeStylized(const StylizeArgs& a, int fr, const TargetFrame& t,
 }
 
 // The frames in order: each one's temporal term reads the previous output, warped by the previous motion.
-void stylizeFrames(
-    const StylizeArgs& a, const TargetSource& target, ExemplarSource& exemplar, const turbio::FramePattern& outPattern)
+void stylizeFrames(const StylizeArgs& a, const TargetSource& target, ExemplarSource& exemplar,
+    const turbio::FramePattern& outPattern, const SkipPlan& plan, const std::vector<std::string>& settings)
 {
     turb::Stylizer styl(a.settings);
     RunReport report("stylize", a.json);
     Previous prev;
     const auto& frames = target.frames();
-    for (size_t i = 0; i < frames.size(); ++i) {
+    for (size_t i = 0; i < plan.end; ++i) {
         const int fr = frames[i];
         const auto t0 = std::chrono::steady_clock::now();
         ConsoleProgress progress(int(i), int(frames.size()), fr);
@@ -258,12 +260,17 @@ void stylizeFrames(
         } catch (const turb::ValueError& e) {
             throw turb::ValueError(t.alphaName + " with exemplar " + exemplar.label() + ": " + e.what(), e.settings());
         }
-        progress.begin("writing");
         const std::string outPath = outPattern.format(fr);
-        const nlohmann::json extra = writeStylized(a, fr, t, target, ex, outFrame, prev, outPath);
-        progress.clear();
-        report.frameDone(
-            fr, int(i), int(frames.size()), secondsSince(t0), humanLine(outFrame.stats) + " -> " + outPath, extra);
+        if (plan.skipped(i)) {
+            progress.clear();
+            report.frameSkipped(fr, int(i), int(frames.size()), secondsSince(t0), outPath, true);
+        } else {
+            progress.begin("writing");
+            const nlohmann::json extra = writeStylized(a, fr, t, target, ex, outFrame, prev, outPath, settings[i]);
+            progress.clear();
+            report.frameDone(
+                fr, int(i), int(frames.size()), secondsSince(t0), humanLine(outFrame.stats) + " -> " + outPath, extra);
+        }
         prev.motion = t.motion;
         prev.alpha = t.alpha;
         prev.frame = fr;
@@ -308,13 +315,17 @@ int runStylize(StylizeArgs& a)
     target.validate2D();
     // Every exemplar frame is read once before the first output, so a bad one writes nothing.
     for (size_t i = 0; i < exemplar.count(); ++i) exemplar.frame(i);
+    std::vector<std::string> settings;
+    const SkipPlan plan = planOutputFrames(a, target.frames(), outPattern, settings);
     if (globals().dryRun) {
         // The plan is the dry run's data: stdout, as transfer's "would write" lines.
-        for (int f : target.frames())
-            printData("would write " + outPattern.format(f) + " (frame " + std::to_string(f) + ")");
+        if (!a.skipExisting)
+            for (int f : target.frames())
+                printData("would write " + outPattern.format(f) + " (frame " + std::to_string(f) + ")");
         return kOk;
     }
-    turb::withThreads(globals().threads, [&] { stylizeFrames(a, target, exemplar, outPattern); });
+    lockOutputFrames(outPattern, plan.writing); // two tasks never write one frame (a second exits 75)
+    turb::withThreads(globals().threads, [&] { stylizeFrames(a, target, exemplar, outPattern, plan, settings); });
     return kOk;
 }
 
@@ -358,6 +369,11 @@ void addOutputOptions(CLI::App* app, StylizeArgs& a)
            "--preview", a.preview, "Write a PNG per frame into DIR: target | motion (LIC) | stylized | exemplar")
         ->group(kGroupOutput);
     app->add_flag("--no-clobber", a.noClobber, "Never replace an existing output file")->group(kGroupOutput);
+    app->add_flag("--skip-existing", a.skipExisting,
+           "Skip the frames already written by the same settings (farm wrappers' retries; the frames before the last "
+           "one to write are made again, not written); a frame written otherwise is refused (exit 1)")
+        ->group(kGroupOutput);
+    a.app = app;
     app->add_flag("--json", a.json, "One JSON line per frame and a summary on stdout");
     setting(app->add_option("--write-target", a.writeTarget,
                 "Write the target per frame into DIR: alpha.####.png, motion.####.exr"),

@@ -273,13 +273,14 @@ void writeFloat(const std::string& path, const turb::RgbaImage& img, bool noClob
 
 /// Writes everything a frame asked for.
 nlohmann::json writeFrame(const StylizeArgs& a, int fr, const turb::FluidyFrame& out, const ExemplarVideo& ex,
-    const turb::MotionSequence& target, int index, const TargetSource& source)
+    const turb::MotionSequence& target, int index, const TargetSource& source, const std::string& settings)
 {
     nlohmann::json extra = statsJson(out.stats);
     const std::string outPath = turbio::FramePattern::parse(a.out).format(fr);
     turbio::ensureParentDirectory(outPath);
     turbio::ImageWriteOptions wo;
     wo.noClobber = a.noClobber;
+    wo.metadata = frameMetadata("stylize", settings);
     turb::RgbaImage img = out.image;
     img.colorSpace = ex.colorSpace;
     turbio::writeImage(outPath, img, wo);
@@ -437,21 +438,30 @@ void fluidymateFrames(const StylizeArgs& a, const TargetSource& target, const Ex
     }
     logVerbose("levels " + std::to_string(fl->levels()) + ", extent units " + fmt("%.2f px", fl->extentScale()) +
                " (exemplar), " + fmt("%.2f px", fl->targetExtentScale()) + " (target)");
+    std::vector<std::string> settings;
+    const SkipPlan plan = planOutputFrames(a, target.frames(), outPattern, settings);
     if (globals().dryRun) {
         // The plan is the dry run's data: stdout, as transfer's "would write" lines.
-        for (int fr : target.frames())
-            printData("would write " + outPattern.format(fr) + " (frame " + std::to_string(fr) + ")");
+        if (!a.skipExisting)
+            for (int fr : target.frames())
+                printData("would write " + outPattern.format(fr) + " (frame " + std::to_string(fr) + ")");
         return;
     }
+    lockOutputFrames(outPattern, plan.writing); // two tasks never write one frame (a second exits 75)
     RunReport report("stylize fluidymation", a.json);
     const auto& frames = target.frames();
-    for (size_t i = 0; i < frames.size(); ++i) {
+    for (size_t i = 0; i < plan.end; ++i) {
         const int fr = frames[i];
         const auto t0 = std::chrono::steady_clock::now();
         ConsoleProgress progress(int(i), int(frames.size()), fr);
         const turb::FluidyFrame out = fl->next(&progress);
+        if (plan.skipped(i)) {
+            progress.clear();
+            report.frameSkipped(fr, int(i), int(frames.size()), secondsSince(t0), outPattern.format(fr), true);
+            continue;
+        }
         progress.begin("writing");
-        const nlohmann::json extra = writeFrame(a, fr, out, ex, tgt, int(i), target);
+        const nlohmann::json extra = writeFrame(a, fr, out, ex, tgt, int(i), target, settings[i]);
         progress.clear();
         report.frameDone(fr, int(i), int(frames.size()), secondsSince(t0),
             humanLine(out.stats) + " -> " + extra["out"].get<std::string>(), extra);

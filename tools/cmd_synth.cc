@@ -48,6 +48,8 @@ struct SynthArgs
     std::string secondary = "density";
     std::string walls, obstacle;
     bool json = false, stats = false;
+    bool skipExisting = false;
+    const CLI::App* app = nullptr; ///< for the settings its frames record (--skip-existing)
     bool strict = false; ///< a projection or detail divergence solve that does not converge fails the run (exit 1)
     std::string out = "synth/synth.####.vdb";
     std::string preview, previewView;
@@ -441,7 +443,7 @@ std::optional<turbio::SequenceScan> preflightSynth(
         }
         for (int fr : frames) inputs.push_back(seq->path(fr));
     }
-    checkOutputs(outputs, inputs, a.write.noClobber, false);
+    checkOutputs(outputs, inputs, a.write.noClobber, a.skipExisting);
     return scan;
 }
 
@@ -626,6 +628,8 @@ struct SynthPlan
     bool volume = false;
     std::vector<turb::SynthView> views;
     std::optional<turb::ScalarField> obstacle;
+    std::vector<std::string> outputs, settings; ///< per frame: the file and the settings it records
+    SkipPlan skips;                             ///< --skip-existing
 };
 
 SynthPlan planSynth(SynthArgs& a, CoarseSource& source)
@@ -633,6 +637,7 @@ SynthPlan planSynth(SynthArgs& a, CoarseSource& source)
     SynthPlan p;
     p.frames = source.frames();
     p.out = turbio::FramePattern::parse(a.out);
+    checkOutputFormat(a.write, a.out, a.skipExisting ? "--skip-existing" : "");
     if (p.frames.size() > 1 && !p.out.numbered())
         throw UsageError("--out '" + a.out + "' has no frame token (####, %04d, $F4) but " +
                          std::to_string(p.frames.size()) + " frames are requested");
@@ -722,9 +727,15 @@ void synthFrame(const SynthArgs& a, CoarseSource& source, SynthPlan& p, turb::Sy
     const nlohmann::json projJson = projectionReport(a, r, fr, progress, unconverged);
     const nlohmann::json divJson = detailDivergenceReport(a, r, fr, progress, unconverged);
     const auto tWrite = std::chrono::steady_clock::now();
-    tagOutput(outFrame, a, p.views);
-    progress.begin("writing");
     const std::string outPath = p.out.format(fr);
+    if (p.skips.skipped(i)) {
+        progress.clear();
+        report.frameSkipped(fr, int(i), int(p.frames.size()), secondsSince(t0), outPath, true);
+        return;
+    }
+    tagOutput(outFrame, a, p.views);
+    outFrame.metadata[turb::meta::kSettings] = p.settings[i];
+    progress.begin("writing");
     turbio::ensureParentDirectory(outPath);
     warnIfClippedAway(outFrame, a.write, outPath, warnedClipping);
     turbio::writeFrame(outPath, outFrame, a.write);
@@ -759,11 +770,17 @@ int runSynth(SynthArgs& a)
     SynthPlan p = planSynth(a, source);
     logPlan(a, source, p);
     checkSynthLatticeAndMemory(a, p.first, p.scan, p.volume, int(p.frames.size()));
+    for (int fr : p.frames) p.outputs.push_back(p.out.format(fr));
+    // Each frame continues the one before it: what it records names the run's frames up to it.
+    p.settings = sequentialSettings(
+        commandSettingsText(*a.app, a.target.empty() ? std::vector<std::string>{} : std::vector<std::string>{a.target}),
+        p.frames);
+    p.skips = planSkips(p.outputs, p.frames, "synth", p.settings, a.skipExisting);
     if (globals().dryRun) {
-        for (int fr : p.frames) printData("would write " + p.out.format(fr));
+        printSkipPlan(p.skips, p.outputs);
         return kOk;
     }
-    lockOutputFrames(p.out, p.frames); // two tasks never write one frame (a second exits 75)
+    lockOutputFrames(p.out, p.skips.writing); // two tasks never write one frame (a second exits 75)
     if (a.seq.synth.traceDescent && !a.json) logWarning("--trace-descent reports in the JSON lines only: add --json");
     // The report's clock starts here, so its total includes building the exemplar indices.
     RunReport report("synth", a.json);
@@ -777,8 +794,7 @@ int runSynth(SynthArgs& a)
     turb::SynthSequence sequence(prepared, a.seq);
     std::vector<int> unconverged; // frames whose projection or detail divergence solve stopped short
     bool warnedClipping = false;
-    for (size_t i = 0; i < p.frames.size(); ++i)
-        synthFrame(a, source, p, sequence, i, report, unconverged, warnedClipping);
+    for (size_t i = 0; i < p.skips.end; ++i) synthFrame(a, source, p, sequence, i, report, unconverged, warnedClipping);
     report.finish();
     if (unconverged.empty()) return kOk;
     std::string list;
@@ -1019,6 +1035,11 @@ Command synthCommand()
         addReadOptions(app, a.read);
         app->add_option("--out", a.out, "Output pattern (directories are created)")->group(kGroupOutput);
         addWriteOptions(app, a.write);
+        app->add_flag("--skip-existing", a.skipExisting,
+               "Skip the frames already written by the same settings (farm wrappers' retries; the frames before the "
+               "last one to write are made again, not written); a frame written otherwise is refused (exit 1)")
+            ->group(kGroupOutput);
+        a.app = app;
         addInputSettings(app, a);
         addSynthesisSettings(app, a);
         addCombineSettings(app, a);

@@ -80,6 +80,13 @@ std::string outputFormatOf(const std::string& path)
 
 ImageFileInfo inspectImage(const std::string& path) { return backend().inspectImage(path); }
 
+std::string ImageFileInfo::attribute(const std::string& name) const
+{
+    for (const auto& [key, value] : metadata)
+        if (key == name) return value;
+    return {};
+}
+
 turb::RgbaImage readImage(const std::string& path, ImageFileInfo* info) { return backend().readImage(path, info); }
 
 void writeImage(const std::string& path, const turb::RgbaImage& image, const ImageWriteOptions& options)

@@ -61,6 +61,9 @@ ImageFileInfo infoOf(const std::string& path, const OIIO::ImageInput& in)
     info.associatedAlpha = info.hasAlpha && spec.get_int_attribute("oiio:UnassociatedAlpha", 0) == 0;
     info.pixelType = spec.format.c_str();
     info.colorSpace = spec.get_string_attribute("oiio:ColorSpace");
+    for (const OIIO::ParamValue& p : spec.extra_attribs)
+        if (p.type() == OIIO::TypeDesc::STRING && p.nvalues() == 1)
+            info.metadata.emplace_back(p.name().string(), p.get_string());
     return info;
 }
 
@@ -157,13 +160,15 @@ OIIO::TypeDesc storageType(const std::string& path, const std::string& format, P
 }
 
 /// Writes interleaved float pixels with `spec` (its format is the storage type) atomically.
-void writePixels(const std::string& path, const OIIO::ImageSpec& given, const std::vector<float>& data, bool noClobber)
+void writePixels(const std::string& path, const OIIO::ImageSpec& given, const std::vector<float>& data,
+    const ImageWriteOptions& options)
 {
     // OIIO's EXR writer stamps the wall-clock time (capDate) when no DateTime is given: the same run would then
     // never give the same bytes twice. The frame's content does not depend on when it was written.
     OIIO::ImageSpec spec = given;
     if (spec.find_attribute("DateTime") == nullptr) spec.attribute("DateTime", "");
-    writeAtomically(path, noClobber, [&](const std::string& tmp) {
+    for (const auto& [name, value] : options.metadata) spec.attribute(name, value);
+    writeAtomically(path, options.noClobber, [&](const std::string& tmp) {
         // The plugin is chosen by the real name; the temporary name does not end in the extension.
         auto out = OIIO::ImageOutput::create(path);
         if (!out) throw IoError(path + ": cannot write this format (" + clean(oiioError("no writer"), path) + ")");
@@ -228,7 +233,7 @@ void oiioWriteRgba(const std::string& path, const turb::RgbaImage& image, const 
         for (int c = 0; c < 3; ++c) data[p * size_t(nc) + size_t(c)] = v[c] * a;
         if (alpha) data[p * size_t(nc) + 3] = v[3];
     }
-    writePixels(path, spec, data, options.noClobber);
+    writePixels(path, spec, data, options);
 }
 
 void oiioWritePicture(const std::string& path, const turb::Image& picture, const ImageWriteOptions& options)
@@ -246,7 +251,7 @@ void oiioWritePicture(const std::string& path, const turb::Image& picture, const
     OIIO::ImageSpec spec(picture.width(), picture.height(), 3, storageType(path, format, options.bits));
     spec.attribute("oiio:ColorSpace", linear ? "Linear" : "sRGB");
     if (linear) spec.attribute("compression", "zip");
-    writePixels(path, spec, data, options.noClobber);
+    writePixels(path, spec, data, options);
 }
 
 turb::Image oiioTextDrawn(const turb::Image& picture)

@@ -1040,9 +1040,44 @@ SmokeRegion findSmoke(
                     if (nb != leafIndex.end()) join(me->second, nb->second);
                 }
     }
-    for (size_t t = leafCount; t < nodes.size(); ++t)
-        for (size_t i = 0; i < nodes.size(); ++i)
-            if (i != t && boxGap(nodes[t].box, nodes[i].box) <= 8) join(t, i);
+    // A tile joins every node within 8 voxels of it. Comparing each tile with every node took minutes on a tree of
+    // active tiles over 2^31 voxels (1e5 tiles and leaves): look up only the leaves and tiles that can be that near,
+    // by the leaf- and 128-voxel cells their origins lie in. The larger (root) tiles, few, are compared with all.
+    std::unordered_map<uint64_t, std::vector<size_t>> tileIndex8, tileIndex128;
+    const auto key128 = [&](const openvdb::Coord& c) {
+        return key(openvdb::Coord(c.x() >> 4, c.y() >> 4, c.z() >> 4));
+    };
+    for (size_t t = leafCount; t < nodes.size(); ++t) {
+        const int size = nodes[t].box.dim().x();
+        if (size == 8) tileIndex8[key(nodes[t].box.min())].push_back(t);
+        else if (size == 128) tileIndex128[key128(nodes[t].box.min())].push_back(t);
+    }
+    const auto joinNear = [&](size_t t, size_t i) {
+        if (i != t && boxGap(nodes[t].box, nodes[i].box) <= 8) join(t, i);
+    };
+    for (size_t t = leafCount; t < nodes.size(); ++t) {
+        const turb::CoordBBox near = nodes[t].box.expandBy(8);
+        if (nodes[t].box.dim().x() > 128) {
+            for (size_t i = 0; i < nodes.size(); ++i) joinNear(t, i);
+            continue;
+        }
+        // Leaves and 8-voxel tiles by the leaf cells the near box covers, 128-voxel tiles by its 128-voxel cells.
+        const openvdb::Coord lo = near.min() >> 3, hi = near.max() >> 3;
+        for (int x = lo.x(); x <= hi.x(); ++x)
+            for (int y = lo.y(); y <= hi.y(); ++y)
+                for (int z = lo.z(); z <= hi.z(); ++z) {
+                    const uint64_t k = key(openvdb::Coord(x << 3, y << 3, z << 3));
+                    if (const auto leaf = leafIndex.find(k); leaf != leafIndex.end()) joinNear(t, leaf->second);
+                    if (const auto tiles = tileIndex8.find(k); tiles != tileIndex8.end())
+                        for (size_t i : tiles->second) joinNear(t, i);
+                }
+        for (int x = lo.x() >> 4; x <= hi.x() >> 4; ++x)
+            for (int y = lo.y() >> 4; y <= hi.y() >> 4; ++y)
+                for (int z = lo.z() >> 4; z <= hi.z() >> 4; ++z)
+                    if (const auto tiles = tileIndex128.find(key128(openvdb::Coord(x << 7, y << 7, z << 7)));
+                        tiles != tileIndex128.end())
+                        for (size_t i : tiles->second) joinNear(t, i);
+    }
 
     std::map<size_t, Node> clusters; // by root: the lowest node index, so the order is the tree's
     double total = outside.mass;

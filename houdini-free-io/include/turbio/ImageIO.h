@@ -34,6 +34,7 @@
 #include <turb/RgbaImage.h>
 
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace turbio {
@@ -50,6 +51,11 @@ struct ImageFileInfo
     bool associatedAlpha = false;          ///< its colours are premultiplied by alpha (EXR; some TIFFs)
     std::string pixelType;                 ///< "uint8", "uint16", "half", "float", ...
     std::string colorSpace;                ///< as declared ("sRGB", "Linear", ...); empty = undeclared
+    /// The header's text attributes by name (EXR string attributes, PNG text chunks, TIFF tags), e.g.
+    /// vdbturb_command and vdbturb_settings in vdbturb's own frames.
+    std::vector<std::pair<std::string, std::string>> metadata;
+    /// The text attribute `name`, or "" when the header has none.
+    std::string attribute(const std::string& name) const;
 };
 
 /// Reads the header only. Throws turb::IoError naming the file.
@@ -73,6 +79,9 @@ struct ImageWriteOptions
     bool noClobber = false;           ///< refuse to replace an existing file
     PixelBits bits = PixelBits::Auto; ///< storage per channel; a format that cannot hold it is an error
     bool alpha = true;                ///< RgbaImage: write the alpha channel (JPEG never has one)
+    /// Text attributes for the header (name, value), read back by inspectImage: what made the frame, for
+    /// --skip-existing. JPEG keeps them as comments only where OpenImageIO can; EXR, PNG and TIFF keep them.
+    std::vector<std::pair<std::string, std::string>> metadata;
 };
 
 /// OpenImageIO's format name for an output path: "png", "openexr", "tiff" or "jpeg". Throws
