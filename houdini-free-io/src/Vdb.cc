@@ -8,6 +8,7 @@
 
 #include <turb/Metadata.h>
 #include <turb/Error.h>
+#include <turb/Parallel.h>
 #include <turb/Operators.h>
 #include <turb/Resample.h>
 #include <turbio/System.h>
@@ -447,37 +448,50 @@ void forEachActiveBox(const openvdb::GridBase& g, const CoordBBoxCallback& cb)
 // already filled) neighbours, one layer at a time, so values continue smoothly past a clipped region.
 void extendIntoUnknown(turb::VectorField& f, std::vector<uint8_t>& known, int layers)
 {
-    const turb::CoordBBox b = f.bbox();
-    std::vector<size_t> front;
-    std::vector<turb::Vec3f> values;
+    // Each layer gives every unknown voxel beside a known one the mean of its known face neighbours. A layer reads
+    // only voxels known before it, so its voxels are independent: written in place (an unknown voxel's value is
+    // never read within its layer) in parallel over x, and marked known once the layer is done.
+    const turb::Coord d = f.dim();
+    const size_t sx = size_t(d.y()) * size_t(d.z()), sy = size_t(d.z());
+    const size_t stride[3] = {sx, sy, 1};
+    std::vector<uint8_t> added(f.size(), 0);
     for (int layer = 0; layer < layers; ++layer) {
-        front.clear();
-        values.clear();
-        for (size_t n = 0; n < f.size(); ++n) {
-            if (known[n]) continue;
-            const turb::Coord c = f.coordOf(n);
-            turb::Vec3f sum(0.0f);
-            int cnt = 0;
-            for (int a = 0; a < 3; ++a)
-                for (int d : {-1, 1}) {
-                    turb::Coord q = c;
-                    q[a] += d;
-                    if (!b.isInside(q)) continue;
-                    const size_t m = f.offset(q.x(), q.y(), q.z());
-                    if (!known[m]) continue;
-                    sum += f.data()[m];
-                    ++cnt;
-                }
-            if (cnt) {
-                front.push_back(n);
-                values.push_back(sum / float(cnt));
+        std::vector<size_t> count(size_t(d.x()), 0);
+        turb::parallelFor(size_t(d.x()), 1, [&](size_t x0, size_t x1) {
+            for (int x = int(x0); x < int(x1); ++x)
+                for (int y = 0; y < d.y(); ++y)
+                    for (int z = 0; z < d.z(); ++z) {
+                        const size_t n = size_t(x) * sx + size_t(y) * sy + size_t(z);
+                        if (known[n]) continue;
+                        const int c[3] = {x, y, z};
+                        const int hi[3] = {d.x() - 1, d.y() - 1, d.z() - 1};
+                        turb::Vec3f sum(0.0f);
+                        int cnt = 0;
+                        for (int a = 0; a < 3; ++a) {
+                            if (c[a] > 0 && known[n - stride[a]]) {
+                                sum += f.data()[n - stride[a]];
+                                ++cnt;
+                            }
+                            if (c[a] < hi[a] && known[n + stride[a]]) {
+                                sum += f.data()[n + stride[a]];
+                                ++cnt;
+                            }
+                        }
+                        if (cnt) {
+                            f.data()[n] = sum / float(cnt);
+                            added[n] = 1;
+                            ++count[size_t(x)];
+                        }
+                    }
+        });
+        size_t total = 0;
+        for (size_t c : count) total += c;
+        if (total == 0) break;
+        for (size_t n = 0; n < f.size(); ++n)
+            if (added[n]) {
+                known[n] = 1;
+                added[n] = 0;
             }
-        }
-        if (front.empty()) break;
-        for (size_t i = 0; i < front.size(); ++i) {
-            f.data()[front[i]] = values[i];
-            known[front[i]] = 1;
-        }
     }
 }
 

@@ -7,6 +7,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstddef>
+#include <vector>
 
 namespace turb {
 
@@ -25,26 +27,104 @@ struct Grid
         return (size_t(x) * size_t(ny) + size_t(y)) * size_t(nz) + size_t(z);
     }
     int axes() const { return nz > 1 ? 3 : 2; } // one z layer: a 2D field
+    // The same indices without the clamp, for voxels whose neighbours all lie in the box (inner()): most of them.
+    size_t stride(int a) const { return a == 0 ? size_t(ny) * size_t(nz) : a == 1 ? size_t(nz) : 1; }
+    bool inner(int x, int y, int z) const
+    {
+        return x > 0 && x < nx - 1 && y > 0 && y < ny - 1 && (nz == 1 || (z > 0 && z < nz - 1));
+    }
 };
 
-// [1 2 1]/4 along each axis, twice: the smoothed copy whose gradient gives the surface's direction.
-ScalarField smoothed(const ScalarField& f, const Grid& g)
+// A box of index coordinates (inclusive) inside the field's dense box: where a pass can change anything.
+struct Region
+{
+    std::array<int, 3> lo{0, 0, 0}, hi{-1, -1, -1};
+    bool empty() const { return hi[0] < lo[0]; }
+    // Grown by r voxels along each axis of the field, clamped to its box.
+    Region grown(int r, const Grid& g) const
+    {
+        Region o = *this;
+        if (empty()) return o;
+        const int n[3] = {g.nx, g.ny, g.nz};
+        for (int a = 0; a < 3; ++a) {
+            o.lo[size_t(a)] = std::max(0, lo[size_t(a)] - r);
+            o.hi[size_t(a)] = std::min(n[a] - 1, hi[size_t(a)] + r);
+        }
+        return o;
+    }
+};
+
+// The box of the non-zero voxels. Shaping leaves air with air all around as it is (zero in, zero out), and the
+// held box around a frame's smoke is mostly air: passes confined to this box, grown by their reach, give the same
+// values as passes over the whole box, in a fraction of the time.
+Region smokeRegion(const ScalarField& f, const Grid& g)
+{
+    std::vector<Region> perX(size_t(g.nx));
+    parallelFor(size_t(g.nx), 1, [&](size_t x0, size_t x1) {
+        for (int x = int(x0); x < int(x1); ++x) {
+            Region& r = perX[size_t(x)];
+            for (int y = 0; y < g.ny; ++y) {
+                const float* row = f.data() + g.at(x, y, 0);
+                for (int z = 0; z < g.nz; ++z)
+                    if (row[z] != 0.0f) {
+                        if (r.empty()) r.lo = r.hi = {x, y, z};
+                        r.lo = {std::min(r.lo[0], x), std::min(r.lo[1], y), std::min(r.lo[2], z)};
+                        r.hi = {std::max(r.hi[0], x), std::max(r.hi[1], y), std::max(r.hi[2], z)};
+                    }
+            }
+        }
+    });
+    Region all;
+    for (const Region& r : perX) {
+        if (r.empty()) continue;
+        if (all.empty()) {
+            all = r;
+            continue;
+        }
+        for (size_t a = 0; a < 3; ++a) {
+            all.lo[a] = std::min(all.lo[a], r.lo[a]);
+            all.hi[a] = std::max(all.hi[a], r.hi[a]);
+        }
+    }
+    return all;
+}
+
+// Runs body(x, y, z) over `r`, parallel over x.
+template<typename Body>
+void forEachIn(const Region& r, const Body& body)
+{
+    if (r.empty()) return;
+    parallelFor(size_t(r.hi[0] - r.lo[0] + 1), 1, [&](size_t x0, size_t x1) {
+        for (int x = r.lo[0] + int(x0); x < r.lo[0] + int(x1); ++x)
+            for (int y = r.lo[1]; y <= r.hi[1]; ++y)
+                for (int z = r.lo[2]; z <= r.hi[2]; ++z) body(x, y, z);
+    });
+}
+
+// [1 2 1]/4 along each axis, twice: the smoothed copy whose gradient gives the surface's direction. Non-zero only
+// within `smoke` (f's non-zero box) grown by 2, where it is computed; zero elsewhere, as f is.
+ScalarField smoothed(const ScalarField& f, const Grid& g, const Region& smoke)
 {
     ScalarField s = f, tmp = f;
+    const Region r = smoke.grown(2, g);
     for (int pass = 0; pass < 2; ++pass)
         for (int a = 0; a < g.axes(); ++a) {
             tmp.values() = s.values();
-            parallelFor(size_t(g.nx), 1, [&](size_t x0, size_t x1) {
-                for (int x = int(x0); x < int(x1); ++x)
-                    for (int y = 0; y < g.ny; ++y)
-                        for (int z = 0; z < g.nz; ++z) {
-                            std::array<int, 3> lo{x, y, z}, hi{x, y, z};
-                            lo[size_t(a)] -= 1;
-                            hi[size_t(a)] += 1;
-                            s.data()[g.at(x, y, z)] =
-                                0.25f * (tmp.data()[g.at(lo[0], lo[1], lo[2])] + 2.0f * tmp.data()[g.at(x, y, z)] +
-                                            tmp.data()[g.at(hi[0], hi[1], hi[2])]);
-                        }
+            const size_t st = g.stride(a);
+            const int n = a == 0 ? g.nx : a == 1 ? g.ny : g.nz;
+            forEachIn(r, [&](int x, int y, int z) {
+                const int along = a == 0 ? x : a == 1 ? y : z;
+                if (along > 0 && along < n - 1) {
+                    const size_t i = g.at(x, y, z);
+                    s.data()[i] = 0.25f * (tmp.data()[i - st] + 2.0f * tmp.data()[i] + tmp.data()[i + st]);
+                    return;
+                }
+                std::array<int, 3> lo{x, y, z}, hi{x, y, z};
+                lo[size_t(a)] -= 1;
+                hi[size_t(a)] += 1;
+                s.data()[g.at(x, y, z)] =
+                    0.25f * (tmp.data()[g.at(lo[0], lo[1], lo[2])] + 2.0f * tmp.data()[g.at(x, y, z)] +
+                                tmp.data()[g.at(hi[0], hi[1], hi[2])]);
             });
         }
     return s;
@@ -58,7 +138,8 @@ void compressInterface(ScalarField& density, float c, float peak)
     if (!(peak > 0.0f)) throw ValueError("interface compression needs a peak density > 0");
     if (c == 0.0f || density.empty()) return;
     const Grid g(density);
-    const ScalarField S = smoothed(density, g);
+    const Region smoke = smokeRegion(density, g);
+    const ScalarField S = smoothed(density, g, smoke);
     const float* D = density.data();
     const float* s = S.data();
     const auto flux = [&](float d) {
@@ -75,6 +156,7 @@ void compressInterface(ScalarField& density, float c, float peak)
         if (ip == iq) return 0.0f; // the box's face: nothing leaves
         const float carried = 0.5f * (flux(D[ip]) + flux(D[iq]));
         if (carried == 0.0f) return 0.0f; // air (most of the box) or the peak: no flux, no gradient needed
+        const bool inner = g.inner(p[0], p[1], p[2]) && g.inner(q[0], q[1], q[2]);
         double grad[3];
         for (int k = 0; k < 3; ++k) {
             if (k == a) {
@@ -83,6 +165,11 @@ void compressInterface(ScalarField& density, float c, float peak)
             }
             if (k >= g.axes()) {
                 grad[k] = 0.0;
+                continue;
+            }
+            if (inner) {
+                const size_t st = g.stride(k);
+                grad[k] = 0.25 * (double(s[ip + st]) - double(s[ip - st]) + double(s[iq + st]) - double(s[iq - st]));
                 continue;
             }
             std::array<int, 3> pl = p, ph = p, ql = q, qh = q;
@@ -97,22 +184,19 @@ void compressInterface(ScalarField& density, float c, float peak)
         if (!(len > 1e-6 * double(peak))) return 0.0f;
         return c * float(grad[a] / len) * carried;
     };
+    // A face carries flux only beside smoke: voxels beyond one of it keep their value.
     ScalarField out = density;
-    parallelFor(size_t(g.nx), 1, [&](size_t x0, size_t x1) {
-        for (int x = int(x0); x < int(x1); ++x)
-            for (int y = 0; y < g.ny; ++y)
-                for (int z = 0; z < g.nz; ++z) {
-                    float change = 0.0f;
-                    const std::array<int, 3> p{x, y, z};
-                    for (int a = 0; a < g.axes(); ++a) {
-                        std::array<int, 3> m = p;
-                        m[size_t(a)] -= 1;
-                        change -= faceFlux(x, y, z, a);                                // out through the +a face
-                        if (p[size_t(a)] > 0) change += faceFlux(m[0], m[1], m[2], a); // in through the -a face
-                    }
-                    float& v = out.data()[g.at(x, y, z)];
-                    v = std::max(0.0f, v + change);
-                }
+    forEachIn(smoke.grown(1, g), [&](int x, int y, int z) {
+        float change = 0.0f;
+        const std::array<int, 3> p{x, y, z};
+        for (int a = 0; a < g.axes(); ++a) {
+            std::array<int, 3> m = p;
+            m[size_t(a)] -= 1;
+            change -= faceFlux(x, y, z, a);                                // out through the +a face
+            if (p[size_t(a)] > 0) change += faceFlux(m[0], m[1], m[2], a); // in through the -a face
+        }
+        float& v = out.data()[g.at(x, y, z)];
+        v = std::max(0.0f, v + change);
     });
     density = std::move(out);
 }
@@ -125,15 +209,23 @@ void diffuseAlongLevelSets(ScalarField& density, float k, int passes)
     const Grid g(density);
     const int axes = g.axes();
     for (int pass = 0; pass < passes; ++pass) {
-        const ScalarField S = smoothed(density, g);
+        // Air with air all around (most of the box) has nothing to diffuse: one voxel beyond the smoke at most.
+        const Region smoke = smokeRegion(density, g);
+        const ScalarField S = smoothed(density, g, smoke);
         ScalarField out = density;
         const float* D = density.data();
-        parallelFor(size_t(g.nx), 1, [&](size_t x0, size_t x1) {
-            for (int x = int(x0); x < int(x1); ++x)
-                for (int y = 0; y < g.ny; ++y)
-                    for (int z = 0; z < g.nz; ++z) {
+        const Region r = smoke.grown(1, g);
+        parallelFor(r.empty() ? 0 : size_t(r.hi[0] - r.lo[0] + 1), 1, [&](size_t x0, size_t x1) {
+            for (int x = r.lo[0] + int(x0); x < r.lo[0] + int(x1); ++x)
+                for (int y = r.lo[1]; y <= r.hi[1]; ++y)
+                    for (int z = r.lo[2]; z <= r.hi[2]; ++z) {
                         const std::array<int, 3> p{x, y, z};
+                        const size_t i0 = g.at(x, y, z);
+                        const bool inner = g.inner(x, y, z);
                         const auto val = [&](const float* f, int da, int a, int db, int b) {
+                            if (inner)
+                                return double(f[size_t(
+                                    ptrdiff_t(i0) + da * ptrdiff_t(g.stride(a)) + db * ptrdiff_t(g.stride(b)))]);
                             std::array<int, 3> q = p;
                             q[size_t(a)] += da;
                             q[size_t(b)] += db;
