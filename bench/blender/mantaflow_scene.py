@@ -121,15 +121,16 @@ PLUME_RADIUS = 0.5  # the emitter sphere rests on the floor
 PLUME_SPEED = 2.0  # inflow speed up, world units per second (buoyancy alone lifts it 1.5 units in 30 frames)
 
 
-def plume_scene(res_z, out, frames, noise=0, speed=PLUME_SPEED):
-    """The buoyant plume: sphere inflow of radius 0.5 on the floor blowing up at speed, default buoyancy.
+def plume_scene(res_z, out, frames, noise=0, speed=PLUME_SPEED, radius=PLUME_RADIUS):
+    """The buoyant plume: sphere inflow of `radius` (0.5) on the floor blowing up at speed, default buoyancy.
 
-    noise > 0 turns on Blender's "Noise" up-res (wavelet turbulence on the density) at that factor.
+    noise > 0 turns on Blender's "Noise" up-res (wavelet turbulence on the density) at that factor. A larger
+    radius and speed make the heavy target of bench/heavy_pairs.sh, whose smoke fills much of the box.
     """
     new_scene(frames)
     dom, ds = add_domain(res_z, out, frames)
     if noise > 0:
         ds.use_noise = True
         ds.noise_scale = noise
-    add_sphere_inflow(PLUME_RADIUS, (0.0, 0.0, -DOMAIN_SIZE[2] / 2 + PLUME_RADIUS), (0.0, 0.0, speed))
+    add_sphere_inflow(radius, (0.0, 0.0, -DOMAIN_SIZE[2] / 2 + radius), (0.0, 0.0, speed))
     return dom
