@@ -17,7 +17,34 @@ TEST(FramePattern, HashRunSetsPaddingWidth)
     EXPECT_EQ(p.format(7), "cache/pyro.0007.vdb");
     EXPECT_EQ(p.format(1001), "cache/pyro.1001.vdb");
     EXPECT_EQ(p.format(12345), "cache/pyro.12345.vdb");
-    EXPECT_EQ(p.format(-3), "cache/pyro.-0003.vdb");
+    // Negative frames pad as printf's %04d, Houdini's $F4 and Nuke do: the sign counts in the width (issue 49).
+    EXPECT_EQ(p.format(-3), "cache/pyro.-003.vdb");
+}
+
+// Houdini's $F4 writes frame -1 as "-001" (printf's %04d; 3ds Max and Nuke count the sign in the width too). Before
+// issue 49, "####" formatted it "-0001", so a sequence of frames -2..1 read as frames 0 and 1 without a word, and
+// "smoke.-001.vdb" alone was frame 1 (the '-' taken for a separator).
+TEST(FramePattern, NegativeFramesCountTheSignInTheWidthAndMatchEitherPadding)
+{
+    const auto p = FramePattern::parse("s.####.vdb");
+    EXPECT_EQ(p.format(-1), "s.-001.vdb");
+    EXPECT_EQ(p.format(-1234), "s.-1234.vdb");
+    EXPECT_EQ(p.match("s.-001.vdb"), -1);
+    EXPECT_EQ(p.match("s.-0001.vdb"), -1) << "vdbturb's own negative frames before issue 49";
+    EXPECT_FALSE(p.match("s.-01.vdb"));
+    auto old = p;
+    old.setNegativeDigitsPadded(true);
+    EXPECT_EQ(old.format(-1), "s.-0001.vdb");
+
+    const auto d = FramePattern::fromFileName("cache/smoke.-001.vdb");
+    ASSERT_TRUE(d);
+    EXPECT_EQ(d->second, -1);
+    EXPECT_EQ(d->first.format(5), "cache/smoke.0005.vdb");
+    EXPECT_EQ(d->first.format(-2), "cache/smoke.-002.vdb");
+    EXPECT_EQ(FramePattern::fromFileName("foo -020.png")->second, -20) << "3ds Max's negative frames";
+    EXPECT_EQ(FramePattern::fromFileName("smoke_-7.vdb")->second, -7);
+    // A '-' after a letter separates: Blender's own example sequence is smoke-000.vdb, smoke-001.vdb, ...
+    EXPECT_EQ(FramePattern::fromFileName("smoke-001.vdb")->second, 1);
 }
 
 TEST(FramePattern, PrintfHoudiniAndAtTokens)

@@ -42,12 +42,15 @@ turbio::SequenceScan checkInput(const std::string& command, const std::string& r
     const std::string& readPrefix)
 {
     if (!seq.oneOfSequence.empty()) logInfo(role + ": " + seq.oneOfSequence);
+    if (!seq.skippedFiles.empty()) warnOnce("skipped " + role, role + ": " + seq.skippedFiles);
     turbio::SequenceScan scan = turbio::scanSequence(seq, frames, read, /*readVoxelsIfNeeded=*/true);
     if (const turbio::FrameScan* failed = scan.firstFailure()) {
         turb::IoError error(failed->error, failed->errorSettings);
         error.qualifySettings(readPrefix);
         throw error;
     }
+    if (!scan.blenderAdaptive.empty())
+        throw turb::IoError(role + " " + seq.pattern.str() + ": " + scan.blenderAdaptive);
     if (!scan.changes.empty()) {
         const std::string what =
             role + " " + seq.pattern.str() + ": the lattice is not the same in every frame: " + scan.describeChanges();
@@ -70,8 +73,10 @@ TimingSources timingSources(const turbio::ReadReport& t, const std::string& read
     TimingSources s;
     s.dt = given(t.dtSource, t.dtSetting);
     s.fps = given(t.fpsSource, t.fpsSetting);
-    s.units =
-        t.unitsSetting.empty() ? t.unitsSource : flagFor(t.unitsSetting, readPrefix) + (t.cells ? " cells" : " world");
+    // "ReadOptions::velocityUnits frame" -> "--vel-units frame".
+    s.units = t.unitsSetting.empty()
+                  ? t.unitsSource
+                  : flagFor(t.unitsSetting, readPrefix) + t.unitsSource.substr(t.unitsSource.rfind(' '));
     return s;
 }
 

@@ -122,6 +122,8 @@ std::string gridTable(const turbio::FileInfo& fi)
         out += ", value ranges of the last " + std::to_string(fi.rangesSkipped) +
                " grids not read (1 GB of grids read for ranges already)";
     out += "\n";
+    if (fi.grids.empty())
+        return out + "  no grids: an empty frame (no command can read it; leave it out with --frames)";
     std::vector<std::vector<std::string>> rows{{"#", "grid", "type", "class", "role", "voxel", "origin",
         "active box (index)", "world bounds", "active", "values"}};
     for (const auto& g : fi.grids) {
@@ -193,7 +195,8 @@ std::string latticeLines(
     std::string head = "\nlattice: voxel " + fmtNum("%g", first.lattice.voxelSize) + ", origin " +
                        fmtVec(first.lattice.origin) +
                        (scan.changes.empty() ? std::string(", the same in every frame")
-                                             : "; CHANGES within the sequence: " + scan.describeChanges());
+                                             : "; CHANGES within the sequence: " + scan.describeChanges()) +
+                       (scan.blenderAdaptive.empty() ? std::string() : "\nWRONG SCALE: " + scan.blenderAdaptive);
     // The domain as the cache spans it; what a read holds (the smoke and its margin) after it.
     const auto wb = worldBounds(first.span, first.lattice.voxelSize, first.lattice.origin);
     const turb::Coord d = first.span.dim();
@@ -239,6 +242,8 @@ nlohmann::json sequenceJson(
             {{"from_frame", c.fromFrame}, {"to_frame", c.toFrame}, {"from_path", c.fromPath}, {"to_path", c.toPath},
                 {"from_voxel", c.from.voxelSize}, {"to_voxel", c.to.voxelSize}, {"from_origin", vecJson(c.from.origin)},
                 {"to_origin", vecJson(c.to.origin)}});
+    if (!scan.blenderAdaptive.empty()) out["blender_adaptive"] = scan.blenderAdaptive;
+    if (!seq.skippedFiles.empty()) out["skipped_files"] = seq.skippedFiles;
     if (first) {
         const TimingSources source = timingSources(first->timing);
         out["timing"] = {{"dt", first->timing.dt}, {"dt_source", source.dt}, {"fps", first->timing.fps},
@@ -451,6 +456,7 @@ int runNanoInfo(const InfoArgs& a, const turbio::Sequence& seq)
                          " reads VDB caches as the commands that use them do; no vdbturb command reads NanoVDB. "
                          "Check a .nvdb file with nanovdb_validate (Debian libnanovdb-tools)");
     printData(sequenceLine(seq) + (seq.oneOfSequence.empty() ? "" : "\nnote: " + seq.oneOfSequence) +
+                  (seq.skippedFiles.empty() ? "" : "\nnote: " + seq.skippedFiles) +
                   "\nNanoVDB files: grids and sizes from the headers (NanoVDB holds no vdbturb metadata: dt, units and "
                   "the settings are in the VDB files they were made from)",
         a.json);
@@ -495,6 +501,7 @@ int runInfo(const InfoArgs& a)
             break;
         }
     printData(sequenceLine(seq) + (seq.oneOfSequence.empty() ? "" : "\nnote: " + seq.oneOfSequence) +
+                  (seq.skippedFiles.empty() ? "" : "\nnote: " + seq.skippedFiles) +
                   (first ? latticeLines(*first, scan, ro) : std::string()),
         toStderr);
 

@@ -116,8 +116,9 @@ void addReadOptions(CLI::App* app, turbio::ReadOptions& opt, const std::string& 
         ->group(kGroupInput);
     setting(addEnum<turbio::VelocityUnits>(app, p + "vel-units", opt.velocityUnits,
                 {{"auto", turbio::VelocityUnits::Auto}, {"world", turbio::VelocityUnits::World},
-                    {"cells", turbio::VelocityUnits::Cells}},
-                "Velocity units: world, cells (grid cells per time unit, Blender), auto (detect)"),
+                    {"cells", turbio::VelocityUnits::Cells}, {"frame", turbio::VelocityUnits::Frame}},
+                "Velocity units: world (per second), cells (grid cells per time unit, Blender), frame (world units per "
+                "frame), auto (detect)"),
         p.substr(2) + "vel-units");
     setting(
         app->add_option(p + "dt", opt.dt,
@@ -132,6 +133,9 @@ void addReadOptions(CLI::App* app, turbio::ReadOptions& opt, const std::string& 
     // scan sees them only where the density's box is far larger than its voxels.
     const std::string role = prefix.empty() ? "cache" : prefix;
     opt.strayNote = [role](const std::string& note) { warnOnce("strays " + role, role + " " + note); };
+    opt.readNote = [role](const std::string& path, const std::string& note) {
+        warnOnce("read note " + role + " " + note, role + " " + path + ": " + note);
+    };
     setting(app->add_flag(p + "keep-isolated", opt.keepIsolated,
                 "Hold stray voxels far from the smoke (and a Blender cache's voxels outside its simulation box) "
                 "instead of ignoring them; the held box then spans them"),

@@ -21,6 +21,14 @@ turb::IoError missingGrid(const std::string& path, GridRole role, const ReadOpti
 /// "PATH: none of the requested grids is present; the file has: LISTING.", naming densityGrid and velocityGrid.
 turb::IoError noRequestedGrid(const std::string& path, const std::string& listing);
 
+/// The file's grids cannot give a frame whatever the selectors: it holds no grids (an empty frame, as Houdini writes
+/// for geometry without volumes) or only VDB points (particles). The message, or "" when it holds volumes. `types`
+/// are the grids' value types ("float", "ptdataidx32", ...).
+std::string noVolumeProblem(const std::string& path, const std::vector<std::string>& types, const std::string& listing);
+
+/// "PATH: grid 'G' is a level set ...": a level set (signed distances) chosen as the density.
+std::string levelSetDensityMessage(const std::string& path, const std::string& grid);
+
 /// "PATH: grid 'G' has a MAP transform with ...; vdbturb supports only uniform voxels with a translation."
 std::string unsupportedTransformMessage(const std::string& path, const std::string& grid, const std::string& mapType);
 

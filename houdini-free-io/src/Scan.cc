@@ -29,9 +29,14 @@ turb::Lattice latticeOf(const GridInfo& g) { return turb::Lattice{g.voxelSize, g
 // Everything the header says about the grids a read would use; throws the read's own messages.
 void resolveFrame(FrameScan& fs, const FileInfo& info, const ReadOptions& options)
 {
-    std::vector<std::string> names;
-    for (const auto& g : info.grids) names.push_back(g.selector);
+    std::vector<std::string> names, types;
+    for (const auto& g : info.grids) {
+        names.push_back(g.selector);
+        types.push_back(g.valueType);
+    }
     const std::string listing = describeGrids(info.grids);
+    if (const std::string problem = detail::noVolumeProblem(fs.path, types, listing); !problem.empty())
+        throw turb::IoError(problem);
     const auto dens = resolveGrid(names, GridRole::Density, options.densityGrid);
     const auto vel = resolveGrid(names, GridRole::Velocity, options.velocityGrid);
     if (dens.empty() && (options.requireDensity || !options.densityGrid.empty()))
@@ -46,6 +51,7 @@ void resolveFrame(FrameScan& fs, const FileInfo& info, const ReadOptions& option
         if (!isFloatType(d->valueType))
             throw turb::IoError(fs.path + ": grid '" + d->name + "' has type " + d->valueType +
                                 "; a density grid must be float or double");
+        if (d->gridClass == "level set") throw turb::IoError(detail::levelSetDensityMessage(fs.path, d->name));
         used.push_back(d);
         fs.densityGrid = d->selector;
         fs.densityActive = d->activeVoxels;
@@ -145,6 +151,7 @@ void resolveFrame(FrameScan& fs, const FileInfo& info, const ReadOptions& option
     if (fs.domainKnown) {
         detail::checkDenseSize(fs.path, fs.domain, spans, bytesPerVoxel, options);
     }
+    if (detail::blenderSimulationBox(info.baseResolution, info.creator)) fs.blenderResolution = info.baseResolution;
     const bool blenderVel = v && info.baseResolution && v->name == "velocity" && v->gridClass == "staggered";
     fs.timing =
         resolveTiming(blenderVel, info.baseResolution.has_value(), info.recordedDt, options, info.recordedTimeUnit);
@@ -250,6 +257,32 @@ SequenceScan scanSequence(
             c.voxelSizeChanged =
                 std::abs(prev->lattice.voxelSize - f.lattice.voxelSize) > 1e-6 * prev->lattice.voxelSize;
             scan.changes.push_back(c);
+        }
+        // Blender's Adaptive Domain: the simulation box changes, and the domain it is written over (box x voxel) with
+        // it: Blender scales each frame's box to the domain's full size. A re-bake at another resolution keeps the
+        // domain (32 x 0.125 = 16 x 0.25).
+        if (prev && scan.blenderAdaptive.empty() && prev->blenderResolution && f.blenderResolution &&
+            *prev->blenderResolution != *f.blenderResolution) {
+            bool domainChanged = false;
+            for (int k = 0; k < 3; ++k) {
+                const double a = (*prev->blenderResolution)[k] * prev->lattice.voxelSize;
+                const double b = (*f.blenderResolution)[k] * f.lattice.voxelSize;
+                domainChanged = domainChanged || std::abs(a - b) > 1e-4 * std::max(a, b);
+            }
+            if (domainChanged) {
+                const auto res = [](const turb::Coord& r) {
+                    return std::to_string(r.x()) + "x" + std::to_string(r.y()) + "x" + std::to_string(r.z());
+                };
+                std::ostringstream os;
+                os << "Blender's Adaptive Domain: the simulation box changes from " << res(*prev->blenderResolution)
+                   << " voxels of " << prev->lattice.voxelSize << " at frame " << prev->frame << " (" << prev->path
+                   << ") to " << res(*f.blenderResolution) << " voxels of " << f.lattice.voxelSize << " at frame "
+                   << f.frame << " (" << f.path
+                   << "), and Blender writes each frame's box scaled to the whole domain, so the voxel sizes, "
+                      "positions and velocities in these files are not the simulation's (its voxel is smaller, and "
+                      "the same in every frame). Bake the cache without Adaptive Domain";
+                scan.blenderAdaptive = os.str();
+            }
         }
         prev = &f;
     }

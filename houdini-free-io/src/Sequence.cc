@@ -147,23 +147,35 @@ std::optional<std::pair<FramePattern, int>> FramePattern::fromFileName(const std
     if (begin > nameStart && (path[begin - 1] == 'v' || path[begin - 1] == 'V') &&
         (begin - 1 == nameStart || !std::isalnum(static_cast<unsigned char>(path[begin - 2]))))
         return std::nullopt;
+    // A minus sign: "smoke.-001.vdb" (Houdini's $F4 at frame -1, printf's %04d) is frame -1, the sign counted in the
+    // width. A '-' after a letter or digit separates ("smoke-001.vdb" is frame 1, as in Blender's own examples).
+    const bool negative = begin > nameStart && path[begin - 1] == '-' &&
+                          (begin - 1 == nameStart || !std::isalnum(static_cast<unsigned char>(path[begin - 2])));
     FramePattern p;
-    p.mPrefix = path.substr(0, begin);
+    p.mPrefix = path.substr(0, negative ? begin - 1 : begin);
     p.mSuffix = path.substr(end);
     // "0001" is padded to 4; "1001" may or may not be padded, and padding 4 formats it the same.
-    p.mWidth = int(digits.size());
+    p.mWidth = int(digits.size()) + (negative ? 1 : 0);
     p.mNumbered = true;
     int frame = 0;
     if (!parseInt(digits, frame)) return std::nullopt;
-    return std::make_pair(p, frame);
+    return std::make_pair(p, negative ? -frame : frame);
+}
+
+FramePattern FramePattern::withWidth(int width) const
+{
+    FramePattern p = *this;
+    p.mWidth = width;
+    p.mText.clear();
+    return p;
 }
 
 std::string FramePattern::format(int frame) const
 {
     if (!mNumbered) return mPrefix;
     char buf[48];
-    if (frame < 0) std::snprintf(buf, sizeof(buf), "-%0*d", mWidth, -frame);
-    else std::snprintf(buf, sizeof(buf), "%0*d", mWidth, frame);
+    if (frame < 0 && mNegativeDigitsPadded) std::snprintf(buf, sizeof(buf), "-%0*lld", mWidth, -(long long)frame);
+    else std::snprintf(buf, sizeof(buf), "%0*d", mWidth, frame); // printf's padding: "-001" for -1 at width 4
     return mPrefix + buf + mSuffix;
 }
 
@@ -176,9 +188,15 @@ std::optional<int> FramePattern::match(const std::string& path) const
     const std::string mid = path.substr(mPrefix.size(), path.size() - mPrefix.size() - mSuffix.size());
     int frame = 0;
     if (!parseInt(mid, frame)) return std::nullopt;
-    // Padded patterns only match names formatted exactly as format() would write them.
-    if (format(frame) != path) return std::nullopt;
-    return frame;
+    // Padded patterns only match names formatted exactly as format() would write them; a negative frame padded
+    // either way ("-001" or "-0001" at width 4).
+    if (format(frame) == path) return frame;
+    if (frame < 0) {
+        FramePattern other = *this;
+        other.mNegativeDigitsPadded = !mNegativeDigitsPadded;
+        if (other.format(frame) == path) return frame;
+    }
+    return std::nullopt;
 }
 
 std::string FramePattern::str() const
@@ -344,6 +362,113 @@ std::string noMatchMessage(const FramePattern& pattern)
     return head + "; " + dir + " holds " + listSequences(seqs, 4);
 }
 
+// Files in the pattern's directory with its name around the frame token that the pattern does not take: frame numbers
+// padded otherwise (Houdini's unpadded $F: smoke.999.vdb beside smoke.1000.vdb, which smoke.####.vdb skips) and
+// sub-frames (Houdini's $FF: pyro.1001.5.vdb). "" when there are none; else what they are and what reads them.
+std::string skippedFilesNote(const FramePattern& pattern)
+{
+    if (!pattern.numbered()) return "";
+    const std::string prefix = pattern.prefix();
+    const size_t slash = prefix.find_last_of('/');
+    const std::string dir = (slash == std::string::npos) ? std::string(".") : prefix.substr(0, slash + 1);
+    const std::string stem = (slash == std::string::npos) ? prefix : prefix.substr(slash + 1);
+    const std::string& suffix = pattern.suffix();
+    std::map<int, std::vector<std::pair<int, std::string>>> widths; // digits -> (frame, name) of the skipped
+    std::vector<std::string> subFrames;
+    bool anyLeadingZero = false;
+    std::error_code ec;
+    for (const auto& entry : fs::directory_iterator(dir, ec)) {
+        const std::string name = entry.path().filename().string();
+        if (name.size() <= stem.size() + suffix.size() || name.compare(0, stem.size(), stem) != 0 ||
+            name.compare(name.size() - suffix.size(), suffix.size(), suffix) != 0)
+            continue;
+        const std::string mid = name.substr(stem.size(), name.size() - stem.size() - suffix.size());
+        const std::string digits = mid[0] == '-' ? mid.substr(1) : mid;
+        const size_t dot = digits.find('.');
+        const auto allDigits = [](const std::string& t) {
+            return !t.empty() &&
+                   std::all_of(t.begin(), t.end(), [](char c) { return std::isdigit(static_cast<unsigned char>(c)); });
+        };
+        if (dot != std::string::npos) {
+            if (allDigits(digits.substr(0, dot)) && allDigits(digits.substr(dot + 1))) subFrames.push_back(name);
+            continue;
+        }
+        if (!allDigits(digits) || digits.size() > 9) continue;
+        if (digits.size() > 1 && digits[0] == '0') anyLeadingZero = true;
+        const std::string full = (slash == std::string::npos) ? name : dir + name;
+        if (pattern.match(full)) continue;
+        int frame = 0;
+        if (!parseInt(mid, frame)) continue;
+        widths[int(digits.size())].push_back({frame, name});
+    }
+    std::string note;
+    if (!widths.empty()) {
+        size_t count = 0;
+        std::vector<int> frames;
+        std::string kinds;
+        for (auto& [digits, files] : widths) {
+            std::sort(files.begin(), files.end());
+            count += files.size();
+            for (const auto& f : files) frames.push_back(f.first);
+            kinds += (kinds.empty() ? "" : ", ") + std::to_string(digits) + "-digit: " + files.front().second +
+                     (files.size() > 1 ? " ..." : "");
+        }
+        note = pattern.str() + " does not take " + std::to_string(count) + " file" + (count == 1 ? "" : "s") +
+               " of this name numbered with another padding (" + kinds + "; frame" + (count == 1 ? " " : "s ") +
+               formatFrameList(frames) + ")";
+        if (!anyLeadingZero)
+            note += ": the cache is numbered without padding (Houdini's $F); give " + prefix + "$F" + suffix +
+                    " to read every frame";
+    }
+    if (!subFrames.empty()) {
+        std::sort(subFrames.begin(), subFrames.end());
+        note += std::string(note.empty() ? pattern.str() + " leaves out " : "; it also leaves out ") +
+                std::to_string(subFrames.size()) + " sub-frame file" + (subFrames.size() == 1 ? "" : "s") + " (" +
+                subFrames.front() + (subFrames.size() > 1 ? " ..." : "") +
+                ": a cache written at sub-frames, Houdini's $FF): vdbturb reads whole frames";
+    }
+    return note;
+}
+
+// A negative frame's file padded "-0001" on disk (vdbturb's own before issue 49) where format() gives "-001": the
+// pattern then names negative frames that way.
+void adoptNegativePadding(FramePattern& pattern, const std::vector<int>& onDisk)
+{
+    std::error_code ec;
+    for (int f : onDisk) {
+        if (f >= 0) break;
+        if (fs::exists(pattern.format(f), ec)) return;
+        FramePattern other = pattern;
+        other.setNegativeDigitsPadded(true);
+        if (fs::exists(other.format(f), ec)) {
+            pattern = other;
+            return;
+        }
+    }
+}
+
+// "pyro.1001.5.vdb" beside "pyro.1001.vdb": sub-frame 1001.5 of a cache written at sub-frames (Houdini's $FF), which
+// the frame-number rule would read as frame 5. Returns "1001.5" and the whole frame's name, or nothing.
+std::optional<std::pair<std::string, std::string>> subFrameOf(const std::string& path)
+{
+    const size_t slash = path.find_last_of('/');
+    const size_t nameStart = (slash == std::string::npos) ? 0 : slash + 1;
+    const auto detected = FramePattern::fromFileName(path);
+    if (!detected) return std::nullopt;
+    const std::string& prefix = detected->first.prefix(); // ".../pyro.1001."
+    if (prefix.size() < nameStart + 3 || prefix.back() != '.') return std::nullopt;
+    size_t b = prefix.size() - 1;
+    while (b > nameStart && std::isdigit(static_cast<unsigned char>(prefix[b - 1]))) --b;
+    if (b == prefix.size() - 1) return std::nullopt; // no digits before the '.'
+    const std::string whole = prefix.substr(b, prefix.size() - 1 - b);
+    const std::string wholePath = prefix.substr(0, prefix.size() - 1) + detected->first.suffix();
+    std::error_code ec;
+    if (!fs::is_regular_file(wholePath, ec)) return std::nullopt;
+    const std::string fraction =
+        path.substr(prefix.size(), path.size() - prefix.size() - detected->first.suffix().size());
+    return std::make_pair(whole + "." + fraction, wholePath);
+}
+
 } // namespace
 
 Sequence resolveSequence(const std::string& text, const std::string& frameSpec)
@@ -362,12 +487,31 @@ Sequence resolveSequence(const std::string& text, const std::string& frameSpec)
         // (pyro.1001.vdb is frame 1001, as in Houdini and Blender), or a file without a frame number.
         const bool exists = fs::is_regular_file(text, ec);
         auto detected = FramePattern::fromFileName(text);
+        if (detected && exists) {
+            if (const auto sub = subFrameOf(text)) {
+                const auto whole = FramePattern::fromFileName(sub->second);
+                throw turb::IoError(
+                    text + ": sub-frame " + sub->first + " of a cache written at sub-frames (Houdini's " + "$FF; " +
+                    sub->second + " is its frame " + sub->first.substr(0, sub->first.find('.')) +
+                    "): vdbturb reads whole frames. Give " + (whole ? whole->first.str() : sub->second) +
+                    ", which leaves the sub-frame files out");
+            }
+            // "smoke.1000.vdb" of a cache numbered without padding ($F: smoke.999.vdb beside it): the unpadded
+            // pattern takes every frame, where "####" would skip 998 and 999.
+            const std::string digits = std::to_string(std::abs(detected->second));
+            if (detected->second >= 0 && int(digits.size()) == detected->first.width()) {
+                const FramePattern unpadded = detected->first.withWidth(0);
+                if (scanFrames(unpadded).size() > scanFrames(detected->first).size()) detected->first = unpadded;
+            }
+        }
         if (detected && (exists || !frameSpec.empty())) {
             pattern = detected->first;
             if (frameSpec.empty()) { // a file name means that file; its siblings are only mentioned
+                const std::vector<int> siblings = scanFrames(pattern);
+                adoptNegativePadding(pattern, siblings);
                 seq.pattern = pattern;
                 seq.frames = {detected->second};
-                if (const std::vector<int> siblings = scanFrames(pattern); siblings.size() > 1)
+                if (siblings.size() > 1)
                     seq.oneOfSequence = text + " is frame " + std::to_string(detected->second) + " of " +
                                         pattern.str() + " (frames " + formatFrameList(siblings) +
                                         " on disk): give that pattern, or --frames, for more than this file";
@@ -389,8 +533,10 @@ Sequence resolveSequence(const std::string& text, const std::string& frameSpec)
             throw turb::IoError(why);
         }
     }
-    seq.pattern = pattern;
     const std::vector<int> onDisk = scanFrames(pattern);
+    adoptNegativePadding(pattern, onDisk);
+    seq.pattern = pattern;
+    seq.skippedFiles = skippedFilesNote(pattern);
     if (frameSpec.empty()) {
         if (onDisk.empty()) throw turb::IoError(noMatchMessage(pattern));
         seq.frames = onDisk;

@@ -75,7 +75,20 @@ void checkHeader(const std::string& path)
     in.read(reinterpret_cast<char*>(&magic), sizeof(magic));
     in.read(reinterpret_cast<char*>(&version), sizeof(version));
     if (!in) throw IoError(path + ": file is too short to be a VDB file (truncated?)");
-    if (magic != int64_t(0x56444220)) throw IoError(path + ": not an OpenVDB file (bad magic number)");
+    if (magic != int64_t(0x56444220)) {
+        char head[8];
+        std::memcpy(head, &magic, sizeof(head));
+        // Two files a cache folder may hold under a .vdb-like name: NanoVDB (what GPU renderers load, written by
+        // `vdbturb convert`, nanovdb_convert or EmberGen), and a VDB gzip-compressed for transfer (.vdb.gz).
+        if (std::memcmp(head, "NanoVDB", 7) == 0)
+            throw IoError(path +
+                          ": a NanoVDB file, not OpenVDB: vdbturb reads NanoVDB only in `vdbturb info`. Give the "
+                          "OpenVDB cache it was made from, or convert it back: nanovdb_convert " +
+                          path + " OUT.vdb");
+        if (static_cast<unsigned char>(head[0]) == 0x1f && static_cast<unsigned char>(head[1]) == 0x8b)
+            throw IoError(path + ": a gzip-compressed file, not an OpenVDB file: decompress it first (gunzip)");
+        throw IoError(path + ": not an OpenVDB file (bad magic number)");
+    }
     if (version > openvdb::OPENVDB_FILE_VERSION) {
         std::ostringstream os;
         os << path << ": written by a newer OpenVDB (file format " << version << "); this build uses OpenVDB "
@@ -543,6 +556,23 @@ std::optional<turb::CoordBBox> recordedDomain(const openvdb::MetaMap& m, const c
     return b;
 }
 
+// A density must be a fog volume, as OpenVDB's CheckFogVolume has it: no level set, background 0. A level set's
+// distances read as density would be smoke with negative mass; a background of 0.2 is smoke filling all space, which
+// no held box holds (the box would be written as a block of fog with a hard edge).
+void checkDensity(const std::string& path, const openvdb::FloatGrid& g)
+{
+    if (g.getGridClass() == openvdb::GRID_LEVEL_SET) throw IoError(detail::levelSetDensityMessage(path, g.getName()));
+    if (g.background() != 0.0f) {
+        std::ostringstream os;
+        os << path << ": grid " << quoted(g.getName()) << " has background " << g.background()
+           << ", not 0: OpenVDB reads every voxel the grid does not store as " << g.background()
+           << ", smoke filling all space, which no box can hold (a fog volume's background is 0, as OpenVDB's "
+              "CheckFogVolume requires). Re-save it with background 0 (pyopenvdb: grid.background = 0.0; Blender: "
+              "Set Grid Background)";
+        throw IoError(os.str());
+    }
+}
+
 std::string roleOf(const openvdb::GridBase& g)
 {
     auto m = g.getMetadata<openvdb::StringMetadata>(kRoleKey);
@@ -680,6 +710,28 @@ turb::IoError missingGrid(const std::string& path, GridRole role, const ReadOpti
         {density ? "densityGrid" : "velocityGrid"});
 }
 
+std::string noVolumeProblem(const std::string& path, const std::vector<std::string>& types, const std::string& listing)
+{
+    if (types.empty())
+        return path +
+               ": the file holds no grids: an empty frame (Houdini writes one where the geometry holds no volume, "
+               "e.g. before the source starts). vdbturb needs the frame's grids, even empty ones: leave the frame "
+               "out with --frames, or write it with empty grids";
+    if (std::all_of(types.begin(), types.end(), [](const std::string& t) { return t.rfind("ptdata", 0) == 0; }))
+        return path + ": its grids are VDB points (" + listing +
+               "): particles, not volumes. Rasterise them into density and velocity volumes first (Houdini: VDB from "
+               "Particles, VDB Rasterize Points)";
+    return "";
+}
+
+std::string levelSetDensityMessage(const std::string& path, const std::string& grid)
+{
+    return path + ": grid '" + grid +
+           "' is a level set (signed distances: negative inside, zero at the surface, the band width outside), not a "
+           "fog volume of density. Convert it to a fog volume first (Houdini: Convert VDB to Fog Volume; OpenVDB: "
+           "tools::sdfToFogVolume), or choose the density grid with --density-grid";
+}
+
 turb::IoError noRequestedGrid(const std::string& path, const std::string& listing)
 {
     return turb::IoError(path + ": none of the requested grids is present; the file has: " + listing + ".",
@@ -764,6 +816,10 @@ ReadReport resolveTiming(
         r.unitsSource = "ReadOptions::velocityUnits world";
         r.unitsSetting = "velocityUnits";
         break;
+    case VelocityUnits::Frame:
+        r.unitsSource = "ReadOptions::velocityUnits frame";
+        r.unitsSetting = "velocityUnits";
+        break;
     case VelocityUnits::Auto:
         r.cells = blenderVelocity;
         r.unitsSource = blenderVelocity
@@ -775,10 +831,16 @@ ReadReport resolveTiming(
     r.fps = options.fps > 0.0 ? options.fps : 24.0;
     const std::string fpsText = options.fps > 0.0 ? "ReadOptions::fps" : "assumed: the cache records no frame rate";
     const std::string fpsSetting = options.fps > 0.0 ? "fps" : "";
+    const bool perFrame = options.velocityUnits == VelocityUnits::Frame;
     if (options.dt > 0.0) {
         r.dt = options.dt;
         r.dtSource = "ReadOptions::dt";
         r.dtSetting = "dt";
+        r.fpsSource = "not used";
+    } else if (perFrame) {
+        // World units per frame: the time unit is the frame (its seconds follow from fps, below).
+        r.dt = 1.0;
+        r.dtSource = "one frame: the velocity is per frame";
         r.fpsSource = "not used";
     } else if (recordedDt > 0.0) {
         r.dt = recordedDt;
@@ -802,7 +864,14 @@ ReadReport resolveTiming(
     // Seconds per time unit. A frame lasts 1/fps seconds and dt time units, so one unit is 1 / (fps x dt) seconds:
     // 0.4 for Mantaflow at time scale 1 (0.1 x 25/fps units a frame), whatever the frame rate. vdbturb records it;
     // other writers (Houdini, EmberGen) write world units per second.
-    if (recordedTimeUnit > 0.0) {
+    if (perFrame) {
+        r.timeUnit = 1.0 / r.fps;
+        r.timeUnitSource = std::string("a frame, 1/fps s (the velocity is per frame), fps ") +
+                           (options.fps > 0.0 ? "given" : "24 assumed");
+        r.fpsSource = fpsText;
+        r.fpsSetting = fpsSetting;
+        r.conventionAssumed = options.fps <= 0.0;
+    } else if (recordedTimeUnit > 0.0) {
         r.timeUnit = recordedTimeUnit;
         r.timeUnitSource = "vdbturb_time_unit metadata";
     } else if (blenderCache) {
@@ -824,6 +893,10 @@ void readRoles(openvdb::io::File& file, const std::vector<Descriptor>& order, op
 {
     const std::vector<GridEntry> entries = listGrids(file, order);
     const std::vector<std::string> names = uniqueNames(entries);
+    std::vector<std::string> types;
+    for (const auto& e : entries) types.push_back(e.type);
+    if (const std::string problem = detail::noVolumeProblem(path, types, describeEntries(entries)); !problem.empty())
+        throw IoError(problem);
     const auto densName = resolveGrid(names, GridRole::Density, options.densityGrid);
     const auto velName = resolveGrid(names, GridRole::Velocity, options.velocityGrid);
     if (densName.empty() && (options.requireDensity || !options.densityGrid.empty()))
@@ -920,8 +993,10 @@ turb::VectorField velocityField(const std::string& path, const RoleGrids& g, con
     std::string label;
     if (g.vel) {
         label = g.vel->getName();
-        if (g.vel->getGridClass() == openvdb::GRID_STAGGERED) staggeredToCentred(*g.vel, v);
-        else copyToField(*g.vel, v);
+        if (g.vel->getGridClass() == openvdb::GRID_STAGGERED) {
+            v.fill(turb::Vec3f(g.vel->background()[0], g.vel->background()[1], g.vel->background()[2]));
+            staggeredToCentred(*g.vel, v);
+        } else copyToField(*g.vel, v);
     } else {
         label = g.comp[0]->getName() + "/.y/.z";
         turb::ScalarField c(box, lattice);
@@ -1207,6 +1282,7 @@ SmokeRegion smokeRegion(const std::string& path, const ReadOptions& options)
         },
         options.readTimeout);
     if (r.grids.empty()) return SmokeRegion{};
+    checkDensity(path, *asFloatGrid(path, r.grids.front(), "density"));
     return findSmoke(*asFloatGrid(path, r.grids.front(), "density"), options,
         options.keepIsolated ? std::nullopt : blenderSimulationBox(*r.grids.front(), *r.meta));
 }
@@ -1223,8 +1299,10 @@ RoleGrids gridsByRole(const std::string& path, const detail::GuardedResult& r)
     RoleGrids g;
     for (const auto& grid : r.grids) {
         const std::string role = roleOf(*grid);
-        if (role == "density") g.density = asFloatGrid(path, grid, "density");
-        else if (role == "velocity") g.vel = asVec3Grid(path, grid);
+        if (role == "density") {
+            g.density = asFloatGrid(path, grid, "density");
+            checkDensity(path, *g.density);
+        } else if (role == "velocity") g.vel = asVec3Grid(path, grid);
         else if (role == "velocity.x") g.comp[0] = asFloatGrid(path, grid, "velocity component");
         else if (role == "velocity.y") g.comp[1] = asFloatGrid(path, grid, "velocity component");
         else if (role == "velocity.z") g.comp[2] = asFloatGrid(path, grid, "velocity component");
@@ -1410,6 +1488,28 @@ static turb::Frame readFrameUnchecked(
     const turb::Lattice& lattice = spans.lattice;
     ReadReport rep;
     const turb::CoordBBox domain = heldBox(path, g, all, spans, options, rep, stage);
+    // A background that is not zero (a wind in `vel`, an ambient temperature) is the value of every voxel the grid does
+    // not store: read so inside the held box, as renderers read it; outputs are written with background zero.
+    const auto background = [&](const openvdb::GridBase::ConstPtr& grid) {
+        std::ostringstream v;
+        if (const auto f = openvdb::gridConstPtrCast<openvdb::FloatGrid>(grid)) {
+            if (f->background() == 0.0f) return;
+            v << f->background();
+        } else if (const auto w = openvdb::gridConstPtrCast<openvdb::Vec3SGrid>(grid)) {
+            if (w->background() == openvdb::Vec3s(0.0f)) return;
+            v << w->background();
+        } else {
+            return;
+        }
+        std::ostringstream note;
+        note << "grid " << quoted(grid->getName()) << " has background " << v.str()
+             << ", not zero: the voxels it does not store read as that inside the box held; outputs are written with "
+                "background zero, so they hold zero beyond that box";
+        rep.notes.push_back(note.str());
+        if (options.readNote) options.readNote(path, note.str());
+    };
+    for (const auto& grid : all)
+        if (grid != openvdb::GridBase::ConstPtr(g.density)) background(grid);
 
     turb::Frame frame;
     frame.number = frameNumber;

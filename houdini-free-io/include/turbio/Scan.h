@@ -43,6 +43,7 @@ struct FrameScan
     long long densityActive = -1;  ///< active voxels of the density grid, from the header; -1 unknown
     long long velocityActive = -1; ///< active voxels of the velocity grid, from the header; -1 unknown
     ReadReport timing;             ///< dt and velocity units with their sources
+    std::optional<turb::Coord> blenderResolution; ///< file_base_resolution of a cache Blender wrote (not vdbturb)
     std::vector<GridInfo> grids;   ///< every grid of the file, in file order
 };
 
@@ -64,6 +65,11 @@ struct SequenceScan
 {
     std::vector<FrameScan> frames;      ///< in the order scanned
     std::vector<LatticeChange> changes; ///< where consecutive frames' lattices differ
+    /// Non-empty for a cache Blender baked with an Adaptive Domain: its simulation box (file_base_resolution) changes
+    /// from frame to frame and Blender writes each frame's box scaled over the whole domain, so the files' voxel sizes
+    /// and positions are not the simulation's. Says which frames show it. Every command but `info` refuses such a
+    /// sequence (CheckInput); a single frame cannot show it.
+    std::string blenderAdaptive;
 
     /// The first frame that will fail to read, with its error and errorSettings; nullptr when every frame reads.
     const FrameScan* firstFailure() const;

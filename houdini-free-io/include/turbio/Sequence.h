@@ -31,10 +31,18 @@ public:
     /// ("smoke.vdb", "smoke2_final.vdb"). Digits in the directory never count.
     static std::optional<std::pair<FramePattern, int>> fromFileName(const std::string& path);
 
-    /// The file name of frame `frame`. For an unnumbered pattern, the pattern itself.
+    /// The file name of frame `frame`. For an unnumbered pattern, the pattern itself. A negative frame is padded as
+    /// printf's "%04d" pads it, and as Houdini's $F4, Nuke and 3ds Max name it: the sign counts in the width ("-001"
+    /// for -1 at width 4), unless setNegativeDigitsPadded(true) was called (a sequence named "-0001" on disk).
     std::string format(int frame) const;
-    /// The frame number encoded by `path`, when it matches this pattern.
+    /// The frame number encoded by `path`, when it matches this pattern. A negative frame matches padded either way
+    /// ("-001" and "-0001" at width 4).
     std::optional<int> match(const std::string& path) const;
+    /// Whether negative frames pad their digits to the width, the sign in front ("-0001" at width 4; vdbturb wrote
+    /// them so before issue 49), instead of counting the sign in the width ("-001").
+    void setNegativeDigitsPadded(bool padded) { mNegativeDigitsPadded = padded; }
+    /// The same pattern with another padding width (0: unpadded); str() then shows it with '#' (or '@').
+    FramePattern withWidth(int width) const;
 
     bool numbered() const { return mNumbered; }
     int width() const { return mWidth; }
@@ -49,6 +57,7 @@ private:
     std::string mText; // as given to parse(); empty when detected from a file name
     int mWidth = 0;    // zero-padding width; 0 or 1 = unpadded
     bool mNumbered = false;
+    bool mNegativeDigitsPadded = false; // "-0001" rather than "-001" at width 4
 };
 
 /// Parses "1001-1100x2,1200,1300-1302": ranges with an optional step, comma-separated. Sorted,
@@ -70,6 +79,10 @@ struct Sequence
     /// Set when one real file of a longer sequence was named without a frame list: "fluid_data_0010.vdb is frame 10
     /// of fluid_data_####.vdb (frames 1-30 on disk): give that pattern or --frames for more". Commands say it once.
     std::string oneOfSequence;
+    /// Set when files of the pattern's name exist that it does not take: frame numbers written with another padding
+    /// (Houdini's unpadded $F has smoke.999.vdb beside smoke.1000.vdb, which smoke.####.vdb skips) or sub-frames
+    /// (Houdini's $FF: pyro.1001.5.vdb). Says which, and the pattern that reads them. Commands warn once.
+    std::string skippedFiles;
 
     std::string path(int frame) const { return pattern.format(frame); }
 };

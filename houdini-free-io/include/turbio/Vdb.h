@@ -33,7 +33,9 @@ namespace turbio {
 enum class VelocityUnits {
     Auto,  ///< detect: Blender's staggered `velocity` with `file_base_resolution` is in cells
     World, ///< world units per time unit (Houdini, EmberGen, vdbturb)
-    Cells  ///< grid cells per time unit (Blender/Mantaflow)
+    Cells, ///< grid cells per time unit (Blender/Mantaflow)
+    Frame  ///< world units per frame (Blender's volume "Velocity Unit: Frame", Katana's "units / frame"): the time unit
+           ///< is a frame, 1/fps seconds, and dt is 1 unless given
 };
 
 /// Which role a grid plays for vdbturb.
@@ -74,6 +76,9 @@ struct ReadOptions
     /// Called with the strays note (SmokeRegion::describeStrays) of each frame readFrame finds strays in, for a
     /// command to show; empty: the note is in the ReadReport only. The library prints nothing itself.
     std::function<void(const std::string&)> strayNote;
+    /// Called by readFrame with (path, note) for what a command should say once per input about how a grid was read:
+    /// a velocity, temperature or flame grid whose background is not zero. The note is also in ReadReport::notes.
+    std::function<void(const std::string&, const std::string&)> readNote;
     turb::CoordBBox holdBox; ///< non-empty (with cropToSmoke): hold this box instead of the frame's own, for
                              ///< stages that need one box over a sequence (synth: the union of the scans' boxes; a
                              ///< transfer space tile: its core and halo), whether or not it holds smoke
