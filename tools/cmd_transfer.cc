@@ -696,6 +696,7 @@ nlohmann::json frameJson(const turb::TransferResult& r, const std::string& outPa
     for (const auto& it : st.seams.iterations)
         em.push_back({{"cg_iterations", it.cgIterations}, {"cg_residual", it.cgResidual}, {"energy", it.energy}});
     extra["seam_em"] = em;
+    if (st.seams.stoppedAtMStep > 0.0) extra["seam_em_stopped_at_m_step"] = st.seams.stoppedAtMStep;
     nlohmann::json steps;
     for (const auto& [name, sec] : st.seconds.named()) steps[name] = sec;
     extra["steps_s"] = steps;

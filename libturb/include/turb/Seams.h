@@ -72,6 +72,9 @@ struct SeamStats
     double initialEnergy = 0.0; ///< E_b of the pasted field against the first M-step's Z
     std::vector<SeamIteration> iterations;
     bool converged = false; ///< EM stopped on emTolerance rather than maxEmIterations
+    /// Energy of the last E-step's X against the next M-step's targets, when that M-step moved it by no more than
+    /// emTolerance and EM stopped there without another E-step (0 otherwise).
+    double stoppedAtMStep = 0.0;
     double setupSeconds = 0.0, mStepSeconds = 0.0, eStepSeconds = 0.0; ///< where the time went
 };
 

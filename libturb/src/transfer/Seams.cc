@@ -977,7 +977,9 @@ SeamIteration solveEStep(SeamSystem& sys, VectorField& X, const SeamSettings& se
 }
 
 // The EM loop of section 3.3: M-step (boundary patches' Z, edge targets), then E-step, until E_b changes by
-// less than emTolerance.
+// less than emTolerance. A later M-step that moves E_b of the current X by no more than emTolerance leaves the next
+// E-step where the last one ended (its CG already met the tolerance on nearly the same targets): EM stops there.
+// On the heavy Blender pair's frames 5-30 that second E-step changed E_b by 0.01-0.9% and took 55% of the seams' time.
 void runSeamEm(SeamSystem& sys, BoundaryPatches& bps, VectorField& detail, const SeamProblem& problem,
     const SeamSettings& settings, Progress* progress, SeamStats& stats)
 {
@@ -990,6 +992,15 @@ void runSeamEm(SeamSystem& sys, BoundaryPatches& bps, VectorField& detail, const
         chooseBoundaryZ(bps, detail, problem);
         setEdgeTargets(sys, bps, detail, problem);
         if (it == 0) stats.initialEnergy = sys.energy(detail);
+        if (previous > 0.0) {
+            const double moved = sys.energy(detail);
+            if (std::abs(previous - moved) <= settings.emTolerance * previous) {
+                stats.mStepSeconds += seconds(t0);
+                stats.stoppedAtMStep = moved;
+                stats.converged = true;
+                break;
+            }
+        }
         stats.mStepSeconds += seconds(t0);
         t0 = Clock::now();
         SeamIteration s = solveEStep(sys, detail, settings, problem.layout.flat);
