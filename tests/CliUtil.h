@@ -3,12 +3,17 @@
 
 #include "TestUtil.h"
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
+#include <regex>
+#include <sstream>
 #include <string>
+#include <vector>
 #include <sys/wait.h>
 #include <thread>
 #include <unistd.h>
@@ -113,6 +118,43 @@ inline std::string slurp(const std::string& path)
 }
 
 inline bool has(const std::string& text, const std::string& piece) { return text.find(piece) != std::string::npos; }
+
+/// OpenVDB writes a fresh random UUID into every file's header (36 characters from byte 21): two VDB files hold the
+/// same grids and metadata, bit for bit, when every other byte agrees.
+inline bool sameVdbButUuid(const std::string& a, const std::string& b)
+{
+    std::string x = slurp(a), y = slurp(b);
+    if (x.size() != y.size() || x.size() < 57) return false;
+    x.replace(21, 36, 36, ' ');
+    y.replace(21, 36, 36, ' ');
+    return x == y;
+}
+
+/// The names in `dir`, sorted (hidden ones too: temporary files, the frame lock).
+inline std::vector<std::string> listing(const std::string& dir)
+{
+    std::vector<std::string> names;
+    for (const auto& e : std::filesystem::directory_iterator(dir)) names.push_back(e.path().filename().string());
+    std::sort(names.begin(), names.end());
+    return names;
+}
+
+/// `info --checksum` of every frame of `pattern`: its "frame N" lines and each grid's checksum line (name, type, active
+/// voxels, values' and metadata's checksums), without the paths; "" when info fails (a frame that does not read).
+inline std::string gridChecksums(const std::string& pattern)
+{
+    const Result r = shell(std::string(VDBTURB_EXE) + " info --checksum " + shellQuote(pattern) + " 2>/dev/null");
+    if (r.code != 0) return "";
+    std::string sums;
+    std::istringstream lines(r.out);
+    const std::regex frame(R"(^(frame -?\d+):.*)"), grid(R"(^  \S+ +\S+ +\d+ +[0-9a-f]{16} +[0-9a-f]{16}$)");
+    std::smatch m;
+    for (std::string line; std::getline(lines, line);) {
+        if (std::regex_match(line, m, frame)) sums += m[1].str() + "\n";
+        else if (std::regex_match(line, grid)) sums += line + "\n";
+    }
+    return sums;
+}
 
 /// The shared Blender plume pair (../shared/data): `res` 32 or 128; frame < 0 gives the fluid_data_####.vdb pattern.
 inline std::string plume(int res, int frame = -1)

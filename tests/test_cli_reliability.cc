@@ -14,6 +14,7 @@
 #include <iostream>
 #include <sstream>
 #include <map>
+#include <memory>
 #include <regex>
 #include <system_error>
 
@@ -730,6 +731,60 @@ TEST(FarmNode, TwoTasksNeverWriteOneFrame)
         EXPECT_TRUE(std::filesystem::exists(dir / ("o/" + std::string(f)))) << f;
     EXPECT_FALSE(std::filesystem::exists(dir / "o/o.0005.vdb.tmp"));
     EXPECT_FALSE(std::filesystem::exists(dir / "o/.o.####.vdb.lock")) << "the last holder removes it";
+}
+
+// Issue 49, item 3: four transfers of one shot at once on two cores, each on its own frames (1-2, 3-5, 6-7 with frame 5
+// as pre-roll, computed and not written, and 8-9), all writing into one folder, as a farm's tasks do. A transfer
+// carries its detail from frame to frame, so a task's frames are compared with the same task run alone: the four run
+// one after another (2 threads; transfer's result is the same at any thread count) into folders of their own. The
+// first task is killed (kill -9 after its frame 1, which names the resume state file of odd frames) while the others
+// run on and write odd frames (5, 7, 9), and resumed when they are done. Each frame is written once (one JSON line
+// across the runs), bit-identical to its task run alone, and the folder holds the 9 frames and each task's own resume
+// states, no temporary file and no lock. (With one pair of state files for all, the others overwrote the killed task's
+// and its resume continued approximately, with a warning.)
+TEST(FarmNode, FourTasksOfOneShotInOneFolderWriteEachFrameOnceAsEachAloneDoesAndAKilledOneResumesExactly)
+{
+    testutil::TempDir dir;
+    const std::string pair = "transfer --target " + lo() + " --source " + hi() + " --out ";
+    const std::vector<std::string> tasks = {"--frames 1-2", "--frames 3-5", "--frames 6-7 --preroll 1", "--frames 8-9"};
+    const int taskOf[10] = {-1, 0, 0, 1, 1, 1, 2, 2, 3, 3}; // frame -> task
+    for (size_t k = 0; k < tasks.size(); ++k) {
+        const auto alone = run(pair + dir / ("alone" + std::to_string(k) + "/o.####.vdb ") + tasks[k] + " -q");
+        ASSERT_EQ(alone.code, 0) << alone.out;
+    }
+    std::vector<std::unique_ptr<clitest::Process>> at;
+    for (size_t k = 0; k < tasks.size(); ++k)
+        at.push_back(
+            std::make_unique<clitest::Process>(pair + dir / "one/o.####.vdb " + tasks[k] + " --threads 1 --json",
+                dir / ("task" + std::to_string(k)), k == 0 ? "VDBTURB_TEST_KILL_AT=after-frame:1" : ""));
+    std::string logs;
+    for (size_t k = 0; k < tasks.size(); ++k) {
+        const int status = at[k]->wait();
+        const std::string log = clitest::slurp(dir / ("task" + std::to_string(k)));
+        logs += log;
+        if (k == 0) EXPECT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL) << log;
+        else EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << log;
+    }
+    const auto resumed = run(pair + dir / "one/o.####.vdb " + tasks[0] + " --threads 1 --json --resume");
+    ASSERT_EQ(resumed.code, 0) << resumed.out;
+    EXPECT_NE(resumed.out.find("resume: continuing after frame 1"), std::string::npos) << resumed.out;
+    EXPECT_EQ(resumed.out.find("cannot be used"), std::string::npos) << "the task's own exact state: " << resumed.out;
+    logs += resumed.out;
+    for (int f = 1; f <= 9; ++f) {
+        char name[16];
+        std::snprintf(name, sizeof(name), "o.%04d.vdb", f);
+        EXPECT_EQ(clitest::count(logs, "\"out\":\"" + dir / ("one/" + std::string(name)) + "\""), 1u)
+            << name << " is written once";
+        EXPECT_TRUE(clitest::sameVdbButUuid(
+            dir / ("one/" + std::string(name)), dir / ("alone" + std::to_string(taskOf[f]) + "/" + name)))
+            << name << " differs from its task run alone";
+    }
+    EXPECT_EQ(clitest::listing(dir / "one"),
+        (std::vector<std::string>{"o.0001.vdb", "o.0002.vdb", "o.0003.vdb", "o.0004.vdb", "o.0005.vdb", "o.0006.vdb",
+            "o.0007.vdb", "o.0008.vdb", "o.0009.vdb", "o.resume-state-3-even.vdb", "o.resume-state-3-odd.vdb",
+            "o.resume-state-6-even.vdb", "o.resume-state-6-odd.vdb", "o.resume-state-8-even.vdb",
+            "o.resume-state-8-odd.vdb", "o.resume-state-even.vdb", "o.resume-state-odd.vdb"}))
+        << "the frames and each task's resume states: no temporary file, no lock file";
 }
 
 // Issue 49: a file holding 10,000 grids. `info` read every grid for its value range and kept each (the guarded

@@ -89,7 +89,7 @@ std::string checkOutputs(const std::string& out, int code, int badFrame)
         }
         const std::regex numbered(R"(\w\.(\d{4})\.(vdb|png|nvdb))");
         // transfer's exact resume state beside frames written in half floats or trimmed (its default): whole too.
-        const std::regex state(R"(\w\.resume-state-(odd|even)\.vdb)");
+        const std::regex state(R"(\w\.resume-state-(-?\d+-)?(odd|even)\.vdb)");
         std::smatch m;
         if (std::regex_match(name, state)) {
             try {

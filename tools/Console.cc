@@ -413,6 +413,20 @@ void requestInterrupt() { gInterrupted = true; }
 
 void setOutputHooks(const OutputHooks* hooks) { gHooks = hooks; }
 
+void testKillPoint(const std::string& where, int frame)
+{
+    static const std::pair<std::string, int> at = [] {
+        const char* env = std::getenv("VDBTURB_TEST_KILL_AT");
+        const std::string s = env ? env : "";
+        const size_t colon = s.rfind(':');
+        if (colon == std::string::npos) return std::pair<std::string, int>();
+        return std::pair<std::string, int>(s.substr(0, colon), std::atoi(s.c_str() + colon + 1));
+    }();
+    if (at.first.empty() || at.first != where || at.second != frame) return;
+    ::kill(::getpid(), SIGKILL); // delivered before kill() returns
+    for (;;) ::pause();
+}
+
 bool stderrIsTty()
 {
     static const bool tty = ::isatty(STDERR_FILENO) == 1;
@@ -580,6 +594,7 @@ void ConsoleProgress::begin(const std::string& step)
 
 void ConsoleProgress::update(double fraction)
 {
+    testKillPoint(mStep, mFrame);
     mFraction = fraction;
     const auto now = std::chrono::steady_clock::now();
     if (now - mLastDraw > std::chrono::milliseconds(100)) draw();

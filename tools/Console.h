@@ -177,6 +177,13 @@ std::string alignColumns(const std::vector<std::vector<std::string>>& rows, cons
 /// Logs `warning` once per process for each distinct `key` (conventions assumed, conversions made).
 void warnOnce(const std::string& key, const std::string& warning);
 
+/// Test hook for tests/test_faults.cc and bench/kill_resume.sh: with VDBTURB_TEST_KILL_AT=WHERE:FRAME the process
+/// sends itself SIGKILL when it reaches `where` of frame `frame` (kill -9 at a reproducible point). The places:
+/// a step's name (e.g. "seams": in the middle of that step, at its first progress update after the step began),
+/// "after-state" (transfer: the frame's resume state written, the frame not yet) and "after-frame" (the frame in
+/// place under its final name, the next one not begun). Unset (every real run), it costs one getenv per process.
+void testKillPoint(const std::string& where, int frame);
+
 /// True when stderr is a terminal (progress bar) rather than a farm log (one line per frame).
 bool stderrIsTty();
 

@@ -545,7 +545,17 @@ std::string tasksScript(const FarmArgs& a, const Plan& p)
            "  75|130|137|143) ;;\n"
            "  *) exit $rc ;;\n"
            "esac\n"
-           "if [ \"${SLURM_RESTART_COUNT:-0}\" -lt " +
+           "# A stop by Slurm itself (scancel, scontrol requeue, the time limit) signals this shell too, which then\n"
+           "# ends with vdbturb; should it outlive it, the job is COMPLETING: a cancel must stick, and Slurm requeues\n"
+           "# by itself what it requeues. Only a task that is still RUNNING (vdbturb killed alone: the OOM killer,\n"
+           "# kill -9) requeues itself.\n"
+           "state=$(squeue -h -j \"${SLURM_ARRAY_JOB_ID}_${SLURM_ARRAY_TASK_ID}\" -o %T 2>/dev/null)\n"
+           "if [ \"$state\" != RUNNING ]; then\n"
+           "  echo \"farm: " +
+           w +
+           " $SLURM_ARRAY_TASK_ID not requeued by its script: the job is ${state:-unknown to squeue} (stopped by "
+           "Slurm)\" >&2\n"
+           "elif [ \"${SLURM_RESTART_COUNT:-0}\" -lt " +
            std::to_string(a.retries) +
            " ]; then\n"
            "  echo \"farm: " +

@@ -63,6 +63,9 @@ struct TransferArgs
     std::string tileBox; ///< "X0,Y0,Z0,X1,Y1,Z1": hold only this box of the target (a space tile and its halo)
     turbio::WriteOptions write = upResWriteDefaults();
     turb::TransferSettings settings;
+    /// Set by planFrames: "F-" when the requested frames begin at F, after the cache's first frame (a task of a
+    /// shot's frames, which may write into one folder beside others): it goes into the resume state's file names.
+    std::string stateTag;
 };
 
 // The source's frequency split and its candidate patches near the smoke's edge reach a few *coarse* voxels past
@@ -141,16 +144,20 @@ double velocityBoxVoxels(const turbio::FrameScan& fr)
 // turns, odd and even frames, each written before its frame: whichever write a kill cuts, the state of the last
 // whole frame survives. Two frames' disk, not the sequence's. "up/turb.####.vdb" keeps "up/turb.resume-state-odd.vdb"
 // and "-even", visible names that no frame pattern takes (a hidden file was picked up by publish tools unseen). None
-// for a single unnumbered file.
-std::string resumeStatePath(const turbio::FramePattern& out, const turbio::WriteOptions& w, double timeUnit, int frame)
+// for a single unnumbered file. A run whose frames begin after the cache's first frame, F, names them
+// "turb.resume-state-F-odd.vdb": tasks on other frames of the shot, writing into one folder at once, each keep
+// their own (with one pair, each overwrote the others' and a killed task resumed approximately). The slot a frame
+// writes is stateSlot's: its parity's, unless the frame before took that one.
+std::string resumeStatePath(const turbio::FramePattern& out, const TransferArgs& a, double timeUnit, int frame)
 {
+    const turbio::WriteOptions& w = a.write;
     // A Houdini-style frame holds velocity per second: scaling a Blender target's time unit back is not exact.
     const bool lossy = w.velocityMargin >= 0 || w.halfFloat || w.velocityVoxelScale > 1 || !w.writeVelocity ||
                        w.style == turbio::WriteStyle::Blender || timeUnit != 1.0;
     // NanoVDB output cannot be resumed (checkOutputFormat): no state to keep.
     const bool nano = turbio::outputFormatFor(out.format(0), w.format) == turbio::OutputFormat::NanoVdb;
     if (!lossy || !out.numbered() || nano) return {};
-    return out.prefix() + ((frame & 1) ? "resume-state-odd" : "resume-state-even") + out.suffix();
+    return out.prefix() + "resume-state-" + a.stateTag + ((frame & 1) ? "odd" : "even") + out.suffix();
 }
 
 // Everything the run needs, checked before its first frame (and all a dry run does): every target and source
@@ -292,8 +299,8 @@ turb::CoordBBox preflight(const TransferArgs& a, const turbio::Sequence& target,
               turbio::formatBytes(totalBytes) + " for " + std::to_string(targetFrames.size()) + " frame" +
               (targetFrames.size() == 1 ? "" : "s"));
     const double unit = ts.frames.front().timing.timeUnit;
-    if (const std::string odd = resumeStatePath(outPattern, a.write, unit, 1); !odd.empty())
-        printData("resume state: " + odd + " and " + resumeStatePath(outPattern, a.write, unit, 0) + ", about " +
+    if (const std::string odd = resumeStatePath(outPattern, a, unit, 1); !odd.empty())
+        printData("resume state: " + odd + " and " + resumeStatePath(outPattern, a, unit, 0) + ", about " +
                   turbio::formatBytes(stateBytes) + " each (odd and even frames in full precision, for --resume)");
 
     // The source is matched at the ratio's voxel: a non-integer ratio resamples it first.
@@ -463,6 +470,7 @@ struct FramePlan
     std::vector<int> sourceFor; ///< per target frame (pre-roll included): the source frame it reads
     size_t first = 0;           ///< the first frame to process (a resume skips those written)
     size_t writeFrom = 0;       ///< frames before this index are pre-roll: processed, not written
+    std::string stateTag;       ///< TransferArgs::stateTag
 };
 
 // The source frame of every target frame, as --source-offset and --source-wrap map them.
@@ -573,6 +581,11 @@ FramePlan planFrames(const TransferArgs& a)
         throw UsageError("--out '" + a.out + "' has no frame token (####, %04d, $F4) but " +
                          std::to_string(p.target.frames.size()) + " frames are requested");
     p.sourceFor = sourceFrames(a, p.target.frames, p.source);
+    if (!a.frames.empty() && !p.target.frames.empty() && p.out.numbered()) {
+        const turbio::Sequence whole = turbio::resolveSequence(a.target);
+        if (!whole.frames.empty() && p.target.frames.front() > whole.frames.front())
+            p.stateTag = std::to_string(p.target.frames.front()) + "-";
+    }
     logInfo("transfer: target " + p.target.pattern.str() + " frames " + turbio::formatFrameList(p.target.frames) +
             ", source " + p.source.pattern.str() + " frames " + turbio::formatFrameList(p.source.frames) +
             (p.source.frames.size() < p.target.frames.size() ? " (" + wrapName(a.wrap) + ")" : ""));
@@ -586,8 +599,9 @@ FramePlan planFrames(const TransferArgs& a)
     return p;
 }
 
-// Continues after the last frame already written, from the state saved with it.
-void restoreFromLastWritten(const TransferArgs& a, const FramePlan& p, turb::TurbulenceTransfer& transfer)
+// Continues after the last frame already written, from the state saved with it. Returns the name of the state file
+// that frame names (empty when none), which the next frame's state must not overwrite.
+std::string restoreFromLastWritten(const TransferArgs& a, const FramePlan& p, turb::TurbulenceTransfer& transfer)
 {
     const int prev = p.target.frames[p.first - 1];
     const std::string prevPath = p.out.format(prev);
@@ -610,6 +624,8 @@ void restoreFromLastWritten(const TransferArgs& a, const FramePlan& p, turb::Tur
         throw turb::IoError(prevPath + ": cannot resume from this frame: damaged vdbturb_state (" + e.what() + ")");
     }
     logInfo("resume: continuing after frame " + std::to_string(prev));
+    const auto named = prevOut.metadata.find(turb::meta::kResumeStateFile);
+    return named == prevOut.metadata.end() ? std::string() : named->second;
 }
 
 // What an output frame records about how it was made: resume state, settings, inputs and framing.
@@ -630,6 +646,17 @@ void tagOutput(turb::Frame& frame, const TransferArgs& a, const FramePlan& p, si
             << sequenceDomain.max().x() << ' ' << sequenceDomain.max().y() << ' ' << sequenceDomain.max().z();
         frame.metadata[turb::meta::kSequenceDomain] = box.str();
     }
+}
+
+// The state slot frame `frame` writes: its parity's, or the other one when the frame written before it (whose state
+// file name is `previous`) took that. Frames that step by 2 (every one odd) would otherwise overwrite the state of the
+// last whole frame before their own write: a kill in that write then resumed approximately.
+std::string stateSlot(
+    const turbio::FramePattern& out, const TransferArgs& a, double timeUnit, int frame, const std::string& previous)
+{
+    const std::string own = resumeStatePath(out, a, timeUnit, frame);
+    if (own.empty() || std::filesystem::path(own).filename().string() != previous) return own;
+    return resumeStatePath(out, a, timeUnit, frame + 1);
 }
 
 // Writes, for small (lossy) outputs, the full-precision state into the frame's slot (resumeStatePath), then the
@@ -653,6 +680,7 @@ void writeOutput(turb::Frame& frame, int t, const TransferArgs& a, const std::st
         frame.temperature = std::move(temperature);
         frame.flame = std::move(flame);
         frame.metadata[turb::meta::kResumeStateFile] = std::filesystem::path(statePath).filename().string();
+        testKillPoint("after-state", t);
     }
     turbio::writeFrame(outPath, frame, a.write);
 }
@@ -764,6 +792,7 @@ int runTransfer(TransferArgs& a)
         a.targetRead.holdBox = turb::parseTileBox(a.tileBox);
     }
     FramePlan p = planFrames(a);
+    a.stateTag = p.stateTag;
     defaultMargins(a, p.target, p.source, p.sourceFor);
     logVerbose("source crop margin: " + std::to_string(a.sourceRead.cropMargin) + " source voxels");
     const turb::CoordBBox sequenceDomain = preflight(a, p.target, p.source, p.sourceFor, p.out, p.writeFrom);
@@ -790,7 +819,8 @@ int runTransfer(TransferArgs& a)
         logInfo("resume: every requested frame already exists (made with these settings); nothing to do");
         return kOk;
     }
-    if (a.resume && p.first > 0) restoreFromLastWritten(a, p, transfer);
+    std::string lastStateFile; // the state file the last frame written names: the next frame writes the other
+    if (a.resume && p.first > 0) lastStateFile = restoreFromLastWritten(a, p, transfer);
     if (a.write.style == turbio::WriteStyle::Blender && a.velocityMargin && a.velocityMargin->count() > 0 &&
         a.write.velocityMargin >= 0)
         logWarning("--velocity-margin " + std::to_string(a.write.velocityMargin) +
@@ -823,8 +853,8 @@ int runTransfer(TransferArgs& a)
         const auto [tf, sf] = ahead.get();
         if (i == p.first) {
             targetUnit = tf.timeUnit;
-            if (const std::string odd = resumeStatePath(p.out, a.write, targetUnit, 1); !odd.empty())
-                logInfo("resume state: " + odd + " and " + resumeStatePath(p.out, a.write, targetUnit, 0) +
+            if (const std::string odd = resumeStatePath(p.out, a, targetUnit, 1); !odd.empty())
+                logInfo("resume state: " + odd + " and " + resumeStatePath(p.out, a, targetUnit, 0) +
                         " (odd and even frames in full precision, for --resume; not frames of the shot)");
         }
         if (i + 1 < p.target.frames.size()) ahead = std::async(std::launch::async, readInputs, i + 1);
@@ -847,7 +877,9 @@ int runTransfer(TransferArgs& a)
         progress.begin("writing");
         const std::string outPath = p.out.format(t);
         const nlohmann::json extra = frameJson(r, outPath, p.sourceFor[i]);
-        writeOutput(r.frame, t, a, outPath, resumeStatePath(p.out, a.write, targetUnit, t), warnedClipping);
+        const std::string statePath = stateSlot(p.out, a, targetUnit, t, lastStateFile);
+        writeOutput(r.frame, t, a, outPath, statePath, warnedClipping);
+        if (!statePath.empty()) lastStateFile = std::filesystem::path(statePath).filename().string();
         progress.clear();
         if (r.stats.sourceResampled && i == p.first)
             logInfo("source resampled trilinearly from ratio " + fmt("%.4g", r.stats.sourceRatio) + " to " +
@@ -855,6 +887,7 @@ int runTransfer(TransferArgs& a)
                     ")");
         logFrameDetails(r, t);
         report.frameDone(t, int(i), count, secondsSince(t0), frameLine(r, outPath), extra);
+        testKillPoint("after-frame", t);
     }
     report.finish();
     return kOk;

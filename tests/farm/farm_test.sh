@@ -18,18 +18,8 @@ same_content() {
   [ "$(head -c 21 "$1" | od -An -tx1)" = "$(head -c 21 "$2" | od -An -tx1)" ] && tail -c +58 "$1" > "$W/.a" &&
     tail -c +58 "$2" > "$W/.b" && cmp -s "$W/.a" "$W/.b"
 }
-if [ "$MODE" = slurm ]; then
-  for p in slurmctld slurmd munged sbatch squeue scontrol; do
-    if ! command -v "$p" >/dev/null 2>&1; then
-      echo "SKIP: $p not found: install slurm-wlm and munge (tools/setup-debian12.sh) to run the Slurm cluster test"
-      exit 77
-    fi
-  done
-  if [ "$(id -u)" != 0 ]; then
-    echo "SKIP: the one-node Slurm cluster test starts munged, slurmctld and slurmd as root"
-    exit 77
-  fi
-fi
+. "$HERE/slurm_cluster.sh"
+[ "$MODE" != slurm ] || require_cluster
 command -v python3 >/dev/null || { echo "SKIP: python3 is needed to read measure's JSON"; exit 77; }
 rm -rf "$W"
 mkdir -p "$W"
@@ -65,63 +55,7 @@ if [ "$MODE" = local ]; then
   for k in 0 1; do SLURM_ARRAY_TASK_ID=$k sh "$W/tiles/tiles.sbatch" 2>>"$W/tiles/logs/tile_$k.log"; done
   sh "$W/tiles/join.sbatch" 2>>"$W/tiles/logs/join.log"
 else
-  D="$W/cluster"
-  mkdir -p "$D/state" "$D/spool"
-  HOST=$(hostname -s)
-  # Ports away from the defaults (6817/6818), so that a real Slurm on the machine is not disturbed.
-  BASE=$(( 20000 + $$ % 20000 ))
-  cleanup() {
-    for f in "$D/slurmd.pid" "$D/slurmctld.pid" "$D/munged.pid"; do
-      [ -f "$f" ] && kill "$(cat "$f")" 2>/dev/null || true
-    done
-  }
-  trap cleanup EXIT INT TERM
-  mungekey -c -k "$D/munge.key" >/dev/null 2>&1 || dd if=/dev/urandom of="$D/munge.key" bs=1024 count=1 2>/dev/null
-  chmod 600 "$D/munge.key"
-  munged --force --key-file="$D/munge.key" --socket="$D/munge.socket" --pid-file="$D/munged.pid" \
-    --log-file="$D/munged.log" --seed-file="$D/munge.seed"
-  cat > "$D/slurm.conf" <<CONF
-ClusterName=vdbturbtest
-SlurmctldHost=$HOST(127.0.0.1)
-SlurmctldPort=$BASE
-SlurmdPort=$((BASE + 1))
-SlurmUser=root
-SlurmdUser=root
-AuthType=auth/munge
-AuthInfo=socket=$D/munge.socket
-CredType=cred/munge
-StateSaveLocation=$D/state
-SlurmdSpoolDir=$D/spool
-SlurmctldPidFile=$D/slurmctld.pid
-SlurmdPidFile=$D/slurmd.pid
-SlurmctldLogFile=$D/slurmctld.log
-SlurmdLogFile=$D/slurmd.log
-ProctrackType=proctrack/linuxproc
-TaskPlugin=task/none
-SelectType=select/cons_tres
-SelectTypeParameters=CR_Core
-SchedulerType=sched/backfill
-SwitchType=switch/none
-MpiDefault=none
-JobCompType=jobcomp/none
-JobAcctGatherType=jobacct_gather/none
-AccountingStorageType=accounting_storage/none
-ReturnToService=2
-SlurmdParameters=config_overrides
-MinJobAge=600
-NodeName=$HOST NodeAddr=127.0.0.1 CPUs=4 RealMemory=4000 State=UNKNOWN
-PartitionName=farmtest Nodes=$HOST Default=YES MaxTime=INFINITE State=UP
-CONF
-  export SLURM_CONF="$D/slurm.conf"
-  slurmctld -c -f "$D/slurm.conf"
-  slurmd -f "$D/slurm.conf"
-  i=0
-  until sinfo -h -o %T 2>/dev/null | grep -q idle; do
-    i=$((i + 1))
-    if [ $i -gt 60 ]; then echo "FAIL: the node did not come up"; sinfo || true; tail -20 "$D/slurmctld.log" "$D/slurmd.log"; exit 1; fi
-    sleep 0.5
-  done
-  echo "cluster up: $(sinfo -h -o '%P %D %T %c')"
+  start_cluster "$W/cluster"
   "$BIN" farm submit --dir "$W/farm" --json > "$W/submitted.json"
   "$BIN" farm submit --dir "$W/tiles" --json > "$W/tiles_submitted.json"
   TJOIN=$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['join_job'])" "$W/tiles_submitted.json")
@@ -135,14 +69,7 @@ CONF
       exit 1
     fi
     # Slurm holds a requeued job about two minutes before it is eligible again; an operator may release it sooner.
-    # Not at once: a task started within a second of its requeue can find its old job credential still being
-    # revoked, and Slurm then fails it for good ("Job credential revoked"). Five seconds later, once per task.
-    squeue -h -t PD -o "%i %r" | while read -r id why; do
-      if [ "$why" = BeginTime ] && ! grep -qx "$id" "$W/released" 2>/dev/null; then
-        echo "$id" >> "$W/released"
-        scontrol update jobid="$id" StartTime=now+5 && echo "released requeued task $id (in 5 s)"
-      fi
-    done
+    release_requeued "$W/released"
     sleep 0.5
   done
   tstate=$(scontrol -o show job "$TJOIN" | sed -n 's/.*JobState=\([A-Z_]*\).*/\1/p')
