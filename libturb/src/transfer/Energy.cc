@@ -240,8 +240,10 @@ size_t limitVorticity(VectorField& detail, const VectorField& Ut, const ScalarFi
                     for (int dk = -r; dk <= r; ++dk)
                         if (b.isInside(c + Coord(di, dj, dk))) fn(c + Coord(di, dj, dk));
         };
-        for (const auto& [n, g] : hot)
-            around(detail.coordOf(n), 1, [&](const Coord& q) { least[q] = std::min(least[q], g); });
+        for (const auto& h : hot) {
+            const float g = h.second; // a named copy: clang-14 does not capture structured bindings
+            around(detail.coordOf(h.first), 1, [&](const Coord& q) { least[q] = std::min(least[q], g); });
+        }
         std::vector<uint8_t> done(detail.size(), 0);
         for (const auto& [n, g] : hot)
             around(detail.coordOf(n), 2, [&](const Coord& q) {
