@@ -45,6 +45,12 @@ TEST(FramePattern, NegativeFramesCountTheSignInTheWidthAndMatchEitherPadding)
     EXPECT_EQ(FramePattern::fromFileName("smoke_-7.vdb")->second, -7);
     // A '-' after a letter separates: Blender's own example sequence is smoke-000.vdb, smoke-001.vdb, ...
     EXPECT_EQ(FramePattern::fromFileName("smoke-001.vdb")->second, 1);
+    // There is no frame -0: a '-' before zeros alone is text, so the name formats back to itself (fuzz_frame_pattern).
+    const auto zero = FramePattern::fromFileName("x.-000.vdb");
+    ASSERT_TRUE(zero);
+    EXPECT_EQ(zero->second, 0);
+    EXPECT_EQ(zero->first.format(zero->second), "x.-000.vdb");
+    EXPECT_EQ(zero->first.format(7), "x.-007.vdb");
 }
 
 TEST(FramePattern, PrintfHoudiniAndAtTokens)

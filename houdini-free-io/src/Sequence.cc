@@ -148,9 +148,12 @@ std::optional<std::pair<FramePattern, int>> FramePattern::fromFileName(const std
         (begin - 1 == nameStart || !std::isalnum(static_cast<unsigned char>(path[begin - 2]))))
         return std::nullopt;
     // A minus sign: "smoke.-001.vdb" (Houdini's $F4 at frame -1, printf's %04d) is frame -1, the sign counted in the
-    // width. A '-' after a letter or digit separates ("smoke-001.vdb" is frame 1, as in Blender's own examples).
+    // width. A '-' after a letter or digit separates ("smoke-001.vdb" is frame 1, as in Blender's own examples), and
+    // so does one before zeros alone: there is no frame -0, and "x.-000.vdb" read as frame 0 would be named
+    // "x.0000.vdb" (found by fuzz_frame_pattern).
     const bool negative = begin > nameStart && path[begin - 1] == '-' &&
-                          (begin - 1 == nameStart || !std::isalnum(static_cast<unsigned char>(path[begin - 2])));
+                          (begin - 1 == nameStart || !std::isalnum(static_cast<unsigned char>(path[begin - 2]))) &&
+                          digits.find_first_not_of('0') != std::string::npos;
     FramePattern p;
     p.mPrefix = path.substr(0, negative ? begin - 1 : begin);
     p.mSuffix = path.substr(end);
