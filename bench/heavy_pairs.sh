@@ -46,7 +46,8 @@ cpu_time() {
 # The target with Blender's noise: its base sim is the transfer's target, its noise the comparison.
 noise_bake() {
     rm -rf "$WORK/target"
-    cpu_time blender -b --factory-startup --python "$SCENES/plume_noise.py" -- "$WORK/target" "$FRAMES" 8 24 0 1.0 4
+    # In WORK: Blender's noise writes its waveletNoiseTile.bin into the current folder.
+    cd "$WORK" && cpu_time blender -b --factory-startup --python "$SCENES/plume_noise.py" -- "$WORK/target" "$FRAMES" 8 24 0 1.0 4
 }
 source_bake() { # source_bake NAME SPEED RADIUS
     dir="$WORK/$1"
