@@ -35,12 +35,7 @@ VDBTURB=$(readlink -f "$VDBTURB")
 rm -rf "$WORK"
 mkdir -p "$WORK/logs"
 log() { printf 'concurrent-tasks: %s\n' "$*" >&2; }
-now() { date +%s.%N; }
-since() { awk -v a="$1" -v b="$(now)" 'BEGIN { printf "%.1f", b - a }'; }
-same_content() {
-    [ "$(head -c 21 "$1" | od -An -tx1)" = "$(head -c 21 "$2" | od -An -tx1)" ] &&
-        [ "$(tail -c +58 "$1" | cksum)" = "$(tail -c +58 "$2" | cksum)" ]
-}
+. "$ROOT/bench/timing_compare.sh" # now, since, same_content
 TASKS="1-8 9-15 16-23 24-30"
 task_args() { # $1 = frames: the --frames and --preroll of the task
     case "$1" in 1-*) echo "--frames $1" ;; *) echo "--frames $1 --preroll $PREROLL" ;; esac

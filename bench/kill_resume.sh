@@ -43,14 +43,7 @@ VDBTURB=$(readlink -f "$VDBTURB")
 rm -rf "$WORK"
 mkdir -p "$WORK/logs"
 log() { printf 'kill-resume: %s\n' "$*" >&2; }
-now() { date +%s.%N; }
-since() { awk -v a="$1" -v b="$(now)" 'BEGIN { printf "%.1f", b - a }'; }
-# Two VDB files hold the same grids and metadata when all their bytes but the header's random UUID (36 characters
-# from byte 22) agree.
-same_content() {
-    [ "$(head -c 21 "$1" | od -An -tx1)" = "$(head -c 21 "$2" | od -An -tx1)" ] &&
-        [ "$(tail -c +58 "$1" | cksum)" = "$(tail -c +58 "$2" | cksum)" ]
-}
+. "$ROOT/bench/timing_compare.sh" # now, since, same_content
 # The frames in folder $1 that are not the reference's, and the files beside them that are neither frames, state
 # files, temporary files nor the lock: "bad=N other=M temps=K frames=F".
 check_folder() {
