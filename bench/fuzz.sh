@@ -18,10 +18,12 @@ here=$(cd "$(dirname "$0")/.." && pwd)
 build="$here/build-fuzz"
 work="${TMPDIR:-/tmp}/vdbturb-fuzz"
 seconds=600
+timeout=30
 targets=""
 while [ $# -gt 0 ]; do
   case "$1" in
     --time) seconds=$2; shift 2 ;;
+    --timeout) timeout=$2; shift 2 ;; # seconds one input may take (libFuzzer -timeout); raise it on a busy machine
     --build) build=$2; shift 2 ;;
     --work) work=$2; shift 2 ;;
     -h|--help) sed -n '2,16p' "$0"; exit 0 ;;
@@ -68,7 +70,7 @@ for t in $targets; do
   # A plain run stops at the first crash. -malloc_limit_mb is lifted because the guarded reader's forked child
   # inherits libFuzzer's malloc hooks: a damaged size field there is the child's (bounded) problem, not a finding.
   VDBTURB_FUZZ_DIR="$work" "$build/tests/fuzz/fuzz_$t" "$corpus" "$seeds" -max_total_time="$seconds" \
-    -timeout=30 -rss_limit_mb=4096 -malloc_limit_mb=1000000 -max_len=400000 -print_final_stats=1 -artifact_prefix="$crashes/" >"$log" 2>&1 || true
+    -timeout="$timeout" -rss_limit_mb=4096 -malloc_limit_mb=1000000 -max_len=400000 -print_final_stats=1 -artifact_prefix="$crashes/" >"$log" 2>&1 || true
   execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -1)
   cov=$(grep -o 'cov: [0-9]*' "$log" | tail -1 | cut -d' ' -f2)
   ft=$(grep -o 'ft: [0-9]*' "$log" | tail -1 | cut -d' ' -f2)
