@@ -625,6 +625,14 @@ struct FrameWriter
         const auto tw = std::chrono::steady_clock::now();
         const int number = a.start + f.index;
         const std::string path = outPattern.format(number);
+        // A frame --skip-existing leaves as it is was made all the same: --measure and --sheet still see it.
+        if (measures.outTemporal) {
+            measures.outTemporal->add(f.image);
+            measures.outLuma.push_back(turb::luminance(f.image));
+        }
+        const std::vector<int> sheetFrames{0, count / 3, 2 * count / 3, count - 1};
+        if (!a.sheet.empty() && std::find(sheetFrames.begin(), sheetFrames.end(), f.index) != sheetFrames.end())
+            sheet.outputs.emplace_back(number, picture(f.image));
         if (plan.skipped(size_t(f.index))) {
             report.frameSkipped(number, f.index, count, f.seconds + secondsSince(tw), path, false);
             return;
@@ -640,13 +648,6 @@ struct FrameWriter
         wo.noClobber = a.noClobber;
         wo.metadata = frameMetadata("animate", settings);
         turbio::writeImage(path, img, wo);
-        if (measures.outTemporal) {
-            measures.outTemporal->add(f.image);
-            measures.outLuma.push_back(turb::luminance(f.image));
-        }
-        const std::vector<int> sheetFrames{0, count / 3, 2 * count / 3, count - 1};
-        if (!a.sheet.empty() && std::find(sheetFrames.begin(), sheetFrames.end(), f.index) != sheetFrames.end())
-            sheet.outputs.emplace_back(number, picture(f.image));
         nlohmann::json extra{
             {"out", path}, {"example_index", f.exampleIndex}, {"mean_error", f.meanError}, {"std_error", f.stdError}};
         // Without histogram matching there are no cells: no per-cell numbers rather than a misleading 0.
