@@ -38,7 +38,11 @@ if [ ! -f "$build/build.ninja" ]; then
   CC=clang-14 CXX=clang++-14 cmake -S "$here" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release \
     -DVDBTURB_BUILD_FUZZERS=ON -DVDBTURB_BUILD_TESTS=OFF -DVDBTURB_BUILD_TOOLS=OFF >/dev/null
 fi
-for t in $targets; do cmake --build "$build" -j2 --target "fuzz_$t" >/dev/null; done
+mkdir -p "$work"
+for t in $targets; do
+  cmake --build "$build" -j2 --target "fuzz_$t" >"$work/build.log" 2>&1 ||
+    { tail -20 "$work/build.log" >&2; echo "fuzz.sh: building fuzz_$t failed (all of it in $work/build.log)" >&2; exit 1; }
+done
 
 seed() { # seed TARGET DIR
   mkdir -p "$2"
