@@ -2,7 +2,7 @@
 # The dry run's time estimate (turb::transferSecondsPerFrame): fits s/frame = c0 + c1 x output voxels + c2 x source
 # voxels to every frame of a few transfers of different sizes and ratios, and prints the fit, each pair's measured
 # and predicted total, and the worst frame's ratio. Run on an idle 2-core machine; record the result in
-# docs/performance.md ("Time estimate") and the constants in libturb/src/Budget.cc.
+# docs/performance.md ("Time estimate") and the constants in libturb/src/core/Budget.cc.
 #   bench/time_model.sh [--vdbturb BIN] [--work DIR]
 set -eu
 cd "$(dirname "$0")/.."

@@ -3,7 +3,7 @@
 #include <turb/Transfer.h>
 
 #include "Stages.h"
-#include "../Timing.h"
+#include "../core/Timing.h"
 
 #include <turb/Error.h>
 #include <turb/Measure.h>

@@ -1,6 +1,6 @@
 #include <turb/SynthSequence.h>
 
-#include "Timing.h"
+#include "../core/Timing.h"
 
 #include <turb/Error.h>
 #include <turb/Operators.h>
