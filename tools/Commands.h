@@ -12,6 +12,8 @@
 #include <turb/Error.h>
 #include <turbio/Vdb.h>
 
+#include "Validators.h"
+
 namespace vdbturb {
 
 struct Command
@@ -65,27 +67,10 @@ auto readingAs(const std::string& prefix, Read&& read) -> decltype(read())
     }
 }
 
-/// A CLI check that runs `parse` on the option's text when the command line is parsed, so text it throws on is a
-/// usage error (exit 2) with its message, like any other malformed option. `name` is the type shown in --help.
-CLI::Validator parsedBy(std::function<void(const std::string&)> parse, const std::string& name);
-
-/// Checks a frame list ("1001-1100x2,1200") when the command line is parsed, so a bad one is a usage error
-/// (exit 2) naming the bad piece, like any other malformed option.
-CLI::Validator frameListCheck();
-
 /// Warns (once per run, through `warned`) when `options.densityTolerance` (--clipping) is at or above every density
 /// value of a frame that holds smoke: its density grid would be written empty.
 void warnIfClippedAway(
     const turb::Frame& frame, const turbio::WriteOptions& options, const std::string& path, bool& warned);
-
-/// Reads the whole of `s` as a number (NaN and inf included); false when it is not one.
-bool parseNumber(const std::string& s, double& v);
-/// A CLI check for a finite number in [lo, hi] (CLI11's own number checks let NaN through).
-CLI::Validator finiteIn(double lo, double hi = 1e30);
-/// A transform that turns a ratio "N/D" (24000/1001) into its value, for a range check after it.
-CLI::Validator rationalNumber();
-/// A finite number > 0 (CLI11's PositiveNumber lets NaN through and prints DBL_MAX in full in its message).
-CLI::Validator finitePositive();
 
 /// Adds --style, --no-clobber, --half and --clipping for writing caches.
 void addWriteOptions(CLI::App* app, turbio::WriteOptions& opt);

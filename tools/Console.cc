@@ -1,6 +1,6 @@
 #include "Console.h"
 
-#include "Commands.h"
+#include "Validators.h"
 
 #include <turb/Error.h>
 #include <turbio/Sequence.h>

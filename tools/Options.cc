@@ -1,0 +1,245 @@
+// The options several commands share: read and write options, and error messages in the command line's words.
+#include "Commands.h"
+#include "Console.h"
+
+#include <turb/Error.h>
+#include <turbio/NanoVdb.h>
+#include <turbio/Sequence.h>
+#include <turbio/System.h>
+#include <turbio/Vdb.h>
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+namespace vdbturb {
+
+void warnIfClippedAway(
+    const turb::Frame& frame, const turbio::WriteOptions& options, const std::string& path, bool& warned)
+{
+    if (warned || !(options.densityTolerance > 0.0f) || !frame.hasDensity()) return;
+    const auto& v = frame.density.values();
+    const float peak = v.empty() ? 0.0f : *std::max_element(v.begin(), v.end());
+    if (!(peak > 0.0f) || peak > options.densityTolerance) return;
+    warned = true;
+    std::ostringstream os;
+    os << path << ": --clipping " << options.densityTolerance << " is at or above every density value (peak " << peak
+       << "): the density grid is written empty";
+    logWarning(os.str());
+}
+
+void addReadOptions(CLI::App* app, turbio::ReadOptions& opt, const std::string& prefix)
+{
+    const std::string p = prefix.empty() ? "--" : "--" + prefix + "-";
+    // An empty name cannot select an unnamed grid (it means "the default" everywhere else): say what does.
+    const auto selector = [p](const char* what) {
+        return CLI::Validator(
+            [p, what](std::string& v) {
+                return v.empty() ? p + what +
+                                       " '': give a grid name, OpenVDB's NAME[N] ('[0]' is the first unnamed grid) "
+                                       "or '#N' (the N-th grid as `vdbturb info` lists them)"
+                                 : std::string();
+            },
+            "GRID");
+    };
+    app->add_option(p + "density-grid", opt.densityGrid,
+           "Density grid: NAME, NAME[N] or #N as `vdbturb info` numbers grids (docs/io.md); empty: density, "
+           "density_noise")
+        ->check(selector("density-grid"))
+        ->group(kGroupInput);
+    app->add_option(p + "vel-grid", opt.velocityGrid,
+           "Velocity grid: as --" + prefix + (prefix.empty() ? "" : "-") +
+               "density-grid, or the stem of NAME.x/.y/.z; empty: vel, velocity, v")
+        ->check(selector("vel-grid"))
+        ->group(kGroupInput);
+    app->add_option(p + "fps", opt.fps,
+           "Frames per second of the shot, for the default time per frame: 23.976 or 24000/1001 (0: 24, with a "
+           "warning)")
+        ->transform(rationalNumber())
+        ->check(finiteIn(0.0))
+        ->group(kGroupInput);
+    setting(addEnum<turbio::VelocityUnits>(app, p + "vel-units", opt.velocityUnits,
+                {{"auto", turbio::VelocityUnits::Auto}, {"world", turbio::VelocityUnits::World},
+                    {"cells", turbio::VelocityUnits::Cells}, {"frame", turbio::VelocityUnits::Frame}},
+                "Velocity units: world (per second), cells (grid cells per time unit, Blender), frame (world units per "
+                "frame), auto (detect)"),
+        p.substr(2) + "vel-units");
+    setting(
+        app->add_option(p + "dt", opt.dt,
+               "Time per frame in the velocity's time unit (0: from metadata or the writer's convention, docs/io.md)")
+            ->check(finiteIn(0.0)),
+        p.substr(2) + "dt");
+    setting(app->add_flag_function(
+                p + "no-crop", [&opt](int64_t) { opt.cropToSmoke = false; },
+                "Hold the grids' whole active boxes, stray voxels included (default: the smoke and a margin)"),
+        p.substr(2) + "no-crop");
+    // Strays a frame's read leaves out are said once per input, as the header scan's are (reportTiming's key): the
+    // scan sees them only where the density's box is far larger than its voxels.
+    const std::string role = prefix.empty() ? "cache" : prefix;
+    opt.strayNote = [role](const std::string& note) { warnOnce("strays " + role, role + " " + note); };
+    opt.readNote = [role](const std::string& path, const std::string& note) {
+        warnOnce("read note " + role + " " + note, role + " " + path + ": " + note);
+    };
+    setting(app->add_flag(p + "keep-isolated", opt.keepIsolated,
+                "Hold stray voxels far from the smoke (and a Blender cache's voxels outside its simulation box) "
+                "instead of ignoring them; the held box then spans them"),
+        p.substr(2) + "keep-isolated");
+    setting(app->add_option(p + "crop-margin", opt.cropMargin, "Voxels kept around the smoke when cropping")
+                ->check(finiteIn(0.0)),
+        p.substr(2) + "crop-margin");
+}
+
+turbio::WriteOptions upResWriteDefaults()
+{
+    turbio::WriteOptions w;
+    w.halfFloat = true;
+    w.velocityMargin = kVelocityMarginAuto;
+    return w;
+}
+
+void addVelocityWriteOptions(CLI::App* app, turbio::WriteOptions& opt)
+{
+    app->add_option("--velocity-margin", opt.velocityMargin,
+           "Write velocity only within N output voxels of the smoke (1 covers motion blur; re-advection needs about "
+           "the smoke's travel a frame); -1 = the whole box; auto (-2, the default) = one target voxel, the ratio: "
+           "measure's numbers then stay within 1% of the whole frame's. --resume stays exact")
+        ->transform(CLI::Transformer(std::map<std::string, int>{{"auto", kVelocityMarginAuto}}))
+        ->check(CLI::Validator(
+            [](std::string& text) -> std::string {
+                double v = 0.0;
+                const bool ok = parseNumber(text, v) && v == std::floor(v) && v >= kVelocityMarginAuto && v <= 64.0;
+                return ok ? std::string()
+                          : "must be auto, -1 (the whole box) or a number of voxels from 0 to 64, not '" + text + "'";
+            },
+            "auto|-1|0..64"))
+        ->group(kGroupOutput);
+    app->add_option("--vel-voxel-scale", opt.velocityVoxelScale,
+           "Write vel on an N times coarser lattice, each voxel its block's mean (Houdini's Velocity Voxel Scale): "
+           "an eighth of the velocity bytes at 2, enough for motion blur; measure then sees no finest-octave detail")
+        ->check(CLI::Range(1, 8))
+        ->group(kGroupOutput);
+    app->add_flag_function(
+           "--no-velocity", [&opt](int64_t) { opt.writeVelocity = false; },
+           "Write no velocity grid (density, temperature and flame only, as Blender's noise cache)")
+        ->group(kGroupOutput);
+}
+
+void addWriteOptions(CLI::App* app, turbio::WriteOptions& opt)
+{
+    addEnum<turbio::WriteStyle>(app, "--style", opt.style,
+        {{"houdini", turbio::WriteStyle::Houdini}, {"blender", turbio::WriteStyle::Blender}},
+        "Output grid convention: houdini (vel, world units) or blender (staggered vel in cells)")
+        ->group(kGroupOutput);
+    app->add_flag("--no-clobber", opt.noClobber, "Never replace an existing output file")->group(kGroupOutput);
+    app->add_flag("--half,!--full-float", opt.halfFloat,
+           std::string("Store floats as 16-bit halves (smaller files; ~3 significant digits), or as 32-bit floats (") +
+               (opt.halfFloat ? "default: --half" : "default: --full-float") + ")")
+        ->group(kGroupOutput);
+    app->add_option("--clipping", opt.densityTolerance,
+           "Density at or below this is written as empty space, as Blender's Clipping (0: every non-zero voxel)")
+        ->check(CLI::Validator(
+            [](std::string& text) -> std::string {
+                double v = 0.0; // CLI11's number checks let NaN through
+                return parseNumber(text, v) && std::isfinite(v) && v >= 0.0 ? std::string()
+                                                                            : "must be a finite density >= 0";
+            },
+            "DENSITY>=0"))
+        ->group(kGroupOutput);
+}
+
+void addFormatOptions(CLI::App* app, turbio::WriteOptions& opt)
+{
+    addEnum<turbio::OutputFormat>(app, "--format", opt.format,
+        {{"auto", turbio::OutputFormat::Auto}, {"vdb", turbio::OutputFormat::Vdb},
+            {"nanovdb", turbio::OutputFormat::NanoVdb}},
+        "Output file format: auto (by --out's extension: .nvdb is NanoVDB), vdb (OpenVDB) or nanovdb (NanoVDB, as GPU "
+        "renderers load it; docs/nanovdb.md)")
+        ->group(kGroupOutput);
+    addEnum<turbio::NanoQuantization>(app, "--nanovdb-quant", opt.nanoQuantization,
+        {{"float", turbio::NanoQuantization::Float}, {"fp16", turbio::NanoQuantization::Fp16},
+            {"fp8", turbio::NanoQuantization::Fp8}},
+        "NanoVDB float grids (density, temperature, flame): float (exact), fp16 or fp8 (16 or 8 bits a voxel, each 8^3 "
+        "leaf quantised over its range: off by at most range/131070 or range/510); vel is always Vec3f")
+        ->group(kGroupOutput);
+}
+
+void checkOutputFormat(const turbio::WriteOptions& w, const std::string& out, const std::string& resumeFlag)
+{
+    const bool nvdbName = turbio::outputFormatFor(out) == turbio::OutputFormat::NanoVdb;
+    if (w.format == turbio::OutputFormat::Vdb && nvdbName)
+        throw UsageError("--format vdb but --out '" + out + "' ends in .nvdb: give a .vdb name, or --format nanovdb");
+    if (w.format == turbio::OutputFormat::NanoVdb && !nvdbName && out.size() >= 4 &&
+        out.compare(out.size() - 4, 4, ".vdb") == 0)
+        throw UsageError("--format nanovdb but --out '" + out + "' ends in .vdb: give a .nvdb name");
+    const bool nano = turbio::outputFormatFor(out, w.format) == turbio::OutputFormat::NanoVdb;
+    if (!nano) {
+        if (w.nanoQuantization != turbio::NanoQuantization::Float)
+            throw UsageError(std::string("--nanovdb-quant ") + turbio::quantizationName(w.nanoQuantization) +
+                             " applies to NanoVDB output; --out '" + out +
+                             "' is written as OpenVDB (--half stores 16-bit floats there)");
+        return;
+    }
+    if (w.style == turbio::WriteStyle::Blender)
+        throw UsageError("--style blender cannot be written as NanoVDB (Blender's placement and domain live in "
+                         "metadata NanoVDB cannot hold; Blender reads OpenVDB): write .vdb, or the default style");
+    if (!resumeFlag.empty())
+        throw UsageError(resumeFlag +
+                         " needs the settings and state a frame records, and NanoVDB files hold no vdbturb metadata: "
+                         "write .vdb, and turn the finished frames into NanoVDB with vdbturb convert");
+}
+
+namespace {
+
+// The flags addReadOptions and addWriteOptions declare, by the ReadOptions / WriteOptions field they set (the names
+// turb::Error::settings and turbio::ReadReport use). A read option takes its prefix ("--target-vel-grid").
+struct SettingFlag
+{
+    const char* setting;
+    const char* flag;
+    bool read;
+};
+constexpr SettingFlag kSettingFlags[] = {{"densityGrid", "density-grid", true}, {"velocityGrid", "vel-grid", true},
+    {"velocityUnits", "vel-units", true}, {"dt", "dt", true}, {"cropToSmoke", "no-crop", true},
+    {"cropMargin", "crop-margin", true}, {"keepIsolated", "keep-isolated", true}, {"fps", "fps", true},
+    {"style", "style", false}, {"noClobber", "no-clobber", false}, {"halfFloat", "half", false},
+    {"densityTolerance", "clipping", false}, {"format", "format", false}, {"nanoQuantization", "nanovdb-quant", false}};
+
+bool isGridSelector(const std::string& setting)
+{
+    const std::string name = setting.substr(setting.find('.') + 1);
+    return name == "densityGrid" || name == "velocityGrid";
+}
+
+} // namespace
+
+std::string flagFor(const std::string& setting, const std::string& readPrefix)
+{
+    const size_t dot = setting.find('.');
+    const std::string name = dot == std::string::npos ? setting : setting.substr(dot + 1);
+    const std::string prefix = dot == std::string::npos ? readPrefix : setting.substr(0, dot);
+    for (const SettingFlag& f : kSettingFlags)
+        if (name == f.setting) return "--" + (f.read && !prefix.empty() ? prefix + "-" : std::string()) + f.flag;
+    return "";
+}
+
+std::string messageWithFlags(const turb::Error& e)
+{
+    std::string flags;
+    bool grids = true;
+    size_t count = 0;
+    for (const auto& s : e.settings()) {
+        const std::string flag = flagFor(s);
+        if (flag.empty()) continue;
+        flags += (flags.empty() ? "" : " / ") + flag;
+        grids = grids && isGridSelector(s);
+        ++count;
+    }
+    if (flags.empty()) return e.what();
+    // The message lists the file's grids, numbered: say how to pick one.
+    if (grids)
+        return std::string(e.what()) + (count == 1 ? " Use " : " Choose grids with ") + flags +
+               " NAME, or '#N' for the N-th grid listed here.";
+    return std::string(e.what()) + " (" + flags + ")";
+}
+
+} // namespace vdbturb
