@@ -14,7 +14,12 @@
 
 #include "Validators.h"
 
+#include <turb/run/Flags.h>
+
 namespace vdbturb {
+
+using turb::run::flagFor;
+using turb::run::messageWithFlags;
 
 struct Command
 {
@@ -43,16 +48,6 @@ std::vector<Command> allCommands();
 /// Adds --density-grid, --vel-grid, --vel-units, --dt, --fps for reading caches; with a `prefix` ("target"),
 /// --target-density-grid and so on.
 void addReadOptions(CLI::App* app, turbio::ReadOptions& opt, const std::string& prefix = "");
-
-/// The flag that sets `setting`, a turbio::ReadOptions or WriteOptions field as turb::Error::settings and
-/// turbio::ReadReport name it ("velocityGrid" -> "--vel-grid"). A read option takes the prefix addReadOptions
-/// declared it with: the setting's qualifier ("target.velocityGrid" -> "--target-vel-grid"), else `readPrefix`.
-/// "" for a setting no flag sets.
-std::string flagFor(const std::string& setting, const std::string& readPrefix = "");
-
-/// `e`'s message as the command line prints it: followed by the flags of the settings it names ("...; the file
-/// has: #0 'density' float fog volume. Use --vel-grid NAME, or '#N' for the N-th grid listed here.").
-std::string messageWithFlags(const turb::Error& e);
 
 /// Runs `read`, a read with the ReadOptions that addReadOptions declared with `prefix`, and qualifies the settings
 /// a turb::Error it throws names with that prefix, so that its message names this command's flags.

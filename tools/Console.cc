@@ -413,20 +413,6 @@ void requestInterrupt() { gInterrupted = true; }
 
 void setOutputHooks(const OutputHooks* hooks) { gHooks = hooks; }
 
-void testKillPoint(const std::string& where, int frame)
-{
-    static const std::pair<std::string, int> at = [] {
-        const char* env = std::getenv("VDBTURB_TEST_KILL_AT");
-        const std::string s = env ? env : "";
-        const size_t colon = s.rfind(':');
-        if (colon == std::string::npos) return std::pair<std::string, int>();
-        return std::pair<std::string, int>(s.substr(0, colon), std::atoi(s.c_str() + colon + 1));
-    }();
-    if (at.first.empty() || at.first != where || at.second != frame) return;
-    ::kill(::getpid(), SIGKILL); // delivered before kill() returns
-    for (;;) ::pause();
-}
-
 bool stderrIsTty()
 {
     static const bool tty = ::isatty(STDERR_FILENO) == 1;
@@ -501,20 +487,22 @@ int reportFailure(const std::string& message, int exitCode)
     return exitCode;
 }
 
-void logWarning(const std::string& msg)
+void consoleLog(turb::run::Reporter::Level level, const std::string& msg)
 {
-    if (globals().verbosity >= 1) emit(OutputHooks::Level::Warning, "vdbturb: warning: ", msg);
-}
-void logInfo(const std::string& msg)
-{
-    if (globals().verbosity >= 1) emit(OutputHooks::Level::Info, "", msg);
-}
-void logVerbose(const std::string& msg)
-{
-    if (globals().verbosity >= 2) emit(OutputHooks::Level::Verbose, "  ", msg);
+    switch (level) {
+    case turb::run::Reporter::Level::Warning:
+        if (globals().verbosity >= 1) emit(OutputHooks::Level::Warning, "vdbturb: warning: ", msg);
+        break;
+    case turb::run::Reporter::Level::Info:
+        if (globals().verbosity >= 1) emit(OutputHooks::Level::Info, "", msg);
+        break;
+    case turb::run::Reporter::Level::Verbose:
+        if (globals().verbosity >= 2) emit(OutputHooks::Level::Verbose, "  ", msg);
+        break;
+    }
 }
 
-void printData(const std::string& text, bool toStderr)
+void consolePrintData(const std::string& text, bool toStderr)
 {
     if (globals().verbosity < 1) return;
     if (globals().json) toStderr = true;
@@ -550,28 +538,11 @@ std::string alignColumns(const std::vector<std::vector<std::string>>& rows, cons
     return out;
 }
 
-namespace {
-std::mutex gOnceMutex;
-std::set<std::string> gSaidOnce; // warnOnce's keys: once per command line
-} // namespace
-
-void warnOnce(const std::string& key, const std::string& warning)
-{
-    {
-        std::lock_guard<std::mutex> lock(gOnceMutex);
-        if (!gSaidOnce.insert(key).second) return;
-    }
-    logWarning(warning);
-}
-
 void resetRunState()
 {
     globals() = Globals{};
     gInterrupted = false;
-    {
-        std::lock_guard<std::mutex> lock(gOnceMutex);
-        gSaidOnce.clear();
-    }
+    turb::run::resetWarnOnce();
     // Keyed by option address: a later parser's options may reuse the addresses of a destroyed one's.
     tiers().clear();
     enumNames().clear();

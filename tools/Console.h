@@ -5,6 +5,7 @@
 
 #include <turb/Error.h>
 #include <turb/Progress.h>
+#include <turb/run/Reporter.h>
 
 #include <CLI/CLI.hpp>
 
@@ -162,34 +163,26 @@ void frameReported(int frame, int done, int total);
 /// parser now gone), so that a host process can run command lines one after another as separate processes would.
 void resetRunState();
 
-void logError(const std::string& msg);   ///< always printed: "vdbturb: error: msg"
-void logWarning(const std::string& msg); ///< printed unless -q
-void logInfo(const std::string& msg);    ///< printed unless -q
-void logVerbose(const std::string& msg); ///< printed with -v
-/// A command's data for people (info's tables, a dry run's plan): stdout unless -q; `toStderr` keeps stdout
-/// free for JSON.
-void printData(const std::string& text, bool toStderr = false);
+void logError(const std::string& msg); ///< always printed: "vdbturb: error: msg"
+// The entry points' log (turb/run/Reporter.h), which the console prints (ConsoleReporter): warnings and information
+// unless -q, detail with -v, data for people on stdout unless -q.
+using turb::run::logInfo;
+using turb::run::logVerbose;
+using turb::run::logWarning;
+using turb::run::printData;
+using turb::run::testKillPoint;
+using turb::run::warnOnce;
 
 /// Rows of cells as text with every column padded to its widest cell, one line per row, each prefixed by
 /// `indent`.
 std::string alignColumns(const std::vector<std::vector<std::string>>& rows, const std::string& indent = "  ");
-
-/// Logs `warning` once per process for each distinct `key` (conventions assumed, conversions made).
-void warnOnce(const std::string& key, const std::string& warning);
-
-/// Test hook for tests/test_faults.cc and bench/kill_resume.sh: with VDBTURB_TEST_KILL_AT=WHERE:FRAME the process
-/// sends itself SIGKILL when it reaches `where` of frame `frame` (kill -9 at a reproducible point). The places:
-/// a step's name (e.g. "seams": in the middle of that step, at its first progress update after the step began),
-/// "after-state" (transfer: the frame's resume state written, the frame not yet) and "after-frame" (the frame in
-/// place under its final name, the next one not begun). Unset (every real run), it costs one getenv per process.
-void testKillPoint(const std::string& where, int frame);
 
 /// True when stderr is a terminal (progress bar) rather than a farm log (one line per frame).
 bool stderrIsTty();
 
 /// turb::Progress for the console: a redrawn bar on a TTY, silence otherwise (the per-frame line is
 /// the farm log's unit). Cancellation follows Ctrl-C.
-class ConsoleProgress : public turb::Progress
+class ConsoleProgress : public turb::run::FrameProgress
 {
 public:
     ConsoleProgress(int frameIndex, int frameCount, int frameNumber);
@@ -198,7 +191,7 @@ public:
     void update(double fraction) override;
     void note(const std::string& text) override;
     bool cancelled() const override;
-    void clear();
+    void clear() override;
 
 private:
     void draw();
@@ -209,6 +202,12 @@ private:
     bool mDrawn = false;
     std::chrono::steady_clock::time_point mLastDraw;
 };
+
+/// What the console's reporter prints (RunReport.h's ConsoleReporter): a line for people at `level` (warnings and
+/// information unless -q, detail with -v) on stderr or to the host's log hook; data for people on stdout unless -q
+/// (`toStderr`, or --json, keeps stdout free for JSON).
+void consoleLog(turb::run::Reporter::Level level, const std::string& line);
+void consolePrintData(const std::string& text, bool toStderr);
 
 /// Seconds since `t0`.
 double secondsSince(std::chrono::steady_clock::time_point t0);

@@ -2,6 +2,12 @@
 
 #include "Console.h"
 
+#include <unistd.h>
+
+#include <cstdlib>
+
+#include <csignal>
+
 #include <turbio/System.h>
 
 #include <tbb/info.h>
@@ -67,5 +73,55 @@ nlohmann::json RunReport::finish(int failed, const nlohmann::json& extra)
     if (mJson) writeData(j.dump() + "\n");
     return j;
 }
+
+void ConsoleReporter::log(Level level, const std::string& line) { consoleLog(level, line); }
+
+void ConsoleReporter::printData(const std::string& text, bool toStderr) { consolePrintData(text, toStderr); }
+
+bool ConsoleReporter::showsPlan() const { return globals().dryRun || globals().verbosity >= 2; }
+
+std::unique_ptr<turb::run::FrameProgress> ConsoleReporter::frameProgress(int index, int count, int frame)
+{
+    return std::make_unique<ConsoleProgress>(index, count, frame);
+}
+
+void ConsoleReporter::runStarted(const std::string& command)
+{
+    mReport = std::make_unique<RunReport>(command, globals().json);
+}
+
+void ConsoleReporter::frameDone(const turb::run::FrameRecord& r)
+{
+    if (mReport) mReport->frameDone(r.frame, r.index, r.count, r.seconds, r.line, r.extra);
+}
+
+void ConsoleReporter::frameSkipped(int frame, int index, int count, double seconds, const std::string& path, bool again)
+{
+    if (mReport) mReport->frameSkipped(frame, index, count, seconds, path, again);
+}
+
+void ConsoleReporter::runFinished(int failed, const nlohmann::json& extra)
+{
+    if (mReport) mReport->finish(failed, extra);
+    mReport.reset();
+}
+
+void ConsoleReporter::memoryEstimate(double bytes) { globals().predictedPeakBytes = bytes; }
+
+void ConsoleReporter::killPoint(const std::string& where, int frame)
+{
+    static const std::pair<std::string, int> at = [] {
+        const char* env = std::getenv("VDBTURB_TEST_KILL_AT");
+        const std::string s = env ? env : "";
+        const size_t colon = s.rfind(':');
+        if (colon == std::string::npos) return std::pair<std::string, int>();
+        return std::pair<std::string, int>(s.substr(0, colon), std::atoi(s.c_str() + colon + 1));
+    }();
+    if (at.first.empty() || at.first != where || at.second != frame) return;
+    ::kill(::getpid(), SIGKILL); // delivered before kill() returns
+    for (;;) ::pause();
+}
+
+ConsoleReporter::~ConsoleReporter() = default;
 
 } // namespace vdbturb

@@ -7,9 +7,12 @@
 ///    "threads":..,"machine":".."}
 #pragma once
 
+#include <turb/run/Reporter.h>
+
 #include <nlohmann/json.hpp>
 
 #include <chrono>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -38,6 +41,29 @@ private:
     bool mJson;
     std::vector<double> mSeconds;
     std::chrono::steady_clock::time_point mStart;
+};
+
+/// The console as the entry points' reporter: lines for people on stderr (or the host's hooks), data on stdout,
+/// a progress bar on a TTY, the per-frame report and summary of RunReport. VDBTURB_TEST_KILL_AT=WHERE:FRAME makes
+/// killPoint send the process SIGKILL when it reaches `where` of frame `frame` (tests/test_faults.cc,
+/// bench/kill_resume.sh: a step's name, "after-state" or "after-frame"); unset, it costs one getenv per process.
+class ConsoleReporter : public turb::run::Reporter
+{
+public:
+    ~ConsoleReporter() override;
+    void log(Level level, const std::string& line) override;
+    void printData(const std::string& text, bool toStderr) override;
+    bool showsPlan() const override;
+    std::unique_ptr<turb::run::FrameProgress> frameProgress(int index, int count, int frame) override;
+    void runStarted(const std::string& command) override;
+    void frameDone(const turb::run::FrameRecord& record) override;
+    void frameSkipped(int frame, int index, int count, double seconds, const std::string& path, bool again) override;
+    void runFinished(int failed, const nlohmann::json& extra) override;
+    void memoryEstimate(double bytes) override;
+    void killPoint(const std::string& where, int frame) override;
+
+private:
+    std::unique_ptr<RunReport> mReport;
 };
 
 } // namespace vdbturb

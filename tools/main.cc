@@ -3,6 +3,7 @@
 #include "Commands.h"
 #include "Console.h"
 #include "Preflight.h"
+#include "RunReport.h"
 
 #include <turb/Error.h>
 #include <turbio/NanoVdb.h>
@@ -176,6 +177,8 @@ struct Parser
 // The command line as the executable's main() ran it, argv[0] its name; `ownProcess`: take Ctrl-C's signals.
 int runArgv(int argc, char** argv, bool ownProcess)
 {
+    ConsoleReporter console; // the entry points' words, printed (or handed to a host's hooks)
+    turb::run::ReporterScope reporting(console);
     Parser parser;
     CLI::App& app = parser.app;
     const auto& subs = parser.subs;

@@ -15,7 +15,8 @@ import os
 import re
 import sys
 
-# The folders of libturb/src and the folders each may include (besides its own). The order is the layering:
+# The folders of libturb/src and the folders each may include (besides its own); the entry points (run) also read and
+# write files through the IO layer and run the built-in scenes. The order is the layering:
 # core (fields, operators, advection, projection, parallel) < pictures and measures < the paper systems < the
 # entry points. A system does not include another system.
 ALLOWED = {
@@ -74,9 +75,11 @@ def header_folders(src):
         folder = os.path.relpath(path, os.path.join(src, "libturb", "src")).split(os.sep)[0]
         impl.setdefault(os.path.splitext(os.path.basename(path))[0], folder)
     out = {}
-    for name in os.listdir(os.path.join(src, "libturb", "include", "turb")):
-        if name.endswith(".h"):
-            out[name] = impl.get(name[:-2], "core")
+    pub = os.path.join(src, "libturb", "include", "turb")
+    for path in sources(pub, (".h",)):
+        rel = os.path.relpath(path, pub).replace(os.sep, "/")
+        # include/turb/run/X.h is the run folder's; a flat header belongs where its implementation lives.
+        out[rel] = rel.split("/")[0] if "/" in rel else impl.get(rel[:-2], "core")
     return out
 
 
@@ -124,7 +127,7 @@ def check(src):
             continue
         g = graphs.setdefault(folder, {})
         for kind, inc in includes(path):
-            if inc.startswith(("turbio/", "scenes/")) or (kind == '"' and "tools/" in inc):
+            if (inc.startswith(("turbio/", "scenes/")) and folder != "run") or (kind == '"' and "tools/" in inc):
                 errors.append(f"{rel}: libturb includes {inc} (the IO layer, scenes and tools sit above it)")
             elif inc.startswith("turb/"):
                 name = inc[len("turb/"):]
@@ -143,15 +146,16 @@ def check(src):
     # Headers in include/turb form circles too: a public header including another of its folder.
     pub = os.path.join(src, "libturb", "include", "turb")
     for path in sources(pub):
-        folder = folders.get(os.path.basename(path), "core")
+        key = os.path.relpath(path, pub).replace(os.sep, "/")
+        folder = folders.get(key, "core")
         for _, inc in includes(path):
             if inc.startswith("turb/"):
                 to = folders.get(inc[len("turb/"):])
                 if to and to != folder and to not in ALLOWED.get(folder, set()):
                     errors.append(f"{os.path.relpath(path, src)}: {folder}'s header includes <{inc}> of {to}")
                 if to == folder:
-                    graphs.setdefault(folder, {}).setdefault(os.path.basename(path), set()).add(inc[len("turb/"):])
-            elif inc.startswith(("turbio/", "scenes/")):
+                    graphs.setdefault(folder, {}).setdefault(key, set()).add(inc[len("turb/"):])
+            elif inc.startswith(("turbio/", "scenes/")) and folder != "run":
                 errors.append(f"{os.path.relpath(path, src)}: a libturb header includes {inc}")
     for folder, g in sorted(graphs.items()):
         c = find_cycle(g)
