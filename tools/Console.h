@@ -5,6 +5,7 @@
 
 #include <turb/Error.h>
 #include <turb/Progress.h>
+#include <turb/run/Output.h>
 #include <turb/run/Reporter.h>
 
 #include <CLI/CLI.hpp>
@@ -21,15 +22,9 @@ namespace vdbturb {
 /// Exit codes (README, --help): 0 success; 1 a failure a retry cannot fix (bad input, a frame failed); 2 a usage
 /// error (an option's value or a combination of options); 75 (EX_TEMPFAIL) a failure worth a retry on another node
 /// (disk full, a file-size limit, out of memory); 130 interrupted.
-enum ExitCode { kOk = 0, kFailed = 1, kUsage = 2, kTempFail = 75, kInterrupted = 130 };
+using turb::run::UsageError;
 
-/// A command line that cannot run as given (an --out without a frame token for a sequence): exit 2, as CLI11's own
-/// parse errors.
-class UsageError : public turb::ValueError
-{
-public:
-    using turb::ValueError::ValueError;
-};
+enum ExitCode { kOk = 0, kFailed = 1, kUsage = 2, kTempFail = 75, kInterrupted = 130 };
 
 /// Ends a command with an error: "vdbturb: error: MESSAGE" on stderr and, when the command was asked for --json,
 /// one JSON line on stdout, {"error", "file", "frame", "grid", "exit"} (file, frame and grid as the message names
