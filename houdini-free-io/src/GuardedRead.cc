@@ -272,10 +272,10 @@ GuardedResult parsePayload(const std::string& data)
     return readGrids(is);
 }
 
-// One forked reader. On a timeout sets `timedOut` and returns nothing; every other failure throws.
-GuardedResult readInChild(const std::string& path, const ReadBody& body, double timeoutSeconds, bool& timedOut)
+// Forks the reader child, which runs childMain on `path` and writes its result to the pipe; returns its pid and the
+// pipe's read end in `readFd`.
+pid_t forkReader(const std::string& path, const ReadBody& body, int& readFd)
 {
-    timedOut = false;
     int fds[2];
     if (::pipe(fds) != 0) throw turb::IoError(path + ": cannot create pipe (" + std::strerror(errno) + ")");
     std::unique_lock<std::mutex> forking(forkGuard());
@@ -291,7 +291,13 @@ GuardedResult readInChild(const std::string& path, const ReadBody& body, double 
         childMain(fds[1], path, body);
     }
     ::close(fds[1]);
+    readFd = fds[0];
+    return pid;
+}
 
+// Everything the child writes to `fd` until it closes the pipe, or until the deadline (then `timedOut`); closes fd.
+std::string readPipe(int fd, double timeoutSeconds, bool& timedOut)
+{
     std::string data;
     char buf[1 << 16];
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeoutSeconds);
@@ -304,12 +310,12 @@ GuardedResult readInChild(const std::string& path, const ReadBody& body, double 
         }
         struct pollfd pfd
         {
-            fds[0], POLLIN, 0
+            fd, POLLIN, 0
         };
         const int pr = ::poll(&pfd, 1, int(std::min<long long>(left, 1000)));
         if (pr < 0 && errno != EINTR) break;
         if (pr <= 0) continue;
-        const ssize_t n = ::read(fds[0], buf, sizeof(buf));
+        const ssize_t n = ::read(fd, buf, sizeof(buf));
         if (n < 0) {
             if (errno == EINTR) continue;
             break;
@@ -317,40 +323,43 @@ GuardedResult readInChild(const std::string& path, const ReadBody& body, double 
         if (n == 0) break; // EOF: the child is done
         data.append(buf, size_t(n));
     }
-    ::close(fds[0]);
-    if (!timedOut && wholePayload(data)) {
-        GuardedResult whole;
-        try {
-            whole = parsePayload(data);
-        } catch (const std::exception& e) {
-            ::kill(pid, SIGKILL); // it wrote everything; nothing of it is needed now
-            while (::waitpid(pid, nullptr, 0) < 0 && errno == EINTR) {}
-            throw turb::IoError(
-                path + ": internal error passing grids from the reader (" + std::string(e.what()) + ")");
-        }
-        {
-            const std::lock_guard<std::mutex> lock(gUnreapedMutex);
-            gUnreaped.push_back(pid);
-        }
-        reapExited();
-        // The last children are waited for when the process exits: a farm agent that adopts orphans and never
-        // reaps them would otherwise collect zombies. Registered after the list's construction, so it runs first.
-        static std::once_flag atExit;
-        std::call_once(atExit, [] {
-            std::atexit([] {
-                const std::lock_guard<std::mutex> lock(gUnreapedMutex);
-                for (pid_t child : gUnreaped)
-                    while (::waitpid(child, nullptr, 0) < 0 && errno == EINTR) {}
-                gUnreaped.clear();
-            });
-        });
-        return whole;
-    }
-    if (timedOut) ::kill(pid, SIGKILL);
-    int status = 0;
-    while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {}
+    ::close(fd);
+    return data;
+}
 
-    if (timedOut) return {};
+// The grids of a whole 'G' payload from child `pid`, which is left to exit on its own and reaped later.
+GuardedResult takeWholePayload(const std::string& path, pid_t pid, const std::string& data)
+{
+    GuardedResult whole;
+    try {
+        whole = parsePayload(data);
+    } catch (const std::exception& e) {
+        ::kill(pid, SIGKILL); // it wrote everything; nothing of it is needed now
+        while (::waitpid(pid, nullptr, 0) < 0 && errno == EINTR) {}
+        throw turb::IoError(path + ": internal error passing grids from the reader (" + std::string(e.what()) + ")");
+    }
+    {
+        const std::lock_guard<std::mutex> lock(gUnreapedMutex);
+        gUnreaped.push_back(pid);
+    }
+    reapExited();
+    // The last children are waited for when the process exits: a farm agent that adopts orphans and never
+    // reaps them would otherwise collect zombies. Registered after the list's construction, so it runs first.
+    static std::once_flag atExit;
+    std::call_once(atExit, [] {
+        std::atexit([] {
+            const std::lock_guard<std::mutex> lock(gUnreapedMutex);
+            for (pid_t child : gUnreaped)
+                while (::waitpid(child, nullptr, 0) < 0 && errno == EINTR) {}
+            gUnreaped.clear();
+        });
+    });
+    return whole;
+}
+
+// A child that exited (with `status`) without a whole payload: its crash, its error payload, or no result.
+[[noreturn]] void throwChildFailure(const std::string& path, int status, const std::string& data)
+{
     if (WIFSIGNALED(status)) {
         const int sig = WTERMSIG(status);
         throw turb::IoError(path + ": corrupt file: OpenVDB's reader crashed on it (" + ::strsignal(sig) +
@@ -362,6 +371,22 @@ GuardedResult readInChild(const std::string& path, const ReadBody& body, double 
 
     // Exited cleanly, yet the grids did not arrive whole.
     throw turb::IoError(path + ": corrupt file: the reader stopped without a result");
+}
+
+// One forked reader. On a timeout sets `timedOut` and returns nothing; every other failure throws.
+GuardedResult readInChild(const std::string& path, const ReadBody& body, double timeoutSeconds, bool& timedOut)
+{
+    timedOut = false;
+    int readFd = -1;
+    const pid_t pid = forkReader(path, body, readFd);
+    const std::string data = readPipe(readFd, timeoutSeconds, timedOut);
+    if (!timedOut && wholePayload(data)) return takeWholePayload(path, pid, data);
+    if (timedOut) ::kill(pid, SIGKILL);
+    int status = 0;
+    while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {}
+
+    if (timedOut) return {};
+    throwChildFailure(path, status, data);
 }
 
 } // namespace

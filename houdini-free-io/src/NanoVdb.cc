@@ -232,6 +232,101 @@ std::string versionText(const nanovdb::Version& v)
     return std::to_string(v.getMajor()) + "." + std::to_string(v.getMinor()) + "." + std::to_string(v.getPatch());
 }
 
+// A segment's header at the current position, checked: NanoVDB's magic, this build's major version, a grid count
+// and a codec NanoVDB knows.
+nanovdb::io::Header readSegmentHeader(Bounded& in, const std::string& path)
+{
+    nanovdb::io::Header header;
+    const bool first = in.pos() == 0;
+    in.read(&header, sizeof(header), "a segment header");
+    if (header.magic != NANOVDB_MAGIC_NUMBER) {
+        if (first) throw IoError(path + ": not a NanoVDB file (bad magic number)");
+        throw IoError(path + ": damaged NanoVDB file: no segment header at byte " + std::to_string(in.pos() - 16));
+    }
+    if (header.version.getMajor() != NANOVDB_MAJOR_VERSION_NUMBER)
+        throw IoError(path + ": written by NanoVDB " + versionText(header.version) +
+                      ", another major version than this build's (" + std::to_string(NANOVDB_MAJOR_VERSION_NUMBER) +
+                      ".x)");
+    if (header.gridCount == 0 || header.codec >= nanovdb::io::Codec::END)
+        throw IoError(path + ": damaged NanoVDB file: segment header at byte " + std::to_string(in.pos() - 16) +
+                      " holds " + std::to_string(header.gridCount) + " grids, codec " +
+                      std::to_string(int(header.codec)));
+    return header;
+}
+
+// What a grid's file header (and its segment's) says about it; grid `index` of the file.
+NanoGridInfo gridInfoOf(const nanovdb::io::MetaData& m, const std::string& name, const nanovdb::io::Header& header,
+    int index, const std::string& path)
+{
+    NanoGridInfo g;
+    g.index = index;
+    g.name = name;
+    g.valueType = typeName(m.gridType);
+    g.gridClass = className(m.gridClass);
+    g.activeVoxels = (long long)m.voxelCount;
+    g.hasBBox = !m.indexBBox.empty();
+    if (g.hasBBox)
+        g.activeBBox = turb::CoordBBox(turb::Coord(m.indexBBox[0][0], m.indexBBox[0][1], m.indexBBox[0][2]),
+            turb::Coord(m.indexBBox[1][0], m.indexBBox[1][1], m.indexBBox[1][2]));
+    g.voxelSize = turb::Vec3d(m.voxelSize[0], m.voxelSize[1], m.voxelSize[2]);
+    g.worldMin = turb::Vec3d(m.worldBBox[0][0], m.worldBBox[0][1], m.worldBBox[0][2]);
+    g.worldMax = turb::Vec3d(m.worldBBox[1][0], m.worldBBox[1][1], m.worldBBox[1][2]);
+    g.bytes = (long long)m.gridSize;
+    g.fileBytes = (long long)m.fileSize;
+    g.codec = header.codec == nanovdb::io::Codec::ZIP     ? "zip"
+              : header.codec == nanovdb::io::Codec::BLOSC ? "blosc"
+                                                          : "none";
+    g.version = versionText(header.version);
+    if (header.codec == nanovdb::io::Codec::NONE && m.fileSize != m.gridSize)
+        throw IoError(path + ": damaged NanoVDB file: grid " + inQuotes(name) + " records " +
+                      std::to_string(m.fileSize) + " bytes on disk and " + std::to_string(m.gridSize) +
+                      " in memory, which an uncompressed grid cannot");
+    return g;
+}
+
+// The segment's grid headers (each a MetaData and the grid's name); `first` is the file index of its first grid.
+void readGridHeaders(Bounded& in, const std::string& path, const nanovdb::io::Header& header, size_t first,
+    std::vector<NanoGridInfo>& grids, std::vector<nanovdb::io::MetaData>& metas)
+{
+    for (int i = 0; i < header.gridCount; ++i) {
+        nanovdb::io::MetaData m;
+        in.read(&m, sizeof(m), "grid header " + std::to_string(first + grids.size()));
+        if (m.nameSize > in.left() || m.nameSize > (1u << 20))
+            throw IoError(path + ": damaged NanoVDB file: a grid name of " + std::to_string(m.nameSize) +
+                          " bytes at byte " + std::to_string(in.pos()));
+        std::string name(m.nameSize, '\0');
+        in.read(name.data(), m.nameSize, "a grid name");
+        name.resize(std::strlen(name.c_str()));
+        grids.push_back(gridInfoOf(m, name, header, int(first + grids.size()), path));
+        metas.push_back(m);
+    }
+}
+
+// The grids follow the segment's headers, in order: each must fit in the file; an uncompressed one's fixed-size
+// header gives its transform (the file's headers hold only the voxel size).
+void readGridTransforms(Bounded& in, const std::string& path, const nanovdb::io::Header& header,
+    std::vector<NanoGridInfo>& grids, const std::vector<nanovdb::io::MetaData>& metas)
+{
+    for (size_t i = 0; i < grids.size(); ++i) {
+        const long long start = in.pos();
+        if ((long long)metas[i].fileSize > in.left())
+            throw IoError(path + ": truncated NanoVDB file: grid " + inQuotes(grids[i].name) + " needs " +
+                          std::to_string(metas[i].fileSize) + " bytes at byte " + std::to_string(start) +
+                          " but the file has " + std::to_string(in.size()));
+        if (header.codec == nanovdb::io::Codec::NONE && metas[i].gridSize >= sizeof(nanovdb::GridData)) {
+            alignas(NANOVDB_DATA_ALIGNMENT) unsigned char raw[sizeof(nanovdb::GridData)];
+            in.read(raw, sizeof(raw), "the header of grid " + inQuotes(grids[i].name));
+            const auto* data = reinterpret_cast<const nanovdb::GridData*>(raw);
+            if (data->mMagic != NANOVDB_MAGIC_NUMBER)
+                throw IoError(path + ": damaged NanoVDB file: grid " + inQuotes(grids[i].name) +
+                              " does not start with NanoVDB's magic number");
+            grids[i].hasTransform = true;
+            grids[i].origin = turb::Vec3d(data->mMap.mVecD[0], data->mMap.mVecD[1], data->mMap.mVecD[2]);
+        }
+        in.seek(start + (long long)metas[i].fileSize);
+    }
+}
+
 } // namespace
 
 NanoFileInfo inspectNanoFile(const std::string& path)
@@ -242,78 +337,11 @@ NanoFileInfo inspectNanoFile(const std::string& path)
     info.fileBytes = in.size();
     if (in.size() == 0) throw IoError(path + ": empty file, not a NanoVDB file");
     while (in.left() > 0) {
-        nanovdb::io::Header header;
-        const bool first = in.pos() == 0;
-        in.read(&header, sizeof(header), "a segment header");
-        if (header.magic != NANOVDB_MAGIC_NUMBER) {
-            if (first) throw IoError(path + ": not a NanoVDB file (bad magic number)");
-            throw IoError(path + ": damaged NanoVDB file: no segment header at byte " + std::to_string(in.pos() - 16));
-        }
-        if (header.version.getMajor() != NANOVDB_MAJOR_VERSION_NUMBER)
-            throw IoError(path + ": written by NanoVDB " + versionText(header.version) +
-                          ", another major version than this build's (" + std::to_string(NANOVDB_MAJOR_VERSION_NUMBER) +
-                          ".x)");
-        if (header.gridCount == 0 || header.codec >= nanovdb::io::Codec::END)
-            throw IoError(path + ": damaged NanoVDB file: segment header at byte " + std::to_string(in.pos() - 16) +
-                          " holds " + std::to_string(header.gridCount) + " grids, codec " +
-                          std::to_string(int(header.codec)));
+        const nanovdb::io::Header header = readSegmentHeader(in, path);
         std::vector<NanoGridInfo> grids;
         std::vector<nanovdb::io::MetaData> metas;
-        for (int i = 0; i < header.gridCount; ++i) {
-            nanovdb::io::MetaData m;
-            in.read(&m, sizeof(m), "grid header " + std::to_string(info.grids.size() + grids.size()));
-            if (m.nameSize > in.left() || m.nameSize > (1u << 20))
-                throw IoError(path + ": damaged NanoVDB file: a grid name of " + std::to_string(m.nameSize) +
-                              " bytes at byte " + std::to_string(in.pos()));
-            std::string name(m.nameSize, '\0');
-            in.read(name.data(), m.nameSize, "a grid name");
-            name.resize(std::strlen(name.c_str()));
-            NanoGridInfo g;
-            g.index = int(info.grids.size() + grids.size());
-            g.name = name;
-            g.valueType = typeName(m.gridType);
-            g.gridClass = className(m.gridClass);
-            g.activeVoxels = (long long)m.voxelCount;
-            g.hasBBox = !m.indexBBox.empty();
-            if (g.hasBBox)
-                g.activeBBox = turb::CoordBBox(turb::Coord(m.indexBBox[0][0], m.indexBBox[0][1], m.indexBBox[0][2]),
-                    turb::Coord(m.indexBBox[1][0], m.indexBBox[1][1], m.indexBBox[1][2]));
-            g.voxelSize = turb::Vec3d(m.voxelSize[0], m.voxelSize[1], m.voxelSize[2]);
-            g.worldMin = turb::Vec3d(m.worldBBox[0][0], m.worldBBox[0][1], m.worldBBox[0][2]);
-            g.worldMax = turb::Vec3d(m.worldBBox[1][0], m.worldBBox[1][1], m.worldBBox[1][2]);
-            g.bytes = (long long)m.gridSize;
-            g.fileBytes = (long long)m.fileSize;
-            g.codec = header.codec == nanovdb::io::Codec::ZIP     ? "zip"
-                      : header.codec == nanovdb::io::Codec::BLOSC ? "blosc"
-                                                                  : "none";
-            g.version = versionText(header.version);
-            if (header.codec == nanovdb::io::Codec::NONE && m.fileSize != m.gridSize)
-                throw IoError(path + ": damaged NanoVDB file: grid " + inQuotes(name) + " records " +
-                              std::to_string(m.fileSize) + " bytes on disk and " + std::to_string(m.gridSize) +
-                              " in memory, which an uncompressed grid cannot");
-            grids.push_back(g);
-            metas.push_back(m);
-        }
-        // The grids follow the segment's headers, in order.
-        for (size_t i = 0; i < grids.size(); ++i) {
-            const long long start = in.pos();
-            if ((long long)metas[i].fileSize > in.left())
-                throw IoError(path + ": truncated NanoVDB file: grid " + inQuotes(grids[i].name) + " needs " +
-                              std::to_string(metas[i].fileSize) + " bytes at byte " + std::to_string(start) +
-                              " but the file has " + std::to_string(in.size()));
-            if (header.codec == nanovdb::io::Codec::NONE && metas[i].gridSize >= sizeof(nanovdb::GridData)) {
-                // The fixed-size grid header: its transform (the file's headers hold only the voxel size).
-                alignas(NANOVDB_DATA_ALIGNMENT) unsigned char raw[sizeof(nanovdb::GridData)];
-                in.read(raw, sizeof(raw), "the header of grid " + inQuotes(grids[i].name));
-                const auto* data = reinterpret_cast<const nanovdb::GridData*>(raw);
-                if (data->mMagic != NANOVDB_MAGIC_NUMBER)
-                    throw IoError(path + ": damaged NanoVDB file: grid " + inQuotes(grids[i].name) +
-                                  " does not start with NanoVDB's magic number");
-                grids[i].hasTransform = true;
-                grids[i].origin = turb::Vec3d(data->mMap.mVecD[0], data->mMap.mVecD[1], data->mMap.mVecD[2]);
-            }
-            in.seek(start + (long long)metas[i].fileSize);
-        }
+        readGridHeaders(in, path, header, info.grids.size(), grids, metas);
+        readGridTransforms(in, path, header, grids, metas);
         info.grids.insert(info.grids.end(), grids.begin(), grids.end());
     }
     return info;

@@ -26,8 +26,17 @@ const GridInfo* findSelector(const std::vector<GridInfo>& grids, const std::stri
 
 turb::Lattice latticeOf(const GridInfo& g) { return turb::Lattice{g.voxelSize, g.origin}; }
 
-// Everything the header says about the grids a read would use; throws the read's own messages.
-void resolveFrame(FrameScan& fs, const FileInfo& info, const ReadOptions& options)
+// The grids a read would use: density `d` and velocity `v` (or null), then any velocity components and extras.
+struct UsedGrids
+{
+    std::vector<const GridInfo*> used;
+    const GridInfo* d = nullptr;
+    const GridInfo* v = nullptr;
+};
+
+// The grids the read picks by the options (recorded in fs as they are checked), with the read's own messages for
+// missing or unusable ones.
+UsedGrids chooseGrids(FrameScan& fs, const FileInfo& info, const ReadOptions& options)
 {
     std::vector<std::string> names, types;
     for (const auto& g : info.grids) {
@@ -44,55 +53,59 @@ void resolveFrame(FrameScan& fs, const FileInfo& info, const ReadOptions& option
     if (vel.empty() && (options.requireVelocity || !options.velocityGrid.empty()))
         throw detail::missingGrid(fs.path, GridRole::Velocity, options, listing, names);
 
-    std::vector<const GridInfo*> used;
-    const GridInfo* d = dens.empty() ? nullptr : findSelector(info.grids, dens[0]);
-    const GridInfo* v = vel.empty() ? nullptr : findSelector(info.grids, vel[0]);
-    if (d) {
+    UsedGrids u;
+    u.d = dens.empty() ? nullptr : findSelector(info.grids, dens[0]);
+    u.v = vel.empty() ? nullptr : findSelector(info.grids, vel[0]);
+    if (const GridInfo* d = u.d) {
         if (!isFloatType(d->valueType))
             throw turb::IoError(fs.path + ": grid '" + d->name + "' has type " + d->valueType +
                                 "; a density grid must be float or double");
         if (d->gridClass == "level set") throw turb::IoError(detail::levelSetDensityMessage(fs.path, d->name));
-        used.push_back(d);
+        u.used.push_back(d);
         fs.densityGrid = d->selector;
         fs.densityActive = d->activeVoxels;
     }
-    if (v) {
+    if (const GridInfo* v = u.v) {
         const bool ok = vel.size() == 3 ? isFloatType(v->valueType) : isVectorType(v->valueType);
         if (!ok)
             throw turb::IoError(fs.path + ": grid '" + v->name + "' has type " + v->valueType +
                                 "; a velocity grid must be vec3s or vec3d (or three float grids name.x/.y/.z)");
-        used.push_back(v);
+        u.used.push_back(v);
         for (size_t k = 1; k < vel.size(); ++k)
-            if (const GridInfo* c = findSelector(info.grids, vel[k])) used.push_back(c);
+            if (const GridInfo* c = findSelector(info.grids, vel[k])) u.used.push_back(c);
         fs.velocityGrid = v->selector;
         fs.velocityActive = v->activeVoxels;
     }
     if (options.readExtras)
         for (GridRole role : {GridRole::Temperature, GridRole::Flame})
             if (auto n = resolveGrid(names, role); !n.empty())
-                if (const GridInfo* e = findSelector(info.grids, n[0])) used.push_back(e);
-    if (used.empty()) throw detail::noRequestedGrid(fs.path, listing);
-    for (const GridInfo* g : used)
+                if (const GridInfo* e = findSelector(info.grids, n[0])) u.used.push_back(e);
+    if (u.used.empty()) throw detail::noRequestedGrid(fs.path, listing);
+    for (const GridInfo* g : u.used)
         if (!g->supportedTransform)
             throw turb::IoError(detail::unsupportedTransformMessage(fs.path, g->name, g->mapType));
+    return u;
+}
 
-    fs.lattice = latticeOf(*used.front());
-    if (v && !sameLattice(latticeOf(*v), fs.lattice)) fs.velocityVoxel = v->voxelSize;
-    fs.domain = turb::CoordBBox();
-    if (info.baseResolution) fs.domain = turb::CoordBBox(turb::Coord(0), *info.baseResolution - turb::Coord(1));
-    fs.domainKnown = true;
+// Each used grid's active box on the frame's lattice (from the header), and the bytes a dense voxel of them takes.
+struct GridSpans
+{
     std::vector<std::pair<std::string, turb::CoordBBox>> spans;
     double bytesPerVoxel = 0.0;
-    // Voxels outside Blender's simulation box are strays, which readFrame leaves out too.
-    const std::optional<turb::CoordBBox> simulationBox =
-        options.keepIsolated ? std::nullopt : detail::blenderSimulationBox(info.baseResolution, info.creator);
-    std::vector<std::string> notes;
     bool densityOutside = false; // its header box says nothing of where the smoke is inside the box then
-    for (const GridInfo* g : used) {
-        bytesPerVoxel += isVectorType(g->valueType) ? 12.0 : 4.0;
+};
+
+// The spans of the used grids, expanding fs.domain; a grid without header statistics leaves the domain unknown.
+// Voxels outside Blender's simulation box are strays, which readFrame leaves out too.
+GridSpans spanGrids(FrameScan& fs, const FileInfo& info, const ReadOptions& options, const UsedGrids& u,
+    const std::optional<turb::CoordBBox>& simulationBox)
+{
+    GridSpans s;
+    for (const GridInfo* g : u.used) {
+        s.bytesPerVoxel += isVectorType(g->valueType) ? 12.0 : 4.0;
         if (!g->hasBBox) {
             if (g->activeVoxels != 0) fs.domainKnown = false; // no header statistics
-            spans.emplace_back(g->name, turb::CoordBBox());
+            s.spans.emplace_back(g->name, turb::CoordBBox());
             continue;
         }
         turb::CoordBBox b = detail::boxOnLattice(g->activeBBox, latticeOf(*g), fs.lattice);
@@ -100,8 +113,8 @@ void resolveFrame(FrameScan& fs, const FileInfo& info, const ReadOptions& option
         if (info.baseResolution && g->gridClass == "staggered")
             b.intersect(turb::CoordBBox(turb::Coord(0), *info.baseResolution - turb::Coord(1)));
         if (simulationBox && !simulationBox->isInside(b)) {
-            if (g == d) {
-                densityOutside = true;
+            if (g == u.d) {
+                s.densityOutside = true;
                 const turb::Coord r = *info.baseResolution;
                 if (options.strayNote)
                     options.strayNote(fs.path + ": grid '" + g->name + "' has active voxels outside Blender's simulation box " +
@@ -112,52 +125,49 @@ void resolveFrame(FrameScan& fs, const FileInfo& info, const ReadOptions& option
             }
             b.intersect(*simulationBox);
         }
-        spans.emplace_back(g->name, b);
+        s.spans.emplace_back(g->name, b);
         fs.domain.expand(b);
     }
-    if (info.recordedDomain) fs.domain.expand(*info.recordedDomain);
-    fs.sequenceDomain = info.sequenceDomain;
-    if (fs.domain.empty()) fs.domain = turb::CoordBBox(turb::Coord(0), turb::Coord(0));
-    fs.span = fs.domain;
-    if (fs.domainKnown && d && options.cropToSmoke) {
-        // The density's header box bounds the smoke; a box far larger than its voxels (stray voxels) is
-        // worth one read of the density alone, which is what readFrame will hold.
-        fs.region.hasDensity = true;
-        if (d->hasBBox && d->activeVoxels != 0) fs.region.smoke = d->activeBBox;
-        if (simulationBox) fs.region.smoke.intersect(*simulationBox);
-        // As readFrame: the margin reaches as far as the other grids (or Blender's domain), not the strays.
-        turb::CoordBBox& others = fs.others;
-        if (info.baseResolution) others = turb::CoordBBox(turb::Coord(0), *info.baseResolution - turb::Coord(1));
-        for (size_t i = 0; i < used.size(); ++i)
-            if (used[i] != d) others.expand(spans[i].second);
-        const auto reach = [&] {
-            turb::CoordBBox r = others;
-            r.expand(fs.region.smoke);
-            return r.empty() ? fs.span : r;
-        };
+    return s;
+}
+
+// Cropped to the smoke, as readFrame holds it. The density's header box bounds the smoke; a box far larger than its
+// voxels (stray voxels) is worth one read of the density alone, which is what readFrame will hold.
+void holdSmoke(FrameScan& fs, const FileInfo& info, const ReadOptions& options, const UsedGrids& u, const GridSpans& s,
+    const std::optional<turb::CoordBBox>& simulationBox)
+{
+    const GridInfo* d = u.d;
+    fs.region.hasDensity = true;
+    if (d->hasBBox && d->activeVoxels != 0) fs.region.smoke = d->activeBBox;
+    if (simulationBox) fs.region.smoke.intersect(*simulationBox);
+    // As readFrame: the margin reaches as far as the other grids (or Blender's domain), not the strays.
+    turb::CoordBBox& others = fs.others;
+    if (info.baseResolution) others = turb::CoordBBox(turb::Coord(0), *info.baseResolution - turb::Coord(1));
+    for (size_t i = 0; i < u.used.size(); ++i)
+        if (u.used[i] != d) others.expand(s.spans[i].second);
+    const auto reach = [&] {
+        turb::CoordBBox r = others;
+        r.expand(fs.region.smoke);
+        return r.empty() ? fs.span : r;
+    };
+    fs.domain = heldRegion(fs.region, reach(), options);
+    const double held = double(fs.domain.volume());
+    const bool tooBig = !detail::denseSizeProblem(fs.path, fs.domain, s.spans, s.bytesPerVoxel, options).empty();
+    if (tooBig || s.densityOutside || (held > 1.0e6 && d->activeVoxels >= 0 && held > 64.0 * double(d->activeVoxels))) {
+        fs.region = smokeRegion(fs.path, options);
+        fs.regionFromVoxels = true;
         fs.domain = heldRegion(fs.region, reach(), options);
-        const double held = double(fs.domain.volume());
-        const bool tooBig = !detail::denseSizeProblem(fs.path, fs.domain, spans, bytesPerVoxel, options).empty();
-        if (tooBig || densityOutside ||
-            (held > 1.0e6 && d->activeVoxels >= 0 && held > 64.0 * double(d->activeVoxels))) {
-            fs.region = smokeRegion(fs.path, options);
-            fs.regionFromVoxels = true;
-            fs.domain = heldRegion(fs.region, reach(), options);
-            // Outside Blender's box the note above already says it; these are strays inside it, or any cache's.
-            if (!densityOutside && !fs.region.strays.empty() && options.strayNote)
-                options.strayNote(fs.path + ": " + fs.region.describeStrays(d->name));
-        }
+        // Outside Blender's box the note above already says it; these are strays inside it, or any cache's.
+        if (!s.densityOutside && !fs.region.strays.empty() && options.strayNote)
+            options.strayNote(fs.path + ": " + fs.region.describeStrays(d->name));
     }
-    if (fs.domainKnown) {
-        detail::checkDenseSize(fs.path, fs.domain, spans, bytesPerVoxel, options);
-    }
-    if (detail::blenderSimulationBox(info.baseResolution, info.creator)) fs.blenderResolution = info.baseResolution;
-    const bool blenderVel = v && info.baseResolution && v->name == "velocity" && v->gridClass == "staggered";
-    fs.timing =
-        resolveTiming(blenderVel, info.baseResolution.has_value(), info.recordedDt, options, info.recordedTimeUnit);
-    fs.timing.notes = std::move(notes);
-    // Houdini writes two grids of one name when two primitives share it: say which one is read, and how to pick
-    // another (readFrame reads the same one: the selector resolveGrid chose).
+}
+
+// Houdini writes two grids of one name when two primitives share it: say which one is read, and how to pick
+// another (readFrame reads the same one: the selector resolveGrid chose). And say when the velocity is resampled.
+void noteChoices(FrameScan& fs, const FileInfo& info, const ReadOptions& options, const UsedGrids& u)
+{
+    const GridInfo *d = u.d, *v = u.v;
     for (const GridInfo* chosen : {d, v}) {
         if (!chosen) continue;
         const bool chosenByName = (chosen == d ? options.densityGrid : options.velocityGrid).empty();
@@ -176,6 +186,36 @@ void resolveFrame(FrameScan& fs, const FileInfo& info, const ReadOptions& option
              << (d ? "density's" : "frame's") << " lattice (voxel " << fs.lattice.voxelSize << ")";
         fs.timing.notes.push_back(note.str());
     }
+}
+
+// Everything the header says about the grids a read would use; throws the read's own messages.
+void resolveFrame(FrameScan& fs, const FileInfo& info, const ReadOptions& options)
+{
+    const UsedGrids u = chooseGrids(fs, info, options);
+    const GridInfo *d = u.d, *v = u.v;
+    fs.lattice = latticeOf(*u.used.front());
+    if (v && !sameLattice(latticeOf(*v), fs.lattice)) fs.velocityVoxel = v->voxelSize;
+    fs.domain = turb::CoordBBox();
+    if (info.baseResolution) fs.domain = turb::CoordBBox(turb::Coord(0), *info.baseResolution - turb::Coord(1));
+    fs.domainKnown = true;
+    const std::optional<turb::CoordBBox> simulationBox =
+        options.keepIsolated ? std::nullopt : detail::blenderSimulationBox(info.baseResolution, info.creator);
+    std::vector<std::string> notes;
+    const GridSpans s = spanGrids(fs, info, options, u, simulationBox);
+    if (info.recordedDomain) fs.domain.expand(*info.recordedDomain);
+    fs.sequenceDomain = info.sequenceDomain;
+    if (fs.domain.empty()) fs.domain = turb::CoordBBox(turb::Coord(0), turb::Coord(0));
+    fs.span = fs.domain;
+    if (fs.domainKnown && d && options.cropToSmoke) holdSmoke(fs, info, options, u, s, simulationBox);
+    if (fs.domainKnown) {
+        detail::checkDenseSize(fs.path, fs.domain, s.spans, s.bytesPerVoxel, options);
+    }
+    if (detail::blenderSimulationBox(info.baseResolution, info.creator)) fs.blenderResolution = info.baseResolution;
+    const bool blenderVel = v && info.baseResolution && v->name == "velocity" && v->gridClass == "staggered";
+    fs.timing =
+        resolveTiming(blenderVel, info.baseResolution.has_value(), info.recordedDt, options, info.recordedTimeUnit);
+    fs.timing.notes = std::move(notes);
+    noteChoices(fs, info, options, u);
 }
 
 } // namespace

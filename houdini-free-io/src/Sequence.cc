@@ -472,6 +472,89 @@ std::optional<std::pair<std::string, std::string>> subFrameOf(const std::string&
     return std::make_pair(whole + "." + fraction, wholePath);
 }
 
+// A text that names no existing file: say what its directory holds instead.
+[[noreturn]] void throwNoSuchFile(const std::string& text)
+{
+    std::error_code ec;
+    const size_t slash = text.find_last_of('/');
+    const std::string dir = slash == std::string::npos ? "." : text.substr(0, slash + 1);
+    std::string why = text + ": no such file";
+    if (!fs::is_directory(dir, ec)) why += " (directory " + dir + " does not exist)";
+    else if (const auto seqs = sequencesInDirectory(dir); !seqs.empty())
+        why += "; " + dir + " holds " + listSequences(seqs, 4);
+    throw turb::IoError(why);
+}
+
+// An existing file with a frame number: refuses a sub-frame file, and prefers the unpadded pattern where it takes
+// more frames.
+void checkNumberedFile(const std::string& text, std::optional<std::pair<FramePattern, int>>& detected)
+{
+    if (const auto sub = subFrameOf(text)) {
+        const auto whole = FramePattern::fromFileName(sub->second);
+        throw turb::IoError(text + ": sub-frame " + sub->first + " of a cache written at sub-frames (Houdini's " +
+                            "$FF; " + sub->second + " is its frame " + sub->first.substr(0, sub->first.find('.')) +
+                            "): vdbturb reads whole frames. Give " + (whole ? whole->first.str() : sub->second) +
+                            ", which leaves the sub-frame files out");
+    }
+    // "smoke.1000.vdb" of a cache numbered without padding ($F: smoke.999.vdb beside it): the unpadded
+    // pattern takes every frame, where "####" would skip 998 and 999.
+    const std::string digits = std::to_string(std::abs(detected->second));
+    if (detected->second >= 0 && int(digits.size()) == detected->first.width()) {
+        const FramePattern unpadded = detected->first.withWidth(0);
+        if (scanFrames(unpadded).size() > scanFrames(detected->first).size()) detected->first = unpadded;
+    }
+}
+
+// One real file name: a member of a numbered sequence (siblings found by scanning), a lone frame
+// (pyro.1001.vdb is frame 1001, as in Houdini and Blender), or a file without a frame number. Returns the
+// sequence when the name settles it; otherwise sets `pattern` to the detected one (frames from frameSpec).
+std::optional<Sequence> resolveFileName(const std::string& text, const std::string& frameSpec, FramePattern& pattern)
+{
+    Sequence seq;
+    std::error_code ec;
+    const bool exists = fs::is_regular_file(text, ec);
+    auto detected = FramePattern::fromFileName(text);
+    if (detected && exists) checkNumberedFile(text, detected);
+    if (detected && (exists || !frameSpec.empty())) {
+        pattern = detected->first;
+        if (frameSpec.empty()) { // a file name means that file; its siblings are only mentioned
+            const std::vector<int> siblings = scanFrames(pattern);
+            adoptNegativePadding(pattern, siblings);
+            seq.pattern = pattern;
+            seq.frames = {detected->second};
+            if (siblings.size() > 1)
+                seq.oneOfSequence = text + " is frame " + std::to_string(detected->second) + " of " + pattern.str() +
+                                    " (frames " + formatFrameList(siblings) +
+                                    " on disk): give that pattern, or --frames, for more than this file";
+            return seq;
+        }
+    } else if (exists) {
+        seq.pattern = pattern;
+        seq.frames = {0};
+        return seq;
+    } else if (fs::exists(text, ec)) {
+        throw turb::IoError(text + ": not a regular file");
+    } else {
+        throwNoSuchFile(text);
+    }
+    return std::nullopt;
+}
+
+// Gaps inside the range on disk are missing frames. A sequence cached on every n-th frame (all gaps multiples of
+// n) only misses multiples of n.
+std::vector<int> missingFrames(const std::vector<int>& onDisk)
+{
+    std::vector<int> missing;
+    long long step = 0;
+    for (size_t i = 1; i < onDisk.size(); ++i) step = std::gcd(step, (long long)onDisk[i] - onDisk[i - 1]);
+    if (step <= 0) step = 1;
+    // A few files far apart would list millions of missing frames: only gaps the size of a shot count.
+    if ((double(onDisk.back()) - onDisk.front()) / double(step) <= 1e6)
+        for (long long f = onDisk.front(); f <= onDisk.back(); f += step)
+            if (!std::binary_search(onDisk.begin(), onDisk.end(), int(f))) missing.push_back(int(f));
+    return missing;
+}
+
 } // namespace
 
 Sequence resolveSequence(const std::string& text, const std::string& frameSpec)
@@ -485,57 +568,8 @@ Sequence resolveSequence(const std::string& text, const std::string& frameSpec)
             (seqs.empty() ? std::string(" (the directory is empty)") : "; it holds " + listSequences(seqs, 4)));
     }
     FramePattern pattern = FramePattern::parse(text);
-    if (!pattern.numbered()) {
-        // One real file name: a member of a numbered sequence (siblings found by scanning), a lone frame
-        // (pyro.1001.vdb is frame 1001, as in Houdini and Blender), or a file without a frame number.
-        const bool exists = fs::is_regular_file(text, ec);
-        auto detected = FramePattern::fromFileName(text);
-        if (detected && exists) {
-            if (const auto sub = subFrameOf(text)) {
-                const auto whole = FramePattern::fromFileName(sub->second);
-                throw turb::IoError(
-                    text + ": sub-frame " + sub->first + " of a cache written at sub-frames (Houdini's " + "$FF; " +
-                    sub->second + " is its frame " + sub->first.substr(0, sub->first.find('.')) +
-                    "): vdbturb reads whole frames. Give " + (whole ? whole->first.str() : sub->second) +
-                    ", which leaves the sub-frame files out");
-            }
-            // "smoke.1000.vdb" of a cache numbered without padding ($F: smoke.999.vdb beside it): the unpadded
-            // pattern takes every frame, where "####" would skip 998 and 999.
-            const std::string digits = std::to_string(std::abs(detected->second));
-            if (detected->second >= 0 && int(digits.size()) == detected->first.width()) {
-                const FramePattern unpadded = detected->first.withWidth(0);
-                if (scanFrames(unpadded).size() > scanFrames(detected->first).size()) detected->first = unpadded;
-            }
-        }
-        if (detected && (exists || !frameSpec.empty())) {
-            pattern = detected->first;
-            if (frameSpec.empty()) { // a file name means that file; its siblings are only mentioned
-                const std::vector<int> siblings = scanFrames(pattern);
-                adoptNegativePadding(pattern, siblings);
-                seq.pattern = pattern;
-                seq.frames = {detected->second};
-                if (siblings.size() > 1)
-                    seq.oneOfSequence = text + " is frame " + std::to_string(detected->second) + " of " +
-                                        pattern.str() + " (frames " + formatFrameList(siblings) +
-                                        " on disk): give that pattern, or --frames, for more than this file";
-                return seq;
-            }
-        } else if (exists) {
-            seq.pattern = pattern;
-            seq.frames = {0};
-            return seq;
-        } else if (fs::exists(text, ec)) {
-            throw turb::IoError(text + ": not a regular file");
-        } else {
-            const size_t slash = text.find_last_of('/');
-            const std::string dir = slash == std::string::npos ? "." : text.substr(0, slash + 1);
-            std::string why = text + ": no such file";
-            if (!fs::is_directory(dir, ec)) why += " (directory " + dir + " does not exist)";
-            else if (const auto seqs = sequencesInDirectory(dir); !seqs.empty())
-                why += "; " + dir + " holds " + listSequences(seqs, 4);
-            throw turb::IoError(why);
-        }
-    }
+    if (!pattern.numbered())
+        if (std::optional<Sequence> one = resolveFileName(text, frameSpec, pattern)) return std::move(*one);
     const std::vector<int> onDisk = scanFrames(pattern);
     adoptNegativePadding(pattern, onDisk);
     seq.pattern = pattern;
@@ -543,15 +577,7 @@ Sequence resolveSequence(const std::string& text, const std::string& frameSpec)
     if (frameSpec.empty()) {
         if (onDisk.empty()) throw turb::IoError(noMatchMessage(pattern));
         seq.frames = onDisk;
-        // Gaps inside the range on disk are missing frames. A sequence cached on every n-th frame
-        // (all gaps multiples of n) only misses multiples of n.
-        long long step = 0;
-        for (size_t i = 1; i < onDisk.size(); ++i) step = std::gcd(step, (long long)onDisk[i] - onDisk[i - 1]);
-        if (step <= 0) step = 1;
-        // A few files far apart would list millions of missing frames: only gaps the size of a shot count.
-        if ((double(onDisk.back()) - onDisk.front()) / double(step) <= 1e6)
-            for (long long f = onDisk.front(); f <= onDisk.back(); f += step)
-                if (!std::binary_search(onDisk.begin(), onDisk.end(), int(f))) seq.missing.push_back(int(f));
+        seq.missing = missingFrames(onDisk);
         return seq;
     }
     for (int f : parseFrameList(frameSpec)) {

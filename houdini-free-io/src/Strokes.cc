@@ -58,9 +58,8 @@ double number(const nlohmann::json& j, const char* key, const std::string& name,
     return j.at(key).get<double>();
 }
 
-} // namespace
-
-StrokeFile parseFlowStrokes(const std::string& text, const std::string& name, int width, int height)
+// The document, with nlohmann's parse errors worded as "name:3: column 5: malformed JSON: ...".
+nlohmann::json parseDocument(const std::string& text, const std::string& name)
 {
     nlohmann::json doc;
     try {
@@ -73,6 +72,62 @@ StrokeFile parseFlowStrokes(const std::string& text, const std::string& name, in
             fail(name, std::stoi(m[1]), "column " + std::string(m[2]) + ": malformed JSON: " + std::string(m[3]));
         fail(name, 0, "malformed JSON: " + msg);
     }
+    return doc;
+}
+
+/// One stroke of the file, in pixels of the width x height frame (canvas coordinates times sx, sy), checked alone.
+turb::FlowStroke parseStroke(const nlohmann::json& j, const std::string& name, int line, const std::string& who,
+    double sx, double sy, int width, int height)
+{
+    if (!j.is_object()) fail(name, line, who + ": expected an object");
+    turb::FlowStroke s;
+    const std::string brush = j.value("brush", std::string());
+    if (brush == "orientation") s.kind = turb::StrokeKind::Orientation;
+    else if (brush == "speed") s.kind = turb::StrokeKind::Speed;
+    else fail(name, line, who + ": \"brush\" must be \"orientation\" or \"speed\"");
+    const std::string mode = j.contains("mode") && j["mode"].is_string() ? j["mode"].get<std::string>() : "global";
+    if (mode != "global" && mode != "local") fail(name, line, who + ": \"mode\" must be \"global\" or \"local\"");
+    s.local = mode == "local";
+    if (s.local) {
+        s.size = number(j, "size", name, line, who) * std::sqrt(sx * sy);
+        s.alpha = j.contains("alpha") ? number(j, "alpha", name, line, who) : 1.0;
+        if (!(s.size > 0.0)) fail(name, line, who + ": \"size\" must be > 0 pixels");
+        if (!(s.alpha >= 0.0 && s.alpha <= 1.0)) fail(name, line, who + ": \"alpha\" must be in [0, 1]");
+    }
+    if (s.kind == turb::StrokeKind::Speed) {
+        if (j.contains("speed") && j["speed"].is_string() && j["speed"].get<std::string>() == "example") {
+            s.exampleSpeed = true;
+        } else {
+            s.speed = number(j, "speed", name, line, who);
+            if (!(s.speed >= 0.0)) fail(name, line, who + ": \"speed\" must be >= 0 pixels per frame (or \"example\")");
+        }
+    }
+    if (!j.contains("points") || !j["points"].is_array()) fail(name, line, who + ": missing the \"points\" array");
+    for (const auto& p : j["points"]) {
+        if (!p.is_array() || p.size() != 2 || !p[0].is_number() || !p[1].is_number())
+            fail(name, line, who + ": every point must be [x, y]");
+        s.points.push_back({p[0].get<double>() * sx, p[1].get<double>() * sy});
+    }
+    try {
+        // One stroke alone, plus a dummy global orientation stroke so the set rule does not fire here.
+        turb::FlowStroke dummy;
+        dummy.points = {{0.0, 0.0}, {1.0, 0.0}};
+        const std::vector<turb::FlowStroke> one{s, dummy};
+        turb::validateStrokes(one, width, height);
+    } catch (const turb::ValueError& e) {
+        std::string m = e.what();
+        const std::string prefix = "stroke 0 ";
+        if (m.rfind(prefix, 0) == 0) m = who + " " + m.substr(prefix.size());
+        fail(name, line, m + (sx != 1.0 || sy != 1.0 ? " (after scaling from the canvas)" : ""));
+    }
+    return s;
+}
+
+} // namespace
+
+StrokeFile parseFlowStrokes(const std::string& text, const std::string& name, int width, int height)
+{
+    nlohmann::json doc = parseDocument(text, name);
     if (!doc.is_object()) fail(name, 1, "expected a JSON object with \"strokes\"");
     if (doc.contains("version") && (!doc["version"].is_number_integer() || doc["version"].get<int>() != 1))
         fail(name, 0, "unsupported \"version\" (this reader knows 1)");
@@ -91,51 +146,7 @@ StrokeFile parseFlowStrokes(const std::string& text, const std::string& name, in
     const auto& arr = doc["strokes"];
     for (size_t k = 0; k < arr.size(); ++k) {
         const int line = k < lines.size() ? lines[k] : 0;
-        const std::string who = "stroke " + std::to_string(k);
-        const auto& j = arr[k];
-        if (!j.is_object()) fail(name, line, who + ": expected an object");
-        turb::FlowStroke s;
-        const std::string brush = j.value("brush", std::string());
-        if (brush == "orientation") s.kind = turb::StrokeKind::Orientation;
-        else if (brush == "speed") s.kind = turb::StrokeKind::Speed;
-        else fail(name, line, who + ": \"brush\" must be \"orientation\" or \"speed\"");
-        const std::string mode = j.contains("mode") && j["mode"].is_string() ? j["mode"].get<std::string>() : "global";
-        if (mode != "global" && mode != "local") fail(name, line, who + ": \"mode\" must be \"global\" or \"local\"");
-        s.local = mode == "local";
-        if (s.local) {
-            s.size = number(j, "size", name, line, who) * std::sqrt(sx * sy);
-            s.alpha = j.contains("alpha") ? number(j, "alpha", name, line, who) : 1.0;
-            if (!(s.size > 0.0)) fail(name, line, who + ": \"size\" must be > 0 pixels");
-            if (!(s.alpha >= 0.0 && s.alpha <= 1.0)) fail(name, line, who + ": \"alpha\" must be in [0, 1]");
-        }
-        if (s.kind == turb::StrokeKind::Speed) {
-            if (j.contains("speed") && j["speed"].is_string() && j["speed"].get<std::string>() == "example") {
-                s.exampleSpeed = true;
-            } else {
-                s.speed = number(j, "speed", name, line, who);
-                if (!(s.speed >= 0.0))
-                    fail(name, line, who + ": \"speed\" must be >= 0 pixels per frame (or \"example\")");
-            }
-        }
-        if (!j.contains("points") || !j["points"].is_array()) fail(name, line, who + ": missing the \"points\" array");
-        for (const auto& p : j["points"]) {
-            if (!p.is_array() || p.size() != 2 || !p[0].is_number() || !p[1].is_number())
-                fail(name, line, who + ": every point must be [x, y]");
-            s.points.push_back({p[0].get<double>() * sx, p[1].get<double>() * sy});
-        }
-        try {
-            // One stroke alone, plus a dummy global orientation stroke so the set rule does not fire here.
-            turb::FlowStroke dummy;
-            dummy.points = {{0.0, 0.0}, {1.0, 0.0}};
-            const std::vector<turb::FlowStroke> one{s, dummy};
-            turb::validateStrokes(one, width, height);
-        } catch (const turb::ValueError& e) {
-            std::string m = e.what();
-            const std::string prefix = "stroke 0 ";
-            if (m.rfind(prefix, 0) == 0) m = who + " " + m.substr(prefix.size());
-            fail(name, line, m + (sx != 1.0 || sy != 1.0 ? " (after scaling from the canvas)" : ""));
-        }
-        out.strokes.push_back(std::move(s));
+        out.strokes.push_back(parseStroke(arr[k], name, line, "stroke " + std::to_string(k), sx, sy, width, height));
         out.lines.push_back(line);
     }
     try {

@@ -114,6 +114,84 @@ std::string printableUnique(const std::string& raw)
     return raw.substr(0, sep) + "[" + raw.substr(sep + 1) + "]";
 }
 
+// The raw reads of the header walk: a read past the end or a length beyond the file is a "truncated or corrupt"
+// IoError naming `path`.
+struct HeaderReader
+{
+    const std::string& path;
+    std::ifstream& in;
+    int64_t size;
+
+    IoError corrupt(const std::string& why) const
+    {
+        return IoError(path + ": truncated or corrupt file (" + why + ")");
+    }
+    void raw(void* p, size_t n)
+    {
+        in.read(static_cast<char*>(p), std::streamsize(n));
+        if (!in) throw corrupt("header ends early");
+    }
+    std::string string()
+    {
+        uint32_t n = 0;
+        raw(&n, 4);
+        if (int64_t(n) > size) throw corrupt("bad string length in header");
+        std::string str(n, '\0');
+        if (n) raw(&str[0], n);
+        return str;
+    }
+};
+
+// The archive header (io::Archive::readHeader): magic, version, library version, offsets flag, UUID and the file's
+// metadata. True when the grid descriptors follow with their offsets (layouts without are not walked).
+bool readArchiveHeader(HeaderReader& r)
+{
+    int64_t magic = 0;
+    uint32_t version = 0, major = 0, minor = 0;
+    r.raw(&magic, 8);
+    r.raw(&version, 4);
+    if (version < 222) return false; // older layouts are not walked; the guarded reader still applies
+    r.raw(&major, 4);
+    r.raw(&minor, 4);
+    char hasOffsets = 0;
+    r.raw(&hasOffsets, 1);
+    char uuid[36];
+    r.raw(uuid, 36);
+    uint32_t metaCount = 0;
+    r.raw(&metaCount, 4);
+    for (uint32_t m = 0; m < metaCount; ++m) {
+        r.string(); // name
+        r.string(); // type
+        r.string(); // value, stored as size + bytes
+    }
+    return hasOffsets != 0;
+}
+
+// The grid's own metadata (after its compression flags) must lie before its data blocks: a damaged entry count or
+// length makes OpenVDB read (and allocate) for minutes.
+void checkGridMetadata(HeaderReader& r, const std::string& name, int64_t gridPos, int64_t blockPos)
+{
+    std::ifstream& in = r.in;
+    in.seekg(gridPos);
+    uint32_t compression = 0;
+    int32_t count = 0;
+    r.raw(&compression, 4);
+    r.raw(&count, 4);
+    const auto damaged = [&](const std::string& why) {
+        return IoError(r.path + ": corrupt file: grid '" + cleanMessage(printableUnique(name)) +
+                       "' has damaged metadata (" + why + ")");
+    };
+    if (count < 0 || int64_t(count) * 12 > blockPos - gridPos) throw damaged("entry count " + std::to_string(count));
+    for (int32_t m = 0; m < count; ++m)
+        for (int part = 0; part < 3; ++part) { // name, type name, value
+            uint32_t n = 0;
+            r.raw(&n, 4);
+            if (int64_t(in.tellg()) + int64_t(n) > blockPos) throw damaged("an entry runs past the grid's header");
+            if (part == 0 && n == 0) throw damaged("an entry without a name");
+            in.seekg(n, std::ios::cur);
+        }
+}
+
 // OpenVDB reads raw and compressed chunks without checking for end of file, so a file cut short
 // inside its last grid reads "successfully" with garbage. Walk the grid descriptors (the layout of
 // io::Archive::readHeader and io::GridDescriptor::read), check every grid ends inside the file, and
@@ -124,79 +202,27 @@ std::vector<Descriptor> walkDescriptors(const std::string& path)
     std::ifstream in(path, std::ios::binary);
     if (!in) return out;
     const int64_t size = fileSize(path);
-    const auto corrupt = [&](const std::string& why) {
-        return IoError(path + ": truncated or corrupt file (" + why + ")");
-    };
-    const auto readRaw = [&](void* p, size_t n) {
-        in.read(static_cast<char*>(p), std::streamsize(n));
-        if (!in) throw corrupt("header ends early");
-    };
-    const auto readString = [&]() {
-        uint32_t n = 0;
-        readRaw(&n, 4);
-        if (int64_t(n) > size) throw corrupt("bad string length in header");
-        std::string str(n, '\0');
-        if (n) readRaw(&str[0], n);
-        return str;
-    };
-    int64_t magic = 0;
-    uint32_t version = 0, major = 0, minor = 0;
-    readRaw(&magic, 8);
-    readRaw(&version, 4);
-    if (version < 222) return out; // older layouts are not walked; the guarded reader still applies
-    readRaw(&major, 4);
-    readRaw(&minor, 4);
-    char hasOffsets = 0;
-    readRaw(&hasOffsets, 1);
-    char uuid[36];
-    readRaw(uuid, 36);
-    uint32_t metaCount = 0;
-    readRaw(&metaCount, 4);
-    for (uint32_t m = 0; m < metaCount; ++m) {
-        readString(); // name
-        readString(); // type
-        readString(); // value, stored as size + bytes
-    }
-    if (!hasOffsets) return out;
+    HeaderReader r{path, in, size};
+    if (!readArchiveHeader(r)) return out;
     uint32_t gridCount = 0;
-    readRaw(&gridCount, 4);
+    r.raw(&gridCount, 4);
     if (int64_t(gridCount) > size / 16)
-        throw corrupt("grid count " + std::to_string(gridCount) + " cannot fit in the file");
+        throw r.corrupt("grid count " + std::to_string(gridCount) + " cannot fit in the file");
     for (uint32_t g = 0; g < gridCount; ++g) {
-        const std::string name = readString();
-        const std::string type = readString();
-        readString(); // instance parent
+        const std::string name = r.string();
+        const std::string type = r.string();
+        r.string(); // instance parent
         int64_t gridPos = 0, blockPos = 0, endPos = 0;
-        readRaw(&gridPos, 8);
-        readRaw(&blockPos, 8);
-        readRaw(&endPos, 8);
+        r.raw(&gridPos, 8);
+        r.raw(&blockPos, 8);
+        r.raw(&endPos, 8);
         const int64_t here = int64_t(in.tellg());
         if (gridPos < here || blockPos < gridPos || endPos < blockPos)
-            throw corrupt("grid descriptor " + std::to_string(g) + " has inconsistent offsets");
+            throw r.corrupt("grid descriptor " + std::to_string(g) + " has inconsistent offsets");
         if (endPos > size)
             throw IoError(path + ": truncated file: grid '" + cleanMessage(printableUnique(name)) + "' ends at byte " +
                           std::to_string(endPos) + " but the file has " + std::to_string(size) + " bytes");
-        // The grid's own metadata (after its compression flags) must lie before its data blocks: a damaged
-        // entry count or length makes OpenVDB read (and allocate) for minutes.
-        in.seekg(gridPos);
-        uint32_t compression = 0;
-        int32_t count = 0;
-        readRaw(&compression, 4);
-        readRaw(&count, 4);
-        const auto damaged = [&](const std::string& why) {
-            return IoError(path + ": corrupt file: grid '" + cleanMessage(printableUnique(name)) +
-                           "' has damaged metadata (" + why + ")");
-        };
-        if (count < 0 || int64_t(count) * 12 > blockPos - gridPos)
-            throw damaged("entry count " + std::to_string(count));
-        for (int32_t m = 0; m < count; ++m)
-            for (int part = 0; part < 3; ++part) { // name, type name, value
-                uint32_t n = 0;
-                readRaw(&n, 4);
-                if (int64_t(in.tellg()) + int64_t(n) > blockPos) throw damaged("an entry runs past the grid's header");
-                if (part == 0 && n == 0) throw damaged("an entry without a name");
-                in.seekg(n, std::ios::cur);
-            }
+        checkGridMetadata(r, name, gridPos, blockPos);
         out.push_back({printableUnique(name), type});
         in.seekg(endPos);
     }
@@ -1053,98 +1079,126 @@ int boxGap(const turb::CoordBBox& a, const turb::CoordBBox& b)
     return std::max(g, 0);
 }
 
-// Clusters the smoke of `grid` at leaf-node granularity: a leaf's smoke joins that of its 26 neighbour leaves,
-// an active tile that of every node within one leaf of it. Serial and ordered, so the answer never depends on
-// threads; a pass over the active voxels, far cheaper than the dense copy it saves.
-// `simulationBox` (a Blender cache's): smoke outside it is a stray whatever its size or mass.
-SmokeRegion findSmoke(
+// One leaf's or active tile's smoke (voxels above the threshold), or a cluster of them.
+struct SmokeNode
+{
+    turb::CoordBBox box;
+    long long voxels = 0;
+    double mass = 0.0;
+};
+
+// The leaf cell (8^3 voxels) of c as one key: 21 bits of each axis.
+uint64_t leafKey(const openvdb::Coord& c)
+{
+    return (uint64_t(uint32_t(c.x() >> 3) & 0x1fffff) << 42) | (uint64_t(uint32_t(c.y() >> 3) & 0x1fffff) << 21) |
+           uint64_t(uint32_t(c.z() >> 3) & 0x1fffff);
+}
+
+// The smoke of a grid by node: leaves first (leafCount of them, found by leafIndex), then active tiles; `outside`
+// collects the smoke outside the simulation box.
+struct SmokeNodes
+{
+    SmokeNode outside;
+    std::vector<SmokeNode> nodes;
+    std::unordered_map<uint64_t, size_t> leafIndex;
+    size_t leafCount = 0;
+};
+
+SmokeNodes smokeNodes(
     const openvdb::FloatGrid& grid, const ReadOptions& o, const std::optional<turb::CoordBBox>& simulationBox)
 {
-    struct Node
-    {
-        turb::CoordBBox box;
-        long long voxels = 0;
-        double mass = 0.0;
-    };
-    Node outside;
-    std::vector<Node> nodes;
-    std::unordered_map<uint64_t, size_t> leafIndex;
-    const auto key = [](const openvdb::Coord& c) {
-        return (uint64_t(uint32_t(c.x() >> 3) & 0x1fffff) << 42) | (uint64_t(uint32_t(c.y() >> 3) & 0x1fffff) << 21) |
-               uint64_t(uint32_t(c.z() >> 3) & 0x1fffff);
-    };
+    SmokeNodes s;
+    SmokeNode& outside = s.outside;
     const float thr = o.smokeThreshold;
-    std::vector<turb::CoordBBox> tiles;
     for (auto leaf = grid.tree().cbeginLeaf(); leaf; ++leaf) {
-        Node n;
+        SmokeNode n;
         const bool whole = !simulationBox || simulationBox->isInside(leaf->getNodeBoundingBox());
         for (auto v = leaf->cbeginValueOn(); v; ++v)
             if (*v > thr) {
-                Node& to = whole || simulationBox->isInside(v.getCoord()) ? n : outside;
+                SmokeNode& to = whole || simulationBox->isInside(v.getCoord()) ? n : outside;
                 to.box.expand(v.getCoord());
                 ++to.voxels;
                 to.mass += double(*v);
             }
         if (n.voxels == 0) continue;
-        leafIndex.emplace(key(leaf->origin()), nodes.size());
-        nodes.push_back(n);
+        s.leafIndex.emplace(leafKey(leaf->origin()), s.nodes.size());
+        s.nodes.push_back(n);
     }
-    const size_t leafCount = nodes.size();
-    {
-        auto it = grid.tree().cbeginValueOn();
-        it.setMaxDepth(openvdb::FloatTree::ValueOnCIter::LEAF_DEPTH - 1); // tiles only
-        for (; it; ++it)
-            if (*it > thr) {
-                Node n;
-                n.box = it.getBoundingBox();
-                n.voxels = (long long)n.box.volume();
-                n.mass = double(*it) * double(n.voxels);
-                if (simulationBox && !simulationBox->isInside(n.box)) {
-                    outside.box.expand(n.box);
-                    outside.voxels += n.voxels;
-                    outside.mass += n.mass;
-                } else {
-                    nodes.push_back(n);
-                }
+    s.leafCount = s.nodes.size();
+    auto it = grid.tree().cbeginValueOn();
+    it.setMaxDepth(openvdb::FloatTree::ValueOnCIter::LEAF_DEPTH - 1); // tiles only
+    for (; it; ++it)
+        if (*it > thr) {
+            SmokeNode n;
+            n.box = it.getBoundingBox();
+            n.voxels = (long long)n.box.volume();
+            n.mass = double(*it) * double(n.voxels);
+            if (simulationBox && !simulationBox->isInside(n.box)) {
+                outside.box.expand(n.box);
+                outside.voxels += n.voxels;
+                outside.mass += n.mass;
+            } else {
+                s.nodes.push_back(n);
             }
+        }
+    return s;
+}
+
+// Union-find over the nodes; a set's root is its lowest node index.
+struct NodeSets
+{
+    std::vector<size_t> parent;
+    explicit NodeSets(size_t n) : parent(n)
+    {
+        for (size_t i = 0; i < parent.size(); ++i) parent[i] = i;
     }
-    std::vector<size_t> parent(nodes.size());
-    for (size_t i = 0; i < parent.size(); ++i) parent[i] = i;
-    const std::function<size_t(size_t)> root = [&](size_t i) {
+    size_t root(size_t i)
+    {
         while (parent[i] != i) i = parent[i] = parent[parent[i]];
         return i;
-    };
-    const auto join = [&](size_t a, size_t b) {
+    }
+    void join(size_t a, size_t b)
+    {
         a = root(a);
         b = root(b);
         if (a != b) parent[std::max(a, b)] = std::min(a, b);
-    };
+    }
+};
+
+// A leaf's smoke joins that of its 26 neighbour leaves.
+void joinNeighbourLeaves(const openvdb::FloatGrid& grid, const SmokeNodes& s, NodeSets& sets)
+{
     for (auto leaf = grid.tree().cbeginLeaf(); leaf; ++leaf) {
-        const auto me = leafIndex.find(key(leaf->origin()));
-        if (me == leafIndex.end()) continue;
+        const auto me = s.leafIndex.find(leafKey(leaf->origin()));
+        if (me == s.leafIndex.end()) continue;
         for (int dx = -8; dx <= 8; dx += 8)
             for (int dy = -8; dy <= 8; dy += 8)
                 for (int dz = -8; dz <= 8; dz += 8) {
-                    const auto nb = leafIndex.find(key(leaf->origin().offsetBy(dx, dy, dz)));
-                    if (nb != leafIndex.end()) join(me->second, nb->second);
+                    const auto nb = s.leafIndex.find(leafKey(leaf->origin().offsetBy(dx, dy, dz)));
+                    if (nb != s.leafIndex.end()) sets.join(me->second, nb->second);
                 }
     }
-    // A tile joins every node within 8 voxels of it. Comparing each tile with every node took minutes on a tree of
-    // active tiles over 2^31 voxels (1e5 tiles and leaves): look up only the leaves and tiles that can be that near,
-    // by the leaf- and 128-voxel cells their origins lie in. The larger (root) tiles, few, are compared with all.
+}
+
+// A tile joins every node within 8 voxels of it. Comparing each tile with every node took minutes on a tree of
+// active tiles over 2^31 voxels (1e5 tiles and leaves): look up only the leaves and tiles that can be that near,
+// by the leaf- and 128-voxel cells their origins lie in. The larger (root) tiles, few, are compared with all.
+void joinNearTiles(const SmokeNodes& s, NodeSets& sets)
+{
+    const std::vector<SmokeNode>& nodes = s.nodes;
     std::unordered_map<uint64_t, std::vector<size_t>> tileIndex8, tileIndex128;
     const auto key128 = [&](const openvdb::Coord& c) {
-        return key(openvdb::Coord(c.x() >> 4, c.y() >> 4, c.z() >> 4));
+        return leafKey(openvdb::Coord(c.x() >> 4, c.y() >> 4, c.z() >> 4));
     };
-    for (size_t t = leafCount; t < nodes.size(); ++t) {
+    for (size_t t = s.leafCount; t < nodes.size(); ++t) {
         const int size = nodes[t].box.dim().x();
-        if (size == 8) tileIndex8[key(nodes[t].box.min())].push_back(t);
+        if (size == 8) tileIndex8[leafKey(nodes[t].box.min())].push_back(t);
         else if (size == 128) tileIndex128[key128(nodes[t].box.min())].push_back(t);
     }
     const auto joinNear = [&](size_t t, size_t i) {
-        if (i != t && boxGap(nodes[t].box, nodes[i].box) <= 8) join(t, i);
+        if (i != t && boxGap(nodes[t].box, nodes[i].box) <= 8) sets.join(t, i);
     };
-    for (size_t t = leafCount; t < nodes.size(); ++t) {
+    for (size_t t = s.leafCount; t < nodes.size(); ++t) {
         const turb::CoordBBox near = nodes[t].box.expandBy(8);
         if (nodes[t].box.dim().x() > 128) {
             for (size_t i = 0; i < nodes.size(); ++i) joinNear(t, i);
@@ -1155,8 +1209,8 @@ SmokeRegion findSmoke(
         for (int x = lo.x(); x <= hi.x(); ++x)
             for (int y = lo.y(); y <= hi.y(); ++y)
                 for (int z = lo.z(); z <= hi.z(); ++z) {
-                    const uint64_t k = key(openvdb::Coord(x << 3, y << 3, z << 3));
-                    if (const auto leaf = leafIndex.find(k); leaf != leafIndex.end()) joinNear(t, leaf->second);
+                    const uint64_t k = leafKey(openvdb::Coord(x << 3, y << 3, z << 3));
+                    if (const auto leaf = s.leafIndex.find(k); leaf != s.leafIndex.end()) joinNear(t, leaf->second);
                     if (const auto tiles = tileIndex8.find(k); tiles != tileIndex8.end())
                         for (size_t i : tiles->second) joinNear(t, i);
                 }
@@ -1167,20 +1221,41 @@ SmokeRegion findSmoke(
                         tiles != tileIndex128.end())
                         for (size_t i : tiles->second) joinNear(t, i);
     }
+}
 
-    std::map<size_t, Node> clusters; // by root: the lowest node index, so the order is the tree's
-    double total = outside.mass;
-    for (size_t i = 0; i < nodes.size(); ++i) {
-        Node& c = clusters[root(i)];
-        c.box.expand(nodes[i].box);
-        c.voxels += nodes[i].voxels;
-        c.mass += nodes[i].mass;
-        total += nodes[i].mass;
+// The clusters, heaviest first (ties in the tree's order); `total` gets the mass of all the smoke, outside included.
+std::vector<SmokeNode> clustersByMass(const SmokeNodes& s, NodeSets& sets, double& total)
+{
+    std::map<size_t, SmokeNode> clusters; // by root: the lowest node index, so the order is the tree's
+    total = s.outside.mass;
+    for (size_t i = 0; i < s.nodes.size(); ++i) {
+        SmokeNode& c = clusters[sets.root(i)];
+        c.box.expand(s.nodes[i].box);
+        c.voxels += s.nodes[i].voxels;
+        c.mass += s.nodes[i].mass;
+        total += s.nodes[i].mass;
     }
-    std::vector<Node> list;
+    std::vector<SmokeNode> list;
     for (auto& kv : clusters) list.push_back(kv.second);
-    std::stable_sort(list.begin(), list.end(), [](const Node& a, const Node& b) { return a.mass > b.mass; });
+    std::stable_sort(list.begin(), list.end(), [](const SmokeNode& a, const SmokeNode& b) { return a.mass > b.mass; });
+    return list;
+}
 
+StrayCluster strayOf(const SmokeNode& c, double total, int distance)
+{
+    StrayCluster s;
+    s.box = c.box;
+    s.voxels = c.voxels;
+    s.massShare = total > 0.0 ? c.mass / total : 0.0;
+    s.distance = distance;
+    return s;
+}
+
+// The smoke is the heaviest cluster and those of enough mass and voxels (all with keepIsolated), grown by the
+// small clusters near it; the rest, and the smoke outside the simulation box, are strays.
+SmokeRegion separateStrays(
+    const std::vector<SmokeNode>& list, const SmokeNode& outside, double total, const ReadOptions& o)
+{
     SmokeRegion r;
     r.hasDensity = true;
     std::vector<bool> kept(list.size(), false);
@@ -1203,24 +1278,30 @@ SmokeRegion findSmoke(
             r.smokeVoxels += list[i].voxels;
             continue;
         }
-        StrayCluster s;
-        s.box = list[i].box;
-        s.voxels = list[i].voxels;
-        s.massShare = total > 0.0 ? list[i].mass / total : 0.0;
-        s.distance = boxGap(r.smoke, list[i].box);
-        r.strays.push_back(s);
+        r.strays.push_back(strayOf(list[i], total, boxGap(r.smoke, list[i].box)));
     }
     if (outside.voxels > 0) { // left out whatever its size: Blender writes nothing there
-        StrayCluster s;
-        s.box = outside.box;
-        s.voxels = outside.voxels;
-        s.massShare = total > 0.0 ? outside.mass / total : 0.0;
-        s.distance = r.smoke.empty() ? 0 : boxGap(r.smoke, outside.box);
-        r.strays.push_back(s);
+        r.strays.push_back(strayOf(outside, total, r.smoke.empty() ? 0 : boxGap(r.smoke, outside.box)));
         std::stable_sort(r.strays.begin(), r.strays.end(),
             [](const StrayCluster& a, const StrayCluster& b) { return a.massShare > b.massShare; });
     }
     return r;
+}
+
+// Clusters the smoke of `grid` at leaf-node granularity: a leaf's smoke joins that of its 26 neighbour leaves,
+// an active tile that of every node within one leaf of it. Serial and ordered, so the answer never depends on
+// threads; a pass over the active voxels, far cheaper than the dense copy it saves.
+// `simulationBox` (a Blender cache's): smoke outside it is a stray whatever its size or mass.
+SmokeRegion findSmoke(
+    const openvdb::FloatGrid& grid, const ReadOptions& o, const std::optional<turb::CoordBBox>& simulationBox)
+{
+    const SmokeNodes s = smokeNodes(grid, o, simulationBox);
+    NodeSets sets(s.nodes.size());
+    joinNeighbourLeaves(grid, s, sets);
+    joinNearTiles(s, sets);
+    double total = 0.0;
+    const std::vector<SmokeNode> list = clustersByMass(s, sets, total);
+    return separateStrays(list, s.outside, total, o);
 }
 
 } // namespace
@@ -1997,6 +2078,113 @@ openvdb::MetaMap fileMetadata(const turb::Frame& frame, const WriteOptions& opti
     return meta;
 }
 
+// Blender's resolution and voxel size on each grid it reads.
+void addBlenderMeta(openvdb::GridBase& g, const turb::Frame& frame)
+{
+    const turb::Coord res = frame.bbox().dim();
+    g.insertMeta("file_base_resolution", openvdb::Vec3IMetadata(openvdb::Vec3i(res.x(), res.y(), res.z())));
+    g.insertMeta("file_voxel_size", openvdb::FloatMetadata(float(frame.lattice().voxelSize)));
+}
+
+// The written time unit: seconds for Houdini and renderers; for Blender the frame's own when it came from Blender,
+// else Mantaflow's at time scale 1 (a frame is 0.1 x 25/fps units and 1/fps s: 0.4 s a unit).
+double writtenTimeUnit(const turb::Frame& frame, const WriteOptions& options)
+{
+    const bool blender = options.style == WriteStyle::Blender;
+    constexpr double kMantaflowTimeUnit = 0.4;
+    return options.keepTimeUnit ? frame.timeUnit
+           : blender            ? (frame.timeUnit != 1.0 ? frame.timeUnit : kMantaflowTimeUnit)
+                                : 1.0;
+}
+
+// Where a trimmed velocity is kept: the smoke dilated by the velocity margin, as voxels.
+openvdb::MaskGrid::Ptr velocityMask(const openvdb::MaskGrid& inSmoke, const WriteOptions& options)
+{
+    openvdb::MaskGrid::Ptr near = inSmoke.deepCopy();
+    if (options.velocityMargin > 0)
+        openvdb::tools::dilateActiveValues(
+            near->tree(), options.velocityMargin, openvdb::tools::NN_FACE_EDGE_VERTEX, openvdb::tools::EXPAND_TILES);
+    near->tree().voxelizeActiveTiles();
+    return near;
+}
+
+// The velocity grid in the style's convention: Houdini's cell-centred `vel` (coarse or trimmed to `near` as asked) in
+// the written time unit, or Blender's staggered `velocity` in voxels per its time unit.
+openvdb::Vec3SGrid::Ptr velocityGrid(
+    const turb::Frame& frame, const WriteOptions& options, const openvdb::MaskGrid* near, float velocityScale)
+{
+    const bool blender = options.style == WriteStyle::Blender;
+    openvdb::Vec3SGrid::Ptr g;
+    if (!blender && options.velocityVoxelScale > 1) {
+        g = coarseVelocityGrid(frame.velocity, options.velocityVoxelScale, near);
+        g->setName("vel");
+        g->setGridClass(openvdb::GRID_UNKNOWN);
+    } else if (blender) {
+        g = centredToStaggered(frame.velocity, float(1.0 / frame.lattice().voxelSize) * velocityScale);
+        g->setName("velocity");
+        g->setGridClass(openvdb::GRID_STAGGERED);
+        addBlenderMeta(*g, frame);
+    } else if (near) {
+        g = maskedGrid<openvdb::Vec3SGrid>(frame.velocity, *near);
+        g->setName("vel");
+        g->setGridClass(openvdb::GRID_UNKNOWN);
+    } else {
+        g = fieldToGrid<openvdb::Vec3SGrid>(frame.velocity, turb::Vec3f(0.0f));
+        g->setName("vel");
+        g->setGridClass(openvdb::GRID_UNKNOWN);
+    }
+    if (!blender && velocityScale != 1.0f)
+        for (auto it = g->beginValueOn(); it; ++it) it.setValue(*it * velocityScale);
+    g->setVectorType(openvdb::VEC_CONTRAVARIANT_RELATIVE);
+    g->setSaveFloatAsHalf(options.halfFloat);
+    return g;
+}
+
+// The density: a fog volume, its values within the density tolerance of zero left inactive.
+openvdb::FloatGrid::Ptr densityGrid(const turb::Frame& frame, const WriteOptions& options)
+{
+    auto g = fieldToGrid<openvdb::FloatGrid>(frame.density, options.densityTolerance);
+    g->setName("density");
+    g->setGridClass(openvdb::GRID_FOG_VOLUME);
+    g->setSaveFloatAsHalf(options.halfFloat);
+    if (options.style == WriteStyle::Blender) addBlenderMeta(*g, frame);
+    return g;
+}
+
+// Temperature or flame, when the frame has it: a fog volume, trimmed to the smoke when `inSmoke` is given.
+void appendScalar(openvdb::GridPtrVec& grids, const std::optional<turb::ScalarField>& f, const char* name,
+    const turb::Frame& frame, const WriteOptions& options, const openvdb::MaskGrid* inSmoke)
+{
+    if (!f || f->empty()) return;
+    auto g = inSmoke ? maskedGrid<openvdb::FloatGrid>(*f, *inSmoke) : fieldToGrid<openvdb::FloatGrid>(*f, 0.0f);
+    g->setName(name);
+    g->setGridClass(openvdb::GRID_FOG_VOLUME);
+    g->setSaveFloatAsHalf(options.halfFloat);
+    if (options.style == WriteStyle::Blender) addBlenderMeta(*g, frame);
+    grids.push_back(g);
+}
+
+// The other grids read beside the frame, appended to `grids`: those that follow the frame on its lattice, the rest
+// (also listed in `passedAsRead`) as they were read.
+void appendOtherGrids(const OtherGrids::Impl& others, const turb::Lattice& lat, const WriteOptions& options,
+    openvdb::GridPtrVec& grids, std::vector<openvdb::GridBase::Ptr>& passedAsRead)
+{
+    for (size_t i = 0; i < others.grids.size(); ++i) {
+        // A shallow copy: the caller's grids keep their transform and metadata.
+        openvdb::GridBase::Ptr g = others.grids[i]->copyGrid();
+        if (auto half = g->getMetadata<openvdb::BoolMetadata>(kHalfKey)) {
+            g->setSaveFloatAsHalf(half->value() || options.halfFloat);
+            g->removeMeta(kHalfKey);
+        }
+        if (others.followFrame[i]) {
+            g->setTransform(transformOf(lat));
+        } else {
+            passedAsRead.push_back(g);
+        }
+        grids.push_back(g);
+    }
+}
+
 } // namespace
 
 void writeFrame(
@@ -2015,94 +2203,19 @@ void writeFrame(
 
     openvdb::GridPtrVec grids;
     const bool blender = options.style == WriteStyle::Blender;
-    const turb::Lattice& lat = frame.lattice();
-    // The written time unit: seconds for Houdini and renderers; for Blender the frame's own when it came from Blender,
-    // else Mantaflow's at time scale 1 (a frame is 0.1 x 25/fps units and 1/fps s: 0.4 s a unit).
-    constexpr double kMantaflowTimeUnit = 0.4;
-    const double timeUnit = options.keepTimeUnit ? frame.timeUnit
-                            : blender            ? (frame.timeUnit != 1.0 ? frame.timeUnit : kMantaflowTimeUnit)
-                                                 : 1.0;
+    const double timeUnit = writtenTimeUnit(frame, options);
     const float velocityScale = float(timeUnit / frame.timeUnit);
-    const turb::Coord res = frame.bbox().dim();
-
-    const auto addBlenderMeta = [&](openvdb::GridBase& g) {
-        g.insertMeta("file_base_resolution", openvdb::Vec3IMetadata(openvdb::Vec3i(res.x(), res.y(), res.z())));
-        g.insertMeta("file_voxel_size", openvdb::FloatMetadata(float(lat.voxelSize)));
-    };
-
     // Trimmed (Houdini style only: Blender's staggered faces need whole lines for the exact inverse).
     const bool trim = !blender && options.velocityMargin >= 0 && frame.hasDensity();
     const openvdb::MaskGrid::Ptr inSmoke = trim ? smokeMask(frame, options) : nullptr;
-    openvdb::MaskGrid::Ptr near;
-    if (trim) {
-        near = inSmoke->deepCopy();
-        if (options.velocityMargin > 0)
-            openvdb::tools::dilateActiveValues(near->tree(), options.velocityMargin,
-                openvdb::tools::NN_FACE_EDGE_VERTEX, openvdb::tools::EXPAND_TILES);
-        near->tree().voxelizeActiveTiles();
-    }
-    if (frame.hasDensity()) {
-        auto g = fieldToGrid<openvdb::FloatGrid>(frame.density, options.densityTolerance);
-        g->setName("density");
-        g->setGridClass(openvdb::GRID_FOG_VOLUME);
-        g->setSaveFloatAsHalf(options.halfFloat);
-        if (blender) addBlenderMeta(*g);
-        grids.push_back(g);
-    }
-    if (frame.hasVelocity() && options.writeVelocity) {
-        openvdb::Vec3SGrid::Ptr g;
-        if (!blender && options.velocityVoxelScale > 1) {
-            g = coarseVelocityGrid(frame.velocity, options.velocityVoxelScale, near.get());
-            g->setName("vel");
-            g->setGridClass(openvdb::GRID_UNKNOWN);
-        } else if (blender) {
-            g = centredToStaggered(frame.velocity, float(1.0 / lat.voxelSize) * velocityScale);
-            g->setName("velocity");
-            g->setGridClass(openvdb::GRID_STAGGERED);
-            addBlenderMeta(*g);
-        } else if (near) {
-            g = maskedGrid<openvdb::Vec3SGrid>(frame.velocity, *near);
-            g->setName("vel");
-            g->setGridClass(openvdb::GRID_UNKNOWN);
-        } else {
-            g = fieldToGrid<openvdb::Vec3SGrid>(frame.velocity, turb::Vec3f(0.0f));
-            g->setName("vel");
-            g->setGridClass(openvdb::GRID_UNKNOWN);
-        }
-        if (!blender && velocityScale != 1.0f)
-            for (auto it = g->beginValueOn(); it; ++it) it.setValue(*it * velocityScale);
-        g->setVectorType(openvdb::VEC_CONTRAVARIANT_RELATIVE);
-        g->setSaveFloatAsHalf(options.halfFloat);
-        grids.push_back(g);
-    }
-    const auto addScalar = [&](const std::optional<turb::ScalarField>& f, const char* name) {
-        if (!f || f->empty()) return;
-        auto g = inSmoke ? maskedGrid<openvdb::FloatGrid>(*f, *inSmoke) : fieldToGrid<openvdb::FloatGrid>(*f, 0.0f);
-        g->setName(name);
-        g->setGridClass(openvdb::GRID_FOG_VOLUME);
-        g->setSaveFloatAsHalf(options.halfFloat);
-        if (blender) addBlenderMeta(*g);
-        grids.push_back(g);
-    };
-    addScalar(frame.temperature, "temperature");
-    addScalar(frame.flame, "flame");
+    const openvdb::MaskGrid::Ptr near = trim ? velocityMask(*inSmoke, options) : nullptr;
+    if (frame.hasDensity()) grids.push_back(densityGrid(frame, options));
+    if (frame.hasVelocity() && options.writeVelocity)
+        grids.push_back(velocityGrid(frame, options, near.get(), velocityScale));
+    appendScalar(grids, frame.temperature, "temperature", frame, options, inSmoke.get());
+    appendScalar(grids, frame.flame, "flame", frame, options, inSmoke.get());
     std::vector<openvdb::GridBase::Ptr> passedAsRead; // not moved by Blender's placement below
-    if (others) {
-        for (size_t i = 0; i < others->mImpl->grids.size(); ++i) {
-            // A shallow copy: the caller's grids keep their transform and metadata.
-            openvdb::GridBase::Ptr g = others->mImpl->grids[i]->copyGrid();
-            if (auto half = g->getMetadata<openvdb::BoolMetadata>(kHalfKey)) {
-                g->setSaveFloatAsHalf(half->value() || options.halfFloat);
-                g->removeMeta(kHalfKey);
-            }
-            if (others->mImpl->followFrame[i]) {
-                g->setTransform(transformOf(lat));
-            } else {
-                passedAsRead.push_back(g);
-            }
-            grids.push_back(g);
-        }
-    }
+    if (others) appendOtherGrids(*others->mImpl, frame.lattice(), options, grids, passedAsRead);
 
     const openvdb::MetaMap meta = fileMetadata(frame, options, near != nullptr, timeUnit, grids, passedAsRead);
     if (nano) {

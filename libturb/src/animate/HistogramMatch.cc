@@ -207,6 +207,25 @@ std::vector<float> quantileTable(std::vector<float> values, int Q)
     return q;
 }
 
+/// The moment step's sums over one cell's pixels (see correctMoments), indexed by the neighbour offset (3x3 around
+/// the cell), with the matte m and the fixed part u = (1 - m) t: sum m w_j {1, v}, sum m w_j u {1, v}; per pair
+/// (i, j), sum m^2 w_i w_j {1, v, v^2}; and sum u, sum u^2.
+struct MomentSums
+{
+    double n = 0.0, u1 = 0.0, u2 = 0.0;
+    std::array<std::array<double, 2>, 9> lin{}, cross{};
+    std::array<std::array<std::array<double, 3>, 9>, 9> quad{};
+};
+
+/// The moment step's least-squares problem: per cell its sums, the target's mean and std, and the residuals' scale.
+struct MomentProblem
+{
+    int N = 0; // cells
+    std::vector<MomentSums> sums;
+    const std::vector<std::array<double, 2>>* goal = nullptr;
+    std::vector<double> scale;
+};
+
 } // namespace
 
 struct HistogramMatcher::Impl
@@ -326,6 +345,21 @@ struct HistogramMatcher::Impl
     }
 
     void correctMoments(ChannelImage& p, int c) const;
+    /// Neighbour o (0..8) of cell k, or -1 outside the grid.
+    int cellAt(int k, int o) const
+    {
+        const int i = k % cols + o % 3 - 1, j = k / cols + o / 3 - 1;
+        return i < 0 || j < 0 || i >= cols || j >= rows ? -1 : j * cols + i;
+    }
+    std::vector<MomentSums> momentSums(const ChannelImage& p, int channel) const;
+    void momentResiduals(const MomentProblem& mp, const Eigen::VectorXd& ab, Eigen::VectorXd& r,
+        std::vector<Eigen::Triplet<double>>* J) const;
+    bool solveMomentGains(const MomentProblem& mp, Eigen::VectorXd& ab) const;
+    void applyMomentGains(ChannelImage& p, const Eigen::VectorXd& ab) const;
+    void layOutCells();
+    void fitColourPca(const ChannelImage& image);
+    void buildGeometry();
+    void buildTables(const ChannelImage& image);
     ChannelImage plane(const ChannelImage& img, int c) const;
     void unplane(const std::vector<ChannelImage>& planes, ChannelImage& out) const;
     void matchPlane(ChannelImage& p, int c) const;
@@ -341,32 +375,36 @@ struct HistogramMatcher::Impl
 // no seam; it is kept only where it lowers the residual.
 void HistogramMatcher::Impl::correctMoments(ChannelImage& p, int channel) const
 {
-    const Geometry& g = geometry[0];
     const int N = int(cells.size());
-    const std::vector<std::array<double, 2>>& goal = moments[size_t(channel)];
     // A reach > 0 lets a cell's statistics see cells two away, beyond the 3x3 neighbourhood summed here; such grids
     // keep the blended matches' result. One cell is solved too: the histogram passes leave it a little off as well.
     if (N < 1 || s.reach > 0.0) return;
-    // Per cell k, sums over its pixels, indexed by the neighbour offset (3x3 around k), with the matte m and the
-    // fixed part u = (1 - m) t: sum m w_j {1, v}, sum m w_j u {1, v}; per pair (i, j), sum m^2 w_i w_j {1, v, v^2};
-    // and sum u, sum u^2.
-    struct Sums
-    {
-        double n = 0.0, u1 = 0.0, u2 = 0.0;
-        std::array<std::array<double, 2>, 9> lin{}, cross{};
-        std::array<std::array<std::array<double, 3>, 9>, 9> quad{};
-    };
-    std::vector<Sums> sums(static_cast<size_t>(N));
-    const auto cellAt = [&](int k, int o) -> int { // neighbour o (0..8) of cell k, or -1 outside the grid
-        const int i = k % cols + o % 3 - 1, j = k / cols + o / 3 - 1;
-        return i < 0 || j < 0 || i >= cols || j >= rows ? -1 : j * cols + i;
-    };
+    MomentProblem mp;
+    mp.N = N;
+    mp.goal = &moments[size_t(channel)];
+    mp.sums = momentSums(p, channel);
+    // Residuals scaled by the target's std (a floor keeps flat cells from dominating): r = [mean - M, m2 - Q].
+    const std::vector<std::array<double, 2>>& goal = *mp.goal;
+    mp.scale.resize(static_cast<size_t>(N));
+    double spread = 0.0;
+    for (int k = 0; k < N; ++k) spread = std::max(spread, goal[size_t(k)][1]);
+    for (int k = 0; k < N; ++k) mp.scale[size_t(k)] = 1.0 / std::max(goal[size_t(k)][1], 1e-3 * spread + 1e-12);
+    Eigen::VectorXd ab;
+    if (!solveMomentGains(mp, ab)) return;
+    applyMomentGains(p, ab);
+}
+
+// The moment step's sums per cell (MomentSums) over the pixels of plane `p` of `channel`.
+std::vector<MomentSums> HistogramMatcher::Impl::momentSums(const ChannelImage& p, int channel) const
+{
+    const Geometry& g = geometry[0];
+    std::vector<MomentSums> sums(cells.size());
     const bool matted = !matteCopy.empty();
-    parallelFor(size_t(N), 1, [&](size_t b, size_t e) {
+    parallelFor(cells.size(), 1, [&](size_t b, size_t e) {
         for (size_t k = b; k < e; ++k) {
             const HmCell& cell = cells[k];
             const int ki = int(k) % cols, kj = int(k) / cols;
-            Sums& S = sums[k];
+            MomentSums& S = sums[k];
             for (int y = cell.y0; y < cell.y1; ++y)
                 for (int x = cell.x0; x < cell.x1; ++x) {
                     const double v = p.at(x, y, 0);
@@ -401,61 +439,71 @@ void HistogramMatcher::Impl::correctMoments(ChannelImage& p, int channel) const
                 }
         }
     });
-    // Residuals scaled by the target's std (a floor keeps flat cells from dominating): r = [mean - M, m2 - Q].
-    std::vector<double> scale(static_cast<size_t>(N));
-    double spread = 0.0;
-    for (int k = 0; k < N; ++k) spread = std::max(spread, goal[size_t(k)][1]);
-    for (int k = 0; k < N; ++k) scale[size_t(k)] = 1.0 / std::max(goal[size_t(k)][1], 1e-3 * spread + 1e-12);
-    const auto residual = [&](const Eigen::VectorXd& ab, Eigen::VectorXd& r, std::vector<Eigen::Triplet<double>>* J) {
-        r.resize(2 * N);
-        for (int k = 0; k < N; ++k) {
-            const Sums& S = sums[size_t(k)];
-            const double inv = S.n > 0.0 ? 1.0 / S.n : 0.0, sc = scale[size_t(k)];
-            const double M = goal[size_t(k)][0], S2 = goal[size_t(k)][1] * goal[size_t(k)][1];
-            double mean = S.u1 * inv, m2 = S.u2 * inv;
-            std::array<double, 9> dMa{}, dMb{}, d2a{}, d2b{};
-            for (int oi = 0; oi < 9; ++oi) {
-                const int i = cellAt(k, oi);
-                if (i < 0) continue;
-                const double ai = ab[2 * i], bi = ab[2 * i + 1];
-                mean += (ai * S.lin[size_t(oi)][1] + bi * S.lin[size_t(oi)][0]) * inv;
-                dMa[size_t(oi)] = S.lin[size_t(oi)][1] * inv;
-                dMb[size_t(oi)] = S.lin[size_t(oi)][0] * inv;
-                m2 += 2.0 * (ai * S.cross[size_t(oi)][1] + bi * S.cross[size_t(oi)][0]) * inv;
-                d2a[size_t(oi)] += 2.0 * S.cross[size_t(oi)][1] * inv;
-                d2b[size_t(oi)] += 2.0 * S.cross[size_t(oi)][0] * inv;
-                for (int oj = 0; oj < 9; ++oj) {
-                    const int j = cellAt(k, oj);
-                    if (j < 0) continue;
-                    const auto& q = S.quad[size_t(oi)][size_t(oj)];
-                    const double aj = ab[2 * j], bj = ab[2 * j + 1];
-                    m2 += (ai * aj * q[2] + 2.0 * ai * bj * q[1] + bi * bj * q[0]) * inv;
-                    d2a[size_t(oi)] += 2.0 * (aj * q[2] + bj * q[1]) * inv;
-                    d2b[size_t(oi)] += 2.0 * (aj * q[1] + bj * q[0]) * inv;
-                }
-            }
-            // The variance, not the second moment: m2 - Q mixes in the mean's error times 2M, which for a cell with
-            // M >> S swamps the std's (a 5% std error hid behind a 0.3% residual on the 640x480 river).
-            r[2 * k] = (mean - M) * sc;
-            r[2 * k + 1] = (m2 - mean * mean - S2) * sc * sc;
-            if (!J) continue;
-            for (int oi = 0; oi < 9; ++oi) {
-                const int i = cellAt(k, oi);
-                if (i < 0) continue;
-                J->emplace_back(2 * k, 2 * i, dMa[size_t(oi)] * sc);
-                J->emplace_back(2 * k, 2 * i + 1, dMb[size_t(oi)] * sc);
-                J->emplace_back(2 * k + 1, 2 * i, (d2a[size_t(oi)] - 2.0 * mean * dMa[size_t(oi)]) * sc * sc);
-                J->emplace_back(2 * k + 1, 2 * i + 1, (d2b[size_t(oi)] - 2.0 * mean * dMb[size_t(oi)]) * sc * sc);
+    return sums;
+}
+
+// The residuals r (mean and variance per cell, scaled) at gains and offsets `ab`; with J, its Jacobian's entries.
+void HistogramMatcher::Impl::momentResiduals(const MomentProblem& mp, const Eigen::VectorXd& ab, Eigen::VectorXd& r,
+    std::vector<Eigen::Triplet<double>>* J) const
+{
+    const int N = mp.N;
+    const std::vector<std::array<double, 2>>& goal = *mp.goal;
+    r.resize(2 * N);
+    for (int k = 0; k < N; ++k) {
+        const MomentSums& S = mp.sums[size_t(k)];
+        const double inv = S.n > 0.0 ? 1.0 / S.n : 0.0, sc = mp.scale[size_t(k)];
+        const double M = goal[size_t(k)][0], S2 = goal[size_t(k)][1] * goal[size_t(k)][1];
+        double mean = S.u1 * inv, m2 = S.u2 * inv;
+        std::array<double, 9> dMa{}, dMb{}, d2a{}, d2b{};
+        for (int oi = 0; oi < 9; ++oi) {
+            const int i = cellAt(k, oi);
+            if (i < 0) continue;
+            const double ai = ab[2 * i], bi = ab[2 * i + 1];
+            mean += (ai * S.lin[size_t(oi)][1] + bi * S.lin[size_t(oi)][0]) * inv;
+            dMa[size_t(oi)] = S.lin[size_t(oi)][1] * inv;
+            dMb[size_t(oi)] = S.lin[size_t(oi)][0] * inv;
+            m2 += 2.0 * (ai * S.cross[size_t(oi)][1] + bi * S.cross[size_t(oi)][0]) * inv;
+            d2a[size_t(oi)] += 2.0 * S.cross[size_t(oi)][1] * inv;
+            d2b[size_t(oi)] += 2.0 * S.cross[size_t(oi)][0] * inv;
+            for (int oj = 0; oj < 9; ++oj) {
+                const int j = cellAt(k, oj);
+                if (j < 0) continue;
+                const auto& q = S.quad[size_t(oi)][size_t(oj)];
+                const double aj = ab[2 * j], bj = ab[2 * j + 1];
+                m2 += (ai * aj * q[2] + 2.0 * ai * bj * q[1] + bi * bj * q[0]) * inv;
+                d2a[size_t(oi)] += 2.0 * (aj * q[2] + bj * q[1]) * inv;
+                d2b[size_t(oi)] += 2.0 * (aj * q[1] + bj * q[0]) * inv;
             }
         }
-    };
-    Eigen::VectorXd ab(2 * N), r, rTry;
+        // The variance, not the second moment: m2 - Q mixes in the mean's error times 2M, which for a cell with
+        // M >> S swamps the std's (a 5% std error hid behind a 0.3% residual on the 640x480 river).
+        r[2 * k] = (mean - M) * sc;
+        r[2 * k + 1] = (m2 - mean * mean - S2) * sc * sc;
+        if (!J) continue;
+        for (int oi = 0; oi < 9; ++oi) {
+            const int i = cellAt(k, oi);
+            if (i < 0) continue;
+            J->emplace_back(2 * k, 2 * i, dMa[size_t(oi)] * sc);
+            J->emplace_back(2 * k, 2 * i + 1, dMb[size_t(oi)] * sc);
+            J->emplace_back(2 * k + 1, 2 * i, (d2a[size_t(oi)] - 2.0 * mean * dMa[size_t(oi)]) * sc * sc);
+            J->emplace_back(2 * k + 1, 2 * i + 1, (d2b[size_t(oi)] - 2.0 * mean * dMb[size_t(oi)]) * sc * sc);
+        }
+    }
+}
+
+// Levenberg-Marquardt from (a, b) = (1, 0). Returns false (and the caller keeps the frame) unless the gains and
+// offsets left in `ab` lower the residual.
+bool HistogramMatcher::Impl::solveMomentGains(const MomentProblem& mp, Eigen::VectorXd& ab) const
+{
+    const int N = mp.N;
+    Eigen::VectorXd r, rTry;
+    ab.resize(2 * N);
     for (int k = 0; k < N; ++k) {
         ab[2 * k] = 1.0;
         ab[2 * k + 1] = 0.0;
     }
     std::vector<Eigen::Triplet<double>> trips;
-    residual(ab, r, &trips);
+    momentResiduals(mp, ab, r, &trips);
     const double start = r.squaredNorm();
     double mu = 1e-6;
     for (int it = 0; it < 50 && r.lpNorm<Eigen::Infinity>() > 1e-6; ++it) {
@@ -473,7 +521,7 @@ void HistogramMatcher::Impl::correctMoments(ChannelImage& p, int channel) const
                 continue;
             }
             const Eigen::VectorXd next = ab - ldlt.solve(Jtr);
-            residual(next, rTry, nullptr);
+            momentResiduals(mp, next, rTry, nullptr);
             if (rTry.squaredNorm() < r.squaredNorm()) {
                 ab = next;
                 stepped = true;
@@ -484,9 +532,15 @@ void HistogramMatcher::Impl::correctMoments(ChannelImage& p, int channel) const
         }
         if (!stepped) break;
         trips.clear();
-        residual(ab, r, &trips);
+        momentResiduals(mp, ab, r, &trips);
     }
-    if (!(r.squaredNorm() < start)) return;
+    return r.squaredNorm() < start;
+}
+
+// y(x) = sum_k w_k(x) (a_k v(x) + b_k) over the plane, with the pixel blend's weights.
+void HistogramMatcher::Impl::applyMomentGains(ChannelImage& p, const Eigen::VectorXd& ab) const
+{
+    const Geometry& g = geometry[0];
     parallelFor(size_t(g.h), 8, [&](size_t y0, size_t y1) {
         for (size_t y = y0; y < y1; ++y) {
             float* row = p.pixel(0, int(y));
@@ -573,85 +627,103 @@ HistogramMatcher::HistogramMatcher(
     m.H = target.height();
     m.C = target.channels();
     m.levels = std::min(settings.levels, maxSteerableLevels(m.W, m.H));
-    std::tie(m.cols, m.rows) = histogramGrid(m.W, m.H, settings);
-    for (int i = 0; i <= m.cols; ++i) m.xEdges.push_back(std::round(double(m.W) * i / m.cols));
-    for (int j = 0; j <= m.rows; ++j) m.yEdges.push_back(std::round(double(m.H) * j / m.rows));
-    m.ox = settings.overlap * double(m.W) / m.cols;
-    m.oy = settings.overlap * double(m.H) / m.rows;
-    for (int j = 0; j < m.rows; ++j)
-        for (int i = 0; i < m.cols; ++i) {
+    m.layOutCells();
+    if (settings.colorPca && m.C >= 3) m.fitColourPca(target);
+    m.buildGeometry();
+    m.buildTables(target);
+}
+
+// The grid of cells over the target: edges, overlaps and each cell's statistics region (its reach around it).
+void HistogramMatcher::Impl::layOutCells()
+{
+    std::tie(cols, rows) = histogramGrid(W, H, s);
+    for (int i = 0; i <= cols; ++i) xEdges.push_back(std::round(double(W) * i / cols));
+    for (int j = 0; j <= rows; ++j) yEdges.push_back(std::round(double(H) * j / rows));
+    ox = s.overlap * double(W) / cols;
+    oy = s.overlap * double(H) / rows;
+    for (int j = 0; j < rows; ++j)
+        for (int i = 0; i < cols; ++i) {
             HmCell c;
-            c.x0 = int(m.xEdges[size_t(i)]);
-            c.x1 = int(m.xEdges[size_t(i + 1)]);
-            c.y0 = int(m.yEdges[size_t(j)]);
-            c.y1 = int(m.yEdges[size_t(j + 1)]);
-            const double rx = settings.reach * double(m.W) / m.cols, ry = settings.reach * double(m.H) / m.rows;
+            c.x0 = int(xEdges[size_t(i)]);
+            c.x1 = int(xEdges[size_t(i + 1)]);
+            c.y0 = int(yEdges[size_t(j)]);
+            c.y1 = int(yEdges[size_t(j + 1)]);
+            const double rx = s.reach * double(W) / cols, ry = s.reach * double(H) / rows;
             c.sx0 = std::max(0, int(std::floor(c.x0 - rx)));
             c.sy0 = std::max(0, int(std::floor(c.y0 - ry)));
-            c.sx1 = std::min(m.W, int(std::ceil(c.x1 + rx)));
-            c.sy1 = std::min(m.H, int(std::ceil(c.y1 + ry)));
-            m.cells.push_back(c);
+            c.sx1 = std::min(W, int(std::ceil(c.x1 + rx)));
+            c.sy1 = std::min(H, int(std::ceil(c.y1 + ry)));
+            cells.push_back(c);
         }
+}
 
-    if (settings.colorPca && m.C >= 3) {
-        Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-        for (size_t i = 0; i < target.pixelCount(); ++i)
-            for (int c = 0; c < 3; ++c) mean[c] += target.pixel(i)[c];
-        mean /= double(target.pixelCount());
-        Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-        for (size_t i = 0; i < target.pixelCount(); ++i) {
-            const Eigen::Vector3d d(
-                target.pixel(i)[0] - mean[0], target.pixel(i)[1] - mean[1], target.pixel(i)[2] - mean[2]);
-            cov += d * d.transpose();
-        }
-        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
-        m.E = eig.eigenvectors();
-        m.mu = mean;
-        m.pca = true;
+// The colour PCA: the target's mean colour and the eigenvectors of its colour covariance.
+void HistogramMatcher::Impl::fitColourPca(const ChannelImage& image)
+{
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (size_t i = 0; i < image.pixelCount(); ++i)
+        for (int c = 0; c < 3; ++c) mean[c] += image.pixel(i)[c];
+    mean /= double(image.pixelCount());
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    for (size_t i = 0; i < image.pixelCount(); ++i) {
+        const Eigen::Vector3d d(image.pixel(i)[0] - mean[0], image.pixel(i)[1] - mean[1], image.pixel(i)[2] - mean[2]);
+        cov += d * d.transpose();
     }
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+    E = eig.eigenvectors();
+    mu = mean;
+    pca = true;
+}
 
-    // Geometry of every slot, then the target's tables per channel.
-    m.geometry.push_back(m.makeGeometry(m.W, m.H, 1.0, settings.blendPixels ? 1.0 : 0.0));
-    const ChannelImage probe(m.W, m.H, 1);
-    if (settings.pyramid == HmPyramid::Steerable) {
-        const SteerablePyramid pyr = buildSteerablePyramid(probe, m.levels, settings.orientations);
-        m.geometry.push_back(m.makeGeometry(pyr.highpass.width(), pyr.highpass.height(), 1.0));
-        for (int l = 0; l < m.levels; ++l)
-            for (int k = 0; k < settings.orientations; ++k)
-                m.geometry.push_back(m.makeGeometry(pyr.bands[size_t(l)][size_t(k)].width(),
+// The grid seen at every band slot's resolution (the slots of the class comment).
+void HistogramMatcher::Impl::buildGeometry()
+{
+    geometry.push_back(makeGeometry(W, H, 1.0, s.blendPixels ? 1.0 : 0.0));
+    const ChannelImage probe(W, H, 1);
+    if (s.pyramid == HmPyramid::Steerable) {
+        const SteerablePyramid pyr = buildSteerablePyramid(probe, levels, s.orientations);
+        geometry.push_back(makeGeometry(pyr.highpass.width(), pyr.highpass.height(), 1.0));
+        for (int l = 0; l < levels; ++l)
+            for (int k = 0; k < s.orientations; ++k)
+                geometry.push_back(makeGeometry(pyr.bands[size_t(l)][size_t(k)].width(),
                     pyr.bands[size_t(l)][size_t(k)].height(), std::ldexp(1.0, -l)));
-        m.geometry.push_back(m.makeGeometry(pyr.lowpass.width(), pyr.lowpass.height(), std::ldexp(1.0, -m.levels)));
+        geometry.push_back(makeGeometry(pyr.lowpass.width(), pyr.lowpass.height(), std::ldexp(1.0, -levels)));
     } else {
-        const LaplacianPyramid pyr = buildLaplacianPyramid(probe, m.levels);
-        for (int l = 0; l < m.levels; ++l)
-            m.geometry.push_back(
-                m.makeGeometry(pyr.bands[size_t(l)].width(), pyr.bands[size_t(l)].height(), std::ldexp(1.0, -l)));
-        m.geometry.push_back(m.makeGeometry(pyr.lowpass.width(), pyr.lowpass.height(), std::ldexp(1.0, -m.levels)));
+        const LaplacianPyramid pyr = buildLaplacianPyramid(probe, levels);
+        for (int l = 0; l < levels; ++l)
+            geometry.push_back(
+                makeGeometry(pyr.bands[size_t(l)].width(), pyr.bands[size_t(l)].height(), std::ldexp(1.0, -l)));
+        geometry.push_back(makeGeometry(pyr.lowpass.width(), pyr.lowpass.height(), std::ldexp(1.0, -levels)));
     }
-    if (m.pca)
-        for (int c = 0; c < m.C; ++c) m.rgbTables.push_back(m.cellTables(channelRange(target, c, 1), m.geometry[0]));
-    if (settings.cellMoments) {
-        for (int c = 0; c < m.C; ++c) m.moments.push_back(m.cellMoments(target, c));
-        m.target = target;
-        if (matte) m.matteCopy = *matte;
+}
+
+// The target's quantile tables per channel, slot and cell (and its own channels' with PCA, its moments per cell).
+void HistogramMatcher::Impl::buildTables(const ChannelImage& image)
+{
+    if (pca)
+        for (int c = 0; c < C; ++c) rgbTables.push_back(cellTables(channelRange(image, c, 1), geometry[0]));
+    if (s.cellMoments) {
+        for (int c = 0; c < C; ++c) moments.push_back(cellMoments(image, c));
+        target = image;
+        if (matte) matteCopy = *matte;
     }
-    m.tables.resize(size_t(m.C));
-    for (int c = 0; c < m.C; ++c) {
-        const ChannelImage p = m.plane(target, c);
-        auto& t = m.tables[size_t(c)];
-        t.push_back(m.cellTables(p, m.geometry[0]));
-        if (settings.pyramid == HmPyramid::Steerable) {
-            const SteerablePyramid pyr = buildSteerablePyramid(p, m.levels, settings.orientations);
+    tables.resize(size_t(C));
+    for (int c = 0; c < C; ++c) {
+        const ChannelImage p = plane(image, c);
+        auto& t = tables[size_t(c)];
+        t.push_back(cellTables(p, geometry[0]));
+        if (s.pyramid == HmPyramid::Steerable) {
+            const SteerablePyramid pyr = buildSteerablePyramid(p, levels, s.orientations);
             size_t slot = 1;
-            t.push_back(m.cellTables(pyr.highpass, m.geometry[slot++]));
+            t.push_back(cellTables(pyr.highpass, geometry[slot++]));
             for (const auto& level : pyr.bands)
-                for (const auto& band : level) t.push_back(m.cellTables(band, m.geometry[slot++]));
-            t.push_back(m.cellTables(pyr.lowpass, m.geometry[slot]));
+                for (const auto& band : level) t.push_back(cellTables(band, geometry[slot++]));
+            t.push_back(cellTables(pyr.lowpass, geometry[slot]));
         } else {
-            const LaplacianPyramid pyr = buildLaplacianPyramid(p, m.levels);
+            const LaplacianPyramid pyr = buildLaplacianPyramid(p, levels);
             size_t slot = 1;
-            for (const auto& band : pyr.bands) t.push_back(m.cellTables(band, m.geometry[slot++]));
-            t.push_back(m.cellTables(pyr.lowpass, m.geometry[slot]));
+            for (const auto& band : pyr.bands) t.push_back(cellTables(band, geometry[slot++]));
+            t.push_back(cellTables(pyr.lowpass, geometry[slot]));
         }
     }
 }

@@ -166,45 +166,43 @@ int variedPick(const std::vector<Placed>& placed, size_t k, const int* nearest, 
     return pick;
 }
 
-} // namespace
-
-TransferMap matchResiduals(const ChannelImage& exampleFlow, const ChannelImage& targetFlow, const TransferSettings& s,
-    const ChannelImage* matte, Progress* progress)
+/// The example's p x p windows at the search resolution, every `stride`-th along each axis (an nx x ny grid of M),
+/// and the index of their descriptors.
+struct ExampleWindows
 {
-    validate(s);
-    if (exampleFlow.channels() != 2 || targetFlow.channels() != 2)
-        throw ValueError("matchResiduals: flows must have 2 channels");
-    if (matte && (!matte->sameSize(targetFlow) || matte->channels() != 1))
-        throw ValueError("matchResiduals: the matte must be a 1-channel image of the target's size");
-    const int d = s.downsample, P = s.patchSize, p = std::max(2, int(std::lround(double(P) / d)));
-    const ChannelImage ex = reduced(exampleFlow, d), tg = reduced(targetFlow, d);
-    if (ex.width() < p || ex.height() < p)
-        throw ValueError("the video example (" + std::to_string(exampleFlow.width()) + "x" +
-                         std::to_string(exampleFlow.height()) + ") is smaller than one " + std::to_string(P) +
-                         " px patch");
-    if (progress) progress->begin("transfer: index");
+    int p = 0, stride = 1, nx = 0, ny = 0;
+    size_t dim = 0, M = 0;
+    PatchIndex index;
+};
 
-    // Every example window at the search resolution (a stride only when the descriptors would not fit
-    // in about 120 MB).
-    const size_t dim = size_t(2 * p * p);
+// Every example window at the search resolution (a stride only when the descriptors would not fit in about 120 MB).
+ExampleWindows indexWindows(const ChannelImage& ex, int p, int pcaComponents)
+{
+    ExampleWindows w;
+    w.p = p;
+    w.dim = size_t(2 * p * p);
+    const size_t dim = w.dim;
     int stride = 1;
     while (size_t((ex.width() - p) / stride + 1) * size_t((ex.height() - p) / stride + 1) * dim > size_t(3e7)) ++stride;
     const int nx = (ex.width() - p) / stride + 1, ny = (ex.height() - p) / stride + 1;
-    const size_t M = size_t(nx) * size_t(ny);
-    std::vector<float> rows(M * dim);
-    parallelFor(M, 1024, [&](size_t b, size_t e) {
+    w.stride = stride;
+    w.nx = nx;
+    w.ny = ny;
+    w.M = size_t(nx) * size_t(ny);
+    std::vector<float> rows(w.M * dim);
+    parallelFor(w.M, 1024, [&](size_t b, size_t e) {
         for (size_t k = b; k < e; ++k)
             descriptor(ex, int(k % size_t(nx)) * stride, int(k / size_t(nx)) * stride, p, &rows[k * dim]);
     });
-    PatchIndex index;
     PcaSettings pca;
-    pca.components = s.pcaComponents;
-    index.build(std::move(rows), dim, pca);
-    checkCancelled(progress);
+    pca.components = pcaComponents;
+    w.index.build(std::move(rows), dim, pca);
+    return w;
+}
 
-    // Target patches touching the matte.
-    if (progress) progress->begin("transfer: match");
-    const int W = targetFlow.width(), H = targetFlow.height();
+// The target's patches (P x P, half overlapping) that touch the matte, in row order.
+std::vector<Placed> patchesOnMatte(int W, int H, int P, const ChannelImage* matte)
+{
     std::vector<Placed> placed;
     const std::vector<int> xs = patchStarts(W, P), ys = patchStarts(H, P);
     for (int ty : ys)
@@ -218,57 +216,101 @@ TransferMap matchResiduals(const ChannelImage& exampleFlow, const ChannelImage& 
                     }
             if (touches) placed.push_back(Placed{tx, ty, 0, 0, 0.0, placed.size()});
         }
-    std::vector<float> queries(placed.size() * dim);
-    parallelFor(placed.size(), 64, [&](size_t b, size_t e) {
-        for (size_t k = b; k < e; ++k)
-            descriptor(tg, int(std::lround(double(placed[k].tx) / d)), int(std::lround(double(placed[k].ty) / d)), p,
-                &queries[k * dim]);
-    });
-    // Candidates: the nearest windows, and with variety windows drawn at random (seeded by the patch), which are
-    // what a flat region needs: its nearest windows are neighbours of one another, the same detail shifted.
-    const int KN = s.variety > 0.0 ? 8 : 1, KR = s.variety > 0.0 ? s.candidates : 0, K = KN + KR;
+    return placed;
+}
+
+/// Per target patch: its K candidate windows (-1: none), their exact costs (< 0: none, until candidateCosts) and its
+/// rms design speed.
+struct Candidates
+{
+    int K = 1;
+    std::vector<int> nearest;
+    std::vector<double> costs, speed;
+};
+
+// Candidates: the nearest windows, and with variety windows drawn at random (seeded by the patch), which are
+// what a flat region needs: its nearest windows are neighbours of one another, the same detail shifted.
+Candidates candidateWindows(
+    const ExampleWindows& w, const std::vector<float>& queries, size_t count, double variety, int candidates)
+{
+    const int KN = variety > 0.0 ? 8 : 1, KR = variety > 0.0 ? candidates : 0, K = KN + KR;
+    Candidates c;
+    c.K = K;
     std::vector<int> knn;
     std::vector<float> dist2;
-    index.queryMany(queries.data(), placed.size(), KN, knn, dist2);
-    std::vector<int> nearest(placed.size() * size_t(K), -1);
-    for (size_t k = 0; k < placed.size(); ++k) {
+    w.index.queryMany(queries.data(), count, KN, knn, dist2);
+    std::vector<int>& nearest = c.nearest;
+    nearest.assign(count * size_t(K), -1);
+    for (size_t k = 0; k < count; ++k) {
         for (int j = 0; j < KN; ++j) nearest[k * size_t(K) + size_t(j)] = knn[k * size_t(KN) + size_t(j)];
         std::mt19937 rng(std::uint32_t(1000003u * k + 17u));
-        std::uniform_int_distribution<int> any(0, int(M) - 1);
+        std::uniform_int_distribution<int> any(0, int(w.M) - 1);
         for (int j = KN; j < K; ++j) nearest[k * size_t(K) + size_t(j)] = any(rng);
     }
-    // Exact costs of every candidate, per pixel at the search resolution, and each patch's rms design speed.
-    std::vector<double> costs(placed.size() * size_t(K), -1.0), speed(placed.size(), 0.0);
-    parallelFor(placed.size(), 64, [&](size_t b, size_t e) {
+    c.costs.assign(count * size_t(K), -1.0);
+    c.speed.assign(count, 0.0);
+    return c;
+}
+
+// Exact costs of every candidate, per pixel at the search resolution, and each patch's rms design speed.
+void candidateCosts(Candidates& c, const ExampleWindows& w, const ChannelImage& ex, const std::vector<float>& queries,
+    Progress* progress)
+{
+    const size_t dim = w.dim, count = c.speed.size();
+    const int K = c.K, p = w.p, nx = w.nx, stride = w.stride;
+    parallelFor(count, 64, [&](size_t b, size_t e) {
+        checkCancelled(progress);
         std::vector<float> win(dim);
         for (size_t k = b; k < e; ++k) {
             const float* q = &queries[k * dim];
             double s2 = 0.0;
             for (size_t i = 0; i < dim; ++i) s2 += double(q[i]) * q[i];
-            speed[k] = std::sqrt(s2 / double(p * p));
+            c.speed[k] = std::sqrt(s2 / double(p * p));
             for (int j = 0; j < K; ++j) {
-                const int n = nearest[k * size_t(K) + size_t(j)];
+                const int n = c.nearest[k * size_t(K) + size_t(j)];
                 if (n < 0) continue;
                 descriptor(ex, (n % nx) * stride, (n / nx) * stride, p, win.data());
-                double c = 0.0;
-                for (size_t i = 0; i < dim; ++i) c += double(q[i] - win[i]) * double(q[i] - win[i]);
-                costs[k * size_t(K) + size_t(j)] = c / double(p * p);
+                double cost = 0.0;
+                for (size_t i = 0; i < dim; ++i) cost += double(q[i] - win[i]) * double(q[i] - win[i]);
+                c.costs[k * size_t(K) + size_t(j)] = cost / double(p * p);
             }
         }
     });
-    const WindowGrid grid{nx, stride, d};
+}
+
+// Each patch's window among its candidates (variedPick), decided in row order.
+void pickWindows(std::vector<Placed>& placed, const Candidates& c, const WindowGrid& grid, double variety, int P)
+{
+    const int K = c.K;
     for (size_t k = 0; k < placed.size(); ++k) {
-        const int pick = variedPick(placed, k, &nearest[k * size_t(K)], &costs[k * size_t(K)], K, s.variety * speed[k],
-            2 * std::max(1, P / 2), grid);
-        const int n = std::max(0, nearest[k * size_t(K) + size_t(pick)]);
+        const int pick = variedPick(placed, k, &c.nearest[k * size_t(K)], &c.costs[k * size_t(K)], K,
+            variety * c.speed[k], 2 * std::max(1, P / 2), grid);
+        const int n = std::max(0, c.nearest[k * size_t(K) + size_t(pick)]);
         placed[k].ex = grid.x(n);
         placed[k].ey = grid.y(n);
-        placed[k].cost = std::max(0.0, costs[k * size_t(K) + size_t(pick)]);
+        placed[k].cost = std::max(0.0, c.costs[k * size_t(K) + size_t(pick)]);
     }
-    checkCancelled(progress);
+}
 
-    // Lapped pasting, most similar first, each patch under what is there.
-    if (progress) progress->begin("transfer: paste");
+// The map's statistics: patches pasted, their costs, the distinct windows used and the share of pixels covered.
+void recordStats(TransferMap& map, const std::vector<Placed>& placed, const std::vector<float>& cover, double costSum)
+{
+    map.stats.patches = int(placed.size());
+    map.stats.meanCost = map.stats.pasted ? costSum / map.stats.pasted : 0.0;
+    std::vector<std::pair<int, int>> used;
+    for (const Placed& pl : placed) used.emplace_back(pl.ex, pl.ey);
+    std::sort(used.begin(), used.end());
+    map.stats.distinct = int(std::unique(used.begin(), used.end()) - used.begin());
+    size_t covered = 0;
+    for (float c : cover) covered += c > 0.0f;
+    map.stats.covered = cover.empty() ? 0.0 : double(covered) / double(cover.size());
+}
+
+// Lapped pasting, most similar first, each patch under what is there.
+TransferMap pastePatches(std::vector<Placed>& placed, const ChannelImage& exampleFlow, int W, int H,
+    const TransferSettings& s, const ChannelImage* matte, Progress* progress)
+{
+    const int P = s.patchSize;
     std::sort(placed.begin(), placed.end(),
         [](const Placed& a, const Placed& b) { return a.cost != b.cost ? a.cost < b.cost : a.order < b.order; });
     TransferMap map(W, H, exampleFlow.width(), exampleFlow.height());
@@ -277,6 +319,7 @@ TransferMap matchResiduals(const ChannelImage& exampleFlow, const ChannelImage& 
     const int EW = exampleFlow.width(), EH = exampleFlow.height();
     double costSum = 0.0;
     for (const Placed& pl : placed) {
+        checkCancelled(progress);
         const int x1 = std::min(W, pl.tx + P), y1 = std::min(H, pl.ty + P);
         float open = 0.0f;
         for (int y = pl.ty; y < y1; ++y)
@@ -300,16 +343,48 @@ TransferMap matchResiduals(const ChannelImage& exampleFlow, const ChannelImage& 
         map.stats.maxCost = std::max(map.stats.maxCost, pl.cost);
     }
     map.normalise();
-    map.stats.patches = int(placed.size());
-    map.stats.meanCost = map.stats.pasted ? costSum / map.stats.pasted : 0.0;
-    std::vector<std::pair<int, int>> used;
-    for (const Placed& pl : placed) used.emplace_back(pl.ex, pl.ey);
-    std::sort(used.begin(), used.end());
-    map.stats.distinct = int(std::unique(used.begin(), used.end()) - used.begin());
-    size_t covered = 0;
-    for (float c : cover) covered += c > 0.0f;
-    map.stats.covered = cover.empty() ? 0.0 : double(covered) / double(cover.size());
+    recordStats(map, placed, cover, costSum);
     return map;
+}
+
+} // namespace
+
+TransferMap matchResiduals(const ChannelImage& exampleFlow, const ChannelImage& targetFlow, const TransferSettings& s,
+    const ChannelImage* matte, Progress* progress)
+{
+    validate(s);
+    if (exampleFlow.channels() != 2 || targetFlow.channels() != 2)
+        throw ValueError("matchResiduals: flows must have 2 channels");
+    if (matte && (!matte->sameSize(targetFlow) || matte->channels() != 1))
+        throw ValueError("matchResiduals: the matte must be a 1-channel image of the target's size");
+    const int d = s.downsample, P = s.patchSize, p = std::max(2, int(std::lround(double(P) / d)));
+    const ChannelImage ex = reduced(exampleFlow, d), tg = reduced(targetFlow, d);
+    if (ex.width() < p || ex.height() < p)
+        throw ValueError("the video example (" + std::to_string(exampleFlow.width()) + "x" +
+                         std::to_string(exampleFlow.height()) + ") is smaller than one " + std::to_string(P) +
+                         " px patch");
+    if (progress) progress->begin("transfer: index");
+    const ExampleWindows windows = indexWindows(ex, p, s.pcaComponents);
+    checkCancelled(progress);
+
+    // Target patches touching the matte, their descriptors, candidates and the window each takes.
+    if (progress) progress->begin("transfer: match");
+    const int W = targetFlow.width(), H = targetFlow.height();
+    std::vector<Placed> placed = patchesOnMatte(W, H, P, matte);
+    const size_t dim = windows.dim;
+    std::vector<float> queries(placed.size() * dim);
+    parallelFor(placed.size(), 64, [&](size_t b, size_t e) {
+        for (size_t k = b; k < e; ++k)
+            descriptor(tg, int(std::lround(double(placed[k].tx) / d)), int(std::lround(double(placed[k].ty) / d)), p,
+                &queries[k * dim]);
+    });
+    Candidates candidates = candidateWindows(windows, queries, placed.size(), s.variety, s.candidates);
+    candidateCosts(candidates, windows, ex, queries, progress);
+    pickWindows(placed, candidates, WindowGrid{windows.nx, windows.stride, d}, s.variety, P);
+    checkCancelled(progress);
+
+    if (progress) progress->begin("transfer: paste");
+    return pastePatches(placed, exampleFlow, W, H, s, matte, progress);
 }
 
 } // namespace turb

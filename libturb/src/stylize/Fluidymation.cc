@@ -270,6 +270,114 @@ void Fluidymator::Impl::distances(const Evaluator& ev, RotatedNnf& nnf) const
     });
 }
 
+namespace {
+
+/// FINDNNF's search for one target patch q at (x, y) in one sweep: the best candidate so far (m, with D = b) and the
+/// random stream of this patch and sweep. Candidates are tried in a fixed order, so the result does not depend on
+/// threads.
+struct PatchSearch
+{
+    const ExemplarLevel& E;
+    const TargetLevel& T;
+    const Evaluator& ev;
+    const FluidySettings& s;
+    size_t q;
+    int x, y;
+    detail::Rng rng;
+    PatchRef m;
+    float b;
+
+    void tryCandidate(const PatchRef& c)
+    {
+        if (c == m || !E.isCentre(c)) return;
+        const float d = ev(x, y, c, b);
+        if (d < b) {
+            b = d;
+            m = c;
+        }
+    }
+
+    // A sampled (i, x, y) is tried with the rotations that minimise D^dir: the patch-mean flows aligned, or
+    // opposite; where a flow has no direction, with the current rotation.
+    void tryAligned(int fi, int cx, int cy)
+    {
+        if (!E.isCentre(fi, cx, cy)) return;
+        const size_t v = E.voxel(fi, cx, cy);
+        const std::uint8_t aS = E.dirStep[v], aT = T.dirStep[q];
+        PatchRef c{std::int16_t(fi), std::int16_t(cx), std::int16_t(cy), m.rotation};
+        if (s.wDir <= 0.0f) { // without D^dir every rotation minimises it: draw one
+            c.rotation = std::uint8_t(rng.below(kRotations));
+            tryCandidate(c);
+            return;
+        }
+        if (aS == kNoDirection || aT == kNoDirection) {
+            tryCandidate(c);
+            return;
+        }
+        // Of the aligned and the opposite rotation, the one whose (swapped) extents fit better at the centres; both
+        // when the extent term is off.
+        const int k = (int(aT) - int(aS) + kRotations) % kRotations;
+        const std::uint8_t aligned = std::uint8_t(k), flipped = std::uint8_t((k + kRotations / 2) % kRotations);
+        if (s.wExt > 0.0f) {
+            const float ea = ev.centreExtent(q, x, y, v, ev.opposite(q, v, aligned));
+            const float ef = ev.centreExtent(q, x, y, v, ev.opposite(q, v, flipped));
+            c.rotation = ea <= ef ? aligned : flipped;
+            tryCandidate(c);
+            return;
+        }
+        c.rotation = aligned;
+        tryCandidate(c);
+        c.rotation = flipped;
+        tryCandidate(c);
+    }
+
+    // Propagation (generalized PatchMatch): the neighbour's patch moved back by the rotated offset.
+    template<typename Neighbour>
+    void propagate(int step, const Neighbour& neighbour)
+    {
+        for (int axis = 0; axis < 2; ++axis) {
+            const int nx = x + (axis == 0 ? step : 0), ny = y + (axis == 1 ? step : 0);
+            if (nx < 0 || ny < 0 || nx >= T.W || ny >= T.H) continue;
+            const PatchRef& nm = neighbour(nx, ny);
+            if (!nm.valid()) continue;
+            double ox = 0.0, oy = 0.0;
+            sourceOffset(nm.rotation, nx - x, ny - y, ox, oy);
+            PatchRef c = nm;
+            c.x = std::int16_t(std::lround(nm.x - ox));
+            c.y = std::int16_t(std::lround(nm.y - oy));
+            tryCandidate(c);
+        }
+    }
+
+    // The same place one source frame earlier and later: the medium's own motion.
+    void adjacentFrames()
+    {
+        for (int di : {-1, 1}) {
+            PatchRef c = m;
+            c.frame = std::int16_t(m.frame + di);
+            tryCandidate(c);
+        }
+    }
+
+    // Random search in windows halving around the best so far, in x, y and i; then `uniform` draws among all
+    // centres.
+    void randomSearch(int maxDim, int maxFrames, int uniform)
+    {
+        for (int w = maxDim, wf = maxFrames; w >= 1; w /= 2, wf /= 2) {
+            const int fi = std::clamp(m.frame - wf + int(rng.below(std::uint32_t(2 * wf + 1))), 0, E.F - 1);
+            const int cx = std::clamp(m.x - w + int(rng.below(std::uint32_t(2 * w + 1))), 0, E.W - 1);
+            const int cy = std::clamp(m.y - w + int(rng.below(std::uint32_t(2 * w + 1))), 0, E.H - 1);
+            tryAligned(fi, cx, cy);
+        }
+        for (int k = 0; k < uniform; ++k) {
+            const PatchRef c = E.refOf(size_t(E.centres[rng.below(std::uint32_t(E.centres.size()))]), m.rotation);
+            tryAligned(c.frame, c.x, c.y);
+        }
+    }
+};
+
+} // namespace
+
 void Fluidymator::Impl::findNnf(
     ExemplarLevel& E, const TargetLevel& T, RotatedNnf& nnf, std::uint64_t key, bool finest, Progress* progress) const
 {
@@ -285,83 +393,13 @@ void Fluidymator::Impl::findNnf(
         detail::tiledSweeps(T.W, T.H, 64, sweep, 1, nnf.match, progress,
             [&](size_t q, int x, int y, int it, int step, const auto& neighbour) {
                 if (T.label[q] < 0) return;
-                PatchRef m = nnf.match[q];
-                float b = nnf.distance[q];
-                const auto tryCandidate = [&](const PatchRef& c) {
-                    if (c == m || !E.isCentre(c)) return;
-                    const float d = ev(x, y, c, b);
-                    if (d < b) {
-                        b = d;
-                        m = c;
-                    }
-                };
-                // A sampled (i, x, y) is tried with the rotations that minimise D^dir: the patch-mean flows
-                // aligned, or opposite; where a flow has no direction, with the current rotation.
-                detail::Rng rng(detail::key(key, std::uint64_t(it), q, 0xf1d));
-                const auto tryAligned = [&](int fi, int cx, int cy) {
-                    if (!E.isCentre(fi, cx, cy)) return;
-                    const size_t v = E.voxel(fi, cx, cy);
-                    const std::uint8_t aS = E.dirStep[v], aT = T.dirStep[q];
-                    PatchRef c{std::int16_t(fi), std::int16_t(cx), std::int16_t(cy), m.rotation};
-                    if (s.wDir <= 0.0f) { // without D^dir every rotation minimises it: draw one
-                        c.rotation = std::uint8_t(rng.below(kRotations));
-                        tryCandidate(c);
-                        return;
-                    }
-                    if (aS == kNoDirection || aT == kNoDirection) {
-                        tryCandidate(c);
-                        return;
-                    }
-                    // Of the aligned and the opposite rotation, the one whose (swapped) extents fit better at
-                    // the centres; both when the extent term is off.
-                    const int k = (int(aT) - int(aS) + kRotations) % kRotations;
-                    const std::uint8_t aligned = std::uint8_t(k),
-                                       flipped = std::uint8_t((k + kRotations / 2) % kRotations);
-                    if (s.wExt > 0.0f) {
-                        const float ea = ev.centreExtent(q, x, y, v, ev.opposite(q, v, aligned));
-                        const float ef = ev.centreExtent(q, x, y, v, ev.opposite(q, v, flipped));
-                        c.rotation = ea <= ef ? aligned : flipped;
-                        tryCandidate(c);
-                        return;
-                    }
-                    c.rotation = aligned;
-                    tryCandidate(c);
-                    c.rotation = flipped;
-                    tryCandidate(c);
-                };
-                // Propagation (generalized PatchMatch): the neighbour's patch moved back by the rotated offset.
-                for (int axis = 0; axis < 2; ++axis) {
-                    const int nx = x + (axis == 0 ? step : 0), ny = y + (axis == 1 ? step : 0);
-                    if (nx < 0 || ny < 0 || nx >= T.W || ny >= T.H) continue;
-                    const PatchRef& nm = neighbour(nx, ny);
-                    if (!nm.valid()) continue;
-                    double ox = 0.0, oy = 0.0;
-                    sourceOffset(nm.rotation, nx - x, ny - y, ox, oy);
-                    PatchRef c = nm;
-                    c.x = std::int16_t(std::lround(nm.x - ox));
-                    c.y = std::int16_t(std::lround(nm.y - oy));
-                    tryCandidate(c);
-                }
-                // The same place one source frame earlier and later: the medium's own motion.
-                for (int di : {-1, 1}) {
-                    PatchRef c = m;
-                    c.frame = std::int16_t(m.frame + di);
-                    tryCandidate(c);
-                }
-                // Random search in windows halving around the best so far, in x, y and i.
-                for (int w = maxDim, wf = maxFrames; w >= 1; w /= 2, wf /= 2) {
-                    const int fi = std::clamp(m.frame - wf + int(rng.below(std::uint32_t(2 * wf + 1))), 0, E.F - 1);
-                    const int cx = std::clamp(m.x - w + int(rng.below(std::uint32_t(2 * w + 1))), 0, E.W - 1);
-                    const int cy = std::clamp(m.y - w + int(rng.below(std::uint32_t(2 * w + 1))), 0, E.H - 1);
-                    tryAligned(fi, cx, cy);
-                }
-                for (int k = 0; k < s.randomCandidates; ++k) {
-                    const PatchRef c =
-                        E.refOf(size_t(E.centres[rng.below(std::uint32_t(E.centres.size()))]), m.rotation);
-                    tryAligned(c.frame, c.x, c.y);
-                }
-                nnf.match[q] = m;
-                nnf.distance[q] = b;
+                PatchSearch p{E, T, ev, s, q, x, y, detail::Rng(detail::key(key, std::uint64_t(it), q, 0xf1d)),
+                    nnf.match[q], nnf.distance[q]};
+                p.propagate(step, neighbour);
+                p.adjacentFrames();
+                p.randomSearch(maxDim, maxFrames, s.randomCandidates);
+                nnf.match[q] = p.m;
+                nnf.distance[q] = p.b;
             });
     }
 }

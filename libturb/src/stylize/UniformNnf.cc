@@ -80,6 +80,76 @@ std::vector<Claim> winningClaims(const std::vector<char>& active, const std::vec
     return claims;
 }
 
+/// The state of one uniformNnf call: eq. 5's budgets (R counts down as patches take their K + 1-th target), the
+/// NNF built so far and how many targets are left.
+struct Assignment
+{
+    const Labels& sourceLabels;
+    std::vector<Budget> budget;
+    UniformNnf out;
+    std::vector<std::int32_t> assigned; // target -> source, -1 = unassigned
+    long long unassigned = 0;
+
+    /// Source patch p may serve another target: fewer than K so far, or K with one of the R extra uses left.
+    bool usable(size_t p) const
+    {
+        const int L = sourceLabels[p];
+        if (L < 0) return false;
+        const Budget& b = budget[size_t(L)];
+        return out.counts[p] < b.K || (out.counts[p] == b.K && b.R > 0);
+    }
+
+    /// Takes a claim unless its target is taken or its source's budget is spent.
+    bool assign(const Claim& c)
+    {
+        const int L = sourceLabels[size_t(c.source)];
+        Budget& b = budget[size_t(L)];
+        if (assigned[size_t(c.target)] >= 0) return false;
+        const long long n = out.counts[size_t(c.source)];
+        if (n == b.K && b.R > 0) --b.R; // one of the R patches used K + 1 times
+        else if (n >= b.K) return false;
+        ++out.counts[size_t(c.source)];
+        assigned[size_t(c.target)] = c.source;
+        out.nnf.source[size_t(c.target)] = c.source;
+        out.nnf.distance[size_t(c.target)] = c.distance;
+        --unassigned;
+        return true;
+    }
+};
+
+// The tail: compare every remaining pair and assign greedily by distance. Capacity left equals the targets left
+// (eq. 5), so this round assigns them all.
+void assignExhaustively(Assignment& a, const PatchSpace& space, const std::vector<char>& active,
+    const std::vector<std::vector<std::int32_t>>& lists, Progress* progress)
+{
+    std::vector<Claim> claims;
+    for (size_t p = 0; p < active.size(); ++p) {
+        if (!active[p]) continue;
+        checkCancelled(progress);
+        for (std::int32_t q : lists[size_t(a.sourceLabels[p])])
+            claims.push_back(
+                Claim{space.distance(std::int32_t(p), q, std::numeric_limits<float>::infinity()), std::int32_t(p), q});
+    }
+    std::sort(claims.begin(), claims.end());
+    for (const Claim& c : claims) a.assign(c);
+    ++a.out.exhaustiveRounds;
+    ++a.out.rounds;
+    if (a.unassigned > 0) throw Error("uniform NNF: exhaustive round left targets unassigned (internal error)");
+}
+
+detail::SearchConfig sweepConfig(const ChannelImage& S, const ChannelImage& T, const UniformNnfSettings& settings)
+{
+    detail::SearchConfig cfg;
+    cfg.qW = S.width();
+    cfg.qH = S.height();
+    cfg.dW = T.width();
+    cfg.dH = T.height();
+    cfg.iterations = settings.sweepsPerRound;
+    cfg.tileSize = settings.tileSize;
+    cfg.seed = settings.seed;
+    return cfg;
+}
+
 } // namespace
 
 std::vector<SegmentUsage> patchUsage(
@@ -127,94 +197,50 @@ UniformNnf uniformNnf(const PatchSpace& space, const Labels& sourceLabels, const
     if (settings.sweepsPerRound < 1 || settings.randomTargets < 0 || !(settings.exhaustiveBudget >= 0.0))
         throw ValueError("uniform NNF: sweepsPerRound must be >= 1, randomTargets and exhaustiveBudget >= 0");
 
-    std::vector<Budget> budget = segmentBudgets(sourceLabels, targetLabels);
-
-    UniformNnf out;
-    out.nnf = emptyNnf(T.width(), T.height());
-    out.counts.assign(S.pixelCount(), 0);
-    std::vector<std::int32_t> assigned(T.pixelCount(), -1); // target -> source, -1 = unassigned
-    std::vector<std::int32_t> claim(S.pixelCount(), -1);    // source -> claimed target
+    Assignment a{sourceLabels, segmentBudgets(sourceLabels, targetLabels), {}, {}, 0};
+    a.out.nnf = emptyNnf(T.width(), T.height());
+    a.out.counts.assign(S.pixelCount(), 0);
+    a.assigned.assign(T.pixelCount(), -1);
+    std::vector<std::int32_t> claim(S.pixelCount(), -1); // source -> claimed target
     std::vector<float> claimDist(S.pixelCount(), std::numeric_limits<float>::infinity());
-    long long unassigned = 0;
-    for (auto v : targetLabels) unassigned += v >= 0;
+    for (auto v : targetLabels) a.unassigned += v >= 0;
 
-    const auto usable = [&](size_t p) {
-        const int L = sourceLabels[p];
-        if (L < 0) return false;
-        const Budget& b = budget[size_t(L)];
-        return out.counts[p] < b.K || (out.counts[p] == b.K && b.R > 0);
-    };
-    const auto assign = [&](const Claim& c) {
-        const int L = sourceLabels[size_t(c.source)];
-        Budget& b = budget[size_t(L)];
-        if (assigned[size_t(c.target)] >= 0) return false;
-        const long long n = out.counts[size_t(c.source)];
-        if (n == b.K && b.R > 0) --b.R; // one of the R patches used K + 1 times
-        else if (n >= b.K) return false;
-        ++out.counts[size_t(c.source)];
-        assigned[size_t(c.target)] = c.source;
-        out.nnf.source[size_t(c.target)] = c.source;
-        out.nnf.distance[size_t(c.target)] = c.distance;
-        --unassigned;
-        return true;
-    };
-
-    detail::SearchConfig cfg;
-    cfg.qW = S.width();
-    cfg.qH = S.height();
-    cfg.dW = T.width();
-    cfg.dH = T.height();
-    cfg.iterations = settings.sweepsPerRound;
-    cfg.tileSize = settings.tileSize;
-    cfg.seed = settings.seed;
-    const auto ok = [&](std::int32_t q, int L) { return targetLabels[size_t(q)] == L && assigned[size_t(q)] < 0; };
+    detail::SearchConfig cfg = sweepConfig(S, T, settings);
+    const auto ok = [&](std::int32_t q, int L) { return targetLabels[size_t(q)] == L && a.assigned[size_t(q)] < 0; };
     const auto dist = [&](std::int32_t p, std::int32_t q, float cutoff) { return space.distance(p, q, cutoff); };
 
-    const long long total = unassigned;
+    const long long total = a.unassigned;
     int randomTargets = settings.randomTargets;
     std::vector<char> active(S.pixelCount());
     std::vector<std::vector<std::int32_t>> lists;
-    while (unassigned > 0) {
+    while (a.unassigned > 0) {
         checkCancelled(progress);
-        lists.assign(budget.size(), {});
+        lists.assign(a.budget.size(), {});
         for (size_t q = 0; q < T.pixelCount(); ++q)
-            if (targetLabels[q] >= 0 && assigned[q] < 0) lists[size_t(targetLabels[q])].push_back(std::int32_t(q));
+            if (targetLabels[q] >= 0 && a.assigned[q] < 0) lists[size_t(targetLabels[q])].push_back(std::int32_t(q));
         long long nUsable = 0;
-        for (size_t p = 0; p < active.size(); ++p) nUsable += (active[p] = usable(p));
+        for (size_t p = 0; p < active.size(); ++p) nUsable += (active[p] = a.usable(p));
 
-        std::vector<Claim> claims;
-        if (double(unassigned) * double(nUsable) <= settings.exhaustiveBudget) {
-            // The tail: compare every remaining pair and assign greedily by distance. Capacity left equals
-            // the targets left (eq. 5), so this round assigns them all.
-            for (size_t p = 0; p < active.size(); ++p) {
-                if (!active[p]) continue;
-                for (std::int32_t q : lists[size_t(sourceLabels[p])])
-                    claims.push_back(Claim{space.distance(std::int32_t(p), q, std::numeric_limits<float>::infinity()),
-                        std::int32_t(p), q});
-            }
-            std::sort(claims.begin(), claims.end());
-            for (const Claim& c : claims) assign(c);
-            ++out.exhaustiveRounds;
-            ++out.rounds;
-            if (unassigned > 0) throw Error("uniform NNF: exhaustive round left targets unassigned (internal error)");
+        if (double(a.unassigned) * double(nUsable) <= settings.exhaustiveBudget) {
+            assignExhaustively(a, space, active, lists, progress);
             break;
         }
 
-        cfg.salt = std::uint64_t(out.rounds);
+        cfg.salt = std::uint64_t(a.out.rounds);
         cfg.randomCentres = randomTargets;
         detail::sweepSearch(cfg, active, sourceLabels, lists, ok, dist, claim, claimDist, nullptr);
 
-        claims = winningClaims(active, claim, claimDist, T.pixelCount());
-        const long long before = unassigned;
-        for (const Claim& c : claims) assign(c);
-        ++out.rounds;
+        const std::vector<Claim> claims = winningClaims(active, claim, claimDist, T.pixelCount());
+        const long long before = a.unassigned;
+        for (const Claim& c : claims) a.assign(c);
+        ++a.out.rounds;
         // Few new assignments (many sources crowding few targets): widen the random draws.
-        if (before - unassigned < std::max<long long>(1, before / 50))
+        if (before - a.unassigned < std::max<long long>(1, before / 50))
             randomTargets = std::min(64, std::max(1, randomTargets * 2));
-        if (progress) progress->update(double(total - unassigned) / double(std::max<long long>(1, total)));
+        if (progress) progress->update(double(total - a.unassigned) / double(std::max<long long>(1, total)));
     }
-    out.usage = patchUsage(out.nnf, sourceLabels, targetLabels);
-    return out;
+    a.out.usage = patchUsage(a.out.nnf, sourceLabels, targetLabels);
+    return std::move(a.out);
 }
 
 } // namespace turb
