@@ -281,20 +281,59 @@ ScalarField SmokeSim::pressureGuess(double dt) const
     return guess;
 }
 
+namespace {
+
+// The frame's substeps, by the CFL condition on the fastest face component now and the emitters' nominal speeds
+// (their noise may exceed it a little within the frame).
+int substepCount(const VectorField& mac, const SmokeSettings& s, double h)
+{
+    double speed = 0.0;
+    for (const auto& v : mac.values())
+        speed = std::max(speed, double(std::max(std::abs(v.x()), std::max(std::abs(v.y()), std::abs(v.z())))));
+    for (const auto& e : s.emitters) speed = std::max(speed, double(e.velocity.length()));
+    return std::min(s.maxSubsteps, std::max(1, int(std::ceil(speed * s.frameDt / (s.cfl * h) - 1e-9))));
+}
+
+// Adds one projection's solver figures to the frame's (the worst over its substeps), and shows them.
+void recordProjection(const ProjectionResult& r, FrameStats& st, Progress* progress)
+{
+    st.pressureIterations += r.iterations;
+    st.converged = st.converged && r.converged;
+    st.relativeResidual = std::max(st.relativeResidual, r.relativeResidual);
+    st.relativeDivergence = std::max(st.relativeDivergence, r.relativeDivergence());
+    st.divMaxAfter = r.divMaxAfter;
+    if (progress) {
+        std::ostringstream os;
+        os << "pressure: " << r.iterations << " iterations, max|div| " << r.divMaxBefore << " -> " << r.divMaxAfter
+           << " 1/s";
+        progress->note(os.str());
+        progress->update(1.0);
+    }
+}
+
+// The finished frame's figures: div_rel of the cell-centred velocity, the fastest face velocity and the mass.
+void recordFrameFigures(const VectorField& mac, const ScalarField& density, double h, FrameStats& st)
+{
+    const VectorField centred = macToCentred(mac);
+    st.divRel = relativeDivergence(centred, smokeMask(density, 0.01f)).value_or(0.0);
+    for (const auto& v : mac.values()) st.maxSpeed = std::max(st.maxSpeed, double(v.length()));
+    const double vol = h * h * h;
+    st.mass = vol * parallelSum(density.size(), 1 << 14, [&](size_t b, size_t e) {
+        double a = 0;
+        for (size_t q = b; q < e; ++q) a += density.data()[q];
+        return a;
+    });
+}
+
+} // namespace
+
 FrameStats SmokeSim::advanceFrame(Progress* progress)
 {
     using Clock = std::chrono::steady_clock;
     FrameStats st;
     withThreads(mSettings.threads, [&] {
         const double h = lattice().voxelSize;
-        // CFL from the fastest face component now and the emitters' nominal speeds (their noise may
-        // exceed it a little within the frame).
-        double speed = 0.0;
-        for (const auto& v : mMac.values())
-            speed = std::max(speed, double(std::max(std::abs(v.x()), std::max(std::abs(v.y()), std::abs(v.z())))));
-        for (const auto& e : mSettings.emitters) speed = std::max(speed, double(e.velocity.length()));
-        const int n = std::min(
-            mSettings.maxSubsteps, std::max(1, int(std::ceil(speed * mSettings.frameDt / (mSettings.cfl * h) - 1e-9))));
+        const int n = substepCount(mMac, mSettings, h);
         const double dt = mSettings.frameDt / n;
         st.substeps = n;
 
@@ -335,31 +374,12 @@ FrameStats SmokeSim::advanceFrame(Progress* progress)
             mPressure = std::move(pressure);
             mPressureDt = dt;
             st.projectSeconds += std::chrono::duration<double>(Clock::now() - t0).count();
-            st.pressureIterations += r.iterations;
-            st.converged = st.converged && r.converged;
-            st.relativeResidual = std::max(st.relativeResidual, r.relativeResidual);
-            st.relativeDivergence = std::max(st.relativeDivergence, r.relativeDivergence());
-            st.divMaxAfter = r.divMaxAfter;
-            if (progress) {
-                std::ostringstream os;
-                os << "pressure: " << r.iterations << " iterations, max|div| " << r.divMaxBefore << " -> "
-                   << r.divMaxAfter << " 1/s";
-                progress->note(os.str());
-                progress->update(1.0);
-            }
+            recordProjection(r, st, progress);
             mTime += dt;
         }
         ++mFrame;
         st.frame = mFrame;
-        const VectorField centred = macToCentred(mMac);
-        st.divRel = relativeDivergence(centred, smokeMask(mDensity, 0.01f)).value_or(0.0);
-        for (const auto& v : mMac.values()) st.maxSpeed = std::max(st.maxSpeed, double(v.length()));
-        const double vol = h * h * h;
-        st.mass = vol * parallelSum(mDensity.size(), 1 << 14, [&](size_t b, size_t e) {
-            double a = 0;
-            for (size_t q = b; q < e; ++q) a += mDensity.data()[q];
-            return a;
-        });
+        recordFrameFigures(mMac, mDensity, h, st);
     });
     return st;
 }

@@ -358,16 +358,22 @@ struct PairSums
     double rho() const { return aa > 0.0 && bb > 0.0 ? std::clamp(dot / std::sqrt(aa * bb), -1.0, 1.0) : 0.0; }
 };
 
-} // namespace
+using PairMap = std::map<std::pair<size_t, size_t>, PairSums>;
 
-Frame joinTiles(const std::vector<Frame>& tiles, const TilePlan& plan, int ratio, int ramp, float densityThreshold,
-    const VectorField& upTarget, TileJoinStats* stats)
+// A tile with weight at an output voxel, as (tile index, linear weight lambda); lambda sums to 1 over the tiles.
+struct Share
+{
+    size_t k;
+    double lambda;
+};
+
+// Throws unless the tiles can be joined: one per planned tile, the same fields in each, on one lattice.
+void checkTileFrames(const std::vector<Frame>& tiles, const TilePlan& plan, int ratio, int ramp)
 {
     if (tiles.size() != plan.tiles.size() || tiles.empty())
         throw ValueError("tile join: " + std::to_string(tiles.size()) + " frames for " +
                          std::to_string(plan.tiles.size()) + " tiles");
     if (ratio < 1) throw ValueError("tile join: ratio must be at least 1");
-    const Coord F = factorsOf(plan.box, ratio);
     checkTileRamp(plan, ratio, ramp);
     const Frame& first = tiles.front();
     requireSame(tiles, "velocity", [](const Frame& f) { return f.hasVelocity(); });
@@ -378,7 +384,11 @@ Frame joinTiles(const std::vector<Frame>& tiles, const TilePlan& plan, int ratio
         if (!tiles[k].lattice().approxEqual(first.lattice()))
             throw ValueError("tile join: tile " + std::to_string(k) + "'s lattice differs from tile 0's (frame " +
                              std::to_string(first.number) + ")");
-    const CoordBBox box = refineDomain(plan.box, ratio);
+}
+
+// The joined frame before blending: tile 0's header and zero fields over the whole output box.
+Frame emptyJoinedFrame(const Frame& first, const CoordBBox& box)
+{
     const Lattice& lattice = first.lattice();
     Frame out;
     out.number = first.number;
@@ -392,153 +402,219 @@ Frame joinTiles(const std::vector<Frame>& tiles, const TilePlan& plan, int ratio
     if (first.hasDensity()) out.density = ScalarField(box, lattice);
     if (first.temperature) out.temperature = ScalarField(box, lattice);
     if (first.flame) out.flame = ScalarField(box, lattice);
-    const bool vel = first.hasVelocity();
-    const bool detail = vel && !upTarget.empty() && upTarget.bbox().isInside(box);
+    return out;
+}
 
-    const std::array<std::vector<std::vector<AxisWeight>>, 3> axes = {axisWeights(plan, 0, ratio, ramp, box),
-        axisWeights(plan, 1, ratio, ramp, box), axisWeights(plan, 2, ratio, ramp, box)};
-    const Coord n = plan.counts;
-    // The tiles with weight at v, as (tile index, linear weight lambda); lambda sums to 1.
-    struct Share
+// What both blending passes read at an output voxel: which tiles have weight there, and each tile's detail split
+// into its coarse-cell means c_k and the rest f_k.
+struct TileJoin
+{
+    const std::vector<Frame>& tiles;
+    const VectorField& upTarget;
+    CoordBBox box;                                            // the output box
+    Coord n, F;                                               // tiles per axis; output voxels per target voxel
+    std::array<std::vector<std::vector<AxisWeight>>, 3> axes; // axisWeights along x, y and z
+    bool vel = false, detail = false;                         // velocity at all; its detail blended apart
+    std::vector<Field<Vec3f>> means;                          // per tile: c_k on the target's cells (with `detail`)
+
+    // The tiles with weight at v.
+    void shares(const Coord& v, std::vector<Share>& sh) const
     {
-        size_t k;
-        double lambda;
-    };
-    const auto shares = [&](const Coord& v, std::vector<Share>& sh) {
         sh.clear();
         const Coord o = v - box.min();
         for (const AxisWeight& x : axes[0][size_t(o.x())])
             for (const AxisWeight& y : axes[1][size_t(o.y())])
                 for (const AxisWeight& z : axes[2][size_t(o.z())])
                     sh.push_back({size_t(x.cell + n.x() * (y.cell + n.y() * z.cell)), x.w * y.w * z.w});
-    };
-    const auto require = [&](const auto& field, const Coord& v, size_t k, const char* what) {
+    }
+    template<typename FieldT>
+    void require(const FieldT& field, const Coord& v, size_t k, const char* what) const
+    {
         if (!field.contains(v))
             throw ValueError("tile join: tile " + std::to_string(k) + "'s " + what + " does not cover output voxel (" +
                              std::to_string(v.x()) + "," + std::to_string(v.y()) + "," + std::to_string(v.z()) +
                              ") where its weight is not zero (frame " + std::to_string(tiles[k].number) + ")");
-    };
-
-    // Each tile's detail splits into its coarse-cell means c_k (the coarse motion it adds, which lf_err measures) and
-    // the rest, f_k. The means are motion, like density: they are blended linearly, so the joined coarse means are
-    // the tiles' interpolated. Only f_k, the random-phase part, takes the energy-preserving weights.
-    std::vector<Field<Vec3f>> means(detail ? tiles.size() : 0);
-    const auto cellOf = [&](const Coord& v) {
+    }
+    Coord cellOf(const Coord& v) const
+    {
         return Coord(floorDiv(v.x(), F.x()), floorDiv(v.y(), F.y()), floorDiv(v.z(), F.z()));
-    };
-    if (detail)
-        for (size_t k = 0; k < tiles.size(); ++k) {
-            CoordBBox reach = refineDomain(plan.tiles[k].held, ratio);
-            reach.intersect(box);
-            reach.intersect(tiles[k].velocity.bbox());
-            Field<Vec3f> sum(CoordBBox(cellOf(reach.min()), cellOf(reach.max())), Lattice{}, Vec3f(0.0f));
-            Field<float> count(sum.bbox(), Lattice{}, 0.0f);
-            for (auto it = reach.beginXYZ(); it; ++it) {
-                const Coord c = cellOf(*it);
-                sum[c] += tiles[k].velocity[*it] - upTarget[*it];
-                count[c] += 1.0f;
-            }
-            for (size_t n = 0; n < sum.size(); ++n)
-                if (count.data()[n] > 0.0f) sum.data()[n] /= count.data()[n];
-            means[k] = std::move(sum);
-        }
-    const auto fineDetail = [&](size_t k, const Coord& v, const Vec3f& up) {
+    }
+    // f_k at v: tile k's detail less its coarse-cell mean.
+    Vec3f fineDetail(size_t k, const Coord& v, const Vec3f& up) const
+    {
         return tiles[k].velocity[v] - up - means[k][cellOf(v)];
-    };
+    }
+};
 
-    // Pass 1: density, temperature and flame (and velocity where one tile owns the voxel, or without up(u_t)) are
-    // the lambda-weighted sums: weights that sum to 1 keep the smoke's mass and agree with tiles that agree. Where
-    // tiles share a voxel, their details' correlation is summed per pair of tiles.
-    std::map<std::pair<size_t, size_t>, PairSums> pairs;
+// Each tile's detail splits into its coarse-cell means c_k (the coarse motion it adds, which lf_err measures) and
+// the rest, f_k. The means are motion, like density: they are blended linearly, so the joined coarse means are
+// the tiles' interpolated. Only f_k, the random-phase part, takes the energy-preserving weights.
+std::vector<Field<Vec3f>> coarseDetailMeans(const TileJoin& j, const TilePlan& plan, int ratio)
+{
+    std::vector<Field<Vec3f>> means(j.tiles.size());
+    for (size_t k = 0; k < j.tiles.size(); ++k) {
+        CoordBBox reach = refineDomain(plan.tiles[k].held, ratio);
+        reach.intersect(j.box);
+        reach.intersect(j.tiles[k].velocity.bbox());
+        Field<Vec3f> sum(CoordBBox(j.cellOf(reach.min()), j.cellOf(reach.max())), Lattice{}, Vec3f(0.0f));
+        Field<float> count(sum.bbox(), Lattice{}, 0.0f);
+        for (auto it = reach.beginXYZ(); it; ++it) {
+            const Coord c = j.cellOf(*it);
+            sum[c] += j.tiles[k].velocity[*it] - j.upTarget[*it];
+            count[c] += 1.0f;
+        }
+        for (size_t n = 0; n < sum.size(); ++n)
+            if (count.data()[n] > 0.0f) sum.data()[n] /= count.data()[n];
+        means[k] = std::move(sum);
+    }
+    return means;
+}
+
+// Adds the lambda-weighted tiles' fields at v (output offset o) to `out`; returns the densest tile's density there.
+float addWeightedTiles(const TileJoin& j, const Coord& v, size_t o, const std::vector<Share>& sh, Frame& out)
+{
+    float dmax = 0.0f;
+    for (const Share& s : sh) {
+        const Frame& t = j.tiles[s.k];
+        const float w = float(s.lambda);
+        if (j.vel) {
+            j.require(t.velocity, v, s.k, "velocity");
+            if (!j.detail || sh.size() == 1) out.velocity.data()[o] += w * t.velocity[v];
+        }
+        if (t.hasDensity()) {
+            j.require(t.density, v, s.k, "density");
+            out.density.data()[o] += w * t.density[v];
+            dmax = std::max(dmax, t.density[v]);
+        }
+        if (t.temperature) {
+            j.require(*t.temperature, v, s.k, "temperature");
+            out.temperature->data()[o] += w * (*t.temperature)[v];
+        }
+        if (t.flame) {
+            j.require(*t.flame, v, s.k, "flame");
+            out.flame->data()[o] += w * (*t.flame)[v];
+        }
+    }
+    return dmax;
+}
+
+// Pass 1: density, temperature and flame (and velocity where one tile owns the voxel, or without up(u_t)) are
+// the lambda-weighted sums: weights that sum to 1 keep the smoke's mass and agree with tiles that agree. Where
+// tiles share a voxel, their details' correlation is summed per pair of tiles.
+PairMap blendLinear(const TileJoin& j, Frame& out, float densityThreshold)
+{
+    const bool density = j.tiles.front().hasDensity();
+    PairMap pairs;
     std::vector<Share> sh;
-    for (auto it = box.beginXYZ(); it; ++it) {
+    for (auto it = j.box.beginXYZ(); it; ++it) {
         const Coord v = *it;
-        shares(v, sh);
+        j.shares(v, sh);
         const size_t o =
             out.velocity.empty() ? out.density.offset(v.x(), v.y(), v.z()) : out.velocity.offset(v.x(), v.y(), v.z());
-        float dmax = 0.0f;
-        for (const Share& s : sh) {
-            const Frame& t = tiles[s.k];
-            const float w = float(s.lambda);
-            if (vel) {
-                require(t.velocity, v, s.k, "velocity");
-                if (!detail || sh.size() == 1) out.velocity.data()[o] += w * t.velocity[v];
-            }
-            if (t.hasDensity()) {
-                require(t.density, v, s.k, "density");
-                out.density.data()[o] += w * t.density[v];
-                dmax = std::max(dmax, t.density[v]);
-            }
-            if (t.temperature) {
-                require(*t.temperature, v, s.k, "temperature");
-                out.temperature->data()[o] += w * (*t.temperature)[v];
-            }
-            if (t.flame) {
-                require(*t.flame, v, s.k, "flame");
-                out.flame->data()[o] += w * (*t.flame)[v];
-            }
-        }
-        if (!detail || sh.size() < 2 || (first.hasDensity() && !(dmax > densityThreshold))) continue;
-        const Vec3f up = upTarget[v];
+        const float dmax = addWeightedTiles(j, v, o, sh, out);
+        if (!j.detail || sh.size() < 2 || (density && !(dmax > densityThreshold))) continue;
+        const Vec3f up = j.upTarget[v];
         for (size_t a = 0; a < sh.size(); ++a)
             for (size_t b = a + 1; b < sh.size(); ++b) {
-                const Vec3f ha = fineDetail(sh[a].k, v, up), hb = fineDetail(sh[b].k, v, up);
+                const Vec3f ha = j.fineDetail(sh[a].k, v, up), hb = j.fineDetail(sh[b].k, v, up);
                 PairSums& p = pairs[std::minmax(sh[a].k, sh[b].k)];
                 p.dot += double(ha.dot(hb));
                 p.aa += double(sh[a].k < sh[b].k ? ha.lengthSqr() : hb.lengthSqr());
                 p.bb += double(sh[a].k < sh[b].k ? hb.lengthSqr() : ha.lengthSqr());
             }
     }
+    return pairs;
+}
 
-    // Pass 2, where tiles share a voxel: U = up(u_t) + sum_k lambda_k c_k + s sum_k sqrt(lambda_k) f_k. sum_k lambda_k
-    // = 1, so independent f_k keep their energy (a linear fade would lose up to half of it mid-ramp); with pair
-    // correlations rho_kl the sum has 1 + sum_{k != l} sqrt(lambda_k lambda_l) rho_kl times that energy, and s undoes
-    // it (s = 1 / sum_k sqrt(lambda_k) for tiles that agree exactly: the blend is then their common detail).
-    double spreadSum = 0.0, detailSum = 0.0;
-    size_t seamVoxels = 0;
-    if (vel)
-        for (auto it = box.beginXYZ(); it; ++it) {
-            const Coord v = *it;
-            shares(v, sh);
-            if (sh.size() < 2) continue;
-            const size_t o = out.velocity.offset(v.x(), v.y(), v.z());
-            const Vec3f up = detail ? upTarget[v] : Vec3f(0.0f);
-            if (detail) {
-                double cross = 0.0;
-                for (size_t a = 0; a < sh.size(); ++a)
-                    for (size_t b = a + 1; b < sh.size(); ++b) {
-                        const auto p = pairs.find(std::minmax(sh[a].k, sh[b].k));
-                        if (p != pairs.end()) cross += 2.0 * std::sqrt(sh[a].lambda * sh[b].lambda) * p->second.rho();
-                    }
-                const float scale = float(1.0 / std::sqrt(std::max(1.0 + cross, 1e-6)));
-                Vec3f coarse(0.0f), fine(0.0f);
-                for (const Share& s : sh) {
-                    coarse += float(s.lambda) * means[s.k][cellOf(v)];
-                    fine += float(std::sqrt(s.lambda)) * fineDetail(s.k, v, up);
-                }
-                out.velocity.data()[o] = up + coarse + scale * fine;
-            }
-            if (first.hasDensity() && !(out.density.data()[o] > densityThreshold)) continue;
-            // The tiles' spread around the blend, over the detail's energy.
-            for (const Share& s : sh)
-                spreadSum += s.lambda * double((tiles[s.k].velocity[v] - out.velocity.data()[o]).lengthSqr());
-            detailSum += double((out.velocity.data()[o] - up).lengthSqr());
-            ++seamVoxels;
+// U at a voxel that tiles share: up(u_t) + sum_k lambda_k c_k + s sum_k sqrt(lambda_k) f_k (see blendDetail).
+Vec3f energyPreservingBlend(
+    const TileJoin& j, const Coord& v, const Vec3f& up, const std::vector<Share>& sh, const PairMap& pairs)
+{
+    double cross = 0.0;
+    for (size_t a = 0; a < sh.size(); ++a)
+        for (size_t b = a + 1; b < sh.size(); ++b) {
+            const auto p = pairs.find(std::minmax(sh[a].k, sh[b].k));
+            if (p != pairs.end()) cross += 2.0 * std::sqrt(sh[a].lambda * sh[b].lambda) * p->second.rho();
         }
-    if (stats) {
-        stats->seamVoxels = seamVoxels;
-        stats->disagreement = detailSum > 0.0 ? std::sqrt(spreadSum / detailSum) : 0.0;
-        PairSums all;
-        stats->minCorrelation = 1.0;
-        for (const auto& [key, p] : pairs) {
-            all.dot += p.dot;
-            all.aa += p.aa;
-            all.bb += p.bb;
-            stats->minCorrelation = std::min(stats->minCorrelation, p.rho());
-        }
-        stats->correlation = pairs.empty() ? 1.0 : all.rho();
-        if (pairs.empty()) stats->minCorrelation = 1.0;
+    const float scale = float(1.0 / std::sqrt(std::max(1.0 + cross, 1e-6)));
+    Vec3f coarse(0.0f), fine(0.0f);
+    for (const Share& s : sh) {
+        coarse += float(s.lambda) * j.means[s.k][j.cellOf(v)];
+        fine += float(std::sqrt(s.lambda)) * j.fineDetail(s.k, v, up);
     }
+    return up + coarse + scale * fine;
+}
+
+// The seam's sums for TileJoinStats::disagreement: the tiles' spread around the blend, and the detail's energy.
+struct SeamSums
+{
+    double spread = 0.0, detail = 0.0;
+    size_t voxels = 0;
+};
+
+// Pass 2, where tiles share a voxel: U = up(u_t) + sum_k lambda_k c_k + s sum_k sqrt(lambda_k) f_k. sum_k lambda_k
+// = 1, so independent f_k keep their energy (a linear fade would lose up to half of it mid-ramp); with pair
+// correlations rho_kl the sum has 1 + sum_{k != l} sqrt(lambda_k lambda_l) rho_kl times that energy, and s undoes
+// it (s = 1 / sum_k sqrt(lambda_k) for tiles that agree exactly: the blend is then their common detail).
+SeamSums blendDetail(const TileJoin& j, const PairMap& pairs, float densityThreshold, Frame& out)
+{
+    const bool density = j.tiles.front().hasDensity();
+    SeamSums seam;
+    std::vector<Share> sh;
+    for (auto it = j.box.beginXYZ(); it; ++it) {
+        const Coord v = *it;
+        j.shares(v, sh);
+        if (sh.size() < 2) continue;
+        const size_t o = out.velocity.offset(v.x(), v.y(), v.z());
+        const Vec3f up = j.detail ? j.upTarget[v] : Vec3f(0.0f);
+        if (j.detail) out.velocity.data()[o] = energyPreservingBlend(j, v, up, sh, pairs);
+        if (density && !(out.density.data()[o] > densityThreshold)) continue;
+        // The tiles' spread around the blend, over the detail's energy.
+        for (const Share& s : sh)
+            seam.spread += s.lambda * double((j.tiles[s.k].velocity[v] - out.velocity.data()[o]).lengthSqr());
+        seam.detail += double((out.velocity.data()[o] - up).lengthSqr());
+        ++seam.voxels;
+    }
+    return seam;
+}
+
+// TileJoinStats from the seam's sums and the pairs' correlations (all pairs pooled, and the lowest pair's).
+void recordJoinStats(const SeamSums& seam, const PairMap& pairs, TileJoinStats& stats)
+{
+    stats.seamVoxels = seam.voxels;
+    stats.disagreement = seam.detail > 0.0 ? std::sqrt(seam.spread / seam.detail) : 0.0;
+    PairSums all;
+    stats.minCorrelation = 1.0;
+    for (const auto& [key, p] : pairs) {
+        all.dot += p.dot;
+        all.aa += p.aa;
+        all.bb += p.bb;
+        stats.minCorrelation = std::min(stats.minCorrelation, p.rho());
+    }
+    stats.correlation = pairs.empty() ? 1.0 : all.rho();
+    if (pairs.empty()) stats.minCorrelation = 1.0;
+}
+
+} // namespace
+
+Frame joinTiles(const std::vector<Frame>& tiles, const TilePlan& plan, int ratio, int ramp, float densityThreshold,
+    const VectorField& upTarget, TileJoinStats* stats)
+{
+    checkTileFrames(tiles, plan, ratio, ramp);
+    const Frame& first = tiles.front();
+    const CoordBBox box = refineDomain(plan.box, ratio);
+    Frame out = emptyJoinedFrame(first, box);
+    const bool vel = first.hasVelocity();
+    const bool detail = vel && !upTarget.empty() && upTarget.bbox().isInside(box);
+    TileJoin j{tiles, upTarget, box, plan.counts, factorsOf(plan.box, ratio),
+        {axisWeights(plan, 0, ratio, ramp, box), axisWeights(plan, 1, ratio, ramp, box),
+            axisWeights(plan, 2, ratio, ramp, box)},
+        vel, detail, {}};
+    if (j.detail) j.means = coarseDetailMeans(j, plan, ratio);
+
+    const PairMap pairs = blendLinear(j, out, densityThreshold);
+    const SeamSums seam = j.vel ? blendDetail(j, pairs, densityThreshold, out) : SeamSums{};
+    if (stats) recordJoinStats(seam, pairs, *stats);
     return out;
 }
 

@@ -921,6 +921,82 @@ FrameMeasures measureDensityOnly(const MeasureInput& in, const MeasureSettings& 
     return m;
 }
 
+// Throws unless the frames of a velocity measurement are there, with their grids, and agree on 2D or 3D.
+void checkVelocityInputs(const MeasureInput& in, const MeasureSettings& s)
+{
+    requireVelocity(in.output, "output");
+    requireVelocity(in.target, "target");
+    requireDensity(*in.target, "target");
+    if (in.source) {
+        requireVelocity(in.source, "source");
+        requireDensity(*in.source, "source");
+        // A slice against a volume: every source figure (hf_ratio, aniso_ratio, ...) would be meaningless.
+        const CoordBBox &ob = in.output->velocity.bbox(), &sb = in.source->velocity.bbox();
+        if (!ob.empty() && !sb.empty() && isFlat(ob) != isFlat(sb))
+            throw ValueError(isFlat(ob) ? "the output is 2D (one z layer) but the source is 3D: give the 2D source"
+                                        : "the output is 3D but the source is 2D (one z layer)");
+    }
+    if (!(s.densityThreshold >= 0.0f)) throw ValueError("measure: density threshold must be >= 0");
+}
+
+// The velocity over the smoke's bounding box as stored: no mask inside the box (a mask would add the step at the
+// smoke's edge to every spectrum; Blender already clips velocity to the smoke).
+void spectraMeasures(const Frame& O, const Frame& T, const Frame* src, const Mask& ownMask, const Mask& coarseMask,
+    const Mask& srcMask, const MeasureSettings& s, FrameMeasures& m)
+{
+    const auto spectrumOf = [&](const VectorField& u, const Mask& mask) {
+        return energySpectrum(u, maskBBox(u.bbox(), mask), s.spectrum);
+    };
+    m.spectrumOutput = spectrumOf(O.velocity, ownMask);
+    m.spectrumTarget = spectrumOf(T.velocity, coarseMask);
+    if (src) m.spectrumSource = spectrumOf(src->velocity, srcMask);
+}
+
+// Every measure of an output with velocity, stage by stage, each stage a cancellation point.
+void measureStages(const MeasureInput& in, const Frame& O, const Frame& T, const MeasuredSources& sources,
+    const MeasureSettings& s, Progress* progress, FrameMeasures& m)
+{
+    const Frame* src = sources.source;
+    if (progress) progress->begin("align");
+    const Aligned a = alignPair(O, T, s);
+    recordAlignment(a, T, m);
+    checkCancelled(progress);
+
+    if (progress) progress->begin("lf_err");
+    const VectorField uh = difference(a.output, a.up);
+    const Mask coarseMask = thresholdMask(T.density, T.velocity.bbox(), s.densityThreshold);
+    coarseMeasures(a, uh, coarseMask, O, T, m);
+    checkCancelled(progress);
+
+    if (progress) progress->begin("hf energy, divergence");
+    const Mask ownMask = outputMeasures(O, T, a, s, m);
+    checkCancelled(progress);
+    const Mask srcMask = sourceMeasures(sources, T, s, m);
+    checkCancelled(progress);
+
+    blockMeasure(O, a, uh, s, m);
+    tileMeasures(O, a, uh, ownMask, s, m);
+    if (s.structure) {
+        if (progress) progress->begin("structure");
+        structureMeasures(O, T, src, a, ownMask, srcMask, coarseMask, s.upAxis, m);
+        checkCancelled(progress);
+    }
+    if (in.previousOutput && in.previousTarget) {
+        if (progress) progress->begin("tcoh");
+        temporalCoherence(in, T, a, uh, s, m);
+    } else {
+        m.notes.push_back("tcoh: no previous frame");
+    }
+    checkCancelled(progress);
+    if (src && sources.previous && !srcMask.empty()) sourceCoherence(sources, srcMask, s, m);
+    checkCancelled(progress);
+
+    if (s.spectra) {
+        if (progress) progress->begin("spectra");
+        spectraMeasures(O, T, src, ownMask, coarseMask, srcMask, s, m);
+    }
+}
+
 } // namespace
 
 FrameMeasures measureFrame(const MeasureInput& in, const MeasureSettings& s, Progress* progress)
@@ -935,75 +1011,16 @@ FrameMeasures measureFrame(const MeasureInput& in, const MeasureSettings& s, Pro
         if (in.source) requireDensity(*in.source, "source");
         return measureDensityOnly(in, s);
     }
-    requireVelocity(in.output, "output");
-    requireVelocity(in.target, "target");
-    requireDensity(*in.target, "target");
-    if (in.source) {
-        requireVelocity(in.source, "source");
-        requireDensity(*in.source, "source");
-        // A slice against a volume: every source figure (hf_ratio, aniso_ratio, ...) would be meaningless.
-        const CoordBBox &ob = in.output->velocity.bbox(), &sb = in.source->velocity.bbox();
-        if (!ob.empty() && !sb.empty() && isFlat(ob) != isFlat(sb))
-            throw ValueError(isFlat(ob) ? "the output is 2D (one z layer) but the source is 3D: give the 2D source"
-                                        : "the output is 3D but the source is 2D (one z layer)");
-    }
-    if (!(s.densityThreshold >= 0.0f)) throw ValueError("measure: density threshold must be >= 0");
+    checkVelocityInputs(in, s);
     const Frame& T = *in.target;
     Frame filled;
     const Frame& O = fillUnwritten(*in.output, T, s, filled);
     MeasuredSources sources;
     measuredSources(in, T, sources);
-    const Frame* src = sources.source;
 
     FrameMeasures m;
     m.frame = O.number;
-    withThreads(s.threads, [&] {
-        if (progress) progress->begin("align");
-        const Aligned a = alignPair(O, T, s);
-        recordAlignment(a, T, m);
-        checkCancelled(progress);
-
-        if (progress) progress->begin("lf_err");
-        const VectorField uh = difference(a.output, a.up);
-        const Mask coarseMask = thresholdMask(T.density, T.velocity.bbox(), s.densityThreshold);
-        coarseMeasures(a, uh, coarseMask, O, T, m);
-        checkCancelled(progress);
-
-        if (progress) progress->begin("hf energy, divergence");
-        const Mask ownMask = outputMeasures(O, T, a, s, m);
-        checkCancelled(progress);
-        const Mask srcMask = sourceMeasures(sources, T, s, m);
-        checkCancelled(progress);
-
-        blockMeasure(O, a, uh, s, m);
-        tileMeasures(O, a, uh, ownMask, s, m);
-        if (s.structure) {
-            if (progress) progress->begin("structure");
-            structureMeasures(O, T, src, a, ownMask, srcMask, coarseMask, s.upAxis, m);
-            checkCancelled(progress);
-        }
-        if (in.previousOutput && in.previousTarget) {
-            if (progress) progress->begin("tcoh");
-            temporalCoherence(in, T, a, uh, s, m);
-        } else {
-            m.notes.push_back("tcoh: no previous frame");
-        }
-        checkCancelled(progress);
-        if (src && sources.previous && !srcMask.empty()) sourceCoherence(sources, srcMask, s, m);
-        checkCancelled(progress);
-
-        if (s.spectra) {
-            if (progress) progress->begin("spectra");
-            // The velocity over the smoke's bounding box as stored: no mask inside the box (a mask would add
-            // the step at the smoke's edge to every spectrum; Blender already clips velocity to the smoke).
-            const auto spectrumOf = [&](const VectorField& u, const Mask& mask) {
-                return energySpectrum(u, maskBBox(u.bbox(), mask), s.spectrum);
-            };
-            m.spectrumOutput = spectrumOf(O.velocity, ownMask);
-            m.spectrumTarget = spectrumOf(T.velocity, coarseMask);
-            if (src) m.spectrumSource = spectrumOf(src->velocity, srcMask);
-        }
-    });
+    withThreads(s.threads, [&] { measureStages(in, O, T, sources, s, progress, m); });
     return m;
 }
 

@@ -78,6 +78,82 @@ double meanSquare(const std::vector<double>& v)
     return s / double(v.size());
 }
 
+// The window's separable factors along each axis of the analysed box.
+struct Window3
+{
+    std::vector<double> x, y, z;
+};
+
+// Window-weighted mean: subtracting it makes the windowed field's own mean exactly zero, so the
+// mean flow does not leak into the first shells through the window's spectrum.
+Vec3d windowedMean(const VectorField& u, const Coord& lo, const Coord& d, const Window3& w)
+{
+    const std::vector<double>&wx = w.x, &wy = w.y, &wz = w.z;
+    Vec3d mean(0.0);
+    double wsum = 0.0;
+    for (int i = 0; i < d.x(); ++i)
+        for (int j = 0; j < d.y(); ++j)
+            for (int k = 0; k < d.z(); ++k) wsum += wx[size_t(i)] * wy[size_t(j)] * wz[size_t(k)];
+    for (int a = 0; a < 3; ++a)
+        mean[a] = parallelSum(size_t(d.x()), 1, [&](size_t i0, size_t i1) {
+            double acc = 0.0;
+            for (size_t i = i0; i < i1; ++i)
+                for (int j = 0; j < d.y(); ++j)
+                    for (int k = 0; k < d.z(); ++k)
+                        acc += wx[i] * wy[size_t(j)] * wz[size_t(k)] * u(lo.x() + int(i), lo.y() + j, lo.z() + k)[a];
+            return acc;
+        }) / wsum;
+    return mean;
+}
+
+// Fills the transform's S^3 input (rows padded to rowReal floats) with component `a` of the windowed field less
+// its mean, zero-padded beyond the box.
+void fillWindowedComponent(float* r, int S, size_t rowReal, const VectorField& u, const Coord& lo, const Coord& d,
+    const Window3& w, int a, const Vec3d& mean)
+{
+    parallelFor(size_t(S), 1, [&](size_t i0, size_t i1) {
+        for (size_t i = i0; i < i1; ++i)
+            for (int j = 0; j < S; ++j) {
+                float* row = r + (i * size_t(S) + size_t(j)) * rowReal;
+                std::fill(row, row + rowReal, 0.0f);
+                if (int(i) >= d.x() || j >= d.y()) continue;
+                const double wij = w.x[i] * w.y[size_t(j)];
+                for (int k = 0; k < d.z(); ++k)
+                    row[k] = float(wij * w.z[size_t(k)] * (u(lo.x() + int(i), lo.y() + j, lo.z() + k)[a] - mean[a]));
+            }
+    });
+}
+
+// Adds the transform's power |u^|^2 per shell of integer wavenumber |n| to `shells` and its sum to `total`.
+void addShellPower(const fftwf_complex* c, int S, int H, int maxShell, std::vector<double>& shells, double& total)
+{
+    // Shell sums per x-slab, combined in slab order: the same sums at any thread count.
+    std::vector<std::vector<double>> part(static_cast<size_t>(S));
+    parallelFor(size_t(S), 1, [&](size_t i0, size_t i1) {
+        for (size_t i = i0; i < i1; ++i) {
+            std::vector<double>& h = part[i];
+            h.assign(size_t(maxShell) + 1, 0.0); // last slot: the slab's total
+            const int ni = int(i) <= S / 2 ? int(i) : int(i) - S;
+            for (int j = 0; j < S; ++j) {
+                const int nj = j <= S / 2 ? j : j - S;
+                const fftwf_complex* rowc = c + (i * size_t(S) + size_t(j)) * size_t(H);
+                for (int kz = 0; kz < H; ++kz) {
+                    // The r2c output holds kz >= 0 only; the conjugate half doubles the others.
+                    const double mult = (kz == 0 || (S % 2 == 0 && kz == S / 2)) ? 1.0 : 2.0;
+                    const double p = mult * (double(rowc[kz][0]) * rowc[kz][0] + double(rowc[kz][1]) * rowc[kz][1]);
+                    const double n = std::sqrt(double(ni * ni + nj * nj + kz * kz));
+                    h[size_t(std::lround(n))] += p;
+                    h[size_t(maxShell)] += p;
+                }
+            }
+        }
+    });
+    for (const auto& h : part) {
+        for (int n = 0; n < maxShell; ++n) shells[size_t(n)] += h[size_t(n)];
+        total += h[size_t(maxShell)];
+    }
+}
+
 } // namespace
 
 int fftFriendlySize(int m)
@@ -106,29 +182,9 @@ Spectrum energySpectrum(const VectorField& u, const CoordBBox& boxIn, const Spec
     out.fftSide = S;
     out.dk = 2.0 * M_PI / (S * voxel);
 
-    const std::vector<double> wx = window1d(d.x(), s.window), wy = window1d(d.y(), s.window),
-                              wz = window1d(d.z(), s.window);
+    const Window3 w{window1d(d.x(), s.window), window1d(d.y(), s.window), window1d(d.z(), s.window)};
     const Coord lo = box.min();
-
-    // Window-weighted mean: subtracting it makes the windowed field's own mean exactly zero, so the
-    // mean flow does not leak into the first shells through the window's spectrum.
-    Vec3d mean(0.0);
-    if (s.subtractMean) {
-        double wsum = 0.0;
-        for (int i = 0; i < d.x(); ++i)
-            for (int j = 0; j < d.y(); ++j)
-                for (int k = 0; k < d.z(); ++k) wsum += wx[size_t(i)] * wy[size_t(j)] * wz[size_t(k)];
-        for (int a = 0; a < 3; ++a)
-            mean[a] = parallelSum(size_t(d.x()), 1, [&](size_t i0, size_t i1) {
-                double acc = 0.0;
-                for (size_t i = i0; i < i1; ++i)
-                    for (int j = 0; j < d.y(); ++j)
-                        for (int k = 0; k < d.z(); ++k)
-                            acc +=
-                                wx[i] * wy[size_t(j)] * wz[size_t(k)] * u(lo.x() + int(i), lo.y() + j, lo.z() + k)[a];
-                return acc;
-            }) / wsum;
-    }
+    const Vec3d mean = s.subtractMean ? windowedMean(u, lo, d, w) : Vec3d(0.0);
 
     FftwFloats buf(size_t(S) * size_t(S) * rowReal);
     const R2cPlan plan(S, buf.get());
@@ -137,51 +193,15 @@ Spectrum energySpectrum(const VectorField& u, const CoordBBox& boxIn, const Spec
     std::vector<double> shells(size_t(maxShell), 0.0);
     double total = 0.0;
     for (int a = 0; a < 3; ++a) {
-        float* r = buf.get();
-        parallelFor(size_t(S), 1, [&](size_t i0, size_t i1) {
-            for (size_t i = i0; i < i1; ++i)
-                for (int j = 0; j < S; ++j) {
-                    float* row = r + (i * size_t(S) + size_t(j)) * rowReal;
-                    std::fill(row, row + rowReal, 0.0f);
-                    if (int(i) >= d.x() || j >= d.y()) continue;
-                    const double wij = wx[i] * wy[size_t(j)];
-                    for (int k = 0; k < d.z(); ++k)
-                        row[k] = float(wij * wz[size_t(k)] * (u(lo.x() + int(i), lo.y() + j, lo.z() + k)[a] - mean[a]));
-                }
-        });
+        fillWindowedComponent(buf.get(), S, rowReal, u, lo, d, w, a, mean);
         plan.execute();
-        const fftwf_complex* c = reinterpret_cast<const fftwf_complex*>(r);
-        // Shell sums per x-slab, combined in slab order: the same sums at any thread count.
-        std::vector<std::vector<double>> part(static_cast<size_t>(S));
-        parallelFor(size_t(S), 1, [&](size_t i0, size_t i1) {
-            for (size_t i = i0; i < i1; ++i) {
-                std::vector<double>& h = part[i];
-                h.assign(size_t(maxShell) + 1, 0.0); // last slot: the slab's total
-                const int ni = int(i) <= S / 2 ? int(i) : int(i) - S;
-                for (int j = 0; j < S; ++j) {
-                    const int nj = j <= S / 2 ? j : j - S;
-                    const fftwf_complex* rowc = c + (i * size_t(S) + size_t(j)) * size_t(H);
-                    for (int kz = 0; kz < H; ++kz) {
-                        // The r2c output holds kz >= 0 only; the conjugate half doubles the others.
-                        const double mult = (kz == 0 || (S % 2 == 0 && kz == S / 2)) ? 1.0 : 2.0;
-                        const double p = mult * (double(rowc[kz][0]) * rowc[kz][0] + double(rowc[kz][1]) * rowc[kz][1]);
-                        const double n = std::sqrt(double(ni * ni + nj * nj + kz * kz));
-                        h[size_t(std::lround(n))] += p;
-                        h[size_t(maxShell)] += p;
-                    }
-                }
-            }
-        });
-        for (const auto& h : part) {
-            for (int n = 0; n < maxShell; ++n) shells[size_t(n)] += h[size_t(n)];
-            total += h[size_t(maxShell)];
-        }
+        addShellPower(reinterpret_cast<const fftwf_complex*>(buf.get()), S, H, maxShell, shells, total);
     }
 
     // Parseval: sum |u^|^2 = M sum |w u|^2 and sum |w u|^2 ~ mean(w^2) N mean|u|^2.
     const double M = double(S) * S * S;
     const double N = double(d.x()) * d.y() * d.z();
-    const double W = meanSquare(wx) * meanSquare(wy) * meanSquare(wz);
+    const double W = meanSquare(w.x) * meanSquare(w.y) * meanSquare(w.z);
     const double norm = 0.5 / (M * N * W);
     out.meanEnergy = total * norm;
     for (int n = 1; n <= S / 2; ++n) {

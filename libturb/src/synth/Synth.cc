@@ -1028,6 +1028,98 @@ std::vector<Constraint> makeConstraints(
     return out;
 }
 
+/// Throws unless every view's exemplar is well formed and usable; returns the smallest exemplar's larger side.
+int checkExemplarViews(const std::vector<SynthView>& views)
+{
+    int smallest = std::numeric_limits<int>::max();
+    for (const auto& v : views) {
+        const Exemplar& e = v.exemplar;
+        if (e.count() == 0 || e.values.size() != e.count() * size_t(e.channels))
+            throw ValueError("synth: exemplar '" + e.name + "' is empty or malformed");
+        if (!(v.weight > 0.0f)) throw ValueError("synth: view weights must be > 0");
+        if (e.planar() && (v.normal < 0 || v.normal > 2)) throw ValueError("synth: a view normal must be 0, 1 or 2");
+        for (float x : e.values)
+            if (!std::isfinite(x)) throw ValueError("synth: exemplar '" + e.name + "' holds NaN or Inf");
+        smallest = std::min(smallest, std::max(e.nx, e.ny));
+    }
+    return smallest;
+}
+
+/// The pyramid's depth. Paper: 3 levels, 2 when the input is <= 16^2; never so many that the coarsest exemplar
+/// drops below 8 pixels.
+int pyramidLevels(const std::vector<SynthView>& views, const SynthSettings& s, int smallest)
+{
+    int levels = s.levels > 0 ? s.levels : (smallest <= 16 ? 2 : 3);
+    for (const auto& v : views) {
+        int m2 = std::min(v.exemplar.nx, v.exemplar.ny);
+        if (!v.exemplar.planar()) m2 = std::min(m2, v.exemplar.nz);
+        int fit = 1;
+        while ((m2 >> fit) >= 8) ++fit;
+        levels = std::max(1, std::min(levels, fit));
+    }
+    return levels;
+}
+
+/// One view's exemplar pyramid (coarsest first) with each level's per-channel mean and standard deviation.
+void prepareView(PreparedView& pv, const SynthView& view, int levels)
+{
+    pv.view = view;
+    if (view.exemplar.planar()) {
+        pv.nc = 2;
+        pv.normal = view.normal;
+        planeAxes(pv.normal, pv.comps[0], pv.comps[1]);
+    } else {
+        pv.nc = 3;
+        pv.normal = -1;
+    }
+    pv.levels.resize(size_t(levels));
+    pv.levels[size_t(levels - 1)].ex = view.exemplar;
+    for (int l = levels - 2; l >= 0; --l) {
+        // Halving with the pixel-centre-aligned resampler is the 2x2(x2) box mean.
+        pv.levels[size_t(l)].ex = rescaledExemplar(pv.levels[size_t(l + 1)].ex, 0.5);
+    }
+    for (ViewLevel& vl : pv.levels) {
+        const size_t n = vl.ex.count();
+        for (int ch = 0; ch < pv.nc; ++ch) {
+            double sum = 0.0, sq = 0.0;
+            for (size_t k = 0; k < n; ++k) sum += vl.ex.values[k * size_t(pv.nc) + size_t(ch)];
+            vl.mean[ch] = sum / double(n);
+            for (size_t k = 0; k < n; ++k) {
+                const double d = vl.ex.values[k * size_t(pv.nc) + size_t(ch)] - vl.mean[ch];
+                sq += d * d;
+            }
+            vl.stdev[ch] = std::sqrt(sq / double(n));
+        }
+    }
+}
+
+/// Indexes every (view, level, radius) neighbourhood set; the tasks are independent, so they are built in parallel.
+void indexNeighbourhoods(std::vector<PreparedView>& prepared, int levels, const SynthSettings& s, bool volume,
+    bool kcoherence, Progress* progress)
+{
+    struct Task
+    {
+        size_t view;
+        int level, which, radius;
+    };
+    std::vector<Task> tasks;
+    for (size_t i = 0; i < prepared.size(); ++i)
+        for (int l = 0; l < levels; ++l) {
+            tasks.push_back({i, l, 0, s.smallRadius});
+            if (!volume && s.largeIterations > 0) tasks.push_back({i, l, 1, s.largeRadius});
+        }
+    withThreads(s.threads, [&] {
+        parallelFor(tasks.size(), 1, [&](size_t b, size_t e) {
+            for (size_t t = b; t < e; ++t) {
+                checkCancelled(progress);
+                PreparedView& pv = prepared[tasks[t].view];
+                ViewLevel& vl = pv.levels[size_t(tasks[t].level)];
+                buildNeigh(vl.neigh[tasks[t].which], pv, vl.ex, tasks[t].radius, s, kcoherence);
+            }
+        });
+    });
+}
+
 } // namespace
 
 // ---------------------------------------------------------------------------------------------
@@ -1046,83 +1138,12 @@ SynthExemplars::SynthExemplars(std::vector<SynthView> views, const SynthSettings
             throw ValueError("synth: a 2D synthesis needs a planar exemplar, not a volume");
         views[0].normal = 2;
     }
-    int smallest = std::numeric_limits<int>::max();
-    for (const auto& v : views) {
-        const Exemplar& e = v.exemplar;
-        if (e.count() == 0 || e.values.size() != e.count() * size_t(e.channels))
-            throw ValueError("synth: exemplar '" + e.name + "' is empty or malformed");
-        if (!(v.weight > 0.0f)) throw ValueError("synth: view weights must be > 0");
-        if (e.planar() && (v.normal < 0 || v.normal > 2)) throw ValueError("synth: a view normal must be 0, 1 or 2");
-        for (float x : e.values)
-            if (!std::isfinite(x)) throw ValueError("synth: exemplar '" + e.name + "' holds NaN or Inf");
-        smallest = std::min(smallest, std::max(e.nx, e.ny));
-    }
-    // Paper: 3 levels, 2 when the input is <= 16^2; never so many that the coarsest exemplar drops
-    // below 8 pixels.
-    int levels = s.levels > 0 ? s.levels : (smallest <= 16 ? 2 : 3);
-    for (const auto& v : views) {
-        int m2 = std::min(v.exemplar.nx, v.exemplar.ny);
-        if (!v.exemplar.planar()) m2 = std::min(m2, v.exemplar.nz);
-        int fit = 1;
-        while ((m2 >> fit) >= 8) ++fit;
-        levels = std::max(1, std::min(levels, fit));
-    }
+    const int levels = pyramidLevels(views, s, checkExemplarViews(views));
     m.levels = levels;
     m.views = views;
     m.prepared.resize(views.size());
-    for (size_t i = 0; i < views.size(); ++i) {
-        PreparedView& pv = m.prepared[i];
-        pv.view = views[i];
-        if (views[i].exemplar.planar()) {
-            pv.nc = 2;
-            pv.normal = views[i].normal;
-            planeAxes(pv.normal, pv.comps[0], pv.comps[1]);
-        } else {
-            pv.nc = 3;
-            pv.normal = -1;
-        }
-        pv.levels.resize(size_t(levels));
-        pv.levels[size_t(levels - 1)].ex = views[i].exemplar;
-        for (int l = levels - 2; l >= 0; --l) {
-            // Halving with the pixel-centre-aligned resampler is the 2x2(x2) box mean.
-            pv.levels[size_t(l)].ex = rescaledExemplar(pv.levels[size_t(l + 1)].ex, 0.5);
-        }
-        for (ViewLevel& vl : pv.levels) {
-            const size_t n = vl.ex.count();
-            for (int ch = 0; ch < pv.nc; ++ch) {
-                double sum = 0.0, sq = 0.0;
-                for (size_t k = 0; k < n; ++k) sum += vl.ex.values[k * size_t(pv.nc) + size_t(ch)];
-                vl.mean[ch] = sum / double(n);
-                for (size_t k = 0; k < n; ++k) {
-                    const double d = vl.ex.values[k * size_t(pv.nc) + size_t(ch)] - vl.mean[ch];
-                    sq += d * d;
-                }
-                vl.stdev[ch] = std::sqrt(sq / double(n));
-            }
-        }
-    }
-    // Index every (view, level, radius); the tasks are independent, so build them in parallel.
-    struct Task
-    {
-        size_t view;
-        int level, which, radius;
-    };
-    std::vector<Task> tasks;
-    for (size_t i = 0; i < views.size(); ++i)
-        for (int l = 0; l < levels; ++l) {
-            tasks.push_back({i, l, 0, s.smallRadius});
-            if (!volume && s.largeIterations > 0) tasks.push_back({i, l, 1, s.largeRadius});
-        }
-    withThreads(s.threads, [&] {
-        parallelFor(tasks.size(), 1, [&](size_t b, size_t e) {
-            for (size_t t = b; t < e; ++t) {
-                checkCancelled(progress);
-                PreparedView& pv = m.prepared[tasks[t].view];
-                ViewLevel& vl = pv.levels[size_t(tasks[t].level)];
-                buildNeigh(vl.neigh[tasks[t].which], pv, vl.ex, tasks[t].radius, s, m.kcoherence);
-            }
-        });
-    });
+    for (size_t i = 0; i < views.size(); ++i) prepareView(m.prepared[i], views[i], levels);
+    indexNeighbourhoods(m.prepared, levels, s, volume, m.kcoherence, progress);
 }
 
 SynthExemplars::~SynthExemplars() = default;

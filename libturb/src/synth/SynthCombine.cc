@@ -63,21 +63,22 @@ ScalarField smokeDetailWeight(const ScalarField& density, float threshold, doubl
     return w;
 }
 
-VectorField combineMotion(const VectorField& coarse, const VectorField& detail, const CombineSettings& s,
-    CentralDivergenceResult* diagnostics)
-{
-    if (coarse.empty() || detail.empty()) throw ValueError("combine: empty coarse or detail field");
-    if (!(s.omega >= 0.0)) throw ValueError("combine: omega must be >= 0");
-    const int factor = integerRatio(coarse.lattice().voxelSize, detail.lattice().voxelSize);
-    VectorField F = upsampleCoarse(coarse, factor);
-    if (F.bbox() != detail.bbox())
-        throw ValueError("combine: the detail field does not cover the refined coarse box (was it made from this L?)");
+namespace {
 
-    // The shape of omega on the coarse lattice, normalised to mean 1 over moving voxels.
-    ScalarField shape(coarse.bbox(), coarse.lattice(), 1.0f);
+// L's fastest speed; the voxels faster than 5% of it are the moving ones that omega's normalisations average over.
+double fastestSpeed(const VectorField& coarse)
+{
     double maxSpeed = 0.0;
     for (const Vec3f& v : coarse.values()) maxSpeed = std::max(maxSpeed, double(v.length()));
-    const auto moving = [&](size_t n) { return coarse.data()[n].length() > 0.05 * maxSpeed; };
+    return maxSpeed;
+}
+
+bool isMoving(const Vec3f& v, double maxSpeed) { return v.length() > 0.05 * maxSpeed; }
+
+// The shape of omega on the coarse lattice, normalised to mean 1 over moving voxels, and faded outside the smoke.
+ScalarField omegaShape(const VectorField& coarse, const CombineSettings& s, double maxSpeed)
+{
+    ScalarField shape(coarse.bbox(), coarse.lattice(), 1.0f);
     if (s.weighting != CombineSettings::Weighting::Constant) {
         if (s.weighting == CombineSettings::Weighting::KineticEnergy) {
             for (size_t n = 0; n < coarse.size(); ++n) shape.data()[n] = 0.5f * coarse.data()[n].lengthSqr();
@@ -88,24 +89,13 @@ VectorField combineMotion(const VectorField& coarse, const VectorField& detail, 
         double sum = 0.0;
         size_t cnt = 0;
         for (size_t n = 0; n < coarse.size(); ++n)
-            if (moving(n)) {
+            if (isMoving(coarse.data()[n], maxSpeed)) {
                 sum += shape.data()[n];
                 ++cnt;
             }
         const double mean = cnt ? sum / double(cnt) : 0.0;
         const float inv = mean > 0.0 ? float(1.0 / mean) : 0.0f;
         for (float& v : shape.values()) v *= inv;
-    }
-    double scale = s.omega;
-    if (s.relative) {
-        double s2 = 0.0;
-        size_t cnt = 0;
-        for (size_t n = 0; n < coarse.size(); ++n)
-            if (moving(n)) {
-                s2 += coarse.data()[n].lengthSqr();
-                ++cnt;
-            }
-        scale *= cnt ? std::sqrt(s2 / double(cnt)) : 0.0;
     }
     if (s.smoke) {
         if (s.smoke->bbox() != coarse.bbox())
@@ -115,33 +105,69 @@ VectorField combineMotion(const VectorField& coarse, const VectorField& detail, 
         const ScalarField w = smokeDetailWeight(*s.smoke, s.smokeThreshold, s.smokeMargin, s.smokeFalloff);
         for (size_t n = 0; n < shape.size(); ++n) shape.data()[n] *= w.data()[n];
     }
+    return shape;
+}
+
+// omega's overall factor: as given, or (relative) times L's rms speed over its moving voxels.
+double omegaScale(const VectorField& coarse, const CombineSettings& s, double maxSpeed)
+{
+    double scale = s.omega;
+    if (s.relative) {
+        double s2 = 0.0;
+        size_t cnt = 0;
+        for (size_t n = 0; n < coarse.size(); ++n)
+            if (isMoving(coarse.data()[n], maxSpeed)) {
+                s2 += coarse.data()[n].lengthSqr();
+                ++cnt;
+            }
+        scale *= cnt ? std::sqrt(s2 / double(cnt)) : 0.0;
+    }
+    return scale;
+}
+
+// The detail's coarse-cell means, spread trilinearly as up(L) is, are motion at L's scale: they would change the
+// coarse flow (lf_err). Trilinear spreading does not keep a cell's mean exactly: each pass leaves about half of
+// the means in the worst case (a wavelength of two coarse cells), so five passes leave a few percent
+// (docs/synth.md: three left lf_err 0.047-0.072 on the Blender plume2 cache).
+void removeCoarsePart(VectorField& D, int factor, int passes)
+{
+    for (int pass = 0; pass < passes; ++pass) {
+        const VectorField coarsePart = upsampleImpl(boxDownsample(D, factor), factor);
+        if (coarsePart.bbox() != D.bbox()) throw ValueError("combine: the detail's coarse part does not cover its box");
+        parallelFor(D.size(), 4096, [&](size_t b, size_t e) {
+            for (size_t n = b; n < e; ++n) D.data()[n] -= coarsePart.data()[n];
+        });
+    }
+}
+
+} // namespace
+
+VectorField combineMotion(const VectorField& coarse, const VectorField& detail, const CombineSettings& s,
+    CentralDivergenceResult* diagnostics)
+{
+    if (coarse.empty() || detail.empty()) throw ValueError("combine: empty coarse or detail field");
+    if (!(s.omega >= 0.0)) throw ValueError("combine: omega must be >= 0");
+    const int factor = integerRatio(coarse.lattice().voxelSize, detail.lattice().voxelSize);
+    VectorField F = upsampleCoarse(coarse, factor);
+    if (F.bbox() != detail.bbox())
+        throw ValueError("combine: the detail field does not cover the refined coarse box (was it made from this L?)");
+
+    const double maxSpeed = fastestSpeed(coarse);
+    const ScalarField shape = omegaShape(coarse, s, maxSpeed);
+    const double scale = omegaScale(coarse, s, maxSpeed);
     const ScalarField omega = upsampleCoarse(shape, factor);
     VectorField D(F.bbox(), F.lattice());
     parallelFor(F.size(), 4096, [&](size_t b, size_t e) {
         for (size_t n = b; n < e; ++n) D.data()[n] = detail.data()[n] * float(scale * omega.data()[n]);
     });
-    // The detail's coarse-cell means, spread trilinearly as up(L) is, are motion at L's scale: they would change the
-    // coarse flow (lf_err). Trilinear spreading does not keep a cell's mean exactly: each pass leaves about half of
-    // the means in the worst case (a wavelength of two coarse cells), so five passes leave a few percent
-    // (docs/synth.md: three left lf_err 0.047-0.072 on the Blender plume2 cache).
-    const auto removeCoarse = [&](int passes) {
-        for (int pass = 0; pass < passes; ++pass) {
-            const VectorField coarsePart = upsampleImpl(boxDownsample(D, factor), factor);
-            if (coarsePart.bbox() != D.bbox())
-                throw ValueError("combine: the detail's coarse part does not cover its box");
-            parallelFor(D.size(), 4096, [&](size_t b, size_t e) {
-                for (size_t n = b; n < e; ++n) D.data()[n] -= coarsePart.data()[n];
-            });
-        }
-    };
-    if (s.removeCoarsePart) removeCoarse(5);
+    if (s.removeCoarsePart) removeCoarsePart(D, factor, 5);
     if (s.solenoidalDetail) {
         const CentralDivergenceResult r = removeCentralDivergence(D, s.solenoidalTolerance, s.solenoidalIterations);
         if (diagnostics) *diagnostics = r;
         // The gradient part taken out had coarse means of its own: one more pass takes most of what it put back
         // (lf_err 0.046 -> 0.029 on Blender plume2, frames 1-10) and returns a little divergence (div_rel 0.237 ->
         // 0.241, against up(L)'s 0.336; five passes would give back most of it: 0.102 against 0.082 on the plume).
-        if (s.removeCoarsePart) removeCoarse(1);
+        if (s.removeCoarsePart) removeCoarsePart(D, factor, 1);
     }
     parallelFor(F.size(), 4096, [&](size_t b, size_t e) {
         for (size_t n = b; n < e; ++n) F.data()[n] += D.data()[n];
@@ -195,18 +221,21 @@ ScalarField LookbackDensity::step(
     return d;
 }
 
-TextureMatch textureMatch(const Exemplar& ex, const VectorField& local, const TextureMatchSettings& s)
+namespace {
+
+// Every neighbourhood of the exemplar (each valid centre, all of them where it wraps), one row of
+// (2r+1)^2 * 2 values each: the texture-match statistic compares against them all, brute force (exact and small).
+struct ExemplarNeighbourhoods
 {
-    if (!ex.planar()) throw ValueError("texture match: the exemplar must be planar");
-    if (s.axis < 0 || s.axis > 2) throw ValueError("texture match: axis must be 0, 1 or 2");
-    const int r = s.radius;
-    const int u = s.axis == 0 ? 1 : 0, v = s.axis == 2 ? 1 : 2;
-    const CoordBBox b = local.bbox();
-    TextureMatch out;
-    // Exemplar neighbourhoods (every valid centre), brute force: exact and small.
-    std::vector<float> exRows;
-    size_t exCount = 0;
-    const int dim = (2 * r + 1) * (2 * r + 1) * 2;
+    std::vector<float> rows;
+    size_t count = 0;
+    int dim = 0;
+};
+
+ExemplarNeighbourhoods exemplarNeighbourhoods(const Exemplar& ex, int r)
+{
+    ExemplarNeighbourhoods out;
+    out.dim = (2 * r + 1) * (2 * r + 1) * 2;
     const auto exVal = [&](int x, int y, int c) {
         if (ex.periodic) {
             x = ((x % ex.nx) + ex.nx) % ex.nx;
@@ -219,16 +248,18 @@ TextureMatch textureMatch(const Exemplar& ex, const VectorField& local, const Te
         for (int y = lo; y < (ex.periodic ? ex.ny : ex.ny - r); ++y) {
             for (int i = -r; i <= r; ++i)
                 for (int j = -r; j <= r; ++j)
-                    for (int c = 0; c < 2; ++c) exRows.push_back(exVal(x + i, y + j, c));
-            ++exCount;
+                    for (int c = 0; c < 2; ++c) out.rows.push_back(exVal(x + i, y + j, c));
+            ++out.count;
         }
-    if (exCount == 0) throw ValueError("texture match: exemplar smaller than the neighbourhood");
-    double e2[2] = {0, 0};
-    for (size_t n = 0; n < ex.count(); ++n)
-        for (int c = 0; c < 2; ++c) e2[c] += double(ex.values[n * 2 + size_t(c)]) * ex.values[n * 2 + size_t(c)];
-    for (int c = 0; c < 2; ++c) out.exemplarRms[c] = std::sqrt(e2[c] / double(ex.count()));
+    if (out.count == 0) throw ValueError("texture match: exemplar smaller than the neighbourhood");
+    return out;
+}
 
-    // Output neighbourhoods: in-plane components (u, v) of slices perpendicular to `axis`.
+// The centres of the compared output neighbourhoods: every `stride`-th voxel of the slices perpendicular to `axis`
+// whose whole neighbourhood lies inside box `b` (u, v: the slices' in-plane axes).
+std::vector<Coord> sliceCentres(const CoordBBox& b, const TextureMatchSettings& s, int u, int v)
+{
+    const int r = s.radius;
     const Coord d = b.dim();
     if (d[u] < 2 * r + 1 || d[v] < 2 * r + 1)
         throw ValueError("texture match: field slices smaller than the neighbourhood");
@@ -243,14 +274,28 @@ TextureMatch textureMatch(const Exemplar& ex, const VectorField& local, const Te
                 p[v] = c;
                 centres.push_back(p);
             }
-    // The shuffled field: the same vectors at random voxels (seeded).
+    return centres;
+}
+
+// The field's vectors at random voxels (seeded): the baseline a texture-less field of the same values gives.
+std::vector<Vec3f> shuffledValues(const VectorField& local, std::uint64_t seed)
+{
     std::vector<Vec3f> shuffled(local.values());
-    std::mt19937_64 rng(s.seed);
+    std::mt19937_64 rng(seed);
     for (size_t i = shuffled.size(); i > 1; --i) {
         std::uniform_int_distribution<size_t> pick(0, i - 1);
         std::swap(shuffled[i - 1], shuffled[pick(rng)]);
     }
-    const auto nearest = [&](const std::vector<Vec3f>& vals, const Coord& p) {
+    return shuffled;
+}
+
+// The mean over `centres` of each output neighbourhood's squared distance per channel to its nearest exemplar
+// neighbourhood, with the field's vectors taken from `vals` (the field's own or shuffled).
+double meanNearestDistance(const ExemplarNeighbourhoods& exn, const VectorField& local, const std::vector<Vec3f>& vals,
+    const std::vector<Coord>& centres, int r, int u, int v)
+{
+    const int dim = exn.dim;
+    const auto nearest = [&](const Coord& p) {
         std::vector<float> q(static_cast<size_t>(dim));
         size_t k = 0;
         for (int i = -r; i <= r; ++i)
@@ -263,8 +308,8 @@ TextureMatch textureMatch(const Exemplar& ex, const VectorField& local, const Te
                 q[k++] = val[v];
             }
         double best = std::numeric_limits<double>::max();
-        for (size_t e = 0; e < exCount; ++e) {
-            const float* row = &exRows[e * size_t(dim)];
+        for (size_t e = 0; e < exn.count; ++e) {
+            const float* row = &exn.rows[e * size_t(dim)];
             double s2 = 0.0;
             for (int t = 0; t < dim && s2 < best; ++t) {
                 const double z = double(q[size_t(t)]) - row[t];
@@ -274,19 +319,35 @@ TextureMatch textureMatch(const Exemplar& ex, const VectorField& local, const Te
         }
         return best / dim;
     };
-    const double dsum = parallelSum(centres.size(), 16, [&](size_t b0, size_t e0) {
+    const double sum = parallelSum(centres.size(), 16, [&](size_t b0, size_t e0) {
         double acc = 0.0;
-        for (size_t i = b0; i < e0; ++i) acc += nearest(local.values(), centres[i]);
+        for (size_t i = b0; i < e0; ++i) acc += nearest(centres[i]);
         return acc;
     });
-    const double ssum = parallelSum(centres.size(), 16, [&](size_t b0, size_t e0) {
-        double acc = 0.0;
-        for (size_t i = b0; i < e0; ++i) acc += nearest(shuffled, centres[i]);
-        return acc;
-    });
+    return centres.empty() ? 0.0 : sum / double(centres.size());
+}
+
+} // namespace
+
+TextureMatch textureMatch(const Exemplar& ex, const VectorField& local, const TextureMatchSettings& s)
+{
+    if (!ex.planar()) throw ValueError("texture match: the exemplar must be planar");
+    if (s.axis < 0 || s.axis > 2) throw ValueError("texture match: axis must be 0, 1 or 2");
+    const int r = s.radius;
+    const int u = s.axis == 0 ? 1 : 0, v = s.axis == 2 ? 1 : 2;
+    TextureMatch out;
+    const ExemplarNeighbourhoods exn = exemplarNeighbourhoods(ex, r);
+    double e2[2] = {0, 0};
+    for (size_t n = 0; n < ex.count(); ++n)
+        for (int c = 0; c < 2; ++c) e2[c] += double(ex.values[n * 2 + size_t(c)]) * ex.values[n * 2 + size_t(c)];
+    for (int c = 0; c < 2; ++c) out.exemplarRms[c] = std::sqrt(e2[c] / double(ex.count()));
+
+    // Output neighbourhoods: in-plane components (u, v) of slices perpendicular to `axis`.
+    const std::vector<Coord> centres = sliceCentres(local.bbox(), s, u, v);
+    const std::vector<Vec3f> shuffled = shuffledValues(local, s.seed);
     out.samples = int(centres.size());
-    out.distance = centres.empty() ? 0.0 : dsum / double(centres.size());
-    out.shuffled = centres.empty() ? 0.0 : ssum / double(centres.size());
+    out.distance = meanNearestDistance(exn, local, local.values(), centres, r, u, v);
+    out.shuffled = meanNearestDistance(exn, local, shuffled, centres, r, u, v);
     double f2[2] = {0, 0};
     for (const Vec3f& val : local.values()) {
         f2[0] += double(val[u]) * val[u];

@@ -114,6 +114,77 @@ void localDescriptor(const VectorField& U, const ScalarField& D, const Coord& co
             }
 }
 
+namespace {
+
+// The smoke mask's summed-area table over `box`: the smoke voxels of any patch-sized box in O(1).
+class SmokeCounts
+{
+public:
+    SmokeCounts(const ScalarField& Ds, const CoordBBox& box, float threshold)
+        : mBox(box), mD(box.dim()), mSum(size_t(mD.x() + 1) * size_t(mD.y() + 1) * size_t(mD.z() + 1), 0)
+    {
+        for (int x = 1; x <= mD.x(); ++x)
+            for (int y = 1; y <= mD.y(); ++y)
+                for (int z = 1; z <= mD.z(); ++z) {
+                    const int m = Ds(box.min().x() + x - 1, box.min().y() + y - 1, box.min().z() + z - 1) > threshold;
+                    mSum[at(x, y, z)] = m + mSum[at(x - 1, y, z)] + mSum[at(x, y - 1, z)] + mSum[at(x, y, z - 1)] -
+                                        mSum[at(x - 1, y - 1, z)] - mSum[at(x - 1, y, z - 1)] -
+                                        mSum[at(x, y - 1, z - 1)] + mSum[at(x - 1, y - 1, z - 1)];
+                }
+    }
+    // The smoke voxels of the patch with corner `lo`.
+    int in(const Coord& lo, const Coord& patch) const
+    {
+        const int x0 = lo.x() - mBox.min().x(), y0 = lo.y() - mBox.min().y(), z0 = lo.z() - mBox.min().z();
+        const int x1 = x0 + patch.x(), y1 = y0 + patch.y(), z1 = z0 + patch.z();
+        return mSum[at(x1, y1, z1)] - mSum[at(x0, y1, z1)] - mSum[at(x1, y0, z1)] - mSum[at(x1, y1, z0)] +
+               mSum[at(x0, y0, z1)] + mSum[at(x0, y1, z0)] + mSum[at(x1, y0, z0)] - mSum[at(x0, y0, z0)];
+    }
+
+private:
+    size_t at(int x, int y, int z) const
+    {
+        return (size_t(x) * size_t(mD.y() + 1) + size_t(y)) * size_t(mD.z() + 1) + size_t(z);
+    }
+    CoordBBox mBox;
+    Coord mD;
+    std::vector<int> mSum;
+};
+
+// The candidates' reduced descriptors, one row of pca.outputDim() each. The PCA is fitted on an even subset; then
+// everything is projected in fixed chunks (memory stays bounded).
+std::vector<float> reducedDescriptors(const VectorField& Usl, const ScalarField& Ds, const std::vector<Coord>& corners,
+    const Coord& patch, float k, const MatchWeights& w, int pcaComponents, Pca& pca)
+{
+    const size_t count = corners.size();
+    const size_t dim = localDescriptorSize(patch);
+    {
+        const size_t sample = std::min<size_t>(count, 12000);
+        std::vector<float> rows(sample * dim);
+        const double step = double(count) / double(sample);
+        parallelFor(sample, 256, [&](size_t s, size_t e) {
+            for (size_t i = s; i < e; ++i)
+                localDescriptor(Usl, Ds, corners[size_t(i * step)], patch, k, w, &rows[i * dim]);
+        });
+        pca.fit(rows.data(), sample, dim, PcaSettings{pcaComponents, sample});
+    }
+    const size_t rk = pca.outputDim();
+    std::vector<float> reduced(count * rk, 0.0f);
+    const size_t chunk = 4096;
+    std::vector<float> rows;
+    for (size_t b = 0; b < count; b += chunk) {
+        const size_t e = std::min(count, b + chunk);
+        rows.resize((e - b) * dim);
+        parallelFor(e - b, 256, [&](size_t s, size_t t) {
+            for (size_t i = s; i < t; ++i) localDescriptor(Usl, Ds, corners[b + i], patch, k, w, &rows[i * dim]);
+        });
+        pca.projectRows(rows.data(), e - b, &reduced[b * rk]);
+    }
+    return reduced;
+}
+
+} // namespace
+
 void LocalCandidates::build(const VectorField& Usl, const ScalarField& Ds, const Coord& patch, int stride, float k,
     const MatchWeights& w, int pcaComponents, double minSmoke)
 {
@@ -138,32 +209,14 @@ void LocalCandidates::build(const VectorField& Usl, const ScalarField& Ds, const
     const size_t cells = size_t(mLattice.x()) * size_t(mLattice.y()) * size_t(mLattice.z());
 
     // Which candidate patches hold smoke: a prefix-sum over the mask answers each box in O(1).
-    const Coord d = box.dim();
-    const auto at = [&](int x, int y, int z) {
-        return (size_t(x) * size_t(d.y() + 1) + size_t(y)) * size_t(d.z() + 1) + size_t(z);
-    };
-    std::vector<int> sum(size_t(d.x() + 1) * size_t(d.y() + 1) * size_t(d.z() + 1), 0);
-    for (int x = 1; x <= d.x(); ++x)
-        for (int y = 1; y <= d.y(); ++y)
-            for (int z = 1; z <= d.z(); ++z) {
-                const int m = Ds(box.min().x() + x - 1, box.min().y() + y - 1, box.min().z() + z - 1) > w.threshold;
-                sum[at(x, y, z)] = m + sum[at(x - 1, y, z)] + sum[at(x, y - 1, z)] + sum[at(x, y, z - 1)] -
-                                   sum[at(x - 1, y - 1, z)] - sum[at(x - 1, y, z - 1)] - sum[at(x, y - 1, z - 1)] +
-                                   sum[at(x - 1, y - 1, z - 1)];
-            }
-    const auto smokeIn = [&](const Coord& lo) {
-        const int x0 = lo.x() - box.min().x(), y0 = lo.y() - box.min().y(), z0 = lo.z() - box.min().z();
-        const int x1 = x0 + patch.x(), y1 = y0 + patch.y(), z1 = z0 + patch.z();
-        return sum[at(x1, y1, z1)] - sum[at(x0, y1, z1)] - sum[at(x1, y0, z1)] - sum[at(x1, y1, z0)] +
-               sum[at(x0, y0, z1)] + sum[at(x0, y1, z0)] + sum[at(x1, y0, z0)] - sum[at(x0, y0, z0)];
-    };
+    const SmokeCounts smoke(Ds, box, w.threshold);
     // The smoke a candidate needs: `minSmoke` of its voxels, relaxed to half the smokiest patch's share when the
     // source holds no patch that full (thin shells of smoke on a plume's first frames).
     int most = 0;
     for (int x = 0; x < mLattice.x(); ++x)
         for (int y = 0; y < mLattice.y(); ++y)
             for (int z = 0; z < mLattice.z(); ++z)
-                most = std::max(most, smokeIn(mCorners.min() + Coord(x * mStride, y * mStride, z * mStride)));
+                most = std::max(most, smoke.in(mCorners.min() + Coord(x * mStride, y * mStride, z * mStride), patch));
     mMinSmoke = std::max(
         1, int(std::ceil(std::min(minSmoke * double(patch.x()) * double(patch.y()) * double(patch.z()), 0.5 * most))));
     mSlot.assign(cells, -1);
@@ -172,38 +225,14 @@ void LocalCandidates::build(const VectorField& Usl, const ScalarField& Ds, const
         for (int y = 0; y < mLattice.y(); ++y)
             for (int z = 0; z < mLattice.z(); ++z) {
                 const Coord c = mCorners.min() + Coord(x * mStride, y * mStride, z * mStride);
-                if (smokeIn(c) < mMinSmoke) continue;
+                if (smoke.in(c, patch) < mMinSmoke) continue;
                 mSlot[(size_t(x) * size_t(mLattice.y()) + size_t(y)) * size_t(mLattice.z()) + size_t(z)] =
                     int(corners.size());
                 corners.push_back(c);
             }
     mCount = corners.size();
     if (mCount == 0) return;
-
-    const size_t dim = localDescriptorSize(patch);
-    // Fit the PCA on an even subset; then project everything in fixed chunks (memory stays bounded).
-    {
-        const size_t sample = std::min<size_t>(mCount, 12000);
-        std::vector<float> rows(sample * dim);
-        const double step = double(mCount) / double(sample);
-        parallelFor(sample, 256, [&](size_t s, size_t e) {
-            for (size_t i = s; i < e; ++i)
-                localDescriptor(Usl, Ds, corners[size_t(i * step)], patch, k, w, &rows[i * dim]);
-        });
-        mPca.fit(rows.data(), sample, dim, PcaSettings{pcaComponents, sample});
-    }
-    const size_t rk = mPca.outputDim();
-    mReduced.assign(mCount * rk, 0.0f);
-    const size_t chunk = 4096;
-    std::vector<float> rows;
-    for (size_t b = 0; b < mCount; b += chunk) {
-        const size_t e = std::min(mCount, b + chunk);
-        rows.resize((e - b) * dim);
-        parallelFor(e - b, 256, [&](size_t s, size_t t) {
-            for (size_t i = s; i < t; ++i) localDescriptor(Usl, Ds, corners[b + i], patch, k, w, &rows[i * dim]);
-        });
-        mPca.projectRows(rows.data(), e - b, &mReduced[b * rk]);
-    }
+    mReduced = reducedDescriptors(Usl, Ds, corners, patch, k, w, pcaComponents, mPca);
 }
 
 const float* LocalCandidates::reduced(const Coord& c) const

@@ -222,6 +222,72 @@ std::optional<double> finishedAnisotropy(const VectorField& detail, const Target
     return detailAnisotropy(U, smokeMask(density, fs.s->densityThreshold), fs.f, goal.d);
 }
 
+namespace {
+
+// Per-patch carried weights: lambda where the patch carried detail last frame (or `regenerated` where the flow has
+// stretched it: regen[i] set); where smoke has just arrived, only as much as the detail advected into it (its rms
+// against the pasted detail's), so detail that flowed in keeps moving instead of being replaced.
+void carriedWeights(const VectorField& detail, const VectorField& advected, const std::vector<size_t>& act,
+    const PatchTracks& tracks, const StretchSums& sums, float lambda, float regenerated, const FrameSetup& fs,
+    std::vector<float>& weight, std::vector<uint8_t>& regen)
+{
+    const TransferSettings& s = *fs.s;
+    parallelFor(act.size(), 16, [&](size_t b, size_t e) {
+        checkCancelled(fs.progress);
+        for (size_t i = b; i < e; ++i) {
+            const size_t p = act[i];
+            if (tracks.tracked[p]) {
+                const bool stretched =
+                    s.regenerate > 0.0f && sums.flow[i].lengthSqr() > 0.0 &&
+                    sums.carried[i].ratio() < double(s.regenerate) * std::min(sums.pooled, sums.fresh[i].ratio());
+                regen[i] = stretched;
+                weight[p] = stretched ? regenerated : lambda;
+                continue;
+            }
+            double ea = 0.0, ep = 0.0;
+            const CoordBBox pb = clippedPatchBox(fs, p);
+            for (auto it = pb.begin(); it; ++it) {
+                ea += double(advected[*it].lengthSqr());
+                ep += double(detail[*it].lengthSqr());
+            }
+            weight[p] = ep > 0.0 ? float(lambda * std::min(1.0, std::sqrt(ea / ep))) : lambda;
+        }
+    });
+}
+
+// detail = (1 - w) detail + w advected, per patch weight w. A regenerated patch mixes two nearly unrelated fields
+// at comparable weights, and such a mix has less energy than either; the frame's one energy factor would then lift
+// every other patch to make up for it (hf 1.27 against 1.25 without this on the analytic pair's second frame). The
+// patch keeps the energy its two parts had, interpolated by the weight (keptEnergyGain).
+void mixCarriedDetail(VectorField& detail, const VectorField& advected, const std::vector<size_t>& act,
+    const std::vector<uint8_t>& regen, const std::vector<float>& weight, const FrameSetup& fs)
+{
+    const PatchLayout& L = fs.layout;
+    std::vector<uint8_t> done(L.patchCount(), 0);
+    parallelFor(act.size(), 16, [&](size_t b, size_t e) {
+        checkCancelled(fs.progress);
+        for (size_t i = b; i < e; ++i) {
+            if (!regen[i]) continue;
+            const size_t p = act[i];
+            const float w = weight[p];
+            const CoordBBox pb = clippedPatchBox(fs, p);
+            const float k = keptEnergyGain(detail, advected, pb, w);
+            for (auto it = pb.begin(); it; ++it) detail[*it] = (detail[*it] * (1.0f - w) + advected[*it] * w) * k;
+            done[p] = 1;
+        }
+    });
+    parallelFor(detail.size(), 1 << 14, [&](size_t b, size_t e) {
+        checkCancelled(fs.progress);
+        for (size_t n = b; n < e; ++n) {
+            const size_t p = L.patchIndex(L.patchOf(detail.coordOf(n)));
+            const float w = weight[p];
+            if (w > 0.0f && !done[p]) detail.data()[n] = detail.data()[n] * (1.0f - w) + advected.data()[n] * w;
+        }
+    });
+}
+
+} // namespace
+
 TemporalBlend blendTemporal(VectorField& detail, const TargetAtOutput& t, const VectorField& advected,
     const LocalSearchResult& local, const PatchTracks& tracks, const FrameSetup& fs, const StructureGoal& goal)
 {
@@ -230,9 +296,7 @@ TemporalBlend blendTemporal(VectorField& detail, const TargetAtOutput& t, const 
     // The blend's memory is in frames: over a gap of k frames the carried detail keeps lambda^k.
     const float lambda = advected.empty() ? 0.0f : float(std::pow(double(s.temporalBlend), fs.frameGap));
     if (!(lambda > 0.0f)) return out;
-    const PatchLayout& L = fs.layout;
     const std::vector<size_t>& act = local.activeList;
-    const auto boxOf = [&](size_t p) { return clippedPatchBox(fs, p); };
 
     // Regeneration: carried detail that the flow has stretched (its structure ratio along/across the local flow
     // below `regenerate` times the fresh detail's) is replaced faster. The fresh reference is the smaller of the
@@ -246,66 +310,17 @@ TemporalBlend blendTemporal(VectorField& detail, const TargetAtOutput& t, const 
         sums.carried.resize(act.size());
         sums.flow.assign(act.size(), Vec3d(0.0));
     }
-    const std::vector<StructureSums>& fresh = sums.fresh;
-    const std::vector<StructureSums>& carried = sums.carried;
-    const std::vector<Vec3d>& flow = sums.flow;
-    const double pooled = sums.pooled;
     const float blendOfRegenerated = fs.flat ? s.regenerateBlend2D : s.regenerateBlend;
     const float regenerated = float(std::pow(double(std::min(blendOfRegenerated, s.temporalBlend)), fs.frameGap));
 
-    // Per-patch weights: lambda where the patch carried detail last frame (or the regeneration weight); where
-    // smoke has just arrived, only as much as the detail advected into it (its rms against the pasted detail's),
-    // so detail that flowed in keeps moving instead of being replaced.
-    out.weight.assign(L.patchCount(), 0.0f);
+    out.weight.assign(fs.layout.patchCount(), 0.0f);
     std::vector<uint8_t> regen(act.size(), 0);
-    parallelFor(act.size(), 16, [&](size_t b, size_t e) {
-        checkCancelled(fs.progress);
-        for (size_t i = b; i < e; ++i) {
-            const size_t p = act[i];
-            if (tracks.tracked[p]) {
-                const bool stretched = s.regenerate > 0.0f && flow[i].lengthSqr() > 0.0 &&
-                                       carried[i].ratio() < double(s.regenerate) * std::min(pooled, fresh[i].ratio());
-                regen[i] = stretched;
-                out.weight[p] = stretched ? regenerated : lambda;
-                continue;
-            }
-            double ea = 0.0, ep = 0.0;
-            const CoordBBox pb = boxOf(p);
-            for (auto it = pb.begin(); it; ++it) {
-                ea += double(advected[*it].lengthSqr());
-                ep += double(detail[*it].lengthSqr());
-            }
-            out.weight[p] = ep > 0.0 ? float(lambda * std::min(1.0, std::sqrt(ea / ep))) : lambda;
-        }
-    });
+    carriedWeights(detail, advected, act, tracks, sums, lambda, regenerated, fs, out.weight, regen);
     if (goal.tolerance > 0.0 && regenerated < lambda)
         out.regeneratedForStructure = regenerateTowardsGoal(
             detail, advected, act, tracks, fs, goal, regenerated, regen, out.weight, out.estimate);
     out.regenerated = int(std::count(regen.begin(), regen.end(), uint8_t(1)));
-    // A regenerated patch mixes two nearly unrelated fields at comparable weights, and such a mix has less energy
-    // than either; the frame's one energy factor would then lift every other patch to make up for it (hf 1.27
-    // against 1.25 without this on the analytic pair's second frame). The patch keeps the energy its two parts
-    // had, interpolated by the weight (keptEnergyGain).
-    std::vector<uint8_t> done(L.patchCount(), 0);
-    parallelFor(act.size(), 16, [&](size_t b, size_t e) {
-        checkCancelled(fs.progress);
-        for (size_t i = b; i < e; ++i) {
-            if (!regen[i]) continue;
-            const size_t p = act[i];
-            const float w = out.weight[p];
-            const CoordBBox pb = boxOf(p);
-            const float k = keptEnergyGain(detail, advected, pb, w);
-            for (auto it = pb.begin(); it; ++it) detail[*it] = (detail[*it] * (1.0f - w) + advected[*it] * w) * k;
-            done[p] = 1;
-        }
-    });
-    parallelFor(detail.size(), 1 << 14, [&](size_t b, size_t e) {
-        for (size_t n = b; n < e; ++n) {
-            const size_t p = L.patchIndex(L.patchOf(detail.coordOf(n)));
-            const float w = out.weight[p];
-            if (w > 0.0f && !done[p]) detail.data()[n] = detail.data()[n] * (1.0f - w) + advected.data()[n] * w;
-        }
-    });
+    mixCarriedDetail(detail, advected, act, regen, out.weight, fs);
     return out;
 }
 

@@ -56,6 +56,21 @@ struct MatchedPatches
     detail::LocalSearchResult local;
 };
 
+/// What the steps after the paste read: the frame, its matched patches, and the energy calibration brings the
+/// detail to.
+struct PastedFrame
+{
+    const Frame& target;
+    const detail::TargetAtOutput& t;
+    const ScalarField& density;
+    const std::vector<uint8_t>& active;
+    const MatchedPatches& m;
+    const std::vector<Coord>& offsets; ///< the paste's, per patch
+    const detail::SmokeEnergy& smoke;
+    double referenceEnergy;
+    const detail::FrameSetup& fs;
+};
+
 } // namespace
 
 struct TurbulenceTransfer::Impl
@@ -80,6 +95,12 @@ struct TurbulenceTransfer::Impl
     MatchedPatches matchPatches(const Frame& target, const Frame& src, const detail::TargetAtOutput& t,
         const std::vector<uint8_t>& active, detail::PatchTracks& tracks, const detail::FrameSetup& fs,
         TransferStats& st, Clock::time_point& t0, Progress* progress);
+    /// The temporal blend, 3.3's seam smoothing and 3.4's calibration, run once more where the structure goal asks.
+    void blendSmoothCalibrate(
+        VectorField& detail, const PastedFrame& p, detail::PatchTracks& tracks, TransferStats& st, Progress* progress);
+    /// Beyond the paper (issue 42), in 3D: each patch's strength toward its source's, and the vorticity cap.
+    void shapePatchStrength(
+        VectorField& detail, const PastedFrame& p, const std::vector<double>& pastedRms, TransferStats& st) const;
     /// Sections 3.2-3.4 on a frame with smoke: U_h matched, pasted, blended, seam-smoothed and calibrated.
     VectorField transferDetail(const Frame& target, const Frame& src, const detail::TargetAtOutput& t,
         const ScalarField& density, const std::vector<uint8_t>& active, detail::PatchTracks& tracks,
@@ -397,6 +418,88 @@ MatchedPatches TurbulenceTransfer::Impl::matchPatches(const Frame& target, const
     return m;
 }
 
+// Beyond the paper: last frame's detail carried into the patches it reaches; then 3.3's seam smoothing and 3.4's
+// calibration. The structure goal steers the blend by an estimate on the patch interiors before the seam solve,
+// which moves the anisotropy (0.954 of the source's estimated, 0.76 measured, at frame 5 of the built-in 2D
+// pair). So the finished detail is measured as `measure` does, and where it is more than 3x the tolerance off
+// (0.15 at the 2D default, inside the target's 0.8-1.25), the three steps run once more from the pasted detail with
+// the goal moved by that drift.
+void TurbulenceTransfer::Impl::blendSmoothCalibrate(
+    VectorField& detail, const PastedFrame& p, detail::PatchTracks& tracks, TransferStats& st, Progress* progress)
+{
+    using namespace detail;
+    const MatchedPatches& m = p.m;
+    const FrameSetup& fs = p.fs;
+    if (progress) progress->begin("seams");
+    StructureGoal goal = structureGoal(p.t, m.bands, fs);
+    const VectorField pastedDetail = goal.tolerance > 0.0 ? detail : VectorField();
+    VectorField firstDetail;
+    TransferStats firstStats;
+    const auto off = [](double ratio) { return std::abs(std::log(ratio)); };
+    for (int pass = 0;; ++pass) {
+        checkCancelled(progress);
+        const TemporalBlend blend = blendTemporal(detail, p.t, m.advectedDetail, m.local, tracks, fs, goal);
+        st.regeneratedPatches = blend.regenerated;
+        st.structureRegenerated = blend.regeneratedForStructure;
+        const double scaleEstimate = reduceCoarsePartBeforeSeams(detail, p.t, p.target, p.smoke, p.referenceEnergy, fs);
+        st.seams = smoothPatchSeams(detail,
+            SeamInputs{p.t, m.bands, p.active, p.offsets, m.advectedDetail, blend.weight, scaleEstimate}, fs, progress);
+        calibrateDetail(detail, p.t, p.target, p.smoke, p.referenceEnergy, m.bands.magnitudes, fs, st);
+        if (!(goal.tolerance > 0.0)) break;
+        const std::optional<double> a = finishedAnisotropy(detail, p.t, p.density, goal, fs);
+        if (!a || !(*a > 0.0)) break;
+        st.structureRatio = *a / goal.source;
+        // Without carried detail (a shot's first frame) there is nothing to regenerate: reported, not redone.
+        if (!(blend.estimate > 0.0)) break;
+        if (pass > 0) {
+            // The second pass is kept unless it came out farther off (not seen on the built-in 2D pair).
+            if (off(*st.structureRatio) > off(*firstStats.structureRatio)) {
+                detail = std::move(firstDetail);
+                st = firstStats;
+            }
+            break;
+        }
+        if (std::abs(*st.structureRatio - 1.0) <= 3.0 * goal.tolerance) break;
+        st.structureRedone = true;
+        st.structureFirstRatio = st.structureRatio;
+        firstStats = st;
+        firstDetail = std::move(detail);
+        goal.aim *= blend.estimate / *a;
+        detail = pastedDetail;
+    }
+}
+
+// Beyond the paper (issue 42), on the calibrated detail; each step's box means are taken out again at the end, so
+// the coarse motion stays as calibration left it (lf_err).
+void TurbulenceTransfer::Impl::shapePatchStrength(
+    VectorField& detail, const PastedFrame& p, const std::vector<double>& pastedRms, TransferStats& st) const
+{
+    const VectorField before = detail;
+    const detail::FrameSetup& fs = p.fs;
+    // Each patch's strength toward the source detail it was pasted from, the frame's total kept: one energy
+    // factor per frame lifted detail that nothing carries away (the floor under an emitter) every frame, a band
+    // 2.6 times the source's profile there on the plume2 pair.
+    if (!pastedRms.empty()) detail::matchPatchStrength(detail, pastedRms, p.smoke, fs.layout, s.localEnergy);
+    if (s.evenPatches > 0.0f)
+        st.patchStrengthGain =
+            detail::evenPatchStrength(detail, p.density, s.densityThreshold, fs.layout, s.evenPatches);
+    // Hot spots hotter than anything in the source (the emitter's saturated band: 1.3-1.65 times the source's
+    // 0.999-quantile vorticity on the plume2 pair) are scaled down to it, and the frame's energy is given back to
+    // the rest (limited alone, hf_ratio fell to 0.77 at frame 3 of that pair), which lifts the peaks a few percent
+    // over the cap again.
+    if (s.vorticityLimit > 0.0f) {
+        const double calibrated = p.smoke(detail);
+        st.vorticityLimited = detail::limitVorticity(
+            detail, p.t.Ut, p.density, s.densityThreshold, s.vorticityLimit * p.m.bands.vortPeak);
+        const double now = p.smoke(detail);
+        if (st.vorticityLimited > 0 && now > 0.0) {
+            const float k = float(std::sqrt(calibrated / now));
+            for (auto& v : detail.values()) v *= k;
+        }
+    }
+    detail::keepCoarseMeans(detail, before, fs.f);
+}
+
 VectorField TurbulenceTransfer::Impl::transferDetail(const Frame& target, const Frame& src,
     const detail::TargetAtOutput& t, const ScalarField& density, const std::vector<uint8_t>& active,
     detail::PatchTracks& tracks, const detail::FrameSetup& fs, TransferStats& st, Clock::time_point& t0,
@@ -420,77 +523,11 @@ VectorField TurbulenceTransfer::Impl::transferDetail(const Frame& target, const 
                                        ? m.bands.reference
                                    : mode == DetailEnergy::Pasted ? smoke(detail)
                                                                   : 0.0;
-
-    // Beyond the paper: last frame's detail carried into the patches it reaches; then 3.3's seam smoothing and 3.4's
-    // calibration. The structure goal steers the blend by an estimate on the patch interiors before the seam solve,
-    // which moves the anisotropy (0.954 of the source's estimated, 0.76 measured, at frame 5 of the built-in 2D
-    // pair). So the finished detail is measured as `measure` does, and where it is more than 3x the tolerance off
-    // (0.15 at the 2D default, inside the target's 0.8-1.25), the three steps run once more from the pasted detail with
-    // the goal moved by that drift.
-    if (progress) progress->begin("seams");
-    StructureGoal goal = structureGoal(t, m.bands, fs);
-    const VectorField pastedDetail = goal.tolerance > 0.0 ? detail : VectorField();
-    VectorField firstDetail;
-    TransferStats firstStats;
-    const auto off = [](double ratio) { return std::abs(std::log(ratio)); };
-    for (int pass = 0;; ++pass) {
-        const TemporalBlend blend = blendTemporal(detail, t, m.advectedDetail, m.local, tracks, fs, goal);
-        st.regeneratedPatches = blend.regenerated;
-        st.structureRegenerated = blend.regeneratedForStructure;
-        const double scaleEstimate = reduceCoarsePartBeforeSeams(detail, t, target, smoke, referenceEnergy, fs);
-        st.seams = smoothPatchSeams(detail,
-            SeamInputs{t, m.bands, active, pasted.offsets, m.advectedDetail, blend.weight, scaleEstimate}, fs,
-            progress);
-        calibrateDetail(detail, t, target, smoke, referenceEnergy, m.bands.magnitudes, fs, st);
-        if (!(goal.tolerance > 0.0)) break;
-        const std::optional<double> a = finishedAnisotropy(detail, t, density, goal, fs);
-        if (!a || !(*a > 0.0)) break;
-        st.structureRatio = *a / goal.source;
-        // Without carried detail (a shot's first frame) there is nothing to regenerate: reported, not redone.
-        if (!(blend.estimate > 0.0)) break;
-        if (pass > 0) {
-            // The second pass is kept unless it came out farther off (not seen on the built-in 2D pair).
-            if (off(*st.structureRatio) > off(*firstStats.structureRatio)) {
-                detail = std::move(firstDetail);
-                st = firstStats;
-            }
-            break;
-        }
-        if (std::abs(*st.structureRatio - 1.0) <= 3.0 * goal.tolerance) break;
-        st.structureRedone = true;
-        st.structureFirstRatio = st.structureRatio;
-        firstStats = st;
-        firstDetail = std::move(detail);
-        goal.aim *= blend.estimate / *a;
-        detail = pastedDetail;
-    }
+    const PastedFrame pastedFrame{target, t, density, active, m, pasted.offsets, smoke, referenceEnergy, fs};
+    blendSmoothCalibrate(detail, pastedFrame, tracks, st, progress);
     time.seams = lap(t0);
-    // Beyond the paper (issue 42), on the calibrated detail; each step's box means are taken out again at the end, so
-    // the coarse motion stays as calibration left it (lf_err).
-    if (look && (!pastedRms.empty() || s.evenPatches > 0.0f || s.vorticityLimit > 0.0f)) {
-        const VectorField before = detail;
-        // Each patch's strength toward the source detail it was pasted from, the frame's total kept: one energy
-        // factor per frame lifted detail that nothing carries away (the floor under an emitter) every frame, a band
-        // 2.6 times the source's profile there on the plume2 pair.
-        if (!pastedRms.empty()) matchPatchStrength(detail, pastedRms, smoke, fs.layout, s.localEnergy);
-        if (s.evenPatches > 0.0f)
-            st.patchStrengthGain = evenPatchStrength(detail, density, s.densityThreshold, fs.layout, s.evenPatches);
-        // Hot spots hotter than anything in the source (the emitter's saturated band: 1.3-1.65 times the source's
-        // 0.999-quantile vorticity on the plume2 pair) are scaled down to it, and the frame's energy is given back to
-        // the rest (limited alone, hf_ratio fell to 0.77 at frame 3 of that pair), which lifts the peaks a few percent
-        // over the cap again.
-        if (s.vorticityLimit > 0.0f) {
-            const double calibrated = smoke(detail);
-            st.vorticityLimited =
-                limitVorticity(detail, t.Ut, density, s.densityThreshold, s.vorticityLimit * m.bands.vortPeak);
-            const double now = smoke(detail);
-            if (st.vorticityLimited > 0 && now > 0.0) {
-                const float k = float(std::sqrt(calibrated / now));
-                for (auto& v : detail.values()) v *= k;
-            }
-        }
-        keepCoarseMeans(detail, before, fs.f);
-    }
+    if (look && (!pastedRms.empty() || s.evenPatches > 0.0f || s.vorticityLimit > 0.0f))
+        shapePatchStrength(detail, pastedFrame, pastedRms, st);
     time.look = lap(t0);
     carried.tracks.clear();
     for (size_t p = 0; p < active.size(); ++p)
