@@ -43,7 +43,9 @@ step() { # NAME ARGS...: runs vdbturb, keeps its stdout (JSON stripped) and exit
   code=$?
   set -e
   echo "== $name exit $code" >> "$OUT"
-  strip_json < "$R/$name.stdout" | sed "s|$WORK/||g" | md5sum | sed "s/-\$/stdout/" >> "$OUT"
+  # A dry run's memory line names what this process may use now (MemAvailable): that changes from run to run.
+  strip_json < "$R/$name.stdout" | sed -e "s|$WORK/||g" -e 's/this process may use [^(]*(/this process may use N (/' |
+    md5sum | sed "s/-\$/stdout/" >> "$OUT"
 }
 fingerprint() { # DIR: every file under it
   find "$1" -type f | LC_ALL=C sort | while read -r f; do

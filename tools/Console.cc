@@ -490,6 +490,7 @@ int reportFailure(const std::string& message, int exitCode)
 void consoleLog(turb::run::Reporter::Level level, const std::string& msg)
 {
     switch (level) {
+    case turb::run::Reporter::Level::Error: logError(msg); break;
     case turb::run::Reporter::Level::Warning:
         if (globals().verbosity >= 1) emit(OutputHooks::Level::Warning, "vdbturb: warning: ", msg);
         break;

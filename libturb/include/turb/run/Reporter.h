@@ -40,7 +40,7 @@ struct FrameRecord
 class Reporter
 {
 public:
-    enum class Level { Warning, Info, Verbose };
+    enum class Level { Error, Warning, Info, Verbose }; ///< Error: a part failed, the run goes on (a frame)
     virtual ~Reporter() = default;
     /// One line for people.
     virtual void log(Level level, const std::string& line) = 0;
