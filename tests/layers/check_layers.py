@@ -73,6 +73,8 @@ def header_folders(src):
     impl = {}
     for path in sources(os.path.join(src, "libturb", "src")):
         folder = os.path.relpath(path, os.path.join(src, "libturb", "src")).split(os.sep)[0]
+        if folder == "run":  # the entry points' headers are include/turb/run/'s: a flat header is never theirs
+            continue
         impl.setdefault(os.path.splitext(os.path.basename(path))[0], folder)
     out = {}
     pub = os.path.join(src, "libturb", "include", "turb")
