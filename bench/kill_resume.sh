@@ -1,6 +1,6 @@
 #!/bin/sh
 # kill -9 and --resume on a 30-frame transfer (issue 49, item 2): docs/reliability.md quotes the table. Not a test
-# (tests/test_faults.cc has the seconds-long ones): it takes minutes.
+# (tests/cli/test_faults.cc has the seconds-long ones): it takes minutes.
 #
 #   bench/kill_resume.sh [--vdbturb PATH] [--work DIR] [--kills N] [--seed S] [--threads T] [--frames LIST]
 #

@@ -45,7 +45,7 @@ private:
 
 /// The console as the entry points' reporter: lines for people on stderr (or the host's hooks), data on stdout,
 /// a progress bar on a TTY, the per-frame report and summary of RunReport. VDBTURB_TEST_KILL_AT=WHERE:FRAME makes
-/// killPoint send the process SIGKILL when it reaches `where` of frame `frame` (tests/test_faults.cc,
+/// killPoint send the process SIGKILL when it reaches `where` of frame `frame` (tests/cli/test_faults.cc,
 /// bench/kill_resume.sh: a step's name, "after-state" or "after-frame"); unset, it costs one getenv per process.
 class ConsoleReporter : public turb::run::Reporter
 {

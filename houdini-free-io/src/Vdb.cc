@@ -1768,7 +1768,7 @@ public:
     throw IoError(msg);
 }
 
-// Test hook for tests/test_faults.cc: with VDBTURB_TEST_KILL_IN_WRITE=N the process sends itself SIGKILL
+// Test hook for tests/cli/test_faults.cc: with VDBTURB_TEST_KILL_IN_WRITE=N the process sends itself SIGKILL
 // during its N-th VDB write, after the first part of the temporary file reached the disk: kill -9 in the
 // middle of a write, at a reproducible point.
 bool killThisWrite()

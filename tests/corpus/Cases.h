@@ -1,5 +1,5 @@
 // The bad-input corpus: one row per case. tests/corpus/make_corpus.cc writes each case's files
-// into the build tree; tests/test_corpus.cc runs every cache-reading command on them and checks the row.
+// into the build tree; tests/io/test_corpus.cc runs every cache-reading command on them and checks the row.
 #pragma once
 
 #include <string>

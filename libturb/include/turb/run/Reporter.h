@@ -64,7 +64,7 @@ public:
     virtual void runFinished(int failed, const nlohmann::json& extra) { (void)failed, (void)extra; }
     /// The peak memory the run was estimated to need (preflight), for the message when memory runs out.
     virtual void memoryEstimate(double bytes) { (void)bytes; }
-    /// Test hook (tests/test_faults.cc, bench/kill_resume.sh): the run reached `where` of frame `frame`.
+    /// Test hook (tests/cli/test_faults.cc, bench/kill_resume.sh): the run reached `where` of frame `frame`.
     virtual void killPoint(const std::string& where, int frame) { (void)where, (void)frame; }
 };
 
