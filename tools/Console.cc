@@ -310,8 +310,87 @@ void addGlobalOptions(CLI::App* app, unsigned which)
     });
 }
 
-std::vector<std::string> expandSettingsFiles(const std::vector<std::string>& args,
-    const std::function<std::vector<std::string>(const std::vector<std::string>&, const std::string&)>& spellings)
+namespace {
+
+// TOML forbids a key twice, and CLI11 would merge the two into a list; which one should win is a guess.
+void refuseRepeatedKeys(const std::string& file, const std::string& body)
+{
+    std::istringstream lines(body);
+    std::string line, section;
+    std::map<std::string, int> firstLine;
+    for (int n = 1; std::getline(lines, line); ++n) {
+        const size_t start = line.find_first_not_of(" \t");
+        if (start == std::string::npos) continue;
+        if (line[start] == '[') {
+            section = line.substr(start + 1, line.find(']', start) - start - 1) + ".";
+            continue;
+        }
+        const size_t eq = line.find('=', start);
+        if (eq == std::string::npos) continue;
+        std::string key = line.substr(start, eq - start);
+        key.erase(key.find_last_not_of(" \t") + 1);
+        const auto [it, fresh] = firstLine.emplace(section + key, n);
+        if (!fresh)
+            throw turb::ValueError("--settings " + file + ": '" + section + key + "' is set on lines " +
+                                   std::to_string(it->second) + " and " + std::to_string(n) + "; give it once");
+    }
+}
+
+std::vector<CLI::ConfigItem> readSettingsFile(const std::string& file)
+{
+    try {
+        std::ifstream in(file);
+        if (!in) throw CLI::FileError::Missing(file);
+        const std::string body = withoutComments(in);
+        refuseRepeatedKeys(file, body);
+        std::istringstream text(body);
+        CLI::ConfigTOML toml;
+        toml.comment('\0');
+        return toml.from_config(text);
+    } catch (const CLI::Error& e) {
+        throw turb::ValueError("--settings " + file + ": " + e.what());
+    }
+}
+
+using Spellings = std::function<std::vector<std::string>(const std::vector<std::string>&, const std::string&)>;
+
+// The options a settings file gives, as "--name=value" words, less those the command line gives itself.
+void addFileOptions(const std::string& file, const std::vector<std::string>& args,
+    const std::vector<std::string>& command, const Spellings& spellings, std::vector<std::string>& fromFiles)
+{
+    for (const auto& item : readSettingsFile(file)) {
+        // A dotted key (seams.gamma = 10) is a nested setting; CLI11 reads it as a TOML table. A [section] line
+        // arrives the same way, so both name the setting "seams.gamma".
+        std::string name = item.name;
+        if (!(item.parents.size() == 1 && item.parents[0] == "default"))
+            for (auto p = item.parents.rbegin(); p != item.parents.rend(); ++p) name = *p + "." + name;
+        if (item.name.empty() || name == "settings" || name == "print-settings") continue;
+        // An empty value (an unset path in a printed file) leaves the option to the command line.
+        if (item.inputs.empty() || (item.inputs.size() == 1 && item.inputs[0].empty())) continue;
+        // The command line wins: an option it gives is not taken from the file (giving both would be a repeat).
+        const std::string flag = "--" + name;
+        // Every spelling of the option counts: a file's detailEnergy is overridden by --detail-energy too.
+        std::vector<std::string> names{flag};
+        if (spellings) names = spellings(command, flag);
+        if (names.empty())
+            throw turb::ValueError("--settings " + file + ": '" + name + "' is not an option of vdbturb" + [&] {
+                std::string c;
+                for (const auto& w : command) c += " " + w;
+                return c;
+            }() + " (--print-settings lists them)");
+        const bool given = std::any_of(args.begin(), args.end(), [&](const std::string& a) {
+            return std::any_of(names.begin(), names.end(), [&](const std::string& n) {
+                return a == n || a.rfind(n + "=", 0) == 0 || (n.size() == 2 && a.rfind(n, 0) == 0);
+            });
+        });
+        if (given) continue;
+        for (const auto& v : item.inputs) fromFiles.push_back(flag + "=" + v); // "=": flags take true/false too
+    }
+}
+
+} // namespace
+
+std::vector<std::string> expandSettingsFiles(const std::vector<std::string>& args, const Spellings& spellings)
 {
     if (args.size() < 2) return args;
     std::vector<std::string> command; // "farm", "plan": the words before the first option
@@ -325,69 +404,7 @@ std::vector<std::string> expandSettingsFiles(const std::vector<std::string>& arg
             rest.push_back(args[i]);
             continue;
         }
-        std::vector<CLI::ConfigItem> items;
-        try {
-            std::ifstream in(file);
-            if (!in) throw CLI::FileError::Missing(file);
-            const std::string body = withoutComments(in);
-            // TOML forbids a key twice, and CLI11 would merge the two into a list; which one should win is a guess.
-            {
-                std::istringstream lines(body);
-                std::string line, section;
-                std::map<std::string, int> firstLine;
-                for (int n = 1; std::getline(lines, line); ++n) {
-                    const size_t start = line.find_first_not_of(" \t");
-                    if (start == std::string::npos) continue;
-                    if (line[start] == '[') {
-                        section = line.substr(start + 1, line.find(']', start) - start - 1) + ".";
-                        continue;
-                    }
-                    const size_t eq = line.find('=', start);
-                    if (eq == std::string::npos) continue;
-                    std::string key = line.substr(start, eq - start);
-                    key.erase(key.find_last_not_of(" \t") + 1);
-                    const auto [it, fresh] = firstLine.emplace(section + key, n);
-                    if (!fresh)
-                        throw turb::ValueError("--settings " + file + ": '" + section + key + "' is set on lines " +
-                                               std::to_string(it->second) + " and " + std::to_string(n) +
-                                               "; give it once");
-                }
-            }
-            std::istringstream text(body);
-            CLI::ConfigTOML toml;
-            toml.comment('\0');
-            items = toml.from_config(text);
-        } catch (const CLI::Error& e) {
-            throw turb::ValueError("--settings " + file + ": " + e.what());
-        }
-        for (const auto& item : items) {
-            // A dotted key (seams.gamma = 10) is a nested setting; CLI11 reads it as a TOML table. A [section] line
-            // arrives the same way, so both name the setting "seams.gamma".
-            std::string name = item.name;
-            if (!(item.parents.size() == 1 && item.parents[0] == "default"))
-                for (auto p = item.parents.rbegin(); p != item.parents.rend(); ++p) name = *p + "." + name;
-            if (item.name.empty() || name == "settings" || name == "print-settings") continue;
-            // An empty value (an unset path in a printed file) leaves the option to the command line.
-            if (item.inputs.empty() || (item.inputs.size() == 1 && item.inputs[0].empty())) continue;
-            // The command line wins: an option it gives is not taken from the file (giving both would be a repeat).
-            const std::string flag = "--" + name;
-            // Every spelling of the option counts: a file's detailEnergy is overridden by --detail-energy too.
-            std::vector<std::string> names{flag};
-            if (spellings) names = spellings(command, flag);
-            if (names.empty())
-                throw turb::ValueError("--settings " + file + ": '" + name + "' is not an option of vdbturb" + [&] {
-                    std::string c;
-                    for (const auto& w : command) c += " " + w;
-                    return c;
-                }() + " (--print-settings lists them)");
-            const bool given = std::any_of(args.begin(), args.end(), [&](const std::string& a) {
-                return std::any_of(names.begin(), names.end(), [&](const std::string& n) {
-                    return a == n || a.rfind(n + "=", 0) == 0 || (n.size() == 2 && a.rfind(n, 0) == 0);
-                });
-            });
-            if (given) continue;
-            for (const auto& v : item.inputs) fromFiles.push_back(flag + "=" + v); // "=": flags take true/false too
-        }
+        addFileOptions(file, args, command, spellings, fromFiles);
     }
     std::vector<std::string> out{args[0]};
     size_t k = 0;

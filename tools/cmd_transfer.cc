@@ -132,43 +132,9 @@ void addSeamSettings(CLI::App* app, turb::SeamSettings& seams)
 }
 
 // Beyond the paper: what U_h keeps of its coarse part, how patches follow the source, resampling.
-void addDetailSettings(CLI::App* app, turb::TransferSettings& s)
+// The detail's strength and shape (docs/look.md's departures from the paper) and its energy (section 3.4).
+void addDetailStrengthSettings(CLI::App* app, turb::TransferSettings& s)
 {
-    num(app, "--coarse-tolerance,--coarseTolerance", s.coarseTolerance,
-        "lf_err bound: U_h's coarse-cell means are reduced only down to this fraction of the target's (0 = exactly)",
-        "coarseTolerance")
-        ->check(finiteIn(0.0, 1.0));
-    boolSetting(app, "--removeCoarseDetail", s.removeCoarseDetail, "Reduce U_h's coarse part (false lets lf_err grow)",
-        "removeCoarseDetail");
-    legacy(app->add_flag_function(
-               "--keep-coarse-detail", [&s](int64_t) { s.removeCoarseDetail = false; }, "removeCoarseDetail = false"),
-        "removeCoarseDetail", "false");
-    num(app, "--coherence", s.coherence,
-        "Take a neighbour's continued source patch within this fraction of the best E_h (0 = off, the paper)",
-        "coherence")
-        ->check(finiteIn(0.0));
-    setting(app->add_flag("--whole-fresh-patches,--solveFreshPatchesWhole", s.solveFreshPatchesWhole,
-                "Solve every voxel of patches without carried detail, not only the seam band"),
-        "solveFreshPatchesWhole");
-    boolSetting(app, "--resampleSource", s.resampleSource,
-        "Resample a source at a non-integer ratio trilinearly to the nearest integer one (false: refuse it)",
-        "resampleSource");
-    legacy(app->add_flag_function(
-               "--no-resample-source", [&s](int64_t) { s.resampleSource = false; }, "resampleSource = false"),
-        "resampleSource", "false");
-    boolSetting(app, "--followSourceFlow", s.followSourceFlow,
-        "Patches follow the source's flow from frame to frame (false: re-paste where last frame found them)",
-        "followSourceFlow");
-    legacy(app->add_flag_function(
-               "--no-follow-source", [&s](int64_t) { s.followSourceFlow = false; }, "followSourceFlow = false"),
-        "followSourceFlow", "false");
-    num(app, "--follow-tolerance,--followTolerance", s.followTolerance,
-        "Keep a patch's continuation while its E_h is within (1 + this) of the best", "followTolerance")
-        ->check(finiteIn(0.0));
-    num(app, "--source-smoke,--sourceSmoke", s.sourceSmoke,
-        "Fraction of a source patch's voxels that must hold smoke for it to be a candidate (0 = any, the paper)",
-        "sourceSmoke")
-        ->check(finiteIn(0.0, 1.0));
     num(app, "--even-patches,--evenPatches", s.evenPatches,
         "How far to even out the detail's strength over the position in the patch (variance-preserving seams; 0 = "
         "off, the paper)",
@@ -217,6 +183,46 @@ void addDetailSettings(CLI::App* app, turb::TransferSettings& s)
                "--no-target-divergence", [&s](int64_t) { s.compensateTargetDivergence = false; },
                "compensateTargetDivergence = false"),
         "compensateTargetDivergence", "false");
+}
+
+void addDetailSettings(CLI::App* app, turb::TransferSettings& s)
+{
+    num(app, "--coarse-tolerance,--coarseTolerance", s.coarseTolerance,
+        "lf_err bound: U_h's coarse-cell means are reduced only down to this fraction of the target's (0 = exactly)",
+        "coarseTolerance")
+        ->check(finiteIn(0.0, 1.0));
+    boolSetting(app, "--removeCoarseDetail", s.removeCoarseDetail, "Reduce U_h's coarse part (false lets lf_err grow)",
+        "removeCoarseDetail");
+    legacy(app->add_flag_function(
+               "--keep-coarse-detail", [&s](int64_t) { s.removeCoarseDetail = false; }, "removeCoarseDetail = false"),
+        "removeCoarseDetail", "false");
+    num(app, "--coherence", s.coherence,
+        "Take a neighbour's continued source patch within this fraction of the best E_h (0 = off, the paper)",
+        "coherence")
+        ->check(finiteIn(0.0));
+    setting(app->add_flag("--whole-fresh-patches,--solveFreshPatchesWhole", s.solveFreshPatchesWhole,
+                "Solve every voxel of patches without carried detail, not only the seam band"),
+        "solveFreshPatchesWhole");
+    boolSetting(app, "--resampleSource", s.resampleSource,
+        "Resample a source at a non-integer ratio trilinearly to the nearest integer one (false: refuse it)",
+        "resampleSource");
+    legacy(app->add_flag_function(
+               "--no-resample-source", [&s](int64_t) { s.resampleSource = false; }, "resampleSource = false"),
+        "resampleSource", "false");
+    boolSetting(app, "--followSourceFlow", s.followSourceFlow,
+        "Patches follow the source's flow from frame to frame (false: re-paste where last frame found them)",
+        "followSourceFlow");
+    legacy(app->add_flag_function(
+               "--no-follow-source", [&s](int64_t) { s.followSourceFlow = false; }, "followSourceFlow = false"),
+        "followSourceFlow", "false");
+    num(app, "--follow-tolerance,--followTolerance", s.followTolerance,
+        "Keep a patch's continuation while its E_h is within (1 + this) of the best", "followTolerance")
+        ->check(finiteIn(0.0));
+    num(app, "--source-smoke,--sourceSmoke", s.sourceSmoke,
+        "Fraction of a source patch's voxels that must hold smoke for it to be a candidate (0 = any, the paper)",
+        "sourceSmoke")
+        ->check(finiteIn(0.0, 1.0));
+    addDetailStrengthSettings(app, s);
 }
 
 // Temporal coherence, alignment, the output density and the source's velocity extension.

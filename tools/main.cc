@@ -16,6 +16,7 @@
 #include <cmath>
 #include <iostream>
 #include <system_error>
+#include <optional>
 #include <regex>
 #include <sstream>
 
@@ -175,17 +176,12 @@ struct Parser
 };
 
 // The command line as the executable's main() ran it, argv[0] its name; `ownProcess`: take Ctrl-C's signals.
-int runArgv(int argc, char** argv, bool ownProcess)
+// --settings files become command-line options before anything reads argv. Empty on a bad file (reported).
+std::optional<std::vector<std::string>> expandedArguments(int argc, char** argv, const Parser& parser, int& failure)
 {
-    ConsoleReporter console; // the entry points' words, printed (or handed to a host's hooks)
-    turb::run::ReporterScope reporting(console);
-    Parser parser;
-    CLI::App& app = parser.app;
     const auto& subs = parser.subs;
-    // --settings files become command-line options before anything reads argv.
-    std::vector<std::string> args;
     try {
-        args = expandSettingsFiles(std::vector<std::string>(argv, argv + argc),
+        return expandSettingsFiles(std::vector<std::string>(argv, argv + argc),
             [&subs](const std::vector<std::string>& words, const std::string& flag) -> std::vector<std::string> {
                 for (const auto& [sub, cmd] : subs) {
                     if (words.empty() || cmd->name != words[0]) continue;
@@ -197,22 +193,66 @@ int runArgv(int argc, char** argv, bool ownProcess)
                 return {flag}; // no such command: the parser says so
             });
     } catch (const turb::ValueError& e) {
-        return reportFailure(messageWithFlags(e), kUsage);
+        failure = reportFailure(messageWithFlags(e), kUsage);
+        return std::nullopt;
     }
-    std::vector<char*> argvExpanded;
-    for (auto& a : args) argvExpanded.push_back(a.data());
-    argc = int(argvExpanded.size());
-    argvExpanded.push_back(nullptr);
-    argv = argvExpanded.data();
-    // Before parsing: a parse error of a command asked for --json ends with its JSON line too.
-    globals().json = std::any_of(argv + 1, argv + argc, [](const char* w) { return std::string(w) == "--json"; }) ||
-                     (argc > 1 && std::string(argv[1]) == "measure");
-    if (const std::string typo = checkSpelling(argc, argv, app, subs); !typo.empty())
-        return reportFailure(typo, kUsage);
+}
+
+// Out of a resource another node has (memory, threads): exit 75, naming what this process may use.
+int reportOutOfResources(const std::exception& e)
+{
+    if (dynamic_cast<const std::bad_alloc*>(&e)) {
+        const double need = globals().predictedPeakBytes;
+        return reportFailure("out of memory (std::bad_alloc): this process may use " +
+                                 turbio::memoryLimit().describe() +
+                                 (need > 0.0 ? " and the run was estimated to need about " + turbio::formatBytes(need)
+                                             : std::string("; a --dry-run estimates what a run needs")) +
+                                 "; no partial file is left (exit 75: worth a retry on a node with more)",
+            kTempFail);
+    }
+    // A thread that cannot start under an address-space or task limit (std::thread's EAGAIN, TBB's
+    // "pthread_create has failed") is out of a resource another node has, as std::bad_alloc is.
+    const auto* sys = dynamic_cast<const std::system_error*>(&e);
+    const std::string what = e.what();
+    if ((sys && (sys->code() == std::errc::resource_unavailable_try_again ||
+                    sys->code() == std::errc::not_enough_memory)) ||
+        what.find("pthread_create") != std::string::npos)
+        return reportFailure("out of memory or threads (" + what + "): this process may use " +
+                                 turbio::memoryLimit().describe() + "; --threads 1 needs fewer" +
+                                 " (exit 75: worth a retry on a node with more)",
+            kTempFail);
+    return reportFailure(std::string("unexpected: ") + what, kFailed);
+}
+
+// Runs the parsed command and turns what it throws into its message and exit code.
+int runParsed(const Command& cmd)
+{
+    try {
+        return cmd.run();
+    } catch (const turb::Cancelled&) {
+        return reportFailure("interrupted", kInterrupted);
+    } catch (const UsageError& e) {
+        return reportFailure(messageWithFlags(e), kUsage);
+    } catch (const turb::TransientError& e) {
+        return reportFailure(messageWithFlags(e) + " (exit 75: worth a retry)", kTempFail);
+    } catch (const turb::IoError& e) {
+        globals().failedOnInput = true;
+        return reportFailure(messageWithFlags(e), kFailed);
+    } catch (const turb::Error& e) {
+        return reportFailure(messageWithFlags(e), kFailed);
+    } catch (const std::exception& e) {
+        return reportOutOfResources(e);
+    }
+}
+
+// Parses; on --help or --version prints them (stdout, through writeData for a host). Returns -1 when the command
+// line parsed, else the exit code.
+int parseCommandLine(CLI::App& app, int argc, char** argv)
+{
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
-        if (e.get_exit_code() == 0) { // --help, --version: stdout, through writeData for a host
+        if (e.get_exit_code() == 0) {
             std::ostringstream out, err;
             const int code = app.exit(e, out, err);
             writeData(out.str());
@@ -221,47 +261,34 @@ int runArgv(int argc, char** argv, bool ownProcess)
         return reportFailure(plainParseMessage(e.what()) + " (--help lists the options)", kUsage);
     }
     if (const std::string nan = notANumber(app); !nan.empty()) return reportFailure(nan, kUsage);
+    return -1;
+}
+
+int runArgv(int argc, char** argv, bool ownProcess)
+{
+    ConsoleReporter console; // the entry points' words, printed (or handed to a host's hooks)
+    turb::run::ReporterScope reporting(console);
+    Parser parser;
+    CLI::App& app = parser.app;
+    int failure = kUsage;
+    std::optional<std::vector<std::string>> args = expandedArguments(argc, argv, parser, failure);
+    if (!args) return failure;
+    std::vector<char*> argvExpanded;
+    for (auto& a : *args) argvExpanded.push_back(a.data());
+    argc = int(argvExpanded.size());
+    argvExpanded.push_back(nullptr);
+    argv = argvExpanded.data();
+    // Before parsing: a parse error of a command asked for --json ends with its JSON line too.
+    globals().json = std::any_of(argv + 1, argv + argc, [](const char* w) { return std::string(w) == "--json"; }) ||
+                     (argc > 1 && std::string(argv[1]) == "measure");
+    if (const std::string typo = checkSpelling(argc, argv, app, parser.subs); !typo.empty())
+        return reportFailure(typo, kUsage);
+    if (const int code = parseCommandLine(app, argc, argv); code >= 0) return code;
     if (ownProcess) installSignalHandlers();
     // Read before the command runs: its preflight and --dry-run lines come before it would set this itself.
     globals().json = asksForJson(app);
-    for (auto& [sub, cmd] : subs) {
-        if (!sub->parsed()) continue;
-        try {
-            return cmd->run();
-        } catch (const turb::Cancelled&) {
-            return reportFailure("interrupted", kInterrupted);
-        } catch (const UsageError& e) {
-            return reportFailure(messageWithFlags(e), kUsage);
-        } catch (const turb::TransientError& e) {
-            return reportFailure(messageWithFlags(e) + " (exit 75: worth a retry)", kTempFail);
-        } catch (const turb::IoError& e) {
-            globals().failedOnInput = true;
-            return reportFailure(messageWithFlags(e), kFailed);
-        } catch (const turb::Error& e) {
-            return reportFailure(messageWithFlags(e), kFailed);
-        } catch (const std::bad_alloc&) {
-            const double need = globals().predictedPeakBytes;
-            return reportFailure(
-                "out of memory (std::bad_alloc): this process may use " + turbio::memoryLimit().describe() +
-                    (need > 0.0 ? " and the run was estimated to need about " + turbio::formatBytes(need)
-                                : std::string("; a --dry-run estimates what a run needs")) +
-                    "; no partial file is left (exit 75: worth a retry on a node with more)",
-                kTempFail);
-        } catch (const std::exception& e) {
-            // A thread that cannot start under an address-space or task limit (std::thread's EAGAIN, TBB's
-            // "pthread_create has failed") is out of a resource another node has, as std::bad_alloc is.
-            const auto* sys = dynamic_cast<const std::system_error*>(&e);
-            const std::string what = e.what();
-            if ((sys && (sys->code() == std::errc::resource_unavailable_try_again ||
-                            sys->code() == std::errc::not_enough_memory)) ||
-                what.find("pthread_create") != std::string::npos)
-                return reportFailure("out of memory or threads (" + what + "): this process may use " +
-                                         turbio::memoryLimit().describe() + "; --threads 1 needs fewer" +
-                                         " (exit 75: worth a retry on a node with more)",
-                    kTempFail);
-            return reportFailure(std::string("unexpected: ") + what, kFailed);
-        }
-    }
+    for (auto& [sub, cmd] : parser.subs)
+        if (sub->parsed()) return runParsed(*cmd);
     return kUsage;
 }
 

@@ -2,7 +2,7 @@
 /// @brief Time chunks and space tiles for farm runs: how a frame range is split into chunks with pre-roll and
 ///        overlap, how the join cross-fades two chunks' overlap frames, how a target box is split into tiles with
 ///        halos, and how the join assembles the tiles' outputs. Pure math: planning a submission, reading and
-///        writing frames live in tools/ (`vdbturb farm`, docs/farm.md).
+///        writing frames live in the entry points (turb/run/Farm.h: `vdbturb farm`, docs/farm.md).
 ///
 /// A chunk computes `preroll` frames before the first frame it keeps, so that its carried detail and
 /// density are established when its frames start counting; consecutive chunks keep `overlap` common
