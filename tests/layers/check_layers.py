@@ -73,6 +73,10 @@ def header_folders(src):
     impl = {}
     for path in sources(os.path.join(src, "libturb", "src")):
         folder = os.path.relpath(path, os.path.join(src, "libturb", "src")).split(os.sep)[0]
+        # The entry points' sources implement include/turb/run/X.h, never a flat header: run/Transfer.cc beside
+        # transfer/Transfer.cc does not make <turb/Transfer.h> the run folder's.
+        if folder == "run":
+            continue
         impl.setdefault(os.path.splitext(os.path.basename(path))[0], folder)
     out = {}
     pub = os.path.join(src, "libturb", "include", "turb")
