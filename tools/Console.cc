@@ -535,27 +535,6 @@ void consolePrintData(const std::string& text, bool toStderr)
     std::fflush(stderr);
 }
 
-std::string alignColumns(const std::vector<std::vector<std::string>>& rows, const std::string& indent)
-{
-    std::vector<size_t> width;
-    for (const auto& r : rows)
-        for (size_t c = 0; c < r.size(); ++c) {
-            if (width.size() <= c) width.resize(c + 1, 0);
-            width[c] = std::max(width[c], r[c].size());
-        }
-    std::string out;
-    for (const auto& r : rows) {
-        std::string line = indent;
-        for (size_t c = 0; c < r.size(); ++c) {
-            line += r[c];
-            if (c + 1 < r.size()) line += std::string(width[c] - r[c].size() + 2, ' ');
-        }
-        while (!line.empty() && line.back() == ' ') line.pop_back();
-        out += line + "\n";
-    }
-    return out;
-}
-
 void resetRunState()
 {
     globals() = Globals{};

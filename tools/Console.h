@@ -168,10 +168,6 @@ using turb::run::printData;
 using turb::run::testKillPoint;
 using turb::run::warnOnce;
 
-/// Rows of cells as text with every column padded to its widest cell, one line per row, each prefixed by
-/// `indent`.
-std::string alignColumns(const std::vector<std::vector<std::string>>& rows, const std::string& indent = "  ");
-
 /// True when stderr is a terminal (progress bar) rather than a farm log (one line per frame).
 bool stderrIsTty();
 

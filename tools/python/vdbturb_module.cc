@@ -470,28 +470,11 @@ PyObject* newClass(py::module_& m, const char* name, PyObject* bases, const char
 
 } // namespace
 
-PYBIND11_MODULE(vdbturb, m)
+namespace {
+
+// The commands that write or read frames: keywords are their options.
+void defineCommands(py::module_& m)
 {
-    m.doc() = "vdbturb: turbulence up-res for smoke caches, from Python (docs/python.md). The commands run the "
-              "command line's own code in this process: keywords are its options with '-' and '.' as '_'.";
-    m.attr("__version__") = VDBTURB_VERSION_STRING;
-    exposeTurbIo();
-
-    gClasses.error = newClass(m, "Error", PyExc_Exception,
-        "A command failed (the CLI's exit 1); str() is the CLI's message. Attributes: exit_code, file, frame, grid "
-        "(None where the message names none), result (what the command had reported by then).");
-    py::tuple usageBases = py::make_tuple(py::handle(gClasses.error), py::handle(PyExc_ValueError));
-    gClasses.usage = newClass(
-        m, "UsageError", usageBases.ptr(), "An option's value or a combination of options (the CLI's exit 2).");
-    py::tuple inputBases = py::make_tuple(py::handle(gClasses.error), py::handle(PyExc_OSError));
-    gClasses.input = newClass(m, "InputError", inputBases.ptr(),
-        "An input file missing, unreadable or damaged, or a grid missing (exit 1); the message names the file.");
-    gClasses.temporary = newClass(m, "TemporaryError", gClasses.error,
-        "Worth a retry elsewhere: disk full, a file-size limit, memory or threads exhausted (exit 75).");
-    gClasses.cancelled = newClass(m, "Cancelled", gClasses.error,
-        "The progress callback returned False or raised (exit 130): whole frames only were written.");
-    gClasses.warning = newClass(m, "Warning", PyExc_UserWarning, "A warning the CLI prints as 'vdbturb: warning:'.");
-
     m.def(
         "transfer", [](py::kwargs kw) { return frameCommand("transfer", {}, std::move(kw)); },
         "transfer(*, target, source, out, frames=None, progress=None, **settings) -> dict\n\n"
@@ -534,6 +517,11 @@ PYBIND11_MODULE(vdbturb, m)
         "info(path, *, frames=None, validate=False, checksum=False, **settings) -> dict\n\n"
         "vdbturb info PATTERN --json as a dict: the sequence, its lattice, and 'files', one dict per frame with "
         "its 'grids'.");
+}
+
+// Any command line, a command's keywords, and measure on arrays.
+void defineTools(py::module_& m)
+{
     m.def(
         "run",
         [](py::sequence words, py::object progress) {
@@ -575,4 +563,32 @@ PYBIND11_MODULE(vdbturb, m)
         "float32 (others are converted). The output is f times finer than the target along every axis, the source "
         "any integer times finer; all cover the same box from the world origin. voxel_size is the output's voxel "
         "edge in world units; velocities in world units per one time unit. Returns the dict of measure's JSON line.");
+}
+
+} // namespace
+
+PYBIND11_MODULE(vdbturb, m)
+{
+    m.doc() = "vdbturb: turbulence up-res for smoke caches, from Python (docs/python.md). The commands run the "
+              "command line's own code in this process: keywords are its options with '-' and '.' as '_'.";
+    m.attr("__version__") = VDBTURB_VERSION_STRING;
+    exposeTurbIo();
+
+    gClasses.error = newClass(m, "Error", PyExc_Exception,
+        "A command failed (the CLI's exit 1); str() is the CLI's message. Attributes: exit_code, file, frame, grid "
+        "(None where the message names none), result (what the command had reported by then).");
+    py::tuple usageBases = py::make_tuple(py::handle(gClasses.error), py::handle(PyExc_ValueError));
+    gClasses.usage = newClass(
+        m, "UsageError", usageBases.ptr(), "An option's value or a combination of options (the CLI's exit 2).");
+    py::tuple inputBases = py::make_tuple(py::handle(gClasses.error), py::handle(PyExc_OSError));
+    gClasses.input = newClass(m, "InputError", inputBases.ptr(),
+        "An input file missing, unreadable or damaged, or a grid missing (exit 1); the message names the file.");
+    gClasses.temporary = newClass(m, "TemporaryError", gClasses.error,
+        "Worth a retry elsewhere: disk full, a file-size limit, memory or threads exhausted (exit 75).");
+    gClasses.cancelled = newClass(m, "Cancelled", gClasses.error,
+        "The progress callback returned False or raised (exit 130): whole frames only were written.");
+    gClasses.warning = newClass(m, "Warning", PyExc_UserWarning, "A warning the CLI prints as 'vdbturb: warning:'.");
+
+    defineCommands(m);
+    defineTools(m);
 }
