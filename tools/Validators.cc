@@ -28,17 +28,6 @@ std::string notANumber(const CLI::App& app)
     return {};
 }
 
-bool parseNumber(const std::string& s, double& v)
-{
-    try {
-        size_t pos = 0;
-        v = std::stod(s, &pos);
-        return pos == s.size();
-    } catch (...) {
-        return false;
-    }
-}
-
 CLI::Validator parsedBy(std::function<void(const std::string&)> parse, const std::string& name)
 {
     return CLI::Validator(

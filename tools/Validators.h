@@ -3,6 +3,8 @@
 ///        A leaf of tools/: it includes no other header of tools/, so Console and the commands can both use it.
 #pragma once
 
+#include <turb/run/Flags.h>
+
 #include <CLI/CLI.hpp>
 
 #include <functional>
@@ -18,8 +20,7 @@ CLI::Validator parsedBy(std::function<void(const std::string&)> parse, const std
 /// (exit 2) naming the bad piece, like any other malformed option.
 CLI::Validator frameListCheck();
 
-/// Reads the whole of `s` as a number (NaN and inf included); false when it is not one.
-bool parseNumber(const std::string& s, double& v);
+using turb::run::parseNumber;
 /// A CLI check for a finite number in [lo, hi] (CLI11's own number checks let NaN through).
 CLI::Validator finiteIn(double lo, double hi = 1e30);
 /// A transform that turns a ratio "N/D" (24000/1001) into its value, for a range check after it.

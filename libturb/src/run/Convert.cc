@@ -1,6 +1,8 @@
 // turb::run::runConvert: vdbturb convert's run, VDB files to NanoVDB files (turb/run/Convert.h).
 #include <turb/run/Convert.h>
 
+#include "RunHelpers.h"
+
 #include <turb/run/Output.h>
 #include <turb/run/Preflight.h>
 #include <turb/run/Reporter.h>
@@ -21,14 +23,11 @@
 
 namespace turb::run {
 
+using detail::secondsSince;
+
 namespace {
 
 using ConvertArgs = ConvertJob;
-
-double secondsSince(std::chrono::steady_clock::time_point t0)
-{
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 // The frames, their inputs and outputs.
 struct ConvertPlan

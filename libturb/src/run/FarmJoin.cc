@@ -1,6 +1,8 @@
 // turb::run::runFarmJoin: vdbturb farm join, the tasks' frames assembled into the plan's output (turb/run/Farm.h).
 #include <turb/run/Farm.h>
 
+#include "RunHelpers.h"
+
 #include "FarmShared.h"
 
 #include <turb/run/Output.h>
@@ -21,16 +23,13 @@
 
 namespace turb::run {
 
+using detail::secondsSince;
+
 using namespace farm;
 
 namespace {
 
 namespace fs = std::filesystem;
-
-double secondsSince(std::chrono::steady_clock::time_point t0)
-{
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 turb::CoordBBox boxFromArray(const nlohmann::json& j)
 {

@@ -1,6 +1,7 @@
 #include <turb/run/Flags.h>
 
 #include <cstddef>
+#include <string>
 
 namespace turb::run {
 
@@ -56,6 +57,17 @@ std::string messageWithFlags(const turb::Error& e)
         return std::string(e.what()) + (count == 1 ? " Use " : " Choose grids with ") + flags +
                " NAME, or '#N' for the N-th grid listed here.";
     return std::string(e.what()) + " (" + flags + ")";
+}
+
+bool parseNumber(const std::string& s, double& v)
+{
+    try {
+        size_t pos = 0;
+        v = std::stod(s, &pos);
+        return pos == s.size();
+    } catch (...) {
+        return false;
+    }
 }
 
 } // namespace turb::run

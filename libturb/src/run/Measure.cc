@@ -1,6 +1,8 @@
 // turb::run::runMeasure: vdbturb measure's run (turb/run/Measure.h).
 #include <turb/run/Measure.h>
 
+#include "RunHelpers.h"
+
 #include <turb/run/Flags.h>
 #include <turb/run/Preflight.h>
 #include <turb/run/Reporter.h>
@@ -25,6 +27,8 @@
 #include <set>
 
 namespace turb::run {
+
+using detail::secondsSince;
 
 namespace {
 
@@ -251,11 +255,6 @@ turb::FrameMeasures measureOne(const MeasurePlan& p, const turb::MeasureSettings
     prev.tgt = std::move(t);
     prev.src = std::move(sf);
     return m;
-}
-
-double secondsSince(std::chrono::steady_clock::time_point t0)
-{
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
 // The numbers say which axis is up for detail_profile: the output's first frame's metadata, else its writer.

@@ -1,6 +1,8 @@
 // turb::run::runPreview: vdbturb preview's run, pictures and contact sheets of caches (turb/run/Preview.h).
 #include <turb/run/Preview.h>
 
+#include "RunHelpers.h"
+
 #include <turb/run/Output.h>
 #include <turb/run/Preflight.h>
 #include <turb/run/Reporter.h>
@@ -28,6 +30,9 @@
 
 namespace turb::run {
 
+using detail::fmt;
+using detail::secondsSince;
+
 namespace {
 
 using Mode = PreviewMode;
@@ -48,13 +53,6 @@ struct Input
     bool ownCamera = false;                     // not framed with the first input (another scene): labelled so
 };
 
-std::string fmt(const char* f, double v)
-{
-    char buf[64];
-    std::snprintf(buf, sizeof(buf), f, v);
-    return buf;
-}
-
 const char* modeName(Mode m)
 {
     switch (m) {
@@ -71,11 +69,6 @@ std::string viewName(turb::View v)
     for (const auto& [name, view] : previewViews())
         if (view == v) return name;
     return "?";
-}
-
-double secondsSince(std::chrono::steady_clock::time_point t0)
-{
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
 bool needsVelocity(const std::vector<Mode>& modes)

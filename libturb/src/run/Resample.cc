@@ -1,6 +1,8 @@
 // turb::run::runResample: vdbturb resample's run, from files to files (turb/run/Resample.h).
 #include <turb/run/Resample.h>
 
+#include "RunHelpers.h"
+
 #include <turb/run/Output.h>
 #include <turb/run/Preflight.h>
 #include <turb/run/Reporter.h>
@@ -23,14 +25,11 @@
 
 namespace turb::run {
 
+using detail::secondsSince;
+
 namespace {
 
 using ResampleArgs = ResampleJob;
-
-double secondsSince(std::chrono::steady_clock::time_point t0)
-{
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 // Metadata in output voxels (the up-res ratio, the recorded domain, the patch lattice) kept true after a box
 // down-sample by `down`, or dropped where it cannot be: after a reorientation, or a patch size `down` does not divide.

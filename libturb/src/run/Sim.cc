@@ -1,6 +1,8 @@
 // turb::run::runSim: vdbturb sim's run (turb/run/Sim.h).
 #include <turb/run/Sim.h>
 
+#include "RunHelpers.h"
+
 #include <turb/run/Output.h>
 #include <turb/run/Preflight.h>
 #include <turb/run/Reporter.h>
@@ -24,21 +26,10 @@
 
 namespace turb::run {
 
-namespace {
+using detail::fmt;
+using detail::secondsSince;
 
-double secondsSince(std::chrono::steady_clock::time_point t0)
-{
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
-
-std::string fmt(const char* f, double v)
-{
-    char buf[64];
-    std::snprintf(buf, sizeof(buf), f, v);
-    return buf;
-}
-
-} // namespace
+namespace {} // namespace
 
 turb::Coord parseResolution(const std::string& text)
 {

@@ -1,6 +1,10 @@
 // runSynth's inputs: the coarse motion, the exemplars, and the job's text settings (SynthSteps.h).
 #include "SynthSteps.h"
 
+#include "RunHelpers.h"
+
+#include <turb/run/Flags.h>
+
 #include <turb/Error.h>
 #include <turb/Render.h>
 #include <turb/Resample.h>
@@ -15,13 +19,6 @@
 
 namespace turb::run::synth {
 
-std::string fmt(const char* f, double v)
-{
-    char b[64];
-    std::snprintf(b, sizeof(b), f, v);
-    return b;
-}
-
 namespace {
 
 std::vector<std::string> split(const std::string& s, char sep)
@@ -31,18 +28,6 @@ std::vector<std::string> split(const std::string& s, char sep)
     std::string item;
     while (std::getline(ss, item, sep)) out.push_back(item);
     return out;
-}
-
-// The whole of `s` as a number (NaN and inf included), as the command line reads numbers; false when it is not one.
-bool parseNumber(const std::string& s, double& v)
-{
-    try {
-        size_t pos = 0;
-        v = std::stod(s, &pos);
-        return pos == s.size();
-    } catch (...) {
-        return false;
-    }
 }
 
 int toInt(const std::string& s, const std::string& what)

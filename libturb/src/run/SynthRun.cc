@@ -1,6 +1,8 @@
 // turb::run::runSynth: vdbturb synth's run, from a coarse flow to files (turb/run/Synth.h).
 #include <turb/run/Synth.h>
 
+#include "RunHelpers.h"
+
 #include "SynthSteps.h"
 
 #include <turb/run/Output.h>
@@ -19,14 +21,11 @@
 
 namespace turb::run {
 
+using detail::secondsSince;
+
 namespace {
 
 using namespace synth;
-
-double secondsSince(std::chrono::steady_clock::time_point t0)
-{
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 // The synthesis carries look-back density only when the coarse input has density and it is written.
 bool cf0HasDensity(const turb::Frame& f, const SynthJob& a) { return f.hasDensity() && a.seq.density; }

@@ -4,6 +4,8 @@
 ///        (SynthReport.cc). The run itself is SynthRun.cc.
 #pragma once
 
+#include "RunHelpers.h"
+
 #include <turb/run/Preflight.h>
 #include <turb/run/Reporter.h>
 #include <turb/run/Synth.h>
@@ -23,8 +25,7 @@
 
 namespace turb::run::synth {
 
-/// printf of one number.
-std::string fmt(const char* f, double v);
+using detail::fmt;
 
 /// Where the coarse frames come from: a cache, a built-in scene simulated on the fly, or an analytic flow.
 /// Holds `job` by reference: the run's preflight sets the box its cache frames are read over.

@@ -1,6 +1,8 @@
 // turb::run::runTransfer: vdbturb transfer's run, from files to files (turb/run/Transfer.h).
 #include <turb/run/Transfer.h>
 
+#include "RunHelpers.h"
+
 #include <turb/run/Flags.h>
 #include <turb/run/Preflight.h>
 #include <turb/run/Reporter.h>
@@ -31,6 +33,9 @@
 
 namespace turb::run {
 
+using detail::fmt;
+using detail::secondsSince;
+
 namespace {
 
 // The job and what the run adds to it.
@@ -41,11 +46,6 @@ struct TransferArgs : TransferJob
     /// shot's frames, which may write into one folder beside others): it goes into the resume state's file names.
     std::string stateTag;
 };
-
-double secondsSince(std::chrono::steady_clock::time_point t0)
-{
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 // The source's frequency split and its candidate patches near the smoke's edge reach a few *coarse* voxels past
 // the smoke; a margin of 8 source voxels is one coarse voxel at ratio 8 and moved block by 5% and tcoh by 14%
@@ -80,13 +80,6 @@ std::string wrapName(turbio::SourceWrap w)
     case turbio::SourceWrap::Error: return "error";
     default: return "loop";
     }
-}
-
-std::string fmt(const char* f, double v)
-{
-    char b[64];
-    std::snprintf(b, sizeof(b), f, v);
-    return b;
 }
 
 std::string dims(const turb::Coord& d)

@@ -21,4 +21,8 @@ std::string flagFor(const std::string& setting, const std::string& readPrefix = 
 /// has: #0 'density' float fog volume. Use --vel-grid NAME, or '#N' for the N-th grid listed here.").
 std::string messageWithFlags(const turb::Error& e);
 
+/// Reads the whole of `s` as a number, as the command line reads numbers (NaN and inf included); false when it is
+/// not one.
+bool parseNumber(const std::string& s, double& v);
+
 } // namespace turb::run
