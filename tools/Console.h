@@ -19,11 +19,12 @@
 
 namespace vdbturb {
 
+/// A command line that cannot run as given (exit 2, as CLI11's own parse errors): thrown by the entry points too.
+using turb::run::UsageError;
+
 /// Exit codes (README, --help): 0 success; 1 a failure a retry cannot fix (bad input, a frame failed); 2 a usage
 /// error (an option's value or a combination of options); 75 (EX_TEMPFAIL) a failure worth a retry on another node
 /// (disk full, a file-size limit, out of memory); 130 interrupted.
-using turb::run::UsageError;
-
 enum ExitCode { kOk = 0, kFailed = 1, kUsage = 2, kTempFail = 75, kInterrupted = 130 };
 
 /// Ends a command with an error: "vdbturb: error: MESSAGE" on stderr and, when the command was asked for --json,

@@ -44,9 +44,11 @@ private:
 };
 
 /// The console as the entry points' reporter: lines for people on stderr (or the host's hooks), data on stdout,
-/// a progress bar on a TTY, the per-frame report and summary of RunReport. VDBTURB_TEST_KILL_AT=WHERE:FRAME makes
-/// killPoint send the process SIGKILL when it reaches `where` of frame `frame` (tests/cli/test_faults.cc,
-/// bench/kill_resume.sh: a step's name, "after-state" or "after-frame"); unset, it costs one getenv per process.
+/// a progress bar on a TTY, the per-frame report and summary of RunReport. Test hook (tests/cli/test_faults.cc,
+/// bench/kill_resume.sh): with VDBTURB_TEST_KILL_AT=WHERE:FRAME, killPoint sends the process SIGKILL when it reaches
+/// `where` of frame `frame` (kill -9 at a reproducible point): a step's name ("seams": at its first progress update
+/// after the step began), "after-state" (transfer: the frame's resume state written, the frame not yet) or
+/// "after-frame" (the frame in place under its final name). Unset (every real run), it costs one getenv a process.
 class ConsoleReporter : public turb::run::Reporter
 {
 public:
