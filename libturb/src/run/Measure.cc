@@ -116,12 +116,12 @@ double median(std::vector<double> v)
     return v.size() % 2 ? v[h] : 0.5 * (v[h - 1] + v[h]);
 }
 
-turb::MeasureSettings measureSettings(const MeasureJob& a, bool spectra)
+turb::MeasureSettings measureSettings(const MeasureJob& a)
 {
     turb::MeasureSettings s = a.settings;
     s.patchOrigin = parseCoord(a.patchOrigin);
     if (!a.tileBorders.empty()) s.tileBorders = turb::parseTileBorders(a.tileBorders);
-    s.spectra = spectra;
+    s.spectra = a.spectra;
     s.threads = a.threads;
     return s;
 }
@@ -298,7 +298,7 @@ void measureFrameAt(const MeasurePlan& p, const turb::MeasureSettings& s, size_t
 MeasureRun runMeasure(const MeasureJob& a, const std::function<void(const MeasuredFrame&)>& onFrame)
 {
     MeasureRun run;
-    turb::MeasureSettings s = measureSettings(a, a.spectra);
+    turb::MeasureSettings s = measureSettings(a);
     const MeasurePlan p = planMeasure(a);
     run.outputPattern = p.out.pattern.str();
     if (p.frames.empty()) {

@@ -1,5 +1,7 @@
 #include <turb/run/Preflight.h>
 
+#include "RunHelpers.h"
+
 #include <turb/run/Flags.h>
 #include <turb/run/Reporter.h>
 
@@ -24,14 +26,9 @@ namespace fs = std::filesystem;
 
 namespace turb::run {
 
-namespace {
+using detail::fmt;
 
-std::string num(const char* f, double v)
-{
-    char b[64];
-    std::snprintf(b, sizeof(b), f, v);
-    return b;
-}
+namespace {
 
 bool dryOrVerbose() { return reporter().showsPlan(); }
 
@@ -85,13 +82,13 @@ std::vector<std::string> timingLines(const std::string& role, const turbio::Fram
     const turbio::ReadReport& t = f.timing;
     const TimingSources source = timingSources(t, readPrefix);
     std::vector<std::string> lines;
-    std::string dt = role + " dt: " + num("%.6g", t.dt) + " per frame (" + source.dt + ")";
-    if (t.fpsSource != "not used") dt += ", fps " + num("%g", t.fps) + " (" + source.fps + ")";
+    std::string dt = role + " dt: " + fmt("%.6g", t.dt) + " per frame (" + source.dt + ")";
+    if (t.fpsSource != "not used") dt += ", fps " + fmt("%g", t.fps) + " (" + source.fps + ")";
     lines.push_back(dt);
     if (!f.velocityGrid.empty())
         lines.push_back(
             role + " velocity: grid '" + f.velocityGrid + "', " +
-            (t.cells ? "grid cells per time unit x voxel " + num("%g", f.lattice.voxelSize) + " = world units"
+            (t.cells ? "grid cells per time unit x voxel " + fmt("%g", f.lattice.voxelSize) + " = world units"
                      : std::string("world units")) +
             " (" + source.units + ")");
     for (const auto& n : t.notes) lines.push_back(role + ": " + n);
@@ -108,7 +105,7 @@ void reportTiming(const std::string& role, const turbio::SequenceScan& scan, boo
         for (const auto& n : f.timing.notes) warnOnce("note " + role + n, role + ": " + n);
     if (usesDt && f.timing.conventionAssumed)
         warnOnce("fps " + role,
-            role + " " + f.path + ": the cache records no frame rate; dt " + num("%.6g", f.timing.dt) +
+            role + " " + f.path + ": the cache records no frame rate; dt " + fmt("%.6g", f.timing.dt) +
                 " assumes 24 fps" +
                 (f.timing.dtSource.find("Blender") != std::string::npos ? " and Blender's time scale 1" : "") +
                 ". Give " + flagFor("fps", readPrefix) + " or " + flagFor("dt", readPrefix) + " if the shot differs");

@@ -265,11 +265,10 @@ SimRun runSim(const SimJob& a)
     lockOutputFrames(pattern, plan.writing); // two tasks never write one frame (a second exits 75)
     reporter().runStarted("sim " + a.scene + " " + resText(res));
     done.unconverged = writeFrames(a, sim, pattern, plan, settings);
+    done.framesWritten = int(plan.writing.size());
     reporter().runFinished(0, nlohmann::json::object());
-    const int unconverged = done.unconverged;
-    for (size_t i = 0; i < plan.end; ++i) done.framesWritten += plan.skipped(i) ? 0 : 1;
-    if (unconverged)
-        logWarning(std::to_string(unconverged) +
+    if (done.unconverged)
+        logWarning(std::to_string(done.unconverged) +
                    " frame(s) stopped before the pressure tolerance; try --max-substeps or --tolerance");
     return done;
 }

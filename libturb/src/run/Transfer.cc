@@ -142,6 +142,8 @@ struct TransferScan
     turb::CoordBBox targetBox; ///< the target's held box (its largest frame's), or the tile box
     double sourceVoxels = 0.0; ///< of the source's largest domain
     turb::Coord outDim;        ///< output voxels (a 2D target keeps its one z layer)
+    // Into target.frames and source.frames (a TransferScan is moved, never copied).
+    const turbio::FrameScan* targetLargest = nullptr; ///< the target frame with the largest held box
     const turbio::FrameScan* sourceLargest = nullptr;
 };
 
@@ -167,9 +169,9 @@ TransferScan scanInputs(const TransferArgs& a, const turbio::Sequence& target, c
     sc.sv = s0.lattice.voxelSize;
     sc.ratio = turb::transferRatio(sc.tv, sc.sv, a.settings.resampleSource); // throws, saying why, where the run would
     sc.resampled = !turb::isIntegerRatio(sc.tv, sc.sv);
-    const turbio::FrameScan* tl = sc.target.largestDomain();
+    sc.targetLargest = sc.target.largestDomain();
     sc.sourceLargest = sc.source.largestDomain();
-    sc.targetBox = tl ? tl->domain : t0.domain;
+    sc.targetBox = sc.targetLargest ? sc.targetLargest->domain : t0.domain;
     sc.sourceVoxels = sc.sourceLargest ? double(sc.sourceLargest->domain.volume()) : 0.0;
     sc.outDim = turb::refineDomain(sc.targetBox, sc.ratio).dim();
     return sc;
@@ -197,7 +199,7 @@ void checkBoxes(const TransferArgs& a, const TransferScan& sc, size_t first)
     }
     // As process() refuses it at the first frame, so that a dry run says so too.
     // Frames without smoke (an empty first frame's 1-voxel placeholder) say nothing of the kind.
-    const turbio::FrameScan* tl = sc.target.largestDomain();
+    const turbio::FrameScan* tl = sc.targetLargest;
     const turbio::FrameScan* sl = sc.sourceLargest;
     if (tl && sl && !tl->span.empty() && !sl->span.empty() && turb::isFlat(sc.targetBox) != turb::isFlat(sl->domain))
         throw turb::ValueError(turb::isFlat(sc.targetBox)
@@ -210,7 +212,7 @@ void checkBoxes(const TransferArgs& a, const TransferScan& sc, size_t first)
 void printLattice(const TransferArgs& a, const TransferScan& sc)
 {
     const turbio::FrameScan& t0 = sc.target.frames.front();
-    const turbio::FrameScan* tl = sc.target.largestDomain();
+    const turbio::FrameScan* tl = sc.targetLargest;
     const turb::Lattice outLattice = turb::refinedLattice(t0.lattice, sc.targetBox, sc.ratio);
     printData(
         "ratio " + fmt("%.4g", sc.tv / sc.sv) + " (target voxel " + fmt("%g", sc.tv) + ", source voxel " +
