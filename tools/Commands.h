@@ -16,6 +16,7 @@
 
 #include <turb/run/Flags.h>
 #include <turb/run/Output.h>
+#include <turb/run/Settings.h>
 
 namespace vdbturb {
 
@@ -63,5 +64,23 @@ void addFormatOptions(CLI::App* app, turbio::WriteOptions& opt);
 /// Adds --velocity-margin N|auto, --vel-voxel-scale N (Houdini's velocity voxel scale: `vel` on an N times coarser
 /// lattice) and --no-velocity (no velocity grid) for an up-res's output.
 void addVelocityWriteOptions(CLI::App* app, turbio::WriteOptions& opt);
+
+/// A settings table's rows bound to one job's fields.
+using BoundSettings = std::vector<std::pair<const turb::run::SettingRow*, turb::run::FieldRef>>;
+
+/// Declares `rows` as second-tier options of `app` (setting()): each row's aliases and key as its long names
+/// (--density-threshold,--densityThreshold), its range as a check, an enum by its choices' names, a bool as
+/// KEY=true|false or a bare flag; then `old` as legacy() spellings that set the same fields.
+void addSettingRows(CLI::App* app, const BoundSettings& rows, const std::vector<turb::run::OldSpelling>& old);
+
+/// addSettingRows for `table`'s rows bound to `job`. The table and the job must outlive the parse.
+template<typename Job>
+void addSettings(CLI::App* app, Job& job, const turb::run::SettingsTable<Job>& table,
+    const std::vector<turb::run::OldSpelling>& old = {})
+{
+    BoundSettings rows;
+    for (const turb::run::Setting<Job>& s : table) rows.emplace_back(&s, s.field(job));
+    addSettingRows(app, rows, old);
+}
 
 } // namespace vdbturb

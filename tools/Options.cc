@@ -75,6 +75,98 @@ void addReadOptions(CLI::App* app, turbio::ReadOptions& opt, const std::string& 
         p.substr(2) + "crop-margin");
 }
 
+namespace {
+
+std::vector<std::string> splitCommas(const std::string& text)
+{
+    std::vector<std::string> parts;
+    std::stringstream in(text);
+    for (std::string p; std::getline(in, p, ',');)
+        if (!p.empty()) parts.push_back(p);
+    return parts;
+}
+
+// An enum setting's option: names in, numbers stored (as addEnum, without knowing the enum's type).
+CLI::Option* addEnumField(
+    CLI::App* app, const std::string& names, const turb::run::SettingRow& row, const turb::run::EnumField& field)
+{
+    std::map<std::string, std::string> toValue, toName;
+    std::string type, current;
+    for (const turb::run::Choice& c : row.choices) {
+        toValue[c.name] = std::to_string(c.value);
+        toName.emplace(std::to_string(c.value), c.name);
+        type += (type.empty() ? "" : "|") + c.name;
+        if (c.value == field.get() && current.empty()) current = c.name;
+    }
+    CLI::Option* o = app->add_option_function<int>(names, field.set, row.help)
+                         ->transform(CLI::Validator(
+                             [toValue, type](std::string& s) {
+                                 const auto it = toValue.find(s);
+                                 if (it == toValue.end()) return "'" + s + "' is not one of " + type;
+                                 s = it->second;
+                                 return std::string();
+                             },
+                             ""))
+                         ->type_name(type)
+                         ->default_str(current);
+    detail::registerEnumNames(o, std::move(toName));
+    return o;
+}
+
+// One row's option, bound to its field by the field's type.
+CLI::Option* addSettingRow(CLI::App* app, const turb::run::SettingRow& row, const turb::run::FieldRef& ref)
+{
+    std::string names;
+    for (const std::string& a : splitCommas(row.alias)) names += "--" + a + ",";
+    names += "--" + row.key;
+    const double hi = std::isinf(row.hi) ? 1e30 : row.hi;
+    const auto number = [&](CLI::Option* o) {
+        if (row.positive) return o->check(finitePositive());
+        return row.checked() ? o->check(finiteIn(row.lo, hi)) : o;
+    };
+    if (auto* b = std::get_if<bool*>(&ref)) {
+        if (row.flag) return setting(app->add_flag(names, **b, row.help), row.key);
+        return boolSetting(app, names, **b, row.help, row.key);
+    }
+    if (auto* i = std::get_if<int*>(&ref)) {
+        CLI::Option* o = app->add_option(names, **i, row.help);
+        return setting(row.checked() ? o->check(CLI::Range(int(row.lo), int(hi))) : o, row.key);
+    }
+    if (auto* f = std::get_if<float*>(&ref)) return setting(number(app->add_option(names, **f, row.help)), row.key);
+    if (auto* d = std::get_if<double*>(&ref)) return setting(number(app->add_option(names, **d, row.help)), row.key);
+    return setting(addEnumField(app, names, row, std::get<turb::run::EnumField>(ref)), row.key);
+}
+
+// An old spelling: a flag that sets its keys to its value, or an option whose value sets them all.
+void addOldSpelling(CLI::App* app, const BoundSettings& rows, const turb::run::OldSpelling& old)
+{
+    BoundSettings sets;
+    for (const std::string& key : splitCommas(old.keys))
+        for (const auto& r : rows)
+            if (r.first->key == key) sets.push_back(r);
+    const auto assign = [sets](const std::string& text) {
+        for (const auto& [row, ref] : sets) turb::run::setField(*row, ref, turb::run::parseSettingValue(*row, text));
+    };
+    if (!old.value.empty()) {
+        legacy(app->add_flag_function(
+                   "--" + old.name, [assign, v = old.value](int64_t) { assign(v); }, old.help),
+            old.keys, old.value);
+        return;
+    }
+    legacy(app->add_option_function<std::string>("--" + old.name, assign, old.help)
+               ->check(parsedBy(
+                   [sets](const std::string& t) { turb::run::parseSettingValue(*sets.front().first, t); }, "VALUE")),
+        old.keys);
+}
+
+} // namespace
+
+void addSettingRows(CLI::App* app, const BoundSettings& rows, const std::vector<turb::run::OldSpelling>& old)
+{
+    for (const turb::run::OldSpelling& o : old) addOldSpelling(app, rows, o);
+    for (const auto& [row, ref] : rows) addSettingRow(app, *row, ref);
+}
+
 void addVelocityWriteOptions(CLI::App* app, turbio::WriteOptions& opt)
 {
     app->add_option("--velocity-margin", opt.velocityMargin,

@@ -25,9 +25,10 @@ DATA = os.environ.get("VDBTURB_SHARED_DATA", os.path.join(HERE, "..", "..", ".."
 EXE = os.environ.get("VDBTURB_EXE", "vdbturb")
 TARGET = os.path.join(DATA, "blender-plume2-32", "fluid_data_####.vdb")
 SOURCE = os.path.join(DATA, "blender-plume2-128", "fluid_data_####.vdb")
-# A setting off its default, a negated flag and a frame list: the keywords reach the parser as the CLI's options.
-SETTINGS = dict(temporal_blend=0.9, full_float=True, threads=2)
-CLI_SETTINGS = ["--temporal-blend", "0.9", "--full-float", "--threads", "2"]
+# Settings off their defaults as a settings object (one by an older spelling), a negated flag and a frame list: they
+# reach the parser as the CLI's options.
+SETTINGS = dict(settings=vdbturb.TransferSettings(temporal_blend=0.9, seams_gamma=8.0), full_float=True, threads=2)
+CLI_SETTINGS = ["--temporal-blend", "0.9", "--seams.gamma", "8", "--full-float", "--threads", "2"]
 FRAMES = "1-3"
 
 # An OpenVDB file's header holds a random UUID (36 characters at byte 21): every other byte must match.
@@ -106,6 +107,42 @@ class ModuleAgainstCli(unittest.TestCase):
         self.assertIn("hf_ratio", metrics)
         for name, stats in metrics.items():
             self.assertEqual(m["summary"][name], stats, name)
+
+    def test_settings_objects_check_values_as_the_cli_does(self):
+        s = vdbturb.TransferSettings(temporalBlend=0.9, alignment="rotate")
+        s.seams_enabled = False
+        self.assertEqual((s.temporalBlend, s.alignment, s.seams_enabled), (0.9, "rotate", False))
+        self.assertEqual(s.to_dict(), {"temporalBlend": 0.9, "alignment": "rotate", "seams_enabled": False})
+        self.assertEqual(s.args(), ["--temporalBlend=0.9", "--alignment=rotate", "--seams.enabled=false"])
+        self.assertEqual(vdbturb.TransferSettings().localPatch, 8)  # the library's default
+        with self.assertRaisesRegex(ValueError, r"localPatch: 65 must be a finite number in \[2, 64\]"):
+            vdbturb.TransferSettings(localPatch=65)
+        with self.assertRaisesRegex(ValueError, "not one of none|normalize|rotate|both"):
+            s.alignment = "sideways"
+        with self.assertRaises(TypeError):
+            s.localPatch = 8.5
+        with self.assertRaisesRegex(AttributeError, "did you mean 'temporalBlend'"):
+            s.temporalBlnd = 0.5
+        with self.assertRaisesRegex(TypeError, "given as a keyword and in settings="):
+            vdbturb.transfer(target=TARGET, source=SOURCE, out=os.path.join(self.work, "x.####.vdb"),
+                             settings=vdbturb.TransferSettings(temporalBlend=0.5), temporal_blend=0.6)
+
+    def test_settings_objects_describe_the_cli_defaults(self):
+        described = vdbturb.TransferSettings.describe()
+        code, out, err = cli("transfer", "--target", "t", "--source", "s", "--out", "o", "--print-settings")
+        self.assertEqual(code, 0, err)
+        self.assertGreater(len(described), 40)
+        for keyword, row in described.items():
+            option = row["option"][2:]
+            line = next(l for l in out.splitlines() if l.startswith("# " + option + "="))
+            printed = line.split("=", 1)[1].strip('"')
+            default = row["default"]
+            if isinstance(default, bool):
+                self.assertEqual(printed, "true" if default else "false", keyword)
+            elif isinstance(default, str):
+                self.assertEqual(printed, default, keyword)
+            else:  # numbers: as printed, read back in the field's type (a float 0.15 is 0.15 either way)
+                self.assertAlmostEqual(float(printed), default, places=6, msg=keyword)
 
     def test_info_is_the_cli_report_as_a_dict(self):
         path = os.path.join(DATA, "blender-plume2-32", "fluid_data_0002.vdb")

@@ -6,12 +6,17 @@
 
 #include <turb/Error.h>
 #include <turb/Measure.h>
+#include <turb/run/Settings.h>
+#include <turb/run/Transfer.h>
 #include <turbio/Vdb.h>
 
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 
 #include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <dlfcn.h>
 #include <cstring>
 #include <map>
@@ -305,6 +310,208 @@ std::vector<std::string> commandWords(
     return words;
 }
 
+// ---------------------------------------------------------------------------------------------------------------
+// Settings objects: a job's second tier (turb/run/Settings.h) as a Python object, keywords as the CLI's keys.
+
+template<typename Job>
+struct SettingsObject
+{
+    Job job;                        ///< its fields hold the values, defaults included
+    std::vector<std::string> given; ///< keys set, in the order first set: what the command line is given
+};
+
+// A float as its shortest text that reads back as the same float: 0.9f is "0.9", not 0.899999976.
+std::string shortestText(float v)
+{
+    char b[48];
+    for (int digits = 6; digits <= 9; ++digits) {
+        std::snprintf(b, sizeof(b), "%.*g", digits, double(v));
+        if (std::strtof(b, nullptr) == v) break;
+    }
+    return b;
+}
+
+// A field's value as the command line spells it.
+std::string fieldText(const turb::run::SettingRow& row, const turb::run::FieldRef& ref)
+{
+    const double v = turb::run::getField(ref);
+    for (const turb::run::Choice& c : row.choices)
+        if (c.value == v) return c.name;
+    if (std::holds_alternative<bool*>(ref)) return v != 0.0 ? "true" : "false";
+    if (std::holds_alternative<int*>(ref)) return std::to_string(static_cast<long long>(v));
+    if (auto* f = std::get_if<float*>(&ref)) return shortestText(**f);
+    char b[48];
+    std::snprintf(b, sizeof(b), "%.17g", v);
+    return b;
+}
+
+py::object fieldValue(const turb::run::SettingRow& row, const turb::run::FieldRef& ref)
+{
+    const std::string text = fieldText(row, ref);
+    if (!row.choices.empty()) return py::str(text);
+    if (std::holds_alternative<bool*>(ref)) return py::bool_(text == "true");
+    if (std::holds_alternative<int*>(ref)) return py::int_(std::stoll(text));
+    return py::float_(std::strtod(text.c_str(), nullptr));
+}
+
+template<typename Job>
+const turb::run::Setting<Job>& settingOf(
+    const turb::run::SettingsTable<Job>& table, const std::string& keyword, const char* className)
+{
+    std::vector<std::string> names;
+    for (const turb::run::Setting<Job>& s : table) { // the key, or an older spelling as transfer()'s keywords take
+        if (keywordOf(s.key) == keyword ||
+            ("," + keywordOf(s.alias) + ",").find("," + keyword + ",") != std::string::npos)
+            return s;
+        names.push_back(keywordOf(s.key));
+    }
+    const std::string near = turbio::nearestName(keyword, names);
+    throw py::attribute_error(std::string(className) + " has no setting '" + keyword + "'" +
+                              (near.empty() ? "" : "; did you mean '" + near + "'?"));
+}
+
+// Sets a setting from Python: enums by name, bools as bool, ints as int, numbers as float; checked as the CLI does.
+template<typename Job>
+void setSetting(SettingsObject<Job>& o, const turb::run::Setting<Job>& s, py::handle value)
+{
+    const turb::run::FieldRef ref = s.field(o.job);
+    const std::string keyword = keywordOf(s.key);
+    const auto wrongType = [&](const char* want) {
+        return py::type_error(
+            keyword + ": expected " + want + ", not " + std::string(py::str(py::type::of(value).attr("__name__"))));
+    };
+    double v = 0.0;
+    try {
+        if (!s.choices.empty()) {
+            if (!py::isinstance<py::str>(value)) throw wrongType("a str");
+            v = turb::run::parseSettingValue(s, value.cast<std::string>());
+        } else if (std::holds_alternative<bool*>(ref)) {
+            if (!py::isinstance<py::bool_>(value)) throw wrongType("a bool");
+            v = value.cast<bool>();
+        } else if (std::holds_alternative<int*>(ref)) {
+            if (py::isinstance<py::bool_>(value) || !py::hasattr(value, "__index__")) throw wrongType("an int");
+            v = double(value.cast<long long>());
+        } else {
+            if (py::isinstance<py::bool_>(value) || !py::hasattr(value, "__float__")) throw wrongType("a number");
+            v = py::float_(py::reinterpret_borrow<py::object>(value)).cast<double>();
+        }
+        s.set(o.job, v);
+    } catch (const turb::Error& e) {
+        std::string message = e.what(); // "seams.gamma: -1 must be..." in Python's spelling
+        if (message.rfind(s.key + ":", 0) == 0) message = keyword + message.substr(s.key.size());
+        throw py::value_error(message);
+    }
+    if (std::find(o.given.begin(), o.given.end(), s.key) == o.given.end()) o.given.push_back(s.key);
+}
+
+// The command-line words of what was set: --KEY=VALUE each.
+template<typename Job>
+std::vector<std::string> settingsWords(const SettingsObject<Job>& o, const turb::run::SettingsTable<Job>& table)
+{
+    std::vector<std::string> words;
+    Job& job = const_cast<Job&>(o.job);
+    for (const std::string& key : o.given)
+        for (const turb::run::Setting<Job>& s : table)
+            if (s.key == key) words.push_back("--" + key + "=" + fieldText(s, s.field(job)));
+    return words;
+}
+
+// vdbturb.NAME: a settings class over `table`.
+template<typename Job>
+void defineSettingsClass(py::module_& m, const char* name, const turb::run::SettingsTable<Job>& table, const char* doc)
+{
+    using Object = SettingsObject<Job>;
+    py::class_<Object>(m, name, doc)
+        .def(py::init([&table, name](py::kwargs kw) {
+            Object o;
+            for (auto item : kw) setSetting(o, settingOf(table, py::str(item.first), name), item.second);
+            return o;
+        }))
+        .def("__getattr__",
+            [&table, name](Object& o, const std::string& k) {
+                const turb::run::Setting<Job>& s = settingOf(table, k, name);
+                return fieldValue(s, s.field(o.job));
+            })
+        .def("__setattr__", [&table, name](Object& o, const std::string& k,
+                                py::handle v) { setSetting(o, settingOf(table, k, name), v); })
+        .def("__dir__",
+            [&table](const Object&) {
+                py::list keys;
+                for (const turb::run::Setting<Job>& s : table) keys.append(keywordOf(s.key));
+                return keys;
+            })
+        .def(
+            "to_dict",
+            [&table](Object& o, bool all) {
+                py::dict d;
+                for (const turb::run::Setting<Job>& s : table)
+                    if (all || std::find(o.given.begin(), o.given.end(), s.key) != o.given.end())
+                        d[py::str(keywordOf(s.key))] = fieldValue(s, s.field(o.job));
+                return d;
+            },
+            py::arg("all") = false,
+            "The settings given (all=True: every setting, defaults included) as {keyword: value}.")
+        .def(
+            "args",
+            [&table](const Object& o) {
+                py::list words;
+                for (const std::string& w : settingsWords(o, table)) words.append(w);
+                return words;
+            },
+            "The command-line options of the settings given: ['--seams.gamma=4', ...].")
+        .def("__repr__",
+            [&table, name](Object& o) {
+                std::string text;
+                for (const turb::run::Setting<Job>& s : table)
+                    if (std::find(o.given.begin(), o.given.end(), s.key) != o.given.end())
+                        text += (text.empty() ? "" : ", ") + keywordOf(s.key) + "=" +
+                                std::string(py::repr(fieldValue(s, s.field(o.job))));
+                return std::string(name) + "(" + text + ")";
+            })
+        .def_static(
+            "describe",
+            [&table]() {
+                py::dict d;
+                Job defaults;
+                for (const turb::run::Setting<Job>& s : table) {
+                    py::dict row(py::arg("option") = "--" + s.key, py::arg("help") = s.help,
+                        py::arg("default") = fieldValue(s, s.field(defaults)));
+                    if (s.checked()) row["range"] = py::make_tuple(s.lo, s.hi);
+                    if (!s.choices.empty()) {
+                        py::list names;
+                        for (const turb::run::Choice& c : s.choices) names.append(c.name);
+                        row["choices"] = names;
+                    }
+                    d[py::str(keywordOf(s.key))] = row;
+                }
+                return d;
+            },
+            "Every setting: {keyword: {'option', 'help', 'default', 'range' or 'choices' where it has one}}.");
+}
+
+// A `settings=` keyword holding a settings object: its options join the command line (a string stays the CLI's
+// --settings FILE). A setting given both ways is refused rather than resolved silently.
+template<typename Job>
+void expandSettingsObject(
+    py::kwargs& kwargs, const turb::run::SettingsTable<Job>& table, std::vector<std::string>& words)
+{
+    if (!kwargs.contains("settings") || !py::isinstance<SettingsObject<Job>>(kwargs["settings"])) return;
+    const auto& o = kwargs["settings"].template cast<const SettingsObject<Job>&>();
+    for (const turb::run::Setting<Job>& s : table) {
+        if (std::find(o.given.begin(), o.given.end(), s.key) == o.given.end()) continue;
+        std::string spellings = s.key + (s.alias.empty() ? "" : "," + s.alias);
+        for (size_t a = 0, b = 0; a <= spellings.size(); a = b + 1) {
+            b = std::min(spellings.find(',', a), spellings.size());
+            if (kwargs.contains(keywordOf(spellings.substr(a, b - a))))
+                throw py::type_error(
+                    keywordOf(spellings.substr(a, b - a)) + "= is given as a keyword and in settings=");
+        }
+    }
+    const std::vector<std::string> more = settingsWords(o, table);
+    words.insert(words.end(), more.begin(), more.end());
+    PyDict_DelItemString(kwargs.ptr(), "settings");
+}
+
 py::object progressOf(py::kwargs& kwargs)
 {
     if (!kwargs.contains("progress")) return py::none();
@@ -320,7 +527,11 @@ py::object progressOf(py::kwargs& kwargs)
 py::dict frameCommand(const std::string& command, const std::vector<py::object>& positionals, py::kwargs kwargs)
 {
     py::object progress = progressOf(kwargs);
+    std::vector<std::string> fromObject;
+    if (command == "transfer") expandSettingsObject(kwargs, turb::run::transferSettings(), fromObject);
     std::vector<std::string> words = commandWords(command, positionals, kwargs);
+    // Before the keywords' options, whose JSON flag ends the line: the order is the settings object's.
+    words.insert(words.begin() + 1, fromObject.begin(), fromObject.end());
     py::list docs = runWords(words, progress);
     py::list frames;
     py::object summary = py::none();
@@ -591,4 +802,9 @@ PYBIND11_MODULE(vdbturb, m)
 
     defineCommands(m);
     defineTools(m);
+    defineSettingsClass(m, "TransferSettings", turb::run::transferSettings(),
+        "transfer's solver and experimental settings (vdbturb transfer --help-all's second tier) as an object: "
+        "TransferSettings(temporalBlend=0.9, seams_gamma=4.0, alignment='rotate'). Keywords and attributes are the "
+        "settings' keys with '.' as '_'; values are checked as the CLI checks them (ValueError, TypeError). "
+        "Pass it as transfer(..., settings=obj); describe() lists every setting with its default and range.");
 }
