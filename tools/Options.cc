@@ -113,27 +113,52 @@ CLI::Option* addEnumField(
     return o;
 }
 
+// A number's range check: finiteIn's and finitePositive's messages where they fit, else the row's own.
+CLI::Option* checkRange(CLI::Option* o, const turb::run::SettingRow& row)
+{
+    if (!row.checked()) return o;
+    if (!row.lowOpen) return o->check(finiteIn(row.lo, std::isinf(row.hi) ? 1e30 : row.hi));
+    if (row.lo == 0.0 && std::isinf(row.hi)) return o->check(finitePositive());
+    return o->check(CLI::Validator(
+        [&row](std::string& text) {
+            double v = 0.0;
+            if (!parseNumber(text, v)) return std::string("must be a number");
+            const std::string why = row.whyInvalid(v);
+            return why.empty() ? why : why.substr(why.find(' ') + 1); // without the key: CLI11 names the option
+        },
+        ""));
+}
+
+// A text setting: its allowed values, its own check and its form in --help.
+CLI::Option* checkText(CLI::Option* o, const turb::run::SettingRow& row)
+{
+    if (!row.oneOf.empty()) o->check(CLI::IsMember(row.oneOf));
+    if (row.validate) o->check(CLI::Validator([&row](std::string& text) { return row.validate(text); }, row.typeName));
+    return o;
+}
+
 // One row's option, bound to its field by the field's type.
 CLI::Option* addSettingRow(CLI::App* app, const turb::run::SettingRow& row, const turb::run::FieldRef& ref)
 {
     std::string names;
     for (const std::string& a : splitCommas(row.alias)) names += "--" + a + ",";
     names += "--" + row.key;
-    const double hi = std::isinf(row.hi) ? 1e30 : row.hi;
-    const auto number = [&](CLI::Option* o) {
-        if (row.positive) return o->check(finitePositive());
-        return row.checked() ? o->check(finiteIn(row.lo, hi)) : o;
-    };
     if (auto* b = std::get_if<bool*>(&ref)) {
         if (row.flag) return setting(app->add_flag(names, **b, row.help), row.key);
         return boolSetting(app, names, **b, row.help, row.key);
     }
     if (auto* i = std::get_if<int*>(&ref)) {
         CLI::Option* o = app->add_option(names, **i, row.help);
-        return setting(row.checked() ? o->check(CLI::Range(int(row.lo), int(hi))) : o, row.key);
+        return setting(
+            row.checked() ? o->check(CLI::Range(int(std::max(row.lo, -2e9)), int(std::min(row.hi, 2e9)))) : o, row.key);
     }
-    if (auto* f = std::get_if<float*>(&ref)) return setting(number(app->add_option(names, **f, row.help)), row.key);
-    if (auto* d = std::get_if<double*>(&ref)) return setting(number(app->add_option(names, **d, row.help)), row.key);
+    if (auto* u = std::get_if<std::uint64_t*>(&ref)) return setting(app->add_option(names, **u, row.help), row.key);
+    if (auto* f = std::get_if<float*>(&ref))
+        return setting(checkRange(app->add_option(names, **f, row.help), row), row.key);
+    if (auto* d = std::get_if<double*>(&ref))
+        return setting(checkRange(app->add_option(names, **d, row.help), row), row.key);
+    if (auto* s = std::get_if<std::string*>(&ref))
+        return setting(checkText(app->add_option(names, **s, row.help), row), row.key);
     return setting(addEnumField(app, names, row, std::get<turb::run::EnumField>(ref)), row.key);
 }
 
@@ -145,7 +170,7 @@ void addOldSpelling(CLI::App* app, const BoundSettings& rows, const turb::run::O
         for (const auto& r : rows)
             if (r.first->key == key) sets.push_back(r);
     const auto assign = [sets](const std::string& text) {
-        for (const auto& [row, ref] : sets) turb::run::setField(*row, ref, turb::run::parseSettingValue(*row, text));
+        for (const auto& [row, ref] : sets) turb::run::setFieldText(*row, ref, text);
     };
     if (!old.value.empty()) {
         legacy(app->add_flag_function(

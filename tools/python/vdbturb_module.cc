@@ -320,37 +320,13 @@ struct SettingsObject
     std::vector<std::string> given; ///< keys set, in the order first set: what the command line is given
 };
 
-// A float as its shortest text that reads back as the same float: 0.9f is "0.9", not 0.899999976.
-std::string shortestText(float v)
-{
-    char b[48];
-    for (int digits = 6; digits <= 9; ++digits) {
-        std::snprintf(b, sizeof(b), "%.*g", digits, double(v));
-        if (std::strtof(b, nullptr) == v) break;
-    }
-    return b;
-}
-
-// A field's value as the command line spells it.
-std::string fieldText(const turb::run::SettingRow& row, const turb::run::FieldRef& ref)
-{
-    const double v = turb::run::getField(ref);
-    for (const turb::run::Choice& c : row.choices)
-        if (c.value == v) return c.name;
-    if (std::holds_alternative<bool*>(ref)) return v != 0.0 ? "true" : "false";
-    if (std::holds_alternative<int*>(ref)) return std::to_string(static_cast<long long>(v));
-    if (auto* f = std::get_if<float*>(&ref)) return shortestText(**f);
-    char b[48];
-    std::snprintf(b, sizeof(b), "%.17g", v);
-    return b;
-}
-
 py::object fieldValue(const turb::run::SettingRow& row, const turb::run::FieldRef& ref)
 {
-    const std::string text = fieldText(row, ref);
-    if (!row.choices.empty()) return py::str(text);
+    const std::string text = turb::run::fieldText(row, ref);
+    if (!row.choices.empty() || std::holds_alternative<std::string*>(ref)) return py::str(text);
     if (std::holds_alternative<bool*>(ref)) return py::bool_(text == "true");
-    if (std::holds_alternative<int*>(ref)) return py::int_(std::stoll(text));
+    if (std::holds_alternative<int*>(ref) || std::holds_alternative<std::uint64_t*>(ref))
+        return py::int_(py::str(text));
     return py::float_(std::strtod(text.c_str(), nullptr));
 }
 
@@ -370,32 +346,35 @@ const turb::run::Setting<Job>& settingOf(
                               (near.empty() ? "" : "; did you mean '" + near + "'?"));
 }
 
-// Sets a setting from Python: enums by name, bools as bool, ints as int, numbers as float; checked as the CLI does.
+// Sets a setting from Python: text and enums as str, bools as bool, ints as int, numbers as float; the value then
+// goes through the command line's own reading and checks (a float as Python prints it: its shortest exact form).
 template<typename Job>
 void setSetting(SettingsObject<Job>& o, const turb::run::Setting<Job>& s, py::handle value)
 {
     const turb::run::FieldRef ref = s.field(o.job);
     const std::string keyword = keywordOf(s.key);
-    const auto wrongType = [&](const char* want) {
-        return py::type_error(
-            keyword + ": expected " + want + ", not " + std::string(py::str(py::type::of(value).attr("__name__"))));
+    const auto expect = [&](bool ok, const char* want) {
+        if (!ok)
+            throw py::type_error(
+                keyword + ": expected " + want + ", not " + std::string(py::str(py::type::of(value).attr("__name__"))));
     };
-    double v = 0.0;
+    const bool isBool = py::isinstance<py::bool_>(value);
+    std::string text;
+    if (!s.choices.empty() || std::holds_alternative<std::string*>(ref)) {
+        expect(py::isinstance<py::str>(value), "a str");
+        text = value.cast<std::string>();
+    } else if (std::holds_alternative<bool*>(ref)) {
+        expect(isBool, "a bool");
+        text = value.cast<bool>() ? "true" : "false";
+    } else if (std::holds_alternative<int*>(ref) || std::holds_alternative<std::uint64_t*>(ref)) {
+        expect(!isBool && py::hasattr(value, "__index__"), "an int");
+        text = py::str(py::module_::import("operator").attr("index")(value));
+    } else {
+        expect(!isBool && py::hasattr(value, "__float__"), "a number");
+        text = py::repr(py::float_(py::reinterpret_borrow<py::object>(value)));
+    }
     try {
-        if (!s.choices.empty()) {
-            if (!py::isinstance<py::str>(value)) throw wrongType("a str");
-            v = turb::run::parseSettingValue(s, value.cast<std::string>());
-        } else if (std::holds_alternative<bool*>(ref)) {
-            if (!py::isinstance<py::bool_>(value)) throw wrongType("a bool");
-            v = value.cast<bool>();
-        } else if (std::holds_alternative<int*>(ref)) {
-            if (py::isinstance<py::bool_>(value) || !py::hasattr(value, "__index__")) throw wrongType("an int");
-            v = double(value.cast<long long>());
-        } else {
-            if (py::isinstance<py::bool_>(value) || !py::hasattr(value, "__float__")) throw wrongType("a number");
-            v = py::float_(py::reinterpret_borrow<py::object>(value)).cast<double>();
-        }
-        s.set(o.job, v);
+        s.setText(o.job, text);
     } catch (const turb::Error& e) {
         std::string message = e.what(); // "seams.gamma: -1 must be..." in Python's spelling
         if (message.rfind(s.key + ":", 0) == 0) message = keyword + message.substr(s.key.size());
@@ -409,10 +388,10 @@ template<typename Job>
 std::vector<std::string> settingsWords(const SettingsObject<Job>& o, const turb::run::SettingsTable<Job>& table)
 {
     std::vector<std::string> words;
-    Job& job = const_cast<Job&>(o.job);
+    const Job& job = o.job;
     for (const std::string& key : o.given)
         for (const turb::run::Setting<Job>& s : table)
-            if (s.key == key) words.push_back("--" + key + "=" + fieldText(s, s.field(job)));
+            if (s.key == key) words.push_back("--" + key + "=" + s.text(job));
     return words;
 }
 

@@ -1,11 +1,12 @@
-// The entry points' settings tables (turb/run/Settings.h): transfer's second tier.
+// The settings tables' rows (turb/run/Settings.h): checks, and reading and writing a field as a number or as text.
 #include <turb/Error.h>
 #include <turb/run/Flags.h>
 #include <turb/run/Settings.h>
-#include <turb/run/Transfer.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <type_traits>
 
 namespace turb::run {
@@ -19,234 +20,29 @@ std::string trimmed(double v) // 0 -> "0", 1e-12 -> "1e-12", 0.999 -> "0.999"
     return b;
 }
 
-// A field's reference by its type: numbers and bools as pointers, enums as their number.
-template<typename T>
-FieldRef refTo(T& v)
-{
-    if constexpr (std::is_enum_v<T>) {
-        return EnumField{[&v] { return static_cast<int>(v); }, [&v](int n) { v = static_cast<T>(n); }};
-    } else {
-        return &v;
-    }
-}
-
 std::string choiceNames(const SettingRow& row) // "source|pasted|none"
 {
     std::string names;
     for (const Choice& c : row.choices) names += (names.empty() ? "" : "|") + c.name;
+    for (const std::string& n : row.oneOf) names += (names.empty() ? "" : "|") + n;
     return names;
 }
 
-using Row = Setting<TransferJob>;
-constexpr double kInf = std::numeric_limits<double>::infinity();
-
-Row row(const char* key, const char* alias, const char* help, std::function<FieldRef(TransferJob&)> field,
-    double lo = -kInf, double hi = kInf)
+// A number as its shortest text that reads back as the same value of its type: 0.9f is "0.9", not 0.899999976.
+template<typename T>
+std::string shortestText(T v)
 {
-    Row r;
-    r.key = key;
-    r.alias = alias;
-    r.help = help;
-    r.field = std::move(field);
-    r.lo = lo;
-    r.hi = hi;
-    return r;
+    char b[48];
+    for (int digits = 6; digits <= 17; ++digits) {
+        std::snprintf(b, sizeof(b), "%.*g", digits, double(v));
+        if (T(std::strtod(b, nullptr)) == v) break;
+    }
+    return b;
 }
-
-Row withChoices(Row r, std::vector<Choice> choices)
-{
-    r.choices = std::move(choices);
-    return r;
-}
-
-Row asFlag(Row r)
-{
-    r.flag = true;
-    return r;
-}
-
-// The field `path` of a TransferJob.
-#define TURB_FIELD(path) [](TransferJob& j) { return refTo(j.path); }
-
-const std::vector<Choice> kEnergies{{"source", int(DetailEnergy::Source)}, {"pasted", int(DetailEnergy::Pasted)},
-    {"none", int(DetailEnergy::None)}, {"distribution", int(DetailEnergy::Distribution)}};
-
-// Matching (Sato et al. section 3.2): patch sizes, descriptor, candidates and the energy's weights.
-void addSearch(SettingsTable<TransferJob>& t)
-{
-    t.push_back(
-        row("alpha", "", "Weight of the density-mask term in matching (paper 0.004)", TURB_FIELD(settings.alpha), 0.0));
-    t.push_back(row("beta", "", "Weight of the temporal term: previous detail advected (paper 0.5)",
-        TURB_FIELD(settings.beta), 0.0));
-    t.push_back(row("densityThreshold", "density-threshold", "D_th: smoke where density > this",
-        TURB_FIELD(settings.densityThreshold), 0.0));
-    t.push_back(
-        row("localPatch", "patch", "B: local patch edge in output voxels", TURB_FIELD(settings.localPatch), 2, 64));
-    t.push_back(row("globalPatch", "global-patch", "b: global patch edge in target voxels, odd (0 = 2*ceil(B/f)+1)",
-        TURB_FIELD(settings.globalPatch)));
-    t.push_back(
-        row("pcaComponents", "pca", "PCA dimensions of patch descriptors", TURB_FIELD(settings.pcaComponents), 1, 256));
-    t.push_back(row("localStride", "stride", "Spacing of candidate source patches in the local search",
-        TURB_FIELD(settings.localStride), 1, 16));
-    t.push_back(row("refineCandidates", "candidates", "Local candidates re-scored at full resolution",
-        TURB_FIELD(settings.refineCandidates), 1, 4096));
-}
-
-// Seam smoothing (section 3.3): the band, the boundary patches, EM and CG.
-void addSeams(SettingsTable<TransferJob>& t)
-{
-    t.push_back(row("seams.gamma", "gamma", "Weight of divergence in seam smoothing (paper 10)",
-        TURB_FIELD(settings.seams.gamma), 0.0));
-    t.push_back(row("seams.bandWidth", "", "Seam band: voxels on each side of a patch border (3D)",
-        TURB_FIELD(settings.seams.bandWidth), 1, 32));
-    t.push_back(row("seams.bandWidth2D", "", "Seam band on 2D caches", TURB_FIELD(settings.seams.bandWidth2D), 1, 32));
-    t.push_back(row("seams.boundaryPatch", "boundary-patch", "C: boundary patch edge, even (0 = B)",
-        TURB_FIELD(settings.seams.boundaryPatch)));
-    t.push_back(row("seams.maxEmIterations", "em-iterations", "Seam EM iterations at most",
-        TURB_FIELD(settings.seams.maxEmIterations), 1, 50));
-    t.push_back(row("seams.emTolerance", "em-tolerance", "Stop EM when E_b changes by less than this fraction",
-        TURB_FIELD(settings.seams.emTolerance)));
-    t.push_back(row("seams.maxCgIterations", "cg-iterations", "CG iterations per E-step at most",
-        TURB_FIELD(settings.seams.maxCgIterations), 1, 100000));
-    t.push_back(
-        row("seams.cgTolerance", "", "CG relative residual (3D)", TURB_FIELD(settings.seams.cgTolerance), 1e-12, 1.0));
-    t.push_back(row("seams.cgTolerance2D", "", "CG relative residual on 2D caches",
-        TURB_FIELD(settings.seams.cgTolerance2D), 1e-12, 1.0));
-    t.push_back(row("seams.valueWeight", "value-weight",
-        "Weight of seam-solve rows keeping carried detail at its value (0 = the paper's energy)",
-        TURB_FIELD(settings.seams.valueWeight), 0.0));
-    t.push_back(row("seams.boxWeight", "box-weight",
-        "Weight of the seam-solve rows holding U_h's coarse-cell means (0 = free; coarseTolerance bounds them)",
-        TURB_FIELD(settings.seams.boxWeight), 0.0));
-    t.push_back(withChoices(
-        row("seams.solver", "seam-solver",
-            "Seam E-step solver: cgnr (matrix-free, parallel) or eigen (Eigen's LeastSquaresConjugateGradient)",
-            TURB_FIELD(settings.seams.solver)),
-        {{"cgnr", int(SeamSolver::Cgnr)}, {"eigen", int(SeamSolver::EigenLscg)}}));
-    t.push_back(row("seams.boxKeep", "box-keep",
-        "Fraction of each coarse cell's mean of U_h the seam solve keeps (1: leaves the coarse motion; 0: pulls it to "
-        "0)",
-        TURB_FIELD(settings.seams.boxKeep), 0.0, 1.0));
-    t.push_back(row(
-        "seams.enabled", "", "Seam smoothing (false: paste patches as they are)", TURB_FIELD(settings.seams.enabled)));
-}
-
-// The detail's strength and shape (docs/look.md's departures from the paper) and its energy (section 3.4).
-void addDetailStrength(SettingsTable<TransferJob>& t)
-{
-    t.push_back(row("evenPatches", "even-patches",
-        "How far to even out the detail's strength over the position in the patch (variance-preserving seams; 0 = "
-        "off, the paper)",
-        TURB_FIELD(settings.evenPatches), 0.0, 1.0));
-    t.push_back(row("localEnergy", "local-energy",
-        "How far each patch's detail strength moves toward the source detail pasted into it, the frame's total kept "
-        "(0 = one factor per frame)",
-        TURB_FIELD(settings.localEnergy), 0.0, 1.0));
-    t.push_back(row("vorticityLimit", "vorticity-limit",
-        "Scale the detail down where the vorticity exceeds this times the source's 0.999 quantile (0 = off)",
-        TURB_FIELD(settings.vorticityLimit), 0.0));
-    t.push_back(row("repeatRadius", "repeat-radius",
-        "Patches within this many patches never take overlapping source patches (0 = off, the paper)",
-        TURB_FIELD(settings.repeatRadius), 0, 4));
-    t.push_back(row("repeatTolerance", "", "Avoid a repeat with a candidate whose E_h is within (1 + this) of the best",
-        TURB_FIELD(settings.repeatTolerance), 0.0));
-    t.push_back(row("trackGlobalPatches", "", "Follow last frame's global patch (false: global search every frame)",
-        TURB_FIELD(settings.trackGlobalPatches)));
-    t.push_back(withChoices(row("detailEnergy", "",
-                                "U_h's energy per smoke voxel on 3D caches: source (the source's high-frequency "
-                                "energy), pasted (the pasted patches' energy), none (as made), or distribution (|U_h| "
-                                "remapped rank for rank onto the source detail's magnitudes, then the source's energy)",
-                                TURB_FIELD(settings.detailEnergy)),
-        kEnergies));
-    t.push_back(withChoices(row("detailEnergy2D", "detail-energy-2d", "The same on 2D (one z layer) caches",
-                                TURB_FIELD(settings.detailEnergy2D)),
-        kEnergies));
-    t.push_back(row("compensateTargetDivergence", "",
-        "The seam gamma term penalises div(up(u_t) + U_h) (false: div(U_h), the paper)",
-        TURB_FIELD(settings.compensateTargetDivergence)));
-}
-
-// Beyond the paper: what U_h keeps of its coarse part, how patches follow the source, resampling.
-void addDetail(SettingsTable<TransferJob>& t)
-{
-    t.push_back(row("coarseTolerance", "coarse-tolerance",
-        "lf_err bound: U_h's coarse-cell means are reduced only down to this fraction of the target's (0 = exactly)",
-        TURB_FIELD(settings.coarseTolerance), 0.0, 1.0));
-    t.push_back(row("removeCoarseDetail", "", "Reduce U_h's coarse part (false lets lf_err grow)",
-        TURB_FIELD(settings.removeCoarseDetail)));
-    t.push_back(row("coherence", "",
-        "Take a neighbour's continued source patch within this fraction of the best E_h (0 = off, the paper)",
-        TURB_FIELD(settings.coherence), 0.0));
-    t.push_back(asFlag(row("solveFreshPatchesWhole", "whole-fresh-patches",
-        "Solve every voxel of patches without carried detail, not only the seam band",
-        TURB_FIELD(settings.solveFreshPatchesWhole))));
-    t.push_back(row("resampleSource", "",
-        "Resample a source at a non-integer ratio trilinearly to the nearest integer one (false: refuse it)",
-        TURB_FIELD(settings.resampleSource)));
-    t.push_back(row("followSourceFlow", "",
-        "Patches follow the source's flow from frame to frame (false: re-paste where last frame found them)",
-        TURB_FIELD(settings.followSourceFlow)));
-    t.push_back(row("followTolerance", "follow-tolerance",
-        "Keep a patch's continuation while its E_h is within (1 + this) of the best",
-        TURB_FIELD(settings.followTolerance), 0.0));
-    t.push_back(row("sourceSmoke", "source-smoke",
-        "Fraction of a source patch's voxels that must hold smoke for it to be a candidate (0 = any, the paper)",
-        TURB_FIELD(settings.sourceSmoke), 0.0, 1.0));
-}
-
-// Temporal coherence, alignment, the output density and the source's velocity extension.
-void addTime(SettingsTable<TransferJob>& t)
-{
-    t.push_back(row("temporalBlend", "temporal-blend",
-        "Weight of last frame's detail advected through the target (0 = the paper)", TURB_FIELD(settings.temporalBlend),
-        0.0, 0.999));
-    t.push_back(row("regenerate", "",
-        "Regenerate carried detail stretched below this fraction of the fresh patches' anisotropy (0 = off)",
-        TURB_FIELD(settings.regenerate), 0.0, 1.0));
-    t.push_back(row("regenerateBlend", "", "Carried weight per frame in a regenerated patch (3D)",
-        TURB_FIELD(settings.regenerateBlend), 0.0, 0.999));
-    t.push_back(
-        row("regenerateBlend2D", "", "The same on 2D caches", TURB_FIELD(settings.regenerateBlend2D), 0.0, 0.999));
-    t.push_back(row("structureTolerance", "",
-        "Regenerate more patches while the detail's anisotropy is this fraction off the source's, and redo a frame "
-        "that finishes 3x this off (3D; 0 = off)",
-        TURB_FIELD(settings.structureTolerance), 0.0, 0.99));
-    t.push_back(
-        row("structureTolerance2D", "", "The same on 2D caches", TURB_FIELD(settings.structureTolerance2D), 0.0, 0.99));
-    t.push_back(
-        withChoices(row("alignment", "align", "Match after aligning flows: none (the paper), normalize, rotate, both",
-                        TURB_FIELD(settings.alignment)),
-            {{"none", int(FlowAlignment::None)}, {"normalize", int(FlowAlignment::Normalize)},
-                {"rotate", int(FlowAlignment::Rotate)}, {"both", int(FlowAlignment::Both)}}));
-    t.push_back(
-        row("lookBackFrames", "lookback", "m for --density lookback", TURB_FIELD(settings.lookBackFrames), 1, 100));
-    t.push_back(withChoices(row("densityScheme", "density-scheme", "Advection scheme of the output density",
-                                TURB_FIELD(settings.densityScheme)),
-        {{"bfecc", int(AdvectSettings::Scheme::BFECC)}, {"maccormack", int(AdvectSettings::Scheme::MacCormack)},
-            {"semi-lagrangian", int(AdvectSettings::Scheme::SemiLagrangian)}}));
-    t.push_back(row("densityGuide.strength", "density-guide",
-        "Fraction of the way the output density's coarse means move onto the target's per frame (0 = off)",
-        TURB_FIELD(settings.densityGuide.strength), 0.0, 1.0));
-    t.push_back(row("interfaceCompression", "interface-compression",
-        "Sharpen the output density's edge: interface compression in voxels per frame (0 = off; docs/look.md: 0.5)",
-        TURB_FIELD(settings.interfaceCompression), 0.0, 1.0));
-    t.push_back(row("levelSetDiffusion", "level-set-diffusion",
-        "Even out hairs along the output density's surface: diffusion along its level sets per pass (0 = off; "
-        "docs/look.md: 0.15)",
-        TURB_FIELD(settings.levelSetDiffusion), 0.0, 1.0 / 6.0));
-    t.push_back(row("levelSetDiffusionPasses", "level-set-diffusion-passes",
-        "Passes of the level-set diffusion per frame", TURB_FIELD(settings.levelSetDiffusionPasses), 0, 20));
-    t.push_back(row("sourceRead.extendVelocity", "extend-velocity",
-        "Continue the source's velocity this many voxels past its active region (Blender clips it to the smoke; 0 = "
-        "off)",
-        TURB_FIELD(sourceRead.extendVelocity), 0, 64));
-}
-
-#undef TURB_FIELD
 
 } // namespace
 
-bool SettingRow::checked() const { return positive || std::isfinite(lo) || std::isfinite(hi); }
+bool SettingRow::checked() const { return std::isfinite(lo) || std::isfinite(hi); }
 
 std::string SettingRow::whyInvalid(double v) const
 {
@@ -256,26 +52,15 @@ std::string SettingRow::whyInvalid(double v) const
             if (c.value == v) return {};
         return key + ": " + trimmed(v) + " is not one of " + choiceNames(*this);
     }
-    if (positive && !(v > 0.0 && std::isfinite(v))) return key + ": " + trimmed(v) + " must be a finite number > 0";
-    if (checked() && !(v >= lo && v <= hi && std::isfinite(v)))
+    const bool inRange = (lowOpen ? v > lo : v >= lo) && v <= hi && std::isfinite(v);
+    if (checked() && !inRange) {
+        const std::string low = (lowOpen ? "> " : ">= ") + trimmed(lo);
         return key + ": " + trimmed(v) + " must be a finite number " +
-               (hi >= 1e30 ? ">= " + trimmed(lo) : "in [" + trimmed(lo) + ", " + trimmed(hi) + "]");
+               (hi >= 1e30   ? low
+                   : lowOpen ? low + " and <= " + trimmed(hi)
+                             : "in [" + trimmed(lo) + ", " + trimmed(hi) + "]");
+    }
     return {};
-}
-
-void setField(const SettingRow& row, const FieldRef& ref, double v)
-{
-    if (const std::string why = row.whyInvalid(v); !why.empty()) throw ValueError(why, {row.key});
-    if (std::holds_alternative<int*>(ref) && v != std::floor(v))
-        throw ValueError(row.key + ": " + trimmed(v) + " is not an integer", {row.key});
-    std::visit(
-        [v](auto&& r) {
-            using R = std::decay_t<decltype(r)>;
-            if constexpr (std::is_same_v<R, EnumField>) r.set(static_cast<int>(v));
-            else if constexpr (std::is_same_v<R, bool*>) *r = v != 0.0;
-            else *r = static_cast<std::remove_pointer_t<R>>(v);
-        },
-        ref);
 }
 
 double parseSettingValue(const SettingRow& row, const std::string& text)
@@ -292,45 +77,69 @@ double parseSettingValue(const SettingRow& row, const std::string& text)
     return v;
 }
 
+void setField(const SettingRow& row, const FieldRef& ref, double v)
+{
+    if (std::holds_alternative<std::string*>(ref)) throw ValueError(row.key + ": a text setting", {row.key});
+    if (const std::string why = row.whyInvalid(v); !why.empty()) throw ValueError(why, {row.key});
+    const bool integer = std::holds_alternative<int*>(ref) || std::holds_alternative<std::uint64_t*>(ref);
+    if (integer && v != std::floor(v)) throw ValueError(row.key + ": " + trimmed(v) + " is not an integer", {row.key});
+    if (std::holds_alternative<std::uint64_t*>(ref) && v < 0.0)
+        throw ValueError(row.key + ": " + trimmed(v) + " is negative", {row.key});
+    std::visit(
+        [v](auto&& r) {
+            using R = std::decay_t<decltype(r)>;
+            if constexpr (std::is_same_v<R, EnumField>) r.set(static_cast<int>(v));
+            else if constexpr (std::is_same_v<R, bool*>) *r = v != 0.0;
+            else if constexpr (!std::is_same_v<R, std::string*>) *r = static_cast<std::remove_pointer_t<R>>(v);
+        },
+        ref);
+}
+
 double getField(const FieldRef& ref)
 {
     return std::visit(
         [](auto&& r) -> double {
             using R = std::decay_t<decltype(r)>;
             if constexpr (std::is_same_v<R, EnumField>) return r.get();
+            else if constexpr (std::is_same_v<R, std::string*>) return std::nan("");
             else return static_cast<double>(*r);
         },
         ref);
 }
 
-const SettingsTable<TransferJob>& transferSettings()
+void setFieldText(const SettingRow& row, const FieldRef& ref, const std::string& text)
 {
-    static const SettingsTable<TransferJob> table = [] {
-        SettingsTable<TransferJob> t;
-        addSearch(t);
-        addSeams(t);
-        addDetail(t);
-        addDetailStrength(t);
-        addTime(t);
-        return t;
-    }();
-    return table;
+    if (row.validate)
+        if (const std::string why = row.validate(text); !why.empty())
+            throw ValueError(row.key + ": '" + text + "' " + why, {row.key});
+    if (auto* s = std::get_if<std::string*>(&ref)) {
+        if (!row.oneOf.empty() && std::find(row.oneOf.begin(), row.oneOf.end(), text) == row.oneOf.end())
+            throw ValueError(row.key + ": '" + text + "' is not one of " + choiceNames(row), {row.key});
+        **s = text;
+        return;
+    }
+    if (auto* u = std::get_if<std::uint64_t*>(&ref)) { // every 64-bit seed, not only those a double holds
+        char* end = nullptr;
+        const unsigned long long n = std::strtoull(text.c_str(), &end, 10);
+        if (text.empty() || text[0] == '-' || *end != '\0')
+            throw ValueError(row.key + ": '" + text + "' is not a whole number >= 0", {row.key});
+        **u = n;
+        return;
+    }
+    setField(row, ref, parseSettingValue(row, text));
 }
 
-const std::vector<OldSpelling>& transferOldSpellings()
+std::string fieldText(const SettingRow& row, const FieldRef& ref)
 {
-    static const std::vector<OldSpelling> spellings{
-        {"band", "seams.bandWidth,seams.bandWidth2D", "", "Both seam band widths"},
-        {"cg-tolerance", "seams.cgTolerance,seams.cgTolerance2D", "", "Both CG tolerances"},
-        {"no-seams", "seams.enabled", "false", "seams.enabled = false"},
-        {"no-tracking", "trackGlobalPatches", "false", "trackGlobalPatches = false"},
-        {"detail-energy", "detailEnergy,detailEnergy2D", "", "Both detail energies (3D and 2D caches)"},
-        {"no-target-divergence", "compensateTargetDivergence", "false", "compensateTargetDivergence = false"},
-        {"keep-coarse-detail", "removeCoarseDetail", "false", "removeCoarseDetail = false"},
-        {"no-resample-source", "resampleSource", "false", "resampleSource = false"},
-        {"no-follow-source", "followSourceFlow", "false", "followSourceFlow = false"},
-        {"regenerate-blend", "regenerateBlend,regenerateBlend2D", "", "Both regeneration blends"}};
-    return spellings;
+    if (auto* s = std::get_if<std::string*>(&ref)) return **s;
+    if (auto* u = std::get_if<std::uint64_t*>(&ref)) return std::to_string(**u);
+    const double v = getField(ref);
+    for (const Choice& c : row.choices)
+        if (c.value == v) return c.name;
+    if (std::holds_alternative<bool*>(ref)) return v != 0.0 ? "true" : "false";
+    if (std::holds_alternative<int*>(ref)) return std::to_string(static_cast<long long>(v));
+    if (auto* f = std::get_if<float*>(&ref)) return shortestText(**f);
+    return shortestText(v);
 }
 
 } // namespace turb::run

@@ -11,6 +11,7 @@
 /// @endcode
 #pragma once
 
+#include <cstdint>
 #include <functional>
 #include <limits>
 #include <string>
@@ -28,7 +29,7 @@ struct EnumField
     std::function<void(int)> set;
 };
 /// Where one setting lives in a job, as its type.
-using FieldRef = std::variant<bool*, int*, float*, double*, EnumField>;
+using FieldRef = std::variant<bool*, int*, std::uint64_t*, float*, double*, std::string*, EnumField>;
 
 /// One name of an enum setting's value; the first name of a value is the one printed.
 struct Choice
@@ -45,13 +46,18 @@ struct SettingRow
     std::string help;
     double lo = -std::numeric_limits<double>::infinity(); ///< valid values of a number, inclusive
     double hi = std::numeric_limits<double>::infinity();
-    bool positive = false;       ///< a number must be > 0 (lo and hi unused)
-    std::vector<Choice> choices; ///< an enum's names
-    bool flag = false;           ///< a bool given as a bare flag (--whole-fresh-patches), not as KEY=true|false
+    bool lowOpen = false;           ///< a number must be > lo, not >= lo
+    std::vector<Choice> choices;    ///< an enum's names
+    std::vector<std::string> oneOf; ///< a text setting's only values ("png", "exr", "tif"); empty: any
+    /// A further check of the value as text: empty when valid, else what is wrong ("must be NXxNYxNZ").
+    std::function<std::string(const std::string&)> validate;
+    std::string typeName; ///< a text setting's form in --help ("NXxNYxNZ"); empty: the type's
+    bool flag = false;    ///< a bool given as a bare flag (--whole-fresh-patches), not as KEY=true|false
 
-    /// Whether a number is range-checked: lo or hi is finite, or `positive`.
+    /// Whether a number is range-checked: lo or hi is finite.
     bool checked() const;
-    /// `v` as this setting's message: empty when it is valid, else "KEY: V is not in [LO, HI]" or the like.
+    /// A number `v` as this setting's message: empty when it is valid, else "KEY: V must be a finite number in
+    /// [LO, HI]" or the like.
     std::string whyInvalid(double v) const;
 };
 
@@ -62,10 +68,16 @@ struct Setting : SettingRow
     std::function<FieldRef(Job&)> field;
 
     /// Sets the field of `job` to `v` (a bool: v != 0; an enum: one of `choices`' values). Throws turb::ValueError
-    /// naming the key when `v` is not a valid value (outside the range, not an integer for an int, not a choice).
+    /// naming the key when `v` is not a valid value (outside the range, not an integer for an int, not a choice, a
+    /// text setting).
     void set(Job& job, double v) const;
-    /// The field's value in `job` as a number (a bool 0 or 1, an enum its value).
+    /// The field's value in `job` as a number (a bool 0 or 1, an enum its value; NaN for text).
     double get(const Job& job) const;
+    /// Sets the field from the text the command line takes ("0.9", "true", "rotate", "32x32x48"). Throws
+    /// turb::ValueError naming the key when it is not a valid value.
+    void setText(Job& job, const std::string& text) const;
+    /// The field's value as that text, exact: a float as its shortest text that reads back as the same float.
+    std::string text(const Job& job) const;
 };
 
 /// `Job`'s settings as a table, in the order --help-all lists them.
@@ -83,8 +95,8 @@ struct OldSpelling
     std::string help;
 };
 
-/// `text` as the value of `row`: a number, true/false for a bool, one of `choices`' names for an enum. Throws
-/// turb::ValueError naming the key when it is none of these or not a valid value (SettingRow::whyInvalid).
+/// `text` as the number of `row`'s value: a number, true/false for a bool, one of `choices`' names for an enum.
+/// Throws turb::ValueError naming the key when it is none of these or not a valid value (SettingRow::whyInvalid).
 double parseSettingValue(const SettingRow& row, const std::string& text);
 
 /// The second tier of TransferJob: every solver and experimental knob of turb::TransferSettings under its field's
@@ -94,9 +106,11 @@ const SettingsTable<TransferJob>& transferSettings();
 /// transfer's older spellings of those settings.
 const std::vector<OldSpelling>& transferOldSpellings();
 
-/// Sets or reads a field through its reference (the implementation of Setting::set and get).
+/// Sets or reads a field through its reference (the implementation of Setting's members).
 void setField(const SettingRow& row, const FieldRef& ref, double v);
 double getField(const FieldRef& ref);
+void setFieldText(const SettingRow& row, const FieldRef& ref, const std::string& text);
+std::string fieldText(const SettingRow& row, const FieldRef& ref);
 
 template<typename Job>
 void Setting<Job>::set(Job& job, double v) const
@@ -107,7 +121,19 @@ void Setting<Job>::set(Job& job, double v) const
 template<typename Job>
 double Setting<Job>::get(const Job& job) const
 {
-    return getField(field(const_cast<Job&>(job)));
+    return getField(field(const_cast<Job&>(job))); // the reference is only read
+}
+
+template<typename Job>
+void Setting<Job>::setText(Job& job, const std::string& text) const
+{
+    setFieldText(*this, field(job), text);
+}
+
+template<typename Job>
+std::string Setting<Job>::text(const Job& job) const
+{
+    return fieldText(*this, field(const_cast<Job&>(job)));
 }
 
 } // namespace turb::run
