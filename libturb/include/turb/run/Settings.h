@@ -47,7 +47,7 @@ struct SettingRow
     double lo = -std::numeric_limits<double>::infinity(); ///< valid values of a number, inclusive
     double hi = std::numeric_limits<double>::infinity();
     bool lowOpen = false;           ///< a number must be > lo, not >= lo
-    std::vector<Choice> choices;    ///< an enum's names
+    std::vector<Choice> choices;    ///< an enum's names; an int's only values, each named by its number
     std::vector<std::string> oneOf; ///< a text setting's only values ("png", "exr", "tif"); empty: any
     /// A further check of the value as text: empty when valid, else what is wrong ("must be NXxNYxNZ").
     std::function<std::string(const std::string&)> validate;
