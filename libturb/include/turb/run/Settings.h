@@ -106,6 +106,21 @@ const SettingsTable<TransferJob>& transferSettings();
 /// transfer's older spellings of those settings.
 const std::vector<OldSpelling>& transferOldSpellings();
 
+struct SynthJob;
+struct AnimateJob;
+/// The second tier of SynthJob: the coarse motion's and the exemplars' shape, the texture optimisation
+/// (turb::SynthSettings) and F's combination, projection, density and pictures (turb::CombineSettings,
+/// turb::SynthSequenceSettings), as `vdbturb synth --help-all` lists them. docs/synth.md has their effects.
+const SettingsTable<SynthJob>& synthSettings();
+/// synth's older spellings of those settings (`--no-density` for density = false).
+const std::vector<OldSpelling>& synthOldSpellings();
+/// The second tier of AnimateJob: the flow image's orientation, the stage dumps and measurement, and the method's
+/// knobs (turb::AnimateSettings: refinement, residual transfer, analysis, histogram matching), as `vdbturb animate
+/// --help-all` lists them. docs/animate.md has their measurements.
+const SettingsTable<AnimateJob>& animateSettings();
+/// animate's older spellings of those settings (`--hm-exact-cells` for hm.blendPixels = false).
+const std::vector<OldSpelling>& animateOldSpellings();
+
 /// Sets or reads a field through its reference (the implementation of Setting's members).
 void setField(const SettingRow& row, const FieldRef& ref, double v);
 double getField(const FieldRef& ref);
