@@ -6,6 +6,7 @@
 #include <CLI/CLI.hpp>
 
 #include <functional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -73,13 +74,21 @@ using BoundSettings = std::vector<std::pair<const turb::run::SettingRow*, turb::
 /// KEY=true|false or a bare flag; then `old` as legacy() spellings that set the same fields.
 void addSettingRows(CLI::App* app, const BoundSettings& rows, const std::vector<turb::run::OldSpelling>& old);
 
-/// addSettingRows for `table`'s rows bound to `job`. The table and the job must outlive the parse.
+/// addSettingRows for `table`'s rows bound to `job`, from the row keyed `from` up to the one keyed `to` (not
+/// included; empty: from the first, past the last): --help-all lists options in the order they are declared, so a
+/// table whose rows another function's options sit among (animate's read options) is declared in parts. The table
+/// and the job must outlive the parse.
 template<typename Job>
 void addSettings(CLI::App* app, Job& job, const turb::run::SettingsTable<Job>& table,
-    const std::vector<turb::run::OldSpelling>& old = {})
+    const std::vector<turb::run::OldSpelling>& old = {}, const std::string& from = "", const std::string& to = "")
 {
     BoundSettings rows;
-    for (const turb::run::Setting<Job>& s : table) rows.emplace_back(&s, s.field(job));
+    bool in = from.empty();
+    for (const turb::run::Setting<Job>& s : table) {
+        in = (in || s.key == from) && s.key != to;
+        if (in) rows.emplace_back(&s, s.field(job));
+    }
+    if (rows.empty()) throw std::logic_error("no settings rows from '" + from + "' to '" + to + "'");
     addSettingRows(app, rows, old);
 }
 

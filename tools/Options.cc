@@ -129,6 +129,23 @@ CLI::Option* checkRange(CLI::Option* o, const turb::run::SettingRow& row)
         ""));
 }
 
+// A number's checks: the row's own (`validate`: a range with gaps, a message in the setting's words) where it has
+// one, else an int's only values (`choices`) or its range: CLI11's INT in [LO - HI] where both ends are finite and
+// closed, else finiteIn's or finitePositive's.
+CLI::Option* checkNumber(CLI::Option* o, const turb::run::SettingRow& row, bool integer)
+{
+    if (row.validate)
+        return o->check(CLI::Validator([&row](std::string& text) { return row.validate(text); }, row.typeName));
+    if (integer && !row.choices.empty()) {
+        std::vector<int> values;
+        for (const turb::run::Choice& c : row.choices) values.push_back(c.value);
+        return o->check(CLI::IsMember(values));
+    }
+    if (integer && row.checked() && !row.lowOpen && std::isfinite(row.hi))
+        return o->check(CLI::Range(int(std::max(row.lo, -2e9)), int(std::min(row.hi, 2e9))));
+    return checkRange(o, row);
+}
+
 // A text setting: its allowed values, its own check and its form in --help.
 CLI::Option* checkText(CLI::Option* o, const turb::run::SettingRow& row)
 {
@@ -147,16 +164,13 @@ CLI::Option* addSettingRow(CLI::App* app, const turb::run::SettingRow& row, cons
         if (row.flag) return setting(app->add_flag(names, **b, row.help), row.key);
         return boolSetting(app, names, **b, row.help, row.key);
     }
-    if (auto* i = std::get_if<int*>(&ref)) {
-        CLI::Option* o = app->add_option(names, **i, row.help);
-        return setting(
-            row.checked() ? o->check(CLI::Range(int(std::max(row.lo, -2e9)), int(std::min(row.hi, 2e9)))) : o, row.key);
-    }
+    if (auto* i = std::get_if<int*>(&ref))
+        return setting(checkNumber(app->add_option(names, **i, row.help), row, true), row.key);
     if (auto* u = std::get_if<std::uint64_t*>(&ref)) return setting(app->add_option(names, **u, row.help), row.key);
     if (auto* f = std::get_if<float*>(&ref))
-        return setting(checkRange(app->add_option(names, **f, row.help), row), row.key);
+        return setting(checkNumber(app->add_option(names, **f, row.help), row, false), row.key);
     if (auto* d = std::get_if<double*>(&ref))
-        return setting(checkRange(app->add_option(names, **d, row.help), row), row.key);
+        return setting(checkNumber(app->add_option(names, **d, row.help), row, false), row.key);
     if (auto* s = std::get_if<std::string*>(&ref))
         return setting(checkText(app->add_option(names, **s, row.help), row), row.key);
     return setting(addEnumField(app, names, row, std::get<turb::run::EnumField>(ref)), row.key);

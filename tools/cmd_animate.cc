@@ -5,7 +5,6 @@
 #include "Preflight.h"
 #include "StylizeCommon.h"
 
-#include <turb/Animate.h>
 #include <turb/run/Animate.h>
 
 #include <filesystem>
@@ -17,7 +16,6 @@ namespace vdbturb {
 
 namespace {
 
-using Refine = turb::run::AnimateRefine;
 using HmMode = turb::run::AnimateHm;
 
 // The command line's animate: the job, and the parser its frames' settings come from.
@@ -73,7 +71,8 @@ void addInputOptions(CLI::App* app, AnimateArgs& a)
         "(the designs installed in share/vdbturb/animate)");
     app->add_option(
         "--flow", a.flow, "Flow design: a dense flow image, R,G = x,y in pixels per frame (x right, y down)");
-    setting(app->add_flag("--flow-y-up", a.flowYUp, "The --flow image's G channel points up"), "flow-y-up");
+    // The table's first row: --help-all lists it before the read options.
+    addSettings(app, static_cast<turb::run::AnimateJob&>(a), turb::run::animateSettings(), {}, "", "dump");
     addReadOptions(app, a.read);
     // Only --example-cache reads grids: its grid and frame-rate choices are settings here.
     for (const char* name : {"density-grid", "vel-grid", "fps"})
@@ -96,100 +95,6 @@ void addOutputOptions(CLI::App* app, AnimateArgs& a)
     app->add_flag("--json", "One JSON line per frame and a summary with stage times on stdout");
     app->add_option(
         "--export-builtin", a.exportBuiltin, "Write the built-in river example and still into DIR and stop");
-    setting(app->add_option(
-                "--dump", a.dump, "Also write every stage's images into DIR (float EXR) and flow pictures (PNG)"),
-        "dump");
-    setting(app->add_flag(
-                "--measure", a.measure, "Measure the output's flow against the design and its temporal statistics"),
-        "measure");
-}
-
-// Histogram matching (section 5.6): the steerable pyramid's repetitions and the grid of cells.
-void addHmSettings(CLI::App* app, AnimateArgs& a)
-{
-    turb::HistogramMatchSettings& hm = a.settings.hm;
-    setting(app->add_option("--hm-rep,--hm.reps", hm.reps, "HM Rep: repetitions of the steerable matching (paper 3)")
-                ->check(CLI::Range(1, 10)),
-        "hm.reps");
-    // Checked while parsing, so a bad grid is a usage error (exit 2) like every other option's bad value.
-    const CLI::Validator gridCheck(
-        [](std::string& v) -> std::string { return turb::run::hmGridProblem(v); }, "COLSxROWS|auto|off");
-    setting(
-        app->add_option("--hm-grid", a.hmGrid, "HM Grid: COLSxROWS, auto (cells of about hm.cellSize pixels) or off")
-            ->check(gridCheck),
-        "hm-grid");
-    setting(app->add_option("--hm-cell,--hm.cellSize", hm.cellSize, "Cell size of the automatic HM grid in pixels")
-                ->check(CLI::Range(16, 100000)),
-        "hm.cellSize");
-    setting(app->add_option("--hm-passes,--hm.pixelPasses", hm.pixelPasses, "Final pixel-domain matching passes")
-                ->check(CLI::Range(1, 20)),
-        "hm.pixelPasses");
-    boolSetting(app, "--hm.blendPixels", hm.blendPixels,
-        "Blend the cells' pixel-domain matches (false: each cell's statistics exact, seams can show)",
-        "hm.blendPixels");
-    boolSetting(app, "--hm.cellMoments", hm.cellMoments,
-        "Finally solve one blended gain and offset per cell so every cell's mean and std are the target's (false: "
-        "stop after the pixel passes)",
-        "hm.cellMoments");
-    setting(addEnum<turb::HmApply>(app, "--hm-apply,--hmApply", a.settings.hmApply,
-                {{"per-frame", turb::HmApply::PerFrame}, {"sequence", turb::HmApply::Sequence}},
-                "per-frame: match every frame (the paper); sequence: match the mean frame once, give every frame that "
-                "correction and its own cell moments (keeps the moving detail on smooth stills such as smoke renders; "
-                "a static speckle on textured ones; docs/animate.md)"),
-        "hmApply");
-    legacy(app->add_flag_function(
-               "--hm-exact-cells", [&hm](std::int64_t) { hm.blendPixels = false; }, "hm.blendPixels = false"),
-        "hm.blendPixels", "false");
-}
-
-// The method's knobs (Okabe et al.), under turb::AnimateSettings' field names; docs/animate.md has their measurements.
-void addAnimateSettings(CLI::App* app, AnimateArgs& a)
-{
-    turb::AnimateSettings& s = a.settings;
-    const auto knob = [app](const std::string& names, auto& v, const std::string& help, const std::string& key) {
-        return setting(app->add_option(names, v, help), key);
-    };
-    setting(
-        addEnum<Refine>(app, "--refine", a.refine, {{"auto", Refine::Auto}, {"on", Refine::On}, {"off", Refine::Off}},
-            "Refine the design by the target's gradients: auto (strokes yes, --flow no), on, off"),
-        "refine");
-    setting(addEnum<turb::GradientOrientation>(app, "--orient,--refine.orient", s.refine.orient,
-                {{"parallel", turb::GradientOrientation::Parallel},
-                    {"perpendicular", turb::GradientOrientation::Perpendicular}},
-                "Refined orientation: parallel to the image gradient (the paper) or perpendicular (along edges)"),
-        "refine.orient");
-    knob("--wf,--refine.wf", s.refine.wf, "w_f: blur of the refined orientation, Gaussian std in pixels (paper 12)",
-        "refine.wf")
-        ->check(finiteIn(0.1, 500.0));
-    knob("--tau", s.tau, "Lifetime of a residual in frames (paper 16); the output has N - tau frames", "tau")
-        ->check(CLI::Range(1, 10000));
-    knob("--shutter,--average.shutter", s.average.shutter,
-        "Sh: motion blur of the target along the flow for A', in frames", "average.shutter")
-        ->check(finiteIn(0.0, 200.0));
-    knob("--wa,--average.wa", s.average.wa, "w_a: Gaussian std in pixels after the motion blur for A'", "average.wa")
-        ->check(finiteIn(0.0, 500.0));
-    knob("--patch,--transfer.patchSize", s.transfer.patchSize, "Residual transfer patch size in pixels (paper 8-32)",
-        "transfer.patchSize")
-        ->check(CLI::Range(8, 64));
-    knob("--search-downsample,--transfer.downsample", s.transfer.downsample, "Match flows downsampled by 1, 2 or 4",
-        "transfer.downsample")
-        ->check(CLI::IsMember({1, 2, 4}));
-    knob("--variety,--transfer.variety", s.transfer.variety,
-        "Residual transfer: candidates within this fraction of the patch's design speed of the best are equally good, "
-        "and the one farthest from its neighbours' windows is taken (0: the nearest, the paper)",
-        "transfer.variety")
-        ->check(finiteIn(0.0, 1.0));
-    knob("--transfer.candidates", s.transfer.candidates,
-        "Residual transfer: random example windows costed per patch besides the 8 nearest (only with variety > 0)",
-        "transfer.candidates")
-        ->check(CLI::Range(1, 64));
-    knob("--features,--analysis.features", s.analysis.features,
-        "Lucas-Kanade features per example frame pair (paper 100)", "analysis.features")
-        ->check(CLI::Range(1, 100000));
-    knob("--lk-window,--analysis.window", s.analysis.window, "Lucas-Kanade window in pixels (paper 10)",
-        "analysis.window")
-        ->check(CLI::Range(3, 64));
-    addHmSettings(app, a);
 }
 
 } // namespace
@@ -208,7 +113,9 @@ Command animateCommand()
         addEnum<HmMode>(app, "--hm", a.hm,
             {{"steerable", HmMode::Steerable}, {"laplacian", HmMode::Laplacian}, {"off", HmMode::Off}},
             "Histogram matching: steerable (Heeger-Bergen), laplacian (one pass, the fast preview) or off");
-        addAnimateSettings(app, a);
+        // The rest of the table: dump and measure, then the method's knobs (turb::AnimateSettings' fields).
+        addSettings(app, static_cast<turb::run::AnimateJob&>(a), turb::run::animateSettings(),
+            turb::run::animateOldSpellings(), "dump");
     };
     c.run = [args] { return runAnimate(*args); };
     return c;

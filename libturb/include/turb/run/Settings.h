@@ -47,7 +47,7 @@ struct SettingRow
     double lo = -std::numeric_limits<double>::infinity(); ///< valid values of a number, inclusive
     double hi = std::numeric_limits<double>::infinity();
     bool lowOpen = false;           ///< a number must be > lo, not >= lo
-    std::vector<Choice> choices;    ///< an enum's names
+    std::vector<Choice> choices;    ///< an enum's names; an int's only values, each named by its number
     std::vector<std::string> oneOf; ///< a text setting's only values ("png", "exr", "tif"); empty: any
     /// A further check of the value as text: empty when valid, else what is wrong ("must be NXxNYxNZ").
     std::function<std::string(const std::string&)> validate;
@@ -105,6 +105,21 @@ double parseSettingValue(const SettingRow& row, const std::string& text);
 const SettingsTable<TransferJob>& transferSettings();
 /// transfer's older spellings of those settings.
 const std::vector<OldSpelling>& transferOldSpellings();
+
+struct SynthJob;
+struct AnimateJob;
+/// The second tier of SynthJob: the coarse motion's and the exemplars' shape, the texture optimisation
+/// (turb::SynthSettings) and F's combination, projection, density and pictures (turb::CombineSettings,
+/// turb::SynthSequenceSettings), as `vdbturb synth --help-all` lists them. docs/synth.md has their effects.
+const SettingsTable<SynthJob>& synthSettings();
+/// synth's older spellings of those settings (`--no-density` for density = false).
+const std::vector<OldSpelling>& synthOldSpellings();
+/// The second tier of AnimateJob: the flow image's orientation, the stage dumps and measurement, and the method's
+/// knobs (turb::AnimateSettings: refinement, residual transfer, analysis, histogram matching), as `vdbturb animate
+/// --help-all` lists them. docs/animate.md has their measurements.
+const SettingsTable<AnimateJob>& animateSettings();
+/// animate's older spellings of those settings (`--hm-exact-cells` for hm.blendPixels = false).
+const std::vector<OldSpelling>& animateOldSpellings();
 
 /// Sets or reads a field through its reference (the implementation of Setting's members).
 void setField(const SettingRow& row, const FieldRef& ref, double v);
