@@ -4,10 +4,10 @@
 #include "CommandLine.h"
 #include "Commands.h"
 #include "Console.h"
-#include "Figures.h"
 
 #include <turb/Error.h>
 #include <turb/Measure.h>
+#include <turb/run/Figures.h>
 #include <turb/run/Measure.h>
 
 #include <nlohmann/json.hpp>
@@ -33,7 +33,7 @@ void plotSpectrum(const MeasureArgs& a, const turb::FrameMeasures& m, int f)
     if (a.plotDir.empty()) return;
     char name[64];
     std::snprintf(name, sizeof(name), "/spectrum.%04d.%s", f, a.plotFormat.c_str());
-    writeSpectrumFigure(a.plotDir + name, m, "E(k) frame " + std::to_string(f));
+    turb::run::writeSpectrumFigure(a.plotDir + name, m, "E(k) frame " + std::to_string(f));
 }
 
 // The frame's human line on stderr and its JSON line on stdout.
@@ -71,7 +71,7 @@ int runMeasure(MeasureArgs& a)
     a.spectra = a.computeSpectra || !a.plotDir.empty() || a.spectraJson;
     a.dryRun = globals().dryRun;
     a.threads = globals().threads;
-    if (std::string why; !a.plotDir.empty() && !gnuplotAvailable(why)) throw turb::Error(why);
+    if (std::string why; !a.plotDir.empty() && !turb::run::gnuplotAvailable(why)) throw turb::Error(why);
     const turb::run::MeasureRun run = turb::run::runMeasure(a, [&](const turb::run::MeasuredFrame& f) {
         plotSpectrum(a, *f.measures, f.frame);
         reportFrame(a, f);
@@ -80,7 +80,8 @@ int runMeasure(MeasureArgs& a)
     if (a.dryRun) return kOk;
     if (!a.plotDir.empty() && !run.frames.empty()) {
         const std::string ext = "." + a.plotFormat;
-        writeMetricsFigure(a.plotDir + "/metrics" + ext, run.frames, "vdbturb measure: " + run.outputPattern);
+        turb::run::writeMetricsFigure(
+            a.plotDir + "/metrics" + ext, run.frames, "vdbturb measure: " + run.outputPattern);
         logInfo("plots: " + a.plotDir + "/metrics" + ext + ", " + a.plotDir + "/spectrum.####" + ext);
     }
     turb::MeasureSettings s = a.settings;
