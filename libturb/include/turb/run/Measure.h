@@ -30,6 +30,7 @@ struct MeasureJob
     /// Where the caller draws its plots (spectrum.####.png, metrics.png): checked as outputs before the first frame
     /// and created; empty: none. The run draws none itself: the caller draws them as it goes (turb/run/Figures.h).
     std::string plotDir;
+    std::string plotFormat = "png"; ///< the plots' picture format: png, svg, pdf, exr or tif
     bool dryRun = false;
     int threads = 0;
 };
