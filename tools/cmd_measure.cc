@@ -4,11 +4,12 @@
 #include "CommandLine.h"
 #include "Commands.h"
 #include "Console.h"
-#include "Figures.h"
 
 #include <turb/Error.h>
 #include <turb/Measure.h>
+#include <turb/run/Figures.h>
 #include <turb/run/Measure.h>
+#include <turb/run/Settings.h>
 
 #include <nlohmann/json.hpp>
 
@@ -20,12 +21,12 @@ namespace vdbturb {
 
 namespace {
 
-struct MeasureArgs : turb::run::MeasureJob
+using turb::run::MeasureJob;
+
+struct MeasureArgs : MeasureJob
 {
-    std::string plotFormat = "png";
-    bool json = false;          // accepted for symmetry with the other commands; JSON is always written
-    bool spectraJson = false;   // include the E(k) arrays in the JSON lines
-    bool computeSpectra = true; // --plot and --spectra compute them whatever this says
+    bool json = false;        // accepted for symmetry with the other commands; JSON is always written
+    bool spectraJson = false; // include the E(k) arrays in the JSON lines
 };
 
 void plotSpectrum(const MeasureArgs& a, const turb::FrameMeasures& m, int f)
@@ -33,7 +34,7 @@ void plotSpectrum(const MeasureArgs& a, const turb::FrameMeasures& m, int f)
     if (a.plotDir.empty()) return;
     char name[64];
     std::snprintf(name, sizeof(name), "/spectrum.%04d.%s", f, a.plotFormat.c_str());
-    writeSpectrumFigure(a.plotDir + name, m, "E(k) frame " + std::to_string(f));
+    turb::run::writeSpectrumFigure(a.plotDir + name, m, "E(k) frame " + std::to_string(f));
 }
 
 // The frame's human line on stderr and its JSON line on stdout.
@@ -68,10 +69,10 @@ void reportSummary(const turb::run::MeasureRun& run, const turb::MeasureSettings
 int runMeasure(MeasureArgs& a)
 {
     const auto t0 = std::chrono::steady_clock::now();
-    a.spectra = a.computeSpectra || !a.plotDir.empty() || a.spectraJson;
+    a.spectra = a.spectra || !a.plotDir.empty() || a.spectraJson; // --plot and --spectra need them whatever it says
     a.dryRun = globals().dryRun;
     a.threads = globals().threads;
-    if (std::string why; !a.plotDir.empty() && !gnuplotAvailable(why)) throw turb::Error(why);
+    if (std::string why; !a.plotDir.empty() && !turb::run::gnuplotAvailable(why)) throw turb::Error(why);
     const turb::run::MeasureRun run = turb::run::runMeasure(a, [&](const turb::run::MeasuredFrame& f) {
         plotSpectrum(a, *f.measures, f.frame);
         reportFrame(a, f);
@@ -80,7 +81,8 @@ int runMeasure(MeasureArgs& a)
     if (a.dryRun) return kOk;
     if (!a.plotDir.empty() && !run.frames.empty()) {
         const std::string ext = "." + a.plotFormat;
-        writeMetricsFigure(a.plotDir + "/metrics" + ext, run.frames, "vdbturb measure: " + run.outputPattern);
+        turb::run::writeMetricsFigure(
+            a.plotDir + "/metrics" + ext, run.frames, "vdbturb measure: " + run.outputPattern);
         logInfo("plots: " + a.plotDir + "/metrics" + ext + ", " + a.plotDir + "/spectrum.####" + ext);
     }
     turb::MeasureSettings s = a.settings;
@@ -88,48 +90,16 @@ int runMeasure(MeasureArgs& a)
     return run.failed ? kFailed : kOk;
 }
 
-// The second tier: the region and lattice a metric uses when the metadata does not say, and what to skip.
+// The second tier (turb::run::measureSettings()): the region and lattice a metric uses when the metadata does not say,
+// what to skip, the plots' format.
 void addMeasureSettings(CLI::App* app, MeasureArgs& a)
 {
-    turb::MeasureSettings& s = a.settings;
-    setting(app->add_option("--patch-size,--patchSize", s.patchSize,
-                   "Seam spacing for block, in output voxels (0: the output's vdbturb_patch_size metadata)")
-                ->check(CLI::Range(0, 0) | CLI::Range(2, 4096)),
-        "patchSize");
-    setting(app->add_option("--patch-origin,--patchOrigin", a.patchOrigin,
-                "An output voxel where a patch starts, X,Y,Z (default: vdbturb_patch_origin metadata, else 0,0,0)"),
-        "patchOrigin");
-    setting(app->add_option("--tile-borders", a.tileBorders,
-                "Space-tile border planes for tile_block and tile_div_rel, in output voxels, e.g. x:64;y:64 (default: "
-                "the output's vdbturb_tile_borders metadata, which farm join writes)"),
-        "tile-borders");
-    setting(app->add_option("--tile-border-width", s.tileBorderWidth,
-                   "Output voxels either side of a tile border that tile_* cover (0: 2 patch sizes)")
-                ->check(CLI::Range(0, 4096)),
-        "tile-border-width");
-    setting(addEnum<turb::Alignment>(app, "--align,--alignment", s.alignment,
-                {{"auto", turb::Alignment::Auto}, {"world", turb::Alignment::World}, {"index", turb::Alignment::Index}},
-                "Output against the refined target lattice: auto, world (the transforms) or index (the voxels)"),
-        "alignment");
-    setting(app->add_option("--source-extend-velocity,--sourceRead.extendVelocity", a.sourceExtend,
-                   "Continue the source's velocity this many voxels past its active region, as transfer reads it "
-                   "(0: as written)")
-                ->check(CLI::Range(0, 64)),
-        "sourceRead.extendVelocity");
-    // MeasureSettings::spectra under another key: --spectra is the everyday flag for the JSON arrays.
-    boolSetting(app, "--computeSpectra", a.computeSpectra,
-        "Energy spectra (false: skip the FFTs unless --plot or --spectra needs them)", "computeSpectra");
-    legacy(app->add_flag_function(
-               "--no-spectra", [&a](int64_t) { a.computeSpectra = false; }, ""),
-        "computeSpectra", "false");
-    boolSetting(app, "--structure", s.structure,
-        "The structure numbers aniso, isotropy, lattice, detail_scale and vort_peak (false: skip them)", "structure");
-    legacy(app->add_flag_function(
-               "--no-structure", [&s](int64_t) { s.structure = false; }, ""),
-        "structure", "false");
-    setting(app->add_option("--plot-format", a.plotFormat, "Picture format of --plot (exr and tif from gnuplot's PNG)")
-                ->check(CLI::IsMember({"png", "svg", "pdf", "exr", "tif"})),
-        "plot-format");
+    addSettings(app, static_cast<MeasureJob&>(a), turb::run::measureSettings(), turb::run::measureOldSpellings());
+    // The row's range [0, 4096] less 1 (its check of the text says so too): CLI11's union of two ranges names them in
+    // --help-all and in its error, as the option always has.
+    CLI::Option* patchSize = app->get_option("--patchSize");
+    patchSize->get_validator()->active(false);
+    patchSize->check(CLI::Range(0, 0) | CLI::Range(2, 4096));
 }
 
 } // namespace

@@ -36,32 +36,6 @@ CLI::Validator modesCheck()
         "MODES");
 }
 
-// The second tier: the slice, the density render's light and the colour ranges (docs/scenes.md).
-void addPictureSettings(CLI::App* app, PreviewArgs& a)
-{
-    setting(app->add_option("--slice", a.slice, "Slice position for speed/vorticity/lic, fraction along the view axis")
-                ->check(finiteIn(0.0, 1.0)),
-        "slice");
-    setting(app->add_option("--exposure", a.exposure, "Density render exposure, fixed for all frames")
-                ->check(finitePositive()),
-        "exposure");
-    setting(app->add_option("--extinction", a.extinction, "Optical depth per unit density per world unit")
-                ->check(finitePositive()),
-        "extinction");
-    setting(app->add_flag("--match-density", a.matchDensity,
-                "Draw each cache's density scaled to the first cache's peak (on the last row's frame, fixed for the "
-                "run; Blender's noise up-res writes about f times its base's density), labelled with the scale"),
-        "match-density");
-    setting(app->add_option("--speed-max", a.speedMax,
-                   "Speed at the top of the colour map (0: the last frame's 99.5th percentile)")
-                ->check(finitePositive()),
-        "speed-max");
-    setting(app->add_option("--vorticity-max", a.vorticityMax,
-                   "Vorticity at the top of the colour map (0: each cache's 99th percentile)")
-                ->check(finitePositive()),
-        "vorticity-max");
-}
-
 } // namespace
 
 Command previewCommand()
@@ -96,7 +70,8 @@ Command previewCommand()
         app->add_option("--sheet", a.sheet, "Write one contact sheet: rows = frames, columns = caches x modes")
             ->group(kGroupOutput);
         app->add_option("--title", a.title, "Title of the contact sheet (default: the labels)")->group(kGroupOutput);
-        addPictureSettings(app, a);
+        // The second tier: the slice, the density render's light and the colour ranges (docs/scenes.md).
+        addSettings(app, a, turb::run::previewSettings());
     };
     c.run = [args] { return runCommand(*args); };
     return c;

@@ -17,14 +17,12 @@ namespace {
 
 using turb::run::parseResolution;
 
-// The pressure solve's preconditioner (turb::scenes::SmokeSettings::pressureIncompleteCholesky).
-enum class Preconditioner { IncompleteCholesky, Jacobi };
+using turb::run::SimJob;
 
-struct SimArgs : turb::run::SimJob
+struct SimArgs : SimJob
 {
     bool json = false;
     bool list = false;
-    Preconditioner preconditioner = Preconditioner::IncompleteCholesky;
     const CLI::App* app = nullptr; ///< for the settings its frames record (--skip-existing)
 };
 
@@ -34,7 +32,6 @@ int runSim(SimArgs& a)
         writeData(turb::run::sceneListText());
         return kOk;
     }
-    a.incompleteCholesky = a.preconditioner == Preconditioner::IncompleteCholesky;
     // Frame k of a scene depends on its settings, --start and k only: the settings say all of it.
     if (a.scene != "ink") a.settingsText = commandSettingsText(*a.app, {});
     a.dryRun = globals().dryRun;
@@ -72,29 +69,6 @@ CLI::Validator frameCountCheck()
         "COUNT");
 }
 
-// The second tier: the solver's advection and pressure projection (docs/scenes.md has their measured effects).
-void addSolverSettings(CLI::App* app, SimArgs& a)
-{
-    using Scheme = turb::AdvectSettings::Scheme;
-    setting(addEnum<Scheme>(app, "--scheme", a.scheme,
-                {{"semi", Scheme::SemiLagrangian}, {"maccormack", Scheme::MacCormack}, {"bfecc", Scheme::BFECC}},
-                "Advection of density, temperature and velocity: semi (semi-Lagrangian), maccormack, bfecc"),
-        "scheme");
-    setting(app->add_option(
-                   "--tolerance,--pressureTolerance", a.pressureTolerance, "Pressure solve: max|div| after / before")
-                ->check(finiteIn(1e-12, 0.5)),
-        "pressureTolerance");
-    setting(addEnum<Preconditioner>(app, "--preconditioner", a.preconditioner,
-                {{"ic", Preconditioner::IncompleteCholesky}, {"jacobi", Preconditioner::Jacobi}},
-                "Pressure solve preconditioner: ic (incomplete Cholesky, one thread) or jacobi (all threads)"),
-        "preconditioner");
-    setting(app->add_option("--cfl", a.cfl, "Voxels the fastest flow may cross per substep")->check(finitePositive()),
-        "cfl");
-    setting(app->add_option("--max-substeps,--maxSubsteps", a.maxSubsteps, "Substeps per frame at most")
-                ->check(CLI::Range(1, 64)),
-        "maxSubsteps");
-}
-
 } // namespace
 
 Command simCommand()
@@ -127,7 +101,8 @@ Command simCommand()
                "Skip the frames already written by the same settings (farm wrappers' retries; the frames before the "
                "last one to write are simulated again, not written); a frame written otherwise is refused (exit 1)")
             ->group(kGroupOutput);
-        addSolverSettings(app, a);
+        // The second tier: the solver's advection and pressure projection (docs/scenes.md).
+        addSettings(app, static_cast<SimJob&>(a), turb::run::simSettings());
         a.app = app;
     };
     c.run = [args] { return runSim(*args); };

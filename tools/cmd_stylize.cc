@@ -5,7 +5,6 @@
 #include "Preflight.h"
 #include "StylizeCommon.h"
 
-#include <turb/Stylize.h>
 #include <turb/run/Stylize.h>
 
 #include <memory>
@@ -17,6 +16,7 @@ namespace vdbturb {
 namespace {
 
 using namespace stylize;
+using turb::run::StylizeJob;
 using turb::run::StylizeMethod;
 
 // The options given on the command line (or in a settings file) that the chosen method does not read, warned once.
@@ -62,12 +62,7 @@ void addInputOptions(CLI::App* app, StylizeArgs& a)
     app->add_option(
            "--frames", a.frames, "Frames, e.g. 1-150; a scene: a count N or a list (empty: all on disk; scene 1)")
         ->check(frameListCheck());
-    setting(app->add_option("--scene-size", a.sceneSize, "Built-in target size WxH"), "scene-size");
-    setting(app->add_option("--scene-speed", a.sceneSpeed,
-                "Built-in target: radians per frame at the centre (rise: widths per frame)"),
-        "scene-speed");
-    setting(
-        app->add_flag("--flow-y-up", a.flowYUp, "The flow images' G channel points up (Nuke, Houdini)"), "flow-y-up");
+    addSettingsFromTo(app, static_cast<StylizeJob&>(a), turb::run::stylizeSettings(), "scene-size", "flow-y-up");
     addReadOptions(app, a.read);
     // Only a --cache target reads grids: its grid and frame-rate choices are settings here.
     for (const char* name : {"density-grid", "vel-grid", "fps"})
@@ -88,60 +83,7 @@ void addOutputOptions(CLI::App* app, StylizeArgs& a)
         ->group(kGroupOutput);
     a.app = app;
     app->add_flag("--json", "One JSON line per frame and a summary on stdout");
-    setting(app->add_option("--write-target", a.writeTarget,
-                "Write the target per frame into DIR: alpha.####.png, motion.####.exr"),
-        "write-target");
-}
-
-// LazyFluids' knobs (Jamriška et al. 2015), under turb::StylizeSettings' field names; their measured effects are in
-// docs/stylize.md.
-void addLazyFluidsSettings(CLI::App* app, turb::StylizeSettings& s)
-{
-    const auto knob = [app](const std::string& names, auto& v, const std::string& help, const std::string& key) {
-        return setting(app->add_option(names, v, help), key);
-    };
-    setting(addEnum<turb::NnfMode>(app, "--nnf", s.nnf,
-                {{"uniform", turb::NnfMode::Uniform}, {"standard", turb::NnfMode::Standard}},
-                "uniform: reversed NNF, uniform patch usage (the paper); standard: nearest neighbours (the wash-out "
-                "ablation)"),
-        "nnf");
-    knob("--patch,--patchSize", s.patchSize, "Patch size in pixels, odd (paper 5)", "patchSize")
-        ->check(CLI::Range(3, 15));
-    knob("--lambda", s.lambda, "Temporal coherence lambda (paper 0.2; 0 = independent frames)", "lambda")
-        ->check(finiteIn(0.0));
-    knob("--eta", s.eta, "Weight of the blurred-alpha guide (paper 3)", "eta")->check(finiteIn(0.0));
-    knob("--blur-radius,--blurRadius", s.blurRadius, "r: Gaussian standard deviation (pixels) of the guide alpha",
-        "blurRadius")
-        ->check(finitePositive());
-    knob("--lower", s.lower, "l: boundary segment where the blurred alpha lies in (l, u)", "lower")
-        ->check(finiteIn(0.0, 1.0));
-    knob("--upper", s.upper, "u: interior segment where the blurred alpha >= u", "upper")->check(finiteIn(0.0, 1.0));
-    knob("--levels", s.levels, "Pyramid levels (0 = short sides >= 32 px, at most 5)", "levels")
-        ->check(CLI::Range(0, 8));
-    knob("--iterations", s.iterations, "EM iterations on each coarser level", "iterations")->check(CLI::Range(1, 50));
-    knob("--fine-iterations,--fineIterations", s.fineIterations, "EM iterations on the finest level", "fineIterations")
-        ->check(CLI::Range(1, 50));
-    knob("--sweeps", s.sweeps, "PatchMatch sweeps per retrieval round", "sweeps")->check(CLI::Range(1, 32));
-    setting(app->add_flag("--rotations", s.rotations, "Also use the exemplar rotated by 90, 180 and 270 degrees"),
-        "rotations");
-    knob("--motion-blur,--motionBlur", s.motionBlur, "Blur along F^t by this fraction of a frame's motion (0 = none)",
-        "motionBlur")
-        ->check(finiteIn(0.0));
-    knob("--vote-weight,--voteWeight", s.voteWeight,
-        "Beyond the paper: votes weighted by exp(-D / (w x the 75th percentile of D)) (Wexler 2007; 0 = the paper's "
-        "plain average)",
-        "voteWeight")
-        ->check(finiteIn(0.0));
-    boolSetting(app, "--startFromPrevious", s.startFromPrevious,
-        "Beyond the paper: later frames start every level from the previous output advected (false: coarse to fine, "
-        "the paper)",
-        "startFromPrevious");
-    knob("--preroll", s.preroll,
-        "Beyond the paper: a first frame is synthesised again N times as a held frame under the temporal term, so the "
-        "look does not step between frames 1 and 5 (0 = the paper's first frame)",
-        "preroll")
-        ->check(CLI::Range(0, 100));
-    knob("--seed", s.seed, "Random seed: the same seed gives the same frames at any --threads", "seed");
+    addSettingsFromTo(app, static_cast<StylizeJob&>(a), turb::run::stylizeSettings(), "write-target", "write-target");
 }
 
 } // namespace
@@ -162,7 +104,8 @@ Command stylizeCommand()
         addInputOptions(app, a);
         addOutputOptions(app, a);
         const size_t before = app->get_options().size();
-        addLazyFluidsSettings(app, a.settings);
+        // LazyFluids' knobs (Jamriška et al. 2015; docs/stylize.md).
+        addSettingsFromTo(app, static_cast<StylizeJob&>(a), turb::run::stylizeSettings(), "nnf", "seed");
         const std::vector<CLI::Option*> all = app->get_options();
         for (size_t i = before; i < all.size(); ++i)
             if (!all[i]->check_lname("seed")) a.lazyFluidsOnly.push_back(all[i]); // fluidymation reads the seed

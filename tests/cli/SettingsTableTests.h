@@ -56,7 +56,9 @@ double otherValue(const turb::run::Setting<Job>& s, double current, int index)
     const double lo = std::isfinite(s.lo) ? s.lo : 0.0;
     const double hi = std::isfinite(s.hi) ? s.hi : lo + 1000.0;
     const double v = std::floor(lo + 1.0 + index);
-    return v <= hi && v != current ? v : (current == lo ? hi : lo);
+    for (const double c : {v, v + 1.0, s.lowOpen ? hi : lo, hi, 0.5 * (lo + hi)}) // the first valid one unlike it
+        if (c != current && s.whyInvalid(c).empty()) return c;
+    return v;
 }
 
 // Sets `s` in `job` to a valid value unlike its default: a text one among its only values, or a grid ("2x2", valid

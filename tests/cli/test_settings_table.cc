@@ -4,6 +4,11 @@
 // passes are SettingsTableTests.h's.
 #include "SettingsTableTests.h"
 
+#include <turb/run/CacheCamera.h>
+#include <turb/run/Measure.h>
+#include <turb/run/Preview.h>
+#include <turb/run/Sim.h>
+#include <turb/run/Stylize.h>
 #include <turb/run/Synth.h>
 #include <turb/run/Transfer.h>
 
@@ -11,6 +16,11 @@
 
 namespace {
 
+using turb::run::CacheCamera;
+using turb::run::MeasureJob;
+using turb::run::PreviewJob;
+using turb::run::SimJob;
+using turb::run::StylizeJob;
 using turb::run::SynthJob;
 using turb::run::TransferJob;
 
@@ -44,7 +54,62 @@ struct TableOf<SynthJob>
     }
 };
 
-using Jobs = ::testing::Types<TransferJob, SynthJob>;
+template<>
+struct TableOf<MeasureJob>
+{
+    static const turb::run::SettingsTable<MeasureJob>& rows() { return turb::run::measureSettings(); }
+    static constexpr const char* kName = "Measure";
+    static constexpr const char* kCommand = "measure --output o --target t";
+    static constexpr size_t kMinRows = 8;
+    static constexpr const char* kOldSpellings = "--no-spectra --no-structure";
+    static std::vector<std::string> oldLines() { return {"\ncomputeSpectra=false\n", "\nstructure=false\n"}; }
+};
+
+template<>
+struct TableOf<SimJob>
+{
+    static const turb::run::SettingsTable<SimJob>& rows() { return turb::run::simSettings(); }
+    static constexpr const char* kName = "Sim";
+    static constexpr const char* kCommand = "sim plume";
+    static constexpr size_t kMinRows = 4;
+    static constexpr const char* kOldSpellings = "";
+    static std::vector<std::string> oldLines() { return {}; }
+};
+
+template<>
+struct TableOf<PreviewJob>
+{
+    static const turb::run::SettingsTable<PreviewJob>& rows() { return turb::run::previewSettings(); }
+    static constexpr const char* kName = "Preview";
+    static constexpr const char* kCommand = "preview a.####.vdb";
+    static constexpr size_t kMinRows = 5;
+    static constexpr const char* kOldSpellings = "";
+    static std::vector<std::string> oldLines() { return {}; }
+};
+
+template<>
+struct TableOf<CacheCamera> // stylize's and animate's camera; stylize declares them too
+{
+    static const turb::run::SettingsTable<CacheCamera>& rows() { return turb::run::cacheCameraSettings(); }
+    static constexpr const char* kName = "CacheCamera";
+    static constexpr const char* kCommand = "stylize --exemplar e";
+    static constexpr size_t kMinRows = 6;
+    static constexpr const char* kOldSpellings = "";
+    static std::vector<std::string> oldLines() { return {}; }
+};
+
+template<>
+struct TableOf<StylizeJob>
+{
+    static const turb::run::SettingsTable<StylizeJob>& rows() { return turb::run::stylizeSettings(); }
+    static constexpr const char* kName = "Stylize";
+    static constexpr const char* kCommand = "stylize --exemplar e";
+    static constexpr size_t kMinRows = 50;
+    static constexpr const char* kOldSpellings = "--no-reuse";
+    static std::vector<std::string> oldLines() { return {"\nfluidy.reusePrevious=false\n"}; }
+};
+
+using Jobs = ::testing::Types<TransferJob, SynthJob, MeasureJob, SimJob, PreviewJob, CacheCamera, StylizeJob>;
 INSTANTIATE_TYPED_TEST_SUITE_P(Tables, SettingsTable, Jobs, TableName);
 
 TEST(TransferSettingsTable, RowsNameTheFieldsOfTheirKeys)
@@ -118,6 +183,112 @@ TEST(SynthSettingsTable, RowsNameTheFieldsOfTheirKeys)
     EXPECT_EQ(rowOf("slice-z").text(defaults), "-1");
     EXPECT_THROW(rowOf("slice-z").setText(job, "-1"), turb::ValueError);
     EXPECT_EQ(rowOf("synth.robustExponent").get(defaults), turb::SynthSettings{}.robustExponent);
+}
+
+// `key` refuses `text`, naming itself.
+template<typename Job>
+bool refuses(const std::string& key, const std::string& text)
+{
+    Job job;
+    try {
+        rowOf<Job>(key).setText(job, text);
+    } catch (const turb::ValueError& e) {
+        EXPECT_NE(std::string(e.what()).find(key), std::string::npos) << e.what();
+        return true;
+    }
+    return false;
+}
+
+TEST(MeasureSettingsTable, RowsNameTheirFieldsAndRefuseWhatTheOptionsRefuse)
+{
+    MeasureJob job;
+    rowOf<MeasureJob>("patchSize").setText(job, "8");
+    rowOf<MeasureJob>("sourceRead.extendVelocity").setText(job, "3");
+    rowOf<MeasureJob>("computeSpectra").setText(job, "false");
+    rowOf<MeasureJob>("alignment").setText(job, "index");
+    rowOf<MeasureJob>("plot-format").setText(job, "svg");
+    EXPECT_EQ(job.settings.patchSize, 8);
+    EXPECT_EQ(job.sourceExtend, 3);
+    EXPECT_FALSE(job.spectra);
+    EXPECT_EQ(job.settings.alignment, turb::Alignment::Index);
+    EXPECT_EQ(job.plotFormat, "svg");
+    EXPECT_TRUE(refuses<MeasureJob>("patchSize", "1")); // 0 (the metadata's) or 2..4096
+    EXPECT_TRUE(refuses<MeasureJob>("patchSize", "4097"));
+    EXPECT_FALSE(refuses<MeasureJob>("patchSize", "0"));
+    EXPECT_TRUE(refuses<MeasureJob>("tile-border-width", "-1"));
+    EXPECT_TRUE(refuses<MeasureJob>("sourceRead.extendVelocity", "65"));
+    EXPECT_TRUE(refuses<MeasureJob>("alignment", "sideways"));
+    EXPECT_TRUE(refuses<MeasureJob>("plot-format", "gif"));
+    // The old spellings still set them.
+    const clitest::Result old =
+        clitest::run("measure --output o --target t --no-spectra --no-structure --print-settings", false);
+    ASSERT_EQ(old.code, 0) << old.out;
+    for (const char* set : {"\ncomputeSpectra=false\n", "\nstructure=false\n"})
+        EXPECT_NE(old.out.find(set), std::string::npos) << set << "\n" << old.out;
+}
+
+TEST(SimSettingsTable, RowsNameTheirFieldsAndRefuseWhatTheOptionsRefuse)
+{
+    SimJob job;
+    rowOf<SimJob>("preconditioner").setText(job, "jacobi");
+    rowOf<SimJob>("scheme").setText(job, "bfecc");
+    rowOf<SimJob>("pressureTolerance").setText(job, "0.001");
+    EXPECT_FALSE(job.incompleteCholesky);
+    EXPECT_EQ(job.scheme, turb::AdvectSettings::Scheme::BFECC);
+    EXPECT_EQ(job.pressureTolerance, 0.001);
+    EXPECT_EQ(rowOf<SimJob>("preconditioner").text(SimJob{}), "ic");
+    EXPECT_TRUE(refuses<SimJob>("pressureTolerance", "0.6"));
+    EXPECT_TRUE(refuses<SimJob>("cfl", "0")); // > 0
+    EXPECT_TRUE(refuses<SimJob>("cfl", "nan"));
+    EXPECT_TRUE(refuses<SimJob>("maxSubsteps", "65"));
+    EXPECT_TRUE(refuses<SimJob>("preconditioner", "gauss"));
+}
+
+TEST(PreviewSettingsTable, RowsNameTheirFieldsAndRefuseWhatTheOptionsRefuse)
+{
+    PreviewJob job;
+    rowOf<PreviewJob>("slice").setText(job, "0.25");
+    rowOf<PreviewJob>("speed-max").setText(job, "4");
+    rowOf<PreviewJob>("match-density").setText(job, "true");
+    EXPECT_EQ(job.slice, 0.25);
+    EXPECT_EQ(job.speedMax, 4.0f);
+    EXPECT_TRUE(job.matchDensity);
+    EXPECT_TRUE(refuses<PreviewJob>("slice", "1.5"));
+    EXPECT_TRUE(refuses<PreviewJob>("exposure", "0"));
+    EXPECT_TRUE(refuses<PreviewJob>("speed-max", "0")); // its default, "from the picture", is not given
+    EXPECT_TRUE(refuses<PreviewJob>("vorticity-max", "inf"));
+}
+
+TEST(StylizeSettingsTable, RowsNameTheirFieldsAndRefuseWhatTheOptionsRefuse)
+{
+    StylizeJob job;
+    rowOf<StylizeJob>("camera-pos").setText(job, "1,2,3");
+    rowOf<StylizeJob>("step").setText(job, "0.25");
+    rowOf<StylizeJob>("patchSize").setText(job, "7");
+    rowOf<StylizeJob>("fluidy.patchSize").setText(job, "9");
+    rowOf<StylizeJob>("seed").setText(job, "18446744073709551615");
+    rowOf<StylizeJob>("fluidy.reusePrevious").setText(job, "false");
+    EXPECT_EQ(job.camera.position, "1,2,3");
+    EXPECT_EQ(job.camera.step, 0.25f);
+    EXPECT_EQ(job.settings.patchSize, 7);
+    EXPECT_EQ(job.fluidy.settings.patchSize, 9);
+    EXPECT_EQ(job.settings.seed, 18446744073709551615ull);
+    EXPECT_FALSE(job.fluidy.settings.reusePrevious);
+    // The camera's rows are the cache camera's table's, on StylizeJob::camera.
+    const auto& camera = turb::run::cacheCameraSettings();
+    for (size_t i = 0; i < camera.size(); ++i) EXPECT_EQ(turb::run::stylizeSettings()[i].key, camera[i].key);
+    EXPECT_TRUE(refuses<StylizeJob>("fov", "0.5"));
+    EXPECT_TRUE(refuses<StylizeJob>("extinction", "0"));
+    EXPECT_TRUE(refuses<StylizeJob>("patchSize", "2"));
+    EXPECT_TRUE(refuses<StylizeJob>("blurRadius", "0"));
+    EXPECT_TRUE(refuses<StylizeJob>("nnf", "other"));
+    EXPECT_TRUE(refuses<StylizeJob>("mask-threshold", "0"));
+    EXPECT_TRUE(refuses<StylizeJob>("fluidy.boundaryBlur", "0.05"));
+    EXPECT_TRUE(refuses<StylizeJob>("fluidy.dirClamp", "0"));
+    EXPECT_TRUE(refuses<StylizeJob>("fluidy.fineSweeps", "33"));
+    const clitest::Result old = clitest::run("stylize --exemplar e --no-reuse --print-settings", false);
+    ASSERT_EQ(old.code, 0) << old.out;
+    EXPECT_NE(old.out.find("\nfluidy.reusePrevious=false\n"), std::string::npos) << old.out;
 }
 
 } // namespace

@@ -40,7 +40,7 @@ OUTSIDE = {
 TOOLS_LEVELS = [
     {"Validators", "CommandLine"},
     {"Console"},
-    {"Commands", "Options", "Preflight", "RunReport", "Figures", "StylizeCommon"},
+    {"Commands", "Options", "Preflight", "RunReport", "StylizeCommon"},
     {"cmd_*"},
     {"main", "cli_main", "vdbturb_module"},
 ]

@@ -41,6 +41,18 @@ Setting<Job>& add(SettingsTable<Job>& table, const char* key, const char* alias,
     return r;
 }
 
+/// Appends `part`'s rows to `table`, each reaching its field in the part `of(job)` of a job: the cache camera's rows on
+/// StylizeJob::camera.
+template<typename Job, typename Part, typename Of>
+void addPart(SettingsTable<Job>& table, const SettingsTable<Part>& part, Of of)
+{
+    for (const Setting<Part>& p : part) {
+        Setting<Job>& r = table.emplace_back();
+        static_cast<SettingRow&>(r) = p;
+        r.field = [field = p.field, of](Job& job) { return field(of(job)); };
+    }
+}
+
 } // namespace turb::run::detail
 
 /// The field `path` of the job a table row describes ("settings.seams.gamma").

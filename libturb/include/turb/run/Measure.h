@@ -28,8 +28,9 @@ struct MeasureJob
     turbio::ReadOptions read;
     int sourceExtend = 0; ///< source velocity continued this many voxels past its active region (0: as written)
     /// Where the caller draws its plots (spectrum.####.png, metrics.png): checked as outputs before the first frame
-    /// and created; empty: none. The plots are the caller's (charts are not the library's).
+    /// and created; empty: none. The run draws none itself: the caller draws them as it goes (turb/run/Figures.h).
     std::string plotDir;
+    std::string plotFormat = "png"; ///< the plots' picture format: png, svg, pdf, exr or tif
     bool dryRun = false;
     int threads = 0;
 };

@@ -121,6 +121,32 @@ const SettingsTable<AnimateJob>& animateSettings();
 /// animate's older spellings of those settings (`--hm-exact-cells` for hm.blendPixels = false).
 const std::vector<OldSpelling>& animateOldSpellings();
 
+// measure, sim, preview and stylize, and the cache camera stylize and animate share.
+struct MeasureJob;
+struct SimJob;
+struct PreviewJob;
+struct StylizeJob;
+struct CacheCamera;
+
+/// The second tier of MeasureJob: the region and lattice a metric uses when the metadata does not say, what to skip,
+/// and the plots' format (docs/measure.md). Made once; valid for the process's life.
+const SettingsTable<MeasureJob>& measureSettings();
+/// measure's older spellings: --no-spectra, --no-structure.
+const std::vector<OldSpelling>& measureOldSpellings();
+/// The second tier of SimJob: the solver's advection and pressure projection (docs/scenes.md).
+const SettingsTable<SimJob>& simSettings();
+/// The second tier of PreviewJob: the slice, the density render's light and the colour ranges (docs/scenes.md).
+const SettingsTable<PreviewJob>& previewSettings();
+/// The cache camera's second tier (the perspective camera's placement, the image height, the ray march): stylize's
+/// and animate's, under the same keys.
+const SettingsTable<CacheCamera>& cacheCameraSettings();
+/// The second tier of StylizeJob, in the order --help-all lists it: the cache camera's rows (cacheCameraSettings()
+/// on StylizeJob::camera), the built-in target, LazyFluids' knobs (docs/stylize.md) and Fluidymation's
+/// (docs/fluidymation.md, their help marked "[fluidymation]").
+const SettingsTable<StylizeJob>& stylizeSettings();
+/// stylize's older spellings: --no-reuse.
+const std::vector<OldSpelling>& stylizeOldSpellings();
+
 /// Sets or reads a field through its reference (the implementation of Setting's members).
 void setField(const SettingRow& row, const FieldRef& ref, double v);
 double getField(const FieldRef& ref);

@@ -1,18 +1,18 @@
-#include "Figures.h"
-
+// measure --plot's figures (turb/run/Figures.h): gnuplot scripts with their data inline, run by gnuplot.
 #include <turb/Error.h>
+#include <turb/run/Figures.h>
 #include <turbio/ImageIO.h>
+#include <turbio/Vdb.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
-#include <fstream>
 #include <limits>
 #include <sstream>
 
-namespace vdbturb {
+namespace turb::run {
 
 namespace {
 
@@ -72,13 +72,9 @@ void render(const std::string& path, const std::string& script, int width, int h
         terminal = "pngcairo noenhanced size " + std::to_string(width) + "," + std::to_string(height) +
                    " font \"DejaVu Sans,11\"";
     const std::string gp = path + ".gp";
-    {
-        std::ofstream f(gp);
-        f << "# vdbturb measure --plot: gnuplot " << gp << " redraws " << drawn << "\n"
-          << "set terminal " << terminal << "\nset output " << quoted(drawn) << "\n"
-          << script;
-        if (!f) throw turb::IoError(gp + ": cannot write the plot script");
-    }
+    // Through turb_io as every file of the entry points: a failed write leaves nothing and names the script.
+    turbio::writeFileAtomic(gp, "# vdbturb measure --plot: gnuplot " + gp + " redraws " + drawn + "\nset terminal " +
+                                    terminal + "\nset output " + quoted(drawn) + "\n" + script);
     const std::string cmd = "gnuplot " + quoted(gp) + " 2>&1";
     std::string said;
     if (std::FILE* p = ::popen(cmd.c_str(), "r")) {
@@ -207,4 +203,4 @@ void writeMetricsFigure(
     render(path, os.str(), 1920, 860);
 }
 
-} // namespace vdbturb
+} // namespace turb::run
