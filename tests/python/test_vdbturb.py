@@ -180,13 +180,32 @@ class ModuleAgainstCli(unittest.TestCase):
     def test_preview_draws_the_cli_picture(self):
         cache = os.path.join(DATA, "blender-plume2-32", "fluid_data_####.vdb")
         module_png = os.path.join(self.work, "pic", "m.####.png")
-        r = vdbturb.preview(cache, out=module_png, frames=[2], width=64, mode="density,speed", threads=2)
+        r = vdbturb.preview(cache, out=module_png, frames=[2], width=64, mode="density,speed", threads=2,
+                            settings=vdbturb.PreviewSettings(exposure=2.0, speed_max=3.0))
         self.assertEqual([f["frame"] for f in r["frames"]], [2])
         code, _, err = cli("preview", cache, "--out", os.path.join(self.work, "pic", "c.####.png"), "--frames", "2",
-                           "--width", "64", "--mode", "density,speed", "--threads", "2", "-q")
+                           "--width", "64", "--mode", "density,speed", "--threads", "2", "-q", "--exposure", "2",
+                           "--speed-max", "3")
         self.assertEqual(code, 0, err)
         self.assertEqual(read_bytes(os.path.join(self.work, "pic", "m.0002.png")),
                          read_bytes(os.path.join(self.work, "pic", "c.0002.png")))
+
+    def test_sim_and_measure_take_their_settings_objects(self):
+        solver = vdbturb.SimSettings(scheme="semi", cfl=3.0)
+        self.assertEqual(solver.args(), ["--scheme=semi", "--cfl=3"])
+        mine, theirs = (os.path.join(self.work, "sim", n, "p.####.vdb") for n in ("module", "cli"))
+        vdbturb.sim("plume", res="16", frames=2, out=mine, settings=solver, threads=2)
+        code, _, err = cli("sim", "plume", "--res", "16", "--frames", "2", "--out", theirs, "--threads", "2", "-q",
+                           "--scheme", "semi", "--cfl", "3")
+        self.assertEqual(code, 0, err)
+        for f in ("p.0001.vdb", "p.0002.vdb"):
+            self.assertTrue(same_vdb_bytes(mine.replace("p.####.vdb", f), theirs.replace("p.####.vdb", f)), f)
+        m = vdbturb.measure(output=mine, target=mine, settings=vdbturb.MeasureSettings(patchSize=4), threads=2)
+        code, stdout, err = cli("measure", "--output", mine, "--target", mine, "--patchSize", "4", "--threads", "2")
+        self.assertEqual(code, 0, err)
+        self.assertEqual([without_timing(f) for f in m["frames"]], [without_timing(f) for f in json_lines(stdout)[:-1]])
+        with self.assertRaisesRegex(ValueError, "patchSize"):
+            vdbturb.MeasureSettings(patchSize=1)  # 0 (the metadata's) or 2..4096
 
     def test_progress_is_called_once_per_frame(self):
         self.assertEqual(self.calls, [(1, 1, 3), (2, 2, 3), (3, 3, 3)])

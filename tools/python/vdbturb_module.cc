@@ -6,7 +6,10 @@
 
 #include <turb/Error.h>
 #include <turb/Measure.h>
+#include <turb/run/Measure.h>
+#include <turb/run/Preview.h>
 #include <turb/run/Settings.h>
+#include <turb/run/Sim.h>
 #include <turb/run/Transfer.h>
 #include <turbio/Vdb.h>
 
@@ -508,6 +511,9 @@ py::dict frameCommand(const std::string& command, const std::vector<py::object>&
     py::object progress = progressOf(kwargs);
     std::vector<std::string> fromObject;
     if (command == "transfer") expandSettingsObject(kwargs, turb::run::transferSettings(), fromObject);
+    if (command == "measure") expandSettingsObject(kwargs, turb::run::measureSettings(), fromObject);
+    if (command == "sim") expandSettingsObject(kwargs, turb::run::simSettings(), fromObject);
+    if (command == "preview") expandSettingsObject(kwargs, turb::run::previewSettings(), fromObject);
     std::vector<std::string> words = commandWords(command, positionals, kwargs);
     // Before the keywords' options, whose JSON flag ends the line: the order is the settings object's.
     words.insert(words.begin() + 1, fromObject.begin(), fromObject.end());
@@ -786,4 +792,12 @@ PYBIND11_MODULE(vdbturb, m)
         "TransferSettings(temporalBlend=0.9, seams_gamma=4.0, alignment='rotate'). Keywords and attributes are the "
         "settings' keys with '.' as '_'; values are checked as the CLI checks them (ValueError, TypeError). "
         "Pass it as transfer(..., settings=obj); describe() lists every setting with its default and range.");
+    defineSettingsClass(m, "MeasureSettings", turb::run::measureSettings(),
+        "measure's second tier (vdbturb measure --help-all) as an object, as TransferSettings: "
+        "measure(..., settings=MeasureSettings(patchSize=8, alignment='index')).");
+    defineSettingsClass(m, "SimSettings", turb::run::simSettings(),
+        "sim's solver settings (vdbturb sim --help-all) as an object, as TransferSettings: "
+        "sim('plume', settings=SimSettings(scheme='bfecc', cfl=2.0)).");
+    defineSettingsClass(m, "PreviewSettings", turb::run::previewSettings(),
+        "preview's second tier (vdbturb preview --help-all) as an object, as TransferSettings.");
 }
