@@ -238,9 +238,32 @@ CLI::Option* legacy(CLI::Option* o, const std::string& setsKey, const std::strin
 }
 
 namespace detail {
-void registerEnumNames(const CLI::Option* o, std::map<std::string, std::string> byValue)
+CLI::Option* addEnumOption(CLI::App* app, const std::string& names,
+    const std::vector<std::pair<std::string, long long>>& choices, long long current,
+    std::function<void(long long)> set, const std::string& help)
 {
-    enumNames()[o] = std::move(byValue);
+    std::map<std::string, std::string> toValue, toName; // "rotation" -> "2" (what CLI11 then converts), and back
+    std::string type, currentName;
+    for (const auto& [name, v] : choices) {
+        const std::string number = std::to_string(v);
+        toValue[name] = number;
+        toName.emplace(number, name);
+        type += (type.empty() ? "" : "|") + name;
+        if (v == current && currentName.empty()) currentName = name;
+    }
+    CLI::Option* o = app->add_option_function<long long>(names, std::move(set), help)
+                         ->transform(CLI::Validator(
+                             [toValue, type](std::string& s) {
+                                 const auto it = toValue.find(s);
+                                 if (it == toValue.end()) return "'" + s + "' is not one of " + type;
+                                 s = it->second;
+                                 return std::string();
+                             },
+                             ""))
+                         ->type_name(type)
+                         ->default_str(currentName);
+    enumNames()[o] = std::move(toName);
+    return o;
 }
 } // namespace detail
 

@@ -72,8 +72,11 @@ CLI::Option* setting(CLI::Option* o, const std::string& key);
 CLI::Option* legacy(CLI::Option* o, const std::string& setsKeys, const std::string& value = "");
 
 namespace detail {
-void registerEnumNames(const CLI::Option* o, std::map<std::string, std::string> byValue);
-}
+/// addEnum without the enum's type: `choices` name the numbers `set` receives; `current` is the default's number.
+CLI::Option* addEnumOption(CLI::App* app, const std::string& names,
+    const std::vector<std::pair<std::string, long long>>& choices, long long current,
+    std::function<void(long long)> set, const std::string& help);
+} // namespace detail
 
 /// An option bound to an enum setting: `choices` name its values (the first of a value's names is the one
 /// printed as its default and by --print-settings). A name outside `choices` is refused with the list.
@@ -81,28 +84,11 @@ template<typename E>
 CLI::Option* addEnum(CLI::App* app, const std::string& names, E& value,
     const std::vector<std::pair<std::string, E>>& choices, const std::string& help)
 {
-    std::map<std::string, std::string> toValue, toName; // "rotation" -> "2" (what CLI11 then converts), and back
-    std::string type, current;
-    for (const auto& [name, v] : choices) {
-        const std::string number = std::to_string(static_cast<long long>(v));
-        toValue[name] = number;
-        toName.emplace(number, name);
-        type += (type.empty() ? "" : "|") + name;
-        if (v == value && current.empty()) current = name;
-    }
-    CLI::Option* o = app->add_option(names, value, help)
-                         ->transform(CLI::Validator(
-                             [toValue, type](std::string& s) {
-                                 const auto it = toValue.find(s);
-                                 if (it == toValue.end()) return "'" + s + "' is not one of " + type;
-                                 s = it->second;
-                                 return std::string();
-                             },
-                             ""))
-                         ->type_name(type)
-                         ->default_str(current);
-    detail::registerEnumNames(o, std::move(toName));
-    return o;
+    std::vector<std::pair<std::string, long long>> numbered;
+    for (const auto& [name, v] : choices) numbered.emplace_back(name, static_cast<long long>(v));
+    return detail::addEnumOption(
+        app, names, numbered, static_cast<long long>(value), [&value](long long n) { value = static_cast<E>(n); },
+        help);
 }
 
 /// A boolean setting given as `KEY=true|false` (on the command line --KEY=false), its default printed as a word.

@@ -86,31 +86,14 @@ std::vector<std::string> splitCommas(const std::string& text)
     return parts;
 }
 
-// An enum setting's option: names in, numbers stored (as addEnum, without knowing the enum's type).
+// An enum setting's option: addEnum without knowing the enum's type.
 CLI::Option* addEnumField(
     CLI::App* app, const std::string& names, const turb::run::SettingRow& row, const turb::run::EnumField& field)
 {
-    std::map<std::string, std::string> toValue, toName;
-    std::string type, current;
-    for (const turb::run::Choice& c : row.choices) {
-        toValue[c.name] = std::to_string(c.value);
-        toName.emplace(std::to_string(c.value), c.name);
-        type += (type.empty() ? "" : "|") + c.name;
-        if (c.value == field.get() && current.empty()) current = c.name;
-    }
-    CLI::Option* o = app->add_option_function<int>(names, field.set, row.help)
-                         ->transform(CLI::Validator(
-                             [toValue, type](std::string& s) {
-                                 const auto it = toValue.find(s);
-                                 if (it == toValue.end()) return "'" + s + "' is not one of " + type;
-                                 s = it->second;
-                                 return std::string();
-                             },
-                             ""))
-                         ->type_name(type)
-                         ->default_str(current);
-    detail::registerEnumNames(o, std::move(toName));
-    return o;
+    std::vector<std::pair<std::string, long long>> choices;
+    for (const turb::run::Choice& c : row.choices) choices.emplace_back(c.name, c.value);
+    return detail::addEnumOption(
+        app, names, choices, field.get(), [set = field.set](long long n) { set(int(n)); }, row.help);
 }
 
 // A number's range check: finiteIn's and finitePositive's messages where they fit, else the row's own.
