@@ -209,6 +209,11 @@ Command animateCommand()
             {{"steerable", HmMode::Steerable}, {"laplacian", HmMode::Laplacian}, {"off", HmMode::Off}},
             "Histogram matching: steerable (Heeger-Bergen), laplacian (one pass, the fast preview) or off");
         addAnimateSettings(app, a);
+        setting(addEnum<turb::GivenFlow>(app, "--analysis.givenFlow", a.settings.analysis.givenFlow,
+                    {{"best", turb::GivenFlow::Best}, {"use", turb::GivenFlow::Use}, {"track", turb::GivenFlow::Track}},
+                    "v of a cache example: best (its projected velocity or the tracked flow, whichever leaves the "
+                    "smaller residuals), use (the velocity) or track (the paper's tracking)"),
+            "analysis.givenFlow");
     };
     c.run = [args] { return runAnimate(*args); };
     return c;

@@ -31,9 +31,14 @@ nlohmann::json statsJson(const turb::AnimateStats& st)
 {
     nlohmann::json j;
     j["example"] = {{"pairs", st.analysis.pairs}, {"pairs_tracked", st.analysis.pairsUsed},
-        {"tracks_per_pair", st.analysis.tracksPerPair}, {"mean_speed", st.analysis.meanSpeed},
-        {"rms_difference", st.analysis.rmsDifference}, {"rms_residual", st.analysis.rmsResidual},
-        {"flow_given", st.analysis.flowGiven}};
+        {"tracks_per_pair", st.analysis.tracksPerPair}, {"track_speed", st.analysis.trackSpeed},
+        {"mean_speed", st.analysis.meanSpeed}, {"rms_difference", st.analysis.rmsDifference},
+        {"rms_residual", st.analysis.rmsResidual}, {"flow_given", st.analysis.flowGiven}};
+    // A given flow (a cache's) weighed against the tracked one: the residuals each left (analysis.givenFlow best).
+    if (st.analysis.rmsResidualGiven > 0.0 || st.analysis.rmsResidualTracked > 0.0) {
+        j["example"]["rms_residual_given_flow"] = st.analysis.rmsResidualGiven;
+        j["example"]["rms_residual_tracked_flow"] = st.analysis.rmsResidualTracked;
+    }
     j["design_mean_speed"] = st.designMeanSpeed;
     j["transfer"] = {{"patches", st.transfer.patches}, {"pasted", st.transfer.pasted},
         {"mean_cost", st.transfer.meanCost}, {"max_cost", st.transfer.maxCost}, {"covered", st.transfer.covered},
@@ -156,8 +161,13 @@ struct FrameWriter
 
 void logStages(const turb::AnimateStats& st)
 {
-    logInfo("animate: example flow " + fmt("%.2f px/frame", st.analysis.meanSpeed) +
-            (st.analysis.flowGiven ? " (from the cache)" : "") + ", residual rms " +
+    const bool weighed = st.analysis.rmsResidualGiven > 0.0 || st.analysis.rmsResidualTracked > 0.0;
+    const std::string source = !weighed
+                                   ? (st.analysis.flowGiven ? " (from the cache)" : "")
+                                   : std::string(st.analysis.flowGiven ? " (the cache's" : " (tracked: the cache's") +
+                                         " flow left residual rms " + fmt("%.4f", st.analysis.rmsResidualGiven) +
+                                         ", the tracked " + fmt("%.4f", st.analysis.rmsResidualTracked) + ")";
+    logInfo("animate: example flow " + fmt("%.2f px/frame", st.analysis.meanSpeed) + source + ", residual rms " +
             fmt("%.4f", st.analysis.rmsResidual) + " vs difference rms " + fmt("%.4f", st.analysis.rmsDifference) +
             "; design " + fmt("%.2f px/frame", st.designMeanSpeed) + "; transfer cost " +
             fmt("%.3f", st.transfer.meanCost) + "; stages " + fmt("%.1f", st.secondsAnalysis) + "/" +
