@@ -2,7 +2,7 @@
 # The measurements behind docs/animate.md (Okabe et al., `vdbturb animate`). Not a test: it prints numbers
 # and writes pictures into $WORK; docs/animate.md quotes them.
 #
-#   bench/animate_quality.sh [--vdbturb PATH] [--work DIR] sweep|river|plume|stationary|steady64|modes|all
+#   bench/animate_quality.sh [--vdbturb PATH] [--work DIR] sweep|river|plume|stationary|steady64|clone|modes|all
 #
 #   sweep  A' against the true average: a frame of the example is the target and the example's own flow
 #          the design, so the best A' is the example's average A; rms(A' - A) / rms(F - A) for Sh x w_a,
@@ -21,6 +21,10 @@
 #          (analysis.givenFlow best) and as the cache's velocity (use); how fast the renders' texture moves against
 #          the cache's velocity (bench/animate_pattern_speed.py, needs /usr/bin/python3 with numpy): per band of
 #          rows, and a kymograph
+#   clone  the Clone Brush: the steady plume's column (blender-steady-64 front) cloned along the plume still's axis
+#          (scenes/animate/plume_clone.json), --hm-apply sequence, 2 px/frame upward, with and without the clone:
+#          --measure, and a picture (example + source stroke, R' without and with the clone, output frames); the same
+#          on the built-in river (river_clone.json: the example's mid-stream along the still's curved river)
 #   modes  steerable (HM Rep 1, 3) against the Laplacian preview on the river: time and errors
 # Needs POSIX sh, coreutils and oiiotool (Debian openimageio-tools); `stationary` also blender, `steady64` python3-numpy.
 set -eu
@@ -32,11 +36,11 @@ while [ $# -gt 0 ]; do
     case "$1" in
     --vdbturb) VDBTURB=$2; shift 2 ;;
     --work) WORK=$2; shift 2 ;;
-    -h|--help) sed -n "2,25p" "$0" | sed "s/^# \{0,1\}//"; exit 0 ;;
+    -h|--help) sed -n "2,29p" "$0" | sed "s/^# \{0,1\}//"; exit 0 ;;
     *) break ;;
     esac
 done
-[ $# -gt 0 ] || { echo "usage: $0 [--vdbturb PATH] [--work DIR] sweep|river|plume|stationary|steady64|modes|all" >&2; exit 2; }
+[ $# -gt 0 ] || { echo "usage: $0 [--vdbturb PATH] [--work DIR] sweep|river|plume|stationary|steady64|clone|modes|all" >&2; exit 2; }
 mkdir -p "$WORK"
 STROKES="$ROOT/scenes/animate"
 log() { printf 'animate-quality: %s\n' "$*" >&2; }
@@ -185,6 +189,52 @@ do_steady64() {
     oiiotool "$S/kymograph.ppm" -o "$S/kymograph.png"
 }
 
+# The picture of a clone: example frame with the source stroke, R' without and with the clone (x12 around grey), output
+# frame 20 without and with it. $1 = directory (runs none/ and clone/ with dumps), $2 = example picture, $3 = source
+# polyline, $4 = destination polyline (x,y,x,y,...), $5 = frame of R', $6 = the picture to write.
+clone_picture() {
+    oiiotool "$2" --ch R,G,B --line:color=1,0.2,0.2 "$3" -d uint8 -o "$1/p1.png"
+    oiiotool "$1/dump-none/Rprime.$5.exr" --ch R,G,B --mulc 12 --addc 0.5 --clamp:min=0:max=1 -d uint8 -o "$1/p2.png"
+    oiiotool "$1/dump-clone/Rprime.$5.exr" --ch R,G,B --mulc 12 --addc 0.5 --clamp:min=0:max=1 \
+        --line:color=1,0.2,0.2 "$4" -d uint8 -o "$1/p3.png"
+    oiiotool "$1/none/out.0020.png" --ch R,G,B -o "$1/p4.png"
+    oiiotool "$1/clone/out.0020.png" --ch R,G,B --line:color=1,0.2,0.2 "$4" -o "$1/p5.png"
+    oiiotool "$1/p1.png" "$1/p2.png" "$1/p3.png" "$1/p4.png" "$1/p5.png" --mosaic:pad=4 5x1 -o "$6"
+}
+
+do_clone() {
+    C="$WORK/clone"
+    cache="$DATA/blender-steady-64/fluid_data_####.vdb"
+    rm -rf "$C"
+    mkdir -p "$C"
+    plume_still "$C"
+    sed 's/"speed": "example"/"speed": 2.0/' "$STROKES/plume_strokes.json" > "$C/strokes_2px.json"
+    "$VDBTURB" preview "$cache" --frames 130 --width 256 --out "$C/example.####.png" -q
+    for c in none clone; do
+        if [ $c = clone ]; then extra="--clone-strokes $STROKES/plume_clone.json"; else extra=""; fi
+        # shellcheck disable=SC2086
+        "$VDBTURB" animate --example-cache "$cache" --camera front --width 256 --target "$C/still.0030.png" \
+            --target-alpha "$C/matte.png" --flow-strokes "$C/strokes_2px.json" --tau 16 --hm-apply sequence $extra \
+            --out "$C/$c/out.####.png" --dump "$C/dump-$c" --measure --json > "$C/$c.jsonl"
+        printf 'plume %s: ' "$c"
+        tail -1 "$C/$c.jsonl"
+    done
+    clone_picture "$C" "$C/example.0130.png" 141,210,141,45 128,236,126,150,123,70 0030 "$C/clone-plume.png"
+    R="$C/river"
+    "$VDBTURB" animate --export-builtin "$R/in" --example builtin:river:320x240x60 --target builtin:river:320x240 -q
+    for c in none clone; do
+        if [ $c = clone ]; then extra="--clone-strokes $STROKES/river_clone.json"; else extra=""; fi
+        # shellcheck disable=SC2086
+        "$VDBTURB" animate --example "$R/in/river.####.png" --target "$R/in/still.png" --target-alpha "$R/in/matte.png" \
+            --flow-strokes "$STROKES/river_strokes.json" $extra --out "$R/$c/out.####.png" --dump "$R/dump-$c" \
+            --measure --json > "$R/$c.jsonl"
+        printf 'river %s: ' "$c"
+        tail -1 "$R/$c.jsonl"
+    done
+    clone_picture "$R" "$R/in/river.0030.png" 16,120,304,120 \
+        16,137.2,50,146.7,94,147.5,138,135.6,182,116.6,226,99.2,270,91.3,304,94.4 0030 "$C/clone-river.png"
+}
+
 do_modes() {
     M="$WORK/modes"
     rm -rf "$M"
@@ -206,8 +256,9 @@ for what in "$@"; do
     plume) do_plume ;;
     stationary) do_stationary ;;
     steady64) do_steady64 ;;
+    clone) do_clone ;;
     modes) do_modes ;;
-    all) do_sweep; do_river; do_plume; do_stationary; do_steady64; do_modes ;;
+    all) do_sweep; do_river; do_plume; do_stationary; do_steady64; do_clone; do_modes ;;
     *) echo "unknown: $what" >&2; exit 2 ;;
     esac
 done
