@@ -46,7 +46,8 @@ std::vector<std::string> builtinDataDirs()
 int runAnimate(AnimateArgs& a)
 {
     turb::run::AnimateJob job = a;
-    if (a.strokes.rfind("builtin:", 0) == 0) job.builtinDataDirs = builtinDataDirs();
+    if (a.strokes.rfind("builtin:", 0) == 0 || a.cloneStrokes.rfind("builtin:", 0) == 0)
+        job.builtinDataDirs = builtinDataDirs();
     job.settingsText = commandSettingsText(*a.app, {});
     job.dryRun = globals().dryRun;
     job.threads = globals().threads;
@@ -110,6 +111,9 @@ Command animateCommand()
         AnimateArgs& a = *args;
         addInputOptions(app, a);
         addOutputOptions(app, a);
+        app->add_option("--clone-strokes", a.cloneStrokes,
+            "Clone Brush: source strokes on the example and destination strokes on the still (JSON, pixels; "
+            "scenes/animate/README.md): the example's residuals around each source are pasted around its destination");
         addEnum<HmMode>(app, "--hm", a.hm,
             {{"steerable", HmMode::Steerable}, {"laplacian", HmMode::Laplacian}, {"off", HmMode::Off}},
             "Histogram matching: steerable (Heeger-Bergen), laplacian (one pass, the fast preview) or off");

@@ -13,9 +13,9 @@ namespace turbio {
 
 namespace {
 
-/// The line (1-based) on which each object of the top-level "strokes" array starts. A small scanner
+/// The line (1-based) on which each object of the top-level array `key` ("strokes", "clones") starts. A small scanner
 /// over the raw text: nlohmann's parser keeps no positions for values.
-std::vector<int> strokeLines(const std::string& text)
+std::vector<int> strokeLines(const std::string& text, const std::string& key = "strokes")
 {
     std::vector<int> lines;
     std::vector<char> stack; // open containers
@@ -36,7 +36,7 @@ std::vector<int> strokeLines(const std::string& text)
             if (stack.size() == 1 && stack.back() == '{') lastKey = s;
         } else if (c == '{' || c == '[') {
             if (c == '{' && inStrokes && stack.size() == 2) lines.push_back(line);
-            if (c == '[' && stack.size() == 1 && lastKey == "strokes") inStrokes = true;
+            if (c == '[' && stack.size() == 1 && lastKey == key) inStrokes = true;
             stack.push_back(c);
         } else if (c == '}' || c == ']') {
             if (!stack.empty()) stack.pop_back();
@@ -123,7 +123,91 @@ turb::FlowStroke parseStroke(const nlohmann::json& j, const std::string& name, i
     return s;
 }
 
+/// A canvas's scale to an image of width x height: "canvas": [w, h] -> (width / w, height / h); (1, 1) without one.
+std::pair<double, double> canvasScale(
+    const nlohmann::json& doc, const char* key, const std::string& name, int width, int height)
+{
+    if (!doc.contains(key)) return {1.0, 1.0};
+    const auto& c = doc[key];
+    if (!c.is_array() || c.size() != 2 || !c[0].is_number() || !c[1].is_number() || !(c[0].get<double>() > 0) ||
+        !(c[1].get<double>() > 0))
+        fail(name, 0, "\"" + std::string(key) + "\" must be [width, height] in pixels");
+    return {double(width) / c[0].get<double>(), double(height) / c[1].get<double>()};
+}
+
+std::vector<turb::StrokePoint> points(const nlohmann::json& j, const char* key, const std::string& name, int line,
+    const std::string& who, std::pair<double, double> scale = {1.0, 1.0})
+{
+    if (!j.contains(key) || !j[key].is_array()) fail(name, line, who + ": missing the \"" + key + "\" array");
+    std::vector<turb::StrokePoint> out;
+    for (const auto& p : j[key]) {
+        if (!p.is_array() || p.size() != 2 || !p[0].is_number() || !p[1].is_number())
+            fail(name, line, who + ": every point of \"" + key + "\" must be [x, y]");
+        out.push_back({p[0].get<double>() * scale.first, p[1].get<double>() * scale.second});
+    }
+    return out;
+}
+
+/// The sizes a clone file's points are read against, and the canvases' scales to them.
+struct CloneFrame
+{
+    int EW, EH, TW, TH;
+    std::pair<double, double> source{1.0, 1.0}, destination{1.0, 1.0};
+};
+
+// One clone pair of the file, checked alone (the library's words, with the file's line).
+turb::CloneStroke parseClone(const nlohmann::json& j, const std::string& name, int line, size_t k, const CloneFrame& f)
+{
+    const std::string who = "clone stroke " + std::to_string(k);
+    if (!j.is_object()) fail(name, line, who + ": expected an object");
+    turb::CloneStroke c;
+    c.source = points(j, "source", name, line, who, f.source);
+    c.destination = points(j, "destination", name, line, who, f.destination);
+    c.size = number(j, "size", name, line, who) * std::sqrt(f.destination.first * f.destination.second);
+    if (j.contains("alpha")) c.alpha = number(j, "alpha", name, line, who);
+    try {
+        turb::validateCloneStrokes({c}, f.EW, f.EH, f.TW, f.TH);
+    } catch (const turb::ValueError& e) {
+        std::string m = e.what();
+        const std::string prefix = "clone stroke 0";
+        if (m.rfind(prefix, 0) == 0) m = who + m.substr(prefix.size());
+        const bool scaled = f.source != std::make_pair(1.0, 1.0) || f.destination != std::make_pair(1.0, 1.0);
+        fail(name, line, m + (scaled ? " (after scaling from the canvas)" : ""));
+    }
+    return c;
+}
+
 } // namespace
+
+CloneFile parseCloneStrokes(const std::string& text, const std::string& name, int EW, int EH, int TW, int TH)
+{
+    const nlohmann::json doc = parseDocument(text, name);
+    if (!doc.is_object()) fail(name, 1, "expected a JSON object with \"clones\"");
+    if (doc.contains("version") && (!doc["version"].is_number_integer() || doc["version"].get<int>() != 1))
+        fail(name, 0, "unsupported \"version\" (this reader knows 1)");
+    if (!doc.contains("clones") || !doc["clones"].is_array()) fail(name, 0, "missing the \"clones\" array");
+    CloneFrame frame{EW, EH, TW, TH};
+    frame.source = canvasScale(doc, "example_canvas", name, EW, EH);
+    frame.destination = canvasScale(doc, "canvas", name, TW, TH);
+    const std::vector<int> lines = strokeLines(text, "clones");
+    CloneFile out;
+    const auto& arr = doc["clones"];
+    for (size_t k = 0; k < arr.size(); ++k) {
+        const int line = k < lines.size() ? lines[k] : 0;
+        out.clones.push_back(parseClone(arr[k], name, line, k, frame));
+        out.lines.push_back(line);
+    }
+    return out;
+}
+
+CloneFile readCloneStrokes(const std::string& path, int EW, int EH, int TW, int TH)
+{
+    std::ifstream in(path);
+    if (!in) throw turb::IoError(path + ": cannot open the clone stroke file");
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return parseCloneStrokes(ss.str(), path, EW, EH, TW, TH);
+}
 
 StrokeFile parseFlowStrokes(const std::string& text, const std::string& name, int width, int height)
 {

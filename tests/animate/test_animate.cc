@@ -4,6 +4,7 @@
 
 #include <turb/Animate.h>
 #include <turb/AnimateQuality.h>
+#include <turb/CloneBrush.h>
 #include <turb/Error.h>
 #include <turb/Parallel.h>
 #include <turb/SteerablePyramid.h>
@@ -953,4 +954,240 @@ TEST(AnimateQuality, OutputFlickersLikeTheExample)
     std::cout << "[ measured ] temporal std output/example " << o.temporalStd / e.temporalStd
               << "; mean |autocorrelation difference| over lags 1.." << tau << " " << sum / tau << "; lag 1 "
               << o.autocorrelation[0] << "/" << e.autocorrelation[0] << std::endl;
+}
+
+// ---------------------------------------------------------------------------------------------
+// The Clone Brush (section 5.3)
+
+namespace {
+
+/// Gaussian blobs (std 1.5 px, height 1) at `centres` on a W x H single-channel image.
+ChannelImage blobs(int W, int H, const std::vector<StrokePoint>& centres)
+{
+    ChannelImage img(W, H, 1);
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x)
+            for (const StrokePoint& c : centres)
+                img.at(x, y, 0) += float(std::exp(-(std::pow(x - c.x, 2) + std::pow(y - c.y, 2)) / (2 * 1.5 * 1.5)));
+    return img;
+}
+
+/// The centroid of the positive values of `img` within `r` pixels of (x, y).
+StrokePoint centroidNear(const ChannelImage& img, double x, double y, double r)
+{
+    double sw = 0.0, sx = 0.0, sy = 0.0;
+    for (int v = int(y - r); v <= int(y + r); ++v)
+        for (int u = int(x - r); u <= int(x + r); ++u) {
+            if (u < 0 || v < 0 || u >= img.width() || v >= img.height()) continue;
+            const double w = std::max(0.0f, img.at(u, v, 0));
+            sw += w;
+            sx += w * u;
+            sy += w * v;
+        }
+    return sw > 0.0 ? StrokePoint{sx / sw, sy / sw} : StrokePoint{-1e9, -1e9};
+}
+
+/// A rigid motion: rotation by `deg` about the origin, then (tx, ty).
+struct Rigid
+{
+    double deg, tx, ty;
+    StrokePoint operator()(StrokePoint p) const
+    {
+        const double a = deg * M_PI / 180.0;
+        return {std::cos(a) * p.x - std::sin(a) * p.y + tx, std::sin(a) * p.x + std::cos(a) * p.y + ty};
+    }
+};
+
+} // namespace
+
+TEST(AnimateClone, ARigidlyMovedStrokeCarriesTheResidualsWhereTheDestinationSays)
+{
+    // Residual blobs around a curved source stroke on a 96x80 example; the destination stroke is the source rotated
+    // by 120 degrees and moved onto a 128x112 target. Each blob must land at the same rigid motion of its centre,
+    // within a pixel, and keep its height (no smearing).
+    const std::vector<StrokePoint> source{{20, 40}, {50, 30}, {75, 45}};
+    const std::vector<StrokePoint> centres{{30, 41}, {55, 27}, {70, 50}, {45, 36}};
+    const ChannelImage residual = blobs(96, 80, centres);
+    for (const Rigid T : {Rigid{120.0, 130.0, 20.0}, Rigid{0.0, 30.0, 35.0}, Rigid{-35.0, 10.0, 70.0}}) {
+        CloneStroke c;
+        c.source = source;
+        for (const StrokePoint& p : source) c.destination.push_back(T(p));
+        c.size = 30.0;
+        TransferMap map(128, 112, 96, 80);
+        applyCloneStrokes(map, {c});
+        const ChannelImage moved = map.apply(residual);
+        double worst = 0.0;
+        for (const StrokePoint& b : centres) {
+            const StrokePoint want = T(b), got = centroidNear(moved, want.x, want.y, 5.0);
+            worst = std::max(worst, std::hypot(got.x - want.x, got.y - want.y));
+            EXPECT_LT(std::hypot(got.x - want.x, got.y - want.y), 1.0) << "blob " << b.x << "," << b.y;
+            EXPECT_GT(moved.at(int(std::lround(want.x)), int(std::lround(want.y)), 0), 0.75f) << "the blob's height";
+        }
+        // The deformation is the inverse rigid motion exactly, on the strokes and away from them.
+        const CloneDeformation f(c);
+        const Rigid back{-T.deg, 0.0, 0.0};
+        for (const StrokePoint& x : {c.destination[0], c.destination[2], StrokePoint{60, 60}, StrokePoint{100, 30}}) {
+            const StrokePoint want = back({x.x - T.tx, x.y - T.ty}), got = f(x.x, x.y);
+            EXPECT_NEAR(got.x, want.x, 1e-6);
+            EXPECT_NEAR(got.y, want.y, 1e-6);
+        }
+        std::cout << "[ measured ] clone by a rigid motion (" << T.deg << " deg): worst blob position error " << worst
+                  << " px, " << f.controlPoints() << " control points, cloned " << map.stats.cloned << std::endl;
+    }
+}
+
+TEST(AnimateClone, StrokesOfDifferentLengthsFitEndToEnd)
+{
+    // A 40 px source stroke onto a 60 px destination: the ends and the middle map onto the source's, and between the
+    // strokes' ends the residual is stretched along the stroke (an example position per target pixel, none outside).
+    CloneStroke c;
+    c.source = {{20, 20}, {60, 20}};
+    c.destination = {{10, 50}, {70, 50}};
+    c.size = 16.0;
+    const CloneDeformation f(c);
+    const auto near = [](StrokePoint a, StrokePoint b) { return std::hypot(a.x - b.x, a.y - b.y) < 1e-6; };
+    EXPECT_TRUE(near(f(10, 50), {20, 20}));
+    EXPECT_TRUE(near(f(70, 50), {60, 20}));
+    EXPECT_TRUE(near(f(40, 50), {40, 20}));
+    const StrokePoint above = f(40, 44); // 6 px off the middle of the stroke, on the side the rotation keeps
+    EXPECT_NEAR(above.x, 40.0, 0.5);
+    EXPECT_NEAR(above.y, 14.0, 1.0);
+}
+
+TEST(AnimateClone, SizeAndAlphaBlendWithTheResidualsUnder)
+{
+    // Under an identity transfer (every pixel its own), a brush of alpha 0.5 gives half the clone and half the residual
+    // under it in its core, nothing beyond its size, and every pixel's weights still sum to 1.
+    const int W = 80, H = 64;
+    TransferMap map(W, H, W, H);
+    for (size_t i = 0; i < size_t(W * H); ++i) map.addTap(i, std::uint32_t(i), 1.0f);
+    ChannelImage residual(W, H, 1);
+    for (int x = 0; x < W; ++x)
+        for (int y = 0; y < H; ++y) residual.at(x, y, 0) = x < 40 ? 1.0f : 0.0f; // the left half
+    CloneStroke c;
+    c.source = {{20, 10}, {20, 50}};      // in the left half (1)
+    c.destination = {{60, 10}, {60, 50}}; // in the right half (0)
+    c.size = 12.0;
+    c.alpha = 0.5;
+    const ChannelImage m = applyCloneStrokes(map, {c});
+    const ChannelImage out = map.apply(residual);
+    EXPECT_NEAR(out.at(60, 30, 0), 0.5f, 1e-6f) << "alpha 0.5 in the core";
+    EXPECT_NEAR(out.at(64, 30, 0), 0.5f, 1e-6f) << "the core reaches size / 2 = 6 px";
+    EXPECT_EQ(out.at(73, 30, 0), 0.0f) << "nothing beyond the size";
+    EXPECT_EQ(out.at(30, 30, 0), 1.0f) << "the rest keeps its residual";
+    EXPECT_GT(out.at(68, 30, 0), 0.0f);
+    EXPECT_LT(out.at(68, 30, 0), 0.5f) << "the smooth fall-off";
+    EXPECT_NEAR(m.at(60, 30, 0), 0.5f, 1e-6f);
+    for (size_t i = 0; i < size_t(W * H); ++i) {
+        float s = 0.0f;
+        for (int k = 0; k < TransferMap::kTaps; ++k) s += map.weight(i, k);
+        ASSERT_NEAR(s, 1.0f, 1e-5f) << "pixel " << i;
+    }
+    EXPECT_GT(map.stats.cloned, 0.0);
+}
+
+TEST(AnimateClone, BadStrokesAreRefusedByName)
+{
+    CloneStroke good;
+    good.source = {{5, 5}, {20, 5}};
+    good.destination = {{5, 5}, {5, 20}};
+    const auto refused = [&](CloneStroke c, const std::string& words) {
+        try {
+            validateCloneStrokes({good, c}, 32, 24, 40, 30);
+            ADD_FAILURE() << "accepted: " << words;
+        } catch (const ValueError& e) {
+            EXPECT_NE(std::string(e.what()).find(words), std::string::npos) << e.what();
+        }
+    };
+    CloneStroke c = good;
+    c.source = {{5, 5}, {40, 5}};
+    refused(c, "clone stroke 1 (source): point (40.000000, 5.000000) lies outside the 32x24 example");
+    c = good;
+    c.destination = {{5, 5}};
+    refused(c, "clone stroke 1 (destination) needs at least 2 points");
+    c = good;
+    c.destination = {{5, 5}, {5, 5}};
+    refused(c, "all its points are equal");
+    c = good;
+    c.size = 0.0;
+    refused(c, "the size must be > 0");
+    c = good;
+    c.alpha = 1.5;
+    refused(c, "alpha must be in [0, 1]");
+    EXPECT_NO_THROW(validateCloneStrokes({good}, 32, 24, 40, 30));
+}
+
+namespace {
+
+/// The output of translating noise (1.5 px/frame to the right) animated onto a texture with one clone stroke pair
+/// that turns the source stroke (along the motion) by -90 degrees onto the destination; the tracks inside the brush
+/// core are compared with the origin's motion turned the same way, (0, -1.5). `cloned` false: no clone (the control).
+/// `residualMotion`: the example's v is given as zero and the design is still, so the residuals carry all of the
+/// example's motion and the output moves only as its residuals do; otherwise v is the true motion and the design the
+/// turned motion.
+FlowAgreement clonedMotion(bool cloned, bool residualMotion, int threads, std::vector<ChannelImage>* frames = nullptr)
+{
+    const int W = 96, H = 80;
+    AnimateInput in;
+    in.exampleFrames = translatedNoise(W, H, 40, 1.5, 0.0);
+    in.target = Waves(41).frame(W, H, 0, 0);
+    ChannelImage exampleV(W, H, 2), design(W, H, 2);
+    for (size_t i = 0; i < exampleV.pixelCount(); ++i) {
+        exampleV.pixel(i)[0] = residualMotion ? 0.0f : 1.5f;
+        design.pixel(i)[1] = residualMotion ? 0.0f : -1.5f;
+    }
+    in.exampleFlow = &exampleV;
+    in.designedFlow = &design;
+    CloneStroke c;
+    c.source = {{16, 40}, {80, 40}};
+    c.destination = {{48, 72}, {48, 8}};
+    c.size = 24.0;
+    const std::vector<CloneStroke> clones{c};
+    if (cloned) in.clones = &clones;
+    AnimateSettings s;
+    s.tau = 8;
+    s.refineFlow = false;
+    s.analysis.givenFlow = GivenFlow::Use;
+    s.hm.cellSize = 48;
+    std::vector<ChannelImage> out;
+    withThreads(threads, [&] { animate(std::move(in), s, [&](const AnimatedFrame& f) { out.push_back(f.image); }); });
+    ChannelImage expected(W, H, 2), core(W, H, 1);
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+            expected.at(x, y, 1) = -1.5f;
+            core.at(x, y, 0) = cloneMatte(c, x, y) >= 0.99 ? 1.0f : 0.0f;
+        }
+    std::vector<FlowTrack> tracks;
+    estimateMeanFlow(out, AnalysisSettings{}, nullptr, nullptr, &tracks);
+    if (frames) *frames = out;
+    return compareTracks(tracks, expected, &core);
+}
+
+} // namespace
+
+TEST(AnimatePipeline, TheClonedRegionMovesLikeItsOrigin)
+{
+    // Tracks inside the brush core against the origin's motion turned by the strokes: angle < 15 degrees, speed ratio
+    // 0.8..1.2. With the residuals carrying the motion, only the clone can turn it: without it the same region moves
+    // as the example does, 90 degrees off.
+    for (bool residualMotion : {true, false}) {
+        const std::string what = residualMotion ? "residuals carry the motion" : "v and the design carry it";
+        const FlowAgreement a = clonedMotion(true, residualMotion, 0);
+        EXPECT_LT(a.medianAngleDeg, 15.0) << what;
+        EXPECT_GT(a.medianSpeedRatio, 0.8) << what;
+        EXPECT_LT(a.medianSpeedRatio, 1.2) << what;
+        EXPECT_GT(a.pixels, 0.15) << what << ": the core is a fifth of the image";
+        std::cout << "[ measured ] cloned region (" << what << "): tracks " << a.medianAngleDeg << " deg, ratio "
+                  << a.medianSpeedRatio << " of the origin's turned motion, " << a.pixels << " of the tracks"
+                  << std::endl;
+    }
+    const FlowAgreement none = clonedMotion(false, true, 0);
+    EXPECT_GT(none.medianAngleDeg, 45.0) << "without the clone the region does not turn: the test can fail";
+    std::cout << "[ measured ] the same region without the clone: tracks " << none.medianAngleDeg << " deg, ratio "
+              << none.medianSpeedRatio << std::endl;
+    std::vector<ChannelImage> one, two;
+    clonedMotion(true, true, 1, &one);
+    clonedMotion(true, true, 2, &two);
+    ASSERT_EQ(one.size(), two.size());
+    for (size_t i = 0; i < one.size(); ++i) EXPECT_EQ(one[i].data(), two[i].data()) << "frame " << i;
 }

@@ -912,6 +912,40 @@ TEST(Cli, AnimateFromACacheThroughTheCamera)
         EXPECT_NE(r.out.find(key), std::string::npos) << key << "\n" << r.out;
 }
 
+TEST(Cli, AnimateCloneStrokesPasteTheExamplesResidualsAndBadOnesAreRefused)
+{
+    // The built-in river's clone design (drawn on 320x240, scaled to the 48x40 example and the 56x40 still): the run
+    // reports the pixels it cloned and dumps the brush matte; a pair outside the example is refused by file and line
+    // before anything is written.
+    testutil::TempDir dir;
+    ASSERT_EQ(
+        run("animate --export-builtin " + dir / "in" + " --example builtin:river:48x40x12 --target builtin:river:56x40")
+            .code,
+        0);
+    const std::string in = " --example " + dir / "in/river.####.png" + " --target " + dir / "in/still.png" +
+                           " --target-alpha " + dir / "in/matte.png" + " --flow-strokes " + strokesPath() +
+                           " --tau 4 --hm-cell 28";
+    const CmdResult r =
+        run("animate" + in + " --clone-strokes builtin:river --out " + dir / "o/a.####.png --json --dump " + dir / "d");
+    ASSERT_EQ(r.code, 0) << r.out;
+    EXPECT_EQ(countFiles(dir / "o", "a."), 8u);
+    EXPECT_NE(r.out.find("\"cloned\":"), std::string::npos) << r.out;
+    EXPECT_TRUE(std::filesystem::exists(dir / "d/clone.exr"));
+    {
+        std::ofstream f(dir / "clone.json");
+        f << "{\n  \"clones\": [\n    {\"source\": [[2, 2], [40, 2]], \"destination\": [[2, 30], [40, 30]], \"size\": "
+             "8},\n"
+             "    {\"source\": [[2, 2], [50, 2]],\n     \"destination\": [[2, 30], [40, 30]], \"size\": 8}\n  ]\n}\n";
+    }
+    const CmdResult bad = run("animate" + in + " --clone-strokes " + dir / "clone.json --out " + dir / "b/a.####.png");
+    EXPECT_EQ(bad.code, 1) << bad.out;
+    EXPECT_NE(bad.out.find(dir / "clone.json:4: clone stroke 1 (source): point (50.000000, 2.000000) lies outside "
+                                 "the 48x40 example"),
+        std::string::npos)
+        << bad.out;
+    EXPECT_FALSE(std::filesystem::exists(dir / "b"));
+}
+
 TEST(Cli, AnimateMeasureGivesNoMotionFigureWhenNothingMoves)
 {
     // A flat still: eq. 8 scales the differences to its zero contrast, so nothing moves. No figure is not a perfect

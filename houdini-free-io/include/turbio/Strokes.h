@@ -26,6 +26,7 @@
 /// design without a global orientation stroke.
 #pragma once
 
+#include <turb/CloneBrush.h>
 #include <turb/FlowDesign.h>
 
 #include <string>
@@ -44,5 +45,33 @@ StrokeFile readFlowStrokes(const std::string& path, int width, int height);
 
 /// Parses stroke JSON from memory; `name` is used in messages (tests, stdin).
 StrokeFile parseFlowStrokes(const std::string& text, const std::string& name, int width, int height);
+
+/// The Clone Brush's stroke pairs (Okabe et al. section 5.3, turb/CloneBrush.h), version 1:
+/// @code
+/// {
+///   "version": 1,
+///   "example_canvas": [320, 240],               // optional: the size the sources were drawn on (scaled to the
+///   "canvas": [320, 240],                       //   example's), and the destinations' (scaled to the target's)
+///   "clones": [
+///     {"source": [[40, 120], [40, 40]],         // on the video example, its pixels
+///      "destination": [[200, 180], [230, 90]],  // on the target, its pixels
+///      "size": 48, "alpha": 1.0}                // brush diameter (target pixels, > 0; scaled with the canvas)
+///                                               // and opacity (default 1)
+///   ]
+/// }
+/// @endcode
+/// Points are pixels, x right, y down, pixel centres at integers. Every problem throws turb::IoError naming the file
+/// and, where it applies, the line of the pair: JSON syntax errors, a missing or mistyped field, fewer than 2
+/// points or all equal, a point outside its image (the source's the exampleWidth x exampleHeight example, the
+/// destination's the target), size <= 0, alpha outside [0, 1].
+struct CloneFile
+{
+    std::vector<turb::CloneStroke> clones;
+    std::vector<int> lines; ///< the line each pair starts on (1-based), for messages
+};
+CloneFile readCloneStrokes(
+    const std::string& path, int exampleWidth, int exampleHeight, int targetWidth, int targetHeight);
+CloneFile parseCloneStrokes(const std::string& text, const std::string& name, int exampleWidth, int exampleHeight,
+    int targetWidth, int targetHeight);
 
 } // namespace turbio

@@ -5,7 +5,8 @@
 /// 1. The example is decomposed into A, v and R (VideoAnalysis.h).
 /// 2. The target's flow is designed from strokes or a dense flow and refined by its gradients
 ///    (FlowDesign.h); W' warps by the designed flow.
-/// 3. The residuals are transferred, the same matches for every frame (ResidualTransfer.h).
+/// 3. The residuals are transferred, the same matches for every frame (ResidualTransfer.h), and the Clone Brush's
+///    strokes, if any, paste the example's residuals around their source strokes over them (CloneBrush.h, 5.3).
 /// 4. The target average A' = Gaussian_{w_a}(motion blur of the target along the designed flow with
 ///    shutter Sh) (5.4). Sh is a length in frames of the designed flow's motion (the paper's Sh is a
 ///    shutter time in ms of its own tool, which does not carry over), w_a a standard deviation in pixels.
@@ -28,6 +29,7 @@
 #pragma once
 
 #include <turb/ChannelImage.h>
+#include <turb/CloneBrush.h>
 #include <turb/FlowDesign.h>
 #include <turb/HistogramMatch.h>
 #include <turb/Progress.h>
@@ -72,6 +74,7 @@ struct AnimateSettings
     RefineSettings refine;      ///< w_f 12, gradient orientation, floor
     bool refineFlow = true;     ///< refine the rough field by the target's gradients (5.1)
     TransferSettings transfer;  ///< residual transfer (16 px patches, search at 2x downsampling)
+    CloneSettings clone;        ///< the Clone Brush's control points (every 2 px along the strokes)
     AverageSettings average;    ///< A' (Sh, w_a)
     int tau = 16;               ///< lifetime of a residual in frames (paper 16), >= 1
     bool histogramMatch = true; ///< section 5.6 (off: F' as synthesised)
@@ -92,6 +95,8 @@ struct AnimateInput
     const ChannelImage* matte = nullptr; ///< optional fluid matte (1 channel, target size, [0, 1])
     const std::vector<FlowStroke>* strokes = nullptr; ///< the flow design, or:
     const ChannelImage* designedFlow = nullptr; ///< a dense designed flow (2 channels, target size, pixels per frame)
+    /// Optional Clone Brush strokes (5.3): sources in example pixels, destinations in target pixels, applied in order.
+    const std::vector<CloneStroke>* clones = nullptr;
 };
 
 /// One output frame.
@@ -122,13 +127,14 @@ struct AnimateStats
 
 /// Intermediate images for inspection (`vdbturb animate --dump`): called with a name and, for
 /// sequences, an index (-1 otherwise). Names: "A" (average), "v" (example flow), "R" (residual k),
-/// "rough" (Phi_s Phi_o), "refined" (the designed flow), "gradient" (G), "Aprime" (A'),
+/// "rough" (Phi_s Phi_o), "refined" (the designed flow), "gradient" (G), "clone" (the Clone Brush's matte, when
+/// there are clone strokes), "Aprime" (A'),
 /// "Rprime" (transferred residual k), "Dsecond" (D''_i before composition and matching).
 using InspectFn = std::function<void(const std::string& name, int index, const ChannelImage& image)>;
 
 /// The whole pipeline. `sink` receives the N - tau frames in order (on the calling thread).
 /// Throws ValueError when the example is shorter than tau + 2 frames, its frames differ in size, the
-/// target has no strokes or designed flow (or both), a stroke is malformed or outside the target, images
+/// target has no strokes or designed flow (or both), a stroke or clone stroke is malformed or outside its image, images
 /// have mismatched sizes or channel counts, or a setting is out of range; Cancelled when asked.
 AnimateStats animate(AnimateInput input, const AnimateSettings& settings,
     const std::function<void(const AnimatedFrame&)>& sink, Progress* progress = nullptr, const InspectFn& inspect = {});

@@ -65,6 +65,7 @@ struct TransferStats
     double maxCost = 0.0;  ///< the worst pasted patch's cost per pixel
     double covered = 0.0;  ///< fraction of target pixels that received residuals
     int distinct = 0;      ///< distinct example windows among the patches matched
+    double cloned = 0.0;   ///< fraction of target pixels the Clone Brush (CloneBrush.h) gave weight
 };
 
 /// Which example pixels make each target pixel of the transferred residuals.
@@ -88,6 +89,8 @@ public:
     void addTap(size_t i, std::uint32_t source, float w);
     /// Divides each pixel's weights by their sum (pixels without taps stay empty).
     void normalise();
+    /// Removes every tap of target pixel i.
+    void clearTaps(size_t i);
 
     /// R' = the map applied to an example-sized image (any channel count). Throws ValueError when the
     /// image is not the example's size.

@@ -32,6 +32,18 @@
 
 namespace turb {
 
+/// What v is when the caller gives a flow (decomposeExample's givenFlow, e.g. a cache's projected velocity).
+enum class GivenFlow {
+    /// The one of the given and the tracked flow (4.2) that leaves the smaller residual energy (eq. 1), the
+    /// decomposition's own measure of a flow that explains the video. A cache's velocity need not describe how its
+    /// renders move: the density pattern of the shared steady Blender plume moves at about half of
+    /// velocity x dt (docs/animate.md), and residuals left by a flow that misses the motion carry that motion into
+    /// the output, whatever the design.
+    Best,
+    Use,  ///< the given flow, never tracked
+    Track ///< the tracked flow, as without one (the paper)
+};
+
 struct AnalysisSettings
 {
     int features = 100;        ///< Shi-Tomasi features per frame pair (paper 100), >= 1
@@ -39,6 +51,7 @@ struct AnalysisSettings
     int levels = 3;            ///< Lucas-Kanade pyramid levels above the base (Bouguet), 0..6
     double maxRoundTrip = 0.5; ///< drop tracks whose forward-backward round trip misses by more (pixels), > 0
     int rbfStep = 4;           ///< the interpolated flow is evaluated every rbfStep pixels, bilinear between, 1..16
+    GivenFlow givenFlow = GivenFlow::Best; ///< v when a flow is given
 };
 
 /// Throws ValueError naming the first setting out of range.
@@ -49,10 +62,17 @@ struct AnalysisStats
     int pairs = 0;              ///< consecutive pairs (N - 1)
     int pairsUsed = 0;          ///< pairs with >= 1 kept track (only these enter the average)
     double tracksPerPair = 0.0; ///< mean kept tracks per used pair
-    double meanSpeed = 0.0;     ///< mean |v| where it moves (|v| >= 10% of its 99th percentile), pixels per frame
+    double trackSpeed = 0.0;    ///< mean |displacement| of the kept tracks, pixels per frame (0: none tracked)
+    /// The example's speed, pixels per frame (what a Speed Brush fetches): a given flow's mean |v| where it moves
+    /// (|v| >= 10% of its 99th percentile); a tracked flow's, the tracks' own mean speed (trackSpeed) when there
+    /// are tracks: between and beyond them the interpolant is an extrapolation (phi = r grows linearly away from the
+    /// tracks: 4.7 px/frame over a plume start-up's empty background, its tracks 1.6).
+    double meanSpeed = 0.0;
     double rmsDifference = 0.0; ///< rms of D_{i+1} - D_i over all pairs and channels
     double rmsResidual = 0.0;   ///< rms of R_i over all pairs and channels
     bool flowGiven = false;     ///< v came from the caller (e.g. a cache's projected velocity), not from tracking
+    /// GivenFlow::Best: the rms residual each candidate leaves (as rmsResidual); 0 when it was not compared.
+    double rmsResidualGiven = 0.0, rmsResidualTracked = 0.0;
 };
 
 struct ExampleDecomposition
@@ -66,7 +86,8 @@ struct ExampleDecomposition
 };
 
 /// Decomposes the example. `frames` is consumed (the residuals reuse its memory). When `givenFlow`
-/// is non-null it is used as v instead of tracking (2 channels, the frames' size).
+/// is non-null (2 channels, the frames' size) v is chosen by settings.givenFlow: by default the one of it and the
+/// tracked flow that leaves the smaller residuals.
 /// Throws ValueError on fewer than 2 frames, frames of different sizes or channel counts, a given flow
 /// of the wrong shape, or settings out of range; Cancelled when `progress` asks.
 ExampleDecomposition decomposeExample(std::vector<ChannelImage> frames, const AnalysisSettings& settings,

@@ -395,6 +395,9 @@ AnimateStats animate(AnimateInput in, const AnimateSettings& s, const std::funct
     const ChannelImage& target = in.target;
     const ChannelImage* matte = in.matte;
     if (in.strokes) validateStrokes(*in.strokes, target.width(), target.height());
+    if (in.clones)
+        validateCloneStrokes(*in.clones, in.exampleFrames.front().width(), in.exampleFrames.front().height(),
+            target.width(), target.height(), s.clone);
 
     // 1. Decomposition (section 4).
     auto t0 = std::chrono::steady_clock::now();
@@ -414,9 +417,13 @@ AnimateStats animate(AnimateInput in, const AnimateSettings& s, const std::funct
     const ChannelImage flow = designFlow(in, ex.stats.meanSpeed, s, inspect, st);
     st.secondsDesign = since(t0);
 
-    // 3. Residual transfer (5.2): one map for all frames.
+    // 3. Residual transfer (5.2): one map for all frames; the Clone Brush (5.3) over it.
     t0 = std::chrono::steady_clock::now();
-    const TransferMap map = matchResiduals(ex.flow, flow, s.transfer, matte, progress);
+    TransferMap map = matchResiduals(ex.flow, flow, s.transfer, matte, progress);
+    if (in.clones && !in.clones->empty()) {
+        const ChannelImage cloneMatte = applyCloneStrokes(map, *in.clones, matte, s.clone);
+        if (inspect) inspect("clone", -1, cloneMatte);
+    }
     st.transfer = map.stats;
     st.secondsTransfer = since(t0);
 

@@ -59,6 +59,14 @@ void TransferMap::normalise()
     }
 }
 
+void TransferMap::clearTaps(size_t i)
+{
+    for (int k = 0; k < kTaps; ++k) {
+        mWeight[i * kTaps + size_t(k)] = 0.0f;
+        mSource[i * kTaps + size_t(k)] = 0u;
+    }
+}
+
 ChannelImage TransferMap::apply(const ChannelImage& ex) const
 {
     if (ex.width() != mExWidth || ex.height() != mExHeight)

@@ -202,10 +202,13 @@ ChannelImage trackedMeanFlow(const std::vector<ChannelImage>& diffs, const Analy
         if (!c.empty())
             for (size_t q = 0; q < flow.data().size(); ++q) flow.data()[q] += c.data()[q];
     int nUsed = 0, nTracks = 0;
+    double speedSum = 0.0;
     for (const auto& t : tracks) {
         nUsed += t.empty() ? 0 : 1;
         nTracks += int(t.size());
+        for (const cv::Track& k : t) speedSum += std::hypot(k.dx, k.dy);
     }
+    stats.trackSpeed = nTracks ? speedSum / nTracks : 0.0;
     stats.pairsUsed = nUsed;
     stats.tracksPerPair = nUsed ? double(nTracks) / nUsed : 0.0;
     if (nUsed > 0)
@@ -243,7 +246,7 @@ ChannelImage estimateMeanFlow(const std::vector<ChannelImage>& frames, const Ana
     checkFrames(frames);
     AnalysisStats st;
     ChannelImage v = trackedMeanFlow(differencesFromMean(frames), settings, st, progress, tracks);
-    st.meanSpeed = meanSpeed(v);
+    st.meanSpeed = st.trackSpeed > 0.0 ? st.trackSpeed : meanSpeed(v);
     if (stats) *stats = st;
     return v;
 }
@@ -256,59 +259,90 @@ std::vector<FlowTrack> trackFlow(
     return flowTracks(trackPairs(differencesFromMean(frames), settings, progress));
 }
 
+namespace {
+
+/// The rms of the residuals R_i = D_{i+1} - W(D_i) that `flow` leaves (eq. 1), over all pairs and channels; with
+/// `write`, each R_i replaces D_i (the last difference is then no longer needed). The rms of D_{i+1} - D_i into
+/// `rmsDifference` when given.
+double residualRms(std::vector<ChannelImage>& diffs, const ChannelImage& flow, bool write, Progress* progress,
+    double* rmsDifference = nullptr)
+{
+    const cv::FlowWarp warp(flow);
+    ChannelImage moved;
+    double sumDiff = 0.0, sumRes = 0.0;
+    const size_t pairs = diffs.size() - 1;
+    for (size_t i = 0; i < pairs; ++i) {
+        checkCancelled(progress);
+        if (progress) progress->update(double(i) / double(pairs));
+        warp.apply(diffs[i], moved);
+        std::vector<float>& d = diffs[i].data();
+        const std::vector<float>& next = diffs[i + 1].data();
+        const size_t n = d.size();
+        if (rmsDifference)
+            sumDiff += parallelSum(n, 1 << 14, [&](size_t b, size_t e) {
+                double s = 0.0;
+                for (size_t q = b; q < e; ++q) s += double(next[q] - d[q]) * double(next[q] - d[q]);
+                return s;
+            });
+        sumRes += parallelSum(n, 1 << 14, [&](size_t b, size_t e) {
+            double s = 0.0;
+            for (size_t q = b; q < e; ++q) {
+                const float r = next[q] - moved.data()[q];
+                if (write) d[q] = r;
+                s += double(r) * double(r);
+            }
+            return s;
+        });
+    }
+    const double count = double(pairs) * double(diffs[0].data().size());
+    if (rmsDifference) *rmsDifference = std::sqrt(sumDiff / count);
+    return std::sqrt(sumRes / count);
+}
+
+/// v for the differences `diffs` (section 4.2, or the given flow as settings.givenFlow says), into ex.flow/stats.
+void chooseFlow(std::vector<ChannelImage>& diffs, const ChannelImage* given, const AnalysisSettings& s,
+    ExampleDecomposition& ex, Progress* progress)
+{
+    const int W = diffs[0].width(), H = diffs[0].height();
+    if (given && (given->channels() != 2 || given->width() != W || given->height() != H))
+        throw ValueError(
+            "the given example flow must be a 2-channel " + std::to_string(W) + "x" + std::to_string(H) + " image");
+    ex.stats.pairs = int(diffs.size()) - 1;
+    if (given && s.givenFlow == GivenFlow::Use) {
+        ex.flow = *given;
+        ex.stats.flowGiven = true;
+        return;
+    }
+    ex.flow = trackedMeanFlow(diffs, s, ex.stats, progress);
+    if (!given || s.givenFlow == GivenFlow::Track) return;
+    // The flow that explains the video better, by the decomposition's own measure (ties keep the given flow).
+    if (progress) progress->begin("flow check");
+    ex.stats.rmsResidualGiven = residualRms(diffs, *given, false, progress);
+    ex.stats.rmsResidualTracked = residualRms(diffs, ex.flow, false, progress);
+    if (ex.stats.rmsResidualGiven <= ex.stats.rmsResidualTracked) {
+        ex.flow = *given;
+        ex.stats.flowGiven = true;
+    }
+}
+
+} // namespace
+
 ExampleDecomposition decomposeExample(std::vector<ChannelImage> frames, const AnalysisSettings& settings,
     Progress* progress, const ChannelImage* givenFlow)
 {
     validate(settings);
     checkFrames(frames);
-    const int W = frames[0].width(), H = frames[0].height();
     ExampleDecomposition ex;
     if (progress) progress->begin("average");
     frames = differencesFromMean(std::move(frames), &ex.average);
-    if (givenFlow) {
-        if (givenFlow->channels() != 2 || givenFlow->width() != W || givenFlow->height() != H)
-            throw ValueError(
-                "the given example flow must be a 2-channel " + std::to_string(W) + "x" + std::to_string(H) + " image");
-        ex.flow = *givenFlow;
-        ex.stats.flowGiven = true;
-        ex.stats.pairs = int(frames.size()) - 1;
-    } else {
-        ex.flow = trackedMeanFlow(frames, settings, ex.stats, progress);
-    }
-    ex.stats.meanSpeed = meanSpeed(ex.flow);
+    chooseFlow(frames, givenFlow, settings, ex, progress);
+    ex.stats.meanSpeed = !ex.stats.flowGiven && ex.stats.trackSpeed > 0.0 ? ex.stats.trackSpeed : meanSpeed(ex.flow);
 
     // Residuals (eq. 1), written over the differences they no longer need: R_i replaces D_i.
     if (progress) progress->begin("residuals");
     ex.first = frames[0];
-    const cv::FlowWarp warp(ex.flow);
-    ChannelImage moved;
-    double sumDiff = 0.0, sumRes = 0.0;
-    const size_t pairs = frames.size() - 1;
-    for (size_t i = 0; i < pairs; ++i) {
-        checkCancelled(progress);
-        if (progress) progress->update(double(i) / double(pairs));
-        warp.apply(frames[i], moved);
-        std::vector<float>& d = frames[i].data();
-        const std::vector<float>& next = frames[i + 1].data();
-        const size_t n = d.size();
-        sumDiff += parallelSum(n, 1 << 14, [&](size_t b, size_t e) {
-            double s = 0.0;
-            for (size_t q = b; q < e; ++q) s += double(next[q] - d[q]) * double(next[q] - d[q]);
-            return s;
-        });
-        sumRes += parallelSum(n, 1 << 14, [&](size_t b, size_t e) {
-            double s = 0.0;
-            for (size_t q = b; q < e; ++q) {
-                d[q] = next[q] - moved.data()[q];
-                s += double(d[q]) * double(d[q]);
-            }
-            return s;
-        });
-    }
+    ex.stats.rmsResidual = residualRms(frames, ex.flow, true, progress, &ex.stats.rmsDifference);
     frames.pop_back();
-    const double count = double(pairs) * double(ex.first.data().size());
-    ex.stats.rmsDifference = std::sqrt(sumDiff / count);
-    ex.stats.rmsResidual = std::sqrt(sumRes / count);
     ex.residuals = std::move(frames);
     return ex;
 }

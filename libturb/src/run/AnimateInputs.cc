@@ -60,18 +60,20 @@ bool builtin(const std::string& text, int& w, int& h, int& n)
     return true;
 }
 
-// "builtin:river" names animate/river_strokes.json in the first of the job's data folders that holds it.
-std::string builtinStrokes(const AnimateJob& a, const std::string& name)
+// "builtin:river" names animate/river_strokes.json (or, for clone strokes, river_clone.json) in the first of the job's
+// data folders that holds it.
+std::string builtinStrokes(const AnimateJob& a, const std::string& name, const std::string& kind = "strokes")
 {
     namespace fs = std::filesystem;
-    const std::string file = "animate/" + name + "_strokes.json";
+    const std::string file = "animate/" + name + "_" + kind + ".json";
     std::string tried;
     for (const std::string& dir : a.builtinDataDirs) {
         const fs::path d(dir);
         if (fs::exists(d / file)) return (d / file).string();
         tried += (tried.empty() ? "" : ", ") + (d / file).string();
     }
-    throw turb::IoError("--flow-strokes builtin:" + name + ": no such built-in design (looked for " + tried + ")");
+    throw turb::IoError("--" + std::string(kind == "strokes" ? "flow-strokes" : "clone-strokes") + " builtin:" + name +
+                        ": no such built-in design (looked for " + tried + ")");
 }
 
 turb::ChannelImage rgbOfImage(const turb::RgbaImage& img)
@@ -275,6 +277,15 @@ Target readTarget(const AnimateJob& a)
     if (!a.targetAlpha.empty()) readMatte(a, t);
     readDesign(a, t);
     return t;
+}
+
+void readClones(const AnimateJob& a, const Example& example, Target& target)
+{
+    if (a.cloneStrokes.empty()) return;
+    const bool isBuiltin = a.cloneStrokes.rfind("builtin:", 0) == 0;
+    const std::string path = isBuiltin ? builtinStrokes(a, a.cloneStrokes.substr(8), "clone") : a.cloneStrokes;
+    const turb::ChannelImage& f = example.frames.front();
+    target.clones = turbio::readCloneStrokes(path, f.width(), f.height(), target.rgb.width(), target.rgb.height());
 }
 
 void configure(AnimateJob& a)

@@ -38,6 +38,7 @@ struct Target
     std::string colorSpace, label;
     std::optional<turbio::StrokeFile> strokes;
     std::optional<turb::ChannelImage> flow;
+    std::optional<turbio::CloneFile> clones; // read once the example's size is known (readClones)
 };
 
 /// Applies refine, hm and hmGrid to a.settings and validates them (throws turb::ValueError).
@@ -46,6 +47,8 @@ void configure(AnimateJob& a);
 Example readExample(const AnimateJob& a, int tau);
 /// Reads and checks the still, its matte and its flow design.
 Target readTarget(const AnimateJob& a);
+/// Reads and checks the Clone Brush's strokes (AnimateJob::cloneStrokes) against the example's and the still's sizes.
+void readClones(const AnimateJob& a, const Example& example, Target& target);
 /// --export-builtin: writes the built-in example and still and says so.
 void exportBuiltin(const AnimateJob& a);
 

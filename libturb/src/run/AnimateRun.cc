@@ -31,13 +31,19 @@ nlohmann::json statsJson(const turb::AnimateStats& st)
 {
     nlohmann::json j;
     j["example"] = {{"pairs", st.analysis.pairs}, {"pairs_tracked", st.analysis.pairsUsed},
-        {"tracks_per_pair", st.analysis.tracksPerPair}, {"mean_speed", st.analysis.meanSpeed},
-        {"rms_difference", st.analysis.rmsDifference}, {"rms_residual", st.analysis.rmsResidual},
-        {"flow_given", st.analysis.flowGiven}};
+        {"tracks_per_pair", st.analysis.tracksPerPair}, {"track_speed", st.analysis.trackSpeed},
+        {"mean_speed", st.analysis.meanSpeed}, {"rms_difference", st.analysis.rmsDifference},
+        {"rms_residual", st.analysis.rmsResidual}, {"flow_given", st.analysis.flowGiven}};
+    // A given flow (a cache's) weighed against the tracked one: the residuals each left (analysis.givenFlow best).
+    if (st.analysis.rmsResidualGiven > 0.0 || st.analysis.rmsResidualTracked > 0.0) {
+        j["example"]["rms_residual_given_flow"] = st.analysis.rmsResidualGiven;
+        j["example"]["rms_residual_tracked_flow"] = st.analysis.rmsResidualTracked;
+    }
     j["design_mean_speed"] = st.designMeanSpeed;
     j["transfer"] = {{"patches", st.transfer.patches}, {"pasted", st.transfer.pasted},
         {"mean_cost", st.transfer.meanCost}, {"max_cost", st.transfer.maxCost}, {"covered", st.transfer.covered},
         {"distinct_windows", st.transfer.distinct}};
+    if (st.transfer.cloned > 0.0) j["transfer"]["cloned"] = st.transfer.cloned;
     j["eq8"] = {
         {"alpha", st.alpha}, {"beta", st.beta}, {"mean_d", st.meanD}, {"sigma_d", st.sigmaD}, {"sigma_c", st.sigmaC}};
     j["hm_grid"] = {st.gridCols, st.gridRows};
@@ -156,8 +162,13 @@ struct FrameWriter
 
 void logStages(const turb::AnimateStats& st)
 {
-    logInfo("animate: example flow " + fmt("%.2f px/frame", st.analysis.meanSpeed) +
-            (st.analysis.flowGiven ? " (from the cache)" : "") + ", residual rms " +
+    const bool weighed = st.analysis.rmsResidualGiven > 0.0 || st.analysis.rmsResidualTracked > 0.0;
+    const std::string source = !weighed
+                                   ? (st.analysis.flowGiven ? " (from the cache)" : "")
+                                   : std::string(st.analysis.flowGiven ? " (the cache's" : " (tracked: the cache's") +
+                                         " flow left residual rms " + fmt("%.4f", st.analysis.rmsResidualGiven) +
+                                         ", the tracked " + fmt("%.4f", st.analysis.rmsResidualTracked) + ")";
+    logInfo("animate: example flow " + fmt("%.2f px/frame", st.analysis.meanSpeed) + source + ", residual rms " +
             fmt("%.4f", st.analysis.rmsResidual) + " vs difference rms " + fmt("%.4f", st.analysis.rmsDifference) +
             "; design " + fmt("%.2f px/frame", st.designMeanSpeed) + "; transfer cost " +
             fmt("%.3f", st.transfer.meanCost) + "; stages " + fmt("%.1f", st.secondsAnalysis) + "/" +
@@ -174,7 +185,8 @@ void logPlan(const AnimateJob& a, const Example& example, const Target& target)
             "), target " + target.label + " (" + std::to_string(target.rgb.width()) + "x" +
             std::to_string(target.rgb.height()) + (target.matte ? ", matte" : "") + "), " +
             (target.strokes ? std::to_string(target.strokes->strokes.size()) + " strokes" : "dense flow " + a.flow) +
-            ", tau " + std::to_string(tau) + " -> " + std::to_string(N - tau) + " frames");
+            (target.clones ? ", " + std::to_string(target.clones->clones.size()) + " clone strokes" : "") + ", tau " +
+            std::to_string(tau) + " -> " + std::to_string(N - tau) + " frames");
 }
 
 // The matcher keeps cells of at least 8 pixels: say so when a given grid is finer.
@@ -198,6 +210,7 @@ turb::AnimateInput animateInput(Example& example, const Target& target)
     in.matte = target.matte ? &*target.matte : nullptr;
     if (target.strokes) in.strokes = &target.strokes->strokes;
     if (target.flow) in.designedFlow = &*target.flow;
+    if (target.clones) in.clones = &target.clones->clones;
     return in;
 }
 
@@ -245,7 +258,7 @@ std::vector<std::string> plannedOutputs(
     std::vector<std::string> paths = outputs;
     if (!a.sheet.empty()) paths.push_back(a.sheet);
     if (!a.dump.empty()) paths.push_back(a.dump + "/A.exr");
-    checkOutputs(paths, {a.target, a.targetAlpha, a.strokes, a.flow}, a.noClobber, a.skipExisting);
+    checkOutputs(paths, {a.target, a.targetAlpha, a.strokes, a.flow, a.cloneStrokes}, a.noClobber, a.skipExisting);
     return outputs;
 }
 
@@ -265,9 +278,10 @@ AnimateRun runConfigured(const AnimateJob& a)
         throw UsageError("--out " + a.out + " has no frame token (####): animate writes a sequence");
     // Everything is read and checked before the first file is written; the run's time counts the reading.
     if (!a.dryRun) reporter().runStarted("animate");
-    const Target target = detail::readTarget(a);
+    Target target = detail::readTarget(a);
     warnFinerGrid(a, target);
     Example example = detail::readExample(a, a.settings.tau);
+    detail::readClones(a, example, target);
     std::vector<int> numbers;
     const std::vector<std::string> outputs = plannedOutputs(a, outPattern, int(example.frames.size()), numbers);
     // Every frame is made from the whole example (the design, eq. 8's statistics): its frames are a setting here.

@@ -88,6 +88,11 @@ void addHistogramMatching(Table& t)
         "static speckle on textured ones; docs/animate.md)",
         TURB_FIELD(settings.hmApply))
         .choices = {{"per-frame", int(HmApply::PerFrame)}, {"sequence", int(HmApply::Sequence)}};
+    add(t, "analysis.givenFlow", "",
+        "v of a cache example: best (its projected velocity or the tracked flow, whichever leaves the smaller "
+        "residuals), use (the velocity) or track (the paper's tracking)",
+        TURB_FIELD(settings.analysis.givenFlow))
+        .choices = {{"best", int(GivenFlow::Best)}, {"use", int(GivenFlow::Use)}, {"track", int(GivenFlow::Track)}};
 }
 
 } // namespace

@@ -53,6 +53,9 @@ struct AnimateJob
     /// `flow`, a dense flow image, R,G = x,y in pixels per frame (x right, y down).
     std::string strokes, flow;
     bool flowYUp = false; ///< the `flow` image's G channel points up
+    /// The Clone Brush's stroke pairs (section 5.3; turbio/Strokes.h's JSON: sources in example pixels, destinations
+    /// in target pixels), or "builtin:NAME" (DIR/animate/NAME_clone.json in builtinDataDirs); empty: none.
+    std::string cloneStrokes;
     /// Where "builtin:NAME" designs are looked for, in order: DIR/animate/NAME_strokes.json (the CLI passes the
     /// source tree's scenes/ or the installed share/vdbturb).
     std::vector<std::string> builtinDataDirs;
