@@ -324,7 +324,7 @@ TEST(AnimateTransfer, SameFlowsTransferTheResidualsInPlace)
             flow.at(x, y, 0) = float(0.05 * x + std::sin(0.3 * y));
             flow.at(x, y, 1) = float(0.07 * y + std::cos(0.2 * x));
         }
-    TransferSettings ts;
+    ResidualTransferSettings ts;
     ts.downsample = 1;
     ts.pcaComponents = 64;
     ts.variety = 0.0; // the paper's nearest match (variety would take near windows as equally good)
@@ -354,9 +354,9 @@ TEST(AnimateTransfer, AUniformDesignDoesNotTileOneWindow)
             ex.at(x, y, 1) = float(-2.0 - 0.2 * std::exp(-(std::pow(x - 60.0, 2) + std::pow(y - 50.0, 2)) / 50.0));
         }
     for (size_t i = 0; i < tg.pixelCount(); ++i) tg.pixel(i)[1] = -2.0f;
-    TransferSettings nearestOnly;
+    ResidualTransferSettings nearestOnly;
     nearestOnly.variety = 0.0;
-    const TransferMap a = matchResiduals(ex, tg, nearestOnly), b = matchResiduals(ex, tg, TransferSettings{});
+    const TransferMap a = matchResiduals(ex, tg, nearestOnly), b = matchResiduals(ex, tg, ResidualTransferSettings{});
     EXPECT_EQ(a.stats.patches, b.stats.patches);
     EXPECT_GT(b.stats.distinct, a.stats.distinct);
     EXPECT_GE(b.stats.distinct, b.stats.patches / 2) << "of " << b.stats.patches;
@@ -393,7 +393,7 @@ TEST(AnimateTransfer, LappedPastingCoversTheMatteWithUnitWeights)
             tg.at(x, y, 0) = 0.5f;
             matte.at(x, y, 0) = x < 40 ? 1.0f : 0.0f;
         }
-    const TransferMap map = matchResiduals(ex, tg, TransferSettings{}, &matte);
+    const TransferMap map = matchResiduals(ex, tg, ResidualTransferSettings{}, &matte);
     for (int y = 0; y < H; ++y)
         for (int x = 0; x < W; ++x) {
             double s = 0.0;

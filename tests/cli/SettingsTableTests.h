@@ -1,6 +1,5 @@
-// The tests every settings table (turb/run/Settings.h) passes, as a typed test each test file instantiates for its
-// tables: a file per job whose headers cannot meet (turb/Transfer.h and turb/ResidualTransfer.h both define
-// turb::TransferSettings). A table's file specialises TableOf for its job before it instantiates them:
+// The tests every settings table (turb/run/Settings.h) passes, as a typed test a test file instantiates for its
+// tables. The file specialises TableOf for each job before it instantiates them:
 //
 //     using Jobs = ::testing::Types<TransferJob, SynthJob>;
 //     INSTANTIATE_TYPED_TEST_SUITE_P(Tables, SettingsTable, Jobs, TableName);

@@ -1,9 +1,9 @@
 // turb::run's settings tables (turb/run/Settings.h): each row reaches its own field, checks its range, and is the
-// option the command line declares (the CLI and the Python module both build on these rows). transfer's and synth's
-// here, animate's in test_settings_table_animate.cc (its headers cannot meet transfer's); the tests every table
-// passes are SettingsTableTests.h's.
+// option the command line declares (the CLI and the Python module both build on these rows). The tests every table
+// passes are SettingsTableTests.h's; each table's own spot checks follow.
 #include "SettingsTableTests.h"
 
+#include <turb/run/Animate.h>
 #include <turb/run/CacheCamera.h>
 #include <turb/run/Measure.h>
 #include <turb/run/Preview.h>
@@ -16,6 +16,7 @@
 
 namespace {
 
+using turb::run::AnimateJob;
 using turb::run::CacheCamera;
 using turb::run::MeasureJob;
 using turb::run::PreviewJob;
@@ -109,7 +110,19 @@ struct TableOf<StylizeJob>
     static std::vector<std::string> oldLines() { return {"\nfluidy.reusePrevious=false\n"}; }
 };
 
-using Jobs = ::testing::Types<TransferJob, SynthJob, MeasureJob, SimJob, PreviewJob, CacheCamera, StylizeJob>;
+template<>
+struct TableOf<AnimateJob>
+{
+    static const turb::run::SettingsTable<AnimateJob>& rows() { return turb::run::animateSettings(); }
+    static constexpr const char* kName = "Animate";
+    static constexpr const char* kCommand = "animate";
+    static constexpr size_t kMinRows = 20;
+    static constexpr const char* kOldSpellings = "--hm-exact-cells";
+    static std::vector<std::string> oldLines() { return {"\nhm.blendPixels=false\n"}; }
+};
+
+using Jobs =
+    ::testing::Types<TransferJob, SynthJob, AnimateJob, MeasureJob, SimJob, PreviewJob, CacheCamera, StylizeJob>;
 INSTANTIATE_TYPED_TEST_SUITE_P(Tables, SettingsTable, Jobs, TableName);
 
 TEST(TransferSettingsTable, RowsNameTheFieldsOfTheirKeys)
@@ -289,6 +302,30 @@ TEST(StylizeSettingsTable, RowsNameTheirFieldsAndRefuseWhatTheOptionsRefuse)
     const clitest::Result old = clitest::run("stylize --exemplar e --no-reuse --print-settings", false);
     ASSERT_EQ(old.code, 0) << old.out;
     EXPECT_NE(old.out.find("\nfluidy.reusePrevious=false\n"), std::string::npos) << old.out;
+}
+
+TEST(AnimateSettingsTable, RowsNameTheFieldsOfTheirKeys)
+{
+    const auto rowOf = ::rowOf<AnimateJob>;
+    AnimateJob job;
+    rowOf("hm.reps").set(job, 5);
+    rowOf("transfer.downsample").setText(job, "4");
+    rowOf("hm-grid").setText(job, "4x3");
+    rowOf("refine").setText(job, "off");
+    rowOf("hmApply").setText(job, "sequence");
+    rowOf("flow-y-up").set(job, 1);
+    EXPECT_EQ(job.settings.hm.reps, 5);
+    EXPECT_EQ(job.settings.transfer.downsample, 4);
+    EXPECT_EQ(job.hmGrid, "4x3");
+    EXPECT_EQ(job.refine, turb::run::AnimateRefine::Off);
+    EXPECT_EQ(job.settings.hmApply, turb::HmApply::Sequence);
+    EXPECT_TRUE(job.flowYUp);
+    // The search's downsampling is 1, 2 or 4 only; the grid COLSxROWS, auto or off.
+    EXPECT_THROW(rowOf("transfer.downsample").set(job, 3), turb::ValueError);
+    EXPECT_THROW(rowOf("hm-grid").setText(job, "4x"), turb::ValueError);
+    const AnimateJob defaults;
+    EXPECT_EQ(rowOf("tau").get(defaults), turb::AnimateSettings{}.tau);
+    EXPECT_EQ(rowOf("transfer.downsample").text(defaults), "2");
 }
 
 } // namespace

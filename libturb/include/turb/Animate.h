@@ -73,7 +73,7 @@ struct AnimateSettings
     StrokeSettings strokes;     ///< stroke interpolation (defaultSpeed is replaced by the example's mean speed)
     RefineSettings refine;      ///< w_f 12, gradient orientation, floor
     bool refineFlow = true;     ///< refine the rough field by the target's gradients (5.1)
-    TransferSettings transfer;  ///< residual transfer (16 px patches, search at 2x downsampling)
+    ResidualTransferSettings transfer; ///< residual transfer (16 px patches, search at 2x downsampling)
     CloneSettings clone;        ///< the Clone Brush's control points (every 2 px along the strokes)
     AverageSettings average;    ///< A' (Sh, w_a)
     int tau = 16;               ///< lifetime of a residual in frames (paper 16), >= 1
@@ -115,7 +115,7 @@ struct AnimatedFrame
 struct AnimateStats
 {
     AnalysisStats analysis;
-    TransferStats transfer;
+    ResidualTransferStats transfer;
     int frames = 0;                            ///< N - tau
     int gridCols = 0, gridRows = 0;            ///< histogram matching grid
     std::vector<double> alpha, beta;           ///< eq. 8 per channel

@@ -30,7 +30,7 @@
 ///   patch reaches get no residual.
 ///
 /// @code
-/// turb::TransferSettings s;                 // 16 px patches, search at 2x downsampling
+/// turb::ResidualTransferSettings s;                 // 16 px patches, search at 2x downsampling
 /// turb::TransferMap map = turb::matchResiduals(exampleFlow, targetFlow, s, nullptr, &progress);
 /// turb::ChannelImage r = map.apply(example.residuals[i]);   // R'_i on the target
 /// @endcode
@@ -44,7 +44,7 @@
 
 namespace turb {
 
-struct TransferSettings
+struct ResidualTransferSettings
 {
     int patchSize = 16;     ///< target patch edge in pixels (paper 8..32), 8..64
     int downsample = 2;     ///< search on flows reduced by 1, 2 or 4 (paper 2 or 4)
@@ -55,9 +55,9 @@ struct TransferSettings
 };
 
 /// Throws ValueError naming the first setting out of range.
-void validate(const TransferSettings& s);
+void validate(const ResidualTransferSettings& s);
 
-struct TransferStats
+struct ResidualTransferStats
 {
     int patches = 0;       ///< target patches considered (touching the matte)
     int pasted = 0;        ///< patches that added weight somewhere
@@ -96,7 +96,7 @@ public:
     /// image is not the example's size.
     ChannelImage apply(const ChannelImage& exampleImage) const;
 
-    TransferStats stats;
+    ResidualTransferStats stats;
 
 private:
     int mWidth = 0, mHeight = 0, mExWidth = 0, mExHeight = 0;
@@ -109,6 +109,6 @@ private:
 /// may be null. Throws ValueError when a flow has the wrong shape, the example is smaller than a patch
 /// at the search resolution, or settings are out of range; Cancelled when `progress` asks.
 TransferMap matchResiduals(const ChannelImage& exampleFlow, const ChannelImage& targetFlow,
-    const TransferSettings& settings, const ChannelImage* targetMatte = nullptr, Progress* progress = nullptr);
+    const ResidualTransferSettings& settings, const ChannelImage* targetMatte = nullptr, Progress* progress = nullptr);
 
 } // namespace turb

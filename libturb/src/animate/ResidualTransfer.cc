@@ -13,7 +13,7 @@
 
 namespace turb {
 
-void validate(const TransferSettings& s)
+void validate(const ResidualTransferSettings& s)
 {
     if (s.patchSize < 8 || s.patchSize > 64) throw ValueError("transfer: the patch size must be 8..64 pixels");
     if (s.downsample != 1 && s.downsample != 2 && s.downsample != 4)
@@ -316,7 +316,7 @@ void recordStats(TransferMap& map, const std::vector<Placed>& placed, const std:
 
 // Lapped pasting, most similar first, each patch under what is there.
 TransferMap pastePatches(std::vector<Placed>& placed, const ChannelImage& exampleFlow, int W, int H,
-    const TransferSettings& s, const ChannelImage* matte, Progress* progress)
+    const ResidualTransferSettings& s, const ChannelImage* matte, Progress* progress)
 {
     const int P = s.patchSize;
     std::sort(placed.begin(), placed.end(),
@@ -357,8 +357,8 @@ TransferMap pastePatches(std::vector<Placed>& placed, const ChannelImage& exampl
 
 } // namespace
 
-TransferMap matchResiduals(const ChannelImage& exampleFlow, const ChannelImage& targetFlow, const TransferSettings& s,
-    const ChannelImage* matte, Progress* progress)
+TransferMap matchResiduals(const ChannelImage& exampleFlow, const ChannelImage& targetFlow,
+    const ResidualTransferSettings& s, const ChannelImage* matte, Progress* progress)
 {
     validate(s);
     if (exampleFlow.channels() != 2 || targetFlow.channels() != 2)
