@@ -91,11 +91,7 @@ std::vector<GridChecksum> gridChecksums(const std::string& path)
 {
     openvdb::initialize();
     const detail::GuardedResult read = detail::guardedRead(
-        path,
-        [](openvdb::io::File& file, openvdb::GridPtrVec& grids, openvdb::MetaMap&) {
-            openvdb::GridPtrVecPtr all = file.getGrids();
-            if (all) grids = *all;
-        },
+        path, [](detail::GridSource& file, openvdb::GridPtrVec& grids, openvdb::MetaMap&) { grids = file.readAll(); },
         60.0);
     std::vector<GridChecksum> out;
     for (const openvdb::GridBase::Ptr& g : read.grids) {

@@ -1,5 +1,6 @@
 #include "GuardedRead.h"
 
+#include <turbio/NanoVdb.h>
 #include <turbio/System.h>
 
 #include <turb/Error.h>
@@ -170,9 +171,50 @@ std::string errorPayload(const std::string& message, const std::vector<std::stri
     throw turb::IoError(data.substr(nl + 1), settings);
 }
 
+// An OpenVDB file, as io::File reads it.
+class VdbSource : public GridSource
+{
+public:
+    explicit VdbSource(const std::string& path) : mFile(path)
+    {
+        try {
+            mFile.open(/*delayLoad=*/false);
+        } catch (const std::exception& e) {
+            throw turb::IoError(path + ": truncated or corrupt file (" + cleanMessage(e.what()) + ")");
+        }
+    }
+    ~VdbSource() override { mFile.close(); }
+    std::vector<std::string> names() override
+    {
+        std::vector<std::string> out;
+        for (auto it = mFile.beginName(); it != mFile.endName(); ++it) out.push_back(*it);
+        return out;
+    }
+    openvdb::GridBase::Ptr readGridMetadata(const std::string& unique) override
+    {
+        return mFile.readGridMetadata(unique);
+    }
+    openvdb::GridBase::Ptr readGrid(const std::string& unique) override { return mFile.readGrid(unique); }
+    openvdb::GridPtrVec readAll() override
+    {
+        const openvdb::GridPtrVecPtr all = mFile.getGrids();
+        return all ? *all : openvdb::GridPtrVec();
+    }
+    openvdb::MetaMap::Ptr getMetadata() override { return mFile.getMetadata(); }
+    uint32_t fileVersion() const override { return mFile.fileVersion(); }
+    std::pair<int, int> libraryVersion() const override
+    {
+        const auto v = mFile.libraryVersion();
+        return {int(v.first), int(v.second)};
+    }
+
+private:
+    openvdb::io::File mFile;
+};
+
 extern "C" __attribute__((weak)) void __sanitizer_set_death_callback(void (*)(void));
 
-[[noreturn]] void childMain(int fd, const std::string& path, const ReadBody& body)
+[[noreturn]] void childMain(int fd, const std::string& path, const ReadBody& body, bool nano)
 {
     // The child must die of its own crash, reported by the parent as a damaged file: a crash handler inherited
     // from the parent (vdbturb's, a fuzzer's, a sanitizer's death callback) would report it as the parent's.
@@ -191,16 +233,11 @@ extern "C" __attribute__((weak)) void __sanitizer_set_death_callback(void (*)(vo
     ::setrlimit(RLIMIT_AS, &rl);
     std::string payload;
     try {
-        openvdb::io::File file(path);
-        try {
-            file.open(/*delayLoad=*/false);
-        } catch (const std::exception& e) {
-            throw turb::IoError(path + ": truncated or corrupt file (" + cleanMessage(e.what()) + ")");
-        }
-        openvdb::GridPtrVec& grids = *new openvdb::GridPtrVec(); // never destroyed here (keepInChild)
+        // Never destroyed here (keepInChild): the source holds what it read, the NanoVDB buffers too.
+        GridSource& file = *(nano ? openNanoSource(path) : std::make_unique<VdbSource>(path)).release();
+        openvdb::GridPtrVec& grids = *new openvdb::GridPtrVec();
         openvdb::MetaMap meta;
         body(file, grids, meta);
-        file.close();
         std::ostringstream os(std::ios::binary);
         writeGrids(os, grids, meta);
         payload = "G" + os.str() + kTrailer;
@@ -274,7 +311,7 @@ GuardedResult parsePayload(const std::string& data)
 
 // Forks the reader child, which runs childMain on `path` and writes its result to the pipe; returns its pid and the
 // pipe's read end in `readFd`.
-pid_t forkReader(const std::string& path, const ReadBody& body, int& readFd)
+pid_t forkReader(const std::string& path, const ReadBody& body, bool nano, int& readFd)
 {
     int fds[2];
     if (::pipe(fds) != 0) throw turb::IoError(path + ": cannot create pipe (" + std::strerror(errno) + ")");
@@ -288,7 +325,7 @@ pid_t forkReader(const std::string& path, const ReadBody& body, int& readFd)
     }
     if (pid == 0) {
         ::close(fds[0]);
-        childMain(fds[1], path, body);
+        childMain(fds[1], path, body, nano);
     }
     ::close(fds[1]);
     readFd = fds[0];
@@ -358,12 +395,13 @@ GuardedResult takeWholePayload(const std::string& path, pid_t pid, const std::st
 }
 
 // A child that exited (with `status`) without a whole payload: its crash, its error payload, or no result.
-[[noreturn]] void throwChildFailure(const std::string& path, int status, const std::string& data)
+[[noreturn]] void throwChildFailure(const std::string& path, int status, const std::string& data, bool nano)
 {
     if (WIFSIGNALED(status)) {
         const int sig = WTERMSIG(status);
-        throw turb::IoError(path + ": corrupt file: OpenVDB's reader crashed on it (" + ::strsignal(sig) +
-                            "); the file is damaged or not a complete VDB");
+        throw turb::IoError(path + ": corrupt file: " + (nano ? "NanoVDB" : "OpenVDB") + "'s reader crashed on it (" +
+                            ::strsignal(sig) + "); the file is damaged or not a complete " +
+                            (nano ? "NanoVDB file" : "VDB"));
     }
     if (data.empty() || (WIFEXITED(status) && WEXITSTATUS(status) != 0 && data[0] != 'E'))
         throw turb::IoError(path + ": corrupt file: the reader stopped without a result");
@@ -374,11 +412,12 @@ GuardedResult takeWholePayload(const std::string& path, pid_t pid, const std::st
 }
 
 // One forked reader. On a timeout sets `timedOut` and returns nothing; every other failure throws.
-GuardedResult readInChild(const std::string& path, const ReadBody& body, double timeoutSeconds, bool& timedOut)
+GuardedResult readInChild(
+    const std::string& path, const ReadBody& body, bool nano, double timeoutSeconds, bool& timedOut)
 {
     timedOut = false;
     int readFd = -1;
-    const pid_t pid = forkReader(path, body, readFd);
+    const pid_t pid = forkReader(path, body, nano, readFd);
     const std::string data = readPipe(readFd, timeoutSeconds, timedOut);
     if (!timedOut && wholePayload(data)) return takeWholePayload(path, pid, data);
     if (timedOut) ::kill(pid, SIGKILL);
@@ -386,7 +425,7 @@ GuardedResult readInChild(const std::string& path, const ReadBody& body, double 
     while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {}
 
     if (timedOut) return {};
-    throwChildFailure(path, status, data);
+    throwChildFailure(path, status, data, nano);
 }
 
 } // namespace
@@ -394,16 +433,17 @@ GuardedResult readInChild(const std::string& path, const ReadBody& body, double 
 GuardedResult guardedRead(const std::string& path, const ReadBody& body, double timeoutSeconds)
 {
     bool timedOut = false;
-    GuardedResult r = readInChild(path, body, timeoutSeconds, timedOut);
+    const bool nano = isNanoVdbFile(path);
+    GuardedResult r = readInChild(path, body, nano, timeoutSeconds, timedOut);
     if (!timedOut) return r;
     // The child is a fork of a threaded process: it can inherit a lock that a pool thread held at that instant
     // (the pool winding down after parallel work) and wait on it forever. That is a race; a damaged file that
     // makes OpenVDB loop loops every time. A second reader tells the two apart.
-    r = readInChild(path, body, timeoutSeconds, timedOut);
+    r = readInChild(path, body, nano, timeoutSeconds, timedOut);
     if (!timedOut) return r;
     std::ostringstream os;
-    os << path << ": corrupt file: OpenVDB's reader did not finish within " << int(timeoutSeconds + 0.5)
-       << " s (twice)";
+    os << path << ": corrupt file: " << (nano ? "NanoVDB" : "OpenVDB") << "'s reader did not finish within "
+       << int(timeoutSeconds + 0.5) << " s (twice)";
     throw turb::IoError(os.str());
 }
 

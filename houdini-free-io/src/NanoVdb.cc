@@ -24,6 +24,7 @@
 
 namespace turbio {
 
+using detail::cleanMessage;
 using turb::IoError;
 
 namespace {
@@ -159,6 +160,14 @@ std::string nanoVdbCannotHold(const GridInfo& grid)
 
 bool isNanoVdbPath(const std::string& path) { return outputFormatFor(path) == OutputFormat::NanoVdb; }
 
+bool isNanoVdbFile(const std::string& path)
+{
+    char head[8] = {};
+    std::ifstream in(path, std::ios::binary);
+    in.read(head, sizeof(head));
+    return in && std::memcmp(head, "NanoVDB", 7) == 0;
+}
+
 const char* quantizationName(NanoQuantization q)
 {
     switch (q) {
@@ -240,6 +249,14 @@ nanovdb::io::Header readSegmentHeader(Bounded& in, const std::string& path)
     const bool first = in.pos() == 0;
     in.read(&header, sizeof(header), "a segment header");
     if (header.magic != NANOVDB_MAGIC_NUMBER) {
+        // NanoVDB 32.6 (OpenVDB 11) and later begin files with "NanoVDB1" or "NanoVDB2" and lay grids out anew.
+        if (first && std::memcmp(&header.magic, "NanoVDB", 7) == 0)
+            throw IoError(path + ": a NanoVDB file of another layout than this build's NanoVDB " +
+                          std::to_string(NANOVDB_MAJOR_VERSION_NUMBER) + "." +
+                          std::to_string(NANOVDB_MINOR_VERSION_NUMBER) + " (OpenVDB 10) reads (magic number 'NanoVDB" +
+                          cleanMessage(std::string(1, reinterpret_cast<const char*>(&header.magic)[7])) +
+                          "'), or a damaged one: write it with NanoVDB 32.4, or give the OpenVDB cache it was made "
+                          "from");
         if (first) throw IoError(path + ": not a NanoVDB file (bad magic number)");
         throw IoError(path + ": damaged NanoVDB file: no segment header at byte " + std::to_string(in.pos() - 16));
     }
@@ -322,6 +339,7 @@ void readGridTransforms(Bounded& in, const std::string& path, const nanovdb::io:
                               " does not start with NanoVDB's magic number");
             grids[i].hasTransform = true;
             grids[i].origin = turb::Vec3d(data->mMap.mVecD[0], data->mMap.mVecD[1], data->mMap.mVecD[2]);
+            std::copy(std::begin(data->mMap.mMatD), std::end(data->mMap.mMatD), grids[i].matrix);
         }
         in.seek(start + (long long)metas[i].fileSize);
     }

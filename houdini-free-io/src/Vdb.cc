@@ -11,6 +11,7 @@
 #include <turb/Parallel.h>
 #include <turb/Operators.h>
 #include <turb/Resample.h>
+#include <turbio/NanoVdb.h>
 #include <turbio/System.h>
 
 #include <openvdb/openvdb.h>
@@ -78,13 +79,8 @@ void checkHeader(const std::string& path)
     if (magic != int64_t(0x56444220)) {
         char head[8];
         std::memcpy(head, &magic, sizeof(head));
-        // Two files a cache folder may hold under a .vdb-like name: NanoVDB (what GPU renderers load, written by
-        // `vdbturb convert`, nanovdb_convert or EmberGen), and a VDB gzip-compressed for transfer (.vdb.gz).
-        if (std::memcmp(head, "NanoVDB", 7) == 0)
-            throw IoError(path +
-                          ": a NanoVDB file, not OpenVDB: vdbturb reads NanoVDB only in `vdbturb info`. Give the "
-                          "OpenVDB cache it was made from, or convert it back: nanovdb_convert " +
-                          path + " OUT.vdb");
+        // A cache folder may hold a VDB gzip-compressed for transfer (.vdb.gz). (NanoVDB files, whatever their name,
+        // never get here: guarded() reads them with NanoVDB's reader.)
         if (static_cast<unsigned char>(head[0]) == 0x1f && static_cast<unsigned char>(head[1]) == 0x8b)
             throw IoError(path + ": a gzip-compressed file, not an OpenVDB file: decompress it first (gunzip)");
         throw IoError(path + ": not an OpenVDB file (bad magic number)");
@@ -232,15 +228,20 @@ std::vector<Descriptor> walkDescriptors(const std::string& path)
 // Runs a read body on `path` in the guarded child after the cheap in-process checks. The body gets the
 // file's grids in file order (from the header walk) so that "#N" and listings agree with `info`.
 using OrderedBody =
-    std::function<void(openvdb::io::File&, const std::vector<Descriptor>&, openvdb::GridPtrVec&, openvdb::MetaMap&)>;
+    std::function<void(detail::GridSource&, const std::vector<Descriptor>&, openvdb::GridPtrVec&, openvdb::MetaMap&)>;
 
 detail::GuardedResult guarded(const std::string& path, const OrderedBody& body, double baseTimeout = 0.0)
 {
     initOpenVdb();
     struct stat st;
     if (::stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode)) throw IoError(path + ": is a directory, not a VDB file");
-    checkHeader(path);
-    const std::vector<Descriptor> order = walkDescriptors(path);
+    // A NanoVDB file (EmberGen's and renderers' caches; .nvdb, or named .vdb) by its magic number: its headers are
+    // checked here, every size against the file, as `info` reads them; the child reads it with NanoVDB's reader and
+    // converts its grids, which the body then reads as an OpenVDB file's, in file order.
+    const bool nano = isNanoVdbFile(path);
+    if (nano) inspectNanoFile(path);
+    else checkHeader(path);
+    const std::vector<Descriptor> order = nano ? std::vector<Descriptor>() : walkDescriptors(path);
     // Generous: a healthy read runs at hundreds of MB/s, even slow farm storage at 5 MB/s passes; only a
     // reader stuck in a loop hits this.
     // VDBTURB_READ_TIMEOUT_S replaces the 10 s base (tests of damaged files use a short one).
@@ -253,7 +254,7 @@ detail::GuardedResult guarded(const std::string& path, const OrderedBody& body, 
         (baseTimeout > 0.0 ? baseTimeout : base) + double(std::max<int64_t>(fileSize(path), 0)) / 5.0e6;
     return detail::guardedRead(
         path,
-        [&](openvdb::io::File& file, openvdb::GridPtrVec& grids, openvdb::MetaMap& meta) {
+        [&](detail::GridSource& file, openvdb::GridPtrVec& grids, openvdb::MetaMap& meta) {
             body(file, order, grids, meta);
         },
         timeout);
@@ -270,11 +271,18 @@ struct GridEntry
     std::string gridClass;
 };
 
-// The file's grids in file order (the header walk's), else in OpenVDB's name order.
-std::vector<GridEntry> listGrids(openvdb::io::File& file, const std::vector<Descriptor>& order)
+// A grid's value type as its file has it: a NanoVDB grid of a type vdbturb does not read (int16, vec4f, ...) comes as
+// a header of another type that records its own (NanoRead.cc).
+std::string valueTypeOf(const openvdb::GridBase& g)
 {
-    std::vector<std::string> uniques;
-    for (auto it = file.beginName(); it != file.endName(); ++it) uniques.push_back(*it);
+    const auto recorded = g.getMetadata<openvdb::StringMetadata>("__turb_value_type");
+    return recorded ? recorded->value() : g.valueType();
+}
+
+// The file's grids in file order (the header walk's), else in OpenVDB's name order.
+std::vector<GridEntry> listGrids(detail::GridSource& file, const std::vector<Descriptor>& order)
+{
+    std::vector<std::string> uniques = file.names();
     if (order.size() == uniques.size()) {
         std::vector<std::string> byFile;
         for (const auto& d : order)
@@ -288,7 +296,7 @@ std::vector<GridEntry> listGrids(openvdb::io::File& file, const std::vector<Desc
         try {
             auto g = file.readGridMetadata(u);
             e.name = g->getName();
-            e.type = g->valueType();
+            e.type = valueTypeOf(*g);
             e.gridClass = openvdb::GridBase::gridClassToString(g->getGridClass());
         } catch (const std::exception&) {
             e.name = u;
@@ -322,7 +330,7 @@ std::vector<std::string> uniqueNames(const std::vector<GridEntry>& grids)
     return n;
 }
 
-openvdb::GridBase::Ptr readGridNamed(openvdb::io::File& file, const std::string& path, const std::string& name)
+openvdb::GridBase::Ptr readGridNamed(detail::GridSource& file, const std::string& path, const std::string& name)
 {
     try {
         auto g = file.readGrid(name);
@@ -914,7 +922,7 @@ ReadReport resolveTiming(
 namespace {
 
 // The child's part of readFrame: resolve the selectors and read just the grids needed, labelled by role.
-void readRoles(openvdb::io::File& file, const std::vector<Descriptor>& order, openvdb::GridPtrVec& out,
+void readRoles(detail::GridSource& file, const std::vector<Descriptor>& order, openvdb::GridPtrVec& out,
     openvdb::MetaMap& meta, const std::string& path, const ReadOptions& options)
 {
     const std::vector<GridEntry> entries = listGrids(file, order);
@@ -1352,7 +1360,7 @@ SmokeRegion smokeRegion(const std::string& path, const ReadOptions& options)
 {
     const detail::GuardedResult r = guarded(
         path,
-        [&](openvdb::io::File& file, const std::vector<Descriptor>& order, openvdb::GridPtrVec& out,
+        [&](detail::GridSource& file, const std::vector<Descriptor>& order, openvdb::GridPtrVec& out,
             openvdb::MetaMap&) {
             const std::vector<GridEntry> entries = listGrids(file, order);
             const std::vector<std::string> names = uniqueNames(entries);
@@ -1530,6 +1538,23 @@ std::optional<turb::ScalarField> heldScalar(const std::string& path, const openv
     return f;
 }
 
+// A NanoVDB file cannot hold Blender's markers (file_base_resolution, creator): a staggered `velocity`, Blender's
+// name and layout, is read as world units per second, cell-centred, as such a grid without the markers is in an
+// OpenVDB file. One converted from a Blender cache is in grid cells per Blender time unit: say so once per input.
+void noteNanoVdbVelocity(const std::string& path, const RoleGrids& g, const openvdb::MetaMap& meta,
+    const ReadOptions& options, ReadReport& rep)
+{
+    if (!meta.getMetadata<openvdb::BoolMetadata>("__turb_nanovdb") || !g.vel || g.vel->getName() != "velocity" ||
+        g.vel->getGridClass() != openvdb::GRID_STAGGERED || options.velocityUnits != VelocityUnits::Auto)
+        return;
+    const std::string note =
+        "grid 'velocity' is staggered, as Blender writes it, but a NanoVDB file keeps none of Blender's markers "
+        "(file_base_resolution, its domain and units): read as world units per second. If it was converted from a "
+        "Blender cache (grid cells per Blender time unit), read that cache instead";
+    rep.notes.push_back(note);
+    if (options.readNote) options.readNote(path, note);
+}
+
 // File-level string metadata (vdbturb parameters, creator) travels with the frame.
 void copyFileMetadata(const openvdb::MetaMap& meta, turb::Frame& frame)
 {
@@ -1559,7 +1584,7 @@ static turb::Frame readFrameUnchecked(
 {
     const detail::GuardedResult r = guarded(
         path,
-        [&](openvdb::io::File& file, const std::vector<Descriptor>& order, openvdb::GridPtrVec& out,
+        [&](detail::GridSource& file, const std::vector<Descriptor>& order, openvdb::GridPtrVec& out,
             openvdb::MetaMap& meta) { readRoles(file, order, out, meta, path, options); },
         options.readTimeout);
     const RoleGrids g = gridsByRole(path, r);
@@ -1568,6 +1593,7 @@ static turb::Frame readFrameUnchecked(
     const GridSpans spans = gridSpans(path, g, all, options.keepIsolated, *r.meta);
     const turb::Lattice& lattice = spans.lattice;
     ReadReport rep;
+    noteNanoVdbVelocity(path, g, *r.meta, options, rep);
     const turb::CoordBBox domain = heldBox(path, g, all, spans, options, rep, stage);
     // A background that is not zero (a wind in `vel`, an ambient temperature) is the value of every voxel the grid does
     // not store: read so inside the held box, as renderers read it; outputs are written with background zero.
@@ -1994,7 +2020,7 @@ GridSet readEveryGrid(const std::string& path, double timeout)
 {
     const GuardedResult r = guarded(
         path,
-        [&](openvdb::io::File& file, const std::vector<Descriptor>& order, openvdb::GridPtrVec& out,
+        [&](detail::GridSource& file, const std::vector<Descriptor>& order, openvdb::GridPtrVec& out,
             openvdb::MetaMap& meta) {
             for (const auto& n : uniqueNames(listGrids(file, order))) out.push_back(readGridNamed(file, path, n));
             if (auto fm = file.getMetadata())
@@ -2236,7 +2262,7 @@ OtherGrids OtherGrids::read(const std::string& path, const ReadOptions& options,
 {
     const detail::GuardedResult r = guarded(
         path,
-        [&](openvdb::io::File& file, const std::vector<Descriptor>& order, openvdb::GridPtrVec& out,
+        [&](detail::GridSource& file, const std::vector<Descriptor>& order, openvdb::GridPtrVec& out,
             openvdb::MetaMap& meta) {
             const std::vector<std::string> names = uniqueNames(listGrids(file, order));
             const std::vector<std::string> taken = takenNames(names, options);
@@ -2301,7 +2327,7 @@ void recordValueStatistics(const openvdb::GridBase::Ptr& full, openvdb::GridBase
 // The child's part of inspectFile: the file's versions and metadata, and the header of every grid in file order,
 // labelled with its unique name and position (two unnamed grids each get their own statistics); with
 // `readValues`, each float and vector grid's value statistics.
-void readHeaders(openvdb::io::File& file, const std::vector<Descriptor>& order, openvdb::GridPtrVec& out,
+void readHeaders(detail::GridSource& file, const std::vector<Descriptor>& order, openvdb::GridPtrVec& out,
     openvdb::MetaMap& meta, const std::string& path, bool readValues)
 {
     meta.insertMeta("__turb_file_version", openvdb::Int64Metadata(file.fileVersion()));
@@ -2327,7 +2353,7 @@ void readHeaders(openvdb::io::File& file, const std::vector<Descriptor>& order, 
         g->insertMeta(kHalfKey, openvdb::BoolMetadata(g->saveFloatAsHalf()));
         g->insertMeta("__turb_unique", openvdb::StringMetadata(entries[i].unique));
         g->insertMeta("__turb_index", openvdb::Int64Metadata(int64_t(i)));
-        const std::string type = g->valueType();
+        const std::string type = valueTypeOf(*g);
         const bool scalar = type == "float" || type == "double";
         const bool vector = type == "vec3s" || type == "vec3d";
         if (readValues && (scalar || vector)) {
@@ -2354,7 +2380,7 @@ GridInfo gridInfoOf(
     if (auto idx = g.getMetadata<openvdb::Int64Metadata>("__turb_index")) gi.index = int(idx->value());
     gi.selector = selector;
     gi.name = g.getName();
-    gi.valueType = g.valueType();
+    gi.valueType = valueTypeOf(g);
     gi.gridClass = openvdb::GridBase::gridClassToString(g.getGridClass());
     gi.vectorType = openvdb::GridBase::vecTypeToString(g.getVectorType());
     gi.role = role;
@@ -2394,11 +2420,12 @@ GridInfo gridInfoOf(
 FileInfo inspectFile(const std::string& path, bool readValues)
 {
     const detail::GuardedResult r =
-        guarded(path, [&](openvdb::io::File& file, const std::vector<Descriptor>& order, openvdb::GridPtrVec& out,
+        guarded(path, [&](detail::GridSource& file, const std::vector<Descriptor>& order, openvdb::GridPtrVec& out,
                           openvdb::MetaMap& meta) { readHeaders(file, order, out, meta, path, readValues); });
 
     FileInfo info;
     info.path = path;
+    info.nanoVdb = bool(r.meta->getMetadata<openvdb::BoolMetadata>("__turb_nanovdb"));
     if (auto m = r.meta->getMetadata<openvdb::Int64Metadata>("__turb_file_version"))
         info.fileVersion = unsigned(m->value());
     if (auto m = r.meta->getMetadata<openvdb::StringMetadata>("__turb_lib_version")) info.libraryVersion = m->value();

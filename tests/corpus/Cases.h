@@ -100,6 +100,15 @@ inline const std::vector<Case>& cases()
             "Blender 128^3 frame with the bit that makes OpenVDB 10 loop (byte 172654; some runs read "
             "uninitialised memory and fail instead, as a damaged header)",
             Subject::Source, 1, {1, 1, 1, 1, 1, 1, 1}, "did not finish|could not be read|damaged header", kNone},
+        // NanoVDB frames (EmberGen's and renderers' caches) named as the VDB frames: read as VDB frames are, and
+        // damaged ones refused before anything reads them wrong.
+        {"nvdb_frame", "frame 2 a NanoVDB file (float) among VDB frames", Subject::Target, 0, {0, 0, 0, 0, 0, 0, 0}, "",
+            kNone},
+        {"nvdb_cut", "NanoVDB frame 2 cut at 60%", Subject::Target, 2, {1, 1, 1, 1, 1, 1, 1}, "truncated", kNone},
+        {"nvdb_header", "NanoVDB frame 2 with a damaged segment header (grid count 0)", Subject::Target, 2,
+            {1, 1, 1, 1, 1, 1, 1}, "damaged NanoVDB file", kNone},
+        {"nvdb_checksum", "NanoVDB frame 2 with a flipped bit in a density value (its checksum)", Subject::Target, 2,
+            {1, 1, 1, 1, 1, 1, 1}, "checksum", kNone},
         // Grids and values.
         {"int32_density", "'density' is an Int32 grid", Subject::Target, 2, {1, 1, 1, 1, 1, 1, 0}, "'density';int32",
             kNone},

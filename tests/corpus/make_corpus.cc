@@ -3,6 +3,8 @@
 // DIR/done. Run by ctest as the fixture of test_corpus; nothing here is checked into the repository.
 #include "Cases.h"
 
+#include <turbio/NanoVdb.h>
+
 #include <openvdb/openvdb.h>
 #include <openvdb/io/File.h>
 
@@ -195,6 +197,23 @@ size_t firstBloscChunk(const std::string& b, const Layout& l)
 
 void flip(std::string& b, size_t offset, uint8_t mask) { b[offset] = char(uint8_t(b[offset]) ^ mask); }
 
+// World 1 with target frame 2 as NanoVDB (vdbturb convert's float), named t.0002.vdb; `damage` (optional) edits its
+// bytes, given the offset where the first grid's (density's) data ends.
+void nanoFrame2(const std::string& dir, const std::function<void(std::string&, size_t)>& damage = {})
+{
+    world1(dir, 3, 0);
+    const std::string vdb = frameName(dir, 't', 2), nvdb = dir + "/t2.nvdb";
+    turbio::convertToNanoVdb(vdb, nvdb, turbio::NanoConvertOptions{});
+    std::string b = slurp(nvdb);
+    const turbio::NanoFileInfo info = turbio::inspectNanoFile(nvdb);
+    fs::remove(nvdb);
+    size_t densityEnd = 16; // one segment: its header, every grid's header (176 bytes and the name), then the grids
+    for (const auto& g : info.grids) densityEnd += 176 + g.name.size() + 1;
+    densityEnd += size_t(info.grids.at(0).fileBytes);
+    if (damage) damage(b, densityEnd);
+    spit(vdb, b);
+}
+
 // --- The cases ---
 
 void makeCase(const Case& c, const std::string& dir)
@@ -272,6 +291,14 @@ void makeCase(const Case& c, const std::string& dir)
         flip(b, 172654, 0x08);
         fs::copy_file(gData + "/blender-plume-32/fluid_data_0001.vdb", frameName(dir, 't', 1));
         spit(frameName(dir, 's', 1), b);
+    } else if (name == "nvdb_frame") {
+        nanoFrame2(dir);
+    } else if (name == "nvdb_cut") {
+        nanoFrame2(dir, [](std::string& b, size_t) { b.resize(b.size() * 6 / 10); });
+    } else if (name == "nvdb_header") {
+        nanoFrame2(dir, [](std::string& b, size_t) { b[12] = b[13] = 0; }); // the segment's grid count
+    } else if (name == "nvdb_checksum") {
+        nanoFrame2(dir, [](std::string& b, size_t densityEnd) { flip(b, densityEnd - 100, 0x10); });
     } else if (name == "int32_density") {
         world1(dir, 3, 0);
         Grids t = target(2);

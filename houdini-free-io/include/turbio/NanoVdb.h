@@ -35,6 +35,7 @@ struct NanoGridInfo
     turb::Vec3d voxelSize{0.0}; ///< world units per voxel along x, y and z
     bool hasTransform = false;  ///< origin is known (the grid's header was read: an uncompressed grid)
     turb::Vec3d origin{0.0};    ///< world position of voxel (0,0,0)'s centre: the map's translation
+    double matrix[9] = {};      ///< with hasTransform: the map's 3x3 index-to-world matrix, as NanoVDB stores it
     turb::Vec3d worldMin{0.0}, worldMax{0.0}; ///< NanoVDB's world bounding box of the active voxels
     long long bytes = 0;                      ///< the grid's size in memory (the GPU upload)
     long long fileBytes = 0;                  ///< its size in the file (the same when uncompressed)
@@ -57,6 +58,11 @@ NanoFileInfo inspectNanoFile(const std::string& path);
 
 /// True when `path` ends in ".nvdb" (any case).
 bool isNanoVdbPath(const std::string& path);
+
+/// True when the file `path` begins with "NanoVDB", NanoVDB's magic number (format 32.4 writes "NanoVDB0", later
+/// formats "NanoVDB1"/"NanoVDB2", which inspectNanoFile names), whatever its name. Every reader (Vdb.h) reads
+/// such a file as NanoVDB. False for a file that cannot be read.
+bool isNanoVdbFile(const std::string& path);
 
 struct NanoConvertOptions
 {

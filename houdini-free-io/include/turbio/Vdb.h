@@ -7,7 +7,9 @@
 ///   float grids vel.x/vel.y/vel.z; temperature: temperature, heat; flame: flame, flames);
 /// - staggered (MAC) velocity is averaged to cell centres;
 /// - Blender's velocity (grid cells per time unit) is scaled to world units;
-/// - double and half-float grids become float; Int32 and unknown grids are ignored.
+/// - double and half-float grids become float; Int32 and unknown grids are ignored;
+/// - a NanoVDB file (by its magic number, whatever its name: EmberGen's exports, renderers' .nvdb caches) is read by
+///   NanoVDB's reader, its grids converted to OpenVDB grids (quantised floats to float), then as an OpenVDB file's.
 ///
 /// Every failure throws turb::IoError naming the file and, where there is one, the grid; an error that a
 /// ReadOptions or WriteOptions field fixes names that field in turb::Error::settings() ("velocityGrid").
@@ -328,7 +330,8 @@ struct GridInfo
 struct FileInfo
 {
     std::string path;
-    unsigned fileVersion = 0;
+    bool nanoVdb = false;     ///< a NanoVDB file: read by NanoVDB's reader, its grids as OpenVDB's (no versions below)
+    unsigned fileVersion = 0; ///< OpenVDB's file format
     std::string libraryVersion;
     std::string creator;                           ///< file-level "creator" metadata, if any
     std::optional<turb::Coord> baseResolution;     ///< Blender's file_base_resolution
@@ -350,7 +353,8 @@ struct FileInfo
 };
 
 /// Reads a file's header and grid descriptors (fast: no voxel data), and with `readValues` also
-/// each float/vector grid's value range.
+/// each float/vector grid's value range. A NanoVDB file (isNanoVdbFile, NanoVdb.h) is read too: its grids as they
+/// are read as OpenVDB grids (a quantised float grid is float), with their NanoVDB types where vdbturb reads none.
 FileInfo inspectFile(const std::string& path, bool readValues);
 
 /// Name of a role, for messages ("density", "velocity", ...).

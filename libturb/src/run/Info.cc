@@ -113,8 +113,10 @@ nlohmann::json gridJson(const turbio::GridInfo& g)
 
 std::string gridTable(const turbio::FileInfo& fi)
 {
-    std::string out = "  file format " + std::to_string(fi.fileVersion) + ", written by OpenVDB " + fi.libraryVersion +
-                      (fi.creator.empty() ? "" : ", creator '" + fi.creator + "'");
+    std::string out = fi.nanoVdb ? std::string("  NanoVDB file, read as every command reads it (its grids converted "
+                                               "to OpenVDB's, quantised floats to float)")
+                                 : "  file format " + std::to_string(fi.fileVersion) + ", written by OpenVDB " +
+                                       fi.libraryVersion + (fi.creator.empty() ? "" : ", creator '" + fi.creator + "'");
     if (fi.baseResolution) {
         const turb::Coord r = *fi.baseResolution;
         out += ", Blender domain " + std::to_string(r.x()) + "x" + std::to_string(r.y()) + "x" + std::to_string(r.z());
@@ -289,6 +291,7 @@ void validateFrame(const std::string& path, int frame, const turbio::ReadOptions
 
 void fileJson(const turbio::FileInfo& fi, nlohmann::json& fj)
 {
+    if (fi.nanoVdb) fj["format"] = "nanovdb";
     fj["file_version"] = fi.fileVersion;
     fj["library_version"] = fi.libraryVersion;
     fj["creator"] = fi.creator;
@@ -489,10 +492,6 @@ void describeNanoFile(const InfoArgs& a, int frame, const std::string& path, boo
 // sizes). No voxel is read, and no vdbturb metadata exists to show: NanoVDB files hold none.
 InfoRun nanoInfo(const InfoArgs& a, const turbio::Sequence& seq)
 {
-    if (a.validate || a.checksum)
-        throw UsageError(std::string(a.validate ? "--validate" : "--checksum") +
-                         " reads VDB caches as the commands that use them do; no vdbturb command reads NanoVDB. "
-                         "Check a .nvdb file with nanovdb_validate (Debian libnanovdb-tools)");
     printData(sequenceHead(seq) +
                   "\nNanoVDB files: grids and sizes from the headers (NanoVDB holds no vdbturb metadata: dt, units and "
                   "the settings are in the VDB files they were made from)",
@@ -518,7 +517,11 @@ InfoRun nanoInfo(const InfoArgs& a, const turbio::Sequence& seq)
 InfoRun runInfo(const InfoJob& a)
 {
     const turbio::Sequence seq = turbio::resolveSequence(a.pattern, a.frames);
-    if (turbio::isNanoVdbPath(seq.pattern.format(seq.frames.empty() ? 0 : seq.frames.front()))) return nanoInfo(a, seq);
+    // NanoVDB files (by name or by magic number): their headers, unless --validate or --checksum asks for every frame
+    // read as the commands read it, which the rest does for them as for VDB files.
+    const std::string firstFile = seq.pattern.format(seq.frames.empty() ? 0 : seq.frames.front());
+    if ((turbio::isNanoVdbPath(firstFile) || turbio::isNanoVdbFile(firstFile)) && !a.validate && !a.checksum)
+        return nanoInfo(a, seq);
     const bool toStderr = a.json; // stdout carries the JSON then
     turbio::ReadOptions ro = a.read;
     ro.requireDensity = !ro.densityGrid.empty();
