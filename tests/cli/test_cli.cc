@@ -850,18 +850,24 @@ size_t countFiles(const std::string& dir, const std::string& prefix)
     return n;
 }
 
+// The built-in river exported into DIR/in (12 frames of 48x40, a 56x40 still and its matte) as animate's inputs,
+// with the stroke design, tau 4 and 28-pixel cells; empty when the export fails.
+std::string riverInputs(const testutil::TempDir& dir)
+{
+    if (run("animate --export-builtin " + dir / "in" + " --example builtin:river:48x40x12 --target builtin:river:56x40")
+            .code != 0)
+        return {};
+    return " --example " + dir / "in/river.####.png" + " --target " + dir / "in/still.png" + " --target-alpha " +
+           dir / "in/matte.png" + " --flow-strokes " + strokesPath() + " --tau 4 --hm-cell 28";
+}
+
 } // namespace
 
 TEST(Cli, AnimateWritesNMinusTauFramesJsonAndDumps)
 {
     testutil::TempDir dir;
-    ASSERT_EQ(
-        run("animate --export-builtin " + dir / "in" + " --example builtin:river:48x40x12 --target builtin:river:56x40")
-            .code,
-        0);
-    const std::string in = " --example " + dir / "in/river.####.png" + " --target " + dir / "in/still.png" +
-                           " --target-alpha " + dir / "in/matte.png" + " --flow-strokes " + strokesPath() +
-                           " --tau 4 --hm-cell 28";
+    const std::string in = riverInputs(dir);
+    ASSERT_FALSE(in.empty());
     const CmdResult dry = run("animate" + in + " --out " + dir / "o/a.####.exr --dry-run");
     ASSERT_EQ(dry.code, 0) << dry.out;
     EXPECT_NE(dry.out.find("-> 8 frames"), std::string::npos) << dry.out;
@@ -918,13 +924,8 @@ TEST(Cli, AnimateCloneStrokesPasteTheExamplesResidualsAndBadOnesAreRefused)
     // reports the pixels it cloned and dumps the brush matte; a pair outside the example is refused by file and line
     // before anything is written.
     testutil::TempDir dir;
-    ASSERT_EQ(
-        run("animate --export-builtin " + dir / "in" + " --example builtin:river:48x40x12 --target builtin:river:56x40")
-            .code,
-        0);
-    const std::string in = " --example " + dir / "in/river.####.png" + " --target " + dir / "in/still.png" +
-                           " --target-alpha " + dir / "in/matte.png" + " --flow-strokes " + strokesPath() +
-                           " --tau 4 --hm-cell 28";
+    const std::string in = riverInputs(dir);
+    ASSERT_FALSE(in.empty());
     const CmdResult r =
         run("animate" + in + " --clone-strokes builtin:river --out " + dir / "o/a.####.png --json --dump " + dir / "d");
     ASSERT_EQ(r.code, 0) << r.out;
