@@ -169,13 +169,14 @@ void addOldSpelling(CLI::App* app, const BoundSettings& rows, const turb::run::O
     const auto assign = [sets](const std::string& text) {
         for (const auto& [row, ref] : sets) turb::run::setFieldText(*row, ref, text);
     };
+    const std::string help = old.help.empty() ? old.keys + " = " + old.value : old.help;
     if (!old.value.empty()) {
         legacy(app->add_flag_function(
-                   "--" + old.name, [assign, v = old.value](int64_t) { assign(v); }, old.help),
+                   "--" + old.name, [assign, v = old.value](int64_t) { assign(v); }, help),
             old.keys, old.value);
         return;
     }
-    legacy(app->add_option_function<std::string>("--" + old.name, assign, old.help)
+    legacy(app->add_option_function<std::string>("--" + old.name, assign, help)
                ->check(parsedBy(
                    [sets](const std::string& t) { turb::run::parseSettingValue(*sets.front().first, t); }, "VALUE")),
         old.keys);

@@ -99,20 +99,13 @@ void addHistogramMatching(Table& t)
 
 const SettingsTable<AnimateJob>& animateSettings()
 {
-    static const Table table = [] {
-        Table t;
-        addDesign(t);
-        addResiduals(t);
-        addHistogramMatching(t);
-        return t;
-    }();
+    static const Table table = detail::tableOf<AnimateJob>({addDesign, addResiduals, addHistogramMatching});
     return table;
 }
 
 const std::vector<OldSpelling>& animateOldSpellings()
 {
-    static const std::vector<OldSpelling> spellings{
-        {"hm-exact-cells", "hm.blendPixels", "false", "hm.blendPixels = false"}};
+    static const std::vector<OldSpelling> spellings{{"hm-exact-cells", "hm.blendPixels", "false", ""}};
     return spellings;
 }
 

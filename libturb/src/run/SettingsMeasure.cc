@@ -65,8 +65,8 @@ const SettingsTable<MeasureJob>& measureSettings()
 
 const std::vector<OldSpelling>& measureOldSpellings()
 {
-    static const std::vector<OldSpelling> spellings{{"no-spectra", "computeSpectra", "false", "computeSpectra = false"},
-        {"no-structure", "structure", "false", "structure = false"}};
+    static const std::vector<OldSpelling> spellings{
+        {"no-spectra", "computeSpectra", "false", ""}, {"no-structure", "structure", "false", ""}};
     return spellings;
 }
 

@@ -3,6 +3,7 @@
 
 #include <turb/run/Settings.h>
 
+#include <initializer_list>
 #include <limits>
 #include <type_traits>
 
@@ -51,6 +52,15 @@ void addPart(SettingsTable<Job>& table, const SettingsTable<Part>& part, Of of)
         static_cast<SettingRow&>(r) = p;
         r.field = [field = p.field, of](Job& job) { return field(of(job)); };
     }
+}
+
+/// A table made of its parts, each appending its rows in --help-all's order.
+template<typename Job>
+SettingsTable<Job> tableOf(std::initializer_list<void (*)(SettingsTable<Job>&)> parts)
+{
+    SettingsTable<Job> table;
+    for (const auto& part : parts) part(table);
+    return table;
 }
 
 } // namespace turb::run::detail

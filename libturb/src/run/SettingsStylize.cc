@@ -131,21 +131,14 @@ void addFluidymation(Table& t)
 
 const SettingsTable<StylizeJob>& stylizeSettings()
 {
-    static const Table table = [] {
-        Table t;
-        addTarget(t);
-        addLazyFluids(t);
-        addFluidymationInputs(t);
-        addFluidymation(t);
-        return t;
-    }();
+    static const Table table =
+        detail::tableOf<StylizeJob>({addTarget, addLazyFluids, addFluidymationInputs, addFluidymation});
     return table;
 }
 
 const std::vector<OldSpelling>& stylizeOldSpellings()
 {
-    static const std::vector<OldSpelling> spellings{
-        {"no-reuse", "fluidy.reusePrevious", "false", "fluidy.reusePrevious = false"}};
+    static const std::vector<OldSpelling> spellings{{"no-reuse", "fluidy.reusePrevious", "false", ""}};
     return spellings;
 }
 

@@ -160,14 +160,7 @@ void addOutput(Table& t)
 
 const SettingsTable<SynthJob>& synthSettings()
 {
-    static const Table table = [] {
-        Table t;
-        addInput(t);
-        addSynthesis(t);
-        addCombine(t);
-        addOutput(t);
-        return t;
-    }();
+    static const Table table = detail::tableOf<SynthJob>({addInput, addSynthesis, addCombine, addOutput});
     return table;
 }
 
@@ -175,14 +168,12 @@ const std::vector<OldSpelling>& synthOldSpellings()
 {
     // --output combined|detail (detailOnly) maps its words to the bool, which an OldSpelling cannot say: cmd_synth.cc
     // declares it.
-    static const std::vector<OldSpelling> spellings{
-        {"no-variance-match", "synth.matchVariance", "false", "synth.matchVariance = false"},
-        {"no-orient", "synth.orientation.follow", "false", "synth.orientation.follow = false"},
-        {"keep-coarse", "combine.removeCoarsePart", "false", "combine.removeCoarsePart = false"},
-        {"keep-divergence", "combine.solenoidalDetail", "false", "combine.solenoidalDetail = false"},
-        {"omega-absolute", "combine.relative", "false", "combine.relative = false"},
-        {"detail-everywhere", "detailNearSmoke", "false", "detailNearSmoke = false"},
-        {"no-density", "density", "false", "density = false"}};
+    static const std::vector<OldSpelling> spellings{{"no-variance-match", "synth.matchVariance", "false", ""},
+        {"no-orient", "synth.orientation.follow", "false", ""},
+        {"keep-coarse", "combine.removeCoarsePart", "false", ""},
+        {"keep-divergence", "combine.solenoidalDetail", "false", ""},
+        {"omega-absolute", "combine.relative", "false", ""}, {"detail-everywhere", "detailNearSmoke", "false", ""},
+        {"no-density", "density", "false", ""}};
     return spellings;
 }
 

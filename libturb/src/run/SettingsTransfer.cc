@@ -187,16 +187,8 @@ void addDensity(Table& t)
 
 const SettingsTable<TransferJob>& transferSettings()
 {
-    static const Table table = [] {
-        Table t;
-        addSearch(t);
-        addSeams(t);
-        addDetail(t);
-        addDetailStrength(t);
-        addTime(t);
-        addDensity(t);
-        return t;
-    }();
+    static const Table table =
+        detail::tableOf<TransferJob>({addSearch, addSeams, addDetail, addDetailStrength, addTime, addDensity});
     return table;
 }
 
@@ -205,13 +197,11 @@ const std::vector<OldSpelling>& transferOldSpellings()
     static const std::vector<OldSpelling> spellings{
         {"band", "seams.bandWidth,seams.bandWidth2D", "", "Both seam band widths"},
         {"cg-tolerance", "seams.cgTolerance,seams.cgTolerance2D", "", "Both CG tolerances"},
-        {"no-seams", "seams.enabled", "false", "seams.enabled = false"},
-        {"no-tracking", "trackGlobalPatches", "false", "trackGlobalPatches = false"},
+        {"no-seams", "seams.enabled", "false", ""}, {"no-tracking", "trackGlobalPatches", "false", ""},
         {"detail-energy", "detailEnergy,detailEnergy2D", "", "Both detail energies (3D and 2D caches)"},
-        {"no-target-divergence", "compensateTargetDivergence", "false", "compensateTargetDivergence = false"},
-        {"keep-coarse-detail", "removeCoarseDetail", "false", "removeCoarseDetail = false"},
-        {"no-resample-source", "resampleSource", "false", "resampleSource = false"},
-        {"no-follow-source", "followSourceFlow", "false", "followSourceFlow = false"},
+        {"no-target-divergence", "compensateTargetDivergence", "false", ""},
+        {"keep-coarse-detail", "removeCoarseDetail", "false", ""},
+        {"no-resample-source", "resampleSource", "false", ""}, {"no-follow-source", "followSourceFlow", "false", ""},
         {"regenerate-blend", "regenerateBlend,regenerateBlend2D", "", "Both regeneration blends"}};
     return spellings;
 }

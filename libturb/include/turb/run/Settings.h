@@ -92,7 +92,7 @@ struct OldSpelling
     std::string name;  ///< without "--"
     std::string keys;  ///< the settings it sets, comma-separated
     std::string value; ///< a flag's value for them ("false"); empty: the option takes one
-    std::string help;
+    std::string help;  ///< empty: "KEYS = VALUE"
 };
 
 /// `text` as the number of `row`'s value: a number, true/false for a bool, one of `choices`' names for an enum.
