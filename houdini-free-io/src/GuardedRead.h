@@ -54,7 +54,7 @@ public:
 using ReadBody = std::function<void(GridSource& file, openvdb::GridPtrVec& grids, openvdb::MetaMap& meta)>;
 
 /// The child's NanoVDB source (NanoRead.cc): the file read by NanoVDB's own reader after its headers were checked
-/// (inspectNanoFile), each grid's checksum verified, grids converted with NanoVDB's nanoToOpenVDB when a body reads
+/// (inspectNanoFile), each grid's checksum verified, grids copied node by node into OpenVDB trees when a body reads
 /// them. Only float (and its quantised forms fp4, fp8, fp16, fpN), double, vec3f and vec3d grids are read; any other
 /// is a turb::IoError naming the grid and its type when a body reads it. Runs only in the reader child.
 std::unique_ptr<GridSource> openNanoSource(const std::string& path);

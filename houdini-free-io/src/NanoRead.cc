@@ -1,41 +1,16 @@
 // NanoVDB input: the reader child's GridSource for a NanoVDB file (GuardedRead.h). NanoVDB's own reader
-// (nanovdb::io::readGrid) loads a grid when a body asks for it, its checksum is verified, and NanoVDB's nanoToOpenVDB
-// converts it; from there its grids go the way an OpenVDB file's grids go (Vdb.cc).
+// (nanovdb::io::readGrid) loads a grid when a body asks for it, its checksum is verified, and it is copied node by node
+// into an OpenVDB tree of the same shape; from there its grids go the way an OpenVDB file's grids go (Vdb.cc).
 #include "GuardedRead.h"
 
 #include <turbio/NanoVdb.h>
 
 #include <turb/Error.h>
-
-// nanoToOpenVDB splits its work with nanovdb::forEach: tbb::parallel_for with NANOVDB_USE_TBB (TBB must not run in
-// the forked reader child: fork did not copy its pool threads), else hardware_concurrency()/2 std::threads per
-// internal node, nested (thousands on a large farm node, each reserving a stack against the child's address-space
-// cap). This file takes ForEach.h's include guard and puts a serial forEach in its place. Its only users are the
-// nanoToOpenVDB instantiations below, whose lambdas no other file instantiates: nothing else in turb_io, nor in a
-// program linked to it, may include NanoToOpenVDB.h.
-#define NANOVDB_FOREACH_H_HAS_BEEN_INCLUDED
-#include <nanovdb/util/Range.h>
-
-namespace nanovdb {
-
-template<typename RangeT, typename FuncT>
-inline void forEach(RangeT range, const FuncT& func)
-{
-    if (!range.empty()) func(range);
-}
-
-template<typename FuncT>
-inline void forEach(size_t begin, size_t end, size_t grainSize, const FuncT& func)
-{
-    forEach(Range1D(begin, end, grainSize), func);
-}
-
-} // namespace nanovdb
+#include <turb/NewGrid.h>
 
 #include <nanovdb/NanoVDB.h>
 #include <nanovdb/util/GridChecksum.h>
 #include <nanovdb/util/IO.h>
-#include <nanovdb/util/NanoToOpenVDB.h>
 #include <nanovdb/util/NodeManager.h>
 
 #include <algorithm>
@@ -73,7 +48,7 @@ std::vector<std::string> uniqueNames(const NanoFileInfo& info)
     return out;
 }
 
-// A transform as nanoToOpenVDB builds it from NanoVDB's map (`matrix` as NanoVDB stores it, row by row).
+// A transform as nanovdb::nanoToOpenVDB builds it from NanoVDB's map (`matrix` as NanoVDB stores it, row by row).
 openvdb::math::Transform::Ptr transformOf(const double* matrix, const double* translation)
 {
     openvdb::math::Mat4d mat = openvdb::math::Mat4d::identity();
@@ -84,10 +59,10 @@ openvdb::math::Transform::Ptr transformOf(const double* matrix, const double* tr
 }
 
 // NanoVDB's checksum of `grid`, as nanovdb::GridChecksum computes it (GridChecksum.h, 10.0.1) for the mode its recorded
-// checksum was made in, but serially (GridChecksum runs on nanovdb::forEach, which the file's header above makes
-// serial for nanoToOpenVDB's sake; its own instantiation would clash with the writer's TBB one, NanoVdb.cc): CRC32
-// over the grid, tree and root headers after the magic number and the checksum, then, for a full checksum, CRC32 over
-// each node's fixed-size part (upper, lower, leaf nodes in the node manager's order) and CRC32 over those.
+// checksum was made in, but serially (GridChecksum runs on nanovdb::forEach, which starts threads: TBB must not run in
+// the forked reader child, fork did not copy its pool threads): CRC32 over the grid, tree and root headers after the
+// magic number and the checksum, then, for a full checksum, CRC32 over each node's fixed-size part (upper, lower, leaf
+// nodes in the node manager's order) and CRC32 over those.
 template<typename BuildT>
 uint64_t checksumOf(const nanovdb::NanoGrid<BuildT>& grid, bool full)
 {
@@ -114,6 +89,104 @@ uint64_t checksumOf(const nanovdb::NanoGrid<BuildT>& grid, bool full)
     return nanovdb::GridChecksum(head, uint32_t(crc.checksum())).checksum();
 }
 
+// The OpenVDB value type a NanoVDB build type is read as: quantised floats as float, vectors as OpenVDB's vectors.
+template<typename BuildT>
+struct OpenValue
+{
+    using Type = float; // float, Fp4, Fp8, Fp16, FpN
+};
+template<>
+struct OpenValue<double>
+{
+    using Type = double;
+};
+template<typename T>
+struct OpenValue<nanovdb::Vec3<T>>
+{
+    using Type = openvdb::math::Vec3<T>;
+};
+
+// A NanoVDB grid copied node by node into an OpenVDB tree of the same shape: every node, tile (active or not, so a
+// level set's inside keeps its sign) and voxel as stored, quantised values decoded. Serial, for the forked reader
+// child (see checksumOf); nanovdb::nanoToOpenVDB does the same on nanovdb::forEach's threads, and its eight
+// instantiations took a minute of compile time.
+template<typename BuildT>
+class ToOpenVdb
+{
+    using OpenV = typename OpenValue<BuildT>::Type;
+    using OpenTree = typename openvdb::tree::Tree4<OpenV, 5, 4, 3>::Type;
+    using OpenLeaf = typename OpenTree::LeafNodeType;
+    using OpenLower = typename OpenTree::RootNodeType::ChildNodeType::ChildNodeType;
+    using OpenUpper = typename OpenTree::RootNodeType::ChildNodeType;
+    using NanoTree = nanovdb::NanoTree<BuildT>;
+    using NanoLeaf = typename NanoTree::LeafNodeType;
+    using NanoLower = typename NanoTree::Node1;
+    using NanoUpper = typename NanoTree::Node2;
+
+public:
+    static typename openvdb::Grid<OpenTree>::Ptr convert(const nanovdb::NanoGrid<BuildT>& grid)
+    {
+        const auto* root = grid.tree().root().data();
+        auto out = turb::newGrid<openvdb::Grid<OpenTree>>(open(root->mBackground));
+        out->setName(grid.gridName());
+        out->setGridClass(grid.gridClass() == nanovdb::GridClass::LevelSet    ? openvdb::GRID_LEVEL_SET
+                          : grid.gridClass() == nanovdb::GridClass::FogVolume ? openvdb::GRID_FOG_VOLUME
+                          : grid.gridClass() == nanovdb::GridClass::Staggered ? openvdb::GRID_STAGGERED
+                                                                              : openvdb::GRID_UNKNOWN);
+        const nanovdb::Map& map = reinterpret_cast<const nanovdb::GridData*>(&grid)->mMap;
+        out->setTransform(transformOf(map.mMatD, map.mVecD));
+        auto& openRoot = out->tree().root();
+        for (uint32_t i = 0; i < root->mTableSize; ++i) {
+            const auto* tile = root->tile(i);
+            if (tile->isChild()) openRoot.addChild(internal<OpenUpper>(*root->getChild(tile)));
+            else openRoot.addTile(coordOf(tile->origin()), open(tile->value), tile->state);
+        }
+        return out;
+    }
+
+private:
+    static openvdb::Coord coordOf(const nanovdb::Coord& c) { return openvdb::Coord(c[0], c[1], c[2]); }
+    template<typename V>
+    static OpenV open(const V& v)
+    {
+        if constexpr (std::is_same_v<OpenV, float> || std::is_same_v<OpenV, double>) return OpenV(v);
+        else return OpenV(v[0], v[1], v[2]);
+    }
+    // An internal node: its masks and table as stored, children copied in turn.
+    template<typename OpenNode, typename NanoNode>
+    static OpenNode* internal(const NanoNode& node)
+    {
+        auto* out = new OpenNode();
+        out->setOrigin(coordOf(node.origin()));
+        auto& valueMask = const_cast<typename OpenNode::NodeMaskType&>(out->getValueMask());
+        auto& childMask = const_cast<typename OpenNode::NodeMaskType&>(out->getChildMask());
+        auto* table = const_cast<typename OpenNode::UnionType*>(out->getTable());
+        const auto* data = node.data();
+        for (uint32_t n = 0; n < OpenNode::NUM_VALUES; ++n) {
+            if (node.valueMask().isOn(n)) valueMask.setOn(n);
+            if (!node.childMask().isOn(n)) {
+                table[n].setValue(open(data->mTable[n].value));
+                continue;
+            }
+            childMask.setOn(n);
+            if constexpr (std::is_same_v<NanoNode, NanoUpper>)
+                table[n].setChild(internal<OpenLower>(*data->getChild(n)));
+            else table[n].setChild(leaf(*data->getChild(n)));
+        }
+        return out;
+    }
+    static OpenLeaf* leaf(const NanoLeaf& node)
+    {
+        auto* out = new OpenLeaf(coordOf(node.origin()), OpenV(0));
+        OpenV* values = out->buffer().data();
+        for (uint32_t n = 0; n < OpenLeaf::SIZE; ++n) {
+            values[n] = open(node.getValue(n));
+            if (node.valueMask().isOn(n)) out->setActiveState(n, true);
+        }
+        return out;
+    }
+};
+
 // `grid` as an OpenVDB grid, after its checksum (when it records one) matched. `label` names it in errors.
 template<typename BuildT>
 openvdb::GridBase::Ptr convertChecked(const nanovdb::NanoGrid<BuildT>& grid, const std::string& label)
@@ -128,7 +201,7 @@ openvdb::GridBase::Ptr convertChecked(const nanovdb::NanoGrid<BuildT>& grid, con
             throw IoError(label + " does not match its checksum" + text + ": a damaged NanoVDB file");
         }
     }
-    return nanovdb::nanoToOpenVDB(grid);
+    return ToOpenVdb<BuildT>::convert(grid);
 }
 
 // The grid of handle `h` as an OpenVDB grid (float for the quantised types), or null for a type vdbturb does not read.
@@ -160,14 +233,14 @@ openvdb::GridBase::Ptr convert(const nanovdb::GridHandle<>& h, const std::string
 // An empty grid of the OpenVDB type a NanoVDB grid of `nanoType` is read as, for a header.
 openvdb::GridBase::Ptr emptyGridFor(const std::string& nanoType)
 {
-    if (nanoType == "double") return openvdb::DoubleGrid::create();
-    if (nanoType == "vec3f") return openvdb::Vec3SGrid::create();
-    if (nanoType == "vec3d") return openvdb::Vec3DGrid::create();
-    if (nanoType == "int32") return openvdb::Int32Grid::create();
-    if (nanoType == "int64") return openvdb::Int64Grid::create();
-    if (nanoType == "bool") return openvdb::BoolGrid::create();
-    if (nanoType == "mask") return openvdb::MaskGrid::create();
-    return openvdb::FloatGrid::create(); // float and its quantised forms (a header of any other type says it)
+    static const std::map<std::string, openvdb::Name> types = {{"double", openvdb::DoubleGrid::gridType()},
+        {"vec3f", openvdb::Vec3SGrid::gridType()}, {"vec3d", openvdb::Vec3DGrid::gridType()},
+        {"int32", openvdb::Int32Grid::gridType()}, {"int64", openvdb::Int64Grid::gridType()},
+        {"bool", openvdb::BoolGrid::gridType()}, {"mask", openvdb::MaskGrid::gridType()}};
+    openvdb::initialize();
+    const auto it = types.find(nanoType);
+    // float and its quantised forms (a header of any other type says it)
+    return openvdb::GridBase::createGrid(it == types.end() ? openvdb::FloatGrid::gridType() : it->second);
 }
 
 openvdb::GridClass classOf(const std::string& nanoClass)

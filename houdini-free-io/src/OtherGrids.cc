@@ -4,6 +4,7 @@
 #include "ActiveVoxels.h"
 
 #include <turb/Error.h>
+#include <turb/NewGrid.h>
 
 #include <openvdb/tools/ValueTransformer.h>
 
@@ -17,6 +18,7 @@ namespace turbio {
 namespace {
 
 using openvdb::Coord;
+using turb::newGrid;
 
 Coord blockOf(const Coord& c, const turb::Coord& f)
 {
@@ -29,8 +31,8 @@ openvdb::GridBase::Ptr blockMean(const GridT& in, const turb::Coord& f)
 {
     using V = typename GridT::ValueType;
     const V background = in.background();
-    auto sum = GridT::create(openvdb::zeroVal<V>());
-    auto count = openvdb::Int32Grid::create(0);
+    auto sum = newGrid<GridT>(openvdb::zeroVal<V>());
+    auto count = newGrid<openvdb::Int32Grid>(0);
     {
         auto sumAcc = sum->getAccessor();
         auto countAcc = count->getAccessor();
@@ -42,7 +44,7 @@ openvdb::GridBase::Ptr blockMean(const GridT& in, const turb::Coord& f)
         });
     }
     const double n = double(f.x()) * f.y() * f.z();
-    auto out = GridT::create(background);
+    auto out = newGrid<GridT>(background);
     auto outAcc = out->getAccessor();
     auto sumAcc = sum->getConstAccessor();
     for (auto it = count->cbeginValueOn(); it; ++it) {
@@ -57,7 +59,7 @@ openvdb::GridBase::Ptr blockMean(const GridT& in, const turb::Coord& f)
 template<typename GridT>
 openvdb::GridBase::Ptr blockCentre(const GridT& in, const turb::Coord& f)
 {
-    auto out = GridT::create(in.background());
+    auto out = newGrid<GridT>(in.background());
     auto outAcc = out->getAccessor();
     auto inAcc = in.getConstAccessor();
     turbio::detail::forEachActiveVoxel(in, [&](const Coord& voxel, const typename GridT::ValueType&) {
@@ -112,7 +114,7 @@ openvdb::GridBase::Ptr rotatedGrid(const GridT& in, const turb::AxisRotation& r)
     std::transform(name.begin(), name.end(), name.begin(), [](unsigned char ch) { return char(std::tolower(ch)); });
     const bool rotateValues =
         name != "cd" && name.find("color") == std::string::npos && name.find("colour") == std::string::npos;
-    auto out = GridT::create(turned(in.background(), r, rotateValues));
+    auto out = newGrid<GridT>(turned(in.background(), r, rotateValues));
     auto outAcc = out->getAccessor();
     turbio::detail::forEachActiveVoxel(in, [&](const Coord& o, const typename GridT::ValueType& value) {
         // As turb::rotated: output voxel c takes input voxel o with o[perm[i]] = sign[i] c[i].

@@ -8,6 +8,7 @@
 
 #include <turb/Metadata.h>
 #include <turb/Error.h>
+#include <turb/NewGrid.h>
 #include <turb/Parallel.h>
 #include <turb/Operators.h>
 #include <turb/Resample.h>
@@ -44,6 +45,7 @@ namespace turbio {
 
 using detail::cleanMessage;
 using turb::IoError;
+using turb::newGrid;
 
 namespace {
 
@@ -431,7 +433,7 @@ openvdb::Vec3SGrid::Ptr asVec3Grid(const std::string& path, const openvdb::GridB
     if (auto vg = openvdb::gridPtrCast<openvdb::Vec3SGrid>(g)) return vg;
     if (auto dg = openvdb::gridPtrCast<openvdb::Vec3DGrid>(g)) {
         // OpenVDB's converting tree constructor refuses vec3d -> vec3s; copy values instead.
-        auto out = openvdb::Vec3SGrid::create(openvdb::Vec3s(dg->background()));
+        auto out = newGrid<openvdb::Vec3SGrid>(openvdb::Vec3s(dg->background()));
         auto acc = out->getAccessor();
         for (auto it = dg->cbeginValueOn(); it; ++it) {
             if (it.isVoxelValue()) acc.setValue(it.getCoord(), openvdb::Vec3s(*it));
@@ -1868,7 +1870,7 @@ openvdb::math::Transform::Ptr transformOf(const turb::Lattice& l)
 template<typename GridT, typename T>
 typename GridT::Ptr fieldToGrid(const turb::Field<T>& field, const T& tolerance)
 {
-    auto grid = GridT::create(turb::Field<T>::zeroValue());
+    auto grid = newGrid<GridT>(turb::Field<T>::zeroValue());
     // copyFromDense only reads; Dense has no const-value variant.
     openvdb::tools::Dense<T, openvdb::tools::LayoutZYX> dense(field.bbox(), const_cast<T*>(field.data()));
     openvdb::tools::copyFromDense(dense, *grid, tolerance);
@@ -1926,7 +1928,7 @@ openvdb::Vec3SGrid::Ptr centredToStaggered(const turb::VectorField& v, float sca
 // this mask dilated by options.velocityMargin.
 openvdb::MaskGrid::Ptr smokeMask(const turb::Frame& frame, const WriteOptions& options)
 {
-    auto mask = openvdb::MaskGrid::create(false);
+    auto mask = newGrid<openvdb::MaskGrid>(false);
     mask->setTransform(transformOf(frame.lattice()));
     {
         auto acc = mask->getAccessor();
@@ -1944,7 +1946,7 @@ openvdb::MaskGrid::Ptr smokeMask(const turb::Frame& frame, const WriteOptions& o
 template<typename GridT, typename T>
 typename GridT::Ptr maskedGrid(const turb::Field<T>& field, const openvdb::MaskGrid& mask)
 {
-    auto g = GridT::create(turb::Field<T>::zeroValue());
+    auto g = newGrid<GridT>(turb::Field<T>::zeroValue());
     g->setTransform(transformOf(field.lattice()));
     auto out = g->getAccessor();
     const turb::CoordBBox& box = field.bbox();
@@ -1961,7 +1963,7 @@ openvdb::Vec3SGrid::Ptr coarseVelocityGrid(const turb::VectorField& velocity, in
 {
     const turb::VectorField coarse = turb::boxDownsample(velocity, scale);
     if (!near) return fieldToGrid<openvdb::Vec3SGrid>(coarse, turb::Vec3f(0.0f));
-    auto mask = openvdb::MaskGrid::create(false);
+    auto mask = newGrid<openvdb::MaskGrid>(false);
     mask->setTransform(transformOf(coarse.lattice()));
     auto acc = mask->getAccessor();
     const bool flat = turb::isFlat(velocity.bbox());
