@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 #include <openvdb/io/File.h>
 #include <openvdb/openvdb.h>
+#include <turb/NewGrid.h>
 #include <openvdb/points/PointConversion.h>
 #include <openvdb/tools/LevelSetSphere.h>
 
@@ -29,7 +30,7 @@ openvdb::math::Transform::Ptr xform(double voxel) { return openvdb::math::Transf
 openvdb::FloatGrid::Ptr fog(const std::string& name, float value, const openvdb::CoordBBox& box = kBox16,
     double voxel = 0.1, float background = 0.0f)
 {
-    auto g = openvdb::FloatGrid::create(background);
+    auto g = turb::newGrid<openvdb::FloatGrid>(background);
     g->setName(name);
     g->setGridClass(openvdb::GRID_FOG_VOLUME);
     g->setTransform(xform(voxel));
@@ -40,7 +41,7 @@ openvdb::FloatGrid::Ptr fog(const std::string& name, float value, const openvdb:
 openvdb::Vec3SGrid::Ptr vec(const std::string& name, const openvdb::Vec3s& value,
     const openvdb::CoordBBox& box = kBox16, double voxel = 0.1, const openvdb::Vec3s& background = openvdb::Vec3s(0.0f))
 {
-    auto g = openvdb::Vec3SGrid::create(background);
+    auto g = turb::newGrid<openvdb::Vec3SGrid>(background);
     g->setName(name);
     g->setTransform(xform(voxel));
     g->setVectorType(openvdb::VEC_CONTRAVARIANT_RELATIVE);
@@ -332,16 +333,16 @@ TEST(RealWorld2, ActiveTilesReadAsTheirValues)
     testutil::TempDir dir;
     openvdb::initialize();
     const openvdb::CoordBBox box({0, 0, 0}, {63, 63, 63});
-    auto d = openvdb::FloatGrid::create(0.0f);
+    auto d = turb::newGrid<openvdb::FloatGrid>(0.0f);
     d->setName("density");
     d->setGridClass(openvdb::GRID_FOG_VOLUME);
     d->setTransform(xform(0.1));
     d->fill(box, 0.5f, true);
-    auto v = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.0f));
+    auto v = turb::newGrid<openvdb::Vec3SGrid>(openvdb::Vec3s(0.0f));
     v->setName("vel");
     v->setTransform(xform(0.1));
     v->fill(box, openvdb::Vec3s(0.0f, 0.0f, 1.5f), true);
-    auto vd = openvdb::Vec3DGrid::create(openvdb::Vec3d(0.0));
+    auto vd = turb::newGrid<openvdb::Vec3DGrid>(openvdb::Vec3d(0.0));
     vd->setName("vel");
     vd->setTransform(xform(0.1));
     vd->fill(box, openvdb::Vec3d(0.0, 0.0, 1.5), true);

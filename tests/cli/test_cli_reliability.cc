@@ -8,6 +8,7 @@
 #include <turbio/Vdb.h>
 
 #include <openvdb/openvdb.h>
+#include <turb/NewGrid.h>
 #include <openvdb/io/File.h>
 
 #include <fstream>
@@ -76,10 +77,10 @@ TEST(CliReliability, UnnamedGridsAreListedWithTheirOwnValuesAndCanBeChosen)
 {
     testutil::TempDir dir;
     openvdb::initialize();
-    auto d = openvdb::FloatGrid::create(0.0f);
+    auto d = turb::newGrid<openvdb::FloatGrid>(0.0f);
     d->fill(openvdb::CoordBBox({0, 0, 0}, {7, 7, 7}), 0.5f, true);
     d->setGridClass(openvdb::GRID_FOG_VOLUME);
-    auto v = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.0f));
+    auto v = turb::newGrid<openvdb::Vec3SGrid>(openvdb::Vec3s(0.0f));
     v->fill(openvdb::CoordBBox({0, 0, 0}, {7, 7, 7}), openvdb::Vec3s(0.0f, 0.0f, 2.0f), true);
     writeGrids(dir / "convert.vdb", {d, v});
 
@@ -135,11 +136,11 @@ TEST(CliReliability, HoudiniVelocityVoxelScaleIsReadAndSaidOnce)
 {
     testutil::TempDir dir;
     openvdb::initialize();
-    auto d = openvdb::FloatGrid::create(0.0f);
+    auto d = turb::newGrid<openvdb::FloatGrid>(0.0f);
     d->fill(openvdb::CoordBBox({0, 0, 0}, {15, 15, 15}), 0.5f, true);
     d->setName("density");
     d->setTransform(openvdb::math::Transform::createLinearTransform(0.1));
-    auto v = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.0f));
+    auto v = turb::newGrid<openvdb::Vec3SGrid>(openvdb::Vec3s(0.0f));
     v->fill(openvdb::CoordBBox({0, 0, 0}, {7, 7, 7}), openvdb::Vec3s(1.0f, 0.0f, 0.0f), true);
     v->setName("vel");
     v->setTransform(openvdb::math::Transform::createLinearTransform(0.2));
@@ -796,12 +797,12 @@ TEST(FarmNode, AFileOfTenThousandGridsIsListedInBoundedMemory)
     testutil::TempDir dir;
     {
         openvdb::GridPtrVec grids;
-        auto density = openvdb::FloatGrid::create(0.0f);
+        auto density = turb::newGrid<openvdb::FloatGrid>(0.0f);
         density->setName("density");
         density->tree().setValueOn(openvdb::Coord(1, 1, 1), 1.0f);
         grids.push_back(density);
         for (int i = 0; i < 10000; ++i) {
-            auto g = openvdb::FloatGrid::create(0.0f);
+            auto g = turb::newGrid<openvdb::FloatGrid>(0.0f);
             g->setName("g" + std::to_string(i));
             g->tree().setValueOn(openvdb::Coord(i % 10, 0, 0), 1.0f);
             grids.push_back(g);

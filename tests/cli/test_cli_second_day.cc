@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 #include <openvdb/io/File.h>
 #include <openvdb/openvdb.h>
+#include <turb/NewGrid.h>
 
 #include <filesystem>
 #include <fstream>
@@ -157,13 +158,13 @@ void writeTwinDensities(const std::string& path, const std::string& writer)
         return;
     }
     const auto dens = [](int n, float v) {
-        auto g = openvdb::FloatGrid::create(0.0f);
+        auto g = turb::newGrid<openvdb::FloatGrid>(0.0f);
         g->setName("density");
         g->setTransform(openvdb::math::Transform::createLinearTransform(0.1));
         g->fill(openvdb::CoordBBox(openvdb::Coord(0), openvdb::Coord(n - 1)), v);
         return g;
     };
-    auto vel = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.0f));
+    auto vel = turb::newGrid<openvdb::Vec3SGrid>(openvdb::Vec3s(0.0f));
     vel->setName("vel");
     vel->setTransform(openvdb::math::Transform::createLinearTransform(0.1));
     vel->fill(openvdb::CoordBBox(openvdb::Coord(0), openvdb::Coord(7)), openvdb::Vec3s(0.0f, 0.0f, 1.0f));
@@ -589,10 +590,10 @@ TEST(FarmNode, ATreeOfActiveTilesOverTwoBillionVoxelsIsListedAndRefusedClearly)
     testutil::TempDir dir;
     {
         const openvdb::CoordBBox box(openvdb::Coord(0), openvdb::Coord(1289));
-        auto density = openvdb::FloatGrid::create(0.0f);
+        auto density = turb::newGrid<openvdb::FloatGrid>(0.0f);
         density->setName("density");
         density->tree().fill(box, 0.5f, true);
-        auto vel = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.0f));
+        auto vel = turb::newGrid<openvdb::Vec3SGrid>(openvdb::Vec3s(0.0f));
         vel->setName("vel");
         vel->tree().fill(box, openvdb::Vec3s(0, 0, 1), true);
         ASSERT_EQ(density->activeVoxelCount(), openvdb::Index64(1290) * 1290 * 1290);

@@ -6,6 +6,7 @@
 #include <turbio/NanoVdb.h>
 
 #include <openvdb/openvdb.h>
+#include <turb/NewGrid.h>
 #include <openvdb/io/File.h>
 
 #include <cmath>
@@ -87,8 +88,8 @@ struct Grids
 Grids makeFrame(int n, double voxel, const openvdb::Vec3d& origin, int frame, bool detail)
 {
     Grids g;
-    g.density = openvdb::FloatGrid::create(0.0f);
-    g.vel = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.0f));
+    g.density = turb::newGrid<openvdb::FloatGrid>(0.0f);
+    g.vel = turb::newGrid<openvdb::Vec3SGrid>(openvdb::Vec3s(0.0f));
     auto da = g.density->getAccessor();
     auto va = g.vel->getAccessor();
     for (int i = 0; i < n; ++i)
@@ -302,7 +303,7 @@ void makeCase(const Case& c, const std::string& dir)
     } else if (name == "int32_density") {
         world1(dir, 3, 0);
         Grids t = target(2);
-        auto i = openvdb::Int32Grid::create(0);
+        auto i = turb::newGrid<openvdb::Int32Grid>(0);
         i->fill(openvdb::CoordBBox(openvdb::Coord(0), openvdb::Coord(7)), 1, true);
         i->setName("density");
         i->setTransform(t.density->transform().copy());
@@ -310,7 +311,7 @@ void makeCase(const Case& c, const std::string& dir)
     } else if (name == "float_vel") {
         world1(dir, 3, 0);
         Grids t = target(2);
-        auto f = openvdb::FloatGrid::create(0.0f);
+        auto f = turb::newGrid<openvdb::FloatGrid>(0.0f);
         f->fill(openvdb::CoordBBox(openvdb::Coord(0), openvdb::Coord(7)), 1.0f, true);
         f->setName("vel");
         f->setTransform(t.vel->transform().copy());
@@ -376,7 +377,7 @@ void makeCase(const Case& c, const std::string& dir)
             if (mismatch) {
                 grids.push_back(t.density);
             } else {
-                auto d = openvdb::DoubleGrid::create(0.0);
+                auto d = turb::newGrid<openvdb::DoubleGrid>(0.0);
                 for (auto it = t.density->cbeginValueOn(); it; ++it) d->tree().setValue(it.getCoord(), double(*it));
                 d->setName("density");
                 d->setGridClass(openvdb::GRID_FOG_VOLUME);
@@ -384,7 +385,7 @@ void makeCase(const Case& c, const std::string& dir)
                 grids.push_back(d);
             }
             for (int a = 0; a < 3; ++a) {
-                auto c = openvdb::FloatGrid::create(0.0f);
+                auto c = turb::newGrid<openvdb::FloatGrid>(0.0f);
                 for (auto it = t.vel->cbeginValueOn(); it; ++it) c->tree().setValue(it.getCoord(), (*it)[a]);
                 c->setName(std::string("vel.") + "xyz"[a]);
                 c->setTransform(xform(mismatch && a == 2 ? 2 * kCoarse : kCoarse, kOrigin));

@@ -10,6 +10,7 @@
 #include <turbio/Vdb.h>
 
 #include <openvdb/openvdb.h>
+#include <turb/NewGrid.h>
 #include <openvdb/io/File.h>
 
 #include <nanovdb/NanoVDB.h>
@@ -184,8 +185,8 @@ TEST(NanoVdbInput, QuantisedVectorAndCompressedGridsReadAndOtherTypesAreRefused)
     openvdb::initialize();
     auto xf = openvdb::math::Transform::createLinearTransform(0.1);
     xf->postTranslate(openvdb::Vec3d(0.3, -0.2, 1.0));
-    auto density = openvdb::FloatGrid::create(0.0f);
-    auto flags = openvdb::Int32Grid::create(0);
+    auto density = turb::newGrid<openvdb::FloatGrid>(0.0f);
+    auto flags = turb::newGrid<openvdb::Int32Grid>(0);
     // NanoVDB 10.0.1 converts no OpenVDB vec3d grid: its own builder makes one.
     const auto velocity = [] {
         nanovdb::GridBuilder<nanovdb::Vec3d> builder(nanovdb::Vec3d(0.0));

@@ -8,6 +8,7 @@
 #include <turbio/Vdb.h>
 
 #include <openvdb/openvdb.h>
+#include <turb/NewGrid.h>
 #include <openvdb/io/File.h>
 
 #include <cmath>
@@ -70,11 +71,11 @@ void writeCache(const std::string& path, const CacheSpec& s)
 {
     openvdb::initialize();
     const auto xform = openvdb::math::Transform::createLinearTransform(s.voxel);
-    auto den = openvdb::FloatGrid::create(0.0f);
+    auto den = turb::newGrid<openvdb::FloatGrid>(0.0f);
     den->setName("density");
     den->setGridClass(openvdb::GRID_FOG_VOLUME);
     den->setTransform(xform);
-    auto vel = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.0f));
+    auto vel = turb::newGrid<openvdb::Vec3SGrid>(openvdb::Vec3s(0.0f));
     vel->setName("vel");
     vel->setVectorType(openvdb::VEC_CONTRAVARIANT_RELATIVE);
     vel->setTransform(xform);

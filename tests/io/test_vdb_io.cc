@@ -9,6 +9,7 @@
 #include <turb/Parallel.h>
 
 #include <openvdb/openvdb.h>
+#include <turb/NewGrid.h>
 #include <openvdb/io/File.h>
 
 #include <algorithm>
@@ -44,7 +45,7 @@ openvdb::math::Transform::Ptr xform(double vs, openvdb::Vec3d t = openvdb::Vec3d
 
 openvdb::FloatGrid::Ptr densityBox(const openvdb::CoordBBox& b, float v, double vs = 0.1)
 {
-    auto g = openvdb::FloatGrid::create(0.0f);
+    auto g = turb::newGrid<openvdb::FloatGrid>(0.0f);
     g->fill(b, v, true);
     g->tree().voxelizeActiveTiles();
     g->setName("density");
@@ -61,7 +62,7 @@ double linear(int comp, const openvdb::Vec3d& x) { return kA[comp].dot(x) + kC[c
 
 openvdb::Vec3SGrid::Ptr linearMac(const openvdb::CoordBBox& b, const std::string& name, double vs)
 {
-    auto g = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.0f));
+    auto g = turb::newGrid<openvdb::Vec3SGrid>(openvdb::Vec3s(0.0f));
     auto acc = g->getAccessor();
     for (auto c = b.begin(); c; ++c) {
         openvdb::Vec3s v;
@@ -186,7 +187,7 @@ TEST(TimeUnits, BlenderVelocityIsWrittenPerSecondForHoudiniAndInBlendersUnitForB
 {
     testutil::TempDir dir;
     const openvdb::CoordBBox box({0, 0, 0}, {3, 3, 3});
-    auto v = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.0f));
+    auto v = turb::newGrid<openvdb::Vec3SGrid>(openvdb::Vec3s(0.0f));
     v->setName("velocity");
     v->setGridClass(openvdb::GRID_STAGGERED);
     v->setTransform(openvdb::math::Transform::createLinearTransform(0.25));
@@ -396,11 +397,11 @@ TEST(RoundTrip, BlenderStyleUpResSitsWhereBlendersOwnCacheOfTheDomainDoes)
 TEST(RoundTrip, HalfFloatAndDoubleInputsAreRead)
 {
     testutil::TempDir dir;
-    auto d = openvdb::DoubleGrid::create(0.0);
+    auto d = turb::newGrid<openvdb::DoubleGrid>(0.0);
     d->fill(openvdb::CoordBBox({0, 0, 0}, {3, 3, 3}), 0.123456789, true);
     d->setName("density");
     d->setTransform(xform(0.1));
-    auto v = openvdb::Vec3DGrid::create(openvdb::Vec3d(0.0));
+    auto v = turb::newGrid<openvdb::Vec3DGrid>(openvdb::Vec3d(0.0));
     v->fill(openvdb::CoordBBox({0, 0, 0}, {3, 3, 3}), openvdb::Vec3d(1.0, 2.0, 3.0), true);
     v->setName("vel");
     v->setTransform(xform(0.1));
@@ -423,7 +424,7 @@ TEST(RoundTrip, ThreeComponentGridsFormOneVelocity)
     openvdb::GridPtrVec grids;
     const char* names[3] = {"vel.x", "vel.y", "vel.z"};
     for (int a = 0; a < 3; ++a) {
-        auto g = openvdb::FloatGrid::create(0.0f);
+        auto g = turb::newGrid<openvdb::FloatGrid>(0.0f);
         g->fill(openvdb::CoordBBox({0, 0, 0}, {2, 2, 2}), float(a + 1), true);
         g->setName(names[a]);
         g->setTransform(xform(0.1));
@@ -501,8 +502,8 @@ TEST(BadInput, EveryErrorNamesTheFileAndTheProblem)
     EXPECT_NE(nanMsg.find("NaN"), std::string::npos) << nanMsg;
 
     // Velocity components on different lattices cannot form one vector.
-    auto cx = openvdb::FloatGrid::create(0.0f), cy = openvdb::FloatGrid::create(0.0f),
-         cz = openvdb::FloatGrid::create(0.0f);
+    auto cx = turb::newGrid<openvdb::FloatGrid>(0.0f), cy = turb::newGrid<openvdb::FloatGrid>(0.0f),
+         cz = turb::newGrid<openvdb::FloatGrid>(0.0f);
     for (auto* c : {&cx, &cy, &cz}) (*c)->fill(openvdb::CoordBBox({0, 0, 0}, {2, 2, 2}), 1.0f, true);
     cx->setName("vel.x");
     cy->setName("vel.y");
@@ -524,7 +525,7 @@ TEST(BadInput, EveryErrorNamesTheFileAndTheProblem)
     EXPECT_NE(errorOf([&] { readFrame(dir / "rot.vdb", 1, anyGrids()); }).find("uniform voxels"), std::string::npos);
 
     // An Int32 grid named as density is a type error; otherwise Int32 grids are ignored.
-    auto flags = openvdb::Int32Grid::create(0);
+    auto flags = turb::newGrid<openvdb::Int32Grid>(0);
     flags->fill(openvdb::CoordBBox({0, 0, 0}, {2, 2, 2}), 3, true);
     flags->setName("flags");
     flags->setTransform(xform(0.1));
@@ -541,7 +542,7 @@ TEST(Lattices, HoudiniVelocityVoxelScaleIsResampledOntoTheDensity)
     // origin. Velocity is the linear field u(x) = A x + c (world units), which trilinear resampling keeps exactly.
     testutil::TempDir dir;
     auto d = densityBox(openvdb::CoordBBox({0, 0, 0}, {9, 9, 9}), 0.5f, 0.1);
-    auto v = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.0f));
+    auto v = turb::newGrid<openvdb::Vec3SGrid>(openvdb::Vec3s(0.0f));
     auto acc = v->getAccessor();
     for (auto c = openvdb::CoordBBox({-1, -1, -1}, {6, 6, 6}).begin(); c; ++c) {
         const openvdb::Vec3d x = openvdb::Vec3d((*c).x(), (*c).y(), (*c).z()) * 0.2;
@@ -580,7 +581,7 @@ TEST(GridIdentity, UnnamedGridsKeepTheirOwnStatisticsAndCanBeChosen)
     auto d = densityBox(openvdb::CoordBBox({0, 0, 0}, {3, 3, 3}), 0.25f);
     d->tree().setValue(openvdb::Coord(1, 1, 1), 0.875f);
     d->setName("");
-    auto v = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.0f));
+    auto v = turb::newGrid<openvdb::Vec3SGrid>(openvdb::Vec3s(0.0f));
     v->fill(openvdb::CoordBBox({0, 0, 0}, {3, 3, 3}), openvdb::Vec3s(0.6f, 0.8f, 0.0f), true); // |v| = 1
     v->tree().setValue(openvdb::Coord(2, 2, 2), openvdb::Vec3s(0.0f, 1.2f, 0.0f));             // |v| = 1.2
     v->setTransform(xform(0.1));
@@ -825,7 +826,7 @@ TEST(Checksum, SameValuesGiveTheSameFingerprintWhateverTheFileAndOneVoxelChanges
     testutil::TempDir dir;
     const openvdb::CoordBBox box(openvdb::Coord(0), openvdb::Coord(15));
     const auto tiled = [&] {
-        auto g = openvdb::FloatGrid::create(0.0f);
+        auto g = turb::newGrid<openvdb::FloatGrid>(0.0f);
         g->fill(box, 0.5f, true); // 8^3 leaves become tiles: the same voxels in another layout
         g->setGridClass(openvdb::GRID_FOG_VOLUME);
         g->setName("density");
