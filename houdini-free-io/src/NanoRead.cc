@@ -233,14 +233,15 @@ openvdb::GridBase::Ptr convert(const nanovdb::GridHandle<>& h, const std::string
 // An empty grid of the OpenVDB type a NanoVDB grid of `nanoType` is read as, for a header.
 openvdb::GridBase::Ptr emptyGridFor(const std::string& nanoType)
 {
-    static const std::map<std::string, openvdb::Name> types = {{"double", openvdb::DoubleGrid::gridType()},
-        {"vec3f", openvdb::Vec3SGrid::gridType()}, {"vec3d", openvdb::Vec3DGrid::gridType()},
-        {"int32", openvdb::Int32Grid::gridType()}, {"int64", openvdb::Int64Grid::gridType()},
-        {"bool", openvdb::BoolGrid::gridType()}, {"mask", openvdb::MaskGrid::gridType()}};
-    openvdb::initialize();
-    const auto it = types.find(nanoType);
-    // float and its quantised forms (a header of any other type says it)
-    return openvdb::GridBase::createGrid(it == types.end() ? openvdb::FloatGrid::gridType() : it->second);
+    if (nanoType == "double") return turb::newGrid<openvdb::DoubleGrid>(0.0);
+    if (nanoType == "vec3f") return turb::newGrid<openvdb::Vec3SGrid>(openvdb::Vec3s(0.0f));
+    if (nanoType == "vec3d") return turb::newGrid<openvdb::Vec3DGrid>(openvdb::Vec3d(0.0));
+    if (nanoType == "int32") return turb::newGrid<openvdb::Int32Grid>(0);
+    if (nanoType == "int64") return turb::newGrid<openvdb::Int64Grid>(0);
+    if (nanoType == "bool") return turb::newGrid<openvdb::BoolGrid>(false);
+    if (nanoType == "mask") return turb::newGrid<openvdb::MaskGrid>(false);
+    return turb::newGrid<openvdb::FloatGrid>(
+        0.0f); // float and its quantised forms (a header of any other type says it)
 }
 
 openvdb::GridClass classOf(const std::string& nanoClass)
